@@ -1,0 +1,27 @@
+# The two commands of the README. Both work on a fresh machine with only python3.
+PY ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed-stamp
+
+.PHONY: demo test install benchmarks figures clean
+
+$(STAMP): pyproject.toml
+	$(PY) -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade pip
+	$(BIN)/python -m pip install -q -e '.[test]'
+	touch $(STAMP)
+
+install: $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/jaxlimb demo
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q tests
+
+benchmarks: $(STAMP)
+	$(BIN)/python benchmarks/solvers.py
+
+clean:
+	rm -rf $(VENV) build *.egg-info

@@ -1,0 +1,50 @@
+"""Shared helpers of the benchmark scripts: environment record and JSON output."""
+
+from __future__ import annotations
+
+import os
+import platform
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def environment() -> dict[str, Any]:
+    """Git SHA, versions and machine, recorded beside every benchmark result."""
+    import jax
+    import numpy
+    import optimistix
+    import scipy
+
+    try:
+        sha = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True,
+            cwd=Path(__file__).resolve().parent,
+        ).stdout.strip()
+        dirty = bool(subprocess.run(["git", "status", "--porcelain"], capture_output=True, text=True,
+                                    cwd=Path(__file__).resolve().parent).stdout.strip())
+    except (OSError, subprocess.CalledProcessError):
+        sha, dirty = "unknown", False
+    return {
+        "git_sha": sha + ("-dirty" if dirty else ""),
+        "python": sys.version.split()[0],
+        "jax": jax.__version__,
+        "optimistix": optimistix.__version__ if hasattr(optimistix, "__version__") else "unknown",
+        "numpy": numpy.__version__,
+        "scipy": scipy.__version__,
+        "machine": platform.machine(),
+        "cpu_count": os.cpu_count(),
+        "jax_devices": [str(d) for d in jax.devices()],
+    }
+
+
+def save(name: str, obj: dict[str, Any]) -> Path:
+    """Write ``benchmarks/results/<name>.json`` atomically and return the path."""
+    from jaxlimb._io import write_json_atomic
+
+    path = RESULTS / f"{name}.json"
+    write_json_atomic(path, obj)
+    return path

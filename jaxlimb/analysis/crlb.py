@@ -1,0 +1,212 @@
+r"""Fisher information and Cramér--Rao lower bounds for the sigmoid limb models.
+
+For pixel intensities :math:`z_i = f(\theta, x_i) + \epsilon_i` with independent
+Gaussian noise of standard deviation :math:`\sigma_i`, the Fisher information of
+the free parameters is
+
+.. math:: F = J^\top \Sigma^{-1} J, \qquad J_{ij} = \partial f(\theta, x_i)/\partial\theta_j,
+
+and any unbiased estimator has :math:`\mathrm{Cov}(\hat\theta) \succeq F^{-1}`.
+``J`` is the paper's analytic Jacobian (Eq. 14, 17, Sec. V-C of Mortari et al.
+2016), evaluated at the *true* parameters.  With Poisson (shot) noise the
+per-pixel variance is :math:`\sigma_{read}^2 + f_i / g` (``gain`` in DN per
+electron), which the optional ``poisson_gain`` adds.
+
+Bounds on derived quantities (delta method)
+-------------------------------------------
+
+A smooth function :math:`g(\theta)` of an estimate with covariance :math:`C` has, to first
+order, the covariance :math:`G C G^\top` with :math:`G = \partial g/\partial\theta` (the
+delta method).  Applied to the Cramér--Rao bound it gives the bound on :math:`g` for
+unbiased estimators of :math:`g` (the CRLB transforms the same way), and applied to the
+Laplace covariance of a fit it gives the reported uncertainty of the line of sight and
+range.  For a circle fit, :math:`g` maps ``(r0, c0, radius)`` to the body-centre line of
+sight in the camera frame and the range of a sphere of radius :math:`R`
+(:func:`jaxlimb.geometry.navigation.sphere_from_circle`: exact off-axis geometry, not the
+boresight-only Eq. 36 of the Aerospace 2015 paper).  That map is not written in JAX, so
+its Jacobian is taken by central differences (:func:`numerical_jacobian`); on the
+boresight the range part reduces to Eq. 38 of the 2015 paper, which the tests check.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import jax.numpy as jnp
+import numpy as np
+
+from ..errors import LimbInputError
+from ..models import LimbModel, LimbParams
+
+
+@dataclass(frozen=True)
+class CramerRao:
+    """The bound: names of the free parameters, Fisher matrix, its inverse and the 1-sigma bounds."""
+
+    free: tuple[str, ...]
+    fisher: np.ndarray
+    covariance: np.ndarray
+
+    @property
+    def std(self) -> dict[str, float]:
+        return {n: float(np.sqrt(self.covariance[i, i])) for i, n in enumerate(self.free)}
+
+
+def pixel_variance(model: LimbModel, coords: np.ndarray, truth: LimbParams, sigma: float,
+                   poisson_gain: float | None = None) -> np.ndarray:
+    """Per-pixel noise variance: read noise ``sigma**2`` plus shot noise ``f / gain`` if given."""
+    var = np.full(np.shape(coords)[0], float(sigma) ** 2)
+    if poisson_gain is not None:
+        if poisson_gain <= 0:
+            raise LimbInputError(f"`poisson_gain` must be > 0, got {poisson_gain!r}")
+        f = np.asarray(model.intensity(truth, jnp.asarray(coords)))
+        var = var + np.maximum(f, 0.0) / poisson_gain
+    return var
+
+
+def crlb(model: LimbModel, coords: np.ndarray, truth: LimbParams, sigma: float, *,
+         fixed: Sequence[str] = (), poisson_gain: float | None = None) -> CramerRao:
+    """Cramér--Rao bound of the free parameters of ``model`` for these pixels and noise."""
+    if not (np.isfinite(sigma) and sigma > 0):
+        raise LimbInputError(f"`sigma` must be a finite number > 0, got {sigma!r}")
+    free_idx = model.free_indices(fixed)
+    jac = np.asarray(model.jacobian(truth, jnp.asarray(coords)))[:, list(free_idx)]
+    var = pixel_variance(model, coords, truth, sigma, poisson_gain)
+    fisher = jac.T @ (jac / var[:, None])
+    cov = np.linalg.inv(fisher)
+    return CramerRao(tuple(model.param_names[i] for i in free_idx), fisher, cov)
+
+
+# =============================================================================== derived quantities
+
+
+def delta_method(cov: np.ndarray, jacobian: np.ndarray) -> np.ndarray:
+    """Covariance ``G C G^T`` of ``g(theta)`` for ``Cov(theta) = cov`` and ``G = dg/dtheta``.
+
+    Parameters
+    ----------
+    cov : ``(p, p)`` symmetric covariance of the parameters.
+    jacobian : ``(m, p)`` Jacobian of the derived quantities (``(p,)`` for a scalar ``g``).
+
+    Returns
+    -------
+    ``(m, m)`` covariance (``(1, 1)`` for a scalar ``g``).
+
+    Raises
+    ------
+    LimbInputError
+        Shapes that do not match, or non-finite entries.
+    """
+    c = np.asarray(cov, dtype=float)
+    g = np.atleast_2d(np.asarray(jacobian, dtype=float))
+    if c.ndim != 2 or c.shape[0] != c.shape[1]:
+        raise LimbInputError(f"`cov` must be a square (p, p) matrix, got shape {c.shape}")
+    if g.shape[-1] != c.shape[0]:
+        raise LimbInputError(f"`jacobian` must have {c.shape[0]} columns to match `cov`, got shape {g.shape}")
+    if not (np.all(np.isfinite(c)) and np.all(np.isfinite(g))):
+        raise LimbInputError("`cov` and `jacobian` must be finite")
+    out = g @ c @ g.T
+    return 0.5 * (out + out.T)
+
+
+def numerical_jacobian(fn, x: np.ndarray, step: np.ndarray | float = 1e-4) -> np.ndarray:  # noqa: ANN001
+    """Central-difference Jacobian ``(m, p)`` of ``fn: (p,) -> (m,)`` at ``x`` (error ``O(step^2)``)."""
+    x = np.asarray(x, dtype=float)
+    h = np.broadcast_to(np.asarray(step, dtype=float), x.shape)
+    if np.any(h <= 0):
+        raise LimbInputError(f"`step` must be > 0, got {step!r}")
+    cols = []
+    for i in range(x.size):
+        e = np.zeros_like(x)
+        e[i] = h[i]
+        cols.append((np.atleast_1d(fn(x + e)) - np.atleast_1d(fn(x - e))) / (2.0 * h[i]))
+    return np.stack(cols, axis=-1)
+
+
+@dataclass(frozen=True)
+class LosRangeBound:
+    """Line of sight and range of a sphere from a circle fit, with their delta-method covariance.
+
+    Attributes
+    ----------
+    los_camera : unit vector toward the body centre, camera frame.
+    range_km : range to the body centre.
+    covariance : ``(4, 4)`` covariance of ``(los_x, los_y, los_z, range_km)``.
+    jacobian : ``(4, 3)`` ``d(los, range)/d(r0, c0, radius)``.
+    """
+
+    los_camera: np.ndarray
+    range_km: float
+    covariance: np.ndarray
+    jacobian: np.ndarray
+
+    @property
+    def sigma_range_km(self) -> float:
+        return float(np.sqrt(self.covariance[3, 3]))
+
+    @property
+    def sigma_los_rad(self) -> float:
+        """Total angular 1-sigma of the LOS: ``sqrt(trace(Cov(u)))`` (u is unit, so this is the
+        root-sum-square of the two tangential angle sigmas, radians)."""
+        return float(np.sqrt(np.trace(self.covariance[:3, :3])))
+
+    def as_dict(self) -> dict[str, object]:
+        return {
+            "los_camera": self.los_camera.tolist(),
+            "range_km": self.range_km,
+            "sigma_range_km": self.sigma_range_km,
+            "sigma_los_rad": self.sigma_los_rad,
+            "sigma_los_arcsec": self.sigma_los_rad * 180.0 / np.pi * 3600.0,
+            "covariance": self.covariance.tolist(),
+        }
+
+
+def los_range_bound(camera, center_rc, radius_px: float, cov_center_radius: np.ndarray,  # noqa: ANN001
+                    body_radius_km: float, step_px: float = 1e-3) -> LosRangeBound:
+    """Delta-method covariance of the body-centre LOS and range from a circle fit.
+
+    Parameters
+    ----------
+    camera : a :class:`~jaxlimb.geometry.camera.Camera` (pinhole).
+    center_rc, radius_px : the fitted circle (image of the limb).
+    cov_center_radius : ``(3, 3)`` covariance of ``(r0, c0, radius)`` -- the CRLB
+        (:func:`crlb` ``.covariance`` restricted to these) or a fit's Laplace covariance.
+    body_radius_km : radius of the sphere.
+    step_px : central-difference step (px); the map is smooth on the pixel scale, so the
+        truncation error ``O(step^2)`` is far below the rounding of ``sphere_from_circle``.
+
+    Returns
+    -------
+    LosRangeBound
+    """
+    from ..geometry.navigation import sphere_from_circle
+
+    x0 = np.array([float(center_rc[0]), float(center_rc[1]), float(radius_px)])
+    cov = np.asarray(cov_center_radius, dtype=float)
+    if cov.shape != (3, 3):
+        raise LimbInputError(f"`cov_center_radius` must be (3, 3) over (r0, c0, radius), got shape {cov.shape}")
+
+    def g(x: np.ndarray) -> np.ndarray:
+        u, d = sphere_from_circle(camera, (x[0], x[1]), x[2], body_radius_km)
+        return np.concatenate([u, [d]])
+
+    val = g(x0)
+    jac = numerical_jacobian(g, x0, step_px)
+    return LosRangeBound(val[:3], float(val[3]), delta_method(cov, jac), jac)
+
+
+def crlb_los_range(bound: CramerRao, truth: LimbParams, camera, body_radius_km: float) -> LosRangeBound:  # noqa: ANN001
+    """Cramér--Rao bound on the LOS and range implied by a circle-model bound (delta method).
+
+    ``r0``, ``c0`` and ``radius`` must be free in ``bound``; the other parameters (``k``,
+    ``ymax``, ``ymin``) enter through the correlations already folded into
+    ``bound.covariance``.
+    """
+    need = ("r0", "c0", "radius")
+    missing = [n for n in need if n not in bound.free]
+    if missing:
+        raise LimbInputError(f"`bound` must have {list(need)} free for the LOS/range bound, missing {missing}")
+    idx = [bound.free.index(n) for n in need]
+    sub = bound.covariance[np.ix_(idx, idx)]
+    return los_range_bound(camera, (float(truth.r0), float(truth.c0)), float(truth.radius), sub, body_radius_km)

@@ -1,0 +1,85 @@
+"""``jaxlimb demo``: the main job on built-in examples.
+
+1. A circular-sigmoid fit on a rendered disk with known truth: estimate, 1-sigma,
+   Cramér--Rao bound, and a small solver comparison (the full table is
+   ``benchmarks/solvers.py``).
+2. ``locate`` on a rendered Moon frame (default 1944x2592 camera) and on the real
+   SDO/HMI image shipped in ``shared/data/sun`` (if present), with pictures of the
+   selected pixels and the fitted limb written to ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("demo", help="run the main job on built-in examples",
+                       description=__doc__.split("\n\n")[0])
+    p.add_argument("--out", default="demo_out", help="directory for the pictures (default demo_out/)")
+    p.add_argument("--sdo", default=None, help="path of the SDO/HMI PNG (default: ../shared/data/sun/...)")
+    p.add_argument("--json", action="store_true", help="print one JSON object with every number")
+    p.set_defaults(func=run)
+
+
+def _fit_demo() -> dict[str, object]:
+    import time
+
+    import jax.numpy as jnp
+    import numpy as np
+
+    from ..analysis.crlb import crlb
+    from ..analysis.model_study import ModelStudyOptions, _problem
+    from ..fitting import fit, solver_from_name
+
+    opt = ModelStudyOptions()
+    model, truth, init, coords, _ = _problem(opt)
+    z = np.asarray(model.intensity(truth, jnp.asarray(coords)))
+    z = z + opt.sigma * np.random.default_rng(0).standard_normal(z.shape)
+    bound = crlb(model, coords, truth, opt.sigma).std
+    rows = []
+    for name in ("lm", "optx-lm", "dogleg", "paper", "scipy"):
+        solver = solver_from_name(name)
+        fit(model, coords, z, init, solver)  # compile
+        t0 = time.perf_counter()
+        res = fit(model, coords, z, init, solver)
+        ms = 1e3 * (time.perf_counter() - t0)
+        rows.append({"solver": name, "ms": ms, "iterations": int(res.n_steps),
+                     "r0": float(res.params.r0), "c0": float(res.params.c0), "radius": float(res.params.radius),
+                     "std": {k: float(v) for k, v in res.std.items()}})
+    return {"truth": truth.as_dict(), "n_pixels": int(coords.shape[0]), "sigma": opt.sigma, "crlb": bound, "fits": rows}
+
+
+def run(args: argparse.Namespace) -> int:
+    from . import emit_json
+
+    out_dir = Path(args.out)
+    report: dict[str, object] = {"status": "ok", "model_fit": _fit_demo()}
+    try:
+        from ._demo_locate import locate_demos
+    except ImportError:  # pragma: no cover - the pipeline is optional while it is being built
+        locate_demos = None
+    if locate_demos is not None:
+        report["locate"] = locate_demos(out_dir, args.sdo)
+    if args.json:
+        emit_json(report)
+        return 0
+    fd = report["model_fit"]
+    t = fd["truth"]  # type: ignore[index]
+    print(f"1) circular-sigmoid fit, {fd['n_pixels']} pixels, noise sigma {fd['sigma']} DN")  # type: ignore[index]
+    print(f"   truth  r0 {t['r0']:.4f}  c0 {t['c0']:.4f}  radius {t['radius']:.4f}")
+    b = fd["crlb"]  # type: ignore[index]
+    print(f"   CRLB   r0 {b['r0']:.4f}  c0 {b['c0']:.4f}  radius {b['radius']:.4f} px")
+    print(f"   {'solver':8} {'ms/fit':>7} {'iter':>4} {'r0':>10} {'c0':>10} {'radius':>10} {'1-sigma r0':>10}")
+    for r in fd["fits"]:  # type: ignore[index]
+        print(f"   {r['solver']:8} {r['ms']:7.2f} {r['iterations']:4d} {r['r0']:10.4f} {r['c0']:10.4f} "
+              f"{r['radius']:10.4f} {r['std']['r0']:10.4f}")
+    if "locate" in report:
+        for case in report["locate"]:  # type: ignore[union-attr]
+            print(f"2) locate: {case['name']}")
+            for line in case["lines"]:
+                print(f"   {line}")
+    print(f"(full solver table: python benchmarks/solvers.py; pictures in {os.fspath(out_dir)}/)")
+    return 0

@@ -1,0 +1,160 @@
+"""Exception hierarchy of jaxlimb.
+
+Two families, matching the command-line contract of DESIGN.md:
+
+* :class:`LimbInputError` (a ``ValueError``): the input is unusable -- a missing,
+  corrupt, empty, wrong-shaped or non-finite image, a bad argument, a bad camera
+  or hints file, an impossible geometry.  The CLI exits with code **2**.
+* :class:`CheckFailed`: the input was read, but a check of the method failed --
+  no body, body too small or too big, too thin, too many outliers, radius
+  inconsistent with the prior, no convergence (the checks 1-5 of the Aerospace
+  2015 paper, section 3).  The CLI exits with code **3**.
+
+Every class carries a short machine name in ``check`` that the CLI puts in its
+JSON error object (``{"status": "error", "check": NAME, "message": TEXT}``).
+Messages name the argument, the valid range and the value received.
+"""
+
+from __future__ import annotations
+
+
+class JaxlimbError(Exception):
+    """Base class of every error raised on purpose by jaxlimb."""
+
+    check: str = "error"
+    exit_code: int = 1
+
+
+# --------------------------------------------------------------------------- input
+class LimbInputError(JaxlimbError, ValueError):
+    """Unusable input: bad argument, shape, dtype, range or file (CLI exit 2)."""
+
+    check = "bad_input"
+    exit_code = 2
+
+
+class ImageReadError(LimbInputError):
+    """The image file is missing, unreadable, truncated or of an unsupported type."""
+
+    check = "bad_image"
+
+
+class ImageContentError(LimbInputError):
+    """The image array is empty, 1x1, non-finite, constant or of the wrong shape."""
+
+    check = "bad_image"
+
+
+class ConfigError(LimbInputError):
+    """A camera, hints or options file/object is malformed or out of range."""
+
+    check = "bad_config"
+
+
+class GeometryError(LimbInputError):
+    """Impossible geometry: observer inside the ellipsoid, degenerate radii, ..."""
+
+    check = "bad_geometry"
+
+
+class AttitudeError(GeometryError):
+    """An attitude matrix/quaternion that is not a proper rotation."""
+
+    check = "bad_attitude"
+
+
+class EphemerisError(LimbInputError):
+    """Epoch outside the ephemeris span, or the ephemeris file is missing."""
+
+    check = "ephemeris"
+
+
+class MeshError(LimbInputError):
+    """A shape model that cannot be read, or is open, inconsistently wound or degenerate."""
+
+    check = "bad_mesh"
+
+
+class DatabaseError(LimbInputError):
+    """A template database that is corrupt, of another version or for another mesh."""
+
+    check = "bad_database"
+
+
+# --------------------------------------------------------------------------- checks
+class CheckFailed(JaxlimbError):
+    """A check of the method failed on a readable input (CLI exit 3)."""
+
+    check = "check_failed"
+    exit_code = 3
+
+
+class NoBodyError(CheckFailed):
+    """No body found in the image (all-black, all-white, pure noise)."""
+
+    check = "no_body"
+
+
+class TooSmallError(CheckFailed):
+    """Check 1: the body is too small for a limb fit."""
+
+    check = "too_small"
+
+
+class TooBigError(CheckFailed):
+    """Check 1: the body is too big (fills or exceeds the frame)."""
+
+    check = "too_big"
+
+
+class TooThinError(CheckFailed):
+    """Check 2: new moon or a crescent too thin to fit."""
+
+    check = "too_thin"
+
+
+class TooManyOutliersError(CheckFailed):
+    """Check 3: too many outliers among the candidate limb points."""
+
+    check = "too_many_outliers"
+
+
+class RadiusInconsistentError(CheckFailed):
+    """Check 4: the estimated radius is inconsistent with the prior."""
+
+    check = "radius_inconsistent"
+
+
+class ConvergenceError(CheckFailed):
+    """Check 5: the least-squares fit did not converge or diverged."""
+
+    check = "no_convergence"
+
+
+class JumpError(ConvergenceError):
+    """Check 5: the fit converged far away from its (Taubin) initial estimate."""
+
+    check = "jump_from_initial"
+
+
+__all__ = [
+    "AttitudeError",
+    "CheckFailed",
+    "ConfigError",
+    "ConvergenceError",
+    "DatabaseError",
+    "EphemerisError",
+    "GeometryError",
+    "ImageContentError",
+    "ImageReadError",
+    "JaxlimbError",
+    "JumpError",
+    "LimbInputError",
+    "MeshError",
+    "NoBodyError",
+    "RadiusInconsistentError",
+    "TooBigError",
+    "TooManyOutliersError",
+    "TooSmallError",
+    "TooThinError",
+]

@@ -1,0 +1,355 @@
+r"""One entry point for fitting a sigmoid limb model: :func:`fit`, and :func:`fit_batch` for many.
+
+Both take the model, the pixel coordinates and intensities, an initial guess
+(a parameter container), a solver *object* and the names of the parameters to
+hold fixed (the paper's Table 1 fixes ``k``, ``ymax``, ``ymin``: an
+:math:`n \times 3` Jacobian).  They return a :class:`LimbFit` with the
+estimate, the covariance :math:`\hat\sigma^2 (J^\top J)^{-1}` over the free
+parameters (:math:`\hat\sigma^2 = \sum r_i^2 / (n - q)`), the residual RMS, the
+number of iterations and a :class:`~jaxlimb.fitting.solvers.FitResult`.
+
+No recompilation.  Pixel sets are padded to a *bucket* size (see
+:func:`bucket_size`) with zero-weight copies of a real pixel, so images whose
+pixel counts fall in the same bucket reuse one compiled program, and padded
+pixels contribute exactly nothing (no NaN).  :func:`compile_count` counts the
+traces, for tests.
+
+Precision.  Run in float64 (``jax.config.update("jax_enable_x64", True)``);
+in float32 the default tolerances sit below the arithmetic precision and a fit
+can report success while its centre is off by ~1e-3 px from rounding alone.
+:func:`fit` warns on float32.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Sequence
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jaxtyping import Array, Float, Int
+
+from ..errors import ConvergenceError, LimbInputError
+from ..models import LimbModel, LimbParams
+from .solvers import AbstractLimbSolver, FitResult, LimbProblem, NormalLM
+
+_MIN_BUCKET = 256
+
+
+class PrecisionWarning(UserWarning):
+    """Estimation attempted without 64-bit floats."""
+
+
+class LimbFit(eqx.Module):
+    """The result of a limb fit (fields may carry a leading batch axis from :func:`fit_batch`).
+
+    Attributes
+    ----------
+    params : the estimate, all parameters (fixed ones as given).
+    free : names of the estimated parameters, in covariance order (static).
+    covariance : :math:`\\hat\\sigma^2 (J^\\top J)^{-1}` over ``free``, ``(q, q)``.
+    sigma2 : residual variance estimate :math:`\\sum r^2 / (n - q)`.
+    rms : residual RMS :math:`\\sqrt{\\sum r^2 / n}`.
+    n_pixels : number of (unpadded) pixels used.
+    n_steps : solver iterations.
+    result : a :class:`FitResult`; ``FitResult.successful`` only if converged.
+    solver : name of the solver (static).
+    """
+
+    params: LimbParams
+    free: tuple[str, ...] = eqx.field(static=True)
+    covariance: Float[Array, "... q q"]
+    sigma2: Float[Array, "..."]
+    rms: Float[Array, "..."]
+    n_pixels: Int[Array, "..."]
+    n_steps: Int[Array, "..."]
+    result: FitResult
+    solver: str = eqx.field(static=True)
+
+    @property
+    def converged(self) -> Array:
+        """Boolean (array): the solver reported success."""
+        return self.result == FitResult.successful
+
+    @property
+    def std(self) -> dict[str, Array]:
+        """1-sigma uncertainty of each free parameter."""
+        d = jnp.sqrt(jnp.diagonal(self.covariance, axis1=-2, axis2=-1))
+        return {n: d[..., i] for i, n in enumerate(self.free)}
+
+    def covariance_dict(self) -> dict[str, dict[str, float]]:
+        """The covariance as nested ``{row: {col: value}}`` (scalar fits only)."""
+        c = np.asarray(self.covariance)
+        return {a: {b: float(c[i, j]) for j, b in enumerate(self.free)} for i, a in enumerate(self.free)}
+
+    @property
+    def message(self) -> str:
+        return _message(self.result)
+
+
+def _message(result: FitResult) -> str:
+    return FitResult[result] if np.ndim(result._value) == 0 else "batched result"
+
+
+# ============================================================================ buckets
+def bucket_size(n: int) -> int:
+    """Padded length for ``n`` pixels: the next of 256, 384, 512, 768, 1024, 1536, ...
+
+    Buckets grow by factors of 1.5 and 4/3 alternately, so padding wastes at
+    most 50 % and the number of distinct compiled shapes stays logarithmic.
+    """
+    if n <= _MIN_BUCKET:
+        return _MIN_BUCKET
+    k = math.floor(math.log2(n))
+    for b in (1 << k, 3 << (k - 1), 1 << (k + 1)):
+        if b >= n:
+            return b
+    return 1 << (k + 1)  # pragma: no cover
+
+
+def pad_pixels(coords: np.ndarray, z: np.ndarray, w: np.ndarray, size: int) -> tuple[np.ndarray, ...]:
+    """Pad one pixel set to ``size`` with zero-weight copies of its first pixel."""
+    n = z.shape[0]
+    if n > size:
+        raise LimbInputError(f"cannot pad {n} pixels into a bucket of {size}")
+    pad = size - n
+    if pad == 0:
+        return coords, z, w
+    coords_p = np.concatenate([coords, np.repeat(coords[:1], pad, axis=0)], axis=0)
+    z_p = np.concatenate([z, np.repeat(z[:1], pad)])
+    w_p = np.concatenate([w, np.zeros(pad, dtype=w.dtype)])
+    return coords_p, z_p, w_p
+
+
+def pack_pixels(
+    coords: Sequence[np.ndarray], z: Sequence[np.ndarray], weights: Sequence[np.ndarray] | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stack pixel sets of different sizes into one padded batch ``(B, N, ...)`` with weights.
+
+    ``N`` is the bucket of the largest set, so batches of similar images share a
+    compiled program.
+    """
+    if len(coords) != len(z) or len(coords) == 0:
+        raise LimbInputError(f"`coords` and `z` must be non-empty and of equal length, got {len(coords)} and {len(z)}")
+    ws = weights if weights is not None else [np.ones(len(zi)) for zi in z]
+    size = bucket_size(max(len(zi) for zi in z))
+    out = [pad_pixels(np.asarray(c, float), np.asarray(zi, float), np.asarray(wi, float), size) for c, zi, wi in zip(coords, z, ws)]
+    return tuple(np.stack([o[i] for o in out]) for i in range(3))  # type: ignore[return-value]
+
+
+# ============================================================================ validation
+def _validate(
+    model: LimbModel, coords: Any, z: Any, init: LimbParams, fixed: Sequence[str], weights: Any, batched: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[int, ...]]:
+    if not isinstance(init, model.params_type):
+        raise LimbInputError(
+            f"`init` must be a {model.params_type.__name__} for the {model.name!r} model, got {type(init).__name__}"
+        )
+    unknown = sorted(set(fixed) - set(model.param_names))
+    if unknown:
+        raise LimbInputError(f"`fixed` names unknown parameters {unknown}; the {model.name!r} model has {list(model.param_names)}")
+    free_idx = model.free_indices(fixed)
+    if not free_idx:
+        raise LimbInputError("`fixed` holds every parameter: nothing to estimate")
+    coords = np.asarray(coords, dtype=float)
+    z = np.asarray(z, dtype=float)
+    lead = 1 if batched else 0
+    want_coords_nd = lead + (1 if model.name == "linear" else 2)
+    if coords.ndim != want_coords_nd or (model.name != "linear" and coords.shape[-1] != 2):
+        shape = "(n,)" if model.name == "linear" else "(n, 2) as (row, col)"
+        raise LimbInputError(f"`coords` must have shape {'(B, ' if batched else ''}{shape[1:] if batched else shape}, got {coords.shape}")
+    n_shape = coords.shape[: lead + 1]
+    if z.shape != n_shape:
+        raise LimbInputError(f"`z` must have shape {n_shape} to match `coords`, got {z.shape}")
+    if z.shape[-1] == 0:
+        raise LimbInputError("`z` is empty: no pixels to fit")
+    w = np.ones_like(z) if weights is None else np.asarray(weights, dtype=float)
+    if w.shape != z.shape:
+        raise LimbInputError(f"`weights` must have shape {z.shape}, got {w.shape}")
+    for name, arr in (("coords", coords), ("z", z), ("weights", w)):
+        if not np.all(np.isfinite(arr)):
+            bad = np.argwhere(~np.isfinite(arr))[0]
+            raise LimbInputError(f"`{name}` has a non-finite value {float(arr[tuple(bad)])!r} at index {tuple(int(b) for b in bad)}")
+    if np.any(w < 0):
+        raise LimbInputError(f"`weights` must be >= 0, got min {float(w.min())!r}")
+    n_used = (w > 0).sum(axis=-1)
+    q = len(free_idx)
+    if np.any(n_used <= q):
+        raise LimbInputError(f"need more pixels than free parameters ({q}), got {int(np.min(n_used))}")
+    theta = np.stack([np.asarray(getattr(init, n), dtype=float) for n in model.param_names], axis=-1)
+    if theta.shape[-1:] != (len(model.param_names),) or (batched and theta.shape[0] != z.shape[0]):
+        raise LimbInputError(f"`init` has shape {theta.shape[:-1]} but the data have batch shape {z.shape[:-1]}")
+    if not np.all(np.isfinite(theta)):
+        raise LimbInputError(f"`init` has non-finite values: {init}")
+    for i, name in enumerate(model.param_names):
+        if name in ("radius", "a", "k", "rho") and np.any(theta[..., i] <= 0):
+            raise LimbInputError(f"`init.{name}` must be > 0, got {float(np.min(theta[..., i]))!r}")
+    return coords, z, w, theta, free_idx
+
+
+def _check_precision() -> None:
+    if not jax.config.jax_enable_x64:
+        warnings.warn(
+            "jaxlimb fits need float64: call jax.config.update('jax_enable_x64', True) first. "
+            "In float32 a fit may report success while its tolerances sit below the precision.",
+            PrecisionWarning,
+            stacklevel=3,
+        )
+
+
+# ============================================================================ core
+_TRACES = {"fit": 0}
+
+
+def compile_count() -> int:
+    """How many times the jitted fit core has been traced (== compiled) in this process."""
+    return _TRACES["fit"]
+
+
+def _core(solver: AbstractLimbSolver, problem: LimbProblem, max_steps: int) -> LimbFit:
+    y0 = problem.theta0[jnp.asarray(problem.free_idx)]
+    y, n_steps, result = solver.solve(problem, y0, max_steps)
+    return _make_fit(problem, y, n_steps, result, solver.name)
+
+
+def _make_fit(problem: LimbProblem, y: Array, n_steps: Array, result: FitResult, solver_name: str) -> LimbFit:
+    """Assemble the :class:`LimbFit`: covariance, residual statistics, full parameters."""
+    jtj, _, rss = problem.normal_equations(y)
+    n = jnp.sum(problem.w > 0)
+    q = len(problem.free_idx)
+    sigma2 = rss / (n - q)
+    theta = problem.theta0.at[jnp.asarray(problem.free_idx)].set(y)
+    model = problem.model
+    return LimbFit(
+        params=model.params_type.from_vector(theta),
+        free=tuple(model.param_names[i] for i in problem.free_idx),
+        covariance=sigma2 * jnp.linalg.inv(jtj),
+        sigma2=sigma2,
+        rms=jnp.sqrt(rss / n),
+        n_pixels=n,
+        n_steps=jnp.asarray(n_steps),
+        result=result,
+        solver=solver_name,
+    )
+
+
+def _traced_core(solver, problem, max_steps):  # type: ignore[no-untyped-def]
+    _TRACES["fit"] += 1
+    return _core(solver, problem, max_steps)
+
+
+_core_jit = eqx.filter_jit(_traced_core)
+def _traced_core_map(solver, problem, max_steps):  # type: ignore[no-untyped-def]
+    _TRACES["fit"] += 1
+    dyn, static = eqx.partition(problem, eqx.is_array)
+    return jax.lax.map(lambda d: _core(solver, eqx.combine(d, static), max_steps), dyn)
+
+
+_core_batch_jit = {
+    "vmap": eqx.filter_jit(eqx.filter_vmap(_traced_core, in_axes=(None, eqx.if_array(0), None))),
+    "map": eqx.filter_jit(_traced_core_map),
+}
+_make_fit_jit = eqx.filter_jit(_make_fit)
+
+
+# ============================================================================ API
+def fit(
+    model: LimbModel,
+    coords: Any,
+    z: Any,
+    init: LimbParams,
+    solver: AbstractLimbSolver | None = None,
+    *,
+    fixed: Sequence[str] = (),
+    weights: Any = None,
+    analytic: bool = True,
+    max_steps: int = 256,
+    throw: bool = True,
+) -> LimbFit:
+    """Fit a sigmoid limb model to pixel intensities.
+
+    Parameters
+    ----------
+    model : :data:`~jaxlimb.models.CIRCLE`, :data:`~jaxlimb.models.ELLIPSE` or :data:`~jaxlimb.models.LINEAR`.
+    coords : pixel coordinates ``(n, 2)`` as ``(row, col)`` (``(n,)`` for the linear model).
+    z : observed intensities ``(n,)``.
+    init : initial guess (a parameter container of the model); fixed parameters are held at its values.
+    solver : a solver object (default :class:`~jaxlimb.fitting.solvers.NormalLM`).
+    fixed : names of parameters to hold fixed, e.g. ``("k", "ymax", "ymin")``.
+    weights : optional per-pixel weights ``(n,)`` (``1/sigma_i``; 0 drops a pixel).
+    analytic : use the paper's analytic Jacobian (default) or autodiff.
+    max_steps : iteration limit.
+    throw : raise :class:`~jaxlimb.errors.ConvergenceError` if the fit did not converge;
+        with ``throw=False`` inspect ``result`` / ``converged`` instead.
+
+    Returns
+    -------
+    LimbFit
+
+    Raises
+    ------
+    LimbInputError
+        Non-finite values, empty or too few pixels, wrong shapes, ``radius``/``a``/``k`` <= 0.
+    ConvergenceError
+        The solver did not converge (``throw=True``).
+    """
+    _check_precision()
+    solver = NormalLM() if solver is None else solver
+    coords_, z_, w_, theta, free_idx = _validate(model, coords, z, init, fixed, weights, batched=False)
+    coords_, z_, w_ = pad_pixels(coords_, z_, w_, bucket_size(z_.shape[0]))
+    problem = LimbProblem(model, free_idx, analytic, jnp.asarray(theta), jnp.asarray(coords_), jnp.asarray(z_), jnp.asarray(w_))
+    if solver.jittable:
+        res = _core_jit(solver, problem, max_steps)
+    else:
+        y, n_steps, result = solver.solve(problem, jnp.asarray(theta[list(free_idx)]), max_steps)
+        res = _make_fit_jit(problem, y, n_steps, result, solver.name)
+    if throw and not bool(res.converged):
+        raise ConvergenceError(f"{solver.name} did not converge after {int(res.n_steps)} steps: {res.message}")
+    return res
+
+
+def fit_batch(
+    model: LimbModel,
+    coords: Any,
+    z: Any,
+    init: LimbParams,
+    solver: AbstractLimbSolver | None = None,
+    *,
+    fixed: Sequence[str] = (),
+    weights: Any = None,
+    analytic: bool = True,
+    max_steps: int = 256,
+    strategy: str = "map",
+) -> LimbFit:
+    """Fit a batch of problems in one compiled call (Monte Carlo, many images).
+
+    ``coords`` is ``(B, N, 2)``, ``z`` and ``weights`` ``(B, N)`` (build them with
+    :func:`pack_pixels` for pixel sets of different sizes; zero weights mark
+    padding), and ``init`` holds ``(B,)`` arrays in each field.  Never raises on
+    non-convergence: check ``result.converged`` per member.  ``N`` is padded to
+    its bucket so repeated calls with similar sizes do not recompile.
+
+    ``strategy="map"`` (default) runs the members one after another inside one
+    program (``jax.lax.map``): on a CPU each member's working set (~100 kB for
+    10^4 pixels) stays in cache and each stops at its own iteration count.
+    ``strategy="vmap"`` vectorises the members (``jax.vmap``; the while loop
+    then runs every member to the slowest one's count): the choice for GPUs.
+    Measured in ``benchmarks/solvers.py``.
+    """
+    if strategy not in _core_batch_jit:
+        raise LimbInputError(f"`strategy` must be one of {sorted(_core_batch_jit)}, got {strategy!r}")
+    _check_precision()
+    solver = NormalLM() if solver is None else solver
+    if not solver.jittable:
+        raise LimbInputError(f"`solver` {solver.name} cannot be batched (not jittable); loop over `fit` instead")
+    coords_, z_, w_, theta, free_idx = _validate(model, coords, z, init, fixed, weights, batched=True)
+    size = bucket_size(z_.shape[1])
+    if size != z_.shape[1]:
+        packed = [pad_pixels(c, zi, wi, size) for c, zi, wi in zip(coords_, z_, w_)]
+        coords_, z_, w_ = (np.stack([p[i] for p in packed]) for i in range(3))
+    problem = LimbProblem(model, free_idx, analytic, jnp.asarray(theta), jnp.asarray(coords_), jnp.asarray(z_), jnp.asarray(w_))
+    return _core_batch_jit[strategy](solver, problem, max_steps)

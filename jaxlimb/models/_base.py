@@ -1,0 +1,89 @@
+"""Shared machinery of the sigmoid limb models: named parameter containers.
+
+A parameter container is an :class:`equinox.Module` whose fields are the model's
+parameters, in the column order of the Jacobian.  Containers convert to and from
+flat vectors (``to_vector`` / ``from_vector``) so that solvers can work on
+arrays while users read fields by name.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import fields
+from typing import ClassVar, TypeVar
+
+import equinox as eqx
+import jax.numpy as jnp
+from jaxtyping import Array, Float
+
+P = TypeVar("P", bound="LimbParams")
+
+
+class LimbParams(eqx.Module):
+    """Base class of the parameter containers (fields are scalars or batched arrays)."""
+
+    names: ClassVar[tuple[str, ...]] = ()
+
+    @classmethod
+    def field_names(cls) -> tuple[str, ...]:
+        return tuple(f.name for f in fields(cls))
+
+    def to_vector(self) -> Float[Array, "... p"]:
+        """Stack the fields (in Jacobian column order) along a new last axis."""
+        return jnp.stack([jnp.asarray(getattr(self, n), dtype=float) for n in self.field_names()], axis=-1)
+
+    @classmethod
+    def from_vector(cls: type[P], v: Float[Array, "... p"]) -> P:
+        """Inverse of :meth:`to_vector`."""
+        v = jnp.asarray(v)
+        return cls(*[v[..., i] for i in range(len(cls.field_names()))])
+
+    def replace(self: P, **changes: object) -> P:
+        """A copy with some fields replaced."""
+        vals = {n: getattr(self, n) for n in self.field_names()}
+        unknown = set(changes) - set(vals)
+        if unknown:
+            raise TypeError(f"{type(self).__name__} has no fields {sorted(unknown)}")
+        vals.update(changes)
+        return type(self)(**vals)
+
+    def as_dict(self) -> dict[str, float]:
+        """Plain-Python ``{name: float}`` (scalar containers only)."""
+        return {n: float(getattr(self, n)) for n in self.field_names()}
+
+
+class LimbModel(eqx.Module):
+    """A sigmoid limb model: intensity function, analytic Jacobian, parameter type.
+
+    Attributes
+    ----------
+    name
+        Short name (``"linear"``, ``"circle"``, ``"ellipse"``).
+    params_type
+        The :class:`LimbParams` subclass holding the parameters.
+    intensity
+        ``intensity(params, coords) -> (n,)`` model intensity at the pixels.
+    jacobian
+        ``jacobian(params, coords) -> (n, p)``: the paper's analytic derivatives,
+        columns in the field order of ``params_type``.
+    jacobian_columns
+        the same derivatives as a tuple of ``p`` arrays of shape ``(n,)``.
+    """
+
+    name: str = eqx.field(static=True)
+    params_type: type[LimbParams] = eqx.field(static=True)
+    intensity: Callable[..., Array] = eqx.field(static=True)
+    jacobian: Callable[..., Array] = eqx.field(static=True)
+    jacobian_columns: Callable[..., tuple[Array, ...]] = eqx.field(static=True)
+
+    def jacobian_t(self, params: LimbParams, coords: Array) -> Array:
+        """The analytic Jacobian transposed, ``(p, n)``: the fast layout for ``J^T J`` on CPU."""
+        return jnp.stack(self.jacobian_columns(params, coords), axis=0)
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return self.params_type.field_names()
+
+    def free_indices(self, fixed: Sequence[str] = ()) -> tuple[int, ...]:
+        names = self.param_names
+        return tuple(i for i, n in enumerate(names) if n not in set(fixed))

@@ -1,0 +1,61 @@
+"""The limb pipeline: ``locate(image, camera, hints, options)`` composing front end, refinement,
+body-centre correction and checks; the measurement types; the checks as typed errors.
+
+Public API::
+
+    locate(image, camera=None, hints=None, options=None) -> LimbMeasurement
+    LocateOptions(front_end, model, solver, estimate_k, k_fixed, annulus_px, ...)
+    LimbMeasurement, EllipseResult           (result types, ``to_json()``)
+    save_locate_figure(image, measurement, path, selected_pixels=None, truth=None)
+    checks: CenterOutOfFieldError, check_jump, check_radius_prior, check_size, check_center_in_field
+    refinement: select_annulus, annulus_halfwidth, lit_halfangle, fit_circle_annulus, fit_sphere_annulus
+    sphere image: SphereImage, sphere_from_ellipse_center
+"""
+
+from .checks import (
+    CenterOutOfFieldError as CenterOutOfFieldError,
+    check_center_in_field as check_center_in_field,
+    check_jump as check_jump,
+    check_radius_prior as check_radius_prior,
+    check_size as check_size,
+    jump_threshold as jump_threshold,
+)
+from .figure import save_locate_figure as save_locate_figure
+from .locate import locate as locate
+from .options import LocateOptions as LocateOptions
+from .refine import (
+    AnnulusSelection as AnnulusSelection,
+    RefineResult as RefineResult,
+    annulus_halfwidth as annulus_halfwidth,
+    fit_circle_annulus as fit_circle_annulus,
+    fit_ellipse_annulus as fit_ellipse_annulus,
+    fit_sphere_annulus as fit_sphere_annulus,
+    lit_halfangle as lit_halfangle,
+    select_annulus as select_annulus,
+)
+from .result import EllipseResult as EllipseResult, LimbMeasurement as LimbMeasurement
+from .sphere import SphereImage as SphereImage, sphere_from_ellipse_center as sphere_from_ellipse_center
+
+__all__ = [
+    "AnnulusSelection",
+    "CenterOutOfFieldError",
+    "EllipseResult",
+    "LimbMeasurement",
+    "LocateOptions",
+    "RefineResult",
+    "SphereImage",
+    "annulus_halfwidth",
+    "check_center_in_field",
+    "check_jump",
+    "check_radius_prior",
+    "check_size",
+    "fit_circle_annulus",
+    "fit_ellipse_annulus",
+    "fit_sphere_annulus",
+    "jump_threshold",
+    "lit_halfangle",
+    "locate",
+    "save_locate_figure",
+    "select_annulus",
+    "sphere_from_ellipse_center",
+]
