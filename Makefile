@@ -18,7 +18,7 @@ demo: $(STAMP)
 	$(BIN)/jaxlimb demo
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q tests
+	$(BIN)/python -m pytest -q --durations=15 tests
 
 benchmarks: $(STAMP)
 	$(BIN)/python benchmarks/solvers.py

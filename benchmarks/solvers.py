@@ -33,7 +33,7 @@ jax.config.update("jax_enable_x64", True)
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
 
-from jaxlimb.analysis.model_study import ModelStudyOptions, _problem  # noqa: E402
+from jaxlimb.analysis.model_study import ModelStudyOptions, model_problem  # noqa: E402
 from jaxlimb.fitting import SOLVERS, fit, fit_batch, solver_from_name  # noqa: E402
 
 from _common import environment, save  # noqa: E402
@@ -79,8 +79,8 @@ def main(argv: list[str] | None = None) -> dict:
             ap.error(f"unknown solver {s!r}")
 
     opt = ModelStudyOptions()
-    model, truth, _, coords_nominal, _ = _problem(opt)
-    coords_far = _problem(dataclasses.replace(opt, annulus=12.0))[3]
+    model, truth, _, coords_nominal, _ = model_problem(opt)
+    coords_far = model_problem(dataclasses.replace(opt, annulus=12.0))[3]
     rng = np.random.default_rng(2026)
     rows = []
     scipy_ref: dict[str, np.ndarray] = {}

@@ -67,7 +67,13 @@ class ModelStudyOptions:
             raise LimbInputError(f"`batch` must be >= 1, got {self.batch!r}")
 
 
-def _problem(opt: ModelStudyOptions) -> tuple[LimbModel, LimbParams, LimbParams, np.ndarray, tuple[str, ...]]:
+def model_problem(opt: ModelStudyOptions) -> tuple[LimbModel, LimbParams, LimbParams, np.ndarray, tuple[str, ...]]:
+    """The study's problem: ``(model, truth, init, coords, fixed)``.
+
+    The body centre sits near the image centre (off the pixel grid by a fraction
+    of a pixel); ``coords`` are the pixels within ``opt.annulus`` px of the
+    initial guess's limb.
+    """
     rows, cols = opt.shape
     r0, c0 = (rows - 1) / 2 + 0.3, (cols - 1) / 2 - 0.4
     d = opt.start_offset_px / np.sqrt(2.0)
@@ -97,7 +103,7 @@ def run_model_study(opt: ModelStudyOptions, solver: AbstractLimbSolver | None = 
                     progress: bool = False) -> dict[str, object]:
     """Run the study; returns the dictionary printed by ``jaxlimb montecarlo --json``."""
     solver = NormalLM() if solver is None else solver
-    model, truth, init, coords, fixed = _problem(opt)
+    model, truth, init, coords, fixed = model_problem(opt)
     clean = np.asarray(model.intensity(truth, jnp.asarray(coords)))
     bound = crlb(model, coords, truth, opt.sigma, fixed=fixed)
     rng = np.random.default_rng(opt.seed)

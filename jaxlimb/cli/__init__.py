@@ -30,11 +30,14 @@ _COMMANDS = (
 )
 
 
+_STATE = {"json": False}  # whether the current invocation asked for --json (set by main)
+
+
 class _Parser(argparse.ArgumentParser):
     """ArgumentParser whose usage errors follow the one-line / JSON contract (exit 2)."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        if "--json" in sys.argv[1:]:
+        if _STATE["json"]:
             print(json.dumps({"status": "error", "check": "bad_arguments", "message": message}))
         else:
             print(f"{self.prog}: error: {message}", file=sys.stderr)
@@ -76,6 +79,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     argv = list(sys.argv[1:] if argv is None else argv)
     want_json = "--json" in argv
+    _STATE["json"] = want_json
     try:
         args = build_parser().parse_args(argv)
         with warnings.catch_warnings():

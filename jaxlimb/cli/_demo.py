@@ -31,11 +31,11 @@ def _fit_demo() -> dict[str, object]:
     import numpy as np
 
     from ..analysis.crlb import crlb
-    from ..analysis.model_study import ModelStudyOptions, _problem
+    from ..analysis.model_study import ModelStudyOptions, model_problem
     from ..fitting import fit, solver_from_name
 
     opt = ModelStudyOptions()
-    model, truth, init, coords, _ = _problem(opt)
+    model, truth, init, coords, _ = model_problem(opt)
     z = np.asarray(model.intensity(truth, jnp.asarray(coords)))
     z = z + opt.sigma * np.random.default_rng(0).standard_normal(z.shape)
     bound = crlb(model, coords, truth, opt.sigma).std

@@ -1,0 +1,43 @@
+"""CLI contract of the core commands: gradcheck, montecarlo, demo; errors are one line, never a traceback."""
+
+import json
+
+from jaxlimb.cli import main
+
+
+def test_gradcheck_json(capsys):
+    assert main(["gradcheck", "--n-points", "100", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert len(out["checks"]) == 18
+    for c in out["checks"]:
+        assert c["n_points"] == 100 and c["max_rel_err"] <= 1e-9
+
+
+def test_montecarlo_json(capsys):
+    assert main(["montecarlo", "--n", "40", "--radius", "50", "--batch", "20", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["n"] == 40 and out["converged"] == 40
+    assert set(out) >= {"n", "converged", "wall_s", "fit_s", "rms", "bias", "crlb"}
+    assert set(out["rms"]) == {"r0", "c0", "radius", "k", "ymax", "ymin"}
+
+
+def test_montecarlo_ellipse_json(capsys):
+    assert main(["montecarlo", "--model", "ellipse", "--n", "10", "--radius", "50", "--batch", "10", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert "theta" in out["rms"] and "rho" not in out["rms"]
+
+
+def test_bad_arguments_exit_2_with_json_error(capsys):
+    assert main(["montecarlo", "--solver", "nope", "--json"]) == 2
+    out = json.loads(capsys.readouterr().out)
+    assert out["status"] == "error" and "nope" in out["message"]
+    assert main(["montecarlo", "--radius", "-3", "--json"]) == 2
+    out = json.loads(capsys.readouterr().out)
+    assert out["check"] == "bad_input" and "radius" in out["message"]
+
+
+def test_error_without_json_is_one_line_on_stderr(capsys):
+    assert main(["montecarlo", "--n", "1"]) == 2
+    cap = capsys.readouterr()
+    assert cap.out == ""
+    assert cap.err.count("\n") == 1 and cap.err.startswith("jaxlimb: error:") and "Traceback" not in cap.err
