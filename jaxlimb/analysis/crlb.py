@@ -33,6 +33,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -60,9 +62,37 @@ def pixel_variance(model: LimbModel, coords: np.ndarray, truth: LimbParams, sigm
     if poisson_gain is not None:
         if poisson_gain <= 0:
             raise LimbInputError(f"`poisson_gain` must be > 0, got {poisson_gain!r}")
-        f = np.asarray(model.intensity(truth, jnp.asarray(coords)))
+        f = _padded_eval(model, "intensity", truth, np.asarray(coords, dtype=float))
         var = var + np.maximum(f, 0.0) / poisson_gain
     return var
+
+
+def _padded_eval(model: LimbModel, what: str, params: LimbParams, coords: np.ndarray) -> np.ndarray:
+    """``model.intensity`` / ``model.jacobian`` at ``coords``, jitted on pixel sets padded to a bucket.
+
+    Padding to :func:`jaxlimb.fitting.bucket_size` (copies of the first pixel, dropped
+    afterwards) means pixel sets of similar size share one compiled program: a pipeline that
+    calls :func:`crlb` on every frame (whose pixel count varies by a few) does not recompile.
+    """
+    from ..fitting import bucket_size
+
+    n = coords.shape[0]
+    size = bucket_size(n)
+    if size > n:
+        coords = np.concatenate([coords, np.repeat(coords[:1], size - n, axis=0)], axis=0)
+    fn = _EVAL[what]
+    return np.asarray(fn(model, params, jnp.asarray(coords)))[:n]
+
+
+def _eval_intensity(model: LimbModel, params: LimbParams, coords: jax.Array) -> jax.Array:
+    return model.intensity(params, coords)
+
+
+def _eval_jacobian(model: LimbModel, params: LimbParams, coords: jax.Array) -> jax.Array:
+    return model.jacobian(params, coords)
+
+
+_EVAL = {"intensity": eqx.filter_jit(_eval_intensity), "jacobian": eqx.filter_jit(_eval_jacobian)}
 
 
 def crlb(model: LimbModel, coords: np.ndarray, truth: LimbParams, sigma: float, *,
@@ -71,7 +101,7 @@ def crlb(model: LimbModel, coords: np.ndarray, truth: LimbParams, sigma: float, 
     if not (np.isfinite(sigma) and sigma > 0):
         raise LimbInputError(f"`sigma` must be a finite number > 0, got {sigma!r}")
     free_idx = model.free_indices(fixed)
-    jac = np.asarray(model.jacobian(truth, jnp.asarray(coords)))[:, list(free_idx)]
+    jac = _padded_eval(model, "jacobian", truth, np.asarray(coords, dtype=float))[:, list(free_idx)]
     var = pixel_variance(model, coords, truth, sigma, poisson_gain)
     fisher = jac.T @ (jac / var[:, None])
     cov = np.linalg.inv(fisher)

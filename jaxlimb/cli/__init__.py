@@ -25,8 +25,10 @@ from collections.abc import Sequence
 # Sub-command modules, in the order they appear in --help.
 _COMMANDS = (
     "_demo",
+    "_locate",
     "_gradcheck",
     "_montecarlo",
+    "_posterior",
 )
 
 

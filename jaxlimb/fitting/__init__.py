@@ -2,6 +2,8 @@
 
 from .fit import (
     LimbFit as LimbFit,
+    batch_core as batch_core,
+    batch_problem as batch_problem,
     PrecisionWarning as PrecisionWarning,
     bucket_size as bucket_size,
     compile_count as compile_count,

@@ -243,10 +243,19 @@ def _traced_core(solver, problem, max_steps):  # type: ignore[no-untyped-def]
 
 
 _core_jit = eqx.filter_jit(_traced_core)
-def _traced_core_map(solver, problem, max_steps):  # type: ignore[no-untyped-def]
-    _TRACES["fit"] += 1
+def batch_core(solver: AbstractLimbSolver, problem: LimbProblem, max_steps: int) -> LimbFit:
+    """Fit every member of a batched ``problem`` one after another (``jax.lax.map``); un-jitted.
+
+    The building block of :func:`fit_batch` (``strategy="map"``) and of
+    :func:`jaxlimb.analysis.sharding.sharded_fit_batch` (one call per device).
+    """
     dyn, static = eqx.partition(problem, eqx.is_array)
     return jax.lax.map(lambda d: _core(solver, eqx.combine(d, static), max_steps), dyn)
+
+
+def _traced_core_map(solver, problem, max_steps):  # type: ignore[no-untyped-def]
+    _TRACES["fit"] += 1
+    return batch_core(solver, problem, max_steps)
 
 
 _core_batch_jit = {
@@ -254,6 +263,19 @@ _core_batch_jit = {
     "map": eqx.filter_jit(_traced_core_map),
 }
 _make_fit_jit = eqx.filter_jit(_make_fit)
+
+
+def batch_problem(
+    model: LimbModel, coords: Any, z: Any, init: LimbParams, *, fixed: Sequence[str] = (),
+    weights: Any = None, analytic: bool = True,
+) -> LimbProblem:
+    """Validate a batch and pad its pixel axis to the bucket size: the :class:`LimbProblem` of :func:`fit_batch`."""
+    coords_, z_, w_, theta, free_idx = _validate(model, coords, z, init, fixed, weights, batched=True)
+    size = bucket_size(z_.shape[1])
+    if size != z_.shape[1]:
+        packed = [pad_pixels(c, zi, wi, size) for c, zi, wi in zip(coords_, z_, w_)]
+        coords_, z_, w_ = (np.stack([p[i] for p in packed]) for i in range(3))
+    return LimbProblem(model, free_idx, analytic, jnp.asarray(theta), jnp.asarray(coords_), jnp.asarray(z_), jnp.asarray(w_))
 
 
 # ============================================================================ API
@@ -346,10 +368,5 @@ def fit_batch(
     solver = NormalLM() if solver is None else solver
     if not solver.jittable:
         raise LimbInputError(f"`solver` {solver.name} cannot be batched (not jittable); loop over `fit` instead")
-    coords_, z_, w_, theta, free_idx = _validate(model, coords, z, init, fixed, weights, batched=True)
-    size = bucket_size(z_.shape[1])
-    if size != z_.shape[1]:
-        packed = [pad_pixels(c, zi, wi, size) for c, zi, wi in zip(coords_, z_, w_)]
-        coords_, z_, w_ = (np.stack([p[i] for p in packed]) for i in range(3))
-    problem = LimbProblem(model, free_idx, analytic, jnp.asarray(theta), jnp.asarray(coords_), jnp.asarray(z_), jnp.asarray(w_))
+    problem = batch_problem(model, coords, z, init, fixed=fixed, weights=weights, analytic=analytic)
     return _core_batch_jit[strategy](solver, problem, max_steps)

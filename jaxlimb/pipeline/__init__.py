@@ -9,7 +9,8 @@ Public API::
     save_locate_figure(image, measurement, path, selected_pixels=None, truth=None)
     checks: CenterOutOfFieldError, check_jump, check_radius_prior, check_size, check_center_in_field
     refinement: select_annulus, annulus_halfwidth, lit_halfangle, fit_circle_annulus, fit_sphere_annulus
-    sphere image: SphereImage, sphere_from_ellipse_center
+    sphere image: SphereImage, sphere_from_ellipse_center, sphere_from_circle_fit
+    physical limb profile: LIMB_PROFILE, LimbProfileParams, limb_profile_intensity
 """
 
 from .checks import (
@@ -33,10 +34,20 @@ from .refine import (
     lit_halfangle as lit_halfangle,
     select_annulus as select_annulus,
 )
+from .profile import (
+    LIMB_PROFILE as LIMB_PROFILE,
+    LimbProfileParams as LimbProfileParams,
+    limb_profile_intensity as limb_profile_intensity,
+    sphere_from_circle_fit as sphere_from_circle_fit,
+)
 from .result import EllipseResult as EllipseResult, LimbMeasurement as LimbMeasurement
 from .sphere import SphereImage as SphereImage, sphere_from_ellipse_center as sphere_from_ellipse_center
 
 __all__ = [
+    "LIMB_PROFILE",
+    "LimbProfileParams",
+    "limb_profile_intensity",
+    "sphere_from_circle_fit",
     "AnnulusSelection",
     "CenterOutOfFieldError",
     "EllipseResult",

@@ -1,0 +1,454 @@
+r"""A Monte-Carlo engine for whole pipelines: seeded, chunked, resumable, streamed to disk.
+
+A study is a user function run ``n_trials`` times:
+
+* ``trial(seed, i) -> {name: number}`` (one trial: e.g. render a frame with noise seed
+  ``seed``, run :func:`jaxlimb.pipeline.locate`, return the errors), or
+* with ``batched=True``, ``trial(seeds, indices) -> {name: (b,) array}`` (a whole chunk at
+  once: e.g. ``b`` noise realisations fitted by :func:`jaxlimb.fitting.fit_batch` or
+  :func:`jaxlimb.analysis.sharding.sharded_fit_batch`).
+
+Seeding.  Trial ``i`` of a study with seed ``s`` receives ``trial_seed(s, i)``, a 63-bit
+integer from ``numpy.random.SeedSequence(s, spawn_key=(i,))``: statistically independent
+streams, and trial ``i``'s result does not depend on the chunk size, on the order in which
+chunks run, or on a resume.  Use it as ``np.random.default_rng(seed)`` or
+``jax.random.key(seed)``.
+
+Chunks and files.  Trials run in chunks of ``chunk_size``; each finished chunk is written
+atomically (:func:`jaxlimb._io.atomic_path`: a temporary file renamed into place) to
+``out_dir/chunk_NNNNNN.npz`` with the trial indices, seeds, a success flag, the error
+name of failed trials and one column per returned key.  ``out_dir/manifest.json`` records
+the study (name, seed, ``n_trials``, ``chunk_size``).  A rerun with the same settings
+skips the chunks already on disk, so an interrupted run loses only the chunk in
+progress; a rerun with *different* settings into the same directory is refused.
+Failures: a trial that raises a :class:`~jaxlimb.errors.JaxlimbError` is recorded as
+failed (``ok=False``, ``error=<check name>``, NaN values) -- "save on failure and filter
+during analysis" (STYLE.md Sec. 7); any other exception stops the run.
+
+Statistics (:meth:`MonteCarloResult.stats`): per key, over the successful trials, the
+error ``value - truth`` (truth 0 when the trial returns errors itself): RMS, bias, sd,
+percentiles, and RMS/CRLB when a bound is given; :meth:`MonteCarloResult.histogram` for
+iteration counts.  Plots: :func:`plot_errors` (error histograms with the CRLB Gaussian)
+and :func:`plot_rms_vs_crlb`.
+
+Example::
+
+    def trial(seed, i):                       # one rendered frame through the pipeline
+        image, truth = render_body(moon_scene(60000.0, 30.0), cam, RenderOptions(), seed=seed)
+        m = locate(image, cam, {"body": "moon"})
+        return {"row": m.center_rc[0] - truth.center_rc[0], "iterations": m.iterations}
+
+    res = run_monte_carlo(trial, MonteCarloOptions(n_trials=1000, chunk_size=50, out_dir="mc/run1"))
+    res.stats(crlb={"row": 0.01})["params"]["row"]["rms_over_crlb"]
+
+Scale-out: see :mod:`jaxlimb.analysis.sharding` (one batch over all local devices, and
+the multi-host path).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from .._io import atomic_open, write_json_atomic
+from ..errors import ConfigError, JaxlimbError, LimbInputError
+
+_MANIFEST = "manifest.json"
+_VERSION = 1
+
+
+@dataclass(frozen=True)
+class MonteCarloOptions:
+    """Settings of :func:`run_monte_carlo`."""
+
+    n_trials: int
+    """Number of trials (>= 1)."""
+    chunk_size: int = 100
+    """Trials per chunk (the unit of checkpointing and of a batched call)."""
+    seed: int = 0
+    """Study seed; trial ``i`` gets ``trial_seed(seed, i)``."""
+    out_dir: str | None = None
+    """Directory for chunk files and the manifest (``None``: keep everything in memory)."""
+    name: str = "montecarlo"
+    """Study name (stored in the manifest; a resume must match it)."""
+    progress: bool = True
+    """Show a tqdm progress bar."""
+    batched: bool = False
+    """``trial`` takes whole chunks: ``trial(seeds (b,), indices (b,)) -> {key: (b,)}``."""
+    shard: tuple[int, int] = (0, 1)
+    """``(p, P)``: this process computes only the chunks ``c`` with ``c % P == p`` (multi-host or
+    multi-process runs into one shared ``out_dir``; other processes' chunks are read if present)."""
+
+    def __post_init__(self) -> None:
+        p_, n_ = self.shard
+        if not (isinstance(p_, (int, np.integer)) and isinstance(n_, (int, np.integer)) and 0 <= p_ < n_):
+            raise LimbInputError(f"`shard` must be (p, P) with 0 <= p < P, got {self.shard!r}")
+        if n_ > 1 and self.out_dir is None:
+            raise LimbInputError("`shard` with P > 1 needs a shared `out_dir`")
+        for nm in ("n_trials", "chunk_size"):
+            v = getattr(self, nm)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+                raise LimbInputError(f"`{nm}` must be an integer >= 1, got {v!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
+            raise LimbInputError(f"`seed` must be an integer >= 0, got {self.seed!r}")
+
+    @property
+    def n_chunks(self) -> int:
+        return math.ceil(self.n_trials / self.chunk_size)
+
+
+def trial_seed(seed: int, i: int) -> int:
+    """The seed of trial ``i`` of a study seeded with ``seed`` (independent of chunking)."""
+    ss = np.random.SeedSequence(int(seed), spawn_key=(int(i),))
+    return int(ss.generate_state(1, dtype=np.uint64)[0] >> np.uint64(1))
+
+
+def _chunk_path(out_dir: Path, c: int) -> Path:
+    return out_dir / f"chunk_{c:06d}.npz"
+
+
+def _manifest(opt: MonteCarloOptions) -> dict[str, Any]:
+    return {"version": _VERSION, "name": opt.name, "seed": int(opt.seed), "n_trials": int(opt.n_trials),
+            "chunk_size": int(opt.chunk_size), "batched": bool(opt.batched)}
+
+
+def _check_manifest(out_dir: Path, opt: MonteCarloOptions) -> None:
+    path = out_dir / _MANIFEST
+    want = _manifest(opt)
+    if path.exists():
+        try:
+            have = json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError) as e:
+            raise ConfigError(f"`out_dir` {str(out_dir)!r} has an unreadable {_MANIFEST}: {e}") from None
+        diff = {k: (have.get(k), v) for k, v in want.items() if have.get(k) != v}
+        if diff:
+            raise ConfigError(
+                f"`out_dir` {str(out_dir)!r} holds another study (differs in {diff}); use a new directory"
+            )
+    else:
+        write_json_atomic(path, want)
+
+
+def _columns(records: Sequence[Mapping[str, Any]], n: int) -> dict[str, np.ndarray]:
+    keys: list[str] = []
+    for r in records:
+        for k in r:
+            if k not in keys:
+                keys.append(k)
+    out = {}
+    for k in keys:
+        col = np.full(n, np.nan)
+        for j, r in enumerate(records):
+            if k in r and r[k] is not None:
+                col[j] = float(r[k])
+        out[k] = col
+    return out
+
+
+def _run_chunk(trial: Callable[..., Any], opt: MonteCarloOptions, c: int) -> dict[str, np.ndarray]:
+    lo = c * opt.chunk_size
+    idx = np.arange(lo, min(lo + opt.chunk_size, opt.n_trials))
+    seeds = np.array([trial_seed(opt.seed, int(i)) for i in idx], dtype=np.int64)
+    ok = np.ones(idx.size, dtype=bool)
+    err = np.full(idx.size, "", dtype="<U40")
+    if opt.batched:
+        res = trial(seeds, idx)
+        cols = {}
+        for k, v in res.items():
+            a = np.asarray(v, dtype=float)
+            if a.shape != idx.shape:
+                raise LimbInputError(f"batched trial returned {k!r} with shape {a.shape}, expected {idx.shape}")
+            cols[k] = a
+        if "ok" in cols:  # a batched trial may flag its own failures (e.g. fits that did not converge)
+            ok = cols.pop("ok").astype(bool)
+            err[~ok] = "trial_failed"
+    else:
+        records: list[Mapping[str, Any]] = []
+        for j, (s, i) in enumerate(zip(seeds, idx)):
+            try:
+                r = trial(int(s), int(i))
+            except JaxlimbError as e:
+                ok[j], err[j] = False, e.check[:40]
+                r = {}
+            records.append(r)
+        cols = _columns(records, idx.size)
+        if "ok" in cols:
+            flag = np.nan_to_num(cols.pop("ok"), nan=0.0).astype(bool)
+            err[ok & ~flag] = "trial_failed"
+            ok &= flag
+    out = {"index": idx, "seed": seeds, "ok": ok, "error": err}
+    for k, v in cols.items():
+        if k in out:
+            raise LimbInputError(f"trial key {k!r} is reserved (index, seed, ok, error)")
+        out[f"v_{k}"] = v
+    return out
+
+
+def _load_chunk(path: Path) -> dict[str, np.ndarray]:
+    with np.load(path, allow_pickle=False) as f:
+        return {k: f[k] for k in f.files}
+
+
+@dataclass(frozen=True)
+class MonteCarloResult:
+    """All trials of a study, in trial order.
+
+    Attributes
+    ----------
+    values : ``{key: (n,) float}`` the numbers each trial returned (NaN if missing/failed).
+    ok : ``(n,)`` success flags.
+    error : ``(n,)`` error names of the failed trials ("" for successes).
+    seeds : ``(n,)`` per-trial seeds.
+    wall_s : wall time of this call (skipped chunks cost nothing).
+    (With ``shard=(p, P)``, P > 1, only the chunks available to this process are included;
+    read the whole study with :func:`load_monte_carlo` once every process has finished.)
+    chunks_run, chunks_skipped : chunks computed now / found on disk.
+    """
+
+    values: dict[str, np.ndarray]
+    ok: np.ndarray
+    error: np.ndarray
+    seeds: np.ndarray
+    wall_s: float
+    chunks_run: int
+    chunks_skipped: int
+    options: MonteCarloOptions
+
+    @property
+    def n(self) -> int:
+        return int(self.ok.size)
+
+    def stats(self, truth: Mapping[str, float] | None = None, crlb: Mapping[str, float] | None = None,
+              keys: Sequence[str] | None = None, percentiles: Sequence[float] = (2.5, 16, 50, 84, 97.5)) -> dict[str, Any]:
+        """Error statistics over the successful trials.
+
+        ``error = value - truth[key]`` (``truth`` default 0: the trial returned errors).
+        Per key: ``rms``, ``bias``, ``std``, ``max_abs``, ``percentiles`` of the error,
+        ``crlb`` and ``rms_over_crlb`` (if ``crlb`` has the key), and the count of finite values.
+        """
+        truth = truth or {}
+        crlb = crlb or {}
+        keys = list(keys) if keys is not None else list(self.values)
+        out: dict[str, Any] = {"n": self.n, "n_ok": int(self.ok.sum()), "failures": self.failure_counts(), "params": {}}
+        for k in keys:
+            if k not in self.values:
+                raise LimbInputError(f"no trial returned {k!r}; keys are {sorted(self.values)}")
+            v = self.values[k][self.ok]
+            e = v[np.isfinite(v)] - float(truth.get(k, 0.0))
+            if e.size == 0:
+                out["params"][k] = {"n": 0}
+                continue
+            rms = float(np.sqrt(np.mean(e**2)))
+            d: dict[str, Any] = {
+                "n": int(e.size), "rms": rms, "bias": float(e.mean()),
+                "std": float(e.std(ddof=1)) if e.size > 1 else 0.0, "max_abs": float(np.abs(e).max()),
+                "bias_se": float(e.std(ddof=1) / math.sqrt(e.size)) if e.size > 1 else None,
+                "percentiles": {str(p): float(np.percentile(e, p)) for p in percentiles},
+            }
+            if k in crlb and crlb[k]:
+                d["crlb"] = float(crlb[k])
+                d["rms_over_crlb"] = rms / float(crlb[k])
+            out["params"][k] = d
+        return out
+
+    def failure_counts(self) -> dict[str, int]:
+        names, counts = np.unique(self.error[~self.ok], return_counts=True)
+        return {str(a): int(b) for a, b in zip(names, counts)}
+
+    def histogram(self, key: str = "n_steps") -> dict[int, int]:
+        """Counts of each integer value of ``key`` (e.g. iterations) over the successful trials."""
+        v = self.values[key][self.ok]
+        v = v[np.isfinite(v)].astype(int)
+        vals, counts = np.unique(v, return_counts=True)
+        return {int(a): int(b) for a, b in zip(vals, counts)}
+
+
+def run_monte_carlo(trial: Callable[..., Mapping[str, Any]], options: MonteCarloOptions) -> MonteCarloResult:
+    """Run (or resume) a Monte-Carlo study; see the module docstring.
+
+    Parameters
+    ----------
+    trial : ``trial(seed, i) -> {key: number}`` (or the batched form, ``options.batched``).
+    options : :class:`MonteCarloOptions`.
+
+    Returns
+    -------
+    MonteCarloResult
+
+    Raises
+    ------
+    ConfigError
+        ``out_dir`` holds a different study.
+    LimbInputError
+        A batched trial returned arrays of the wrong shape, or a reserved key.
+    """
+    opt = options
+    out_dir = Path(opt.out_dir) if opt.out_dir is not None else None
+    if out_dir is not None:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        _check_manifest(out_dir, opt)
+    t0 = time.perf_counter()
+    chunks: list[dict[str, np.ndarray]] = []
+    run = skipped = 0
+    bar = tqdm(total=opt.n_trials, desc=opt.name, unit="trial", disable=not opt.progress or opt.shard[1] > 1)
+    for c in range(opt.n_chunks):
+        path = _chunk_path(out_dir, c) if out_dir is not None else None
+        mine = c % opt.shard[1] == opt.shard[0]
+        if not mine and (path is None or not path.exists()):
+            continue  # another process's chunk, not finished yet
+        if path is not None and path.exists():
+            data = _load_chunk(path)
+            skipped += 1
+        else:
+            data = _run_chunk(trial, opt, c)
+            run += 1
+            if path is not None:
+                with atomic_open(path, "wb") as fh:
+                    np.savez(fh, **data)
+        chunks.append(data)
+        bar.update(int(data["index"].size))
+    bar.close()
+    keys: list[str] = []
+    for d in chunks:
+        keys += [k for k in d if k.startswith("v_") and k not in keys]
+    n = opt.n_trials
+    values = {k[2:]: np.concatenate([d.get(k, np.full(d["index"].size, np.nan)) for d in chunks]) for k in keys}
+    idx = np.concatenate([d["index"] for d in chunks])
+    if opt.shard[1] == 1 and not np.array_equal(idx, np.arange(n)):
+        raise ConfigError("chunk files do not cover the trials 0..n-1 in order: the output directory is corrupt")
+    return MonteCarloResult(
+        values=values,
+        ok=np.concatenate([d["ok"] for d in chunks]).astype(bool),
+        error=np.concatenate([d["error"] for d in chunks]),
+        seeds=np.concatenate([d["seed"] for d in chunks]),
+        wall_s=time.perf_counter() - t0,
+        chunks_run=run,
+        chunks_skipped=skipped,
+        options=opt,
+    )
+
+
+def load_monte_carlo(out_dir: str | Path) -> MonteCarloResult:
+    """Read a finished (or partial: only the finished chunks) study back from ``out_dir``."""
+    out_dir = Path(out_dir)
+    try:
+        man = json.loads((out_dir / _MANIFEST).read_text())
+    except (OSError, json.JSONDecodeError) as e:
+        raise ConfigError(f"no readable study in {str(out_dir)!r}: {e}") from None
+    opt = MonteCarloOptions(n_trials=man["n_trials"], chunk_size=man["chunk_size"], seed=man["seed"],
+                            out_dir=str(out_dir), name=man["name"], progress=False, batched=man["batched"])
+    chunks = [_load_chunk(p) for p in sorted(out_dir.glob("chunk_*.npz"))]  # names sort in trial order
+    if not chunks:
+        raise ConfigError(f"no chunk files in {str(out_dir)!r}")
+    keys: list[str] = []
+    for d in chunks:
+        keys += [k for k in d if k.startswith("v_") and k not in keys]
+    return MonteCarloResult(
+        values={k[2:]: np.concatenate([d.get(k, np.full(d["index"].size, np.nan)) for d in chunks]) for k in keys},
+        ok=np.concatenate([d["ok"] for d in chunks]).astype(bool),
+        error=np.concatenate([d["error"] for d in chunks]),
+        seeds=np.concatenate([d["seed"] for d in chunks]),
+        wall_s=0.0, chunks_run=0, chunks_skipped=len(chunks), options=opt,
+    )
+
+
+# =============================================================================== plots
+def plot_errors(result: MonteCarloResult, keys: Sequence[str], truth: Mapping[str, float] | None = None,
+                crlb: Mapping[str, float] | None = None, path: str | Path | None = None, bins: int = 40,
+                title: str | None = None) -> Any:
+    """Histograms of the errors of ``keys`` with the CRLB Gaussian ``N(0, crlb^2)`` overlaid."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    truth = truth or {}
+    crlb = crlb or {}
+    fig, axes = plt.subplots(1, len(keys), figsize=(3.2 * len(keys), 2.8), squeeze=False)
+    st = result.stats(truth, crlb, keys)
+    for ax, k in zip(axes[0], keys):
+        v = result.values[k][result.ok]
+        e = v[np.isfinite(v)] - float(truth.get(k, 0.0))
+        ax.hist(e, bins=bins, density=True, color="0.6", label="Monte Carlo")
+        if k in crlb:
+            x = np.linspace(e.min(), e.max(), 200)
+            s = float(crlb[k])
+            ax.plot(x, np.exp(-0.5 * (x / s) ** 2) / (s * math.sqrt(2 * math.pi)), "C0", label="CRLB")
+        p = st["params"][k]
+        txt = f"RMS {p['rms']:.3g}\nbias {p['bias']:.2g}"
+        if "rms_over_crlb" in p:
+            txt += f"\nRMS/CRLB {p['rms_over_crlb']:.3f}"
+        ax.text(0.02, 0.97, txt, transform=ax.transAxes, va="top", fontsize=7)
+        ax.set_xlabel(f"{k} error")
+    axes[0][0].legend(fontsize=7, loc="upper right")
+    if title:
+        fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    _save(fig, path)
+    return fig
+
+
+def plot_rms_vs_crlb(points: Sequence[Mapping[str, float]], path: str | Path | None = None, xlabel: str = "CRLB",
+                     ylabel: str = "Monte-Carlo RMS", title: str | None = None) -> Any:
+    """Scatter of RMS against CRLB (``[{"crlb", "rms", "label"}]``, log-log) with the line RMS = CRLB."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(3.6, 3.4))
+    c = np.array([p["crlb"] for p in points], dtype=float)
+    r = np.array([p["rms"] for p in points], dtype=float)
+    ax.loglog(c, r, "o", ms=4)
+    for p in points:
+        if p.get("label"):
+            ax.annotate(str(p["label"]), (p["crlb"], p["rms"]), fontsize=6, xytext=(3, 3), textcoords="offset points")
+    lo, hi = min(c.min(), r.min()) / 1.5, max(c.max(), r.max()) * 1.5
+    ax.plot([lo, hi], [lo, hi], "k--", lw=0.8, label="RMS = CRLB")
+    ax.set(xlabel=xlabel, ylabel=ylabel, xlim=(lo, hi), ylim=(lo, hi))
+    ax.legend(fontsize=7)
+    if title:
+        ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    _save(fig, path)
+    return fig
+
+
+def _save(fig: Any, path: str | Path | None) -> None:
+    if path is None:
+        return
+    import matplotlib.pyplot as plt
+
+    from .._io import atomic_path
+
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format=str(path).rsplit(".", 1)[-1], dpi=110)
+    plt.close(fig)
+
+
+def stats_json(result: MonteCarloResult, **kw: Any) -> dict[str, Any]:
+    """``result.stats(**kw)`` plus the options and timing, JSON-ready."""
+    out = result.stats(**kw)
+    out["options"] = asdict(result.options)
+    out["wall_s"] = result.wall_s
+    return out
+
+
+__all__ = [
+    "MonteCarloOptions",
+    "MonteCarloResult",
+    "load_monte_carlo",
+    "plot_errors",
+    "plot_rms_vs_crlb",
+    "run_monte_carlo",
+    "stats_json",
+    "trial_seed",
+]

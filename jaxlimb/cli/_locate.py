@@ -1,0 +1,116 @@
+"""``jaxlimb locate IMAGE``: the body centre, radius, line of sight and range from one image (DESIGN.md)."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from ..fitting import SOLVERS
+
+    p = sub.add_parser(
+        "locate",
+        help="locate the Moon (or the Earth) in an image: centre, radius, LOS, range",
+        description="Find the limb of the body in IMAGE (8/16-bit grey PNG/TIFF, colour converted to grey, "
+        "or FITS), fit the sigmoid limb model and report the image of the body centre, the apparent radius, "
+        "the covariance and, with a camera, the line of sight and the range.  Exit 0 on success, 2 for "
+        "unusable input, 3 when a check fails.",
+    )
+    p.add_argument("image", metavar="IMAGE", help="image file (PNG, TIFF, FITS, JPEG 2000)")
+    p.add_argument("--camera", metavar="CAMERA.json",
+                   help='camera file {"focal_length_mm", "pixel_pitch_mm", "rows", "cols", "principal_point_rc"}')
+    p.add_argument("--hints", metavar="HINTS.json", help="navigation prior (DESIGN.md hints; every key optional)")
+    p.add_argument("--body", choices=("moon", "earth"), default=None,
+                   help="the body (default: the hints' body, else moon)")
+    p.add_argument("--front-end", choices=("gradient", "scanline"), default="gradient", dest="front_end",
+                   help="candidate-limb front end (default gradient)")
+    p.add_argument("--model", choices=("circle", "ellipse"), default="circle", help="limb model (default circle)")
+    p.add_argument("--solver", choices=sorted(SOLVERS), default="lm", help="least-squares solver (default lm)")
+    p.add_argument("--fixed-k", action="store_true",
+                   help="hold k = 3 and ymax/ymin at the annulus edge means (illuminated-ellipsoid paper, Table 1)")
+    p.add_argument("--profile", choices=("sigmoid", "lunar-lambert"), default="sigmoid",
+                   help="limb profile: the papers' sigmoid (default) or the physical lunar-Lambert limb "
+                   "(needs sun_dir_camera in the hints; removes the sigmoid's 0.1-0.6 px limb bias)")
+    p.add_argument("--figure", metavar="PATH", help="also save a picture of the fit (PNG/PDF)")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=run)
+
+
+def _read_hints(path: str | None, body: str | None):
+    from dataclasses import replace
+
+    from ..imaging import Hints
+
+    hints = Hints.from_json(path) if path is not None else None
+    if body is not None:
+        if hints is None:
+            hints = Hints(body=body)
+        elif hints.body is None:
+            hints = replace(hints, body=body)
+        elif hints.body != body:
+            from ..errors import ConfigError
+
+            raise ConfigError(f"--body {body} contradicts the hints' body {hints.body!r}")
+    elif hints is None:
+        hints = Hints(body="moon")
+    elif hints.body is None:
+        hints = replace(hints, body="moon")
+    return hints
+
+
+def run(args: argparse.Namespace) -> int:
+    import importlib
+    import warnings
+
+    from ..errors import ConfigError
+    from ..geometry.camera import Camera
+    from ..imaging import ColourImageWarning, load_image
+    from ..pipeline import LocateOptions, locate
+    from . import emit_json
+
+    camera = Camera.from_json(args.camera) if args.camera is not None else None
+    hints = _read_hints(args.hints, args.body)
+    options = LocateOptions(front_end=args.front_end, model=args.model, solver=args.solver,
+                            estimate_k=not args.fixed_k, profile=args.profile)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ColourImageWarning)
+        image, _info = load_image(args.image, reject_constant=False)
+    for w in caught:
+        if issubclass(w.category, ColourImageWarning):
+            import sys
+
+            print(f"jaxlimb: warning: {' '.join(str(w.message).split())}", file=sys.stderr)
+    if hints.body == "earth":
+        try:
+            earth = importlib.import_module("jaxlimb.pipeline.earth")
+        except ImportError:
+            raise ConfigError("the Earth pipeline (jaxlimb.pipeline.earth) is unavailable in this installation") from None
+        if camera is None:
+            raise ConfigError("--body earth needs --camera (the Earth pipeline measures the range)")
+        meas = earth.locate_earth(image, camera, hints, options)
+    else:
+        meas = locate(image, camera, hints, options)
+    if args.figure:
+        from ..pipeline import save_locate_figure
+
+        save_locate_figure(image, meas, args.figure)
+    if args.json:
+        emit_json(meas.to_json())
+    else:
+        print(f"centre (row, col): {meas.center_rc[0]:.4f} {meas.center_rc[1]:.4f} px")
+        if meas.radius_px is not None:
+            print(f"radius:            {meas.radius_px:.4f} px")
+        if meas.ellipse is not None:
+            e = meas.ellipse
+            print(f"ellipse:           centre {e.center_rc[0]:.4f} {e.center_rc[1]:.4f}, semi-axes "
+                  f"{e.semi_axes_px[0]:.4f} {e.semi_axes_px[1]:.4f} px, angle {e.angle_rad:.6f} rad")
+        cov = meas.covariance
+        if "center_r" in cov and "center_c" in cov:
+            print(f"1-sigma centre:    {cov['center_r']['center_r'] ** 0.5:.4f} {cov['center_c']['center_c'] ** 0.5:.4f} px")
+        if meas.los_camera is not None:
+            print("LOS (camera):      " + " ".join(f"{v:.9f}" for v in meas.los_camera))
+        if meas.range_km is not None:
+            print(f"range:             {meas.range_km:.3f} km")
+        print(f"k {meas.k:.4f}, ymax {meas.ymax:.2f}, ymin {meas.ymin:.2f}; {meas.n_pixels} px, "
+              f"{meas.iterations} iterations ({meas.solver}, {meas.front_end} front end)")
+    return 0

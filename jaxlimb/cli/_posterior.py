@@ -1,0 +1,213 @@
+"""``jaxlimb posterior IMAGE``: emcee posterior of the circular-sigmoid limb fit of one image.
+
+Pixels and start: :func:`jaxlimb.pipeline.locate` (circle model, no body-centre correction,
+``keep_pixels``) selects the annulus on the lit side and fits it; or, with ``--center-rc``
+and ``--radius``, the pixels within ``--annulus`` px of that circle are used (the quick
+path for synthetic images or when the front end fails).  The circular sigmoid is refitted
+on the raw intensities (:func:`jaxlimb.fitting.fit`), then the posterior is sampled
+(:func:`jaxlimb.analysis.posterior.sample_posterior`) and compared with the fit's Laplace
+covariance and the Cramér--Rao bound at the estimate (noise = the residual sigma).  With a
+camera and a body radius (hints), the LOS and range and their delta-method sigmas are
+reported too.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "posterior",
+        help="emcee posterior of the limb fit of an image (vs Laplace covariance and CRLB)",
+        description="Locate the limb in IMAGE (or take --center-rc/--radius), fit the circular sigmoid and "
+        "sample its posterior with emcee until the chain is longer than 50 autocorrelation times; report "
+        "posterior mean and sd beside the Laplace covariance and the Cramér-Rao bound.  Exit 0 on success "
+        "(also when the chain did not converge: see \"converged\"), 2 for unusable input, 3 when a check fails.",
+    )
+    p.add_argument("image", metavar="IMAGE", help="image file (PNG, TIFF, FITS) or a .npy array")
+    p.add_argument("--camera", metavar="CAMERA.json", help="camera file (enables LOS and range)")
+    p.add_argument("--hints", metavar="HINTS.json", help="hints (DESIGN.md); expected_radius_px becomes a radius prior")
+    p.add_argument("--center-rc", nargs=2, type=float, metavar=("ROW", "COL"),
+                   help="skip locate: circle centre (with --radius)")
+    p.add_argument("--radius", type=float, help="skip locate: circle radius, px (with --center-rc)")
+    p.add_argument("--annulus", type=float, default=6.0, help="half-width of the pixel band for --center-rc, px (default 6)")
+    p.add_argument("--k", type=float, default=2.0, help="start (or fixed) steepness k for --center-rc, 1/px (default 2)")
+    p.add_argument("--fix", default="", help="comma-separated parameters held fixed, e.g. k,ymax,ymin")
+    p.add_argument("--noise", choices=("marginal", "known", "free"), default="marginal",
+                   help="noise treatment: sigma marginalised (default), known (--sigma), or sampled")
+    p.add_argument("--sigma", type=float, help="noise sd in DN for --noise known")
+    p.add_argument("--walkers", type=int, default=32, help="emcee walkers (default 32)")
+    p.add_argument("--max-steps", type=int, default=20000, help="stop unconverged after this many steps")
+    p.add_argument("--max-time", type=float, default=120.0, help="stop unconverged after this many seconds")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--plot", metavar="OUT.png", help="save a corner plot")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=run)
+
+
+def _load(path: str):  # noqa: ANN202
+    import numpy as np
+
+    from ..errors import ImageReadError
+    from ..imaging import load_image
+
+    if path.endswith(".npy"):
+        try:
+            return np.asarray(np.load(path, allow_pickle=False), dtype=float)
+        except (OSError, ValueError) as e:
+            raise ImageReadError(f"cannot read IMAGE {path!r}: {e}") from None
+    image, _ = load_image(path, reject_constant=False)
+    return image
+
+
+def _pixels_from_circle(image, center_rc, radius: float, annulus: float):  # noqa: ANN001, ANN202
+    import numpy as np
+
+    from ..errors import LimbInputError
+
+    if not (radius > 0 and annulus > 0):
+        raise LimbInputError(f"`--radius` and `--annulus` must be > 0, got {radius!r}, {annulus!r}")
+    rows, cols = image.shape
+    r0, c0 = center_rc
+    lo_r, hi_r = max(0, int(r0 - radius - annulus - 1)), min(rows, int(r0 + radius + annulus + 2))
+    lo_c, hi_c = max(0, int(c0 - radius - annulus - 1)), min(cols, int(c0 + radius + annulus + 2))
+    if lo_r >= hi_r or lo_c >= hi_c:
+        raise LimbInputError(f"the circle {tuple(center_rc)}, radius {radius} does not overlap the {rows}x{cols} image")
+    rr, cc = np.mgrid[lo_r:hi_r, lo_c:hi_c]
+    d = np.hypot(rr - r0, cc - c0)
+    sel = np.abs(d - radius) <= annulus
+    rc = np.stack([rr[sel], cc[sel]], -1).astype(float)
+    if rc.shape[0] < 20:
+        raise LimbInputError(f"only {rc.shape[0]} pixels within {annulus} px of the circle: check --center-rc/--radius")
+    win = image[lo_r:hi_r, lo_c:hi_c].astype(float)
+    z = win[sel]
+    inner = win[np.abs(d - (radius - annulus)) < 0.7]
+    outer = win[np.abs(d - (radius + annulus)) < 0.7]
+    ymax = float(np.mean(inner)) if inner.size else float(np.percentile(z, 95))
+    ymin = float(np.mean(outer)) if outer.size else float(np.percentile(z, 5))
+    return rc, z, ymax, ymin
+
+
+def run(args: argparse.Namespace) -> int:
+    import json
+    import math
+
+    import numpy as np
+
+    from ..analysis.crlb import crlb, los_range_bound
+    from ..analysis.posterior import (
+        PosteriorOptions,
+        Priors,
+        compare_uncertainties,
+        comparison_table,
+        corner_plot,
+        log_posterior,
+        priors_from_hints,
+        sample_posterior,
+    )
+    from ..errors import ConfigError, LimbInputError
+    from ..fitting import fit
+    from ..geometry.camera import Camera
+    from ..models import CIRCLE, CircleParams
+    from . import emit_json
+
+    if (args.center_rc is None) != (args.radius is None):
+        raise LimbInputError("`--center-rc` and `--radius` go together (both or neither)")
+    if args.noise == "known" and args.sigma is None:
+        raise LimbInputError("`--noise known` needs `--sigma`")
+    image = _load(args.image)
+    if image.ndim != 2:
+        raise LimbInputError(f"IMAGE must be a 2-D grey image, got shape {image.shape}")
+    camera = Camera.from_json(args.camera) if args.camera is not None else None
+    hints: dict = {}
+    if args.hints is not None:
+        try:
+            with open(args.hints) as fh:
+                hints = json.load(fh)
+        except (OSError, json.JSONDecodeError) as e:
+            raise ConfigError(f"cannot read hints {args.hints!r}: {e}") from None
+        if not isinstance(hints, dict):
+            raise ConfigError(f"hints must be a JSON object, got {type(hints).__name__}")
+    fixed = tuple(s.strip() for s in args.fix.split(",") if s.strip())
+    unknown = sorted(set(fixed) - set(CIRCLE.param_names))
+    if unknown:
+        raise LimbInputError(f"`--fix` names unknown parameters {unknown}; the circle model has {list(CIRCLE.param_names)}")
+
+    if args.center_rc is not None:
+        rc, z, ymax, ymin = _pixels_from_circle(image, args.center_rc, args.radius, args.annulus)
+        if not args.k > 0:
+            raise LimbInputError(f"`--k` must be > 0, got {args.k!r}")
+        init = CircleParams(args.center_rc[0], args.center_rc[1], args.radius, args.k, ymax, ymin)
+        source = "center-rc"
+    else:
+        from ..pipeline import LocateOptions, locate
+
+        m = locate(image, camera, hints or {"body": "moon"},
+                   LocateOptions(model="circle", body_center_correction=False, keep_pixels=True))
+        rc = np.asarray(m.selected_pixels_rc, dtype=float)
+        ri, ci = np.rint(rc[:, 0]).astype(int), np.rint(rc[:, 1]).astype(int)
+        z = image[ri, ci].astype(float)
+        c = m.extras["circle_fit"]
+        init = CircleParams(c["center_rc"][0], c["center_rc"][1], c["radius_px"], m.k, m.ymax, m.ymin)
+        source = "locate"
+    f = fit(CIRCLE, rc, z, init, fixed=fixed)
+    priors = priors_from_hints(hints, CIRCLE) if hints else Priors()
+    lp = log_posterior(CIRCLE, rc, z, f.params, fixed=fixed, noise=args.noise, sigma=args.sigma, priors=priors)
+    opt = PosteriorOptions(n_walkers=args.walkers, max_steps=args.max_steps, max_time_s=args.max_time, seed=args.seed)
+    post = sample_posterior(lp, f, options=opt, progress=not args.json)
+    sigma_hat = math.sqrt(float(f.sigma2))
+    bound = crlb(CIRCLE, rc, f.params, args.sigma if args.noise == "known" else sigma_hat, fixed=fixed)
+    cmp = compare_uncertainties(post, f, bound)
+    out: dict = {
+        "status": "ok",
+        "source": source,
+        "n_pixels": int(z.size),
+        "fixed": list(fixed),
+        "noise": args.noise,
+        "sigma_hat": sigma_hat,
+        "fit": {**f.params.as_dict(), "iterations": int(f.n_steps)},
+        "posterior": post.summary(),
+        "comparison": cmp,
+        "priors": {"gaussian": {k: list(v) for k, v in priors.gaussian.items()}},
+    }
+    body_radius = None
+    if camera is not None and hints:
+        from ..imaging import Hints
+
+        body_radius = Hints.from_dict(hints).radius_km()
+    if camera is not None and body_radius is not None and {"r0", "c0", "radius"} <= set(post.names):
+        idx = [post.names.index(n) for n in ("r0", "c0", "radius")]
+        mean = post.mean[idx]
+        for label, cov in (("posterior", post.covariance[np.ix_(idx, idx)]),
+                           ("laplace", np.asarray(f.covariance)[np.ix_([f.free.index(n) for n in ("r0", "c0", "radius")],
+                                                                       [f.free.index(n) for n in ("r0", "c0", "radius")])])):
+            out.setdefault("los_range", {})[label] = los_range_bound(camera, mean[:2], mean[2], cov, body_radius).as_dict()
+    if args.plot:
+        corner_plot(post, args.plot, laplace=f, title=f"{args.image}: {z.size} px, {post.n_steps} steps"
+                    f"{'' if post.converged else ' (NOT converged)'}")
+        out["plot"] = args.plot
+    if args.json:
+        emit_json(_finite(out))
+    else:
+        s = post.summary()
+        print(f"{z.size} pixels ({source}); {s['n_steps']} steps x {s['n_walkers']} walkers in {s['wall_s']:.1f} s; "
+              f"max tau {max(s['tau'].values()):.1f}; {'converged' if post.converged else 'NOT converged'}")
+        print(comparison_table(cmp))
+        if "los_range" in out:
+            lr = out["los_range"]["posterior"]
+            print(f"range {lr['range_km']:.2f} +- {lr['sigma_range_km']:.2f} km, LOS sigma {lr['sigma_los_arcsec']:.3f} arcsec")
+    return 0
+
+
+def _finite(obj):  # noqa: ANN001, ANN202
+    """Non-finite floats -> None (the JSON output is strict: ``allow_nan=False``)."""
+    import math
+
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj

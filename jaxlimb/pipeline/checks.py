@@ -1,0 +1,133 @@
+r"""Checks 1-5 of the Aerospace 2015 paper (§3) as typed exceptions, and where each is raised.
+
+=========  ==========================================  ==============================================
+check      condition                                   raised by (exception)
+=========  ==========================================  ==============================================
+no body    no contrast in the frame (all-black, all-    :func:`jaxlimb.imaging.detect_body`
+           white, pure noise)                          (:class:`~jaxlimb.errors.NoBodyError`)
+1          too small (diameter < 10 px) / too big      prior: :func:`jaxlimb.imaging.check_prior`;
+           (radius > frame half-diagonal, or the lit   image: :func:`jaxlimb.imaging.detect_body`;
+           region fills > 90 % of the frame)           fit: :func:`check_size` (``TooSmallError``,
+                                                       ``TooBigError``)
+1/2        new moon / crescent too thin (p_i < 3 px    prior / image (``TooThinError``)
+           from the hints; < 4 px measured)
+2          too few candidates after the box filter     gradient front end (``TooManyOutliersError``)
+3          too few RANSAC inliers; too many residual   front ends; :func:`jaxlimb.pipeline.refine`
+           outliers in the annulus                     outlier pass (``TooManyOutliersError``)
+3/4        RANSAC / Taubin radius outside the prior    front ends (``RadiusInconsistentError``);
+           band; the refined radius too                :func:`check_radius_prior`
+4          body centre far outside the imager          :func:`check_center_in_field`
+                                                       (:class:`CenterOutOfFieldError`)
+5          no convergence within ``max_steps``          :func:`jaxlimb.pipeline.refine` fits
+                                                       (``ConvergenceError``)
+5          the fit jumped away from the Taubin circle  :func:`check_jump` (``JumpError``)
+=========  ==========================================  ==============================================
+
+Check 5, the jump test (decision: the paper gives no number).  The fitted limb is compared
+with the front end's (Taubin) circle *on the arc that was fitted*: with
+:math:`u(\psi)` the unit direction at polar angle :math:`\psi`, the radial displacement of the
+limb is :math:`\delta(\psi) = (\hat r_{fit} - \hat r_0) + (c_{fit} - c_0)\cdot u(\psi)` (first
+order in the centre change); the test fails when :math:`\max_\psi |\delta(\psi)| >
+X = \max(2, \Delta r/2)` px.  Measuring the displacement on the fitted arc (instead of the
+centre change) keeps short arcs -- cropped bodies, crescents, where centre and radius of the
+Taubin circle are strongly correlated -- from failing spuriously, while a fit that locked on
+a terminator, a star or the annulus edge moves the limb by several px and fails.  Half the
+annulus half-width is where the limb leaves the well-sampled middle of the annulus.
+
+Check 4, centre in the field: the limb must be visible, so the body centre cannot be farther
+from the frame than its radius; we raise when the distance of the centre from the frame
+rectangle exceeds ``radius + 2 px`` -- a circle found that does not touch the frame.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import CheckFailed, JumpError, RadiusInconsistentError, TooBigError, TooSmallError
+
+
+class CenterOutOfFieldError(CheckFailed):
+    """Check 4: the estimated body centre lies so far outside the imager that its limb cannot be in it."""
+
+    check = "center_out_of_field"
+
+
+def max_limb_displacement(center0, radius0: float, center1, radius1: float, angles: np.ndarray) -> float:
+    """``max |delta(psi)|`` over ``angles`` (module docstring, Check 5)."""
+    ang = np.asarray(angles, dtype=float)
+    if ang.size == 0:
+        return abs(radius1 - radius0) + float(np.hypot(center1[0] - center0[0], center1[1] - center0[1]))
+    dcr, dcc = float(center1[0]) - float(center0[0]), float(center1[1]) - float(center0[1])
+    delta = (radius1 - radius0) + dcr * np.sin(ang) + dcc * np.cos(ang)
+    return float(np.max(np.abs(delta)))
+
+
+def jump_threshold(dr: float, max_jump_px: float | None = None) -> float:
+    """The Check-5 threshold ``X``: ``max_jump_px`` if given, else ``max(2, dr/2)`` px."""
+    return float(max_jump_px) if max_jump_px is not None else max(2.0, 0.5 * float(dr))
+
+
+def check_jump(center0, radius0: float, center1, radius1: float, angles: np.ndarray, threshold: float) -> float:
+    """Check 5: raise :class:`~jaxlimb.errors.JumpError` if the fitted limb moved more than ``threshold``.
+
+    Returns the displacement (px) when the check passes.
+    """
+    disp = max_limb_displacement(center0, radius0, center1, radius1, angles)
+    if not math.isfinite(disp) or disp > threshold:
+        raise JumpError(
+            f"Check 5: the sigmoid fit moved the limb by up to {disp:.3g} px from the front end's circle "
+            f"(centre ({center0[0]:.2f}, {center0[1]:.2f}), radius {radius0:.2f}) to centre "
+            f"({center1[0]:.2f}, {center1[1]:.2f}), radius {radius1:.2f}; the limit max_jump_px is {threshold:.3g} px"
+        )
+    return disp
+
+
+def check_radius_prior(radius: float, band: tuple[float, float], source: str = "prior") -> None:
+    """Check 4 on the refined radius: it must lie in the prior's band ``[lo, hi]`` (px)."""
+    lo, hi = band
+    if not (lo <= radius <= hi):
+        raise RadiusInconsistentError(
+            f"Check 4: the refined radius {radius:.4g} px is outside the range [{lo:.4g}, {hi:.4g}] px "
+            f"expected from the {source} prior"
+        )
+
+
+def check_size(radius: float, shape: tuple[int, int], min_diameter_px: float = 10.0) -> None:
+    """Check 1 on the measurement: diameter below ``min_diameter_px`` or radius above the half-diagonal."""
+    if 2.0 * radius < min_diameter_px:
+        raise TooSmallError(
+            f"Check 1: measured apparent diameter {2 * radius:.3g} px is below min_diameter_px = {min_diameter_px:g} px"
+        )
+    half_diag = 0.5 * math.hypot(*shape)
+    if radius > half_diag:
+        raise TooBigError(
+            f"Check 1: measured radius {radius:.4g} px exceeds the frame half-diagonal {half_diag:.4g} px "
+            "(the body fills the image)"
+        )
+
+
+def check_center_in_field(center_rc, radius: float, shape: tuple[int, int], margin_px: float = 2.0) -> None:
+    """Check 4: the distance of the centre from the frame rectangle must not exceed ``radius + margin_px``."""
+    r, c = float(center_rc[0]), float(center_rc[1])
+    R, C = shape
+    dr = max(0.0, -0.5 - r, r - (R - 0.5))
+    dc = max(0.0, -0.5 - c, c - (C - 0.5))
+    dist = math.hypot(dr, dc)
+    if not math.isfinite(dist) or dist > radius + margin_px:
+        raise CenterOutOfFieldError(
+            f"Check 4: the centre ({r:.4g}, {c:.4g}) lies {dist:.4g} px outside the {R}x{C} frame, farther than "
+            f"the radius {radius:.4g} px + {margin_px:g} px: its limb cannot be in the image"
+        )
+
+
+__all__ = [
+    "CenterOutOfFieldError",
+    "check_center_in_field",
+    "check_jump",
+    "check_radius_prior",
+    "check_size",
+    "jump_threshold",
+    "max_limb_displacement",
+]

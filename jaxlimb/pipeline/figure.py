@@ -1,0 +1,147 @@
+"""A picture of a ``locate`` result: the image around the body, the fitted pixels and limb, the truth."""
+
+from __future__ import annotations
+
+import math
+import os
+from typing import Any
+
+import numpy as np
+
+from ..errors import LimbInputError
+from .result import LimbMeasurement
+
+
+def _limb_points(meas: LimbMeasurement, n: int = 720) -> np.ndarray:
+    """Points ``(row, col)`` on the fitted limb (the ellipse if any, else the circle)."""
+    t = np.linspace(0.0, 2 * np.pi, n)
+    ell = meas.ellipse.to_json() if meas.ellipse is not None else meas.extras.get("limb_ellipse")
+    if ell is not None:
+        (r0, c0), (a, b), ang = ell["center_rc"], ell["semi_axes_px"], ell["angle_rad"]
+        x, y = a * np.cos(t), b * np.sin(t)
+        ct, st = math.cos(ang), math.sin(ang)
+        return np.stack([r0 - x * st - y * ct, c0 + x * ct - y * st], axis=1)
+    r0, c0 = meas.center_rc
+    R = float(meas.radius_px or 0.0)
+    return np.stack([r0 + R * np.sin(t), c0 + R * np.cos(t)], axis=1)
+
+
+def _truth_points(truth: Any, n: int = 720) -> tuple[np.ndarray | None, tuple[float, float] | None]:
+    """Limb points and centre of a :class:`jaxlimb.render.RenderTruth`, a ``SunTruth`` or a dict."""
+    if truth is None:
+        return None, None
+    t = np.linspace(0.0, 2 * np.pi, n)
+    limb = getattr(truth, "limb", None)
+    center = getattr(truth, "center_rc", None)
+    if center is None and isinstance(truth, dict):
+        center = truth.get("center_rc")
+    if limb is not None:
+        (r0, c0), (a, b), ang = limb.center_rc, limb.semi_axes_px, limb.angle_rad
+        x, y = a * np.cos(t), b * np.sin(t)
+        ct, st = math.cos(ang), math.sin(ang)
+        pts = np.stack([r0 - x * st - y * ct, c0 + x * ct - y * st], axis=1)
+        return pts, (float(center[0]), float(center[1])) if center is not None else None
+    radius = getattr(truth, "radius_px", None)
+    if radius is None and isinstance(truth, dict):
+        radius = truth.get("radius_px")
+    if center is None or radius is None:
+        raise LimbInputError("`truth` needs `center_rc` and either `limb` (RenderTruth) or `radius_px`")
+    r0, c0 = float(center[0]), float(center[1])
+    return np.stack([r0 + radius * np.sin(t), c0 + radius * np.cos(t)], axis=1), (r0, c0)
+
+
+def save_locate_figure(
+    image: np.ndarray,
+    measurement: LimbMeasurement,
+    path: str | os.PathLike[str],
+    selected_pixels: np.ndarray | None = None,
+    truth: Any = None,
+    *,
+    title: str | None = None,
+    dpi: int = 120,
+) -> None:
+    """Save a PNG/PDF picture of ``measurement`` on ``image`` (matplotlib, Agg; atomic write).
+
+    Left panel: the image cropped around the body (limb box + 10 % margin, clipped to the
+    frame), the fitted pixels (``selected_pixels``, default
+    ``measurement.selected_pixels_rc``) as small dots, the fitted limb (red) and centre
+    (red +), the truth limb (dashed cyan) and centre (cyan x) when ``truth`` is given
+    (a :class:`jaxlimb.render.RenderTruth`, a :class:`jaxlimb.imaging.SunTruth` or a dict with
+    ``center_rc`` and ``radius_px``).  Right panel: a zoom of 30 x 30 px on the limb point
+    farthest from the body in the lit direction, where the sub-pixel fit can be seen.
+
+    Raises
+    ------
+    LimbInputError
+        ``image`` is not 2-D.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    from .._io import atomic_path
+
+    img = np.asarray(image, dtype=float)
+    if img.ndim != 2:
+        raise LimbInputError(f"`image` must be 2-D [row, col], got shape {img.shape}")
+    pix = measurement.selected_pixels_rc if selected_pixels is None else selected_pixels
+    pix = None if pix is None else np.asarray(pix, dtype=float)
+    limb = _limb_points(measurement)
+    tpts, tcen = _truth_points(truth)
+    R, C = img.shape
+    lo = limb.min(0)
+    hi = limb.max(0)
+    m = 0.1 * float(max(hi - lo)) + 5.0
+    r0, r1 = int(max(0, math.floor(lo[0] - m))), int(min(R, math.ceil(hi[0] + m) + 1))
+    c0, c1 = int(max(0, math.floor(lo[1] - m))), int(min(C, math.ceil(hi[1] + m) + 1))
+    if r1 <= r0 or c1 <= c0:
+        r0, r1, c0, c1 = 0, R, 0, C
+    fig, axes = plt.subplots(1, 2, figsize=(11, 5.2), gridspec_kw={"width_ratios": [1.6, 1]})
+    vmin, vmax = np.percentile(img[r0:r1, c0:c1], [0.5, 99.8])
+    for ax, zoom in zip(axes, (False, True)):
+        if zoom:
+            d = measurement.extras.get("lit_direction_rc")
+            cen = np.asarray(measurement.center_rc)
+            if d is not None:
+                dv = np.asarray(d, float)
+                k = int(np.argmax((limb - cen) @ dv))
+            else:
+                k = int(np.argmin(limb[:, 0]))
+            pr, pc = limb[k]
+            zr0, zr1, zc0, zc1 = pr - 15, pr + 15, pc - 15, pc + 15
+        else:
+            zr0, zr1, zc0, zc1 = r0 - 0.5, r1 - 0.5, c0 - 0.5, c1 - 0.5
+        ax.imshow(img, cmap="gray", vmin=vmin, vmax=vmax, interpolation="nearest", origin="upper",
+                  extent=(-0.5, C - 0.5, R - 0.5, -0.5))
+        if pix is not None and pix.size:
+            step = max(1, pix.shape[0] // (20000 if zoom else 4000))
+            ax.plot(pix[::step, 1], pix[::step, 0], ",", color="yellow", alpha=0.6 if zoom else 0.35,
+                    label="fitted pixels" if not zoom else None)
+        ax.plot(limb[:, 1], limb[:, 0], "-", color="red", lw=1.0, label="fitted limb" if not zoom else None)
+        ax.plot([measurement.center_rc[1]], [measurement.center_rc[0]], "+", color="red", ms=10)
+        if tpts is not None:
+            ax.plot(tpts[:, 1], tpts[:, 0], "--", color="cyan", lw=0.8, label="truth" if not zoom else None)
+            if tcen is not None:
+                ax.plot([tcen[1]], [tcen[0]], "x", color="cyan", ms=8)
+        ax.set_xlim(zc0, zc1)
+        ax.set_ylim(zr1, zr0)
+        ax.set_xlabel("col (px)")
+        ax.set_ylabel("row (px)")
+    axes[0].legend(loc="upper right", fontsize=8, framealpha=0.6)
+    axes[1].set_title("zoom on the lit limb", fontsize=9)
+    r = measurement.radius_px
+    txt = f"centre ({measurement.center_rc[0]:.3f}, {measurement.center_rc[1]:.3f})"
+    if r is not None:
+        txt += f", radius {r:.3f} px"
+    if tcen is not None:
+        txt += f"\nerror vs truth: {math.hypot(measurement.center_rc[0] - tcen[0], measurement.center_rc[1] - tcen[1]):.3f} px"
+    axes[0].set_title(title or txt, fontsize=9)
+    fig.tight_layout()
+    suffix = os.path.splitext(os.fspath(path))[1] or ".png"
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=dpi, format=suffix.lstrip(".") or "png")
+    plt.close(fig)
+
+
+__all__ = ["save_locate_figure"]

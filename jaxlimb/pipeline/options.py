@@ -1,0 +1,177 @@
+"""Settings of :func:`jaxlimb.pipeline.locate` (one frozen dataclass, every field documented)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..errors import ConfigError
+
+FRONT_ENDS = ("gradient", "scanline")
+LIMB_MODELS = ("circle", "ellipse")
+
+
+def _pos(name: str, v: object, *, allow_zero: bool = False, allow_none: bool = False) -> None:
+    if v is None and allow_none:
+        return
+    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and (v >= 0 if allow_zero else v > 0)
+    if not ok:
+        rng = ">= 0" if allow_zero else "> 0"
+        raise ConfigError(f"LocateOptions.{name} must be a finite number {rng}{' or None' if allow_none else ''}, got {v!r}")
+
+
+@dataclass(frozen=True)
+class LocateOptions:
+    """How :func:`~jaxlimb.pipeline.locate` measures a limb.
+
+    Attributes
+    ----------
+    front_end
+        ``"gradient"`` (default: Richardson gradient, box filter, RANSAC, Taubin; Aerospace
+        2015 §4-5) or ``"scanline"`` (threshold, inertia axis, scan lines; illuminated-ellipsoid
+        paper §IV-A, §VI).
+    model
+        ``"circle"`` (default): the circular sigmoid (CSF, Eq. 16) refinement; with a camera the
+        limb is then refitted with the elliptical sigmoid whose axis ratio and orientation are
+        those of the image of a sphere at the estimated place (the body-centre correction) and
+        ``radius_px`` is the on-axis-equivalent apparent radius ``f tan(alpha)``.  ``"ellipse"``:
+        an elliptical sigmoid (ESF, Sec. V-C) with centre, semi-axis, orientation and axis
+        ratio all free (a non-spherical or unknown body); the measurement carries ``ellipse``.
+    solver
+        Name in :data:`jaxlimb.fitting.SOLVERS` (``"lm"`` default, ``"paper"``, ``"scipy"``, ...).
+    estimate_k
+        ``True`` (default, Aerospace 2015 §5-6): estimate the steepness ``k`` and the levels
+        ``ymax``, ``ymin`` with the geometry (6 free parameters for the CSF).  ``False``
+        (illuminated-ellipsoid paper §VI, Table 1): hold ``k = k_fixed`` and ``ymax``/``ymin``
+        at the means of the pixels at the annulus' inner/outer edges (3 free parameters).
+    k_fixed
+        The steepness (1/px) used when ``estimate_k`` is ``False`` (paper: 3).
+    profile
+        ``"sigmoid"`` (default): the papers' sigmoid limb.  ``"lunar-lambert"``: after the
+        sigmoid, refit the same pixels with the physical limb profile of a lunar-Lambert sphere
+        blurred by a Gaussian PSF (:mod:`jaxlimb.pipeline.profile`; needs the Sun direction in
+        the hints).  It removes the sigmoid's limb bias (0.1-0.6 px on realistic Moons, growing
+        with phase) at the cost of a ~20 s first compilation and ~0.5-2 s per fit; circle model only.
+    normalize_levels
+        Divide each angular bin of the annulus by its own inside-outside contrast (and weight
+        it by that contrast) before the fit (default ``True``; :class:`jaxlimb.pipeline.refine.FitData`):
+        the lit limb of the Moon fades toward the horns, which biases a one-level sigmoid by px.
+        ``False`` fits the raw intensities as the papers do.
+    annulus_px
+        Half-width ``dr`` (px) of the annulus ``r_hat +- dr`` of pixels fitted; ``None``
+        (default) applies the rule of :func:`jaxlimb.pipeline.refine.annulus_halfwidth`:
+        ``dr = max(annulus_min_px, annulus_frac * r_hat, 4 * rms_taubin)``, widened after a
+        first fit to ``4.5 * 1.7 / k`` when the fitted edge is broader (1.7/k is the Gaussian
+        sigma equivalent to a logistic of steepness k), capped at ``max(annulus_min_px, r_hat/2)``.
+    annulus_min_px
+        Smallest half-width of the annulus (px, default 6: covers +-4 sigma of a 1.5 px blur).
+    annulus_frac
+        Half-width as a fraction of the initial radius (default 0.02: a few px for the
+        paper's 50-500 px Moons; the initial radius is good to ~1 % of itself).
+    horn_margin_deg
+        With a known Sun direction, the lit limb is the half-circle facing the Sun; the
+        pixels within this angle of the horns (where the limb meets the terminator and the
+        brightness falls) are left out (default 10 deg; more for a thin crescent, see
+        :func:`jaxlimb.pipeline.refine.lit_halfangle`).
+    min_lit_contrast_frac
+        Angular bins (``angular_bin_deg`` wide) of the annulus whose inside-minus-outside
+        contrast is below this fraction of the 90th-percentile bin contrast are dropped
+        (dark limb, terminator, beyond the horns; default 0.3).
+    angular_bin_deg
+        Width of those angular bins (deg, default 5).
+    max_edge_offset_px
+        Bins whose edge (estimated from the bin's mean normalised intensity) lies more than
+        this inside the 75th percentile of the bins' edges are dropped (terminator, dark limb;
+        default 0.75 px; ``None`` disables the test).
+    outlier_sigma
+        Pixels whose residual after the first fit exceeds this many sigma-hat are dropped
+        and the fit repeated (stars, hot pixels, craters; default 5).
+    max_outlier_fraction
+        Check 3 in the refinement: more residual outliers than this fraction of the annulus
+        raises :class:`~jaxlimb.errors.TooManyOutliersError` (default 0.2).
+    max_jump_px
+        Check 5: largest displacement (px) of the fitted limb from the front end's (Taubin)
+        circle anywhere on the fitted arc; ``None`` (default) = ``max(2, dr / 2)``: a limb
+        that moved by half the annulus half-width has left the well-sampled middle of the
+        annulus, so the fit is no longer measuring the edge the front end found.
+    max_steps
+        Iteration limit of each least-squares fit (Check 5: no convergence).
+    body_center_correction
+        With a camera, convert the limb to the image of the body centre exactly (the
+        elliptical refit and :func:`jaxlimb.geometry.navigation.sphere_from_ellipse`);
+        ``False`` reports the circle centre (for studies of the correction).
+    compute_crlb
+        Add the Cramér--Rao bound at the estimate, with sigma-hat as the noise level.
+    border_px
+        Pixels within this distance of the frame edge are not fitted (default 0).
+    keep_pixels
+        Keep the fitted pixel coordinates in ``LimbMeasurement.selected_pixels_rc`` (for
+        figures; not part of the JSON output).
+    gradient
+        :class:`~jaxlimb.imaging.GradientOptions` (``None`` = defaults).
+    scanline
+        :class:`~jaxlimb.imaging.ScanlineOptions` (``None`` = defaults).
+    """
+
+    front_end: str = "gradient"
+    model: str = "circle"
+    solver: str = "lm"
+    estimate_k: bool = True
+    k_fixed: float = 3.0
+    profile: str = "sigmoid"
+    normalize_levels: bool = True
+    annulus_px: float | None = None
+    annulus_min_px: float = 6.0
+    annulus_frac: float = 0.02
+    horn_margin_deg: float = 10.0
+    min_lit_contrast_frac: float = 0.3
+    angular_bin_deg: float = 5.0
+    max_edge_offset_px: float | None = 0.75
+    outlier_sigma: float = 5.0
+    max_outlier_fraction: float = 0.2
+    max_jump_px: float | None = None
+    max_steps: int = 100
+    body_center_correction: bool = True
+    compute_crlb: bool = True
+    border_px: int = 0
+    keep_pixels: bool = True
+    gradient: object | None = None
+    scanline: object | None = None
+
+    def __post_init__(self) -> None:
+        if self.front_end not in FRONT_ENDS:
+            raise ConfigError(f"LocateOptions.front_end must be one of {list(FRONT_ENDS)}, got {self.front_end!r}")
+        if self.model not in LIMB_MODELS:
+            raise ConfigError(f"LocateOptions.model must be one of {list(LIMB_MODELS)}, got {self.model!r}")
+        from ..fitting import SOLVERS
+
+        if self.solver not in SOLVERS:
+            raise ConfigError(f"LocateOptions.solver must be one of {sorted(SOLVERS)}, got {self.solver!r}")
+        _pos("k_fixed", self.k_fixed)
+        if self.profile not in ("sigmoid", "lunar-lambert"):
+            raise ConfigError(f"LocateOptions.profile must be 'sigmoid' or 'lunar-lambert', got {self.profile!r}")
+        if self.profile == "lunar-lambert" and self.model != "circle":
+            raise ConfigError("LocateOptions.profile = 'lunar-lambert' supports model = 'circle' only")
+        _pos("annulus_px", self.annulus_px, allow_none=True)
+        _pos("annulus_min_px", self.annulus_min_px)
+        _pos("annulus_frac", self.annulus_frac, allow_zero=True)
+        _pos("horn_margin_deg", self.horn_margin_deg, allow_zero=True)
+        if self.horn_margin_deg >= 90:
+            raise ConfigError(f"LocateOptions.horn_margin_deg must be in [0, 90), got {self.horn_margin_deg!r}")
+        _pos("min_lit_contrast_frac", self.min_lit_contrast_frac, allow_zero=True)
+        if self.min_lit_contrast_frac >= 1:
+            raise ConfigError(f"LocateOptions.min_lit_contrast_frac must be in [0, 1), got {self.min_lit_contrast_frac!r}")
+        _pos("angular_bin_deg", self.angular_bin_deg)
+        _pos("max_edge_offset_px", self.max_edge_offset_px, allow_none=True)
+        _pos("outlier_sigma", self.outlier_sigma)
+        _pos("max_outlier_fraction", self.max_outlier_fraction, allow_zero=True)
+        if self.max_outlier_fraction > 1:
+            raise ConfigError(f"LocateOptions.max_outlier_fraction must be in [0, 1], got {self.max_outlier_fraction!r}")
+        _pos("max_jump_px", self.max_jump_px, allow_none=True)
+        if isinstance(self.max_steps, bool) or not isinstance(self.max_steps, int) or self.max_steps < 1:
+            raise ConfigError(f"LocateOptions.max_steps must be an integer >= 1, got {self.max_steps!r}")
+        if isinstance(self.border_px, bool) or not isinstance(self.border_px, int) or self.border_px < 0:
+            raise ConfigError(f"LocateOptions.border_px must be an integer >= 0, got {self.border_px!r}")
+
+
+__all__ = ["FRONT_ENDS", "LIMB_MODELS", "LocateOptions"]
