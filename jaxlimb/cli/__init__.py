@@ -26,6 +26,7 @@ from collections.abc import Sequence
 _COMMANDS = (
     "_demo",
     "_locate",
+    "_navigate",
     "_gradcheck",
     "_montecarlo",
     "_posterior",

@@ -1,0 +1,182 @@
+"""Earth pipeline (§IV, Fig. 2): cone lifting, ellipse -> position, locate_earth on renders."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from jaxlimb.errors import ConfigError, GeometryError
+from jaxlimb.geometry.camera import Camera
+from jaxlimb.geometry.earth import EARTH_EQUATORIAL_KM, EARTH_POLAR_KM, earth_radii
+from jaxlimb.geometry.ellipsoid import image_conic, limb_cone
+from jaxlimb.pipeline.earth import (
+    EarthOptions,
+    earth_position_from_ellipse,
+    image_ellipse_cone,
+    locate_earth,
+)
+from jaxlimb.render import RenderOptions, earth_scene, render_body
+
+RADII = (EARTH_EQUATORIAL_KM, EARTH_EQUATORIAL_KM, EARTH_POLAR_KM)
+
+
+def _geometry(D, lat, f=8.0, n=1400, center_rc=(650.0, 760.0)):
+    cam = Camera(focal_length_mm=f, rows=n, cols=n)
+    sc = earth_scene(D, lat, 40.0, center_rc=center_rc, camera=cam, north_angle_deg=70.0)
+    return cam, sc
+
+
+@pytest.mark.parametrize("D, lat", [(40000.0, 0.0), (40000.0, 50.0), (380000.0, 30.0)])
+def test_image_ellipse_cone_is_the_limb_cone(D, lat):
+    cam, sc = _geometry(D, lat)
+    ic = image_conic(cam, sc.radii, sc.q, sc.R_body_to_camera)
+    cone = image_ellipse_cone(cam, ic.center_rc, ic.semi_axes_px, ic.angle_rad)
+    truth = limb_cone(sc.radii, sc.observer_body)
+    axis_cam = sc.R_body_to_camera @ truth.axis
+    assert np.allclose(cone.axis, axis_cam, atol=1e-10)
+    assert cone.semi_axes == pytest.approx(truth.semi_axes, rel=1e-9)
+    # the free-ellipse range (Re / a') is good to 1e-4 at 40 000 km for any latitude
+    assert EARTH_EQUATORIAL_KM / cone.semi_axes[0] == pytest.approx(D, rel=1e-4)
+
+
+@pytest.mark.parametrize("lat", [0.0, 35.0, -60.0])
+def test_position_from_exact_ellipse_recovers_observer(lat):
+    D = 40000.0
+    cam, sc = _geometry(D, lat)
+    ic = image_conic(cam, sc.radii, sc.q, sc.R_body_to_camera)
+    p_true = -sc.q
+    p0 = 1.02 * D * (-(sc.q + np.array([300.0, -200.0, 0.0])) / np.linalg.norm(sc.q + np.array([300.0, -200.0, 0.0])))
+    p, info = earth_position_from_ellipse(
+        cam, ic.center_rc, ic.semi_axes_px, ic.angle_rad, p0, pole_camera=sc.R_body_to_camera[:, 2]
+    )
+    assert np.linalg.norm(p - p_true) < 1e-6 * D
+    assert info["iterations"] <= 6
+    # the centre offset matters: the cone axis alone is wrong by gamma_off (15 arcsec here)
+    axis_err = math.acos(min(1.0, float(info["cone"].axis @ (sc.q / D))))
+    if lat != 0.0:
+        assert axis_err > 1e-5
+        assert abs(abs(info["gamma_off_rad"]) - axis_err) < 1e-9
+    # projected centre: exact
+    assert np.allclose(cam.project(-p), ic.body_center_rc, atol=1e-6)
+
+
+def test_position_needs_outside_prior():
+    cam, sc = _geometry(40000.0, 10.0)
+    ic = image_conic(cam, sc.radii, sc.q, sc.R_body_to_camera)
+    with pytest.raises(GeometryError, match="outside"):
+        earth_position_from_ellipse(
+            cam, ic.center_rc, ic.semi_axes_px, ic.angle_rad, np.array([0.0, 0.0, -1000.0]),
+            pole_camera=sc.R_body_to_camera[:, 2],
+        )
+
+
+def test_distorted_camera_rejected():
+    cam = Camera(focal_length_mm=8.0, rows=200, cols=200, k1=0.01)
+    with pytest.raises(ConfigError, match="pinhole"):
+        image_ellipse_cone(cam, (100.0, 100.0), (50.0, 49.0), 0.3)
+
+
+@pytest.fixture(scope="module")
+def earth_far():
+    """Earth at 380 000 km, 16 mm camera (300 x 300 crop), latitude 30 deg, gibbous (40 deg)."""
+    cam = Camera(focal_length_mm=16.0, rows=300, cols=300)
+    sc = earth_scene(380000.0, 30.0, 40.0, center_rc=(148.3, 153.6), camera=cam, sun_angle_deg=30.0, north_angle_deg=80.0)
+    img, truth = render_body(sc, cam, RenderOptions(), seed=11)
+    return cam, sc, img, truth
+
+
+def _hints(sc, truth, known_R=True, **kw):
+    h = {"body": "earth", "range_prior_km": 1.01 * truth.range_km, "sun_dir_camera": list(truth.sun_dir_cam)}
+    if known_R:
+        h["R_body_to_camera"] = np.asarray(sc.R_body_to_camera).tolist()
+    h.update(kw)
+    return h
+
+
+def test_locate_earth_known_attitude_meets_targets(earth_far):
+    cam, sc, img, truth = earth_far
+    m = locate_earth(img, cam, _hints(sc, truth), None)
+    err = np.hypot(*np.subtract(m.center_rc, truth.center_rc))
+    assert err <= 0.1, f"centre error {err:.3f} px"
+    assert abs(m.range_km / truth.range_km - 1) <= 1e-3
+    assert np.allclose(m.los_camera, truth.los_cam, atol=0.1 / cam.focal_px)
+    assert m.extras["fits"][0]["range_iterations"] <= 6
+    assert len(m.extras["fits"]) <= 3
+    # the ellipse is the limb (not the projected centre): its centre is offset from the body centre
+    assert m.ellipse is not None and m.ellipse.semi_axes_px[0] >= m.ellipse.semi_axes_px[1]
+    cov = m.covariance
+    assert cov["center_r"]["center_r"] > 0 and cov["range_km"]["range_km"] > 0
+    out = m.to_json()
+    assert out["status"] == "ok" and len(out["los_camera"]) == 3
+
+
+def test_flat_sigmoid_is_biased_on_gibbous_earth(earth_far):
+    """The paper's flat-topped ESF (interior_ramp=False) is pulled toward the Sun; the ramp model is not."""
+    cam, sc, img, truth = earth_far
+    m0 = locate_earth(img, cam, _hints(sc, truth), EarthOptions(interior_ramp=False, band_px=6.0))
+    m1 = locate_earth(img, cam, _hints(sc, truth), None)
+    e0 = np.hypot(*np.subtract(m0.center_rc, truth.center_rc))
+    e1 = np.hypot(*np.subtract(m1.center_rc, truth.center_rc))
+    assert e0 > 2 * e1
+
+
+def test_locate_earth_free_ellipse(earth_far):
+    cam, sc, img, truth = earth_far
+    m = locate_earth(img, cam, _hints(sc, truth, known_R=False), None)
+    assert m.extras["free_ellipse"]
+    err = np.subtract(m.center_rc, truth.center_rc)
+    P = np.array([[m.covariance["center_r"]["center_r"], m.covariance["center_r"]["center_c"]],
+                  [m.covariance["center_c"]["center_r"], m.covariance["center_c"]["center_c"]]])
+    assert np.hypot(*err) < 0.5
+    assert abs(m.range_km / truth.range_km - 1) < 4e-3
+    assert np.all(np.linalg.eigvalsh(P) > 0)
+
+
+def test_locate_earth_bad_inputs(earth_far):
+    cam, sc, img, truth = earth_far
+    with pytest.raises(ConfigError, match="camera"):
+        locate_earth(img, None, _hints(sc, truth))
+    with pytest.raises(GeometryError, match="spheroid"):
+        locate_earth(img, cam, _hints(sc, truth, body_radii_km=[6378.0, 6370.0, 6357.0]))
+    with pytest.raises(ConfigError, match="R_body_to_camera"):
+        locate_earth(img, cam, _hints(sc, truth, R_body_to_camera=[[1, 0, 0], [0, 1, 0], [0, 0, 2]]))
+    with pytest.raises(ConfigError, match="band_px"):
+        EarthOptions(band_px=-1.0)
+
+
+def test_earth_radii_helper_unchanged():
+    assert earth_radii(10.0).tolist() == [6388.137, 6388.137, 6366.752]
+
+
+def test_blurred_sqrt_matches_quadrature():
+    from scipy.integrate import quad
+    from scipy.stats import norm
+
+    from jaxlimb.pipeline.earth import _blurred_sqrt
+
+    xs = np.array([-4.0, -1.0, 0.0, 0.37, 2.5, 9.0, 15.99, 16.01, 40.0])
+    got = np.asarray(_blurred_sqrt(xs))
+    want = np.array([quad(lambda t, x=x: math.sqrt(t) * norm.pdf(x - t), max(0.0, x - 12), x + 12, limit=200)[0] for x in xs])
+    assert np.allclose(got, want, rtol=2e-6, atol=1e-9)
+
+
+def test_edge_model_is_exact_blur_of_profile():
+    """f(u) equals the numerical Gaussian blur of H(u) (T + g u + g2 sqrt(u)) across the limb."""
+    from scipy.integrate import quad
+    from scipy.stats import norm
+
+    from jaxlimb.pipeline.earth import EllipseRampParams, ellipse_ramp_intensity
+
+    k, T, ymin, g, g2 = 0.9, 1000.0, 50.0, -30.0, 80.0
+    p = EllipseRampParams(r0=0.0, c0=0.0, a=100.0, theta=0.0, rho=1.0, k=k, ymax=T, ymin=ymin, g=g, g2=g2,
+                          h1=0.0, h2=0.0, h3=0.0, h4=0.0)
+    cols = np.array([95.0, 99.0, 100.0, 100.6, 103.0])
+    got = np.asarray(ellipse_ramp_intensity(p, np.column_stack([np.zeros_like(cols), cols])))
+    s = 1.0 / k
+    for c, f in zip(cols, got):
+        u = 100.0 - c
+        prof = lambda t: (T - ymin + g * t + g2 * math.sqrt(t)) * norm.pdf(u - t, scale=s)  # noqa: E731
+        want = ymin + quad(prof, 0, np.inf, limit=200)[0]
+        assert f == pytest.approx(want, rel=1e-6)
