@@ -25,10 +25,11 @@ from collections.abc import Sequence
 # Sub-command modules, in the order they appear in --help.
 _COMMANDS = (
     "_demo",
-    "_locate",
-    "_navigate",
     "_gradcheck",
     "_montecarlo",
+    "_los",
+    "_locate",
+    "_navigate",
     "_posterior",
 )
 

@@ -28,6 +28,7 @@ IPN Progress Report 42-178.
 
 from __future__ import annotations
 
+import atexit
 import datetime as _dt
 import os
 import warnings
@@ -173,6 +174,8 @@ def _load_cached(resolved: str) -> Ephemeris:
     if resolved in _CACHE:
         return _CACHE[resolved]
     e = _open(resolved)
+    if not _CACHE:
+        atexit.register(clear_cache)  # close the kernel files at exit (no ResourceWarning)
     _CACHE[resolved] = e
     return e
 

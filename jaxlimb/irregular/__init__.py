@@ -1,0 +1,51 @@
+"""Irregular bodies: model-based line of sight (Wu, Zou, Xu and Mao).
+
+Shape model -> view sphere (Eq. 5-7) -> template silhouettes and features
+(Eq. 9-14) -> template database -> Hu-moment matching (Eq. 15-17) ->
+similarity transform to the body-centre image (Eq. 18-25) -> line of sight
+(Eq. 1-4), plus the FC/BC baselines and a soft-silhouette least-squares
+refinement (:mod:`.refine`, beyond the paper).
+"""
+
+from .database import DatabaseOptions as DatabaseOptions
+from .database import TemplateDatabase as TemplateDatabase
+from .database import build_database as build_database
+from .database import cache_path as cache_path
+from .database import cached_database as cached_database
+from .database import load_database as load_database
+from .database import save_database as save_database
+from .features import FigureFeatures as FigureFeatures
+from .features import features_from_contours as features_from_contours
+from .features import features_from_mask as features_from_mask
+from .features import hu_from_central as hu_from_central
+from .features import log_hu as log_hu
+from .matching import LocateResult as LocateResult
+from .matching import MatchOptions as MatchOptions
+from .matching import line_of_sight as line_of_sight
+from .matching import locate_centre as locate_centre
+from .matching import match_weights as match_weights
+from .matching import rotation_from_attitude as rotation_from_attitude
+from .matching import shape_distance as shape_distance
+from .matching import similarity_centre as similarity_centre
+from .mesh import Mesh as Mesh
+from .mesh import MeshOptions as MeshOptions
+from .mesh import load_mesh as load_mesh
+from .mesh import mesh_hash as mesh_hash
+from .mesh import validate_mesh as validate_mesh
+from .refine import DensifyResult as DensifyResult
+from .refine import RefineOptions as RefineOptions
+from .refine import RefineResult as RefineResult
+from .refine import densify_match as densify_match
+from .refine import refine_centre as refine_centre
+from .silhouette import SegmentOptions as SegmentOptions
+from .silhouette import brightness_centre as brightness_centre
+from .silhouette import figure_centre as figure_centre
+from .silhouette import mesh_topology as mesh_topology
+from .silhouette import render_silhouette as render_silhouette
+from .silhouette import segment_body as segment_body
+from .views import ViewSphereOptions as ViewSphereOptions
+from .views import camera_transform as camera_transform
+from .views import project_points as project_points
+from .views import template_rotations as template_rotations
+from .views import view_angles as view_angles
+from .views import view_count as view_count

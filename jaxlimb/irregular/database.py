@@ -1,0 +1,401 @@
+"""The 2-D figure feature database (Sec. 3 of Wu et al.): build, save, load, cache.
+
+For every viewpoint of the view sphere (Eq. 5-7) the mesh is projected
+(Eq. 9) into a template image whose principal point is the image of the body
+centre ``P_B`` (the optical axis points at the mesh origin, Sec. 3.3), its
+figure is traced (:mod:`.silhouette`) and the features of Sec. 3.3 are stored:
+area ``S_B`` (Eq. 14), centre ``C_B``, attitude vector ``C_B F_B``, Hu moments
+(Eq. 10-13), plus the second-moment orientation and the resampled outer
+contour used by the matching guards (:mod:`.matching`).
+
+Decisions
+---------
+* Viewing distance: the paper puts the viewpoints at about 3x the long axis.
+  At that distance the template is far more perspective than an image taken
+  from navigation ranges, and the perspective mismatch moves ``P_B - C_B`` by
+  about ``|R/D_template - R/D_image|`` of the figure size (measured: 0.5 px on a
+  220-px figure with templates at 20 radii and the image at 66 radii).  The
+  default here is ``distance_factor = 50`` bounding radii, the middle (in 1/D)
+  of the 30-100 radii at which a body spans 500-150 px in the default camera;
+  ``distance_factor=6`` (about 3 long axes) reproduces the paper's choice.
+* Template resolution: ``template_size_px`` square images with the body's
+  bounding sphere spanning ``fill_fraction`` of the width.  Features are
+  computed from the traced contour polygon (sub-pixel exact moments), so a
+  modest size suffices.
+* The validated mesh itself is stored in the file (a few MB at most), so the
+  database alone supports the refinement of :mod:`.refine`.
+
+File format (``.npz``, ``FORMAT_VERSION``): arrays ``format_version``,
+``settings_json``, ``mesh_hash``, ``mesh_vertices``, ``mesh_faces``, the
+per-template arrays, and ``checksum`` -- a SHA-256 over every other array.  The
+file is written atomically (:func:`jaxlimb._io.atomic_open`); reading it
+verifies the zip CRCs, the checksum, the version, the shapes, the stored mesh
+against its hash and, if given, the expected mesh hash and settings.  Any
+failure raises :class:`jaxlimb.errors.DatabaseError` and nothing is returned.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import os
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .._io import atomic_open
+from ..errors import ConfigError, DatabaseError
+from .features import features_from_contours
+from .mesh import Mesh, MeshOptions, mesh_hash, validate_mesh
+from .silhouette import mesh_topology, render_silhouette
+from .views import ViewSphereOptions, template_rotations
+
+FORMAT_VERSION = 1
+_MAGIC = "jaxlimb-template-db"
+
+_PER_TEMPLATE = (
+    "alpha",
+    "beta",
+    "R_body_to_camera",
+    "area",
+    "centre_rc",
+    "hu",
+    "orientation",
+    "elongation",
+    "attitude_xy",
+    "contour_xy",
+)
+
+
+@dataclass(frozen=True)
+class DatabaseOptions:
+    """Settings of a template database (all stored in the file and checked on load).
+
+    Parameters
+    ----------
+    step_deg, pole_axis, rings
+        View-sphere sampling, see :class:`~jaxlimb.irregular.views.ViewSphereOptions`.
+    template_size_px
+        Side of the square template image (px).
+    fill_fraction
+        Fraction of the template width spanned by the body's bounding sphere.
+    distance_factor
+        Viewpoint distance in units of the body's bounding radius (paper: ~3x the
+        long axis; default 50, see the module docstring).
+    n_contour
+        Number of stored contour points per template.
+    """
+
+    step_deg: float = 3.0
+    pole_axis: str = "z"
+    rings: str = "paper"
+    template_size_px: int = 512
+    fill_fraction: float = 0.8
+    distance_factor: float = 50.0
+    n_contour: int = 128
+
+    def __post_init__(self) -> None:
+        ViewSphereOptions(self.step_deg, self.pole_axis, self.rings)  # validates those three
+        if not (isinstance(self.template_size_px, int) and 32 <= self.template_size_px <= 8192):
+            raise ConfigError(f"`template_size_px` must be an integer in [32, 8192], got {self.template_size_px!r}")
+        if not (0.1 <= float(self.fill_fraction) <= 0.95):
+            raise ConfigError(f"`fill_fraction` must be in [0.1, 0.95], got {self.fill_fraction!r}")
+        if not (float(self.distance_factor) >= 1.5 and math.isfinite(self.distance_factor)):
+            raise ConfigError(f"`distance_factor` must be >= 1.5, got {self.distance_factor!r}")
+        if not (isinstance(self.n_contour, int) and 16 <= self.n_contour <= 4096):
+            raise ConfigError(f"`n_contour` must be an integer in [16, 4096], got {self.n_contour!r}")
+
+    @property
+    def view_sphere(self) -> ViewSphereOptions:
+        return ViewSphereOptions(self.step_deg, self.pole_axis, self.rings)
+
+    def to_json(self) -> str:
+        return json.dumps(dataclasses.asdict(self), sort_keys=True)
+
+    @classmethod
+    def from_json(cls, text: str) -> DatabaseOptions:
+        d = json.loads(text)
+        if not isinstance(d, dict):
+            raise ValueError("settings are not a JSON object")
+        return cls(**d)
+
+
+@dataclass(frozen=True)
+class TemplateDatabase:
+    """Template features for every viewpoint, with the mesh and settings they came from.
+
+    Per-template arrays (``N`` templates): ``alpha``, ``beta`` (rad, Eq. 5);
+    ``R_body_to_camera`` ``(N,3,3)``; ``area`` ``S_B`` (px^2); ``centre_rc``
+    ``C_B``; ``hu`` ``(N,7)``; ``orientation`` (rad); ``elongation``;
+    ``attitude_xy`` ``C_B F_B`` (x=col, y=row); ``contour_xy`` ``(N,n,2)``
+    relative to ``C_B``.  Template camera: ``focal_px``, ``principal_rc``
+    (= ``P_B`` for every template), body centre at distance ``distance_km``.
+    """
+
+    options: DatabaseOptions
+    mesh: Mesh
+    mesh_hash: str
+    focal_px: float
+    principal_rc: tuple[float, float]
+    distance_km: float
+    alpha: np.ndarray
+    beta: np.ndarray
+    R_body_to_camera: np.ndarray
+    area: np.ndarray
+    centre_rc: np.ndarray
+    hu: np.ndarray
+    orientation: np.ndarray
+    elongation: np.ndarray
+    attitude_xy: np.ndarray
+    contour_xy: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.alpha.shape[0])
+
+    @property
+    def centre_image_rc(self) -> np.ndarray:
+        """``P_B``: the image of the body centre in every template (the principal point)."""
+        return np.asarray(self.principal_rc, dtype=float)
+
+
+def _template_camera(mesh: Mesh, options: DatabaseOptions) -> tuple[float, tuple[float, float], float]:
+    S = options.template_size_px
+    distance = options.distance_factor * mesh.max_radius
+    half_angle = math.asin(1.0 / options.distance_factor)
+    focal = options.fill_fraction * (S / 2.0) / math.tan(half_angle)
+    pp = ((S - 1) / 2.0, (S - 1) / 2.0)
+    return focal, pp, distance
+
+
+def build_database(mesh: Mesh, options: DatabaseOptions = DatabaseOptions(), progress: bool = True) -> TemplateDatabase:
+    """Render every template and extract its features (Sec. 3 of Wu et al.).
+
+    Parameters
+    ----------
+    mesh
+        A validated mesh (:func:`~jaxlimb.irregular.mesh.load_mesh`).
+    options
+        Database settings.
+    progress
+        Show a tqdm progress bar (on stderr).
+    """
+    from tqdm import tqdm
+
+    topo = mesh_topology(mesh)
+    focal, pp, distance = _template_camera(mesh, options)
+    S = options.template_size_px
+    alpha, beta, R = template_rotations(options.view_sphere)
+    n = alpha.shape[0]
+    nc = options.n_contour
+    area = np.empty(n)
+    centre = np.empty((n, 2))
+    hu = np.empty((n, 7))
+    orient = np.empty(n)
+    elong = np.empty(n)
+    att = np.empty((n, 2))
+    cont = np.empty((n, nc, 2), dtype=np.float32)
+    t = np.array([0.0, 0.0, distance])
+    for i in tqdm(range(n), desc="templates", unit="view", disable=not progress, mininterval=0.5):
+        _, contours = render_silhouette(topo, R[i], t, focal, pp, (S, S))
+        if not contours:
+            raise DatabaseError(f"template {i} (alpha={alpha[i]:.4f}, beta={beta[i]:.4f}) has an empty figure")
+        f = features_from_contours(contours, nc)
+        area[i], centre[i], hu[i], orient[i], elong[i], att[i] = (
+            f.area,
+            f.centre_rc,
+            f.hu,
+            f.orientation,
+            f.elongation,
+            f.attitude_xy,
+        )
+        cont[i] = f.contour_xy
+    return TemplateDatabase(
+        options=options,
+        mesh=mesh,
+        mesh_hash=mesh_hash(mesh),
+        focal_px=float(focal),
+        principal_rc=(float(pp[0]), float(pp[1])),
+        distance_km=float(distance),
+        alpha=alpha,
+        beta=beta,
+        R_body_to_camera=R,
+        area=area,
+        centre_rc=centre,
+        hu=hu,
+        orientation=orient,
+        elongation=elong,
+        attitude_xy=att,
+        contour_xy=cont,
+    )
+
+
+# --------------------------------------------------------------------------- file I/O
+def _arrays(db: TemplateDatabase) -> dict[str, np.ndarray]:
+    d: dict[str, np.ndarray] = {
+        "magic": np.array(_MAGIC),
+        "format_version": np.array(FORMAT_VERSION, dtype=np.int64),
+        "settings_json": np.array(db.options.to_json()),
+        "mesh_hash": np.array(db.mesh_hash),
+        "mesh_vertices": np.asarray(db.mesh.vertices, dtype=np.float64),
+        "mesh_faces": np.asarray(db.mesh.faces, dtype=np.int64),
+        "camera": np.array([db.focal_px, db.principal_rc[0], db.principal_rc[1], db.distance_km]),
+    }
+    for k in _PER_TEMPLATE:
+        d[k] = np.asarray(getattr(db, k))
+    return d
+
+
+def _checksum(arrays: dict[str, np.ndarray]) -> str:
+    h = hashlib.sha256()
+    for k in sorted(arrays):
+        if k == "checksum":
+            continue
+        a = np.ascontiguousarray(arrays[k])
+        h.update(k.encode())
+        h.update(str(a.dtype).encode())
+        h.update(str(a.shape).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def save_database(db: TemplateDatabase, path: str | os.PathLike[str]) -> Path:
+    """Write ``db`` to ``path`` (``.npz``) atomically; returns the path."""
+    p = Path(path)
+    arrays = _arrays(db)
+    arrays["checksum"] = np.array(_checksum(arrays))
+    with atomic_open(p, "wb") as fh:
+        np.savez_compressed(fh, **arrays)  # type: ignore[arg-type]
+    return p
+
+
+def load_database(
+    path: str | os.PathLike[str],
+    expected_mesh_hash: str | None = None,
+    expected_options: DatabaseOptions | None = None,
+) -> TemplateDatabase:
+    """Read and verify a database file; see the module docstring.
+
+    Raises
+    ------
+    DatabaseError
+        Missing, truncated or corrupt file, other format version, checksum or
+        mesh-hash mismatch, or other mesh / settings than expected.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise DatabaseError(f"template database {str(p)!r} does not exist")
+    try:
+        with open(p, "rb") as fh, np.load(fh, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}  # reads (and CRC-checks) every member
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError, KeyError, zipfile.LargeZipFile) as e:
+        raise DatabaseError(f"template database {str(p)!r} is corrupt or truncated: {type(e).__name__}: {e}") from None
+    except Exception as e:  # zlib.error and friends
+        raise DatabaseError(f"template database {str(p)!r} cannot be read: {type(e).__name__}: {e}") from None
+    need = {"magic", "format_version", "settings_json", "mesh_hash", "mesh_vertices", "mesh_faces", "camera", "checksum"}
+    missing = sorted((need | set(_PER_TEMPLATE)) - set(arrays))
+    if missing:
+        raise DatabaseError(f"template database {str(p)!r} lacks arrays {missing}: not a jaxlimb database or corrupt")
+    if str(arrays["magic"]) != _MAGIC:
+        raise DatabaseError(f"{str(p)!r} is not a jaxlimb template database")
+    version = int(arrays["format_version"])
+    if version != FORMAT_VERSION:
+        raise DatabaseError(
+            f"template database {str(p)!r} has format version {version}; this jaxlimb reads version {FORMAT_VERSION}"
+            " (rebuild it with `jaxlimb los build-db`)"
+        )
+    if str(arrays["checksum"]) != _checksum(arrays):
+        raise DatabaseError(f"template database {str(p)!r} fails its checksum: corrupt")
+    try:
+        options = DatabaseOptions.from_json(str(arrays["settings_json"]))
+    except (ValueError, TypeError, ConfigError) as e:
+        raise DatabaseError(f"template database {str(p)!r} has unreadable settings: {e}") from None
+    stored_hash = str(arrays["mesh_hash"])
+    try:
+        mesh = validate_mesh(arrays["mesh_vertices"], arrays["mesh_faces"], MeshOptions(repair=False), source=p.name)
+    except Exception as e:
+        raise DatabaseError(f"template database {str(p)!r} holds an invalid mesh: {e}") from None
+    if mesh_hash(mesh) != stored_hash:
+        raise DatabaseError(f"template database {str(p)!r}: stored mesh does not match its hash")
+    if expected_mesh_hash is not None and stored_hash != expected_mesh_hash:
+        raise DatabaseError(
+            f"template database {str(p)!r} was built for mesh {stored_hash[:12]}..., not for the given mesh"
+            f" {expected_mesh_hash[:12]}..."
+        )
+    if expected_options is not None and options != expected_options:
+        raise DatabaseError(
+            f"template database {str(p)!r} was built with settings {options.to_json()}, expected"
+            f" {expected_options.to_json()}"
+        )
+    n = arrays["alpha"].shape[0]
+    shapes = {
+        "alpha": (n,),
+        "beta": (n,),
+        "R_body_to_camera": (n, 3, 3),
+        "area": (n,),
+        "centre_rc": (n, 2),
+        "hu": (n, 7),
+        "orientation": (n,),
+        "elongation": (n,),
+        "attitude_xy": (n, 2),
+        "contour_xy": (n, options.n_contour, 2),
+    }
+    for k, shp in shapes.items():
+        if arrays[k].shape != shp or not np.all(np.isfinite(arrays[k])):
+            raise DatabaseError(f"template database {str(p)!r}: array {k!r} has shape {arrays[k].shape}, expected {shp}")
+    cam = arrays["camera"]
+    if n < 2 or cam.shape != (4,) or not np.all(np.isfinite(cam)) or not np.all(arrays["area"] > 0):
+        raise DatabaseError(f"template database {str(p)!r} holds invalid template data")
+    return TemplateDatabase(
+        options=options,
+        mesh=mesh,
+        mesh_hash=stored_hash,
+        focal_px=float(cam[0]),
+        principal_rc=(float(cam[1]), float(cam[2])),
+        distance_km=float(cam[3]),
+        **{k: arrays[k] for k in _PER_TEMPLATE},
+    )
+
+
+def cache_dir() -> Path:
+    """Database cache directory: ``$JAXLIMB_CACHE`` or ``~/.cache/jaxlimb``."""
+    env = os.environ.get("JAXLIMB_CACHE")
+    return Path(env) if env else Path.home() / ".cache" / "jaxlimb"
+
+
+def cache_path(mesh: Mesh, options: DatabaseOptions) -> Path:
+    """Cache file name for a mesh and settings (both hashed into the name)."""
+    sh = hashlib.sha256(options.to_json().encode()).hexdigest()[:12]
+    return cache_dir() / f"los-templates-v{FORMAT_VERSION}-{mesh_hash(mesh)[:16]}-{sh}.npz"
+
+
+def cached_database(mesh: Mesh, options: DatabaseOptions = DatabaseOptions(), progress: bool = True) -> TemplateDatabase:
+    """Load the cached database for ``mesh`` and ``options``, building (and caching) it if needed.
+
+    A cached file that fails verification is rebuilt and replaced.
+    """
+    p = cache_path(mesh, options)
+    if p.is_file():
+        try:
+            return load_database(p, expected_mesh_hash=mesh_hash(mesh), expected_options=options)
+        except DatabaseError:
+            pass  # rebuilt below
+    db = build_database(mesh, options, progress=progress)
+    save_database(db, p)
+    return db
+
+
+__all__ = [
+    "FORMAT_VERSION",
+    "DatabaseOptions",
+    "TemplateDatabase",
+    "build_database",
+    "cache_dir",
+    "cache_path",
+    "cached_database",
+    "load_database",
+    "save_database",
+]

@@ -1,0 +1,530 @@
+"""Template matching and the similarity transform (Eq. 15-25 of Wu et al.), line of sight (Eq. 1-4).
+
+Pipeline of :func:`locate_centre`:
+
+1. segment the body (:func:`~jaxlimb.irregular.silhouette.segment_body`);
+2. *rectify* the figure to a virtual camera whose boresight passes through the
+   figure centre (rotation homography ``H = K R^T K^-1``), so that a body far
+   off the optical axis is compared with the on-axis templates without the
+   1/cos^2 radial stretch of the pinhole (about 1 % at 8 deg off axis).  The
+   templates are on-axis by construction (Sec. 3.3), so this is what the
+   similarity principle of Eq. (18)-(19) silently assumes;
+3. features of the rectified figure (Eq. 10-14);
+4. shape distance to every template, Eq. (15), with weights Eq. (16), keep the
+   ``top_k`` best;
+5. for each kept template, estimate the rotation ``theta`` (Eq. 18-23, guarded,
+   see below), score the alignment of the template contour with the observed
+   contour, keep the best template;
+6. centre point by the similarity transform, Eq. (24)-(25), mapped back through
+   the rectification; line of sight, Eq. (4) (:meth:`Camera.los`).
+
+Decisions and guards (each is tested in ``tests/irregular/test_matching.py``)
+---------------------------------------------------------------------------
+* **Weights (Eq. 16).**  As printed, ``lambda_l = max |h_l^m - h_l^n|`` (the
+  range of ``h_l`` over the database) *multiplies* ``|h_l^i - h_l^j|``, so the
+  moment with the largest spread (``h1``) dominates and ``h3..h7`` are ignored --
+  the opposite of a normalisation.  We read it as a normalisation and use
+  ``lambda_l = 1 / range_l`` (``weights="inverse_range"``, default);
+  ``weights="paper"`` applies Eq. (16) literally.
+* **Near-zero moments.**  The distance is computed on the guarded log-scaled
+  moments of :func:`~jaxlimb.irregular.features.log_hu`
+  (``sign(h) log10(1 + |h|/floor)``), so that moments near zero neither match
+  anything (raw ``|h|`` differences all ~0) nor explode (``log|h|``).
+* **Mirror images.**  The sign of ``h7`` is kept, and the final choice among the
+  ``top_k`` candidates is made by contour agreement under a *proper* rotation
+  (no reflection), which rejects the mirror-image (antipodal) template.
+* **Unstable attitude vector.**  The paper's farthest point jumps between
+  distant contour points when two are almost equally far (near-symmetric
+  figures).  The rotation candidates are: every pairing of the ``n_far``
+  farthest distinct points of the two figures (Eq. 23 for each pair), and the
+  second-moment orientation difference and that plus pi; each is scored by the
+  mean distance of the transformed template contour to the observed contour
+  (chamfer distance), the best is refined on a fine angular grid.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from ..errors import ConfigError, NoBodyError
+from .database import TemplateDatabase
+from .features import (
+    FigureFeatures,
+    central_moments,
+    elongation,
+    far_point_candidates,
+    hu_from_central,
+    log_hu,
+    orientation,
+    raw_moments_mask,
+    resample_closed,
+)
+from .silhouette import SegmentOptions, brightness_centre, figure_centre, segment_body
+
+
+@dataclass(frozen=True)
+class MatchOptions:
+    """Options of :func:`locate_centre`.
+
+    Parameters
+    ----------
+    top_k
+        Templates kept after the Hu-moment distance (Eq. 17) for the contour check.
+    weights
+        ``"inverse_range"`` (default) or ``"paper"`` (Eq. 16 literally).
+    log_scale
+        Compare guarded log-scaled Hu moments (default) instead of raw ones.
+    n_far
+        Farthest-point candidates per figure for the rotation.
+    rectify
+        Rectify off-axis figures to a virtual on-axis camera (default True).
+    rotation
+        ``"guarded"`` (default): rotation candidates scored by contour agreement
+        over the ``top_k`` templates (see the module docstring); ``"paper"``:
+        the best template of Eq. (17) and the farthest-point rotation of
+        Eq. (23) only -- the method exactly as published (for comparison).
+    segment
+        Segmentation options.
+    """
+
+    top_k: int = 8
+    weights: str = "inverse_range"
+    log_scale: bool = True
+    n_far: int = 3
+    rectify: bool = True
+    rotation: str = "guarded"
+    segment: SegmentOptions = field(default_factory=SegmentOptions)
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.top_k, int) and self.top_k >= 1):
+            raise ConfigError(f"`top_k` must be an integer >= 1, got {self.top_k!r}")
+        if self.weights not in ("inverse_range", "paper"):
+            raise ConfigError(f"`weights` must be 'inverse_range' or 'paper', got {self.weights!r}")
+        if self.rotation not in ("guarded", "paper"):
+            raise ConfigError(f"`rotation` must be 'guarded' or 'paper', got {self.rotation!r}")
+        if not (isinstance(self.n_far, int) and 1 <= self.n_far <= 8):
+            raise ConfigError(f"`n_far` must be an integer in [1, 8], got {self.n_far!r}")
+
+
+@dataclass(frozen=True)
+class LocateResult:
+    """Result of :func:`locate_centre`.
+
+    Attributes
+    ----------
+    centre_rc
+        Estimated image of the body centre ``P_G`` (row, col), Eq. (25).
+    los_camera
+        Unit line of sight to the body centre (camera frame), Eq. (4).
+    template_index
+        Index of the chosen template ``F_B``.
+    theta
+        Rotation ``theta`` (rad) from the template to the observed figure, Eq. (23),
+        in the (x=col, y=row) plane of the rectified image.
+    scale
+        ``k_c = sqrt(S_G / S_B)``, Eq. (20).
+    match_distance
+        Shape distance ``SE(F_B, F_G)``, Eq. (15).
+    contour_mean_px
+        Mean distance (px) of the aligned template contour to the observed contour.
+    figure_centre_rc, brightness_centre_rc
+        The FC and BC baselines (row, col).
+    R_virtual
+        Rotation of the rectification (camera -> virtual camera is ``R_virtual.T``).
+    """
+
+    centre_rc: np.ndarray
+    los_camera: np.ndarray
+    template_index: int
+    theta: float
+    scale: float
+    match_distance: float
+    contour_mean_px: float
+    figure_centre_rc: np.ndarray
+    brightness_centre_rc: np.ndarray
+    R_virtual: np.ndarray
+    mask: np.ndarray = field(repr=False)
+    candidates: tuple[int, ...] = ()
+
+
+# --------------------------------------------------------------------------- Eq. 15-17
+def match_weights(features: np.ndarray, mode: str = "inverse_range") -> np.ndarray:
+    """Weights ``lambda_l`` of Eq. (16) from the database features ``(N, 7)``.
+
+    ``range_l = max_{m,n} |h_l^m - h_l^n| = max_m h_l^m - min_m h_l^m``.  ``mode="paper"``
+    returns ``range_l`` (Eq. 16 as printed); ``"inverse_range"`` returns
+    ``1 / range_l`` (a feature with zero range gets weight 0).
+    """
+    f = np.asarray(features, dtype=float)
+    rng = f.max(axis=0) - f.min(axis=0)
+    if mode == "paper":
+        return rng
+    if mode == "inverse_range":
+        return np.where(rng > 0, 1.0 / np.where(rng > 0, rng, 1.0), 0.0)
+    raise ConfigError(f"weights mode must be 'inverse_range' or 'paper', got {mode!r}")
+
+
+def shape_distance(obs: np.ndarray, templates: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Shape similarity error ``SE = sum_l lambda_l |h_l^i - h_l^j|``, Eq. (15), against every template."""
+    return np.abs(np.asarray(templates) - np.asarray(obs)) @ np.asarray(weights)
+
+
+# --------------------------------------------------------------------------- Eq. 18-25
+def rotation_from_attitude(cf_template_xy: np.ndarray, cf_observed_xy: np.ndarray) -> float:
+    """Rotation angle ``theta`` of Eq. (22)-(23) from the two attitude vectors (x, y).
+
+    ``theta = atan2(x_B y_G - y_B x_G, x_B x_G + y_B y_G)``; the common positive
+    factor ``sqrt(S_B/S_G) / |CF_B|^2`` of Eq. (22) does not change ``atan2``.
+    """
+    xb, yb = cf_template_xy
+    xg, yg = cf_observed_xy
+    return math.atan2(xb * yg - yb * xg, xb * xg + yb * yg)
+
+
+def similarity_centre(
+    centre_obs_rc: np.ndarray,
+    area_obs: float,
+    centre_tpl_rc: np.ndarray,
+    area_tpl: float,
+    point_tpl_rc: np.ndarray,
+    theta: float,
+) -> np.ndarray:
+    """Image of the body centre in the observed figure, Eq. (24)-(25).
+
+    ``P_G = C_G + sqrt(S_G/S_B) Rot(theta) (P_B - C_B)`` with the rotation acting in
+    the (x=col, y=row) plane; inputs and output are (row, col).
+    """
+    k = math.sqrt(area_obs / area_tpl)
+    d = np.asarray(point_tpl_rc, dtype=float) - np.asarray(centre_tpl_rc, dtype=float)
+    dx, dy = d[1], d[0]
+    c, s = math.cos(theta), math.sin(theta)
+    return np.asarray(centre_obs_rc, dtype=float) + k * np.array([s * dx + c * dy, c * dx - s * dy])
+
+
+def line_of_sight(camera: object, centre_rc: np.ndarray) -> np.ndarray:
+    """Unit line of sight to an image point, Eq. (4) of Wu et al. (``k_x = k_y = f/pitch``)."""
+    return np.asarray(camera.los(np.asarray(centre_rc, dtype=float)))  # type: ignore[attr-defined]
+
+
+# --------------------------------------------------------------------------- rectification
+def _rot_z_to(u: np.ndarray) -> np.ndarray:
+    """Smallest rotation taking +z to the unit vector ``u``."""
+    z = np.array([0.0, 0.0, 1.0])
+    v = np.cross(z, u)
+    s = np.linalg.norm(v)
+    c = float(z @ u)
+    if s < 1e-15:
+        return np.eye(3)
+    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.eye(3) + vx + vx @ vx * ((1 - c) / s**2)
+
+
+def _apply_h(H: np.ndarray, rc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    rc = np.asarray(rc, dtype=float)
+    x = np.stack([rc[..., 1], rc[..., 0], np.ones(rc.shape[:-1])], axis=-1) @ H.T
+    w = x[..., 2]
+    return np.stack([x[..., 1] / w, x[..., 0] / w], axis=-1), w
+
+
+def _affine_of(H: np.ndarray, rc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Affine approximation ``x' = A x + b`` (x = (col, row)) of the homography at ``rc``."""
+    p0, _ = _apply_h(H, rc)
+    e = 0.5
+    px, _ = _apply_h(H, rc + np.array([0.0, e]))
+    py, _ = _apply_h(H, rc + np.array([e, 0.0]))
+    mx, _ = _apply_h(H, rc - np.array([0.0, e]))
+    my, _ = _apply_h(H, rc - np.array([e, 0.0]))
+    A = np.empty((2, 2))
+    A[:, 0] = (px - mx)[::-1] / (2 * e)  # d(x', y') / dx
+    A[:, 1] = (py - my)[::-1] / (2 * e)  # d(x', y') / dy
+    x0 = np.asarray(rc, dtype=float)[::-1]
+    b = p0[::-1] - A @ x0
+    return A, b
+
+
+def _affine_moments(area: float, c_xy: np.ndarray, mu: np.ndarray, A: np.ndarray, b: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """Area, centroid and central moments (``mu20..mu03``) of a figure mapped by ``x' = A x + b``.
+
+    Central moments are tensors: ``T'_ij = |det A| A_ia A_jb T_ab`` and likewise for order 3.
+    """
+    mu20, mu11, mu02, mu30, mu21, mu12, mu03 = mu
+    T2 = np.array([[mu20, mu11], [mu11, mu02]])
+    T3 = np.empty((2, 2, 2))
+    T3[0, 0, 0] = mu30
+    T3[0, 0, 1] = T3[0, 1, 0] = T3[1, 0, 0] = mu21
+    T3[0, 1, 1] = T3[1, 0, 1] = T3[1, 1, 0] = mu12
+    T3[1, 1, 1] = mu03
+    d = abs(float(np.linalg.det(A)))
+    T2n = d * A @ T2 @ A.T
+    T3n = d * np.einsum("ia,jb,kc,abc->ijk", A, A, A, T3)
+    mun = np.array([T2n[0, 0], T2n[0, 1], T2n[1, 1], T3n[0, 0, 0], T3n[0, 0, 1], T3n[0, 1, 1], T3n[1, 1, 1]])
+    return area * d, A @ c_xy + b, mun
+
+
+def _rectified_features(mask: np.ndarray, H: np.ndarray, n_contour: int) -> tuple[FigureFeatures, np.ndarray]:
+    """Features of the figure mapped by the homography ``H``.
+
+    Moments: pixel-count moments of the mask (``cv2.moments``) transformed by the
+    affine approximation of ``H`` at the figure centre (the neglected second-order
+    terms are ~ (size/f) tan(off-axis angle), below 1e-3 relative for any
+    reasonable field of view).  Contour: mapped exactly.
+    """
+    c0, r0, bw, bh = cv2.boundingRect(np.ascontiguousarray(mask, dtype=np.uint8))
+    crop = np.ascontiguousarray(mask[r0 : r0 + bh, c0 : c0 + bw], dtype=np.uint8)
+    area, xb, yb, mu = central_moments(raw_moments_mask(crop))
+    c_xy = np.array([xb + c0, yb + r0])
+    A, b = _affine_of(H, c_xy[::-1])
+    area, c, mu = _affine_moments(area, c_xy, mu, A, b)
+    contours, _ = cv2.findContours(crop, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    big = max(contours, key=lambda q: abs(cv2.contourArea(q))).reshape(-1, 2).astype(float) + np.array([c0, r0])
+    crc, _ = _apply_h(H, big[:, ::-1])
+    cxy = crc[:, ::-1]
+    feats = FigureFeatures(
+        area=area,
+        centre_rc=c[::-1].copy(),
+        hu=hu_from_central(area, mu),
+        orientation=orientation(mu),
+        elongation=elongation(mu),
+        attitude_xy=far_point_candidates(cxy, c, n=1)[0],
+        contour_xy=resample_closed(cxy, n_contour) - c,
+    )
+    return feats, cxy
+
+
+class _Chamfer:
+    """Distance (px) to the observed outer contour, sampled bilinearly."""
+
+    def __init__(self, mask: np.ndarray) -> None:
+        bx, by, bw, bh = cv2.boundingRect(np.ascontiguousarray(mask, dtype=np.uint8))
+        pad = 8 + int(0.25 * max(bw, bh))
+        self.r0 = max(by - pad, 0)
+        self.c0 = max(bx - pad, 0)
+        r1 = min(by + bh - 1 + pad, mask.shape[0] - 1)
+        c1 = min(bx + bw - 1 + pad, mask.shape[1] - 1)
+        crop = np.ascontiguousarray(mask[self.r0 : r1 + 1, self.c0 : c1 + 1], dtype=np.uint8)
+        edge = np.ones_like(crop)
+        contours, _ = cv2.findContours(crop, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+        cv2.drawContours(edge, contours, -1, color=0, thickness=1)
+        self.dt = cv2.distanceTransform(edge, cv2.DIST_L2, cv2.DIST_MASK_PRECISE).astype(float)
+
+    def __call__(self, rc: np.ndarray) -> np.ndarray:
+        h, w = self.dt.shape
+        r = rc[..., 0] - self.r0
+        c = rc[..., 1] - self.c0
+        rcl = np.clip(r, 0, h - 1.000001)
+        ccl = np.clip(c, 0, w - 1.000001)
+        i, j = np.floor(rcl).astype(int), np.floor(ccl).astype(int)
+        fr, fc = rcl - i, ccl - j
+        d = self.dt
+        v = (d[i, j] * (1 - fr) + d[i + 1, j] * fr) * (1 - fc) + (d[i, j + 1] * (1 - fr) + d[i + 1, j + 1] * fr) * fc
+        return v + np.hypot(r - rcl, c - ccl)  # outside the crop: add the distance to it
+
+
+def _rotation_candidates(tpl_contour: np.ndarray, tpl_orient: float, obs: FigureFeatures, obs_far: np.ndarray, n_far: int) -> np.ndarray:
+    tfar = far_point_candidates(tpl_contour, np.zeros(2), n=n_far)
+    th = [rotation_from_attitude(a, b) for a in tfar for b in obs_far]
+    d2 = obs.orientation - tpl_orient
+    th += [d2, d2 + math.pi]
+    return np.array(th)
+
+
+def database_features(db: TemplateDatabase, options: MatchOptions) -> np.ndarray:
+    """The per-template feature vectors compared by Eq. (15): guarded log-Hu or raw Hu."""
+    return log_hu(db.hu) if options.log_scale else np.asarray(db.hu)
+
+
+@dataclass
+class _Observed:
+    """The observed figure prepared for alignment (crop, rectification, features, chamfer map)."""
+
+    off: np.ndarray
+    fc: np.ndarray
+    Rv: np.ndarray
+    Hinv: np.ndarray
+    obs: FigureFeatures
+    obs_cxy: np.ndarray
+    chamfer: _Chamfer
+    cG: np.ndarray
+
+    def score(self, conts: np.ndarray, ks: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        """Mean chamfer distance of templates ``conts`` ``(K, n, 2)`` scaled by ``ks`` for rotations ``(K, T)``."""
+        c, s = np.cos(theta)[..., None], np.sin(theta)[..., None]
+        x, y = conts[:, None, :, 0], conts[:, None, :, 1]
+        kk = ks[:, None, None]
+        cG = self.cG
+        pts_v = np.stack([cG[1] + kk * (s * x + c * y), cG[0] + kk * (c * x - s * y)], axis=-1)  # (row, col)
+        pts, _ = _apply_h(self.Hinv, pts_v)
+        return self.chamfer(pts).mean(axis=-1)
+
+    def align(self, conts: np.ndarray, areas: np.ndarray, orients: np.ndarray, n_far: int) -> tuple[np.ndarray, np.ndarray]:
+        """Guarded rotation of each template (candidates, then two fine grids); returns (theta, score)."""
+        ks = np.sqrt(self.obs.area / np.asarray(areas, dtype=float))
+        obs_far = far_point_candidates(self.obs_cxy, self.cG, n=n_far)
+        cand = np.stack([_rotation_candidates(conts[i], float(orients[i]), self.obs, obs_far, n_far) for i in range(len(conts))])
+        coarse = conts[:, ::2]  # every other contour point for the coarse stages
+        sc = self.score(coarse, ks, cand)
+        idx = np.arange(len(conts))
+        th = cand[idx, np.argmin(sc, axis=1)]
+        s_all = sc[idx, np.argmin(sc, axis=1)]
+        for half, step, pts in ((math.radians(4.0), math.radians(0.5), coarse), (math.radians(0.5), math.radians(0.05), conts)):
+            grid = th[:, None] + np.arange(-half, half + 0.5 * step, step)[None, :]
+            sg = self.score(pts, ks, grid)
+            i_best = np.argmin(sg, axis=1)
+            th = grid[idx, i_best]
+            s_all = sg[idx, i_best]
+        return th, s_all
+
+    def centre(self, area_B: float, centre_B_rc: np.ndarray, P_B_rc: np.ndarray, theta: float) -> np.ndarray:
+        """Eq. (24)-(25) in the rectified frame, mapped back to image pixels."""
+        P_v = similarity_centre(self.obs.centre_rc, self.obs.area, centre_B_rc, area_B, P_B_rc, theta)
+        P, _ = _apply_h(self.Hinv, P_v)
+        return P + self.off
+
+
+def observe(mask: np.ndarray, camera: object, n_contour: int, rectify: bool = True) -> _Observed:
+    """Crop, rectify (module docstring, step 2) and describe an observed binary figure."""
+    m_full = np.ascontiguousarray(mask, dtype=np.uint8)
+    bx, by, bw, bh = cv2.boundingRect(m_full)  # (x=col, y=row, width, height), C speed
+    if bw == 0 or bh == 0:
+        raise NoBodyError("empty figure")
+    size = max(bw, bh)
+    pad = 8 + int(0.25 * size)
+    r0, c0 = max(by - pad, 0), max(bx - pad, 0)
+    r1 = min(by + bh - 1 + pad, m_full.shape[0] - 1)
+    c1 = min(bx + bw - 1 + pad, m_full.shape[1] - 1)
+    crop = np.ascontiguousarray(m_full[r0 : r1 + 1, c0 : c1 + 1], dtype=np.uint8)  # work in the crop
+    off = np.array([r0, c0], dtype=float)
+    fc = figure_centre(crop) + off
+    Rv = _rot_z_to(camera.los(fc)) if rectify else np.eye(3)  # type: ignore[attr-defined]
+    K = np.array(camera.K, dtype=float)  # type: ignore[attr-defined]
+    K[0, 2] -= c0
+    K[1, 2] -= r0
+    H = K @ Rv.T @ np.linalg.inv(K)  # crop pixel -> virtual (crop) pixel
+    obs, obs_cxy = _rectified_features(crop, H, n_contour)
+    return _Observed(
+        off=off,
+        fc=fc,
+        Rv=Rv,
+        Hinv=np.linalg.inv(H),
+        obs=obs,
+        obs_cxy=obs_cxy,
+        chamfer=_Chamfer(crop),
+        cG=np.array([obs.centre_rc[1], obs.centre_rc[0]]),
+    )
+
+
+def locate_in_mask(
+    mask: np.ndarray,
+    db: TemplateDatabase,
+    camera: object,
+    options: MatchOptions = MatchOptions(),
+    _cache: dict | None = None,
+) -> tuple[np.ndarray, dict]:
+    """Body-centre image from a binary figure (steps 2-6 of the module docstring).
+
+    Returns the centre ``(row, col)`` and a dict of details.
+    """
+    ob = observe(mask, camera, db.options.n_contour, options.rectify)
+    obs, Rv, fc = ob.obs, ob.Rv, ob.fc
+    cache = _cache if _cache is not None else {}
+    key = (id(db), options.weights, options.log_scale)
+    if key not in cache:
+        feats = database_features(db, options)
+        cache.clear()
+        cache[key] = (feats, match_weights(feats, options.weights))
+    feats, w = cache[key]
+    fo = log_hu(obs.hu) if options.log_scale else obs.hu
+    se = shape_distance(fo, feats, w)
+    k_top = min(options.top_k, se.shape[0])
+    top = np.argpartition(se, k_top - 1)[:k_top]
+    top = top[np.argsort(se[top])]
+    js = [int(j) for j in top]
+    conts = np.asarray(db.contour_xy[top], dtype=float)  # (K, n, 2)
+    if options.rotation == "paper":
+        # Eq. (18)-(23) as printed: best template by Eq. (17), rotation from the farthest points
+        j = js[0]
+        theta = rotation_from_attitude(db.attitude_xy[j], obs.attitude_xy)
+        s_best = float(ob.score(conts[:1], np.sqrt(obs.area / db.area[[j]]), np.array([[theta]]))[0, 0])
+    else:
+        th, s_all = ob.align(conts, db.area[top], db.orientation[top], options.n_far)
+        i = int(np.argmin(s_all))
+        s_best, j, theta = float(s_all[i]), js[i], float(th[i])
+    P = ob.centre(db.area[j], db.centre_rc[j], db.centre_image_rc, theta)
+    k_c = math.sqrt(obs.area / db.area[j])
+    info = {
+        "template_index": j,
+        "theta": theta,
+        "scale": k_c,
+        "match_distance": float(se[j]),
+        "contour_mean_px": s_best,
+        "R_virtual": Rv,
+        "candidates": tuple(int(t) for t in top),
+        "figure_centre_rc": fc,
+        "observed": obs,
+    }
+    return np.asarray(P, dtype=float), info
+
+
+def locate_centre(
+    image: np.ndarray,
+    db: TemplateDatabase,
+    camera: object,
+    options: MatchOptions = MatchOptions(),
+) -> LocateResult:
+    """Locate the image of the body centre by template matching (Sec. 4 of Wu et al.).
+
+    Parameters
+    ----------
+    image
+        Grey image ``[row, col]`` (float or integer).
+    db
+        Template database of the body.
+    camera
+        :class:`jaxlimb.geometry.camera.Camera` of the image.
+    options
+        Matching options.
+
+    Raises
+    ------
+    NoBodyError, TooSmallError, TooBigError
+        From the segmentation.
+    """
+    img = np.asarray(image, dtype=float)
+    if img.shape != tuple(camera.shape):  # type: ignore[attr-defined]
+        raise ConfigError(f"image shape {img.shape} does not match the camera {tuple(camera.shape)}")  # type: ignore[attr-defined]
+    mask, _ = segment_body(img, options.segment)
+    P, info = locate_in_mask(mask, db, camera, options)
+    if not np.all(np.isfinite(P)):
+        raise NoBodyError("template matching produced a non-finite centre")
+    return LocateResult(
+        centre_rc=P,
+        los_camera=line_of_sight(camera, P),
+        template_index=info["template_index"],
+        theta=info["theta"],
+        scale=info["scale"],
+        match_distance=info["match_distance"],
+        contour_mean_px=info["contour_mean_px"],
+        figure_centre_rc=info["figure_centre_rc"],
+        brightness_centre_rc=brightness_centre(img, mask),
+        R_virtual=info["R_virtual"],
+        mask=mask,
+        candidates=info["candidates"],
+    )
+
+
+__all__ = [
+    "LocateResult",
+    "MatchOptions",
+    "database_features",
+    "line_of_sight",
+    "locate_centre",
+    "locate_in_mask",
+    "match_weights",
+    "rotation_from_attitude",
+    "shape_distance",
+    "similarity_centre",
+]

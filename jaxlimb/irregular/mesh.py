@@ -1,0 +1,370 @@
+"""Triangle shape models: reading, validation, repair and hashing.
+
+Wu et al. (Sec. 3.2) load an STL triangle mesh and use only its vertices ``V``
+and edges ``E``.  This module reads OBJ, STL (binary and ASCII) and PLY through
+:mod:`trimesh`, and the PDS-style plate tables (``v x y z`` / ``f i j k`` lines
+with **0-based** face indices, e.g. ``eros007790.tab``) with its own reader.
+
+Every mesh is validated before use (:func:`validate_mesh`):
+
+* finite vertex coordinates, at least 4 vertices and 4 faces, indices in range;
+* non-degenerate faces (repeated vertex index or area below ``degenerate_rel_area``
+  times the mean face area) -- dropped when ``repair=True``, otherwise refused;
+* closed (watertight): every undirected edge is shared by exactly two faces;
+* consistently wound: the two faces sharing an edge traverse it in opposite
+  directions -- repaired by breadth-first re-orientation over shared edges when
+  ``repair=True``;
+* outward normals: the signed volume ``sum(v0 . (v1 x v2)) / 6`` is positive --
+  an inverted mesh (negative volume) is flipped when ``repair=True``.
+
+Open meshes are always refused: closing holes would invent geometry that moves
+the silhouette.  Failures raise :class:`jaxlimb.errors.MeshError`.
+
+Coordinates are kept exactly as in the file (km, body-fixed frame).  The body
+centre is the **origin** of these coordinates (DESIGN.md), not the volume
+centroid.  No axis is re-labelled here: which axis is the pole only matters for
+the view-sphere sampling, see :class:`jaxlimb.irregular.views.ViewSphereOptions`
+(``pole_axis``; Celestia models such as ``thebe.obj``/``phobos.obj`` are y-up).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import MeshError
+
+_TRIMESH_EXT = {".obj", ".stl", ".ply", ".off", ".glb", ".gltf"}
+_TABLE_EXT = {".tab", ".txt", ".dat"}
+
+
+@dataclass(frozen=True)
+class MeshOptions:
+    """Options of :func:`load_mesh` / :func:`validate_mesh`.
+
+    Parameters
+    ----------
+    repair
+        Repair what can be repaired without inventing geometry (drop degenerate
+        faces, fix inconsistent winding, flip an inverted mesh).  With ``False``
+        any such defect raises :class:`~jaxlimb.errors.MeshError`.
+    degenerate_rel_area
+        A face whose area is below this fraction of the mean face area is
+        degenerate.
+    """
+
+    repair: bool = True
+    degenerate_rel_area: float = 1e-10
+
+
+@dataclass(frozen=True)
+class Mesh:
+    """A closed, outward-wound triangle mesh (km, body-fixed, origin = body centre).
+
+    Attributes
+    ----------
+    vertices
+        ``(N, 3)`` float64 vertex coordinates.
+    faces
+        ``(M, 3)`` int64 vertex indices, counter-clockwise seen from outside.
+    repairs
+        Human-readable list of repairs applied while loading (empty if none).
+    source
+        File name the mesh was read from (informational).
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    repairs: tuple[str, ...] = field(default=())
+    source: str = ""
+
+    @property
+    def n_vertices(self) -> int:
+        return int(self.vertices.shape[0])
+
+    @property
+    def n_faces(self) -> int:
+        return int(self.faces.shape[0])
+
+    @property
+    def max_radius(self) -> float:
+        """Largest distance of a vertex from the origin (the body centre), km."""
+        return float(np.sqrt((self.vertices**2).sum(axis=1)).max())
+
+    @property
+    def volume(self) -> float:
+        """Signed volume (km^3); positive for outward normals."""
+        return signed_volume(self.vertices, self.faces)
+
+    @property
+    def sha256(self) -> str:
+        """Content hash, see :func:`mesh_hash`."""
+        return mesh_hash(self)
+
+
+# --------------------------------------------------------------------------- geometry helpers
+def face_normals(vertices: np.ndarray, faces: np.ndarray, normalize: bool = True) -> np.ndarray:
+    """Face normals ``(v1 - v0) x (v2 - v0)`` (outward for CCW faces), optionally unit."""
+    v0, v1, v2 = (vertices[faces[:, i]] for i in range(3))
+    n = np.cross(v1 - v0, v2 - v0)
+    if normalize:
+        n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    return n
+
+
+def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """Signed volume ``sum_f v0 . (v1 x v2) / 6`` (divergence theorem)."""
+    v0, v1, v2 = (vertices[faces[:, i]] for i in range(3))
+    return float(np.einsum("ij,ij->", v0, np.cross(v1, v2)) / 6.0)
+
+
+def edge_faces(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unique undirected edges of a closed mesh and the two faces sharing each.
+
+    Returns
+    -------
+    edges
+        ``(E, 2)`` vertex indices ``(a, b)`` as traversed by the *first* face.
+    adjacent
+        ``(E, 2)`` face indices: ``adjacent[:, 0]`` traverses ``a -> b``,
+        ``adjacent[:, 1]`` traverses ``b -> a``.
+
+    Raises
+    ------
+    MeshError
+        If the mesh is not closed and consistently wound (each directed edge must
+        occur once and its reverse once).
+    """
+    m = faces.shape[0]
+    directed = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]], axis=0)
+    owner = np.tile(np.arange(m), 3)
+    n = int(faces.max()) + 1
+    key = directed[:, 0].astype(np.int64) * n + directed[:, 1]
+    rkey = directed[:, 1].astype(np.int64) * n + directed[:, 0]
+    order = np.argsort(key)
+    skey = key[order]
+    if np.any(skey[1:] == skey[:-1]):
+        raise MeshError("mesh is not consistently wound: a directed edge is used by two faces")
+    pos = np.searchsorted(skey, rkey)
+    pos = np.minimum(pos, skey.size - 1)
+    if not np.all(skey[pos] == rkey):
+        raise MeshError("mesh is not closed: an edge has only one adjacent face")
+    partner = owner[order[pos]]
+    first = directed[:, 0] < directed[:, 1]
+    return directed[first], np.stack([owner[first], partner[first]], axis=1)
+
+
+# --------------------------------------------------------------------------- readers
+def _read_table(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Read a PDS-style plate table: ``v x y z`` and ``f i j k`` lines, 0-based faces."""
+    verts: list[list[float]] = []
+    faces: list[list[int]] = []
+    try:
+        with open(path, encoding="ascii", errors="strict") as fh:
+            for lineno, line in enumerate(fh, 1):
+                parts = line.split()
+                if not parts or parts[0].startswith("#"):
+                    continue
+                tag = parts[0].lower()
+                if tag == "v" and len(parts) >= 4:
+                    verts.append([float(p) for p in parts[1:4]])
+                elif tag == "f" and len(parts) >= 4:
+                    faces.append([int(p) for p in parts[1:4]])
+                else:
+                    raise MeshError(f"mesh table {str(path)!r}: unrecognised line {lineno}: {line.strip()[:60]!r}")
+    except (UnicodeDecodeError, ValueError) as e:
+        raise MeshError(f"mesh table {str(path)!r} is not a `v x y z` / `f i j k` table: {e}") from None
+    if not verts or not faces:
+        raise MeshError(f"mesh table {str(path)!r} has {len(verts)} vertices and {len(faces)} faces; need both")
+    return np.asarray(verts, dtype=np.float64), np.asarray(faces, dtype=np.int64)
+
+
+def _read_trimesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    import trimesh
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            # process=True merges duplicate vertices (STL stores each triangle on its own).
+            tm = trimesh.load(str(path), force="mesh", process=True)
+    except Exception as e:  # trimesh raises many types on bad files
+        raise MeshError(f"cannot read mesh {str(path)!r}: {type(e).__name__}: {e}") from None
+    if not isinstance(tm, trimesh.Trimesh) or len(tm.faces) == 0:
+        raise MeshError(f"mesh file {str(path)!r} holds no triangles")
+    return np.asarray(tm.vertices, dtype=np.float64), np.asarray(tm.faces, dtype=np.int64)
+
+
+def load_mesh(path: str | os.PathLike[str], options: MeshOptions = MeshOptions()) -> Mesh:
+    """Read and validate a shape model.
+
+    Parameters
+    ----------
+    path
+        ``.obj``, ``.stl`` (binary or ASCII), ``.ply`` (via trimesh) or a plate
+        table ``.tab`` (``v``/``f`` lines, 0-based face indices).
+    options
+        Validation and repair options.
+
+    Raises
+    ------
+    MeshError
+        Missing or unreadable file, unsupported format, or a mesh that fails
+        validation and cannot be repaired.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise MeshError(f"mesh file {str(p)!r} does not exist")
+    ext = p.suffix.lower()
+    if ext in _TABLE_EXT:
+        v, f = _read_table(p)
+    elif ext in _TRIMESH_EXT:
+        v, f = _read_trimesh(p)
+    else:
+        raise MeshError(f"mesh file {str(p)!r}: unsupported extension {ext!r}; use .obj, .stl, .ply or .tab")
+    return validate_mesh(v, f, options, source=p.name)
+
+
+def validate_mesh(
+    vertices: np.ndarray, faces: np.ndarray, options: MeshOptions = MeshOptions(), source: str = ""
+) -> Mesh:
+    """Validate (and optionally repair) a triangle mesh; see the module docstring.
+
+    Unused vertices are kept (they never affect a silhouette).
+    """
+    name = source or "mesh"
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces)
+    if v.ndim != 2 or v.shape[1] != 3 or v.shape[0] < 4:
+        raise MeshError(f"{name}: vertices must have shape (N>=4, 3), got {v.shape}")
+    if not np.all(np.isfinite(v)):
+        raise MeshError(f"{name}: {int((~np.isfinite(v)).any(axis=1).sum())} vertices are not finite")
+    if f.ndim != 2 or f.shape[1] != 3 or f.shape[0] < 4:
+        raise MeshError(f"{name}: faces must have shape (M>=4, 3), got {f.shape}")
+    if not np.issubdtype(f.dtype, np.integer):
+        raise MeshError(f"{name}: face indices must be integers, got dtype {f.dtype}")
+    f = f.astype(np.int64)
+    if f.min() < 0 or f.max() >= v.shape[0]:
+        raise MeshError(
+            f"{name}: face indices must lie in [0, {v.shape[0] - 1}], got [{int(f.min())}, {int(f.max())}]"
+            " (plate tables use 0-based indices)"
+        )
+    repairs: list[str] = []
+
+    # degenerate faces
+    area = 0.5 * np.linalg.norm(face_normals(v, f, normalize=False), axis=1)
+    repeated = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
+    degenerate = repeated | (area <= options.degenerate_rel_area * max(float(area.mean()), 1e-300))
+    if degenerate.any():
+        if not options.repair:
+            raise MeshError(f"{name}: {int(degenerate.sum())} degenerate faces (zero area or repeated vertex)")
+        f = f[~degenerate]
+        repairs.append(f"dropped {int(degenerate.sum())} degenerate faces")
+        if f.shape[0] < 4:
+            raise MeshError(f"{name}: fewer than 4 faces left after dropping degenerate faces")
+
+    # closed?
+    n = v.shape[0]
+    und = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(und[:, 0] * n + und[:, 1], return_counts=True)
+    if np.any(counts != 2):
+        n_open = int((counts == 1).sum())
+        n_multi = int((counts > 2).sum())
+        raise MeshError(
+            f"{name}: mesh is not closed (watertight): {n_open} boundary edges, {n_multi} edges shared by more "
+            "than two faces; silhouettes need a closed surface"
+        )
+
+    # consistent winding?
+    try:
+        edge_faces(f)
+    except MeshError:
+        if not options.repair:
+            raise MeshError(f"{name}: faces are not consistently wound") from None
+        f = _fix_winding(f)
+        try:
+            edge_faces(f)
+        except MeshError:
+            raise MeshError(f"{name}: faces are not consistently wound and could not be repaired") from None
+        repairs.append("fixed inconsistent face winding")
+
+    vol = signed_volume(v, f)
+    if not np.isfinite(vol) or vol == 0.0:
+        raise MeshError(f"{name}: mesh has zero volume")
+    if vol < 0:
+        if not options.repair:
+            raise MeshError(f"{name}: faces are wound inward (signed volume {vol:.6g} < 0)")
+        f = f[:, ::-1].copy()
+        repairs.append("flipped inward winding (signed volume was negative)")
+    return Mesh(vertices=np.ascontiguousarray(v), faces=np.ascontiguousarray(f), repairs=tuple(repairs), source=source)
+
+
+def _fix_winding(faces: np.ndarray) -> np.ndarray:
+    """Make face orientations consistent by breadth-first propagation over shared edges.
+
+    Two faces sharing an edge are consistent when they traverse it in opposite
+    directions; the first face of each connected component keeps its orientation
+    (the global sign is fixed afterwards with the signed volume).
+    """
+    from collections import deque
+
+    f = faces.copy()
+    m = f.shape[0]
+    n = int(f.max()) + 1
+    und = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    key = und[:, 0] * n + und[:, 1]
+    owner = np.tile(np.arange(m), 3)
+    order = np.argsort(key, kind="stable")
+    ks, os_ = key[order], owner[order]
+    neighbours: list[list[int]] = [[] for _ in range(m)]
+    for i in range(0, ks.size - 1):
+        if ks[i] == ks[i + 1]:
+            a, b = int(os_[i]), int(os_[i + 1])
+            neighbours[a].append(b)
+            neighbours[b].append(a)
+    done = np.zeros(m, dtype=bool)
+
+    def directed(face: np.ndarray) -> set[tuple[int, int]]:
+        return {(int(face[0]), int(face[1])), (int(face[1]), int(face[2])), (int(face[2]), int(face[0]))}
+
+    for seed in range(m):
+        if done[seed]:
+            continue
+        done[seed] = True
+        queue = deque([seed])
+        while queue:
+            a = queue.popleft()
+            da = directed(f[a])
+            for b in neighbours[a]:
+                if done[b]:
+                    continue
+                if da & directed(f[b]):  # same direction on the shared edge: flip b
+                    f[b] = f[b, ::-1]
+                done[b] = True
+                queue.append(b)
+    return f
+
+
+def mesh_hash(mesh: Mesh) -> str:
+    """SHA-256 of the validated vertex (float64) and face (int64) arrays, hex."""
+    h = hashlib.sha256()
+    h.update(b"jaxlimb-mesh-v1")
+    h.update(np.ascontiguousarray(mesh.vertices, dtype="<f8").tobytes())
+    h.update(np.ascontiguousarray(mesh.faces, dtype="<i8").tobytes())
+    return h.hexdigest()
+
+
+__all__ = [
+    "Mesh",
+    "MeshOptions",
+    "edge_faces",
+    "face_normals",
+    "load_mesh",
+    "mesh_hash",
+    "signed_volume",
+    "validate_mesh",
+]

@@ -1,0 +1,127 @@
+"""``jaxlimb los build-db`` / ``jaxlimb los locate`` and the error contract (issue 5, item 8)."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+import trimesh
+from irregular_helpers import render_view
+
+import jaxlimb.cli as cli
+from jaxlimb.irregular.views import view_count
+
+
+@pytest.fixture(autouse=True)
+def only_los(monkeypatch, tmp_path):
+    """Run the CLI with only this sub-command registered (others may not be in the tree yet)."""
+    monkeypatch.setattr(cli, "_COMMANDS", ("_los",))
+    monkeypatch.setenv("JAXLIMB_CACHE", str(tmp_path / "cache"))
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory):
+    from irregular_helpers import lumpy_ellipsoid
+
+    from jaxlimb.geometry.camera import Camera
+
+    d = tmp_path_factory.mktemp("scene")
+    mesh = lumpy_ellipsoid(subdivisions=3)
+    tm = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+    mesh_path = d / "lumpy.obj"
+    tm.export(mesh_path)
+    cam = Camera(rows=300, cols=400)
+    (d / "camera.json").write_text(json.dumps(cam.to_dict()))
+    out = render_view(mesh, cam, [0.3, -0.5, 0.8], 150.0, roll=0.4, offset_px=(5.0, -12.0), quantize_bits=8)
+    cv2.imwrite(str(d / "img.png"), out.image.astype(np.uint8))
+    return d, out.centre_rc
+
+
+def _run(capsys, argv):
+    code = cli.main(argv)
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err
+
+
+def test_build_then_locate_json(scene, capsys, tmp_path):
+    d, truth = scene
+    db = tmp_path / "db.npz"
+    code, out, err = _run(capsys, ["los", "build-db", str(d / "lumpy.obj"), "--step-deg", "10", "--template-size", "256", "--out", str(db), "--json"])
+    assert code == 0, out + err
+    summary = json.loads(out)
+    assert summary["n_templates"] == view_count(10.0) and db.is_file()
+    assert "templates" in err  # progress bar on stderr
+    code, out, err = _run(capsys, ["los", "locate", str(d / "img.png"), "--db", str(db), "--camera", str(d / "camera.json"), "--json", "--no-refine"])
+    assert code == 0, out + err
+    res = json.loads(out)
+    assert res["status"] == "ok"
+    assert set(res) >= {"center_rc", "los_camera", "template", "match_distance"}
+    assert np.linalg.norm(np.array(res["center_rc"]) - truth) < 2.0  # coarse 10-degree database
+    assert abs(np.linalg.norm(res["los_camera"]) - 1) < 1e-12
+    assert set(res["template"]) >= {"index", "alpha_deg", "beta_deg", "rotation_deg", "scale"}
+
+
+def test_locate_with_mesh_builds_cache_once(scene, capsys, tmp_path):
+    d, _ = scene
+    argv = ["los", "locate", str(d / "img.png"), "--mesh", str(d / "lumpy.obj"), "--camera", str(d / "camera.json"), "--step-deg", "30", "--template-size", "128", "--json", "--no-refine"]
+    code, out, err = _run(capsys, argv)
+    assert code == 0, out + err
+    assert "templates" in err
+    cached = list((tmp_path / "cache").glob("*.npz"))
+    assert len(cached) == 1
+    code, out2, err2 = _run(capsys, argv)
+    assert code == 0 and "templates" not in err2  # no rebuild
+    assert json.loads(out2)["center_rc"] == json.loads(out)["center_rc"]
+
+
+@pytest.mark.parametrize(
+    "mutate, code, check",
+    [
+        (lambda d: ["--db", str(d / "missing.npz")], 2, "bad_database"),
+        (lambda d: ["--db", str(d / "camera.json")], 2, "bad_database"),
+        (lambda d: ["--mesh", str(d / "camera.json")], 2, "bad_mesh"),
+    ],
+)
+def test_errors_json(scene, capsys, mutate, code, check):
+    d, _ = scene
+    argv = ["los", "locate", str(d / "img.png"), *mutate(d), "--camera", str(d / "camera.json"), "--json"]
+    rc, out, err = _run(capsys, argv)
+    assert rc == code
+    obj = json.loads(out)
+    assert obj["status"] == "error" and obj["check"] == check
+    assert "Traceback" not in out + err
+
+
+def test_bad_image_and_camera(scene, capsys, tmp_path):
+    d, _ = scene
+    (tmp_path / "broken.png").write_bytes(b"\x89PNG\r\n\x1a\nbroken")
+    db = tmp_path / "db.npz"
+    assert cli.main(["los", "build-db", str(d / "lumpy.obj"), "--step-deg", "30", "--template-size", "128", "--out", str(db), "--no-progress"]) == 0
+    capsys.readouterr()
+    rc, out, _ = _run(capsys, ["los", "locate", str(tmp_path / "broken.png"), "--db", str(db), "--camera", str(d / "camera.json"), "--json"])
+    assert rc == 2 and json.loads(out)["check"] == "bad_image"
+    rc, out, _ = _run(capsys, ["los", "locate", str(tmp_path / "nope.png"), "--db", str(db), "--camera", str(d / "camera.json"), "--json"])
+    assert rc == 2 and json.loads(out)["status"] == "error"
+    (tmp_path / "cam.json").write_text("{not json")
+    rc, out, _ = _run(capsys, ["los", "locate", str(d / "img.png"), "--db", str(db), "--camera", str(tmp_path / "cam.json"), "--json"])
+    assert rc == 2 and json.loads(out)["check"] == "bad_config"
+    # a failed check: an all-black image -> exit 3
+    cv2.imwrite(str(tmp_path / "black.png"), np.zeros((300, 400), np.uint8))
+    rc, out, _ = _run(capsys, ["los", "locate", str(tmp_path / "black.png"), "--db", str(db), "--camera", str(d / "camera.json"), "--json"])
+    assert rc in (2, 3) and json.loads(out)["status"] == "error"
+    # a body cut by the border -> exit 3 (check failed), not a traceback
+    img = np.zeros((300, 400), np.uint8)
+    img[0:60, 100:200] = 200
+    cv2.imwrite(str(tmp_path / "cut.png"), img)
+    rc, out, _ = _run(capsys, ["los", "locate", str(tmp_path / "cut.png"), "--db", str(db), "--camera", str(d / "camera.json"), "--json"])
+    assert rc == 3 and json.loads(out)["check"] == "too_big"
+    # without --json: one line on stderr
+    rc, out, err = _run(capsys, ["los", "locate", str(tmp_path / "cut.png"), "--db", str(db), "--camera", str(d / "camera.json")])
+    assert rc == 3 and out == "" and len(err.strip().splitlines()) == 1
+
+
+def test_missing_arguments_exit_2(capsys):
+    rc, out, _ = _run(capsys, ["los", "locate", "x.png", "--json"])
+    assert rc == 2 and json.loads(out)["check"] == "bad_arguments"

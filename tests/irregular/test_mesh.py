@@ -1,0 +1,142 @@
+"""Mesh reading, validation and repair (issue 5, item 1)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import trimesh
+
+from jaxlimb.errors import MeshError
+from jaxlimb.irregular.mesh import MeshOptions, edge_faces, load_mesh, mesh_hash, signed_volume, validate_mesh
+
+from irregular_helpers import EROS, THEBE
+
+
+def _box():
+    b = trimesh.creation.box(extents=(2.0, 3.0, 4.0))
+    return np.asarray(b.vertices, float), np.asarray(b.faces)
+
+
+def test_real_meshes_load_closed_and_outward():
+    for path, nv, nf in ((THEBE, 2522, 5040), (EROS, 3897, 7790)):
+        m = load_mesh(path)
+        assert (m.n_vertices, m.n_faces) == (nv, nf)
+        assert m.volume > 0  # outward normals, verified not assumed
+        assert m.repairs == ()
+        edges, adj = edge_faces(m.faces)
+        assert edges.shape[0] == 3 * nf // 2  # closed: every edge shared by exactly two faces
+
+
+def test_eros_table_is_zero_based():
+    m = load_mesh(EROS)
+    assert m.faces.min() == 0 and m.faces.max() == m.n_vertices - 1
+
+
+@pytest.mark.parametrize("fmt", ["stl", "stl_ascii", "ply", "obj"])
+def test_trimesh_formats_roundtrip(tmp_path, fmt):
+    v, f = _box()
+    tm = trimesh.Trimesh(v, f, process=False)
+    ext = "stl" if fmt.startswith("stl") else fmt
+    p = tmp_path / f"box.{ext}"
+    if fmt == "stl_ascii":
+        p.write_text(trimesh.exchange.stl.export_stl_ascii(tm))
+    else:
+        tm.export(p)
+    m = load_mesh(p)
+    assert m.n_faces == 12
+    assert m.volume == pytest.approx(24.0, rel=1e-9)
+    assert m.repairs == ()
+
+
+def test_table_reader(tmp_path):
+    v, f = _box()
+    lines = [f"v {a:.9f} {b:.9f} {c:.9f}" for a, b, c in v] + [f"f {i} {j} {k}" for i, j, k in f]
+    p = tmp_path / "box.tab"
+    p.write_text("\n".join(lines) + "\n")
+    m = load_mesh(p)
+    assert m.volume == pytest.approx(24.0, rel=1e-9)
+
+
+def test_table_one_based_indices_refused(tmp_path):
+    v, f = _box()
+    lines = [f"v {a} {b} {c}" for a, b, c in v] + [f"f {i + 1} {j + 1} {k + 1}" for i, j, k in f]
+    p = tmp_path / "box.tab"
+    p.write_text("\n".join(lines))
+    with pytest.raises(MeshError, match="0-based"):
+        load_mesh(p)
+
+
+def test_inverted_mesh_is_flipped_or_refused():
+    v, f = _box()
+    inv = f[:, ::-1]
+    assert signed_volume(v, inv) < 0
+    m = validate_mesh(v, inv)
+    assert m.volume == pytest.approx(24.0)
+    assert any("flipped" in r for r in m.repairs)
+    with pytest.raises(MeshError, match="inward"):
+        validate_mesh(v, inv, MeshOptions(repair=False))
+
+
+def test_inconsistent_winding_repaired_or_refused():
+    v, f = _box()
+    g = f.copy()
+    g[3] = g[3, ::-1]
+    m = validate_mesh(v, g)
+    assert m.volume == pytest.approx(24.0)
+    assert any("winding" in r for r in m.repairs)
+    with pytest.raises(MeshError, match="consistently wound"):
+        validate_mesh(v, g, MeshOptions(repair=False))
+
+
+def test_degenerate_faces_dropped_or_refused():
+    v, f = _box()
+    g = np.vstack([f, [[0, 0, 1]]])
+    m = validate_mesh(v, g)
+    assert m.n_faces == 12 and any("degenerate" in r for r in m.repairs)
+    with pytest.raises(MeshError, match="degenerate"):
+        validate_mesh(v, g, MeshOptions(repair=False))
+
+
+def test_open_mesh_refused():
+    v, f = _box()
+    with pytest.raises(MeshError, match="not closed"):
+        validate_mesh(v, f[:-1])
+
+
+@pytest.mark.parametrize(
+    "content, match",
+    [("", "has 0 vertices"), ("v 1 2\n", "unrecognised line"), ("v a b c\n", "not a")],
+)
+def test_bad_table_files(tmp_path, content, match):
+    p = tmp_path / "bad.tab"
+    p.write_text(content)
+    with pytest.raises(MeshError, match=match):
+        load_mesh(p)
+
+
+def test_missing_and_unsupported(tmp_path):
+    with pytest.raises(MeshError, match="does not exist"):
+        load_mesh(tmp_path / "nope.obj")
+    p = tmp_path / "x.xyz"
+    p.write_text("1 2 3")
+    with pytest.raises(MeshError, match="unsupported extension"):
+        load_mesh(p)
+    q = tmp_path / "garbage.stl"
+    q.write_bytes(b"\x00\x01garbage")
+    with pytest.raises(MeshError):
+        load_mesh(q)
+
+
+def test_nonfinite_vertices_refused():
+    v, f = _box()
+    v[0, 0] = np.nan
+    with pytest.raises(MeshError, match="not finite"):
+        validate_mesh(v, f)
+
+
+def test_hash_depends_on_content():
+    v, f = _box()
+    a = validate_mesh(v, f)
+    b = validate_mesh(v + 1e-9, f)
+    assert mesh_hash(a) == mesh_hash(validate_mesh(v.copy(), f.copy()))
+    assert mesh_hash(a) != mesh_hash(b)
