@@ -212,13 +212,17 @@ def compile_count() -> int:
 
 def _core(solver: AbstractLimbSolver, problem: LimbProblem, max_steps: int) -> LimbFit:
     y0 = problem.theta0[jnp.asarray(problem.free_idx)]
+    if isinstance(solver, NormalLM):  # reuse its normal equations at the solution
+        y, n_steps, result, normal = solver.solve_normal(problem, y0, max_steps)
+        return _make_fit(problem, y, n_steps, result, solver.name, normal)
     y, n_steps, result = solver.solve(problem, y0, max_steps)
     return _make_fit(problem, y, n_steps, result, solver.name)
 
 
-def _make_fit(problem: LimbProblem, y: Array, n_steps: Array, result: FitResult, solver_name: str) -> LimbFit:
+def _make_fit(problem: LimbProblem, y: Array, n_steps: Array, result: FitResult, solver_name: str,
+              normal: tuple[Array, Array, Array] | None = None) -> LimbFit:
     """Assemble the :class:`LimbFit`: covariance, residual statistics, full parameters."""
-    jtj, _, rss = problem.normal_equations(y)
+    jtj, _, rss = problem.normal_equations(y) if normal is None else normal
     n = jnp.sum(problem.w > 0)
     q = len(problem.free_idx)
     sigma2 = rss / (n - q)
@@ -242,7 +246,29 @@ def _traced_core(solver, problem, max_steps):  # type: ignore[no-untyped-def]
     return _core(solver, problem, max_steps)
 
 
-_core_jit = eqx.filter_jit(_traced_core)
+_JITTED: dict[Any, Any] = {}
+_core_filter_jit = eqx.filter_jit(_traced_core)
+
+
+def _core_jit(solver: AbstractLimbSolver, problem: LimbProblem, max_steps: int) -> LimbFit:
+    """The jitted single-fit core, one ``jax.jit`` per (solver, model, free set, analytic, max_steps).
+
+    Cheaper to call than ``eqx.filter_jit`` (no pytree partitioning of the static
+    configuration at every call): the dispatch overhead matters for 3-ms fits.
+    """
+    key = (solver, problem.model, problem.free_idx, problem.analytic, max_steps)
+    try:
+        fn = _JITTED.get(key)
+    except TypeError:  # a solver holding arrays (e.g. optimistix's trust-region checks): not hashable
+        return _core_filter_jit(solver, problem, max_steps)
+    if fn is None:
+        model, free_idx, analytic = problem.model, problem.free_idx, problem.analytic
+
+        def run(theta0: Array, coords: Array, z: Array, w: Array) -> LimbFit:
+            return _traced_core(solver, LimbProblem(model, free_idx, analytic, theta0, coords, z, w), max_steps)
+
+        fn = _JITTED[key] = jax.jit(run)
+    return fn(*problem.args)
 def batch_core(solver: AbstractLimbSolver, problem: LimbProblem, max_steps: int) -> LimbFit:
     """Fit every member of a batched ``problem`` one after another (``jax.lax.map``); un-jitted.
 

@@ -102,11 +102,12 @@ class LimbProblem(eqx.Module):
         """
         theta = expand(self.theta0, self.free_idx, y)
         params = self.model.params_type.from_vector(theta)
-        r = self.w * (self.model.intensity(params, self.coords) - self.z)
         if self.analytic:
-            cols = self.model.jacobian_columns(params, self.coords)
+            f, cols = self.model.intensity_and_jacobian_columns(params, self.coords)
+            r = self.w * (f - self.z)
             jt = jnp.stack([cols[i] for i in self.free_idx], axis=0) * self.w
         else:
+            r = self.w * (self.model.intensity(params, self.coords) - self.z)
             jt = self.jacobian(y).T
         return jt @ jt.T, jt @ r, r @ r
 
@@ -243,8 +244,40 @@ class NormalLM(AbstractLimbSolver):
     rtol: float = 1e-10
     atol: float = 1e-10
     lambda0: float = 1e-3
+    coarse_stride: int = 4
+    coarse_tol_px: float = 1e-2
+    coarse_min_pixels: int = 1024
 
     def solve(self, problem, y0, max_steps):  # type: ignore[no-untyped-def]
+        y, n, result, _ = self.solve_normal(problem, y0, max_steps)
+        return y, n, result
+
+    def solve_normal(self, problem: LimbProblem, y0: Array, max_steps: int):  # noqa: ANN201
+        """As :meth:`solve`, plus ``(J^T J, J^T r, r^T r)`` at the solution (reused for the covariance).
+
+        Coarse-to-fine: on ``coarse_min_pixels`` or more pixels, the iteration first
+        runs on every ``coarse_stride``-th pixel until its steps are below
+        ``coarse_tol_px`` (the basin of the full problem's minimum), then on all
+        pixels to the full tolerance.  The answer is the full-data least-squares
+        minimum either way (the final convergence test is on all pixels); the
+        coarse phase only makes the early, far-from-converged iterations cheaper.
+        """
+        steps = jnp.asarray(0)
+        n_pix = problem.z.shape[-1]
+        if self.coarse_stride > 1 and n_pix >= self.coarse_min_pixels:
+            k = self.coarse_stride
+            coarse = LimbProblem(problem.model, problem.free_idx, problem.analytic, problem.theta0,
+                                 problem.coords[::k], problem.z[::k], problem.w[::k])
+            y_c, n_c, done_c, stuck_c, _ = self._lm_loop(coarse, y0, max_steps, self.coarse_tol_px, 0.0)
+            y0 = jnp.where(done_c & ~stuck_c, y_c, y0)  # a failed coarse phase starts the fine one afresh
+            steps = n_c
+        y, n, done, stuck, normal = self._lm_loop(problem, y0, max_steps, self.atol, self.rtol)
+        result = FitResult.where(
+            done, FitResult.successful, FitResult.where(stuck, FitResult.diverged, FitResult.max_steps_reached)
+        )
+        return y, steps + n, _finish(problem, y, result), normal
+
+    def _lm_loop(self, problem: LimbProblem, y0: Array, max_steps: int, atol: float, rtol: float):  # noqa: ANN202
         dtype = y0.dtype
         tiny = jnp.finfo(dtype).tiny
 
@@ -263,7 +296,7 @@ class NormalLM(AbstractLimbSolver):
             pred = 0.5 * (h @ (mu_d * h) - h @ jtr)  # L(0) - L(h) of the local model (> 0)
             gain = 0.5 * (rss - rss_t) / jnp.where(pred > 0, pred, 1.0)
             ok = jnp.isfinite(rss_t) & problem.admissible(y_try) & (pred > 0) & (gain > 0)
-            small = jnp.max(jnp.abs(h)) <= self.atol + self.rtol * jnp.max(jnp.abs(y))
+            small = jnp.max(jnp.abs(h)) <= atol + rtol * jnp.max(jnp.abs(y))
             y = jnp.where(ok, y_try, y)
             jtj = jnp.where(ok, jtj_t, jtj)
             jtr = jnp.where(ok, jtr_t, jtr)
@@ -280,11 +313,8 @@ class NormalLM(AbstractLimbSolver):
         jtj, jtr, rss = problem.normal_equations(y0)
         init = (y0, jtj, jtr, rss, jnp.asarray(self.lambda0, dtype), jnp.asarray(2.0, dtype),
                 jnp.asarray(0), jnp.asarray(False), ~jnp.isfinite(rss))
-        y, *_, n, done, stuck = jax.lax.while_loop(cond, body, init)
-        result = FitResult.where(
-            done, FitResult.successful, FitResult.where(stuck, FitResult.diverged, FitResult.max_steps_reached)
-        )
-        return y, n, _finish(problem, y, result)
+        y, jtj, jtr, rss, _, _, n, done, stuck = jax.lax.while_loop(cond, body, init)
+        return y, n, done, stuck, (jtj, jtr, rss)
 
 
 def optimistix_normal_lm(rtol: float = 1e-10, atol: float = 1e-10, lambda0: float = 1e-3) -> Optimistix:

@@ -68,6 +68,9 @@ class LimbModel(eqx.Module):
         columns in the field order of ``params_type``.
     jacobian_columns
         the same derivatives as a tuple of ``p`` arrays of shape ``(n,)``.
+    value_and_columns
+        optional ``(intensity, columns)`` from one pass (shares the exponentials; the
+        fitting inner loop uses it).
     """
 
     name: str = eqx.field(static=True)
@@ -75,6 +78,13 @@ class LimbModel(eqx.Module):
     intensity: Callable[..., Array] = eqx.field(static=True)
     jacobian: Callable[..., Array] = eqx.field(static=True)
     jacobian_columns: Callable[..., tuple[Array, ...]] = eqx.field(static=True)
+    value_and_columns: Callable[..., tuple[Array, tuple[Array, ...]]] | None = eqx.field(static=True, default=None)
+
+    def intensity_and_jacobian_columns(self, params: LimbParams, coords: Array) -> tuple[Array, tuple[Array, ...]]:
+        """Intensity and Jacobian columns, from one fused pass where the model provides it."""
+        if self.value_and_columns is not None:
+            return self.value_and_columns(params, coords)
+        return self.intensity(params, coords), self.jacobian_columns(params, coords)
 
     def jacobian_t(self, params: LimbParams, coords: Array) -> Array:
         """The analytic Jacobian transposed, ``(p, n)``: the fast layout for ``J^T J`` on CPU."""

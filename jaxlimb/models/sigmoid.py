@@ -126,6 +126,11 @@ def linear_intensity_jac(p: LinearParams, x: Float[Array, " n"]) -> Float[Array,
 
 def _linear_jac_columns(p: LinearParams, x: Float[Array, " n"]) -> tuple[Array, ...]:
     """Columns of :func:`linear_intensity_jac` (stacked by the caller in the layout it needs)."""
+    return _linear_value_and_columns(p, x)[1]
+
+
+def _linear_value_and_columns(p: LinearParams, x: Float[Array, " n"]) -> tuple[Array, tuple[Array, ...]]:
+    """Intensity (Eq. 12) and Jacobian columns (Eq. 14) from one pass over the pixels."""
     x = jnp.asarray(x)
     z = p.k * (x - p.xt)
     s, sc = _pair(z)  # 1/(1+alpha), alpha/(1+alpha)
@@ -133,7 +138,7 @@ def _linear_jac_columns(p: LinearParams, x: Float[Array, " n"]) -> tuple[Array, 
     dy = p.ymin - p.ymax
     d_xt = -dy * a_1a2 * p.k
     d_k = -dy * a_1a2 * (p.xt - x)  # == (xt - x)/k * d_xt, written without the division by k
-    return (d_xt, d_k, sc, s)
+    return p.ymax * sc + p.ymin * s, (d_xt, d_k, sc, s)
 
 
 # =============================================================================== circle
@@ -190,6 +195,11 @@ def circle_intensity_jac(p: CircleParams, rc: Float[Array, "n 2"]) -> Float[Arra
 
 def _circle_jac_columns(p: CircleParams, rc: Float[Array, "n 2"]) -> tuple[Array, ...]:
     """Columns of :func:`circle_intensity_jac` (stacked by the caller in the layout it needs)."""
+    return _circle_value_and_columns(p, rc)[1]
+
+
+def _circle_value_and_columns(p: CircleParams, rc: Float[Array, "n 2"]) -> tuple[Array, tuple[Array, ...]]:
+    """Intensity (Eq. 16) and Jacobian columns (Eq. 17) from one pass over the pixels."""
     rc = jnp.asarray(rc)
     dr = p.r0 - rc[..., 0]
     dc = p.c0 - rc[..., 1]
@@ -202,7 +212,7 @@ def _circle_jac_columns(p: CircleParams, rc: Float[Array, "n 2"]) -> tuple[Array
     d_c0 = g * p.k * dc * inv_beta
     d_re = -g * p.k
     d_k = -g * (p.radius - beta)
-    return (d_r0, d_c0, d_re, d_k, sc, s)
+    return p.ymax * sc + p.ymin * s, (d_r0, d_c0, d_re, d_k, sc, s)
 
 
 # =============================================================================== ellipse
@@ -322,6 +332,11 @@ def ellipse_intensity_jac(p: EllipseParams, rc: Float[Array, "n 2"]) -> Float[Ar
 
 def _ellipse_jac_columns(p: EllipseParams, rc: Float[Array, "n 2"]) -> tuple[Array, ...]:
     """Columns of :func:`ellipse_intensity_jac` (stacked by the caller in the layout it needs)."""
+    return _ellipse_value_and_columns(p, rc)[1]
+
+
+def _ellipse_value_and_columns(p: EllipseParams, rc: Float[Array, "n 2"]) -> tuple[Array, tuple[Array, ...]]:
+    """Intensity and Jacobian columns of the ESF (Sec. V-C) from one pass over the pixels."""
     x, y = ellipse_coords(p, rc)
     beta = _safe_norm(p.rho * x, y)
     z = p.k * (beta - p.rho * p.a)
@@ -336,14 +351,17 @@ def _ellipse_jac_columns(p: EllipseParams, rc: Float[Array, "n 2"]) -> tuple[Arr
     d_th = g * p.k * x * y * (rho2 - 1.0) * inv_beta
     d_rho = -g * p.k * (p.a - p.rho * x * x * inv_beta)
     d_k = -g * (p.rho * p.a - beta)
-    return (d_r0, d_c0, d_a, d_th, d_rho, d_k, sc, s)
+    return p.ymax * sc + p.ymin * s, (d_r0, d_c0, d_a, d_th, d_rho, d_k, sc, s)
 
 
-LINEAR = LimbModel("linear", LinearParams, linear_intensity, linear_intensity_jac, _linear_jac_columns)
+LINEAR = LimbModel("linear", LinearParams, linear_intensity, linear_intensity_jac, _linear_jac_columns,
+                   _linear_value_and_columns)
 """The linear sigmoid model (Eq. 12-14)."""
-CIRCLE = LimbModel("circle", CircleParams, circle_intensity, circle_intensity_jac, _circle_jac_columns)
+CIRCLE = LimbModel("circle", CircleParams, circle_intensity, circle_intensity_jac, _circle_jac_columns,
+                   _circle_value_and_columns)
 """The circular sigmoid model (Eq. 16-17)."""
-ELLIPSE = LimbModel("ellipse", EllipseParams, ellipse_intensity, ellipse_intensity_jac, _ellipse_jac_columns)
+ELLIPSE = LimbModel("ellipse", EllipseParams, ellipse_intensity, ellipse_intensity_jac, _ellipse_jac_columns,
+                   _ellipse_value_and_columns)
 """The elliptical sigmoid model (Sec. V-C)."""
 
 MODELS: dict[str, LimbModel] = {m.name: m for m in (LINEAR, CIRCLE, ELLIPSE)}
