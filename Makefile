@@ -23,5 +23,8 @@ test: $(STAMP)
 benchmarks: $(STAMP)
 	$(BIN)/python benchmarks/solvers.py
 
+figures: $(STAMP)
+	$(BIN)/python paper_figures/make_all.py
+
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -49,6 +49,24 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w") -> Iterator[IO[An
         os.fsync(fh.fileno())
 
 
+def read_json_file(path: str | os.PathLike[str], what: str) -> Any:
+    """Parse a JSON file; a missing/unreadable file or bad JSON is a :class:`~jaxlimb.errors.ConfigError`.
+
+    ``what`` names the file in the message (``"camera file"``, ``"hints file"``...).
+    """
+    from .errors import ConfigError
+
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except OSError as e:
+        raise ConfigError(f"cannot read {what} {str(p)!r}: {e.strerror or e}") from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as e:
+        raise ConfigError(f"{what} {str(p)!r} is not valid JSON: {e.msg} at line {e.lineno}") from None
+
+
 def write_json_atomic(path: str | os.PathLike[str], obj: Any) -> None:
     """Write ``obj`` as indented JSON to ``path`` atomically."""
     with atomic_open(path, "w") as fh:

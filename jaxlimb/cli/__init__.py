@@ -25,12 +25,13 @@ from collections.abc import Sequence
 # Sub-command modules, in the order they appear in --help.
 _COMMANDS = (
     "_demo",
-    "_gradcheck",
-    "_montecarlo",
-    "_los",
     "_locate",
     "_navigate",
+    "_los",
     "_posterior",
+    "_montecarlo",
+    "_gradcheck",
+    "_figures",
 )
 
 

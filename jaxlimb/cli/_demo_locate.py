@@ -22,7 +22,7 @@ def _rendered_moon(out_dir: Path) -> dict[str, Any]:
                          read_noise_e=2.0 * 20000.0 / 255.0)
     image, truth = render_body(scene, camera, opts, seed=1)
     hints = Hints(body="moon", sun_dir_camera=tuple(float(v) for v in truth.sun_dir_cam))
-    lines = [f"rendered Moon: 150 000 km, phase 45 deg, lunar-Lambert, PSF 0.8 px, 8 bit, 1944x2592"]
+    lines = ["rendered Moon: 150 000 km, phase 45 deg, lunar-Lambert, PSF 0.8 px, 8 bit, 1944x2592"]
     out: dict[str, Any] = {"name": "rendered Moon (1944x2592, 150 000 km, phase 45 deg)", "cases": []}
     for label, options in (("sigmoid (papers)", LocateOptions()),
                            ("physical limb profile", LocateOptions(profile="lunar-lambert"))):

@@ -51,11 +51,9 @@ theta = 12.5 deg); applied to ``a`` it is shorter still.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -148,16 +146,9 @@ class Camera:
     @classmethod
     def from_json(cls, path: str | os.PathLike[str]) -> Camera:
         """Read a camera JSON file (``{"focal_length_mm", "pixel_pitch_mm", "rows", "cols", "principal_point_rc"}``)."""
-        p = Path(path)
-        try:
-            text = p.read_text()
-        except OSError as e:
-            raise ConfigError(f"cannot read camera file {str(p)!r}: {e.strerror or e}") from None
-        try:
-            d = json.loads(text)
-        except json.JSONDecodeError as e:
-            raise ConfigError(f"camera file {str(p)!r} is not valid JSON: {e.msg} at line {e.lineno}") from None
-        return cls.from_dict(d)
+        from .._io import read_json_file
+
+        return cls.from_dict(read_json_file(path, "camera file"))
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)

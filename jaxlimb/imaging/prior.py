@@ -48,11 +48,9 @@ too thin (new moon / hair-thin crescent).
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -199,16 +197,9 @@ class Hints:
     @classmethod
     def from_json(cls, path: str | os.PathLike[str]) -> Hints:
         """Read a hints JSON file."""
-        p = Path(path)
-        try:
-            text = p.read_text()
-        except OSError as e:
-            raise ConfigError(f"cannot read hints file {str(p)!r}: {e.strerror or e}") from None
-        try:
-            d = json.loads(text)
-        except json.JSONDecodeError as e:
-            raise ConfigError(f"hints file {str(p)!r} is not valid JSON: {e.msg} at line {e.lineno}") from None
-        return cls.from_dict(d)
+        from .._io import read_json_file
+
+        return cls.from_dict(read_json_file(path, "hints file"))
 
     def radius_km(self) -> float | None:
         """Nominal limb radius (km): mean of ``body_radii_km`` (or the named body's) plus ``atmosphere_km``."""

@@ -41,3 +41,12 @@ def test_error_without_json_is_one_line_on_stderr(capsys):
     cap = capsys.readouterr()
     assert cap.out == ""
     assert cap.err.count("\n") == 1 and cap.err.startswith("jaxlimb: error:") and "Traceback" not in cap.err
+
+
+def test_figures_outside_a_checkout_is_a_clear_error(capsys, monkeypatch, tmp_path):
+    from jaxlimb.cli import _figures
+
+    monkeypatch.setattr(_figures, "_SCRIPT", tmp_path / "missing" / "make_all.py")
+    assert main(["figures", "--quick"]) == 2
+    err = capsys.readouterr().err
+    assert "source checkout" in err and err.count("\n") == 1
