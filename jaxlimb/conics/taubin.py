@@ -125,13 +125,13 @@ def circle_residuals(points_rc: np.ndarray, center_rc, radius: float) -> np.ndar
     return np.hypot(p[..., 0] - c[0], p[..., 1] - c[1]) - float(radius)
 
 
-def taubin_circle_coefficients(points_rc: np.ndarray) -> np.ndarray:
-    r"""Coefficients ``A = (a, b, c, d)`` of Eq. (26) minimising Eq. (28) subject to Eq. (29).
+def _taubin_centred_svd(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float, float, np.ndarray, float]:
+    """The Taubin problem (Eq. 28-29) in centred coordinates, solved by SVD.
 
-    ``x`` is the column and ``y`` the row coordinate (any fixed assignment gives
-    the same circle).  The returned vector satisfies :math:`A^T N A = 1` (Eq. 32-33).
+    Returns ``(x, y, xm, ym, zm, v, s)``: columns/rows of the points, their means,
+    the mean squared centred radius, the right singular vector of the smallest
+    singular value of ``[(z - zm)/s, xc, yc]`` and the scale ``s = 2 sqrt(zm)``.
     """
-    p = _as_points(points_rc, 3, "Taubin circle fit")
     y, x = p[:, 0], p[:, 1]
     xm, ym = x.mean(), y.mean()
     xc, yc = x - xm, y - ym
@@ -140,11 +140,20 @@ def taubin_circle_coefficients(points_rc: np.ndarray) -> np.ndarray:
     if not zm > 0:
         raise DegenerateFitError("Taubin circle fit: all points coincide")
     s = 2.0 * math.sqrt(zm)
-    Z = np.column_stack([(z - zm) / s, xc, yc])
-    _, sv, vt = np.linalg.svd(Z, full_matrices=False)
-    v = vt[-1]
+    _, sv, vt = np.linalg.svd(np.column_stack([(z - zm) / s, xc, yc]), full_matrices=False)
     if sv[1] <= 1e-12 * sv[0]:
         raise DegenerateFitError("Taubin circle fit: points are collinear or coincident")
+    return x, y, xm, ym, zm, vt[-1], s
+
+
+def taubin_circle_coefficients(points_rc: np.ndarray) -> np.ndarray:
+    r"""Coefficients ``A = (a, b, c, d)`` of Eq. (26) minimising Eq. (28) subject to Eq. (29).
+
+    ``x`` is the column and ``y`` the row coordinate (any fixed assignment gives
+    the same circle).  The returned vector satisfies :math:`A^T N A = 1` (Eq. 32-33).
+    """
+    p = _as_points(points_rc, 3, "Taubin circle fit")
+    x, y, xm, ym, zm, v, s = _taubin_centred_svd(p)
     a = v[0] / s
     b, c = v[1], v[2]
     d = -a * zm
@@ -178,19 +187,7 @@ def fit_circle_taubin(points_rc: np.ndarray) -> CircleFit:
         :class:`~jaxlimb.errors.LimbInputError`).
     """
     p = _as_points(points_rc, 3, "Taubin circle fit")
-    y, x = p[:, 0], p[:, 1]
-    xm, ym = x.mean(), y.mean()
-    xc, yc = x - xm, y - ym
-    z = xc * xc + yc * yc
-    zm = z.mean()
-    if not zm > 0:
-        raise DegenerateFitError("Taubin circle fit: all points coincide")
-    s = 2.0 * math.sqrt(zm)
-    Z = np.column_stack([(z - zm) / s, xc, yc])
-    _, sv, vt = np.linalg.svd(Z, full_matrices=False)
-    if sv[1] <= 1e-12 * sv[0]:
-        raise DegenerateFitError("Taubin circle fit: points are collinear or coincident")
-    v = vt[-1]
+    x, y, xm, ym, zm, v, s = _taubin_centred_svd(p)
     a = v[0] / s
     if abs(a) < 1e-300 or abs(a) * math.sqrt(zm) < 1e-14 * math.hypot(v[1], v[2]):
         raise DegenerateFitError("Taubin circle fit: points are collinear (infinite radius)")
