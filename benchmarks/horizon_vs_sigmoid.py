@@ -38,8 +38,6 @@ import argparse
 import importlib.util
 import json
 import math
-import platform
-import subprocess
 import sys
 import time
 from dataclasses import dataclass
@@ -194,17 +192,9 @@ def table(rows: list[dict[str, Any]]) -> str:
 
 
 def _meta(seed: int) -> dict[str, Any]:
-    import jax
+    from _common import environment
 
-    try:
-        sha = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, cwd=Path(__file__).parent,
-                             check=False).stdout.strip() or None
-        dirty = bool(subprocess.run(["git", "status", "--porcelain"], capture_output=True,
-                                    text=True, cwd=Path(__file__).parent, check=False).stdout.strip())
-    except OSError:
-        sha, dirty = None, None
-    return {"git_sha": sha, "git_dirty": dirty, "python": platform.python_version(), "jax": jax.__version__, "numpy": np.__version__,
-            "seed": seed, "sensor": "12bit (photon + read noise)"}
+    return {**environment(), "seed": seed, "sensor": "12bit (photon + read noise)"}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -21,27 +21,25 @@ Writes ``benchmarks/results/irregular_los.json`` (or ``--out``).
 
 from __future__ import annotations
 
+from jaxlimb._data import shared_data_dir
 import argparse
 import json
 import math
 import platform
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-MESHES = Path("/work/shared/data/meshes")
+MESHES = shared_data_dir() / "meshes"
 RESULTS = Path(__file__).resolve().parent / "results" / "irregular_los.json"
 
 
 def _git_sha() -> str | None:
-    try:
-        out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, cwd=Path(__file__).parent, timeout=10)
-        return out.stdout.strip() or None if out.returncode == 0 else None
-    except (OSError, subprocess.SubprocessError):
-        return None
+    from _common import environment
+
+    return environment()["git_sha"]
 
 
 def _versions() -> dict[str, str]:

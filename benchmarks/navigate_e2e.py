@@ -26,8 +26,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import platform
-import subprocess
 import sys
 import time
 from dataclasses import dataclass
@@ -310,19 +308,10 @@ def earth_targets(n_noise: int, seed: int, reflectance: str = "lommel-seeliger")
 
 
 def _meta() -> dict[str, Any]:
-    import jax
-
     import jaxlimb
+    from _common import environment
 
-    try:
-        sha = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, cwd=Path(__file__).parent,
-                             check=False).stdout.strip() or None
-        dirty = bool(subprocess.run(["git", "status", "--porcelain"], capture_output=True,
-                                    text=True, cwd=Path(__file__).parent, check=False).stdout.strip())
-    except OSError:
-        sha, dirty = None, None
-    return {"git_sha": sha, "git_dirty": dirty, "python": platform.python_version(), "jax": jax.__version__,
-            "numpy": np.__version__, "jaxlimb": getattr(jaxlimb, "__version__", None), "epoch": EPOCH}
+    return {**environment(), "jaxlimb": getattr(jaxlimb, "__version__", None), "epoch": EPOCH}
 
 
 def table(results: list[dict[str, Any]]) -> str:

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import time
 from pathlib import Path
 
@@ -71,11 +70,9 @@ CASES = {
 
 
 def _git_sha() -> str:
-    try:
-        return subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, timeout=5,
-                              cwd=Path(__file__).parent).stdout.strip() or "uncommitted"
-    except (OSError, subprocess.SubprocessError):
-        return "unknown"
+    from _common import environment
+
+    return environment()["git_sha"]
 
 
 def run_case(name: str, radius: float, sigma_default: float, n_mc: int, seed: int, max_time: float,

@@ -20,6 +20,7 @@ reads ``benchmarks/results/irregular_los.json`` (made by ``python benchmarks/irr
 
 from __future__ import annotations
 
+from jaxlimb._data import shared_data_dir
 import json
 import math
 import time
@@ -31,7 +32,7 @@ import numpy as np
 import _common
 
 STEM = "fig09_wu_angle_error"
-MESH = Path("/work/shared/data/meshes/thebe.obj")
+MESH = shared_data_dir() / "meshes/thebe.obj"
 BENCH = _common.HERE.parent / "benchmarks" / "results" / "irregular_los.json"
 BENCH_CMD = "python benchmarks/irregular_los.py"
 

@@ -7,7 +7,6 @@ from pathlib import Path
 from typing import Any
 
 
-_SDO_DEFAULT = Path(__file__).resolve().parents[3] / "shared" / "data" / "sun"
 
 
 def _rendered_moon(out_dir: Path) -> dict[str, Any]:
@@ -71,7 +70,9 @@ def locate_demos(out_dir: Path, sdo: str | None) -> list[dict[str, Any]]:
 
     out_dir.mkdir(parents=True, exist_ok=True)
     cases = [_rendered_moon(out_dir)]
-    path = Path(sdo) if sdo else _SDO_DEFAULT / HMI_512_PNG
+    from .._data import shared_data_dir
+
+    path = Path(sdo) if sdo else shared_data_dir() / "sun" / HMI_512_PNG
     if path.exists():
         cases.append(_sdo(out_dir, path))
     else:

@@ -12,6 +12,7 @@ OpenCV's threads).
 
 from __future__ import annotations
 
+from jaxlimb._data import shared_data_dir
 import argparse
 import math
 import sys
@@ -26,7 +27,7 @@ from _synth import render_disk  # noqa: E402
 from jaxlimb.imaging import front_end, hmi_512_truth, load_image, sun_truth_from_header  # noqa: E402
 from jaxlimb.imaging.sdo import AIA_171_FITS, HMI_512_JP2, HMI_512_PNG, RESAMPLED_HMI_FITS  # noqa: E402
 
-SUN = Path("/work/shared/data/sun")
+SUN = shared_data_dir() / "sun"
 
 
 def _row(label, lc, c, r):

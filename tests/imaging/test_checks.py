@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from jaxlimb._data import shared_data_dir
 import numpy as np
 import pytest
 
@@ -114,12 +115,11 @@ def test_lit_limb_outside_frame_is_not_invented(fe, center, radius, sun, phase):
 @pytest.mark.parametrize("fe", FRONT_ENDS)
 def test_aia_corona_is_handled(fe):
     """AIA 171 A: the corona blurs the limb.  Either a typed check failure or a circle near the truth."""
-    from pathlib import Path
 
     from jaxlimb.errors import CheckFailed
     from jaxlimb.imaging import load_image, sun_truth_from_header
 
-    img, info = load_image(Path("/work/shared/data/sun/aia_171_level1.fits"))
+    img, info = load_image(shared_data_dir() / "sun/aia_171_level1.fits")
     t = sun_truth_from_header(info.header)
     try:
         lc = front_end(fe, img)

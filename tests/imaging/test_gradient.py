@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
+from jaxlimb._data import shared_data_dir
 import math
 from functools import lru_cache
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,7 +24,7 @@ from jaxlimb.imaging.sdo import HMI_512_JP2, HMI_512_PNG, hmi_512_truth
 
 from ._synth import render_disk, sun_vector
 
-SUN = Path("/work/shared/data/sun")
+SUN = shared_data_dir() / "sun"
 
 
 @lru_cache(maxsize=None)

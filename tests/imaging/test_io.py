@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
+from jaxlimb._data import shared_data_dir
 import math
 import warnings
-from pathlib import Path
 
 import cv2
 import numpy as np
@@ -21,7 +21,7 @@ from jaxlimb.imaging import (
 )
 from jaxlimb.imaging.sdo import HMI_512_CENTER_RC, HMI_512_JP2, HMI_512_PNG, HMI_512_RADIUS_PX, hmi_512_truth
 
-SUN = Path("/work/shared/data/sun")
+SUN = shared_data_dir() / "sun"
 
 
 def _grad_img(shape=(20, 30), dtype=np.uint8, hi=200):

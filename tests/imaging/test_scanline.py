@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from jaxlimb._data import shared_data_dir
 import math
 from functools import lru_cache
 
@@ -101,12 +102,11 @@ def test_cropped_body_with_visible_lit_limb(phase):
 
 
 def test_sdo_hmi_png_and_resampled_fits():
-    from pathlib import Path
 
     from jaxlimb.imaging import load_image, sun_truth_from_header
     from jaxlimb.imaging.sdo import HMI_512_PNG, hmi_512_truth
 
-    sun = Path("/work/shared/data/sun")
+    sun = shared_data_dir() / "sun"
     img, _ = load_image(sun / HMI_512_PNG)
     t = hmi_512_truth()
     lc = scanline_front_end(img)

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+from jaxlimb._data import shared_data_dir
 import numpy as np
 import trimesh
 
 from jaxlimb.irregular.mesh import Mesh, validate_mesh
 
-THEBE = "/work/shared/data/meshes/thebe.obj"
-EROS = "/work/shared/data/meshes/eros007790.tab"
+THEBE = str(shared_data_dir() / "meshes" / "thebe.obj")
+EROS = str(shared_data_dir() / "meshes" / "eros007790.tab")
 
 
 def lumpy_ellipsoid(seed: int = 7, subdivisions: int = 4, radii=(1.6, 1.0, 0.7), offset=(0.15, -0.1, 0.05)) -> Mesh:

@@ -12,7 +12,7 @@ of the bright interior in ``ymax``.  The centre target (0.1 px) is met; the radi
 
 from __future__ import annotations
 
-from pathlib import Path
+from jaxlimb._data import shared_data_dir
 
 import numpy as np
 import pytest
@@ -20,7 +20,7 @@ import pytest
 from jaxlimb.imaging import hmi_512_truth, load_image
 from jaxlimb.pipeline import locate
 
-HMI_PNG = Path("/work/shared/data/sun/2023_01_31__03_39_23_200__SDO_HMI_HMI_continuum.png")
+HMI_PNG = shared_data_dir() / "sun/2023_01_31__03_39_23_200__SDO_HMI_HMI_continuum.png"
 
 
 @pytest.mark.skipif(not HMI_PNG.exists(), reason="SDO data not available")
