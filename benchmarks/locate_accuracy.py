@@ -140,8 +140,8 @@ def run_category(category: str, n: int, seed: int) -> list[dict[str, Any]]:
         cam, img, truth, meta = _render(rng, category, i)
         rec = dict(meta)
         h = _hints(truth, rng)
-        _measure(img, cam, truth, h, LocateOptions(), "", rec)
-        _measure(img, cam, truth, h, LocateOptions(profile="lunar-lambert"), "phys_", rec)
+        _measure(img, cam, truth, h, LocateOptions(profile="sigmoid"), "", rec)
+        _measure(img, cam, truth, h, LocateOptions(), "phys_", rec)  # default: profile="auto"
         b = opencv_baseline(img)
         if b is None:
             rec.update(cv_ok=False)
@@ -169,8 +169,8 @@ def bias_study(seed: int, quick: bool) -> dict[str, Any]:
             opts = RenderOptions(reflectance="lunar-lambert", psf_sigma_px=s, bit_depth=8, read_noise_e=_READ_2DN)
             img, tr = render_body(moon_scene(D, 0.0, camera=cam), cam, opts, seed=int(rng.integers(2**31)))
             h = _hints(tr, rng)
-            m = locate(img, cam, h)
-            mp = locate(img, cam, h, LocateOptions(profile="lunar-lambert"))
+            m = locate(img, cam, h, LocateOptions(profile="sigmoid"))
+            mp = locate(img, cam, h)  # default: the physical profile (the Sun direction is in the hints)
             pts.append({"range_km": D, "psf_sigma_px": s, "radius_px": float(m.radius_px), "k": float(m.k),
                         "bias_px": float(m.radius_px - tr.apparent_radius_px),
                         "phys_bias_px": float(mp.radius_px - tr.apparent_radius_px),
@@ -267,7 +267,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
 
     n = args.n if args.n is not None else (5 if args.quick else 20)
     t_all = time.perf_counter()
-    tim = {p: timing(args.seed, 5 if args.quick else 10, p) for p in ("sigmoid", "lunar-lambert")}
+    tim = {p: timing(args.seed, 5 if args.quick else 10, p) for p in ("sigmoid", "auto")}
     for p, t in tim.items():
         print(f"locate ({p}) on 1944x2592: first call {t['first_call_s']:.2f} s (compilation), "
               f"after warm-up median {1000 * t['median_s']:.0f} ms (min {1000 * t['min_s']:.0f} ms); "
@@ -287,7 +287,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         rows = run_category(cat, n, args.seed)
         rows_all[cat] = rows
         results[cat] = summarise(rows, coef)
-    print("\nsigmoid (default) | rad p90c = with the calibrated radius correction | physical lunar-Lambert profile | OpenCV")
+    print("\nsigmoid | rad p90c = with the calibrated radius correction | default (auto: physical lunar-Lambert profile, "
+          "L estimated) | OpenCV")
     hdr = (f"{'category':12} {'ok':>5} {'ctr p50':>7} {'ctr p90':>7} {'ctr max':>7} {'rad p90':>7} {'radp90c':>7} "
            f"| {'ok':>5} {'ctr p50':>7} {'ctr p90':>7} {'ctr max':>7} {'rad p90':>7} "
            f"| {'ok':>5} {'ctr p50':>7} {'ctr p90':>7} {'rad p90':>7} {'gross':>5}")

@@ -125,6 +125,12 @@ class RadiusInconsistentError(CheckFailed):
     check = "radius_inconsistent"
 
 
+class ArcTooShortError(CheckFailed):
+    """Check 3/4: the lit limb visible in the frame is too short an arc to fix a circle (cropped body)."""
+
+    check = "arc_too_short"
+
+
 class ConvergenceError(CheckFailed):
     """Check 5: the least-squares fit did not converge or diverged."""
 
@@ -138,6 +144,7 @@ class JumpError(ConvergenceError):
 
 
 __all__ = [
+    "ArcTooShortError",
     "AttitudeError",
     "CheckFailed",
     "ConfigError",

@@ -28,9 +28,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--solver", choices=sorted(SOLVERS), default="lm", help="least-squares solver (default lm)")
     p.add_argument("--fixed-k", action="store_true",
                    help="hold k = 3 and ymax/ymin at the annulus edge means (illuminated-ellipsoid paper, Table 1)")
-    p.add_argument("--profile", choices=("sigmoid", "lunar-lambert"), default="sigmoid",
-                   help="limb profile: the papers' sigmoid (default) or the physical lunar-Lambert limb "
-                   "(needs sun_dir_camera in the hints; removes the sigmoid's 0.1-0.6 px limb bias)")
+    p.add_argument("--profile", choices=("auto", "sigmoid", "lunar-lambert"), default="auto",
+                   help="limb profile: auto (default: the physical lunar-Lambert limb when the hints give "
+                   "sun_dir_camera, which removes the sigmoid's 0.1-0.6 px limb bias; else the sigmoid), "
+                   "sigmoid (the papers' model) or lunar-lambert")
     p.add_argument("--figure", metavar="PATH", help="also save a picture of the fit (PNG/PDF)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)

@@ -131,6 +131,17 @@ def earth_rotation_icrf_to_itrs(epoch: Any, ephemeris_path: str | None = None) -
     return np.asarray(itrs.rotation_at(t), dtype=float)
 
 
+def sun_direction_camera(body: str, epoch: Any, C_ci: np.ndarray, ephemeris_path: str | None = None) -> np.ndarray:
+    """Unit vector from ``body`` toward the Sun in the camera frame, ``C_ci unit(r_sun - r_body)``
+    (geocentric ICRF positions of the ephemeris; the observer's parallax is below 1e-3 rad)."""
+    from ..geometry.ephemeris import body_position
+
+    r_body = np.zeros(3) if body == "earth" else body_position(body, epoch, "earth", path=ephemeris_path)
+    r_sun = body_position("sun", epoch, "earth", path=ephemeris_path)
+    u = np.asarray(C_ci, float) @ (r_sun - r_body)
+    return u / np.linalg.norm(u)
+
+
 def _measurement_map(body: str, camera, meas) -> tuple[list[str], Any]:
     """Names of the measured quantities and ``x -> r_om`` (camera frame, km)."""
     from ..errors import ConfigError
@@ -279,6 +290,10 @@ def _run(args: argparse.Namespace) -> int:
         hb = Hints.from_json(args.hints).body if args.hints is not None else None
         body = hb if hb in ("moon", "earth") else "moon"
     hints = _hints_for(body, args.hints)
+    if hints.sun_dir_camera is None:
+        # the Sun's direction from the body, in the camera frame, from the ephemeris and the
+        # attitude: it selects the lit limb and enables the physical limb profile
+        hints = replace(hints, sun_dir_camera=sun_direction_camera(body, epoch, C_ci, args.ephemeris).tolist())
     if body == "earth" and hints.R_body_to_camera is None:
         R = C_ci @ earth_rotation_icrf_to_itrs(epoch, args.ephemeris).T
         hints = replace(hints, R_body_to_camera=R.tolist())

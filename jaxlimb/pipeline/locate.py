@@ -49,8 +49,17 @@ from ..geometry.camera import Camera
 from ..imaging import Hints, check_prior, front_end, prior_from_hints, validate_image
 from ..imaging import sun_direction_image
 from ..models import CIRCLE, ELLIPSE, CircleParams, EllipseParams
+from ..fitting import NormalLM
 from .profile import LIMB_PROFILE, PROFILE_FIXED, LimbProfileParams, lunar_lambert_weight, sphere_from_circle_fit
-from .checks import check_center_in_field, check_jump, check_radius_prior, check_size, jump_threshold
+from .checks import (
+    check_center_in_field,
+    check_jump,
+    check_lit_arc,
+    check_radius_prior,
+    check_size,
+    jump_threshold,
+    max_limb_displacement,
+)
 from .options import LocateOptions
 from .refine import (
     FitData,
@@ -147,7 +156,7 @@ def locate(
     ImageContentError, ConfigError
         Unusable image / camera / hints / options (CLI exit 2).
     NoBodyError, TooSmallError, TooBigError, TooThinError, TooManyOutliersError,
-    RadiusInconsistentError, CenterOutOfFieldError, ConvergenceError, JumpError
+    RadiusInconsistentError, CenterOutOfFieldError, ConvergenceError, JumpError, ArcTooShortError
         A check failed (CLI exit 3; :mod:`jaxlimb.pipeline.checks`).
     """
     opt = options if options is not None else LocateOptions()
@@ -190,6 +199,9 @@ def locate(
         ph_img = prior.phase_rad if prior is not None else None
         half = min(cand.lit_halfangle + math.radians(2.0), lit_halfangle(ph_img, cand.radius, dr, opt.horn_margin_deg))
     sel = select_annulus(img, cand.center_rc, cand.radius, dr, direction, half, opt)
+    # lit-arc check (cropped body, Sun-facing side out of the frame) before any fit
+    min_arc = float(opt.min_lit_arc_deg)
+    check_lit_arc(sel.angles(), min_arc, half)
     circ = fit_circle_annulus(sel, opt)
     p = circ.fit.params
     widened = False
@@ -202,6 +214,16 @@ def locate(
             circ = fit_circle_annulus(sel, opt)
             p = circ.fit.params
             widened = True
+    # re-centre: the annulus (its levels per bin, its lit-side window) was built on the front
+    # end's circle, which is px off when its arc is short or partly terminator (cropped bodies);
+    # when the CSF moved the limb by more than half a pixel, reselect on the CSF circle and refit once
+    recentred = False
+    if max_limb_displacement(sel.center_rc, sel.radius, (float(p.r0), float(p.c0)), float(p.radius), sel.angles()) > 0.5:
+        sel = select_annulus(img, (float(p.r0), float(p.c0)), float(p.radius), dr, direction, half, opt)
+        circ = fit_circle_annulus(sel, opt)
+        p = circ.fit.params
+        recentred = True
+    arc_deg = check_lit_arc(np.arctan2(circ.coords[:, 0] - float(p.r0), circ.coords[:, 1] - float(p.c0)), min_arc, half)
     t_fit = time.perf_counter()
     c_circ = (float(p.r0), float(p.c0))
     r_circ = float(p.radius)
@@ -234,8 +256,14 @@ def locate(
             return tuple(float(v) for v in cam.distort(np.asarray(rc_ideal, float)))
         return (float(rc_ideal[0]), float(rc_ideal[1]))
 
-    if opt.profile == "lunar-lambert":
-        final = _fit_profile(img, circ, cam, hin, opt, use_camera)
+    profile_fit = _fit_profile(img, circ, cam, hin, opt, use_camera) if _use_profile(opt, hin) else None
+    if profile_fit is not None and opt.profile == "auto" and not _PHYSICAL_L[0] <= float(profile_fit.fit.params.L) <= _PHYSICAL_L[1]:
+        # the limb is not lunar-Lambert-like (e.g. a flat disc): keep the sigmoid, say why
+        extras["profile_rejected"] = {"model": "lunar-lambert", "L": float(profile_fit.fit.params.L),
+                                      "allowed_L": list(_PHYSICAL_L)}
+        profile_fit = None
+    if profile_fit is not None:
+        final = profile_fit
     elif use_camera:
         assert cam is not None and pin is not None
         data_ideal = circ.data.with_coords(cam.undistort(circ.coords)) if cam.has_distortion else circ.data
@@ -378,10 +406,14 @@ def locate(
     t_geo = time.perf_counter()
 
     crlb_out = None
-    if opt.compute_crlb:
+    if opt.compute_crlb and isinstance(fp, LimbProfileParams):
+        # unit weights: the bound at the estimate with sigma-hat is sigma-hat^2 (J^T J)^-1, the
+        # fit's own covariance (no second pass over the pixels)
+        crlb_out = {n: float(math.sqrt(max(cov_out[i, i], 0.0))) for i, n in enumerate(names_out)}
+    elif opt.compute_crlb:
         # the Cramér--Rao bound of jaxlimb.analysis.crlb at the estimate, sigma-hat as the noise
         # level, with the per-pixel weights of the level normalisation (noise sigma / w_i)
-        model = CIRCLE if isinstance(fp, CircleParams) else (LIMB_PROFILE if isinstance(fp, LimbProfileParams) else ELLIPSE)
+        model = CIRCLE if isinstance(fp, CircleParams) else ELLIPSE
         sigma = math.sqrt(max(float(final.fit.sigma2), 1e-300))
         try:
             cov_crlb = np.linalg.inv(fisher_information(model, fp, final.data, final.fixed, sigma))
@@ -412,6 +444,8 @@ def locate(
             "circle_fit": {"center_rc": list(c_circ), "radius_px": r_circ},
             "annulus_px": dr,
             "annulus_widened": widened,
+            "annulus_recentred": recentred,
+            "lit_arc_deg": arc_deg,
             "lit_direction_rc": list(direction) if direction is not None else None,
             "lit_halfangle_deg": math.degrees(half),
             "sun_direction_known": bool(sun_known),
@@ -454,6 +488,20 @@ def locate(
     )
 
 
+_PHYSICAL_L = (-0.1, 1.1)
+"""Fitted lunar-Lambert weights ``L`` accepted by ``profile="auto"`` (``[0, 1]`` with a margin for noise)."""
+
+
+def _use_profile(opt: LocateOptions, hin: Hints | None) -> bool:
+    """``profile="auto"``: the physical profile for a sunlit body whose Sun direction is known
+    (circle model, ``k`` estimated); the sigmoid otherwise."""
+    if opt.profile != "auto":
+        return opt.profile == "lunar-lambert"
+    # the papers' fixed-k setting (Table 1) is a sigmoid experiment: keep the sigmoid there
+    return (opt.model == "circle" and opt.estimate_k and hin is not None and hin.sun_dir_camera is not None
+            and hin.body != "sun")
+
+
 def _fit_profile(img: np.ndarray, circ, cam: Camera | None, hin: Hints | None, opt: LocateOptions, use_camera: bool):
     """Refit the pixels of the CSF with the physical lunar-Lambert limb profile (:mod:`jaxlimb.pipeline.profile`)."""
     if hin is None or hin.sun_dir_camera is None:
@@ -485,22 +533,44 @@ def _fit_profile(img: np.ndarray, circ, cam: Camera | None, hin: Hints | None, o
     init = LimbProfileParams(r0=center[0], c0=center[1], a=float(p.radius), theta=0.0, rho=1.0, sigma=sigma0,
                              amp=max(scale, 1e-6),
                              ymin=offset, sun_r=sun_rc[0], sun_c=sun_rc[1], phase=phase, inv_f=inv_f,
-                             L=lunar_lambert_weight(phase))
+                             L=lunar_lambert_weight(phase) if opt.lunar_lambert_L is None else float(opt.lunar_lambert_L))
     data = FitData(coords, z, None, 0.0, 1.0)
+    # L is estimated unless given: it adapts the profile to Lambert (0) ... Lommel-Seeliger (1) limbs
+    fixed = PROFILE_FIXED if opt.lunar_lambert_L is not None else tuple(n for n in PROFILE_FIXED if n != "L")
+    # the default solver with a tolerance on the parameters' own scale (px, DN): 1e-7 is
+    # far below any measurable change; 1e-10 relative costs ~4 more passes for nothing
+    tuned = opt.solver == "lm"
+    solver = NormalLM(rtol=0.0, atol=1e-7) if tuned else None
     if not use_camera or cam is None:
-        res = _run(LIMB_PROFILE, data, init, opt, PROFILE_FIXED)
-        return RefineResult(res, data, 0, PROFILE_FIXED)
-    # the sphere's ellipse shape held fixed and iterated (as fit_sphere_annulus)
+        res = _run(LIMB_PROFILE, data, init, opt, fixed, solver)
+        return RefineResult(res, data, 0, fixed)
+    # the sphere's ellipse shape held fixed and iterated (as fit_sphere_annulus).  The shape
+    # (a - b ~ 5 px at the corner of the default imager for a 210 px Moon) changes by ~0.006 px per
+    # px of centre shift, so a second pass is run only when the shape at the fitted centre differs
+    # from the one fitted by more than 1e-3 px anywhere on the limb; it starts at the answer and
+    # needs no coarse phase
     f, pp = cam.focal_px, cam.principal_point_rc
     sph = sphere_from_circle_fit(f, pp, center, float(p.radius))
     q = init.replace(a=sph.a, theta=sph.angle_rad, rho=sph.rho)
     res = None
-    for _ in range(2):
-        res = _run(LIMB_PROFILE, data, q, opt, PROFILE_FIXED)
+    for i in range(2):
+        s_i = solver if (i == 0 or not tuned) else NormalLM(rtol=0.0, atol=1e-5, coarse_stride=1)
+        res = _run(LIMB_PROFILE, data, q, opt, fixed, s_i)
         q = res.params
         sph = sphere_from_ellipse_center(f, pp, (float(q.r0), float(q.c0)), float(q.a))
+        if _shape_change_px(q, sph) < 1e-3:
+            break
         q = q.replace(theta=float(sph.angle_rad), rho=float(sph.rho))
-    return RefineResult(res, data, 0, PROFILE_FIXED, sphere=sph)
+    return RefineResult(res, data, 0, fixed, sphere=sph)
+
+
+def _shape_change_px(q: LimbProfileParams, sph) -> float:
+    """Largest radial change (px) of the limb ellipse of ``q`` if its axis ratio and orientation
+    were those of ``sph`` (same ``a``): ``|d(a - b)| + (a - b) |d theta|``."""
+    a = float(q.a)
+    dab = abs(a * (1.0 - float(q.rho)) - a * (1.0 - float(sph.rho)))
+    dth = abs(math.remainder(float(q.theta) - float(sph.angle_rad), math.pi))
+    return dab + a * abs(1.0 - float(sph.rho)) * dth
 
 
 def _body_from_ellipse(pin: Camera, d: dict[str, float]) -> tuple[float, float]:

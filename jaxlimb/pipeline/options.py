@@ -9,6 +9,7 @@ from ..errors import ConfigError
 
 FRONT_ENDS = ("gradient", "scanline")
 LIMB_MODELS = ("circle", "ellipse")
+PROFILES = ("auto", "sigmoid", "lunar-lambert")
 
 
 def _pos(name: str, v: object, *, allow_zero: bool = False, allow_none: bool = False) -> None:
@@ -47,11 +48,26 @@ class LocateOptions:
     k_fixed
         The steepness (1/px) used when ``estimate_k`` is ``False`` (paper: 3).
     profile
-        ``"sigmoid"`` (default): the papers' sigmoid limb.  ``"lunar-lambert"``: after the
-        sigmoid, refit the same pixels with the physical limb profile of a lunar-Lambert sphere
-        blurred by a Gaussian PSF (:mod:`jaxlimb.pipeline.profile`; needs the Sun direction in
-        the hints).  It removes the sigmoid's limb bias (0.1-0.6 px on realistic Moons, growing
-        with phase) at the cost of a ~20 s first compilation and ~0.5-2 s per fit; circle model only.
+        ``"auto"`` (default): the physical limb profile when the hints give the Sun direction,
+        the model is ``"circle"`` and ``estimate_k`` is on; else the sigmoid.  ``"sigmoid"``: the papers' sigmoid
+        limb.  ``"lunar-lambert"``: after the sigmoid, refit the same pixels with the physical
+        limb profile of a lunar-Lambert sphere blurred by a Gaussian PSF
+        (:mod:`jaxlimb.pipeline.profile`; needs the Sun direction in the hints).  It removes
+        the sigmoid's limb bias (0.1-0.6 px on realistic Moons, growing with phase; measured
+        in ``benchmarks/locate_accuracy.py``); circle model only.
+    lunar_lambert_L
+        The weight ``L`` of the lunar-Lambert law ``I = L 2 mu0/(mu0 + mu) + (1 - L) mu0`` used
+        by the profile (``1``: Lommel-Seeliger, ``0``: Lambert), held fixed; ``None`` (default):
+        ``L`` is estimated with the limb, starting from McEwen's ``L(phase)``
+        (:func:`jaxlimb.pipeline.profile.lunar_lambert_weight`).  With ``profile="auto"`` a
+        fitted ``L`` outside ``[-0.1, 1.1]`` (a limb no such law describes, e.g. a flat disc)
+        sends the measurement back to the sigmoid (``extras["profile_rejected"]``).
+    min_lit_arc_deg
+        Smallest arc (deg) of lit limb in the frame that is measured (default 60, the
+        ``arc_too_short`` check of :mod:`jaxlimb.pipeline.checks`): a circle's centre error per
+        unit of radial noise grows about as the inverse square of the arc (25x a full circle's
+        at 60 deg, 98x at 30 deg), and on shorter arcs of cropped Moons the sigmoid was off by
+        0.3-15 px.  Lower it to accept short arcs with their (large) covariance.
     normalize_levels
         Divide each angular bin of the annulus by its own inside-outside contrast (and weight
         it by that contrast) before the fit (default ``True``; :class:`jaxlimb.pipeline.refine.FitData`):
@@ -118,7 +134,9 @@ class LocateOptions:
     solver: str = "lm"
     estimate_k: bool = True
     k_fixed: float = 3.0
-    profile: str = "sigmoid"
+    profile: str = "auto"
+    lunar_lambert_L: float | None = None
+    min_lit_arc_deg: float = 60.0
     normalize_levels: bool = True
     annulus_px: float | None = None
     annulus_min_px: float = 6.0
@@ -148,10 +166,17 @@ class LocateOptions:
         if self.solver not in SOLVERS:
             raise ConfigError(f"LocateOptions.solver must be one of {sorted(SOLVERS)}, got {self.solver!r}")
         _pos("k_fixed", self.k_fixed)
-        if self.profile not in ("sigmoid", "lunar-lambert"):
-            raise ConfigError(f"LocateOptions.profile must be 'sigmoid' or 'lunar-lambert', got {self.profile!r}")
+        if self.profile not in PROFILES:
+            raise ConfigError(f"LocateOptions.profile must be one of {list(PROFILES)}, got {self.profile!r}")
+        if self.lunar_lambert_L is not None:
+            _pos("lunar_lambert_L", self.lunar_lambert_L, allow_zero=True)
+            if self.lunar_lambert_L > 1:
+                raise ConfigError(f"LocateOptions.lunar_lambert_L must be in [0, 1] or None, got {self.lunar_lambert_L!r}")
         if self.profile == "lunar-lambert" and self.model != "circle":
             raise ConfigError("LocateOptions.profile = 'lunar-lambert' supports model = 'circle' only")
+        _pos("min_lit_arc_deg", self.min_lit_arc_deg, allow_zero=True)
+        if self.min_lit_arc_deg > 360:
+            raise ConfigError(f"LocateOptions.min_lit_arc_deg must be in [0, 360], got {self.min_lit_arc_deg!r}")
         _pos("annulus_px", self.annulus_px, allow_none=True)
         _pos("annulus_min_px", self.annulus_min_px)
         _pos("annulus_frac", self.annulus_frac, allow_zero=True)
@@ -174,4 +199,4 @@ class LocateOptions:
             raise ConfigError(f"LocateOptions.border_px must be an integer >= 0, got {self.border_px!r}")
 
 
-__all__ = ["FRONT_ENDS", "LIMB_MODELS", "LocateOptions"]
+__all__ = ["FRONT_ENDS", "LIMB_MODELS", "PROFILES", "LocateOptions"]

@@ -164,8 +164,10 @@ def select_annulus(
 
     Raises
     ------
+    ArcTooShortError
+        The annulus is in the frame but its lit-side window is not (fewer than 20 pixels there).
     TooManyOutliersError
-        Fewer than 20 pixels survive (the lit limb is not in the frame, or no bin has contrast).
+        Fewer than 20 pixels survive (the limb is not in the frame, or no bin has contrast).
     """
     img = np.asarray(image)
     R, C = img.shape
@@ -188,6 +190,14 @@ def select_annulus(
             cosang = (drow * direction[0] + dcol * direction[1]) / np.where(d > 0, d, 1.0)
         m &= cosang >= cos_h
     ir, ic = np.nonzero(m)
+    if ir.size < 20 and direction is not None and halfangle < math.pi and np.count_nonzero(np.abs(d - radius) <= dr) >= 20:
+        from ..errors import ArcTooShortError
+
+        # the limb is in the frame, but not its lit side: a cropped body facing the Sun out of the frame
+        raise ArcTooShortError(
+            f"the lit limb (within {math.degrees(halfangle):.0f} deg of the Sun direction) is outside the frame: "
+            f"only {ir.size} pixels of the annulus on the lit side (need >= 20)"
+        )
     if ir.size < 20:
         raise TooManyOutliersError(f"only {ir.size} pixels in the lit limb annulus (need >= 20)")
     dsel = d[ir, ic]
@@ -344,9 +354,10 @@ def _pad_pow2(data: FitData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             np.concatenate([w, np.zeros(pad)]))
 
 
-def _run(model, data: FitData, init, options: LocateOptions, fixed) -> LimbFit:
+def _run(model, data: FitData, init, options: LocateOptions, fixed, solver=None) -> LimbFit:
     coords, z, w = _pad_pow2(data)
-    res = fit(model, coords, z, init, solver_from_name(options.solver), fixed=fixed, weights=w,
+    res = fit(model, coords, z, init, solver if solver is not None else solver_from_name(options.solver), fixed=fixed,
+              weights=w,
               max_steps=options.max_steps, throw=False)
     if not bool(res.converged):
         raise ConvergenceError(
