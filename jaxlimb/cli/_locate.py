@@ -20,18 +20,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--camera", metavar="CAMERA.json",
                    help='camera file {"focal_length_mm", "pixel_pitch_mm", "rows", "cols", "principal_point_rc"}')
     p.add_argument("--hints", metavar="HINTS.json", help="navigation prior (DESIGN.md hints; every key optional)")
-    p.add_argument("--body", choices=("moon", "earth"), default=None,
-                   help="the body (default: the hints' body, else moon)")
+    p.add_argument("--body", choices=("moon", "earth", "sun"), default=None,
+                   help="the body (default: the hints' body, else moon); sun: the limb-darkened disc profile")
     p.add_argument("--front-end", choices=("gradient", "scanline"), default="gradient", dest="front_end",
                    help="candidate-limb front end (default gradient)")
     p.add_argument("--model", choices=("circle", "ellipse"), default="circle", help="limb model (default circle)")
     p.add_argument("--solver", choices=sorted(SOLVERS), default="lm", help="least-squares solver (default lm)")
     p.add_argument("--fixed-k", action="store_true",
                    help="hold k = 3 and ymax/ymin at the annulus edge means (illuminated-ellipsoid paper, Table 1)")
-    p.add_argument("--profile", choices=("auto", "sigmoid", "lunar-lambert"), default="auto",
+    p.add_argument("--profile", choices=("auto", "sigmoid", "lunar-lambert", "limb-darkened"), default="auto",
                    help="limb profile: auto (default: the physical lunar-Lambert limb when the hints give "
                    "sun_dir_camera, which removes the sigmoid's 0.1-0.6 px limb bias; else the sigmoid), "
-                   "sigmoid (the papers' model) or lunar-lambert")
+                   "the limb-darkened disc for --body sun; else the sigmoid), sigmoid (the papers' model), "
+                   "lunar-lambert or limb-darkened")
     p.add_argument("--figure", metavar="PATH", help="also save a picture of the fit (PNG/PDF)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)

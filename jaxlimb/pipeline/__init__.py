@@ -11,6 +11,7 @@ Public API::
     refinement: select_annulus, annulus_halfwidth, lit_halfangle, fit_circle_annulus, fit_sphere_annulus
     sphere image: SphereImage, sphere_from_ellipse_center, sphere_from_circle_fit
     physical limb profile: LIMB_PROFILE, LimbProfileParams, limb_profile_intensity
+    the Sun's limb-darkened disc: LIMB_DARKENED, LimbDarkenedParams, fit_limb_darkened, SunLimbFit
 """
 
 from .checks import (
@@ -40,10 +41,20 @@ from .profile import (
     limb_profile_intensity as limb_profile_intensity,
     sphere_from_circle_fit as sphere_from_circle_fit,
 )
+from .sun_profile import (
+    LIMB_DARKENED as LIMB_DARKENED,
+    LimbDarkenedParams as LimbDarkenedParams,
+    SunLimbFit as SunLimbFit,
+    fit_limb_darkened as fit_limb_darkened,
+)
 from .result import EllipseResult as EllipseResult, LimbMeasurement as LimbMeasurement
 from .sphere import SphereImage as SphereImage, sphere_from_ellipse_center as sphere_from_ellipse_center
 
 __all__ = [
+    "LIMB_DARKENED",
+    "LimbDarkenedParams",
+    "SunLimbFit",
+    "fit_limb_darkened",
     "LIMB_PROFILE",
     "LimbProfileParams",
     "limb_profile_intensity",

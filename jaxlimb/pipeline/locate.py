@@ -49,7 +49,8 @@ from ..geometry.camera import Camera
 from ..imaging import Hints, check_prior, front_end, prior_from_hints, validate_image
 from ..imaging import sun_direction_image
 from ..models import CIRCLE, ELLIPSE, CircleParams, EllipseParams
-from ..fitting import NormalLM
+from ..fitting import NormalLM, solver_from_name
+from .sun_profile import LimbDarkenedParams, fit_limb_darkened, select_sun_annulus
 from .profile import LIMB_PROFILE, PROFILE_FIXED, LimbProfileParams, lunar_lambert_weight, sphere_from_circle_fit
 from .checks import (
     check_center_in_field,
@@ -262,7 +263,13 @@ def locate(
         extras["profile_rejected"] = {"model": "lunar-lambert", "L": float(profile_fit.fit.params.L),
                                       "allowed_L": list(_PHYSICAL_L)}
         profile_fit = None
-    if profile_fit is not None:
+    if _use_sun_profile(opt, hin):
+        # the Sun: a self-luminous, limb-darkened disc (jaxlimb.pipeline.sun_profile)
+        sun = fit_limb_darkened(img, c_circ, r_circ, solver=None if opt.solver == "lm" else solver_from_name(opt.solver))
+        coords_s, z_s = select_sun_annulus(img, c_circ, r_circ, sun.annulus_px)
+        held = tuple(n for n in LimbDarkenedParams.field_names() if n not in sun.fit.free)
+        final = RefineResult(sun.fit, FitData(coords_s, z_s, None, 0.0, 1.0), 0, held)
+    elif profile_fit is not None:
         final = profile_fit
     elif use_camera:
         assert cam is not None and pin is not None
@@ -297,11 +304,11 @@ def locate(
     free = list(final.fit.free)
     cov_fit = np.asarray(final.fit.covariance)
     names_out: list[str]
-    if isinstance(fp, LimbProfileParams):
+    if isinstance(fp, (LimbProfileParams, LimbDarkenedParams)):
         names_geo = ["center_r", "center_c", "radius"]
         gidx = [free.index(n) for n in ("r0", "c0", "a")]
         x0 = np.array([float(fp.r0), float(fp.c0), float(fp.a)])
-        if use_camera:
+        if use_camera and isinstance(fp, LimbProfileParams):
             assert pin is not None
 
             def _out(x):
@@ -324,6 +331,8 @@ def locate(
             Jg = np.eye(3)
             if cam is not None:
                 los = tuple(float(v) for v in cam.los(np.array(center)))
+                if isinstance(fp, LimbDarkenedParams) and body_radius_km is not None:
+                    range_km = float(body_radius_km / math.sin(math.atan(radius_px / cam.focal_px)))
         other = [i for i in range(len(free)) if i not in gidx]
         J = np.zeros((3 + len(other), len(free)))
         J[:3, gidx] = Jg
@@ -406,7 +415,7 @@ def locate(
     t_geo = time.perf_counter()
 
     crlb_out = None
-    if opt.compute_crlb and isinstance(fp, LimbProfileParams):
+    if opt.compute_crlb and isinstance(fp, (LimbProfileParams, LimbDarkenedParams)):
         # unit weights: the bound at the estimate with sigma-hat is sigma-hat^2 (J^T J)^-1, the
         # fit's own covariance (no second pass over the pixels)
         crlb_out = {n: float(math.sqrt(max(cov_out[i, i], 0.0))) for i, n in enumerate(names_out)}
@@ -423,12 +432,16 @@ def locate(
             crlb_out = None
     t_end = time.perf_counter()
 
-    if isinstance(fp, LimbProfileParams):
+    if isinstance(fp, (LimbProfileParams, LimbDarkenedParams)):
         # report the logistic steepness equivalent to the fitted Gaussian edge, and amp + ymin as ymax
         s_e = math.sqrt(float(fp.sigma) ** 2 + 1.0 / 12.0)
         k_val, ymax_dn, ymin_dn = LOGISTIC_TO_GAUSS / s_e, float(fp.ymin) + float(fp.amp), float(fp.ymin)
-        extras["profile"] = {"model": "lunar-lambert", "psf_sigma_px": float(fp.sigma), "amp": float(fp.amp),
-                             "phase_deg": math.degrees(float(fp.phase)), "L": float(fp.L)}
+        if isinstance(fp, LimbProfileParams):
+            extras["profile"] = {"model": "lunar-lambert", "psf_sigma_px": float(fp.sigma), "amp": float(fp.amp),
+                                 "phase_deg": math.degrees(float(fp.phase)), "L": float(fp.L)}
+        else:
+            extras["profile"] = {"model": "limb-darkened", "psf_sigma_px": float(fp.sigma), "amp": float(fp.amp),
+                                 "u1": float(fp.u1), "u2": float(fp.u2)}
     else:
         k_val = float(fp.k)
         ymax_dn = float(final.data.offset + final.data.scale * float(fp.ymax))
@@ -500,6 +513,13 @@ def _use_profile(opt: LocateOptions, hin: Hints | None) -> bool:
     # the papers' fixed-k setting (Table 1) is a sigmoid experiment: keep the sigmoid there
     return (opt.model == "circle" and opt.estimate_k and hin is not None and hin.sun_dir_camera is not None
             and hin.body != "sun")
+
+
+def _use_sun_profile(opt: LocateOptions, hin: Hints | None) -> bool:
+    """The limb-darkened disc: asked for, or ``profile="auto"`` with hints ``body = "sun"``."""
+    if opt.profile != "auto":
+        return opt.profile == "limb-darkened"
+    return opt.model == "circle" and opt.estimate_k and hin is not None and hin.body == "sun"
 
 
 def _fit_profile(img: np.ndarray, circ, cam: Camera | None, hin: Hints | None, opt: LocateOptions, use_camera: bool):

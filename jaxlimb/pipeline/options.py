@@ -9,7 +9,7 @@ from ..errors import ConfigError
 
 FRONT_ENDS = ("gradient", "scanline")
 LIMB_MODELS = ("circle", "ellipse")
-PROFILES = ("auto", "sigmoid", "lunar-lambert")
+PROFILES = ("auto", "sigmoid", "lunar-lambert", "limb-darkened")
 
 
 def _pos(name: str, v: object, *, allow_zero: bool = False, allow_none: bool = False) -> None:
@@ -48,8 +48,12 @@ class LocateOptions:
     k_fixed
         The steepness (1/px) used when ``estimate_k`` is ``False`` (paper: 3).
     profile
-        ``"auto"`` (default): the physical limb profile when the hints give the Sun direction,
-        the model is ``"circle"`` and ``estimate_k`` is on; else the sigmoid.  ``"sigmoid"``: the papers' sigmoid
+        ``"auto"`` (default): with the model ``"circle"`` and ``estimate_k`` on, the physical
+        limb profile of a sunlit body when the hints give the Sun direction, the limb-darkened
+        disc when they say ``body = "sun"``; else the sigmoid.  ``"limb-darkened"``: after
+        the sigmoid, refit a full annulus with the blurred quadratic limb-darkening law of a
+        self-luminous disc (:mod:`jaxlimb.pipeline.sun_profile`; the SDO/HMI radius error
+        goes from -0.156 px with the sigmoid to +0.039 px).  ``"sigmoid"``: the papers' sigmoid
         limb.  ``"lunar-lambert"``: after the sigmoid, refit the same pixels with the physical
         limb profile of a lunar-Lambert sphere blurred by a Gaussian PSF
         (:mod:`jaxlimb.pipeline.profile`; needs the Sun direction in the hints).  It removes
@@ -172,8 +176,8 @@ class LocateOptions:
             _pos("lunar_lambert_L", self.lunar_lambert_L, allow_zero=True)
             if self.lunar_lambert_L > 1:
                 raise ConfigError(f"LocateOptions.lunar_lambert_L must be in [0, 1] or None, got {self.lunar_lambert_L!r}")
-        if self.profile == "lunar-lambert" and self.model != "circle":
-            raise ConfigError("LocateOptions.profile = 'lunar-lambert' supports model = 'circle' only")
+        if self.profile in ("lunar-lambert", "limb-darkened") and self.model != "circle":
+            raise ConfigError(f"LocateOptions.profile = {self.profile!r} supports model = 'circle' only")
         _pos("min_lit_arc_deg", self.min_lit_arc_deg, allow_zero=True)
         if self.min_lit_arc_deg > 360:
             raise ConfigError(f"LocateOptions.min_lit_arc_deg must be in [0, 360], got {self.min_lit_arc_deg!r}")

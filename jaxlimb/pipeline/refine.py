@@ -62,6 +62,7 @@ import numpy as np
 
 from ..errors import ConvergenceError, TooManyOutliersError
 from ..fitting import LimbFit, fit, solver_from_name
+from ..fitting.fit import bucket_size
 from ..models import CIRCLE, ELLIPSE, CircleParams, EllipseParams
 from .options import LocateOptions
 from .sphere import SphereImage, sphere_from_ellipse_center
@@ -337,14 +338,15 @@ def _levels(sel: AnnulusSelection, data: FitData, options: LocateOptions) -> tup
 
 
 def _pad_pow2(data: FitData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pad to the next power of two (>= 4096) with zero-weight copies of the first pixel.
+    """Pad to the next size ``2^k`` or ``1.5 * 2^k`` (>= 4096) with zero-weight copies of the first pixel.
 
-    :func:`jaxlimb.fitting.fit` pads to buckets growing by 1.5 and 4/3; padding to powers
-    of two first halves the number of distinct compiled programs across images (compiling
-    costs seconds, a fit of 10^4 pixels milliseconds) at the price of <= 2x the work.
+    The sizes are those of :func:`jaxlimb.fitting.fit.bucket_size`, starting at 4096: few
+    distinct compiled programs across images (compiling costs seconds, a fit of 10^4 pixels
+    milliseconds) for at most 1.5x the work (powers of two alone cost up to 2x: 4887 pixels
+    ran as 8192, now as 6144).  (The name predates the 1.5x sizes.)
     """
     n = data.z.shape[0]
-    size = max(4096, 1 << max(0, int(math.ceil(math.log2(max(n, 1))))))
+    size = max(4096, bucket_size(n))
     w = np.ones(n) if data.weights is None else np.asarray(data.weights, dtype=float)
     pad = size - n
     if pad <= 0:
