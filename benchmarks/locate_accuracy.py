@@ -261,17 +261,28 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--quick", action="store_true", help="5 scenes per category, a smaller bias grid")
     ap.add_argument("--n", type=int, default=None, help="scenes per category (default 20, 5 with --quick)")
     ap.add_argument("--seed", type=int, default=2026)
+    ap.add_argument("--skip-timing", action="store_true", help="accuracy only (timings need a quiet machine)")
+    ap.add_argument("--timing-only", action="store_true",
+                    help="only the timing; merged into the existing results file")
     args = ap.parse_args(argv)
     _setup()
     from _common import environment, save
 
     n = args.n if args.n is not None else (5 if args.quick else 20)
     t_all = time.perf_counter()
-    tim = {p: timing(args.seed, 5 if args.quick else 10, p) for p in ("sigmoid", "auto")}
+    tim = {} if args.skip_timing else {p: timing(args.seed, 5 if args.quick else 10, p) for p in ("sigmoid", "auto")}
     for p, t in tim.items():
         print(f"locate ({p}) on 1944x2592: first call {t['first_call_s']:.2f} s (compilation), "
               f"after warm-up median {1000 * t['median_s']:.0f} ms (min {1000 * t['min_s']:.0f} ms); "
               f"parts {', '.join(f'{k} {1000 * v:.0f} ms' for k, v in t['parts_median_s'].items())}")
+    if args.timing_only:
+        import json
+
+        path = Path(__file__).resolve().parent / "results" / "locate_accuracy.json"
+        old = json.loads(path.read_text()) if path.exists() else {}
+        old.update(timing=tim, timing_environment=environment())
+        print(f"wrote {save('locate_accuracy', old)}")
+        return old
     bias = bias_study(args.seed, args.quick)
     print("\nlimb bias at zero phase (radius_px - truth):")
     print(f"{'range km':>9} {'psf':>5} {'R px':>7} {'k':>6} {'bias px':>8} {'phys bias':>9} {'phys psf':>8}")

@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, ConvergenceError
 from ..geometry.camera import Camera
 from ..imaging import Hints, check_prior, front_end, prior_from_hints, validate_image
 from ..imaging import sun_direction_image
@@ -257,7 +257,15 @@ def locate(
             return tuple(float(v) for v in cam.distort(np.asarray(rc_ideal, float)))
         return (float(rc_ideal[0]), float(rc_ideal[1]))
 
-    profile_fit = _fit_profile(img, circ, cam, hin, opt, use_camera) if _use_profile(opt, hin) else None
+    profile_fit = None
+    if _use_profile(opt, hin):
+        try:
+            profile_fit = _fit_profile(img, circ, cam, hin, opt, use_camera)
+        except ConvergenceError as e:
+            if opt.profile != "auto":
+                raise
+            # "auto": the sigmoid's answer stands; say why the refinement was not used
+            extras["profile_rejected"] = {"model": "lunar-lambert", "reason": str(e)}
     if profile_fit is not None and opt.profile == "auto" and not _PHYSICAL_L[0] <= float(profile_fit.fit.params.L) <= _PHYSICAL_L[1]:
         # the limb is not lunar-Lambert-like (e.g. a flat disc): keep the sigmoid, say why
         extras["profile_rejected"] = {"model": "lunar-lambert", "L": float(profile_fit.fit.params.L),

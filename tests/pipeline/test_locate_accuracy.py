@@ -158,3 +158,22 @@ def test_measurement_contents_and_covariance():
     assert 0.0 < s < 0.05 and m.crlb["center_r"] == pytest.approx(s, rel=0.2)
     assert m.selected_pixels_rc.shape == (m.n_pixels, 2)
     assert m.ymax > m.ymin
+
+
+def test_auto_profile_keeps_the_sigmoid_when_the_profile_fit_fails(monkeypatch):
+    import importlib
+
+    from jaxlimb.errors import ConvergenceError
+
+    loc = importlib.import_module("jaxlimb.pipeline.locate")
+
+    def boom(*a, **k):
+        raise ConvergenceError("Check 5: forced failure")
+
+    monkeypatch.setattr(loc, "_fit_profile", boom)
+    img, tr = scene(30000.0, 0.0, (200.0, 250.0), 30.0, "lunar-lambert")
+    m = locate(img, SMALL_CAMERA, sun_hints(tr))
+    assert "forced failure" in m.extras["profile_rejected"]["reason"] and "profile" not in m.extras
+    assert errors(m, tr)[0] <= 0.05
+    with pytest.raises(ConvergenceError):  # asked for explicitly: the failure is reported
+        locate(img, SMALL_CAMERA, sun_hints(tr), LocateOptions(profile="lunar-lambert"))
