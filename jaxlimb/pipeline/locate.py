@@ -53,6 +53,8 @@ from ..fitting import NormalLM, solver_from_name
 from .sun_profile import LimbDarkenedParams, fit_limb_darkened, select_sun_annulus
 from .profile import LIMB_PROFILE, PROFILE_FIXED, LimbProfileParams, lunar_lambert_weight, sphere_from_circle_fit
 from .checks import (
+    MIN_LIT_ARC_DEG,
+    MIN_LIT_ARC_PROFILE_DEG,
     check_center_in_field,
     check_jump,
     check_lit_arc,
@@ -201,7 +203,9 @@ def locate(
         half = min(cand.lit_halfangle + math.radians(2.0), lit_halfangle(ph_img, cand.radius, dr, opt.horn_margin_deg))
     sel = select_annulus(img, cand.center_rc, cand.radius, dr, direction, half, opt)
     # lit-arc check (cropped body, Sun-facing side out of the frame) before any fit
-    min_arc = float(opt.min_lit_arc_deg)
+    physical = _use_profile(opt, hin)
+    min_arc = float(opt.min_lit_arc_deg) if opt.min_lit_arc_deg is not None else (
+        MIN_LIT_ARC_PROFILE_DEG if physical else MIN_LIT_ARC_DEG)
     check_lit_arc(sel.angles(), min_arc, half)
     circ = fit_circle_annulus(sel, opt)
     p = circ.fit.params
@@ -258,7 +262,7 @@ def locate(
         return (float(rc_ideal[0]), float(rc_ideal[1]))
 
     profile_fit = None
-    if _use_profile(opt, hin):
+    if physical:
         try:
             profile_fit = _fit_profile(img, circ, cam, hin, opt, use_camera)
         except ConvergenceError as e:
@@ -271,6 +275,9 @@ def locate(
         extras["profile_rejected"] = {"model": "lunar-lambert", "L": float(profile_fit.fit.params.L),
                                       "allowed_L": list(_PHYSICAL_L)}
         profile_fit = None
+    if physical and profile_fit is None and opt.min_lit_arc_deg is None:
+        # back on the sigmoid: its own (longer) shortest arc applies
+        check_lit_arc(np.arctan2(circ.coords[:, 0] - c_circ[0], circ.coords[:, 1] - c_circ[1]), MIN_LIT_ARC_DEG, half)
     if _use_sun_profile(opt, hin):
         # the Sun: a self-luminous, limb-darkened disc (jaxlimb.pipeline.sun_profile)
         sun = fit_limb_darkened(img, c_circ, r_circ, solver=None if opt.solver == "lm" else solver_from_name(opt.solver))

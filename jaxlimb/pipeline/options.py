@@ -67,11 +67,12 @@ class LocateOptions:
         fitted ``L`` outside ``[-0.1, 1.1]`` (a limb no such law describes, e.g. a flat disc)
         sends the measurement back to the sigmoid (``extras["profile_rejected"]``).
     min_lit_arc_deg
-        Smallest arc (deg) of lit limb in the frame that is measured (default 60, the
-        ``arc_too_short`` check of :mod:`jaxlimb.pipeline.checks`): a circle's centre error per
-        unit of radial noise grows about as the inverse square of the arc (25x a full circle's
-        at 60 deg, 98x at 30 deg), and on shorter arcs of cropped Moons the sigmoid was off by
-        0.3-15 px.  Lower it to accept short arcs with their (large) covariance.
+        Smallest arc (deg) of lit limb in the frame that is measured (the ``arc_too_short``
+        check of :mod:`jaxlimb.pipeline.checks`): a circle's centre error per unit of radial
+        noise grows about as the inverse square of the arc (25x a full circle's at 60 deg, 98x
+        at 30 deg).  ``None`` (default): 45 deg with the physical limb profile, 60 deg with the
+        sigmoid (shorter arcs of cropped Moons were off by 0.2-0.6 px and 0.3-15 px).  Lower it
+        to accept short arcs with their (large) covariance.
     normalize_levels
         Divide each angular bin of the annulus by its own inside-outside contrast (and weight
         it by that contrast) before the fit (default ``True``; :class:`jaxlimb.pipeline.refine.FitData`):
@@ -140,7 +141,7 @@ class LocateOptions:
     k_fixed: float = 3.0
     profile: str = "auto"
     lunar_lambert_L: float | None = None
-    min_lit_arc_deg: float = 60.0
+    min_lit_arc_deg: float | None = None
     normalize_levels: bool = True
     annulus_px: float | None = None
     annulus_min_px: float = 6.0
@@ -178,8 +179,8 @@ class LocateOptions:
                 raise ConfigError(f"LocateOptions.lunar_lambert_L must be in [0, 1] or None, got {self.lunar_lambert_L!r}")
         if self.profile in ("lunar-lambert", "limb-darkened") and self.model != "circle":
             raise ConfigError(f"LocateOptions.profile = {self.profile!r} supports model = 'circle' only")
-        _pos("min_lit_arc_deg", self.min_lit_arc_deg, allow_zero=True)
-        if self.min_lit_arc_deg > 360:
+        _pos("min_lit_arc_deg", self.min_lit_arc_deg, allow_zero=True, allow_none=True)
+        if self.min_lit_arc_deg is not None and self.min_lit_arc_deg > 360:
             raise ConfigError(f"LocateOptions.min_lit_arc_deg must be in [0, 360], got {self.min_lit_arc_deg!r}")
         _pos("annulus_px", self.annulus_px, allow_none=True)
         _pos("annulus_min_px", self.annulus_min_px)
