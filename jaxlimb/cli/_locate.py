@@ -91,7 +91,16 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError("--body earth needs --camera (the Earth pipeline measures the range)")
         meas = earth.locate_earth(image, camera, hints, options)
     else:
-        meas = locate(image, camera, hints, options)
+        from ..errors import SaturationWarning
+
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", SaturationWarning)
+            meas = locate(image, camera, hints, options)
+        for w in caught:
+            if issubclass(w.category, SaturationWarning):
+                import sys
+
+                print(f"jaxlimb: warning: {' '.join(str(w.message).split())}", file=sys.stderr)
     if args.figure:
         from ..pipeline import save_locate_figure
 

@@ -305,7 +305,14 @@ def _run(args: argparse.Namespace) -> int:
             print(f"jaxlimb: warning: {' '.join(str(w.message).split())}", file=sys.stderr)
     if (camera.rows, camera.cols) != tuple(image.shape[:2]):
         raise ConfigError(f"camera size {camera.rows}x{camera.cols} does not match the image size {image.shape[0]}x{image.shape[1]}")
-    meas = locate_body(body, image, camera, hints)
+    from ..errors import SaturationWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", SaturationWarning)
+        meas = locate_body(body, image, camera, hints)
+    for w in caught:
+        if issubclass(w.category, SaturationWarning):
+            print(f"jaxlimb: warning: {' '.join(str(w.message).split())}", file=sys.stderr)
     out = navigate_measurement(
         body, meas, camera, C_ci, epoch,
         attitude_sigma_rad=math.radians(args.attitude_sigma_arcsec / 3600.0), ephemeris_path=args.ephemeris,

@@ -40,11 +40,12 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from typing import Any
 
 import numpy as np
 
-from ..errors import ConfigError, ConvergenceError
+from ..errors import ConfigError, ConvergenceError, SaturationWarning
 from ..geometry.camera import Camera
 from ..imaging import Hints, check_prior, front_end, prior_from_hints, validate_image
 from ..imaging import sun_direction_image
@@ -73,6 +74,7 @@ from .refine import (
     fit_ellipse_annulus,
     fit_sphere_annulus,
     fisher_information,
+    predict,
     lit_halfangle,
     select_annulus,
     LOGISTIC_TO_GAUSS,
@@ -261,10 +263,21 @@ def locate(
             return tuple(float(v) for v in cam.distort(np.asarray(rc_ideal, float)))
         return (float(rc_ideal[0]), float(rc_ideal[1]))
 
+    sat = saturation_level(img)
+    z_ann = circ.data.z if circ.data.weights is None else img[circ.coords[:, 0].astype(np.int64),
+                                                                circ.coords[:, 1].astype(np.int64)]
+    n_sat = int(np.count_nonzero(np.asarray(z_ann) >= sat)) if sat is not None else 0
+    if n_sat >= 20:
+        extras["saturation"] = {"level": sat, "n_clipped_in_annulus": n_sat, "n_annulus": int(len(z_ann))}
+        warnings.warn(SaturationWarning(
+            f"{n_sat} of the {len(z_ann)} pixels of the limb annulus are clipped at {sat:g}: the radius (range) may be "
+            "biased outward by up to ~1 px; expose shorter"), stacklevel=2)
     profile_fit = None
     if physical:
         try:
-            profile_fit = _fit_profile(img, circ, cam, hin, opt, use_camera)
+            profile_fit, n_clipped = _fit_profile(img, circ, cam, hin, opt, use_camera)
+            if n_clipped and "saturation" in extras:
+                extras["saturation"]["n_left_out_of_profile_fit"] = n_clipped
         except ConvergenceError as e:
             if opt.profile != "auto":
                 raise
@@ -538,7 +551,10 @@ def _use_sun_profile(opt: LocateOptions, hin: Hints | None) -> bool:
 
 
 def _fit_profile(img: np.ndarray, circ, cam: Camera | None, hin: Hints | None, opt: LocateOptions, use_camera: bool):
-    """Refit the pixels of the CSF with the physical lunar-Lambert limb profile (:mod:`jaxlimb.pipeline.profile`)."""
+    """Refit the pixels of the CSF with the physical lunar-Lambert limb profile (:mod:`jaxlimb.pipeline.profile`).
+
+    Returns the :class:`~jaxlimb.pipeline.refine.RefineResult` and the number of clipped
+    (saturated) pixels left out."""
     if hin is None or hin.sun_dir_camera is None:
         raise ConfigError("LocateOptions.profile = 'lunar-lambert' needs the Sun direction (hints `sun_dir_camera`)")
     p = circ.fit.params
@@ -574,29 +590,66 @@ def _fit_profile(img: np.ndarray, circ, cam: Camera | None, hin: Hints | None, o
     fixed = PROFILE_FIXED if opt.lunar_lambert_L is not None else tuple(n for n in PROFILE_FIXED if n != "L")
     # the default solver with a tolerance on the parameters' own scale (px, DN): 1e-7 is
     # far below any measurable change; 1e-10 relative costs ~4 more passes for nothing
-    tuned = opt.solver == "lm"
-    solver = NormalLM(rtol=0.0, atol=1e-7) if tuned else None
+    solver = NormalLM(rtol=0.0, atol=1e-7) if opt.solver == "lm" else None
+    sat = saturation_level(img)
+    n_clipped = 0
+    if sat is not None and np.count_nonzero(z >= sat) >= 20:  # (a few hot pixels are not a clipped limb)
+        # clipped pixels carry no value, and a sensor clips at its full well *before* the read
+        # noise, so they scatter a few DN below the top code: fit the pixels 4 noise sigmas below
+        # it, then keep those whose *model* value is (a selection that does not depend on the
+        # noise) and refit.  The noise sigma: robust spread of the sky side of the annulus.
+        d_c = np.hypot(coords[:, 0] - center[0], coords[:, 1] - center[1])
+        sky = z[d_c > float(p.radius) + 3.0 * s_e]
+        noise = 1.4826 * float(np.median(np.abs(sky - np.median(sky)))) if sky.size >= 20 else 1.0
+        margin = 4.0 * max(noise, 0.5)
+        keep = z < sat - margin
+        n_clipped = int(np.count_nonzero(~keep))
+        # the clipped interior hides the brightness profile that sets L: hold it (McEwen or given)
+        fixed = PROFILE_FIXED
+        res, sph = _profile_passes(data.subset(keep), init, cam, center, float(p.radius), opt, fixed, solver,
+                                   use_camera)
+        pred = predict(LIMB_PROFILE, res.params, coords)
+        keep = (pred < sat - margin) & (z < sat)
+        data = data.subset(keep)
+        res, sph = _profile_passes(data, res.params, cam, None, None, opt, fixed, solver, use_camera)
+    else:
+        res, sph = _profile_passes(data, init, cam, center, float(p.radius), opt, fixed, solver, use_camera)
+    return RefineResult(res, data, 0, fixed, sphere=sph), n_clipped
+
+
+def saturation_level(img: np.ndarray) -> float | None:
+    """The clip level of ``img`` if it has one: its maximum when >= 20 pixels sit exactly on it
+    (noise never makes a plateau; clipping, including 12-bit data in 16-bit words, does)."""
+    m = float(np.max(img))
+    return m if np.count_nonzero(img == m) >= 20 else None
+
+
+def _profile_passes(data: FitData, start: LimbProfileParams, cam: Camera | None, center, radius, opt: LocateOptions,
+                    fixed, solver, use_camera: bool):
+    """The profile fit (``center``/``radius``: the circle to start the sphere's shape from; ``None``:
+    from ``start``).  With a camera, the sphere's ellipse shape is held fixed and iterated (as
+    :func:`~jaxlimb.pipeline.refine.fit_sphere_annulus`).  The shape (``a - b`` ~ 5 px at the corner
+    of the default imager for a 210 px Moon) changes by ~0.006 px per px of centre shift, so a
+    second pass is run only when the shape at the fitted centre differs from the one fitted by
+    more than 1e-3 px anywhere on the limb; it starts at the answer and needs no coarse phase."""
     if not use_camera or cam is None:
-        res = _run(LIMB_PROFILE, data, init, opt, fixed, solver)
-        return RefineResult(res, data, 0, fixed)
-    # the sphere's ellipse shape held fixed and iterated (as fit_sphere_annulus).  The shape
-    # (a - b ~ 5 px at the corner of the default imager for a 210 px Moon) changes by ~0.006 px per
-    # px of centre shift, so a second pass is run only when the shape at the fitted centre differs
-    # from the one fitted by more than 1e-3 px anywhere on the limb; it starts at the answer and
-    # needs no coarse phase
+        return _run(LIMB_PROFILE, data, start, opt, fixed, solver), None
     f, pp = cam.focal_px, cam.principal_point_rc
-    sph = sphere_from_circle_fit(f, pp, center, float(p.radius))
-    q = init.replace(a=sph.a, theta=sph.angle_rad, rho=sph.rho)
-    res = None
+    if center is not None:
+        sph = sphere_from_circle_fit(f, pp, center, radius)
+        q = start.replace(a=sph.a, theta=sph.angle_rad, rho=sph.rho)
+    else:
+        q = start
+    res = sph = None
     for i in range(2):
-        s_i = solver if (i == 0 or not tuned) else NormalLM(rtol=0.0, atol=1e-5, coarse_stride=1)
+        s_i = solver if (i == 0 or solver is None) else NormalLM(rtol=0.0, atol=1e-5, coarse_stride=1)
         res = _run(LIMB_PROFILE, data, q, opt, fixed, s_i)
         q = res.params
         sph = sphere_from_ellipse_center(f, pp, (float(q.r0), float(q.c0)), float(q.a))
         if _shape_change_px(q, sph) < 1e-3:
             break
         q = q.replace(theta=float(sph.angle_rad), rho=float(sph.rho))
-    return RefineResult(res, data, 0, fixed, sphere=sph)
+    return res, sph
 
 
 def _shape_change_px(q: LimbProfileParams, sph) -> float:

@@ -23,11 +23,15 @@ def render_options(reflectance: str = "lunar-lambert", psf: float = 1.0, **kw) -
 @functools.lru_cache(maxsize=64)
 def scene(range_km: float, phase_deg: float, center_rc: tuple[float, float], sun_angle_deg: float = 30.0,
           reflectance: str = "lunar-lambert", psf: float = 1.0, seed: int = 1, camera: Camera = SMALL_CAMERA,
-          n_stars: int = 0, n_hot: int = 0):
-    """``(image, truth)`` of the Moon (cached)."""
+          n_stars: int = 0, n_hot: int = 0, exposure_scale: float = 1.0):
+    """``(image, truth)`` of the Moon (cached); ``exposure_scale`` > 1 over-exposes (clips) it."""
     sc = moon_scene(range_km, phase_deg, center_rc=center_rc, camera=camera, sun_angle_deg=sun_angle_deg)
     opts = render_options(reflectance, psf, n_stars=n_stars, n_hot_pixels=n_hot)
     img, truth = render_body(sc, camera, opts, seed=seed)
+    if exposure_scale != 1.0:
+        opts = render_options(reflectance, psf, n_stars=n_stars, n_hot_pixels=n_hot,
+                              exposure_e=truth.exposure_e * exposure_scale)
+        img, truth = render_body(sc, camera, opts, seed=seed)
     img.setflags(write=False)
     return img, truth
 

@@ -177,3 +177,17 @@ def test_auto_profile_keeps_the_sigmoid_when_the_profile_fit_fails(monkeypatch):
     assert errors(m, tr)[0] <= 0.05
     with pytest.raises(ConvergenceError):  # asked for explicitly: the failure is reported
         locate(img, SMALL_CAMERA, sun_hints(tr), LocateOptions(profile="lunar-lambert"))
+
+
+def test_saturated_limb_is_flagged_and_left_out_of_the_profile_fit():
+    # over-exposed 2x: the lit interior and part of the limb clip at 255
+    img, tr = scene(30000.0, 60.0, (200.0, 250.0), 30.0, "lunar-lambert", exposure_scale=2.0)
+    from jaxlimb.errors import SaturationWarning
+
+    with pytest.warns(SaturationWarning, match="clipped at 255"):
+        m = locate(img, SMALL_CAMERA, sun_hints(tr))
+    sat = m.extras["saturation"]
+    assert sat["level"] == 255 and sat["n_clipped_in_annulus"] >= 20 and sat["n_left_out_of_profile_fit"] >= 20
+    dc, dr = errors(m, tr)
+    assert dc <= 0.1, dc  # the centre stays good; the radius is biased outward (the warning says so)
+    assert 0.0 < dr < 1.0, dr
