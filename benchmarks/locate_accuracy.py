@@ -28,8 +28,9 @@ radius -- both known at run time, so the correction needs no outside knowledge o
 The table reports the radius error of every category with and without it.
 
 Timing: the first ``locate`` call on a 1944x2592 frame (includes JAX compilation) and the
-median of 10 calls after warm-up.  Results go to ``benchmarks/results/locate_accuracy.json``
-with the git SHA and versions.
+median of 10 calls after warm-up, for the sigmoid and the default (physical profile), with the
+Moon at 150 000 km (R 84 px) and 60 000 km (R 211 px, the largest: the most pixels).  Results
+go to ``benchmarks/results/locate_accuracy.json`` with the git SHA and versions.
 """
 
 from __future__ import annotations
@@ -197,14 +198,14 @@ def bias_correction(coef: list[float], radius: float, k: float) -> float:
 
 
 # ----------------------------------------------------------------------------- timing
-def timing(seed: int, n_warm: int = 10, profile: str = "sigmoid") -> dict[str, Any]:
+def timing(seed: int, n_warm: int = 10, profile: str = "sigmoid", range_km: float = 150000.0) -> dict[str, Any]:
     from jaxlimb.geometry.camera import Camera
     from jaxlimb.pipeline import LocateOptions, locate
     from jaxlimb.render import RenderOptions, moon_scene, render_body
 
     cam = Camera.default()
     opts = RenderOptions(reflectance="lunar-lambert", psf_sigma_px=1.0, bit_depth=8, read_noise_e=_READ_2DN)
-    img, tr = render_body(moon_scene(150000.0, 30.0, center_rc=(700.0, 1500.0), camera=cam, sun_angle_deg=40),
+    img, tr = render_body(moon_scene(range_km, 30.0, center_rc=(700.0, 1500.0), camera=cam, sun_angle_deg=40),
                           cam, opts, seed=seed)
     rng = np.random.default_rng(seed)
     h = _hints(tr, rng)
@@ -220,8 +221,8 @@ def timing(seed: int, n_warm: int = 10, profile: str = "sigmoid") -> dict[str, A
         ts.append(time.perf_counter() - t0)
         parts.append(m.extras["timings_s"])
     med = {k: float(np.median([p[k] for p in parts])) for k in parts[0]}
-    return {"profile": profile, "first_call_s": first, "median_s": float(np.median(ts)), "min_s": float(np.min(ts)),
-            "parts_median_s": med}
+    return {"profile": profile, "range_km": range_km, "radius_px": float(tr.apparent_radius_px), "n_pixels": m.n_pixels,
+            "first_call_s": first, "median_s": float(np.median(ts)), "min_s": float(np.min(ts)), "parts_median_s": med}
 
 
 # ----------------------------------------------------------------------------- report
@@ -270,9 +271,11 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
 
     n = args.n if args.n is not None else (5 if args.quick else 20)
     t_all = time.perf_counter()
-    tim = {} if args.skip_timing else {p: timing(args.seed, 5 if args.quick else 10, p) for p in ("sigmoid", "auto")}
+    tim = {} if args.skip_timing else {f"{p}@{D / 1000:.0f}000km": timing(args.seed, 5 if args.quick else 10, p, D)
+                                       for D in (150000.0, 60000.0) for p in ("sigmoid", "auto")}
     for p, t in tim.items():
-        print(f"locate ({p}) on 1944x2592: first call {t['first_call_s']:.2f} s (compilation), "
+        print(f"locate ({p}, R {t['radius_px']:.0f} px, {t['n_pixels']} px fitted) on 1944x2592: first call "
+              f"{t['first_call_s']:.2f} s (compilation), "
               f"after warm-up median {1000 * t['median_s']:.0f} ms (min {1000 * t['min_s']:.0f} ms); "
               f"parts {', '.join(f'{k} {1000 * v:.0f} ms' for k, v in t['parts_median_s'].items())}")
     if args.timing_only:
