@@ -15,6 +15,9 @@ and the same frame + front end to the sigmoid routes:
 * ``ESF+ramp`` (our default): the same with the edge model of
   :func:`jaxlimb.pipeline.earth.ellipse_ramp_intensity` (Gaussian kernel, interior ramp, level
   varying along the limb);
+* ``profile`` (our default since issue 4): ``ESF+ramp``, then the same pixels refitted with the
+  physical lunar-Lambert limb profile (:data:`jaxlimb.pipeline.profile.LIMB_PROFILE`, ``L``
+  estimated; ``EarthOptions(profile="auto")``), Earth only;
 * ``CSF`` (Moon only): the Moon pipeline's circular sigmoid, :func:`jaxlimb.pipeline.locate.locate`.
 
 The short-arc rows keep only the front-end points within 30 deg of the lit direction for CR
@@ -113,7 +116,8 @@ def _short(points: np.ndarray, center, lit_dir, half_deg: float) -> np.ndarray:
     return points[v @ np.asarray(lit_dir) >= math.cos(math.radians(half_deg))]
 
 
-def run_frame(fr: Frame, n_noise: int, seed: int, reflectance: str = "lommel-seeliger") -> list[dict[str, Any]]:
+def run_frame(fr: Frame, n_noise: int, seed: int, reflectance: str = "lommel-seeliger",
+              only: tuple[str, ...] = ()) -> list[dict[str, Any]]:
     from jaxlimb.geometry.horizon import horizon_from_pixels
     from jaxlimb.imaging import Hints, gradient_front_end
     from jaxlimb.pipeline.earth import EarthOptions, locate_earth
@@ -121,7 +125,9 @@ def run_frame(fr: Frame, n_noise: int, seed: int, reflectance: str = "lommel-see
     noisy = _noisy()
     cam, sc, frame, truth = render(fr, reflectance)
     hints = Hints.from_dict(_hints(fr, sc, truth))
-    methods = ["CR", "ESF", "ESF+ramp"] + (["CSF"] if fr.body == "moon" else [])
+    methods = ["CR", "ESF", "ESF+ramp"] + (["CSF"] if fr.body == "moon" else ["profile"])
+    if only:
+        methods = [m for m in methods if m in only]
     rows: dict[tuple[str, str], dict[str, list]] = {}
     t_fe = []
     for k in range(n_noise):
@@ -149,8 +155,9 @@ def run_frame(fr: Frame, n_noise: int, seed: int, reflectance: str = "lommel-see
                         t_est = time.perf_counter() - t1 - meas.extras.get("timings_s", {}).get("front_end", 0.0)
                         c_rc, rng = meas.center_rc, meas.range_km
                     else:
-                        opt = EarthOptions(interior_ramp=(m == "ESF+ramp"), arc_margin_deg=60.0 if arc == "short" else 30.0,
-                                           band_px=4.0 if m == "ESF+ramp" else 6.0)
+                        opt = EarthOptions(interior_ramp=(m != "ESF"), arc_margin_deg=60.0 if arc == "short" else 30.0,
+                                           band_px=6.0 if m == "ESF" else 4.0,
+                                           profile="auto" if m == "profile" else "sigmoid")
                         meas = locate_earth(img, cam, hints, opt)
                         t_est = time.perf_counter() - t1 - t_fe[-1]  # locate_earth reruns the same front end
                         c_rc, rng = meas.center_rc, meas.range_km
@@ -209,12 +216,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--reflectance", default="lommel-seeliger",
                     help="renderer photometric model (default lommel-seeliger; lambert is closer to the Earth)")
     ap.add_argument("--out", default=None, help="default results/horizon_vs_sigmoid[_REFLECTANCE].json")
+    ap.add_argument("--methods", default=None, help="comma-separated subset of CR,ESF,ESF+ramp,profile,CSF (default all)")
     args = ap.parse_args(argv)
+    only = tuple(args.methods.split(",")) if args.methods else ()
     n = 3 if args.quick else args.runs
     frames = [f for f in FRAMES if args.frames is None or f.name in args.frames.split(",")]
     rows: list[dict[str, Any]] = []
     for i, fr in enumerate(frames):
-        rows += run_frame(fr, n, args.seed + 100 * i, args.reflectance)
+        rows += run_frame(fr, n, args.seed + 100 * i, args.reflectance, only)
         print(f"done {fr.name}", file=sys.stderr)
     print(table(rows))
     suffix = "" if args.reflectance == "lommel-seeliger" else "_" + args.reflectance

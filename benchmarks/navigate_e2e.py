@@ -180,6 +180,10 @@ def hints_for(built: dict[str, Any], truth) -> dict[str, Any]:
     return {"body": built["case"].body, "range_prior_km": 1.01 * truth.range_km, "sun_dir_camera": list(truth.sun_dir_cam)}
 
 
+EARTH_PROFILE: str | None = None
+"""``--earth-profile``: the Earth limb model (``EarthOptions.profile``); ``None`` = the CLI's default."""
+
+
 def run_once(built: dict[str, Any], image: np.ndarray, truth) -> dict[str, Any]:
     """``jaxlimb navigate`` on one image (same code path as the CLI)."""
     from dataclasses import replace
@@ -192,7 +196,12 @@ def run_once(built: dict[str, Any], image: np.ndarray, truth) -> dict[str, Any]:
     if case.body == "earth":
         R = built["C_ci"] @ earth_rotation_icrf_to_itrs(built["epoch"]).T
         hints = replace(hints, R_body_to_camera=R.tolist())
-    meas = locate_body(case.body, image, built["camera"], hints)
+    if case.body == "earth" and EARTH_PROFILE is not None:
+        from jaxlimb.pipeline.earth import EarthOptions, locate_earth
+
+        meas = locate_earth(image, built["camera"], hints, EarthOptions(profile=EARTH_PROFILE))
+    else:
+        meas = locate_body(case.body, image, built["camera"], hints)
     out = navigate_measurement(case.body, meas, built["camera"], built["C_ci"], built["epoch"])
     e = np.asarray(out["position_km"]) - built["r_o"]
     P = np.asarray(out["covariance_km2"])
@@ -252,7 +261,8 @@ def monte_carlo(case: Case, n_runs: int, seed: int, progress: bool = True, senso
     }
 
 
-def earth_targets(n_noise: int, seed: int, reflectance: str = "lommel-seeliger") -> list[dict[str, Any]]:
+def earth_targets(n_noise: int, seed: int, reflectance: str = "lommel-seeliger",
+                  profile: str | None = None) -> list[dict[str, Any]]:
     """The Earth targets of issue 4: centre <= 0.1 px and range <= 0.1 % (known attitude).
 
     Earth at 380 000 km (16 mm, 340 px crop) and 40 000 km (8 mm, 1300 px), observer latitude
@@ -262,9 +272,10 @@ def earth_targets(n_noise: int, seed: int, reflectance: str = "lommel-seeliger")
     """
     from jaxlimb.geometry.camera import Camera
     from jaxlimb.imaging import Hints
-    from jaxlimb.pipeline.earth import locate_earth
+    from jaxlimb.pipeline.earth import EarthOptions, locate_earth
     from jaxlimb.render import Atmosphere, RenderOptions, earth_scene, render_body
 
+    opts = None if profile is None else EarthOptions(profile=profile)
     rows = []
     for D, f, size in ((380000.0, 16.0, 340), (40000.0, 8.0, 1300)):
         cam = Camera(focal_length_mm=f, rows=size, cols=size)
@@ -282,7 +293,7 @@ def earth_targets(n_noise: int, seed: int, reflectance: str = "lommel-seeliger")
                 for k in range(n_noise):
                     img = noisy(frame, seed + k, "12bit")
                     t0 = time.perf_counter()
-                    m = locate_earth(img, cam, hints, None)
+                    m = locate_earth(img, cam, hints, opts)
                     ts.append(time.perf_counter() - t0)
                     dc.append(np.subtract(m.center_rc, truth.center_rc))
                     dr.append(100.0 * (m.range_km / truth.range_km - 1))
@@ -298,6 +309,7 @@ def earth_targets(n_noise: int, seed: int, reflectance: str = "lommel-seeliger")
                     "pred_center_sigma_px": float(np.mean(sc_)), "pred_range_sigma_pct": float(np.mean(sr_)),
                     "max_range_iterations": int(max(its)), "max_fits": int(max(fits)),
                     "gamma_off_px": truth.gamma_off_rad * cam.focal_px, "median_s": float(np.median(ts)),
+                    "model": m.extras.get("model"), "profile_L": m.extras.get("profile", {}).get("L"),
                 })
                 r = rows[-1]
                 print(f"{D:8.0f} km {f:4.0f} mm lat {lat:4.0f} {variant:8s}: centre {r['center_err_px_mean']:.3f} px "
@@ -336,17 +348,26 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=20261122)
     ap.add_argument("--reflectance", default=None, help="override the cases' reflectance (e.g. uniform)")
     ap.add_argument("--cases", default=None, help="comma-separated case names (default all)")
-    ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "navigate_e2e.json"))
+    ap.add_argument("--out", default=None,
+                    help="output JSON (default results/navigate_e2e.json, or results/earth_targets*.json)")
     ap.add_argument("--sensor", choices=sorted(SENSORS), default="8bit-10dn",
                     help="noise model (default: 8 bit, 10 DN, the Aerospace 2015 Monte Carlo)")
     ap.add_argument("--no-progress", action="store_true")
     ap.add_argument("--earth-targets", action="store_true",
                     help="instead: the Earth locate targets (latitudes 0/30/60, known R / free / glow), "
                     "writes results/earth_targets.json")
+    ap.add_argument("--earth-profile", choices=("auto", "sigmoid", "lunar-lambert"), default=None,
+                    help="Earth limb model (EarthOptions.profile; default: the CLI's, i.e. auto)")
     args = ap.parse_args(argv)
+    args.out_given = args.out is not None
+    if args.out is None:
+        args.out = str(Path(__file__).parent / "results" / "navigate_e2e.json")
+    global EARTH_PROFILE
+    EARTH_PROFILE = args.earth_profile
     if args.earth_targets:
-        rows = earth_targets(2 if args.quick else 5, args.seed, args.reflectance or "lommel-seeliger")
-        p = Path(args.out).with_name("earth_targets.json" if not args.reflectance else f"earth_targets_{args.reflectance}.json")
+        rows = earth_targets(2 if args.quick else 5, args.seed, args.reflectance or "lommel-seeliger", args.earth_profile)
+        name = "earth_targets.json" if not args.reflectance else f"earth_targets_{args.reflectance}.json"
+        p = Path(args.out) if args.out_given else Path(args.out).with_name(name)
         p.parent.mkdir(parents=True, exist_ok=True)
         p.write_text(json.dumps({"meta": _meta(), "rows": rows}, indent=1))
         print(f"wrote {p}")

@@ -39,11 +39,51 @@ Steps of :func:`locate_earth`
    eps``.  Steps 2-5 repeat while the predicted ``rho, theta`` still move the ellipse by more
    than ``refit_tol_px`` (``max_refits``; one refit is typical, the paper says "not more than 2
    iterations").
+   With the Sun direction known, the pixels are then refitted with the physical limb profile
+   (section below) and its ellipse replaces the edge fit's in steps 4-6.
 6. **Output.**  The observer position ``p`` (Earth centre at ``-p``, camera frame): line of
    sight ``-p/|p|``, range ``|p|``, ``center_rc`` = pinhole projection of the Earth centre
    (not the ellipse centre: they differ by ``gamma_off`` and the perspective offset).  The
    covariance is ``G P_fit G^T`` with ``P_fit`` the fit covariance of ``(r0, c0, a)``
    (:math:`\hat\sigma^2 (J^\top J)^{-1}`) and ``G`` the central-difference Jacobian of steps 4-5.
+
+Physical limb profile (``EarthOptions.profile``, default ``"auto"``)
+-------------------------------------------------------------------
+The edge models of step 3 put the limb where a blurred step with a smooth interior has its
+50 % level.  A lit limb seen from a finite range is brighter in a rim a fraction of a pixel
+wide (Lommel-Seeliger ``2\mu_0/(\mu_0 + \mu) \to 2`` as the emission cosine ``\mu \to 0``
+while ``\mu_0 > 0``; the view rays converge, the Sun's are parallel), which the ramp's
+``\sqrt{u}`` term follows only in part: the fitted edge moves outward by 0.05 px on the
+renders of ``benchmarks/navigate_e2e.py`` (range 0.01-0.05 % short), tens of its own
+sigmas at 40 000 km, so the position error was inconsistent with the covariance (issue 4:
+mean NEES 4-13 instead of 3).  With the Sun direction known, step 3 is followed by a fit of
+the *same* pixels with the blurred lunar-Lambert radiance of :mod:`jaxlimb.pipeline.profile`
+(:data:`~jaxlimb.pipeline.profile.LIMB_PROFILE`, as the Moon pipeline's
+``profile="lunar-lambert"``): free ``(r0, c0, a, sigma, amp, ymin)`` and the lunar-Lambert
+weight ``L`` (0: Lambert, 1: Lommel-Seeliger; ``EarthOptions.lunar_lambert_L`` fixes it);
+the ellipse shape ``theta, rho`` held at the image of the limb spheroid at the current
+position (the same prediction as step 2, repeated after the fit while it moves the ellipse by
+more than ``refit_tol_px``; estimated with the free ellipse); the Sun's image direction
+(:func:`jaxlimb.imaging.sun_direction_image`) and the phase ``acos(-s . u)`` from
+``sun_dir_camera``; ``inv_f = 1/f``.  The profile's geometry is the sphere's
+(``\sin e \approx d/R`` along each ray, ``R`` the ellipse radius in the ray's direction):
+the flattening (0.34 %) changes the limb's curvature, hence the depth scale of ``\mu``, by
+< 1 %, a second-order change of a sub-pixel profile.  The levels ``amp, ymin`` start at their
+linear least-squares values for the starting geometry (the edge fit's ``ymax`` is no radiance
+scale when its ramp terms carry the interior, e.g. on crescents).  Its ``(r0, c0, a)`` (and
+``rho, theta`` when free) then go through steps 4-6 as the edge fit's would, covariance
+included.  ``"auto"`` keeps the edge fit (``extras["profile_rejected"]`` says why) when the
+fitted ``L`` is outside ``[-0.1, 1.1]`` (photometry not lunar-Lambert-like, e.g. a flat
+disc), the fit fails, or it moves the limb by more than half the band from the edge fit
+(a sub-pixel correction is expected); it is not used for the paper's flat ESF
+(``interior_ramp=False``).  Measured with a known attitude (``benchmarks/navigate_e2e.py
+--earth-targets``, 12-bit renders, Lommel-Seeliger, 40 deg phase, 380 000 and 40 000 km):
+centre errors 0.003-0.01 px instead of 0.05-0.07 px, range errors below 0.01 % instead of
+0.01-0.06 %; ``benchmarks/horizon_vs_sigmoid.py``: more accurate than Christian-Robinson on
+the same frames in every Earth row (full / gibbous / crescent, whole and +-30 deg arcs);
+``benchmarks/navigate_e2e.py`` (100 runs, 8 bit + 10 DN): mean NEES 3.5 and 3.4 instead of
+5.2 and 9.6.  A rendered 100 km glow shell lifts the profile's limb by ~1 km as it does the
+edge fit's (range 0.02-0.045 % short with ``atmosphere_km = 0``): the profile still applies.
 
 Free ellipse (``R_body_to_camera`` unknown)
 -------------------------------------------
@@ -83,7 +123,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import ArrayLike
 
-from ..errors import ConfigError, GeometryError, TooManyOutliersError
+from ..errors import ConfigError, ConvergenceError, GeometryError, LimbInputError, TooManyOutliersError
 from ..geometry.camera import Camera
 from ..geometry.earth import (
     EARTH_EQUATORIAL_KM,
@@ -95,6 +135,7 @@ from ..geometry.ellipsoid import check_rotation, ellipse_to_conic, image_conic
 from ..imaging import Hints, front_end as run_front_end, sun_direction_image
 from ..models import LimbModel, LimbParams
 from ..models.sigmoid import ellipse_coords
+from .profile import LIMB_PROFILE, PROFILE_FIXED, LimbProfileParams, limb_profile_intensity, lunar_lambert_weight
 from .result import EllipseResult, LimbMeasurement
 
 __all__ = [
@@ -295,6 +336,19 @@ class EarthOptions:
     fix_profile
         Names among ``("g", "g2", "h1", "h2", "h3", "h4")`` held at 0 in the edge model
         (ablation studies).
+    profile
+        ``"auto"`` (default): after the edge fit, refit the same pixels with the physical limb
+        profile (:data:`jaxlimb.pipeline.profile.LIMB_PROFILE`) when the hints give the Sun
+        direction, keeping the edge fit when the fitted ``L`` is outside ``[-0.1, 1.1]``
+        (not lunar-Lambert-like photometry) or the profile fit fails
+        (``extras["profile_rejected"]``); ``"sigmoid"``: the edge fit only (step 3);
+        ``"lunar-lambert"``: always the profile (needs ``sun_dir_camera``).  See "Physical
+        limb profile" in the module docstring.
+    lunar_lambert_L
+        The lunar-Lambert weight ``L`` of the profile held fixed; ``None`` (default): estimated.
+    profile_band_px
+        Half-width (px) of the pixel band of the profile fit (about the edge fit's ellipse);
+        ``None`` = ``band_px``.
     """
 
     front_end: str = "gradient"
@@ -309,8 +363,19 @@ class EarthOptions:
     k_init: float = 1.5
     interior_ramp: bool = True
     fix_profile: tuple[str, ...] = ()
+    profile: str = "auto"
+    lunar_lambert_L: float | None = None
+    profile_band_px: float | None = None
 
     def __post_init__(self) -> None:
+        if self.profile not in ("auto", "sigmoid", "lunar-lambert"):
+            raise ConfigError(f"EarthOptions.profile must be 'auto', 'sigmoid' or 'lunar-lambert', got {self.profile!r}")
+        if self.lunar_lambert_L is not None and not (isinstance(self.lunar_lambert_L, (int, float))
+                                                     and math.isfinite(self.lunar_lambert_L)):
+            raise ConfigError(f"EarthOptions.lunar_lambert_L must be a finite number or None, got {self.lunar_lambert_L!r}")
+        if self.profile_band_px is not None and not (isinstance(self.profile_band_px, (int, float))
+                                                     and math.isfinite(self.profile_band_px) and self.profile_band_px > 1.0):
+            raise ConfigError(f"EarthOptions.profile_band_px must be None or a finite number > 1, got {self.profile_band_px!r}")
         if self.front_end not in ("gradient", "scanline"):
             raise ConfigError(f"EarthOptions.front_end must be 'gradient' or 'scanline', got {self.front_end!r}")
         for name, lo in (("band_px", 1.0), ("refit_tol_px", 0.0), ("eps_rad", 0.0), ("k_init", 0.0)):
@@ -495,6 +560,121 @@ def _solver(options: Any):
     return s
 
 
+# =============================================================================== physical limb profile
+_PHYSICAL_L = (-0.1, 1.1)
+"""Fitted lunar-Lambert weights ``L`` accepted by ``profile="auto"`` (as the Moon pipeline)."""
+
+
+def _use_profile(opt: EarthOptions, h: Hints) -> bool:
+    """``profile="auto"``: the physical profile when the Sun direction is known and the edge model is
+    the default one (the paper's flat ESF, ``interior_ramp=False``, is a sigmoid experiment: kept as
+    it is, as the Moon pipeline keeps the papers' fixed-``k`` CSF); ``"lunar-lambert"``: always."""
+    if opt.profile == "sigmoid":
+        return False
+    if h.sun_dir_camera is None:
+        if opt.profile == "lunar-lambert":
+            raise ConfigError("EarthOptions.profile = 'lunar-lambert' needs the Sun direction (hints `sun_dir_camera`)")
+        return False
+    return opt.profile == "lunar-lambert" or opt.interior_ramp
+
+
+def _fit_profile_earth(img, pts, z, edge, fitted, p, camera: Camera, h: Hints, R, radii_limb, opt: EarthOptions,
+                       solver, lit_dir, half, geo_kw):
+    """Refit the edge fit's pixels with :data:`~jaxlimb.pipeline.profile.LIMB_PROFILE` (module docstring).
+
+    ``edge`` the edge fit's parameters, ``fitted`` its ellipse ``((r0, c0), (a, b), theta)`` and
+    ``p`` its position.  Known attitude (``R``): ``theta, rho`` held at the image of the limb
+    spheroid at the current position, re-predicted after the fit and the fit repeated (once is
+    typical) while they move the ellipse by more than ``refit_tol_px``; free ellipse
+    (``R is None``): ``theta, rho`` estimated.  Returns the fit, its ellipse, the position, the
+    range-iteration info and the history entries.
+    """
+    from ..fitting import NormalLM, fit
+    from .refine import FitData, _pad_pow2
+
+    band = opt.profile_band_px if opt.profile_band_px is not None else opt.band_px
+    if band != opt.band_px:
+        pts = _band_pixels(img.shape, fitted, band, lit_dir, half)
+        z = img[pts[:, 0].astype(int), pts[:, 1].astype(int)]
+    (r0, c0), (a, b), th = fitted
+    center = (float(r0), float(c0))
+    s = np.asarray(h.sun_dir_camera, dtype=float)
+    s = s / np.linalg.norm(s)
+    phase = float(np.arccos(np.clip(-s @ camera.los(np.array(center)), -1.0, 1.0)))
+    sun_rc = sun_direction_image(s, camera, center)
+    if sun_rc is None:
+        sun_rc = (1.0, 0.0)  # full or new: the direction does not matter (sin(phase) ~ 0)
+    if R is not None:
+        ic = image_conic(camera, radii_limb, -p, R)
+        rho0, th0 = float(ic.rho), float(ic.angle_rad)
+    else:
+        rho0, th0 = float(b / a), float(th)
+    if isinstance(edge, EllipseRampParams):
+        s_tot = 1.0 / max(float(edge.k), 1e-6)  # Gaussian kernel: sigma = 1/k
+    else:
+        s_tot = 1.7 / max(float(edge.k), 1e-6)  # logistic k -> Gaussian-equivalent sigma (~1.7/k)
+    sigma0 = math.sqrt(max(s_tot * s_tot - 1.0 / 12.0, 0.09))
+    L0 = lunar_lambert_weight(phase) if opt.lunar_lambert_L is None else float(opt.lunar_lambert_L)
+    q = LimbProfileParams(r0=center[0], c0=center[1], a=float(a), theta=th0, rho=rho0, sigma=sigma0, amp=1.0,
+                          ymin=0.0, sun_r=sun_rc[0], sun_c=sun_rc[1], phase=phase, inv_f=1.0 / camera.focal_px, L=L0)
+    # the levels enter linearly: start them at their least-squares values for this geometry (the
+    # edge fit's ymax is no radiance scale when its ramp terms carry the interior)
+    F0 = np.asarray(limb_profile_intensity(q, jnp.asarray(np.asarray(pts, float))))
+    A = np.column_stack([F0, np.ones_like(F0)])
+    (amp0, ymin0), *_ = np.linalg.lstsq(A, np.asarray(z, float), rcond=None)
+    if not (math.isfinite(amp0) and amp0 > 0):
+        amp0, ymin0 = max(float(np.percentile(z, 95)) - float(edge.ymin), 1e-6), float(edge.ymin)
+    q = q.replace(amp=float(amp0), ymin=float(ymin0))
+    fixed = tuple(n for n in PROFILE_FIXED if not (n == "L" and opt.lunar_lambert_L is None))
+    if R is None:
+        fixed = tuple(n for n in fixed if n not in ("theta", "rho"))
+    coords, zz, w = _pad_pow2(FitData(np.asarray(pts, float), np.asarray(z, float), None, 0.0, 1.0))
+    hist = []
+    res = None
+    p_cur = p
+    for i in range(opt.max_refits):
+        if solver is not None:
+            s_i = solver
+        else:  # tolerance on the parameters' own scale (px, DN), as the Moon pipeline's profile fit
+            s_i = NormalLM(rtol=0.0, atol=1e-7) if i == 0 else NormalLM(rtol=0.0, atol=1e-5, coarse_stride=1)
+        res = fit(LIMB_PROFILE, coords, zz, q, s_i, fixed=fixed, weights=w, throw=False)
+        if not bool(res.converged):
+            raise ConvergenceError(f"the lunar-Lambert limb profile fit ({res.solver}) did not converge: {res.message}")
+        q = res.params
+        vals = np.array([float(getattr(q, n)) for n in LIMB_PROFILE.param_names])
+        if not np.all(np.isfinite(vals)):
+            raise ConvergenceError(f"the lunar-Lambert limb profile fit returned non-finite parameters {vals.tolist()}")
+        if float(q.sigma) < 0:  # the model depends on sigma^2 only
+            q = q.replace(sigma=-float(q.sigma))
+        a_f, rho_f, th_f = float(q.a), float(q.rho), float(q.theta)
+        if a_f <= 0 or rho_f <= 0 or float(q.amp) <= 0:
+            raise GeometryError(f"limb profile fit gave a non-physical limb: a = {a_f}, rho = {rho_f}, "
+                                f"sigma = {float(q.sigma)}, amp = {float(q.amp)}")
+        b_f = rho_f * a_f
+        if b_f > a_f:
+            a_f, b_f, th_f = b_f, a_f, th_f + math.pi / 2
+        pf = ((float(q.r0), float(q.c0)), (a_f, b_f), th_f % math.pi)
+        moved = _ell_change(fitted, pf)
+        if not moved <= 0.5 * band:  # a sub-pixel correction of the edge fit is expected
+            raise GeometryError(f"the limb profile fit moved the limb by {moved:.3g} px from the edge fit "
+                                f"(more than half the band, {0.5 * band:g} px)")
+        p_cur, info = earth_position_from_ellipse(
+            camera, *pf, p_cur, pole_camera=geo_kw["pole"], equatorial_km=geo_kw["equatorial_km"],
+            polar_km=geo_kw["polar_km"], atmosphere_km=geo_kw["atmosphere_km"], eps_rad=opt.eps_rad, max_iter=opt.max_iter,
+        )
+        hist.append({"fit": i + 1, "range_km": float(np.linalg.norm(p_cur)),
+                     "range_iterations": info["iterations"], "fit_steps": int(res.n_steps)})
+        if R is None:
+            break
+        icn = image_conic(camera, radii_limb, -p_cur, R)
+        new = (pf[0], (float(q.a), float(q.a) * float(icn.rho)), float(icn.angle_rad))
+        if _ell_change(pf, new) < opt.refit_tol_px:
+            break
+        q = q.replace(theta=float(icn.angle_rad), rho=float(icn.rho))
+    assert res is not None
+    return res, pf, p_cur, info, hist
+
+
 # =============================================================================== main entry
 def locate_earth(image: np.ndarray, camera: Camera, hints: Any = None, options: Any = None) -> LimbMeasurement:
     """Measure the Earth's centre, line of sight and range in an image (module docstring).
@@ -547,9 +727,13 @@ def locate_earth(image: np.ndarray, camera: Camera, hints: Any = None, options: 
         h = Hints(**{**h.__dict__, "body": "earth"})
     if isinstance(options, EarthOptions):
         opt = options
-    else:  # e.g. the Moon pipeline's LocateOptions: only its front-end choice carries over
+    else:  # e.g. the Moon pipeline's LocateOptions: its front-end and profile choices carry over
         fe = getattr(options, "front_end", "gradient")
-        opt = EarthOptions(front_end=fe if fe in ("gradient", "scanline") else "gradient")
+        prof = getattr(options, "profile", "auto")
+        lam = getattr(options, "lunar_lambert_L", None)
+        opt = EarthOptions(front_end=fe if fe in ("gradient", "scanline") else "gradient",
+                           profile=prof if prof in ("auto", "sigmoid", "lunar-lambert") else "auto",
+                           lunar_lambert_L=float(lam) if isinstance(lam, (int, float)) else None)
     Re, Rp, atm = _spheroid(h)
     radii_limb = np.array([Re + atm, Re + atm, Rp + atm])
     R = None if h.R_body_to_camera is None else check_rotation(np.asarray(h.R_body_to_camera), "R_body_to_camera", tol=1e-6)
@@ -648,6 +832,33 @@ def locate_earth(image: np.ndarray, camera: Camera, hints: Any = None, options: 
         prev = fitted
 
     assert res is not None
+    # ---- 3b. physical limb profile on the same pixels (module docstring, "Physical limb profile")
+    esf_summary = None
+    profile_rejected = None
+    prof_hist: list[dict[str, Any]] = []
+    t_prof = time.perf_counter()
+    if _use_profile(opt, h):
+        geo_kw = dict(pole=None if (free or R is None) else R[:, 2], equatorial_km=Re, polar_km=Rp, atmosphere_km=atm)
+        try:
+            pres, pfitted, pp_, pinfo, phist = _fit_profile_earth(
+                img, pts, z, res.params, fitted, p, camera, h, R if not free else None, radii_limb, opt, solver,
+                lit_dir, half if lit_dir is not None else math.pi, geo_kw,
+            )
+        except (ConvergenceError, GeometryError, LimbInputError) as e:
+            if opt.profile != "auto":
+                raise
+            profile_rejected = {"model": "lunar-lambert", "reason": f"{type(e).__name__}: {e}"}
+        else:
+            L_fit = float(pres.params.L)
+            if opt.profile == "auto" and not _PHYSICAL_L[0] <= L_fit <= _PHYSICAL_L[1]:
+                # the limb is not lunar-Lambert-like (e.g. a flat disc): keep the edge fit, say why
+                profile_rejected = {"model": "lunar-lambert", "L": L_fit, "allowed_L": list(_PHYSICAL_L)}
+            else:
+                esf_summary = {"ellipse_center_rc": list(fitted[0]), "semi_axes_px": list(fitted[1]),
+                               "range_km": float(np.linalg.norm(p)), "center_rc": [float(v) for v in camera.project(-p)]}
+                res, fitted, p, info = pres, pfitted, pp_, pinfo
+                prof_hist = phist
+    t_prof = time.perf_counter() - t_prof
     # ---- covariance: (r0, c0, a[, rho, theta]) -> (center_r, center_c, range)
     free_names = list(res.free)
     geo = ["r0", "c0", "a"] + (["rho", "theta"] if free else [])
@@ -702,9 +913,15 @@ def locate_earth(image: np.ndarray, camera: Camera, hints: Any = None, options: 
         for m in free_names:
             cov[n][m] = cf[n][m]
     a_f, b_f = fitted[1]
+    is_prof = isinstance(Pm, LimbProfileParams)
+    if is_prof:
+        s_e = math.sqrt(float(Pm.sigma) ** 2 + 1.0 / 12.0)
+        k_out, ymax_out, ymin_out = 1.0 / s_e, float(Pm.ymin) + float(Pm.amp), float(Pm.ymin)
+    else:
+        k_out, ymax_out, ymin_out = float(Pm.k), float(Pm.ymax), float(Pm.ymin)
     extras = {
-        "model": "ellipse_ramp" if opt.interior_ramp else "ellipse",
-        "g": float(Pm.g) if opt.interior_ramp else 0.0,
+        "model": "lunar_limb" if is_prof else ("ellipse_ramp" if opt.interior_ramp else "ellipse"),
+        "g": float(Pm.g) if (opt.interior_ramp and not is_prof) else 0.0,
         "free_ellipse": bool(free),
         "rho": b_f / a_f,
         "theta_rad": fitted[2],
@@ -718,17 +935,23 @@ def locate_earth(image: np.ndarray, camera: Camera, hints: Any = None, options: 
         "range_prior_km": float(D0),
         "initial_circle": {"center_rc": list(cand.center_rc), "radius": cand.radius, "n_points": cand.n_points},
         "residual_rms": float(res.rms),
-        "timings_s": {"fit": t_fit, "total": time.perf_counter() - t0},
+        "timings_s": {"fit": t_fit, "profile": t_prof, "total": time.perf_counter() - t0},
     }
+    if is_prof:
+        extras["profile"] = {"model": "lunar-lambert", "psf_sigma_px": abs(float(Pm.sigma)), "amp": float(Pm.amp),
+                             "phase_deg": math.degrees(float(Pm.phase)), "L": float(Pm.L),
+                             "L_estimated": opt.lunar_lambert_L is None, "fits": prof_hist, "edge_fit": esf_summary}
+    if profile_rejected is not None:
+        extras["profile_rejected"] = profile_rejected
     return LimbMeasurement(
         center_rc=(float(center[0]), float(center[1])),
         radius_px=None,
         ellipse=EllipseResult(center_rc=fitted[0], semi_axes_px=(float(a_f), float(b_f)), angle_rad=float(fitted[2])),
-        k=float(Pm.k),
-        ymax=float(Pm.ymax),
-        ymin=float(Pm.ymin),
+        k=k_out,
+        ymax=ymax_out,
+        ymin=ymin_out,
         covariance=cov,
-        iterations=int(sum(hh["fit_steps"] for hh in history)),
+        iterations=int(sum(hh["fit_steps"] for hh in history + prof_hist)),
         solver=res.solver,
         front_end=cand.front_end,
         n_pixels=int(res.n_pixels),

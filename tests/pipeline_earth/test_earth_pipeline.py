@@ -101,6 +101,10 @@ def test_locate_earth_known_attitude_meets_targets(earth_far):
     err = np.hypot(*np.subtract(m.center_rc, truth.center_rc))
     assert err <= 0.1, f"centre error {err:.3f} px"
     assert abs(m.range_km / truth.range_km - 1) <= 1e-3
+    # the default refits the limb with the physical profile (Sun direction known): Lommel-Seeliger
+    # render -> L ~ 1, and the sigmoid's 0.06 px / 0.05 % limb-brightening bias is gone
+    assert m.extras["model"] == "lunar_limb" and 0.9 <= m.extras["profile"]["L"] <= 1.1
+    assert err <= 0.03 and abs(m.range_km / truth.range_km - 1) <= 2e-4
     assert np.allclose(m.los_camera, truth.los_cam, atol=0.1 / cam.focal_px)
     assert m.extras["fits"][0]["range_iterations"] <= 6
     assert len(m.extras["fits"]) <= 3
