@@ -684,7 +684,9 @@ def locate_earth(image: np.ndarray, camera: Camera, hints: Any = None, options: 
     image
         2-D grey image ``[row, col]``.
     camera
-        Pinhole :class:`~jaxlimb.geometry.camera.Camera` (required: the range needs it).
+        :class:`~jaxlimb.geometry.camera.Camera` (required: the range needs it).  With lens
+        distortion the frame is resampled onto the ideal pixel grid first
+        (:func:`_locate_earth_distorted`).
     hints
         :class:`~jaxlimb.imaging.Hints`, its dict, or ``None``.  Used: ``R_body_to_camera``
         (fixes ``rho, theta``; else the free ellipse), ``range_prior_km`` (start of the loop),
@@ -706,7 +708,7 @@ def locate_earth(image: np.ndarray, camera: Camera, hints: Any = None, options: 
     Raises
     ------
     ConfigError
-        Missing camera, bad hints or options, a lens-distorted camera.
+        Missing camera, bad hints or options.
     GeometryError
         Non-spheroidal radii, prior inside the Earth, no convergence of the range iteration.
     CheckFailed
@@ -722,6 +724,8 @@ def locate_earth(image: np.ndarray, camera: Camera, hints: Any = None, options: 
     shape = np.shape(image)
     if len(shape) >= 2 and (camera.rows, camera.cols) != tuple(shape[:2]):
         raise ConfigError(f"camera size {camera.rows}x{camera.cols} does not match the image size {shape[0]}x{shape[1]}")
+    if camera.has_distortion:
+        return _locate_earth_distorted(image, camera, hints, options)
     h = _as_hints(hints)
     if h.body is None:
         h = Hints(**{**h.__dict__, "body": "earth"})
@@ -959,6 +963,43 @@ def locate_earth(image: np.ndarray, camera: Camera, hints: Any = None, options: 
         range_km=rng_km,
         extras=extras,
     )
+
+
+def _locate_earth_distorted(image: np.ndarray, camera: Camera, hints: Any, options: Any) -> LimbMeasurement:
+    """:func:`locate_earth` for a lens-distorted camera: measured in the ideal image
+    (:func:`jaxlimb.imaging.undistort.undistort_image`), then ``center_rc`` (and its covariance,
+    through the distortion's Jacobian) mapped back to the observed image; ``ellipse`` and the
+    fit parameters' covariance stay in ideal pixels (``extras["ellipse_frame"]``); LOS and range
+    are unchanged."""
+    from dataclasses import replace
+
+    from ..imaging.undistort import pinhole_of, undistort_image
+
+    pin = pinhole_of(camera)
+    m = locate_earth(undistort_image(image, camera), pin, hints, options)
+    c_id = np.asarray(m.center_rc, float)
+    h = 1e-3
+    Jd = np.empty((2, 2))
+    for i in range(2):
+        e = np.zeros(2)
+        e[i] = h
+        Jd[:, i] = (camera.distort(c_id + e) - camera.distort(c_id - e)) / (2 * h)
+    # the measurement block (center_r, center_c, range_km) moves with the distortion's Jacobian;
+    # the fit parameters' block stays in ideal pixels
+    block = list(m.covariance["center_r"])
+    P = np.array([[m.covariance[a][b] for b in block] for a in block])
+    T = np.eye(len(block))
+    idx = [block.index("center_r"), block.index("center_c")]
+    T[np.ix_(idx, idx)] = Jd
+    P = T @ P @ T.T
+    cov = {a: dict(row) for a, row in m.covariance.items()}
+    for i, a in enumerate(block):
+        cov[a] = {b: float(P[i, j]) for j, b in enumerate(block)}
+    c_obs = camera.distort(c_id)
+    pix = None if m.selected_pixels_rc is None else camera.distort(np.asarray(m.selected_pixels_rc, float))
+    extras = {**m.extras, "ellipse_frame": "ideal (undistorted) pixels", "undistorted_image": True}
+    return replace(m, center_rc=(float(c_obs[0]), float(c_obs[1])), covariance=cov, selected_pixels_rc=pix,
+                   extras=extras)
 
 
 def _band_signed(pts: np.ndarray, ell: tuple) -> np.ndarray:
