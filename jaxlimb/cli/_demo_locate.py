@@ -23,8 +23,8 @@ def _rendered_moon(out_dir: Path) -> dict[str, Any]:
     hints = Hints(body="moon", sun_dir_camera=tuple(float(v) for v in truth.sun_dir_cam))
     lines = ["rendered Moon: 150 000 km, phase 45 deg, lunar-Lambert, PSF 0.8 px, 8 bit, 1944x2592"]
     out: dict[str, Any] = {"name": "rendered Moon (1944x2592, 150 000 km, phase 45 deg)", "cases": []}
-    for label, options in (("sigmoid (papers)", LocateOptions()),
-                           ("physical limb profile", LocateOptions(profile="lunar-lambert"))):
+    for label, options in (("sigmoid (papers)", LocateOptions(profile="sigmoid")),
+                           ("default: limb profile", LocateOptions())):
         m = locate(image, camera, hints, options)
         dc = math.hypot(m.center_rc[0] - truth.center_rc[0], m.center_rc[1] - truth.center_rc[1])
         dr = m.radius_px - truth.apparent_radius_px
@@ -34,7 +34,7 @@ def _rendered_moon(out_dir: Path) -> dict[str, Any]:
                      f"range err {drange:+.2e}, {m.n_pixels} px, {m.iterations} iterations")
         out["cases"].append({"options": label, "center_err_px": dc, "radius_err_px": dr,
                              "range_rel_err": drange, "measurement": m.to_json()})
-        if label.startswith("sigmoid"):
+        if label.startswith("default"):
             save_locate_figure(image, m, out_dir / "rendered_moon.png", truth=truth,
                                title="jaxlimb locate: rendered Moon (truth dashed)")
     lines.append(f"truth  centre ({truth.center_rc[0]:.3f}, {truth.center_rc[1]:.3f}), "
