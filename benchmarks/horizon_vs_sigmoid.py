@@ -12,13 +12,15 @@ and the same frame + front end to the sigmoid routes:
 * ``ESF``: the paper's elliptical sigmoid (flat top, ``interior_ramp=False``, logistic kernel)
   with ``rho, theta`` fixed from the prior geometry, then the centre offset and range iteration
   (:func:`jaxlimb.pipeline.earth.locate_earth`);
-* ``ESF+ramp`` (our default): the same with the edge model of
+* ``ESF+ramp``: the same with the edge model of
   :func:`jaxlimb.pipeline.earth.ellipse_ramp_intensity` (Gaussian kernel, interior ramp, level
   varying along the limb);
 * ``profile`` (our default since issue 4): ``ESF+ramp``, then the same pixels refitted with the
   physical lunar-Lambert limb profile (:data:`jaxlimb.pipeline.profile.LIMB_PROFILE`, ``L``
   estimated; ``EarthOptions(profile="auto")``), Earth only;
-* ``CSF`` (Moon only): the Moon pipeline's circular sigmoid, :func:`jaxlimb.pipeline.locate.locate`.
+* ``CSF`` (Moon only, whole limb): the Moon pipeline, :func:`jaxlimb.pipeline.locate.locate` with
+  its defaults (the circular sigmoid, then the physical limb profile; it runs its own front end,
+  so it has no short-arc row).
 
 The short-arc rows keep only the front-end points within 30 deg of the lit direction for CR
 (``arc_margin_deg = 60`` for the sigmoid routes, the same +-30 deg of limb).  Reported per
