@@ -75,6 +75,8 @@ class Case:
 
 CASES = (
     Case("moon-60000km-gibbous", "moon", 60000.0, 40.0, focal_mm=16.0, size_px=600),
+    Case("moon-150000km-crescent", "moon", 150000.0, 120.0, focal_mm=16.0, size_px=300),
+    Case("moon-380000km-full", "moon", 380000.0, 10.0, focal_mm=16.0, size_px=200),
     Case("earth-380000km-16mm", "earth", 380000.0, 40.0, latitude_deg=30.0, focal_mm=16.0, size_px=340),
     Case("earth-40000km-8mm", "earth", 40000.0, 40.0, latitude_deg=45.0, focal_mm=8.0, size_px=1300),
 )

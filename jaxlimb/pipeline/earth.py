@@ -135,7 +135,7 @@ from ..geometry.ellipsoid import check_rotation, ellipse_to_conic, image_conic
 from ..imaging import Hints, front_end as run_front_end, sun_direction_image
 from ..models import LimbModel, LimbParams
 from ..models.sigmoid import ellipse_coords
-from .profile import LIMB_PROFILE, PROFILE_FIXED, LimbProfileParams, limb_profile_intensity, lunar_lambert_weight
+from .profile import LIMB_PROFILE, PROFILE_FIXED, LimbProfileParams, l_band, limb_profile_intensity, lunar_lambert_weight
 from .result import EllipseResult, LimbMeasurement
 
 __all__ = [
@@ -561,8 +561,6 @@ def _solver(options: Any):
 
 
 # =============================================================================== physical limb profile
-_PHYSICAL_L = (-0.1, 1.1)
-"""Fitted lunar-Lambert weights ``L`` accepted by ``profile="auto"`` (as the Moon pipeline)."""
 
 
 def _use_profile(opt: EarthOptions, h: Hints) -> bool:
@@ -854,9 +852,10 @@ def locate_earth(image: np.ndarray, camera: Camera, hints: Any = None, options: 
             profile_rejected = {"model": "lunar-lambert", "reason": f"{type(e).__name__}: {e}"}
         else:
             L_fit = float(pres.params.L)
-            if opt.profile == "auto" and not _PHYSICAL_L[0] <= L_fit <= _PHYSICAL_L[1]:
+            band_L = l_band(pres)
+            if opt.profile == "auto" and not band_L[0] <= L_fit <= band_L[1]:
                 # the limb is not lunar-Lambert-like (e.g. a flat disc): keep the edge fit, say why
-                profile_rejected = {"model": "lunar-lambert", "L": L_fit, "allowed_L": list(_PHYSICAL_L)}
+                profile_rejected = {"model": "lunar-lambert", "L": L_fit, "allowed_L": list(band_L)}
             else:
                 esf_summary = {"ellipse_center_rc": list(fitted[0]), "semi_axes_px": list(fitted[1]),
                                "range_km": float(np.linalg.norm(p)), "center_rc": [float(v) for v in camera.project(-p)]}

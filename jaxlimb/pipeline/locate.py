@@ -52,7 +52,14 @@ from ..imaging import sun_direction_image
 from ..models import CIRCLE, ELLIPSE, CircleParams, EllipseParams
 from ..fitting import NormalLM, solver_from_name
 from .sun_profile import LimbDarkenedParams, fit_limb_darkened, select_sun_annulus
-from .profile import LIMB_PROFILE, PROFILE_FIXED, LimbProfileParams, lunar_lambert_weight, sphere_from_circle_fit
+from .profile import (
+    LIMB_PROFILE,
+    PROFILE_FIXED,
+    LimbProfileParams,
+    l_band,
+    lunar_lambert_weight,
+    sphere_from_circle_fit,
+)
 from .checks import (
     MIN_LIT_ARC_DEG,
     MIN_LIT_ARC_PROFILE_DEG,
@@ -283,10 +290,11 @@ def locate(
                 raise
             # "auto": the sigmoid's answer stands; say why the refinement was not used
             extras["profile_rejected"] = {"model": "lunar-lambert", "reason": str(e)}
-    if profile_fit is not None and opt.profile == "auto" and not _PHYSICAL_L[0] <= float(profile_fit.fit.params.L) <= _PHYSICAL_L[1]:
+    band_L = l_band(profile_fit.fit) if profile_fit is not None else None
+    if profile_fit is not None and opt.profile == "auto" and not band_L[0] <= float(profile_fit.fit.params.L) <= band_L[1]:
         # the limb is not lunar-Lambert-like (e.g. a flat disc): keep the sigmoid, say why
         extras["profile_rejected"] = {"model": "lunar-lambert", "L": float(profile_fit.fit.params.L),
-                                      "allowed_L": list(_PHYSICAL_L)}
+                                      "allowed_L": list(band_L)}
         profile_fit = None
     if physical and profile_fit is None and opt.min_lit_arc_deg is None:
         # back on the sigmoid: its own (longer) shortest arc applies
@@ -527,10 +535,6 @@ def locate(
         extras=extras,
         selected_pixels_rc=pix,
     )
-
-
-_PHYSICAL_L = (-0.1, 1.1)
-"""Fitted lunar-Lambert weights ``L`` accepted by ``profile="auto"`` (``[0, 1]`` with a margin for noise)."""
 
 
 def _use_profile(opt: LocateOptions, hin: Hints | None) -> bool:

@@ -291,6 +291,22 @@ LIMB_PROFILE = LimbModel("lunar_limb", LimbProfileParams, limb_profile_intensity
 """The physical lunar-Lambert limb profile model (circle geometry)."""
 
 
+PHYSICAL_L = (-0.1, 1.1)
+"""Lunar-Lambert weights ``L`` a fitted profile may take under ``profile="auto"``: ``[0, 1]`` with a
+margin, widened by 3 of the fit's own sigma of ``L`` (a 33 px Moon with 10 DN of noise fits a
+Lommel-Seeliger limb, ``L = 1``, at 1.13 now and then)."""
+
+
+def l_band(fit) -> tuple[float, float]:
+    """The accepted range of ``L`` for ``fit`` (a :class:`~jaxlimb.fitting.LimbFit` of :data:`LIMB_PROFILE`):
+    :data:`PHYSICAL_L` widened by 3 sigma of ``L`` when ``L`` was estimated."""
+    if "L" not in fit.free:
+        return (-math.inf, math.inf)
+    i = list(fit.free).index("L")
+    s = float(np.sqrt(max(float(np.asarray(fit.covariance)[i, i]), 0.0)))
+    return (PHYSICAL_L[0] - 3.0 * s, PHYSICAL_L[1] + 3.0 * s)
+
+
 def lunar_lambert_weight(phase_rad: float, coeffs=(-0.019, 2.42e-4, -1.46e-6)) -> float:
     """McEwen's ``L(alpha)`` (alpha in degrees, clipped to [0, 1])."""
     a = math.degrees(phase_rad)
@@ -330,5 +346,13 @@ def sphere_from_circle_fit(focal_px: float, principal_point_rc, center_rc, mean_
     return sphere_from_ellipse_center(f, principal_point_rc, center_rc, a)
 
 
-__all__ = ["LIMB_PROFILE", "PROFILE_FIXED", "LimbProfileParams", "limb_profile_intensity", "lunar_lambert_weight",
-           "sphere_from_circle_fit"]
+__all__ = [
+    "LIMB_PROFILE",
+    "LimbProfileParams",
+    "PHYSICAL_L",
+    "PROFILE_FIXED",
+    "l_band",
+    "limb_profile_intensity",
+    "lunar_lambert_weight",
+    "sphere_from_circle_fit",
+]

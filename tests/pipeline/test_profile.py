@@ -98,3 +98,15 @@ def test_small_angle_series():
     np.testing.assert_allclose(np.asarray(s), np.sin(np.asarray(x)), rtol=0, atol=2e-16)
     c, s = prof._cos_sin_small(jnp.asarray([1.0]), jnp.asarray(False))
     assert float(c[0]) == pytest.approx(math.cos(1.0), abs=1e-16)
+
+
+def test_l_band_widens_with_the_fits_own_uncertainty():
+    from types import SimpleNamespace
+
+    from jaxlimb.pipeline.profile import PHYSICAL_L, l_band
+
+    free = ("r0", "c0", "a", "sigma", "amp", "ymin", "L")
+    cov = np.diag([1e-4] * 6 + [0.05**2])
+    lo, hi = l_band(SimpleNamespace(free=free, covariance=cov))
+    assert (lo, hi) == pytest.approx((PHYSICAL_L[0] - 0.15, PHYSICAL_L[1] + 0.15))
+    assert l_band(SimpleNamespace(free=free[:-1], covariance=cov[:-1, :-1])) == (-math.inf, math.inf)  # L held
