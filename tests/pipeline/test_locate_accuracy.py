@@ -191,3 +191,19 @@ def test_saturated_limb_is_flagged_and_left_out_of_the_profile_fit():
     dc, dr = errors(m, tr)
     assert dc <= 0.1, dc  # the centre stays good; the radius is biased outward (the warning says so)
     assert 0.0 < dr < 1.0, dr
+
+
+def test_stars_and_hot_pixels_do_not_hurt_the_default_profile():
+    # the same realistic frame with and without 40 stars and 80 hot pixels (saturated: 255)
+    rc, sa = _PLACES[0]
+    img0, tr0 = scene(30000.0, 45.0, rc, sa, "lunar-lambert", seed=5)
+    img1, tr1 = scene(30000.0, 45.0, rc, sa, "lunar-lambert", seed=5, n_stars=40, n_hot=80)
+    e0 = errors(locate(img0, SMALL_CAMERA, sun_hints(tr0)), tr0)
+    m1 = locate(img1, SMALL_CAMERA, sun_hints(tr1))
+    e1 = errors(m1, tr1)
+    assert m1.extras["profile"]["model"] == "lunar-lambert" and "saturation" not in m1.extras
+    assert e1[0] <= 0.05 and abs(e1[1]) <= 0.05, (e0, e1)
+    # the stars change the noise draw too: the two answers agree to their own noise
+    s_c = np.sqrt(m1.covariance["center_r"]["center_r"] + m1.covariance["center_c"]["center_c"])
+    s_r = np.sqrt(m1.covariance["radius"]["radius"])
+    assert abs(e1[0] - e0[0]) <= 3 * np.sqrt(2) * s_c and abs(e1[1] - e0[1]) <= 3 * np.sqrt(2) * s_r, (e0, e1, s_c, s_r)
