@@ -282,7 +282,7 @@ def locate(
     profile_fit = None
     if physical:
         try:
-            profile_fit, n_clipped = _fit_profile(img, circ, cam, hin, opt, use_camera)
+            profile_fit, n_clipped = _fit_profile(img, circ, cam, hin, opt, use_camera, sat)
             if n_clipped and "saturation" in extras:
                 extras["saturation"]["n_left_out_of_profile_fit"] = n_clipped
         except ConvergenceError as e:
@@ -554,11 +554,13 @@ def _use_sun_profile(opt: LocateOptions, hin: Hints | None) -> bool:
     return opt.model == "circle" and opt.estimate_k and hin is not None and hin.body == "sun"
 
 
-def _fit_profile(img: np.ndarray, circ, cam: Camera | None, hin: Hints | None, opt: LocateOptions, use_camera: bool):
+def _fit_profile(img: np.ndarray, circ, cam: Camera | None, hin: Hints | None, opt: LocateOptions, use_camera: bool,
+                 sat: float | None = None):
     """Refit the pixels of the CSF with the physical lunar-Lambert limb profile (:mod:`jaxlimb.pipeline.profile`).
 
-    Returns the :class:`~jaxlimb.pipeline.refine.RefineResult` and the number of clipped
-    (saturated) pixels left out."""
+    ``sat``: the image's clip level (:func:`saturation_level`), if any.  Returns the
+    :class:`~jaxlimb.pipeline.refine.RefineResult` and the number of clipped (saturated) pixels
+    left out."""
     if hin is None or hin.sun_dir_camera is None:
         raise ConfigError("LocateOptions.profile = 'lunar-lambert' needs the Sun direction (hints `sun_dir_camera`)")
     p = circ.fit.params
@@ -595,7 +597,6 @@ def _fit_profile(img: np.ndarray, circ, cam: Camera | None, hin: Hints | None, o
     # the default solver with a tolerance on the parameters' own scale (px, DN): 1e-7 is
     # far below any measurable change; 1e-10 relative costs ~4 more passes for nothing
     solver = NormalLM(rtol=0.0, atol=1e-7) if opt.solver == "lm" else None
-    sat = saturation_level(img)
     n_clipped = 0
     if sat is not None and np.count_nonzero(z >= sat) >= 20:  # (a few hot pixels are not a clipped limb)
         # clipped pixels carry no value, and a sensor clips at its full well *before* the read
