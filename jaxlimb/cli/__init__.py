@@ -15,12 +15,13 @@ Each sub-command lives in its own module ``jaxlimb/cli/_<name>.py`` that defines
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import json
 import os
 import sys
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 # Sub-command modules, in the order they appear in --help.
 _COMMANDS = (
@@ -61,6 +62,20 @@ def build_parser() -> argparse.ArgumentParser:
 def emit_json(obj: object) -> None:
     """Print one JSON object on stdout (the ``--json`` output of every command)."""
     print(json.dumps(obj, allow_nan=False, default=_json_default))
+
+
+@contextlib.contextmanager
+def warnings_to_stderr(*categories: type[Warning]) -> Iterator[None]:
+    """Show warnings of ``categories`` raised in the block as one ``jaxlimb: warning: ...`` line
+    each on stderr (every one, not only the first of its kind); other warnings recorded in the
+    block are not shown (the CLI prints one-line messages, never Python's warning format)."""
+    with warnings.catch_warnings(record=True) as caught:
+        for c in categories:
+            warnings.simplefilter("always", c)
+        yield
+    for w in caught:
+        if issubclass(w.category, categories):
+            print(f"jaxlimb: warning: {' '.join(str(w.message).split())}", file=sys.stderr)
 
 
 def _json_default(o: object) -> object:

@@ -62,26 +62,19 @@ def _read_hints(path: str | None, body: str | None):
 
 def run(args: argparse.Namespace) -> int:
     import importlib
-    import warnings
 
     from ..errors import ConfigError
     from ..geometry.camera import Camera
     from ..imaging import ColourImageWarning, load_image
     from ..pipeline import LocateOptions, locate
-    from . import emit_json
+    from . import emit_json, warnings_to_stderr
 
     camera = Camera.from_json(args.camera) if args.camera is not None else None
     hints = _read_hints(args.hints, args.body)
     options = LocateOptions(front_end=args.front_end, model=args.model, solver=args.solver,
                             estimate_k=not args.fixed_k, profile=args.profile)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", ColourImageWarning)
+    with warnings_to_stderr(ColourImageWarning):
         image, _info = load_image(args.image, reject_constant=False)
-    for w in caught:
-        if issubclass(w.category, ColourImageWarning):
-            import sys
-
-            print(f"jaxlimb: warning: {' '.join(str(w.message).split())}", file=sys.stderr)
     if hints.body == "earth":
         try:
             earth = importlib.import_module("jaxlimb.pipeline.earth")
@@ -93,14 +86,8 @@ def run(args: argparse.Namespace) -> int:
     else:
         from ..errors import SaturationWarning
 
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", SaturationWarning)
+        with warnings_to_stderr(SaturationWarning):
             meas = locate(image, camera, hints, options)
-        for w in caught:
-            if issubclass(w.category, SaturationWarning):
-                import sys
-
-                print(f"jaxlimb: warning: {' '.join(str(w.message).split())}", file=sys.stderr)
     if args.figure:
         from ..pipeline import save_locate_figure
 

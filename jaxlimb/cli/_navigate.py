@@ -237,22 +237,6 @@ def locate_body(body: str, image: np.ndarray, camera, hints) -> Any:
     raise ImportError("jaxlimb.pipeline.locate is unavailable")  # pragma: no cover
 
 
-def _hints_for(body: str, hints_path: str | None):
-    from dataclasses import replace
-
-    from ..errors import ConfigError
-    from ..imaging import Hints
-
-    h = Hints.from_json(hints_path) if hints_path is not None else None
-    if h is None:
-        return Hints(body=body)
-    if h.body is None:
-        return replace(h, body=body)
-    if h.body != body:
-        raise ConfigError(f"--body {body} contradicts the hints' body {h.body!r}")
-    return h
-
-
 def run(args: argparse.Namespace) -> int:
     from ..geometry.ephemeris import clear_cache
 
@@ -263,15 +247,14 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run(args: argparse.Namespace) -> int:
-    import sys
-    import warnings
     from dataclasses import replace
 
     from ..errors import ConfigError
     from ..geometry.camera import Camera
     from ..geometry.ephemeris import load_ephemeris
     from ..imaging import ColourImageWarning, Hints, load_image
-    from . import emit_json
+    from . import emit_json, warnings_to_stderr
+    from ._locate import _read_hints
 
     if not (math.isfinite(args.attitude_sigma_arcsec) and args.attitude_sigma_arcsec >= 0):
         raise ConfigError(f"--attitude-sigma-arcsec must be finite and >= 0, got {args.attitude_sigma_arcsec!r}")
@@ -289,7 +272,7 @@ def _run(args: argparse.Namespace) -> int:
     if body is None:
         hb = Hints.from_json(args.hints).body if args.hints is not None else None
         body = hb if hb in ("moon", "earth") else "moon"
-    hints = _hints_for(body, args.hints)
+    hints = _read_hints(args.hints, body)
     if hints.sun_dir_camera is None:
         # the Sun's direction from the body, in the camera frame, from the ephemeris and the
         # attitude: it selects the lit limb and enables the physical limb profile
@@ -297,22 +280,14 @@ def _run(args: argparse.Namespace) -> int:
     if body == "earth" and hints.R_body_to_camera is None:
         R = C_ci @ earth_rotation_icrf_to_itrs(epoch, args.ephemeris).T
         hints = replace(hints, R_body_to_camera=R.tolist())
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", ColourImageWarning)
+    with warnings_to_stderr(ColourImageWarning):
         image, _info = load_image(args.image, reject_constant=False)
-    for w in caught:
-        if issubclass(w.category, ColourImageWarning):
-            print(f"jaxlimb: warning: {' '.join(str(w.message).split())}", file=sys.stderr)
     if (camera.rows, camera.cols) != tuple(image.shape[:2]):
         raise ConfigError(f"camera size {camera.rows}x{camera.cols} does not match the image size {image.shape[0]}x{image.shape[1]}")
     from ..errors import SaturationWarning
 
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", SaturationWarning)
+    with warnings_to_stderr(SaturationWarning):
         meas = locate_body(body, image, camera, hints)
-    for w in caught:
-        if issubclass(w.category, SaturationWarning):
-            print(f"jaxlimb: warning: {' '.join(str(w.message).split())}", file=sys.stderr)
     out = navigate_measurement(
         body, meas, camera, C_ci, epoch,
         attitude_sigma_rad=math.radians(args.attitude_sigma_arcsec / 3600.0), ephemeris_path=args.ephemeris,
