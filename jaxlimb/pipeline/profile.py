@@ -63,7 +63,7 @@ import numpy as np
 from jaxtyping import ArrayLike
 
 from ..errors import GeometryError
-from ..models import LimbModel, LimbParams
+from ..models import LimbModel, LimbParams, ellipse_coords
 from .sphere import SphereImage, _a_of_alpha, _tan_theta, sphere_from_ellipse_center
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(20)
@@ -153,9 +153,7 @@ def _geometry(p: LimbProfileParams, rc):
     rc = jnp.asarray(rc)
     dr = rc[..., 0] - p.r0
     dc = rc[..., 1] - p.c0
-    ct, st = jnp.cos(p.theta), jnp.sin(p.theta)
-    x = dc * ct - dr * st
-    y = -dr * ct - dc * st
+    x, y = ellipse_coords(p, rc)
     d2 = dr * dr + dc * dc
     d = jnp.sqrt(jnp.where(d2 > 0, d2, 1.0))
     b2 = p.rho * p.rho * x * x + y * y
