@@ -588,7 +588,7 @@ def _fit_profile_earth(img, pts, z, edge, fitted, p, camera: Camera, h: Hints, R
     range-iteration info and the history entries.
     """
     from ..fitting import NormalLM, fit
-    from .refine import FitData, _pad_pow2
+    from .refine import FitData, _pad_bucket
 
     band = opt.profile_band_px if opt.profile_band_px is not None else opt.band_px
     if band != opt.band_px:
@@ -626,7 +626,7 @@ def _fit_profile_earth(img, pts, z, edge, fitted, p, camera: Camera, h: Hints, R
     fixed = tuple(n for n in PROFILE_FIXED if not (n == "L" and opt.lunar_lambert_L is None))
     if R is None:
         fixed = tuple(n for n in fixed if n not in ("theta", "rho"))
-    coords, zz, w = _pad_pow2(FitData(np.asarray(pts, float), np.asarray(z, float), None, 0.0, 1.0))
+    coords, zz, w = _pad_bucket(FitData(np.asarray(pts, float), np.asarray(z, float), None, 0.0, 1.0))
     hist = []
     res = None
     p_cur = p

@@ -337,13 +337,13 @@ def _levels(sel: AnnulusSelection, data: FitData, options: LocateOptions) -> tup
     return float(options.k_fixed), ymax, ymin
 
 
-def _pad_pow2(data: FitData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _pad_bucket(data: FitData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Pad to the next size ``2^k`` or ``1.5 * 2^k`` (>= 4096) with zero-weight copies of the first pixel.
 
     The sizes are those of :func:`jaxlimb.fitting.fit.bucket_size`, starting at 4096: few
     distinct compiled programs across images (compiling costs seconds, a fit of 10^4 pixels
     milliseconds) for at most 1.5x the work (powers of two alone cost up to 2x: 4887 pixels
-    ran as 8192, now as 6144).  (The name predates the 1.5x sizes.)
+    ran as 8192, now as 6144).
     """
     n = data.z.shape[0]
     size = max(4096, bucket_size(n))
@@ -357,7 +357,7 @@ def _pad_pow2(data: FitData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _run(model, data: FitData, init, options: LocateOptions, fixed, solver=None) -> LimbFit:
-    coords, z, w = _pad_pow2(data)
+    coords, z, w = _pad_bucket(data)
     res = fit(model, coords, z, init, solver if solver is not None else solver_from_name(options.solver), fixed=fixed,
               weights=w,
               max_steps=options.max_steps, throw=False)
@@ -413,14 +413,14 @@ def _fisher_jit(model, params, coords, w2, free_idx):
 def predict(model, params, coords: np.ndarray) -> np.ndarray:
     """Model intensities at ``coords`` (jitted on power-of-two padded shapes: no per-image recompiles)."""
     n = coords.shape[0]
-    cp, _, _ = _pad_pow2(FitData(coords, np.zeros(n), None, 0.0, 1.0))
+    cp, _, _ = _pad_bucket(FitData(coords, np.zeros(n), None, 0.0, 1.0))
     return np.asarray(_predict_jit(model, params, jnp.asarray(cp)))[:n]
 
 
 def fisher_information(model, params, data: FitData, fixed: tuple[str, ...], sigma: float) -> np.ndarray:
     """Fisher matrix ``J^T diag(w^2) J / sigma^2`` over the free parameters (the information of
     :func:`jaxlimb.analysis.crlb.crlb` with per-pixel noise ``sigma / w_i``), jitted on padded shapes."""
-    cp, _, w = _pad_pow2(data)
+    cp, _, w = _pad_bucket(data)
     idx = jnp.asarray(model.free_indices(fixed))
     F = np.asarray(_fisher_jit(model, params, jnp.asarray(cp), jnp.asarray(w * w), idx))
     return F / sigma**2
