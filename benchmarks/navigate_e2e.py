@@ -182,8 +182,9 @@ def hints_for(built: dict[str, Any], truth) -> dict[str, Any]:
     return {"body": built["case"].body, "range_prior_km": 1.01 * truth.range_km, "sun_dir_camera": list(truth.sun_dir_cam)}
 
 
-EARTH_PROFILE: str | None = None
-"""``--earth-profile``: the Earth limb model (``EarthOptions.profile``); ``None`` = the CLI's default."""
+PROFILE: dict[str, str | None] = {"moon": None, "earth": None}
+"""``--moon-profile`` / ``--earth-profile``: the limb model (``LocateOptions.profile`` /
+``EarthOptions.profile``) per body; ``None`` = the CLI's default (auto)."""
 
 
 def run_once(built: dict[str, Any], image: np.ndarray, truth) -> dict[str, Any]:
@@ -198,10 +199,14 @@ def run_once(built: dict[str, Any], image: np.ndarray, truth) -> dict[str, Any]:
     if case.body == "earth":
         R = built["C_ci"] @ earth_rotation_icrf_to_itrs(built["epoch"]).T
         hints = replace(hints, R_body_to_camera=R.tolist())
-    if case.body == "earth" and EARTH_PROFILE is not None:
+    if case.body == "earth" and PROFILE["earth"] is not None:
         from jaxlimb.pipeline.earth import EarthOptions, locate_earth
 
-        meas = locate_earth(image, built["camera"], hints, EarthOptions(profile=EARTH_PROFILE))
+        meas = locate_earth(image, built["camera"], hints, EarthOptions(profile=PROFILE["earth"]))
+    elif case.body == "moon" and PROFILE["moon"] is not None:
+        from jaxlimb.pipeline import LocateOptions, locate
+
+        meas = locate(image, built["camera"], hints, LocateOptions(profile=PROFILE["moon"]))
     else:
         meas = locate_body(case.body, image, built["camera"], hints)
     out = navigate_measurement(case.body, meas, built["camera"], built["C_ci"], built["epoch"])
@@ -360,12 +365,13 @@ def main(argv: list[str] | None = None) -> int:
                     "writes results/earth_targets.json")
     ap.add_argument("--earth-profile", choices=("auto", "sigmoid", "lunar-lambert"), default=None,
                     help="Earth limb model (EarthOptions.profile; default: the CLI's, i.e. auto)")
+    ap.add_argument("--moon-profile", choices=("auto", "sigmoid", "lunar-lambert"), default=None,
+                    help="Moon limb model (LocateOptions.profile; default: the CLI's, i.e. auto)")
     args = ap.parse_args(argv)
     args.out_given = args.out is not None
     if args.out is None:
         args.out = str(Path(__file__).parent / "results" / "navigate_e2e.json")
-    global EARTH_PROFILE
-    EARTH_PROFILE = args.earth_profile
+    PROFILE.update(moon=args.moon_profile, earth=args.earth_profile)
     if args.earth_targets:
         rows = earth_targets(2 if args.quick else 5, args.seed, args.reflectance or "lommel-seeliger", args.earth_profile)
         name = "earth_targets.json" if not args.reflectance else f"earth_targets_{args.reflectance}.json"
