@@ -1,0 +1,219 @@
+r"""Scene families for validating ``locate`` on what its limb model does not assume.
+
+Every family draws its scenes from a seeded generator; ``own`` is what the pipeline's physical
+profile assumes (uniform albedo, lunar-Lambert, Gaussian PSF), every other family changes one
+thing (``combined`` several).  Moon: 60 000-384 400 km (log-uniform), phase 0-150 deg, centre
+anywhere with the limb in the 1944x2592 frame (16 mm, 2.2 um), 8 or 12 bits.  Earth (WGS-84):
+gibbous (phase 20-70 deg) at 40 000 km with an 8 mm lens or 380 000 km with the 16 mm lens,
+observer latitude 0-60 deg, 8 or 12 bits; ``R_body_to_camera`` is part of the truth.
+
+========================  ===========================================================
+family                    what differs from ``own``
+========================  ===========================================================
+``own``                   nothing (Gaussian PSF sigma 0.6-1.2 px)
+``hapke``                 Hapke IMSA law (w 0.15-0.35, b 0.2-0.4, surge B0 0.5-1.5, h 0.04-0.1)
+``minnaert``              Minnaert k 0.55-0.95
+``ls_surge``              Lommel-Seeliger with opposition surge (B0 0.5-1.5, h 0.03-0.1)
+``lambert``               Lambert (Earth; no limb brightening at all)
+``maria``                 Moon: 8 smooth dark maria 15-35 % deep, 9-26 deg across, 3 of them
+                          crossing the lit limb
+``clouds``                Earth: Lambert x ocean/continents/clouds albedo map
+``glow``                  exponential glow above the limb, brightness 0.03-0.4, scale height
+                          6-25 km (Earth) / 2-15 km (Moon)
+``airy``, ``defocus``,    non-Gaussian PSFs: Airy (first dark ring 1.2-2.0 px), uniform disc
+``motion``                (radius 0.8-1.8 px), Gaussian 0.5-0.8 px smeared over 1.5-3.5 px
+``jpeg``                  8-bit JPEG quality 75-95
+``stars``                 40 stars, 80 hot pixels
+``cropped``               Moon: centre beyond a frame edge by up to half a radius
+``combined``              Hapke/clouds + maria + any PSF + glow (Earth) + JPEG half the time
+========================  ===========================================================
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .geometry import Body, LimbTruth, Pinhole, limb_truth
+from .optics import Glow, Psf, PsfKind
+from .raster import Surface, render_radiance
+from .sensor import SensorSpec, digitise
+from .surface import EarthMap, MariaMap, Photometry, Reflectance
+
+MOON_RADIUS_KM = 1737.4
+WGS84_KM = (6378.137, 6378.137, 6356.752)
+MOON_FAMILIES = ("own", "hapke", "minnaert", "ls_surge", "maria", "glow", "airy", "defocus", "motion", "jpeg",
+                 "stars", "cropped", "combined")
+EARTH_FAMILIES = ("own", "lambert", "clouds", "glow", "hapke", "airy", "defocus", "motion", "jpeg", "combined")
+_READ_E = 157.0  # read noise (e-): 2 DN at 8 bits
+
+
+@dataclass
+class Case:
+    """One rendered frame: the image, its exact truth, what a filter would know, and the draw."""
+
+    image: np.ndarray
+    truth: LimbTruth
+    camera: Any  # jaxlimb Camera (for the pipeline)
+    hints: dict
+    meta: dict = field(default_factory=dict)
+
+
+# ----------------------------------------------------------------------------- geometry
+def image_direction(pin: Pinhole, u: np.ndarray, angle_deg: float) -> np.ndarray:
+    """Unit vector perpendicular to ``u`` whose image points at position angle ``angle_deg``
+    (from ``+col`` toward ``-row``)."""
+    a = math.radians(angle_deg)
+    v = np.array([math.cos(a), -math.sin(a), 0.0])
+    e = v - (v @ u) * u
+    return e / np.linalg.norm(e)
+
+
+def sun_for_phase(u: np.ndarray, e: np.ndarray, phase_deg: float) -> np.ndarray:
+    g = math.radians(phase_deg)
+    return math.cos(g) * (-u) + math.sin(g) * e
+
+
+def random_rotation(rng: np.random.Generator) -> np.ndarray:
+    Q, Rm = np.linalg.qr(rng.normal(size=(3, 3)))
+    Q = Q * np.sign(np.diag(Rm))
+    return Q if np.linalg.det(Q) > 0 else -Q
+
+
+def earth_attitude(u: np.ndarray, north: np.ndarray, lat_deg: float, lon_deg: float) -> np.ndarray:
+    """``R_body_to_camera`` with the observer at geocentric ``lat, lon`` and the pole imaged along ``north``."""
+    la, lo = math.radians(lat_deg), math.radians(lon_deg)
+    p = np.array([math.cos(la) * math.cos(lo), math.cos(la) * math.sin(lo), math.sin(la)])
+    zp = np.array([0.0, 0.0, 1.0]) - math.sin(la) * p
+    zp /= np.linalg.norm(zp)
+    Bb = np.column_stack([p, zp, np.cross(p, zp)])
+    Bc = np.column_stack([-u, north, np.cross(-u, north)])
+    return Bc @ Bb.T
+
+
+def _camera(focal_mm: float):
+    from ...geometry.camera import Camera
+
+    return Camera(focal_length_mm=focal_mm, pixel_pitch_mm=0.0022, rows=1944, cols=2592)
+
+
+def _sensor(rng: np.random.Generator, family: str) -> SensorSpec:
+    bits = 8 if family == "jpeg" or rng.uniform() < 0.5 else 12
+    jq = int(rng.integers(75, 96)) if family == "jpeg" or (family == "combined" and rng.uniform() < 0.5) else None
+    if jq is not None:
+        bits = 8
+    gain = 20000.0 / (2**bits - 1)
+    n_st, n_hot = (40, 80) if family in ("stars", "combined") else (0, 0)
+    return SensorSpec(bits=bits, read_noise_dn=_READ_E / gain, background_dn=40.0 / gain, n_stars=n_st,
+                      star_flux_dn=(20.0 * (2**bits - 1) / 255, 600.0 * (2**bits - 1) / 255), n_hot=n_hot,
+                      jpeg_quality=jq)
+
+
+def _psf(rng: np.random.Generator, family: str) -> Psf:
+    kind = family if family in ("airy", "defocus", "motion") else (
+        str(rng.choice(["gaussian", "airy", "defocus", "motion"])) if family == "combined" else "gaussian")
+    return Psf(kind=PsfKind(kind), sigma=float(rng.uniform(0.6, 1.2)) if kind == "gaussian" else float(rng.uniform(0.5, 0.8)),
+               r_zero=float(rng.uniform(1.2, 2.0)), r_disc=float(rng.uniform(0.8, 1.8)),
+               length=float(rng.uniform(1.5, 3.5)), angle_deg=float(rng.uniform(0, 180)))
+
+
+def _photometry(rng: np.random.Generator, family: str, body: str) -> Photometry:
+    law = {"hapke": Reflectance.HAPKE, "minnaert": Reflectance.MINNAERT, "ls_surge": Reflectance.LOMMEL_SEELIGER_SURGE,
+           "lambert": Reflectance.LAMBERT, "clouds": Reflectance.LAMBERT}.get(family, Reflectance.LUNAR_LAMBERT)
+    if family == "combined":
+        law = Reflectance.HAPKE if body == "moon" else Reflectance.LAMBERT
+    return Photometry(law=law, minnaert_k=float(rng.uniform(0.55, 0.95)), w=float(rng.uniform(0.15, 0.35)),
+                      b=float(rng.uniform(0.2, 0.4)), B0=float(rng.uniform(0.5, 1.5)), h=float(rng.uniform(0.03, 0.1)))
+
+
+def _center(rng: np.random.Generator, pin: Pinhole, R_px: float, cropped: bool) -> tuple[float, float]:
+    m = 1.1 * R_px + 12.0
+    if not cropped:
+        return float(rng.uniform(m, pin.rows - m)), float(rng.uniform(m, pin.cols - m))
+    out = float(rng.uniform(0.05, 0.5)) * R_px
+    side = int(rng.integers(4))
+    along_r, along_c = float(rng.uniform(m, pin.rows - m)), float(rng.uniform(m, pin.cols - m))
+    return [(-out, along_c), (pin.rows - 1 + out, along_c), (along_r, -out), (along_r, pin.cols - 1 + out)][side]
+
+
+def _maria(rng: np.random.Generator, pin: Pinhole, u: np.ndarray, R: np.ndarray, sun_angle: float,
+           range_km: float) -> MariaMap:
+    beta0 = math.degrees(math.acos(MOON_RADIUS_KM / range_km))  # the limb, seen from the centre
+    cams = []
+    for _ in range(3):  # crossing the lit limb
+        e = image_direction(pin, u, sun_angle + float(rng.uniform(-60, 60)))
+        b = math.radians(beta0 + float(rng.uniform(-6, 6)))
+        cams.append(math.cos(b) * (-u) + math.sin(b) * e)
+    cen = [R.T @ c for c in cams] + [v / np.linalg.norm(v) for v in rng.normal(size=(5, 3))]
+    return MariaMap(np.array(cen), rng.uniform(4.5, 13.0, 8), rng.uniform(0.15, 0.35, 8))
+
+
+# ----------------------------------------------------------------------------- cases
+def moon_case(family: str, rng: np.random.Generator) -> Case:
+    """A Moon frame of ``family`` (module docstring)."""
+    if family not in MOON_FAMILIES:
+        raise ValueError(f"unknown Moon family {family!r}; one of {MOON_FAMILIES}")
+    cam = _camera(16.0)
+    pin = Pinhole.from_camera(cam)
+    rng_km = float(math.exp(rng.uniform(math.log(60000.0), math.log(384400.0))))
+    phase = float(rng.uniform(0.0, 150.0))
+    R_px = pin.focal_px * math.tan(math.asin(MOON_RADIUS_KM / rng_km))
+    rc = _center(rng, pin, R_px, family == "cropped")
+    u = pin.los(rc)
+    sun_angle = float(rng.uniform(0, 360))
+    s = sun_for_phase(u, image_direction(pin, u, sun_angle), phase)
+    Rm = random_rotation(rng)
+    body = Body((MOON_RADIUS_KM,) * 3, rng_km * u, Rm, s)
+    albedo = _maria(rng, pin, u, Rm, sun_angle, rng_km) if family in ("maria", "combined") else None
+    glow = Glow(float(rng.uniform(2.0, 15.0)), float(rng.uniform(0.03, 0.4))) if family == "glow" else None
+    surf = Surface(_photometry(rng, family, "moon"), albedo if albedo is not None else Surface().albedo, glow)
+    psf = _psf(rng, family)
+    spec = _sensor(rng, family)
+    meta = {"family": family, "body": "moon", "range_km": rng_km, "phase_deg": phase, "sun_angle_deg": sun_angle,
+            "psf": psf.kind.value, "bits": spec.bits, "jpeg": spec.jpeg_quality, "law": surf.photometry.law.value,
+            "glow": None if glow is None else [glow.scale_height_km, glow.brightness]}
+    hints = {"body": "moon", "sun_dir_camera": [float(v) for v in s],
+             "range_prior_km": rng_km * (1.0 + 0.05 * float(rng.standard_normal()))}
+    return _finish(body, surf, pin, psf, spec, rng, cam, hints, meta)
+
+
+def earth_case(family: str, rng: np.random.Generator, far: bool | None = None) -> Case:
+    """An Earth frame of ``family`` (module docstring); ``far``: 380 000 km (else 40 000 km; random if None)."""
+    if family not in EARTH_FAMILIES:
+        raise ValueError(f"unknown Earth family {family!r}; one of {EARTH_FAMILIES}")
+    far = bool(rng.uniform() < 0.5) if far is None else far
+    rng_km, focal = (380000.0, 16.0) if far else (40000.0, 8.0)
+    rng_km *= float(rng.uniform(0.97, 1.03))
+    cam = _camera(focal)
+    pin = Pinhole.from_camera(cam)
+    R_px = pin.focal_px * math.tan(math.asin(WGS84_KM[0] / rng_km))
+    rc = _center(rng, pin, R_px, False)
+    u = pin.los(rc)
+    lat = float(rng.uniform(0.0, 60.0)) * (1 if rng.uniform() < 0.5 else -1)
+    R = earth_attitude(u, image_direction(pin, u, float(rng.uniform(0, 360))), lat, float(rng.uniform(-180, 180)))
+    phase, sun_angle = float(rng.uniform(20.0, 70.0)), float(rng.uniform(0, 360))
+    s = sun_for_phase(u, image_direction(pin, u, sun_angle), phase)
+    body = Body(WGS84_KM, rng_km * u, R, s)
+    albedo = EarthMap(seed=int(rng.integers(2**31))) if family in ("clouds", "combined") else None
+    glow = (Glow(float(rng.uniform(6.0, 25.0)), float(rng.uniform(0.03, 0.4)))
+            if family in ("glow", "combined") else None)
+    surf = Surface(_photometry(rng, family, "earth"), albedo if albedo is not None else Surface().albedo, glow)
+    psf = _psf(rng, family)
+    spec = _sensor(rng, family)
+    meta = {"family": family, "body": "earth", "range_km": rng_km, "focal_mm": focal, "latitude_deg": lat,
+            "phase_deg": phase, "psf": psf.kind.value, "bits": spec.bits, "jpeg": spec.jpeg_quality,
+            "law": surf.photometry.law.value, "glow": None if glow is None else [glow.scale_height_km, glow.brightness]}
+    hints = {"body": "earth", "sun_dir_camera": [float(v) for v in s], "R_body_to_camera": R.tolist(),
+             "range_prior_km": rng_km * (1.0 + 0.05 * float(rng.standard_normal())), "atmosphere_km": 0.0}
+    return _finish(body, surf, pin, psf, spec, rng, cam, hints, meta)
+
+
+def _finish(body, surf, pin, psf, spec, rng, cam, hints, meta) -> Case:
+    rad = render_radiance(body, surf, pin, psf)
+    nz = np.nonzero(rad.any(axis=1))[0], np.nonzero(rad.any(axis=0))[0]
+    window = (int(nz[0][0]), int(nz[0][-1]), int(nz[1][0]), int(nz[1][-1])) if nz[0].size else (0, 0, 0, 0)
+    img = digitise(rad, spec, rng, window)
+    return Case(img, limb_truth(body, pin), cam, hints, meta)
