@@ -1,0 +1,233 @@
+"""Per-family accuracy of ``jaxlimb.pipeline.locate`` on scenes from the independent renderer.
+
+Usage::
+
+    .venv/bin/python benchmarks/families.py [--quick] [--n N] [--seed S] [--bodies moon,earth]
+                                            [--families own,maria,...] [--cache DIR] [--out NAME]
+
+Scenes: :mod:`jaxlimb.render.independent` (written apart from the pipeline and its renderer),
+``--n`` frames per family and body (default 6; ``--quick``: 1 frame of a few families).  The
+family ``own`` is what the pipeline's physical profile assumes (uniform albedo, lunar-Lambert,
+Gaussian PSF); every other family changes what the module docstring of
+:mod:`jaxlimb.render.independent.families` lists.  ``locate`` gets the camera and the hints a
+navigation filter has (body, Sun direction, range prior 5 % off; for the Earth also
+``R_body_to_camera`` and ``atmosphere_km = 0``).  Each Earth frame is measured twice: with
+``R_body_to_camera`` known and without it (``earth`` / ``earth_noR`` rows).
+
+Reported per body and family: centre-of-body-image error (px) median / p90 / max, |radius
+error| median (Moon: ``radius_px - f tan(alpha)``), |range error| median / max (%), the mean
+NEES of the centre ``e^T P^-1 e`` with the reported 2x2 covariance (chi-square expectation 2),
+typed failures by check, and the number of ``status ok`` answers with a non-physical
+parameter (amplitude <= 0, ymax <= ymin, PSF sigma outside [0.1, 5] px, ``L`` outside
+[-0.5, 1.5], non-finite or non-positive radius/range, centre sigma > 2 px).  Results go to
+``benchmarks/results/<out>.json`` (default ``families``, ``families_quick`` with ``--quick``)
+with the seed and the git SHA.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+QUICK_FAMILIES = {"moon": ("own", "maria"), "earth": ("own", "clouds")}
+RENDER_VERSION = 1  # bump when the renderer's output changes (cache key)
+
+
+def _setup() -> None:
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+
+
+def _case(body: str, family: str, idx: int, seed: int, cache: Path | None):
+    """Render (or load from ``cache``) frame ``idx`` of ``family``."""
+    import pickle
+
+    from jaxlimb.render.independent import EARTH_FAMILIES, MOON_FAMILIES, earth_case, moon_case
+
+    fams = MOON_FAMILIES if body == "moon" else EARTH_FAMILIES
+    key = f"{body}_{family}_{idx}_s{seed}_v{RENDER_VERSION}.pkl"
+    if cache is not None and (cache / key).exists():
+        with open(cache / key, "rb") as fh:
+            return pickle.load(fh)
+    rng = np.random.default_rng([seed, 0 if body == "moon" else 1, fams.index(family), idx])
+    case = moon_case(family, rng) if body == "moon" else earth_case(family, rng, far=bool(idx % 2))
+    if cache is not None:
+        cache.mkdir(parents=True, exist_ok=True)
+        tmp = cache / (key + ".tmp")
+        with open(tmp, "wb") as fh:
+            pickle.dump(case, fh)
+        tmp.replace(cache / key)
+    return case
+
+
+def _locate(case, hints: dict):
+    """The public entry point for the body (``locate``; the Earth through ``locate_earth`` while it exists)."""
+    from jaxlimb.imaging import Hints
+    from jaxlimb.pipeline import locate
+
+    h = Hints.from_dict(hints)
+    if hints.get("body") == "earth":
+        try:
+            from jaxlimb.pipeline.earth import locate_earth
+        except ImportError:
+            locate_earth = None
+        if locate_earth is not None:
+            return locate_earth(case.image, case.camera, h)
+    return locate(case.image, case.camera, h)
+
+
+def nonphysical(m) -> list[str]:
+    """Reasons a ``status ok`` measurement is not physical (module docstring); empty if none."""
+    bad = []
+    if not (m.ymax > m.ymin):
+        bad.append("ymax<=ymin")
+    prof = (m.extras or {}).get("profile") or {}
+    if "amp" in prof and not prof["amp"] > 0:
+        bad.append("amp<=0")
+    if "psf_sigma_px" in prof and not 0.1 <= prof["psf_sigma_px"] <= 5.0:
+        bad.append("psf_sigma")
+    if "L" in prof and not -0.5 <= prof["L"] <= 1.5:
+        bad.append("L")
+    if m.radius_px is not None and not (math.isfinite(m.radius_px) and m.radius_px > 0):
+        bad.append("radius")
+    if m.range_km is not None and not (math.isfinite(m.range_km) and m.range_km > 0):
+        bad.append("range")
+    cov = m.covariance
+    s = max(cov.get("center_r", {}).get("center_r", math.inf), cov.get("center_c", {}).get("center_c", math.inf))
+    if not (math.isfinite(s) and math.sqrt(max(s, 0.0)) <= 2.0):
+        bad.append("center_sigma")
+    return bad
+
+
+def _nees(m, err: np.ndarray) -> float | None:
+    c = m.covariance
+    try:
+        P = np.array([[c["center_r"]["center_r"], c["center_r"]["center_c"]],
+                      [c["center_c"]["center_r"], c["center_c"]["center_c"]]], float)
+        return float(err @ np.linalg.solve(P, err))
+    except (KeyError, np.linalg.LinAlgError):
+        return None
+
+
+def measure(case, hints: dict) -> dict[str, Any]:
+    """One ``locate`` run against the truth of ``case``."""
+    from jaxlimb.errors import JaxlimbError
+
+    t = case.truth
+    rec: dict[str, Any] = {}
+    t0 = time.perf_counter()
+    try:
+        m = _locate(case, hints)
+    except JaxlimbError as e:
+        rec.update(status="error", check=e.check, message=str(e)[:200])
+        return rec
+    rec["time_s"] = time.perf_counter() - t0
+    err = np.array(m.center_rc) - np.array(t.body_center_rc)
+    rec.update(status="ok", center_err_px=float(np.hypot(*err)), err_rc=err.tolist(), nees=_nees(m, err),
+               nonphysical=nonphysical(m))
+    if m.radius_px is not None and case.meta["body"] == "moon":
+        rec["radius_err_px"] = float(m.radius_px - t.apparent_radius_px)
+    if m.range_km is not None:
+        rec["range_err_pct"] = float(100.0 * (m.range_km - t.range_km) / t.range_km)
+    rec["profile"] = (m.extras or {}).get("profile")
+    rec["profile_rejected"] = (m.extras or {}).get("profile_rejected")
+    return rec
+
+
+def _q(a, q):
+    return float(np.percentile(a, q)) if len(a) else None
+
+
+def summarise(recs: list[dict]) -> dict[str, Any]:
+    ok = [r for r in recs if r["status"] == "ok"]
+    ce = [r["center_err_px"] for r in ok]
+    ne = [r["nees"] for r in ok if r.get("nees") is not None]
+    rad = [abs(r["radius_err_px"]) for r in ok if "radius_err_px" in r]
+    rg = [abs(r["range_err_pct"]) for r in ok if "range_err_pct" in r]
+    fails: dict[str, int] = {}
+    for r in recs:
+        if r["status"] != "ok":
+            fails[r["check"]] = fails.get(r["check"], 0) + 1
+    return {"n": len(recs), "n_ok": len(ok), "center_median_px": _q(ce, 50), "center_p90_px": _q(ce, 90),
+            "center_max_px": max(ce) if ce else None, "radius_abs_median_px": _q(rad, 50),
+            "range_abs_median_pct": _q(rg, 50), "range_abs_max_pct": max(rg) if rg else None,
+            "nees_mean": float(np.mean(ne)) if ne else None, "failures": fails,
+            "n_ok_nonphysical": sum(1 for r in ok if r["nonphysical"])}
+
+
+def _fmt(v, f="{:.3f}"):
+    return "-" if v is None else f.format(v)
+
+
+def print_table(summary: dict[str, dict[str, dict]]) -> None:
+    print(f"{'body':10s} {'family':10s} {'n/ok':>6s} {'med':>7s} {'p90':>7s} {'max':>7s} {'|dR|':>7s} "
+          f"{'rng%med':>8s} {'rng%max':>8s} {'NEES':>8s} {'nonphys':>7s}  failures")
+    for body, fams in summary.items():
+        for fam, s in fams.items():
+            print(f"{body:10s} {fam:10s} {s['n']:>3d}/{s['n_ok']:<2d} {_fmt(s['center_median_px']):>7s} "
+                  f"{_fmt(s['center_p90_px']):>7s} {_fmt(s['center_max_px']):>7s} {_fmt(s['radius_abs_median_px']):>7s} "
+                  f"{_fmt(s['range_abs_median_pct'], '{:.4f}'):>8s} {_fmt(s['range_abs_max_pct'], '{:.4f}'):>8s} "
+                  f"{_fmt(s['nees_mean'], '{:.1f}'):>8s} {s['n_ok_nonphysical']:>7d}  {s['failures'] or ''}")
+
+
+def run(bodies, families, n: int, seed: int, cache: Path | None, progress=print) -> dict[str, Any]:
+    from jaxlimb.render.independent import EARTH_FAMILIES, MOON_FAMILIES
+
+    records: dict[str, dict[str, list]] = {}
+    for body in bodies:
+        fams = [f for f in (MOON_FAMILIES if body == "moon" else EARTH_FAMILIES) if families is None or f in families]
+        for fam in fams:
+            for i in range(n):
+                case = _case(body, fam, i, seed, cache)
+                rows = [(body, case.hints)]
+                if body == "earth":
+                    rows.append(("earth_noR", {k: v for k, v in case.hints.items() if k != "R_body_to_camera"}))
+                for name, hints in rows:
+                    rec = measure(case, hints)
+                    rec["meta"] = case.meta
+                    records.setdefault(name, {}).setdefault(fam, []).append(rec)
+                    progress(f"{name:9s} {fam:9s} {i}: {rec['status']} "
+                             + (f"{rec['center_err_px']:.3f} px" if rec["status"] == "ok" else rec["check"]))
+    summary = {b: {f: summarise(r) for f, r in fams.items()} for b, fams in records.items()}
+    return {"records": records, "summary": summary}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="1 frame of 2 families per body")
+    ap.add_argument("--n", type=int, default=None, help="frames per family and body (default 6)")
+    ap.add_argument("--seed", type=int, default=2026)
+    ap.add_argument("--bodies", default="moon,earth")
+    ap.add_argument("--families", default=None, help="comma-separated subset")
+    ap.add_argument("--cache", type=Path, default=None, help="directory to keep rendered frames in between runs")
+    ap.add_argument("--out", default=None)
+    a = ap.parse_args(argv)
+    _setup()
+    from _common import environment, save
+
+    bodies = [b for b in a.bodies.split(",") if b]
+    fams = set(a.families.split(",")) if a.families else None
+    if a.quick and fams is None:
+        fams = set(QUICK_FAMILIES["moon"]) | set(QUICK_FAMILIES["earth"])
+    n = a.n if a.n is not None else (1 if a.quick else 6)
+    t0 = time.perf_counter()
+    res = run(bodies, fams, n, a.seed, a.cache)
+    print_table(res["summary"])
+    out = {"args": {"n": n, "seed": a.seed, "bodies": bodies, "families": sorted(fams) if fams else None,
+                    "quick": a.quick}, "environment": environment(), "wall_s": time.perf_counter() - t0, **res}
+    path = save(a.out or ("families_quick" if a.quick else "families"), out)
+    print(f"saved {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
