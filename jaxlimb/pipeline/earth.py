@@ -135,7 +135,8 @@ from ..geometry.ellipsoid import check_rotation, ellipse_to_conic, image_conic
 from ..imaging import Hints, front_end as run_front_end, sun_direction_image
 from ..models import LimbModel, LimbParams
 from ..models.sigmoid import ellipse_coords
-from .profile import LIMB_PROFILE, PROFILE_FIXED, LimbProfileParams, l_band, limb_profile_intensity, lunar_lambert_weight
+from .profile import (LIMB_PROFILE, PROFILE_FIXED, LimbProfileParams, add_model_error, l_band, limb_profile_intensity,
+                      lunar_lambert_weight)
 from .result import EllipseResult, LimbMeasurement
 
 __all__ = [
@@ -670,6 +671,7 @@ def _fit_profile_earth(img, pts, z, edge, fitted, p, camera: Camera, h: Hints, R
             break
         q = q.replace(theta=float(icn.angle_rad), rho=float(icn.rho))
     assert res is not None
+    res, _ = add_model_error(res, pts, z, (float(res.params.r0), float(res.params.c0)))
     return res, pf, p_cur, info, hist
 
 

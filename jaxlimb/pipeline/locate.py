@@ -56,6 +56,7 @@ from .profile import (
     LIMB_PROFILE,
     PROFILE_FIXED,
     LimbProfileParams,
+    add_model_error,
     l_band,
     lunar_lambert_weight,
     sphere_from_circle_fit,
@@ -619,6 +620,7 @@ def _fit_profile(img: np.ndarray, circ, cam: Camera | None, hin: Hints | None, o
         res, sph = _profile_passes(data, res.params, cam, None, None, opt, fixed, solver, use_camera)
     else:
         res, sph = _profile_passes(data, init, cam, center, float(p.radius), opt, fixed, solver, use_camera)
+    res, _ = add_model_error(res, data.coords, data.z, (float(res.params.r0), float(res.params.c0)))
     return RefineResult(res, data, 0, fixed, sphere=sph), n_clipped
 
 

@@ -1,0 +1,64 @@
+r"""A model-error term for a least-squares covariance: the cluster-robust (sandwich) estimate.
+
+Why.  :math:`\hat\sigma^2 (J^\top J)^{-1}` assumes the model is exact and the residuals are
+independent.  When the limb is not what the model assumes (an albedo that varies along and
+across the limb, another reflectance law, a glow, a PSF of another shape) the residuals are
+correlated along the limb and the estimate is biased by more than its reported sigma (a
+textured Moon: 0.1 px error for a reported 0.005 px, ``benchmarks/families.py``).
+
+What.  The pixels are grouped in ``G`` angular sectors of the limb; with the per-sector
+scores :math:`s_g = J_g^\top r_g` the cluster-robust covariance (Liang & Zeger 1986; the
+"sandwich" of Huber 1967 and White 1980 with clusters) is
+
+.. math:: C_s = \frac{G}{G-1}\,(J^\top J)^{-1}\Big(\sum_g s_g s_g^\top\Big)(J^\top J)^{-1}.
+
+With an exact model and independent noise :math:`E[s_g s_g^\top] = \sigma^2 J_g^\top J_g` and
+:math:`C_s \to \sigma^2 (J^\top J)^{-1}`; a misfit that follows the parameters' own columns
+from one sector to the next (what biases them) makes the scores large and :math:`C_s` with
+them.  The reported covariance is the fit's plus the positive part of the difference,
+:math:`C + [C_s - C]_+` (eigenvalues of the difference clipped at 0): never below the
+noise-only covariance.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["cluster_robust_covariance", "sector_groups", "with_model_error"]
+
+
+def sector_groups(coords: np.ndarray, center_rc, n_groups: int) -> np.ndarray:
+    """Group index (0 .. ``n_groups - 1``) of each pixel: sectors of equal pixel counts by position
+    angle about ``center_rc``, starting after the largest gap between angles (the unlit part)."""
+    c = np.asarray(coords, float)
+    ang = np.arctan2(c[:, 0] - float(center_rc[0]), c[:, 1] - float(center_rc[1]))
+    order = np.argsort(ang)
+    sa = ang[order]
+    gaps = np.diff(np.concatenate([sa, sa[:1] + 2 * np.pi]))
+    start = (int(np.argmax(gaps)) + 1) % sa.size
+    ranked = np.empty(sa.size, int)
+    ranked[order] = (np.arange(sa.size) - start) % sa.size
+    return np.minimum(ranked * n_groups // sa.size, n_groups - 1)
+
+
+def cluster_robust_covariance(J: np.ndarray, r: np.ndarray, groups: np.ndarray) -> np.ndarray:
+    """:math:`C_s` of the module docstring for the Jacobian ``J`` ``(n, q)``, residuals ``r`` ``(n,)``
+    and group labels ``groups`` ``(n,)``."""
+    J = np.asarray(J, float)
+    r = np.asarray(r, float)
+    g = np.asarray(groups)
+    labels, inv = np.unique(g, return_inverse=True)
+    G = labels.size
+    scores = np.zeros((G, J.shape[1]))
+    np.add.at(scores, inv, J * r[:, None])
+    bread = np.linalg.pinv(J.T @ J)
+    meat = scores.T @ scores
+    return G / max(G - 1, 1) * bread @ meat @ bread
+
+
+def with_model_error(C_fit: np.ndarray, C_s: np.ndarray) -> np.ndarray:
+    """``C + [C_s - C]_+`` (module docstring)."""
+    C = np.asarray(C_fit, float)
+    D = 0.5 * ((C_s - C) + (C_s - C).T)
+    lam, V = np.linalg.eigh(D)
+    return C + (V * np.maximum(lam, 0.0)) @ V.T
