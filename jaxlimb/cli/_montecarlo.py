@@ -6,7 +6,7 @@ import argparse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from ..fitting import SOLVERS
+    from .._solver_names import SOLVER_NAMES
 
     p = sub.add_parser(
         "montecarlo",
@@ -18,7 +18,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--radius", type=float, default=150.0, help="radius / semi-axis a in px (default 150)")
     p.add_argument("--sigma", type=float, default=10.0, help="Gaussian noise in DN (default 10)")
     p.add_argument("--n", type=int, default=1000, help="realisations (default 1000)")
-    p.add_argument("--solver", choices=sorted(SOLVERS), default="lm")
+    p.add_argument("--solver", choices=sorted(SOLVER_NAMES), default="lm")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--k", type=float, default=3.0, help="sigmoid steepness (default 3)")
     p.add_argument("--annulus", type=float, default=6.0, help="half-width of the pixel band, px (default 6)")
