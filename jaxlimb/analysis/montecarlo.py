@@ -207,7 +207,7 @@ _CHUNK_KEYS = ("index", "seed", "ok", "error")
 def _load_chunk(path: Path) -> dict[str, np.ndarray]:
     """Read one chunk file; an unreadable one (truncated, corrupt, not a chunk) is a :class:`ConfigError`."""
     try:
-        with np.load(path, allow_pickle=False) as f:
+        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as f:  # our handle: closed on any error
             data = {k: f[k] for k in f.files}
     except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as e:
         raise ConfigError(f"chunk file {str(path)!r} is unreadable (truncated or corrupt: {type(e).__name__}: {e})") from None
