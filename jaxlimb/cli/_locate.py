@@ -137,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
         from ..errors import SaturationWarning
 
         with warnings_to_stderr(SaturationWarning):
-            meas = locate(image, camera, hints, options)
+            meas = locate(image, camera, hints, options, mask=frame.mask_or_none)
     if args.figure:
         from ..pipeline import save_locate_figure
 
