@@ -143,6 +143,18 @@ class JumpError(ConvergenceError):
     check = "jump_from_initial"
 
 
+class MatchError(CheckFailed):
+    """The shape model does not explain the frame: poor residual or overlap (model-based line of sight)."""
+
+    check = "poor_match"
+
+
+class AmbiguousMatchError(MatchError):
+    """Two poses of the shape model that put the body centre apart explain the frame about equally well."""
+
+    check = "ambiguous_match"
+
+
 class SaturationWarning(UserWarning):
     """Pixels of the limb annulus are clipped (saturated): the measured radius, hence the range,
     can be biased outward (measured: 0.3-1 px on Moons over-exposed 1.5-6x; the centre stays
@@ -150,6 +162,7 @@ class SaturationWarning(UserWarning):
 
 
 __all__ = [
+    "AmbiguousMatchError",
     "ArcTooShortError",
     "AttitudeError",
     "CheckFailed",
@@ -163,6 +176,7 @@ __all__ = [
     "JaxlimbError",
     "JumpError",
     "LimbInputError",
+    "MatchError",
     "MeshError",
     "NoBodyError",
     "RadiusInconsistentError",
