@@ -62,6 +62,8 @@ class RegisterOptions:
     max_final_step_px
         Largest last step (px) accepted as converged when ``max_iterations`` are used up
         (the rendering is quantised on the sub-pixel grid: steps jitter at ~0.005 px).
+    attitude_blur_px, attitude_fd_deg
+        Blur schedule and finite-difference step (deg) when the attitude is fitted too.
     blur_px
         Gaussian blur (px) of image and model in the first iterations (a wider basin).
     search_px
@@ -77,8 +79,10 @@ class RegisterOptions:
 
     supersample: int = 4
     reflectance: str = "lommel-seeliger"
-    max_iterations: int = 12
+    max_iterations: int = 16
     blur_px: tuple[float, ...] = (3.0, 1.5)
+    attitude_blur_px: tuple[float, ...] = (6.0, 4.0, 3.0, 2.0, 1.5, 1.0)
+    attitude_fd_deg: float = 0.3
     tol_px: float = 0.01
     max_final_step_px: float = 0.05
     search_px: int = 12
@@ -107,6 +111,8 @@ class RegisterResult:
         Quality measures (see the module docstring).
     iterations
         Gauss-Newton iterations.
+    R_body_to_camera
+        The attitude used (fitted when ``fit_attitude``).
     """
 
     centre_rc: np.ndarray
@@ -122,6 +128,7 @@ class RegisterResult:
     iou: float
     ncc: float
     iterations: int
+    R_body_to_camera: np.ndarray
 
 
 _TOPO: dict = {}
@@ -270,18 +277,53 @@ def _blur(a: np.ndarray, sigma: float) -> np.ndarray:
     return a if sigma <= 0 else cv2.GaussianBlur(a, (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
 
 
-def _gauss_newton(image, mesh, camera, R, sun, P, D, mask, options):  # type: ignore[no-untyped-def]
+def _solve(A: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Linear least squares by the (column-scaled) normal equations: a few columns, many rows."""
+    sc = np.maximum(np.sqrt(np.einsum("ij,ij->j", A, A)), 1e-300)
+    An = A / sc
+    try:
+        return np.linalg.solve(An.T @ An, An.T @ y) / sc
+    except np.linalg.LinAlgError:
+        raise ConvergenceError("registration: singular normal matrix (the model has no texture or edge)") from None
+
+
+def _rotvec_matrix(w: np.ndarray) -> np.ndarray:
+    """Rodrigues rotation of a rotation vector ``w`` (rad)."""
+    th = float(np.linalg.norm(w))
+    if th < 1e-15:
+        return np.eye(3)
+    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]]) / th
+    return np.eye(3) + math.sin(th) * K + (1.0 - math.cos(th)) * K @ K
+
+
+def _attitude_columns(mesh, camera, R, t, sun, lo, hi, G, ratio, sigma, options):  # type: ignore[no-untyped-def]
+    """Finite-difference columns ``dG/domega`` (camera-frame rotation vector, rad) for the attitude fit."""
+    eps = math.radians(options.attitude_fd_deg)
+    cols = []
+    for i in range(3):
+        w = np.zeros(3)
+        w[i] = eps
+        Mi, Ci = (_blur(v, sigma) for v in render_model(mesh, camera, _rotvec_matrix(w) @ R, t, sun, lo, hi, options))
+        cols.append(((Mi - ratio * Ci) - G).ravel() / eps)
+    return np.stack(cols, axis=1)
+
+
+def _gauss_newton(image, mesh, camera, R, sun, P, D, mask, options, fit_attitude=False):  # type: ignore[no-untyped-def]
     """Step 3 of the module docstring (coarse-to-fine: blurred iterations first); state of the last solve."""
     it = 0
     n = math.inf
     ratio = 0.0
+    blur = options.attitude_blur_px if fit_attitude else options.blur_px
     for it in range(1, options.max_iterations + 1):
-        sigma = options.blur_px[it - 1] if it <= len(options.blur_px) else 0.0
+        sigma = blur[it - 1] if it <= len(blur) else 0.0
         lo, hi = _window(camera, P, D, mesh, mask, options.margin_px)
-        M, C = (_blur(v, sigma) for v in render_model(mesh, camera, R, _pose(camera, P, D), sun, lo, hi, options))
+        t = _pose(camera, P, D)
+        M, C = (_blur(v, sigma) for v in render_model(mesh, camera, R, t, sun, lo, hi, options))
         A = _gn_system(M, C, ratio, P - lo)
+        if fit_attitude:
+            A = np.concatenate([A, _attitude_columns(mesh, camera, R, t, sun, lo, hi, M - ratio * C, ratio, sigma, options)], axis=1)
         y = _blur(image[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1], sigma).ravel()
-        beta, *_ = np.linalg.lstsq(A, y, rcond=None)
+        beta = _solve(A, y)
         a = float(beta[0])
         if not a > 0:
             raise ConvergenceError("registration: the fitted contrast of the model is not positive")
@@ -289,15 +331,23 @@ def _gauss_newton(image, mesh, camera, R, sun, P, D, mask, options):  # type: ig
         step = beta[2:4] / a
         ds = float(beta[4] / a)
         n = float(np.linalg.norm(step))
-        if n > 2.0:
-            step, ds = step * (2.0 / n), ds * (2.0 / n)
+        if n > 2.0 + 2.0 * sigma:
+            f = (2.0 + 2.0 * sigma) / n
+            step, ds, beta = step * f, ds * f, np.concatenate([beta[:5], beta[5:] * f])
         P = P + step
         D = D * math.exp(-max(min(ds, 0.05), -0.05))
-        if sigma == 0 and n < options.tol_px and abs(ds) < 1e-4:
+        dw = 0.0
+        if fit_attitude:
+            w = beta[5:8] / a
+            dw = float(np.linalg.norm(w))
+            if dw > math.radians(3.0):
+                w = w * (math.radians(3.0) / dw)
+            R = _rotvec_matrix(w) @ R
+        if sigma == 0 and n < options.tol_px and abs(ds) < 1e-4 and dw < 1e-4:
             break
     if n > options.max_final_step_px:
         raise ConvergenceError(f"registration did not converge in {options.max_iterations} iterations (last step {n:.3g} px)")
-    return P, D, A, y, beta, lo, hi, it
+    return P, D, R, A, y, beta, lo, hi, it
 
 
 def register_known_attitude(
@@ -309,6 +359,8 @@ def register_known_attitude(
     range_km: float | None = None,
     options: RegisterOptions = RegisterOptions(),
     segmentation: tuple[np.ndarray, float] | None = None,
+    fit_attitude: bool = False,
+    initial: tuple[np.ndarray, float] | None = None,
 ) -> RegisterResult:
     """Body-centre image of a body of known attitude by render-and-register (module docstring).
 
@@ -331,6 +383,11 @@ def register_known_attitude(
     segmentation
         ``(mask, threshold)`` of :func:`~jaxlimb.irregular.silhouette.segment_body`, if
         already segmented.
+    fit_attitude
+        Also fit a small rotation of ``R_body_to_camera`` (finite-difference columns,
+        used when the attitude comes from a template match, not from the hints).
+    initial
+        ``(P, D)`` to start from instead of step 1 (e.g. a template match).
 
     Raises
     ------
@@ -342,13 +399,13 @@ def register_known_attitude(
     img = np.asarray(image, dtype=float)
     R = np.asarray(R_body_to_camera, dtype=float)
     mask, thr = segment_body(img) if segmentation is None else segmentation
-    P, D = initial_centre(mesh, camera, R, sun_dir_camera, mask, range_km)
+    P, D = initial_centre(mesh, camera, R, sun_dir_camera, mask, range_km) if initial is None else initial
     lo, hi = _window(camera, P, D, mesh, mask, options.margin_px)
     M, _ = render_model(mesh, camera, R, _pose(camera, P, D), sun_dir_camera, lo, hi, options)
     shift, ncc = ncc_shift(img, M, lo, options.search_px)
     P = P + shift
-    P, D, A, y, beta, lo, hi, iters = _gauss_newton(img, mesh, camera, R, sun_dir_camera, P, D, mask, options)
-    return _finish(img, camera, (mask, thr), P, D, A, y, beta, lo, hi, iters, ncc, options)
+    P, D, R, A, y, beta, lo, hi, iters = _gauss_newton(img, mesh, camera, R, sun_dir_camera, P, D, mask, options, fit_attitude)
+    return _finish(img, camera, (mask, thr), P, D, R, A, y, beta, lo, hi, iters, ncc, options)
 
 
 def _overlap(obs: np.ndarray, pred_flat: np.ndarray) -> float:
@@ -357,7 +414,7 @@ def _overlap(obs: np.ndarray, pred_flat: np.ndarray) -> float:
     return float(np.logical_and(pred, obs).sum()) / max(float(np.logical_or(pred, obs).sum()), 1.0)
 
 
-def _finish(img, camera, segmentation, P, D, A, y, beta, lo, hi, iters, ncc, options) -> RegisterResult:  # type: ignore[no-untyped-def]
+def _finish(img, camera, segmentation, P, D, R, A, y, beta, lo, hi, iters, ncc, options) -> RegisterResult:  # type: ignore[no-untyped-def]
     """Covariance and the checks of step 4-5."""
     a, b = float(beta[0]), float(beta[1])
     res = y - A @ beta
@@ -397,6 +454,7 @@ def _finish(img, camera, segmentation, P, D, A, y, beta, lo, hi, iters, ncc, opt
         iou=iou,
         ncc=ncc,
         iterations=iters,
+        R_body_to_camera=np.asarray(R, dtype=float),
     )
 
 
