@@ -51,7 +51,8 @@ def register(subparsers: Any) -> None:
     b.set_defaults(func=run_build)
 
     q = sub.add_parser("locate", help="locate the image of the body centre and the line of sight")
-    q.add_argument("image", metavar="IMAGE", help="grey image (PNG/TIFF/FITS)")
+    q.add_argument("image", metavar="IMAGE", nargs="+", help="grey image (PNG/TIFF/FITS); several files, a "
+                   "directory, a quoted glob or @LIST.txt: one JSON line per frame (see --out)")
     src = q.add_mutually_exclusive_group(required=True)
     src.add_argument("--db", metavar="DB", help="template database built by `los build-db`")
     src.add_argument("--mesh", metavar="MESH", help="shape model; the database is built once and cached")
@@ -64,6 +65,9 @@ def register(subparsers: Any) -> None:
     q.add_argument("--no-refine", action="store_true", help="the template match of Wu et al. alone: no registration, no checks")
     _add_db_options(q)
     q.add_argument("--json", action="store_true", help="print the result as one JSON object")
+    from ._batch import add_batch_arguments
+
+    add_batch_arguments(q)
     q.set_defaults(func=run_locate)
 
 
@@ -193,36 +197,57 @@ def _locate_checked(image: np.ndarray, db: Any, camera: Any, hints: Any) -> dict
 
 
 def run_locate(args: argparse.Namespace) -> int:
-    from ..geometry.camera import Camera
-    from ..irregular.database import cached_database, load_database
-    from ..irregular.mesh import load_mesh
+    from . import _batch
 
-    camera = Camera.from_json(args.camera)
-    hints = _read_hints(args.hints)
-    image = _read_image(args.image)
-    if image.shape != camera.shape:
-        raise ImageContentError(f"image {args.image!r} has shape {image.shape}, the camera expects {camera.shape}")
-    if args.db is not None:
-        db = load_database(args.db)
-    else:
-        mesh = load_mesh(args.mesh)
-        db = cached_database(mesh, _db_options(args), progress=not args.no_progress)
-    t0 = time.perf_counter()
-    body = _locate_unchecked(image, db, camera) if args.no_refine else _locate_checked(image, db, camera, hints)
-    centre = np.asarray(body["center_rc"], dtype=float)
-    los = camera.los(centre)
-    out = {"status": "ok", **body, "los_camera": [float(v) for v in los], "locate_seconds": round(time.perf_counter() - t0, 4), "mesh_hash": db.mesh_hash}
+    images = list(args.image)
+    if _batch.is_many(images, args):  # many frames: JSON Lines, one per frame (cli/_batch.py)
+        memo: dict[str, Any] = {}  # the camera and the database, loaded once for every frame
+        return _batch.run_frames(images, args, _read_image, lambda path, image: _locate_one(args, path, image, memo))
+    args.image = images[0]
+    out = _locate_one(args, args.image, _read_image(args.image), {})
     if args.json:
         from . import emit_json
 
         emit_json(out)
     else:
+        c, los = out["center_rc"], out["los_camera"]
         print(
-            f"body centre (row, col) = ({centre[0]:.3f}, {centre[1]:.3f})  LOS = [{los[0]:.6f}, {los[1]:.6f}, {los[2]:.6f}]"
-            f"  ({body.get('mode', 'unchecked template match')})",
+            f"body centre (row, col) = ({c[0]:.3f}, {c[1]:.3f})  LOS = [{los[0]:.6f}, {los[1]:.6f}, {los[2]:.6f}]"
+            f"  ({out.get('mode', 'unchecked template match')})",
             file=sys.stdout,
         )
     return 0
+
+
+def _locate_one(args: argparse.Namespace, path: str, image: np.ndarray, memo: dict[str, Any]) -> dict[str, Any]:
+    """The ``--json`` object of one frame; ``memo`` keeps the camera, hints and database between frames."""
+    from ..geometry.camera import Camera
+    from ..irregular.database import cached_database, load_database
+    from ..irregular.mesh import load_mesh
+
+    if "camera" not in memo:
+        memo["camera"] = Camera.from_json(args.camera)
+        memo["hints"] = _read_hints(args.hints)
+    camera, hints = memo["camera"], memo["hints"]
+    if image.shape != camera.shape:
+        raise ImageContentError(f"image {path!r} has shape {image.shape}, the camera expects {camera.shape}")
+    if "db" not in memo:
+        if args.db is not None:
+            memo["db"] = load_database(args.db)
+        else:
+            memo["db"] = cached_database(load_mesh(args.mesh), _db_options(args), progress=not args.no_progress)
+    db = memo["db"]
+    t0 = time.perf_counter()
+    body = _locate_unchecked(image, db, camera) if args.no_refine else _locate_checked(image, db, camera, hints)
+    centre = np.asarray(body["center_rc"], dtype=float)
+    los = camera.los(centre)
+    return {
+        "status": "ok",
+        **body,
+        "los_camera": [float(v) for v in los],
+        "locate_seconds": round(time.perf_counter() - t0, 4),
+        "mesh_hash": db.mesh_hash,
+    }
 
 
 __all__ = ["register", "run_build", "run_locate"]
