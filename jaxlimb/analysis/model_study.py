@@ -57,14 +57,13 @@ class ModelStudyOptions:
     def __post_init__(self) -> None:
         if self.model not in ("circle", "ellipse"):
             raise LimbInputError(f"`model` must be 'circle' or 'ellipse', got {self.model!r}")
+        from .._validate import POSITIVE, Range, number
+
         for name in ("radius", "k", "sigma", "annulus"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise LimbInputError(f"`{name}` must be a finite number > 0, got {v!r}")
-        if self.n < 2:
-            raise LimbInputError(f"`n` must be >= 2, got {self.n!r}")
-        if self.batch < 1:
-            raise LimbInputError(f"`batch` must be >= 1, got {self.batch!r}")
+            number(getattr(self, name), f"`{name}`", POSITIVE, error=LimbInputError)
+        number(self.n, "`n`", Range(2, None), integer=True, error=LimbInputError)
+        number(self.batch, "`batch`", Range(1, None), integer=True, error=LimbInputError)
+        number(self.seed, "`seed`", Range(0, 2**32 - 1), integer=True, error=LimbInputError)
 
 
 def model_problem(opt: ModelStudyOptions) -> tuple[LimbModel, LimbParams, LimbParams, np.ndarray, tuple[str, ...]]:

@@ -67,8 +67,9 @@ def run(args: argparse.Namespace) -> int:
     from ..geometry.camera import Camera
     from ..imaging import ColourImageWarning, load_image
     from ..pipeline import LocateOptions, locate
-    from . import emit_json, warnings_to_stderr
+    from . import emit_json, figure_path, report_after_result, try_save, warnings_to_stderr
 
+    figure_path(args.figure, "--figure")  # before any work
     camera = Camera.from_json(args.camera) if args.camera is not None else None
     hints = _read_hints(args.hints, args.body)
     options = LocateOptions(front_end=args.front_end, model=args.model, solver=args.solver,
@@ -88,12 +89,13 @@ def run(args: argparse.Namespace) -> int:
 
         with warnings_to_stderr(SaturationWarning):
             meas = locate(image, camera, hints, options)
+    figure_error = None
     if args.figure:
         from ..pipeline import save_locate_figure
 
-        save_locate_figure(image, meas, args.figure)
+        figure_error = try_save(lambda: save_locate_figure(image, meas, args.figure), "--figure")
     if args.json:
-        emit_json(meas.to_json())
+        emit_json({**meas.to_json(), **({"figure_error": figure_error} if figure_error else {})})
     else:
         print(f"centre (row, col): {meas.center_rc[0]:.4f} {meas.center_rc[1]:.4f} px")
         if meas.radius_px is not None:
@@ -111,4 +113,4 @@ def run(args: argparse.Namespace) -> int:
             print(f"range:             {meas.range_km:.3f} km")
         print(f"k {meas.k:.4f}, ymax {meas.ymax:.2f}, ymin {meas.ymin:.2f}; {meas.n_pixels} px, "
               f"{meas.iterations} iterations ({meas.solver}, {meas.front_end} front end)")
-    return 0
+    return report_after_result(figure_error)

@@ -26,12 +26,16 @@ import json
 import math
 import sys
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..errors import ConfigError, ImageContentError, ImageReadError
+from .._validate import Range, arg_number, input_file, output_file
+from ..errors import ConfigError, DatabaseError, ImageContentError, MeshError
+
+#: ``--step-deg``: below 0.5 deg a database has > 250 000 views (> 10 min to build); above 60 no ring is left.
+STEP_DEG_RANGE = Range(0.5, 60.0)
+TEMPLATE_SIZE_RANGE = Range(32, 4096)
 
 
 def register(subparsers: Any) -> None:
@@ -60,9 +64,11 @@ def register(subparsers: Any) -> None:
 
 
 def _add_db_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--step-deg", type=float, default=3.0, help="view-sphere sampling step (deg, default 3)")
+    p.add_argument("--step-deg", type=arg_number(STEP_DEG_RANGE), default=3.0,
+                   help=f"view-sphere sampling step, deg {STEP_DEG_RANGE} (default 3)")
     p.add_argument("--pole-axis", choices=("x", "y", "z"), default="z", help="mesh axis used as the sampling pole")
-    p.add_argument("--template-size", type=int, default=512, help="template image side (px, default 512)")
+    p.add_argument("--template-size", type=arg_number(TEMPLATE_SIZE_RANGE, integer=True), default=512,
+                   help=f"template image side, px, integer {TEMPLATE_SIZE_RANGE} (default 512)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -73,15 +79,19 @@ def _db_options(args: argparse.Namespace) -> Any:
 
 
 def run_build(args: argparse.Namespace) -> int:
+    from .._io import exclusive_output
     from ..irregular.database import build_database, save_database
     from ..irregular.mesh import load_mesh
 
     opts = _db_options(args)
+    input_file(args.mesh, "MESH", error=MeshError)
+    target = output_file(args.out, "--out", suffixes=(".npz",), error=ConfigError)  # before any work
     mesh = load_mesh(args.mesh)
-    t0 = time.perf_counter()
-    db = build_database(mesh, opts, progress=not args.no_progress)
-    dt = time.perf_counter() - t0
-    out = save_database(db, args.out)
+    with exclusive_output(target):  # a second build of the same --out is refused; stale temporaries removed
+        t0 = time.perf_counter()
+        db = build_database(mesh, opts, progress=not args.no_progress)
+        dt = time.perf_counter() - t0
+        out = save_database(db, target)
     summary = {
         "status": "ok",
         "database": str(out),
@@ -101,54 +111,24 @@ def run_build(args: argparse.Namespace) -> int:
 
 
 def _read_image(path: str) -> np.ndarray:
-    try:
-        from ..imaging.io import load_image
-    except ImportError:  # pragma: no cover - fallback while imaging.io is not in the tree
-        load_image = None
-    if load_image is not None:
-        img, _ = load_image(path)
-        return img
-    import cv2  # pragma: no cover
+    """The frame as float64; an all-black (constant) frame is a frame without a body (exit 3, as `locate`)."""
+    from ..errors import NoBodyError
+    from ..imaging.io import load_image
 
-    p = Path(path)  # pragma: no cover
-    if not p.is_file():  # pragma: no cover
-        raise ImageReadError(f"image file {path!r} does not exist")
-    a = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)  # pragma: no cover
-    if a is None:  # pragma: no cover
-        raise ImageReadError(f"image file {path!r} cannot be decoded")
-    if a.ndim == 3:  # pragma: no cover
-        a = cv2.cvtColor(a, cv2.COLOR_BGR2GRAY)
-    if a.ndim != 2 or min(a.shape) < 2:  # pragma: no cover
-        raise ImageContentError(f"image {path!r} has unusable shape {a.shape}")
-    return a.astype(np.float64)  # pragma: no cover
+    img, _ = load_image(path, reject_constant=False)
+    if float(img.max()) == float(img.min()):
+        raise NoBodyError(f"image {path!r} is constant (every pixel = {float(img.min()):g}): no body")
+    return img
 
 
-def _read_hints(path: str | None) -> dict[str, Any]:
+def _sun_dir(path: str | None) -> np.ndarray | None:
+    """``sun_dir_camera`` of the hints file (validated by :class:`~jaxlimb.imaging.Hints`), or None."""
+    from ..imaging import Hints
+
     if path is None:
-        return {}
-    try:
-        d = json.loads(Path(path).read_text())
-    except OSError as e:
-        raise ConfigError(f"cannot read hints file {path!r}: {e.strerror or e}") from None
-    except json.JSONDecodeError as e:
-        raise ConfigError(f"hints file {path!r} is not valid JSON: {e.msg} at line {e.lineno}") from None
-    if not isinstance(d, dict):
-        raise ConfigError(f"hints file {path!r} must hold a JSON object, got {type(d).__name__}")
-    return d
-
-
-def _sun_dir(hints: dict[str, Any]) -> np.ndarray | None:
-    s = hints.get("sun_dir_camera")
-    if s is None:
         return None
-    try:
-        v = np.asarray(s, dtype=float).reshape(3)
-    except (TypeError, ValueError):
-        raise ConfigError(f"hint `sun_dir_camera` must be a 3-vector, got {s!r}") from None
-    n = float(np.linalg.norm(v))
-    if not (np.all(np.isfinite(v)) and n > 0):
-        raise ConfigError(f"hint `sun_dir_camera` must be a finite non-zero 3-vector, got {s!r}")
-    return v / n
+    s = Hints.from_json(path).sun_dir_camera
+    return None if s is None else np.asarray(s, dtype=float)
 
 
 def run_locate(args: argparse.Namespace) -> int:
@@ -157,9 +137,13 @@ def run_locate(args: argparse.Namespace) -> int:
     from ..irregular.matching import MatchOptions, locate_centre
     from ..irregular.mesh import load_mesh
 
+    # every input is checked before the (possibly long) database load/build
+    if args.db is not None:
+        input_file(args.db, "--db", error=DatabaseError)
+    else:
+        input_file(args.mesh, "--mesh", error=MeshError)
     camera = Camera.from_json(args.camera)
-    hints = _read_hints(args.hints)
-    sun = _sun_dir(hints)
+    sun = _sun_dir(args.hints)
     image = _read_image(args.image)
     if image.shape != camera.shape:
         raise ImageContentError(f"image {args.image!r} has shape {image.shape}, the camera expects {camera.shape}")
