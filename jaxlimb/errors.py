@@ -82,6 +82,25 @@ class DatabaseError(LimbInputError):
 
 
 # --------------------------------------------------------------------------- checks
+class UnknownBodyError(ConfigError):
+    """A body name with no known radii (neither the SPICE kernels nor the shipped table)."""
+
+    check = "unknown_body"
+
+
+class SpiceError(LimbInputError):
+    """SPICE geometry cannot be computed: kernels missing or unreadable, an unknown instrument,
+    an image time outside the kernels' coverage, a label without an image time."""
+
+    check = "spice"
+
+
+class LabelError(ImageReadError):
+    """A planetary-format label (VICAR, PDS3, PDS4) is corrupt or lacks a needed keyword."""
+
+    check = "bad_label"
+
+
 class CheckFailed(JaxlimbError):
     """A check of the method failed on a readable input (CLI exit 3)."""
 
@@ -169,6 +188,9 @@ class SaturationWarning(UserWarning):
 
 
 __all__ = [
+    "LabelError",
+    "SpiceError",
+    "UnknownBodyError",
     "ArcTooShortError",
     "AttitudeError",
     "CheckFailed",

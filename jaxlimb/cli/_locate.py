@@ -16,12 +16,20 @@ def register(sub: argparse._SubParsersAction) -> None:
         "the covariance and, with a camera, the line of sight and the range.  Exit 0 on success, 2 for "
         "unusable input, 3 when a check fails.",
     )
-    p.add_argument("image", metavar="IMAGE", help="image file (PNG, TIFF, FITS, JPEG 2000)")
+    p.add_argument("image", metavar="IMAGE",
+                   help="image file: VICAR, PDS3 (.IMG/.LBL), PDS4 (.xml), FITS, PNG, TIFF, JPEG, JPEG 2000")
     p.add_argument("--camera", metavar="CAMERA.json",
                    help='camera file {"focal_length_mm", "pixel_pitch_mm", "rows", "cols", "principal_point_rc"}')
     p.add_argument("--hints", metavar="HINTS.json", help="navigation prior (DESIGN.md hints; every key optional)")
-    p.add_argument("--body", choices=("moon", "earth", "sun"), default=None,
-                   help="the body (default: the hints' body, else moon); sun: the limb-darkened disc profile")
+    p.add_argument("--body", metavar="NAME", default=None,
+                   help="the body: moon, earth, sun (limb-darkened disc) or any body with known radii (e.g. enceladus; "
+                   "SPICE PCK with --kernels, else the IAU 2015 table; hints body_radii_km override); default: the "
+                   "hints' body, the label's TARGET_NAME with --kernels, else moon")
+    p.add_argument("--kernels", metavar="KERNEL", nargs="+", default=None,
+                   help="SPICE meta-kernel or kernel files (never downloaded): camera, predicted limb, Sun direction, "
+                   "range and orientation from the label's image time; reports measured - predicted")
+    p.add_argument("--instrument", metavar="NAME", default=None,
+                   help="SPICE instrument (e.g. CASSINI_ISS_NAC); default: the label's INSTRUMENT_ID")
     p.add_argument("--front-end", choices=("gradient", "scanline"), default="gradient", dest="front_end",
                    help="candidate-limb front end (default gradient)")
     p.add_argument("--model", choices=("circle", "ellipse"), default="circle", help="limb model (default circle)")
@@ -38,12 +46,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _read_hints(path: str | None, body: str | None):
+def _read_hints(path: str | None, body: str | None, base=None):
+    """Hints from ``path`` (its keys over ``base``'s, e.g. SPICE's), with ``--body``; unknown body -> exit 2."""
     from dataclasses import replace
 
     from ..imaging import Hints
 
     hints = Hints.from_json(path) if path is not None else None
+    if base is not None:
+        given = {} if hints is None else {k: v for k, v in vars(hints).items() if v is not None}
+        hints = replace(base, **given)
     if body is not None:
         if hints is None:
             hints = Hints(body=body)
@@ -57,7 +69,41 @@ def _read_hints(path: str | None, body: str | None):
         hints = Hints(body="moon")
     elif hints.body is None:
         hints = replace(hints, body="moon")
+    _check_body(hints)
     return hints
+
+
+def _check_body(hints) -> None:
+    """A body without radii (hints, the IAU table) is unusable input (exit 2), except the Sun/Moon/Earth paths."""
+    from ..geometry.bodies import body_from_table
+
+    if hints.body_radii_km is None:
+        body_from_table(hints.body)
+
+
+def _spice(args, meta):
+    """The SPICE prediction for the frame (``None`` without ``--kernels``)."""
+    if not args.kernels:
+        return None
+    from ..geometry.spice import spice_geometry
+
+    return spice_geometry(args.kernels, meta.image_time, args.instrument or meta.instrument_id,
+                          args.body or meta.target_name)
+
+
+def _spice_report(geom, meas) -> dict:
+    """Prediction, measured - predicted and the observer position from the measurement."""
+    from ..geometry.spice import observer_from_measurement, pointing_residual
+
+    cov = meas.covariance
+    cov_rc = None
+    if "center_r" in cov and "center_c" in cov:
+        cov_rc = [[cov["center_r"]["center_r"], cov["center_r"]["center_c"]],
+                  [cov["center_c"]["center_r"], cov["center_c"]["center_c"]]]
+    out = {"predicted": geom.to_json(), "measured_minus_predicted": pointing_residual(geom, meas.center_rc, cov_rc)}
+    if meas.los_camera is not None and meas.range_km is not None:
+        out["observer_from_measurement"] = observer_from_measurement(geom, meas.los_camera, meas.range_km)
+    return out
 
 
 def run(args: argparse.Namespace) -> int:
@@ -65,17 +111,21 @@ def run(args: argparse.Namespace) -> int:
 
     from ..errors import ConfigError
     from ..geometry.camera import Camera
-    from ..imaging import ColourImageWarning, load_image
+    from ..imaging import ColourImageWarning
+    from ..imaging.formats import read_frame
     from ..pipeline import LocateOptions, locate
     from . import emit_json, figure_path, report_after_result, try_save, warnings_to_stderr
 
     figure_path(args.figure, "--figure")  # before any work
-    camera = Camera.from_json(args.camera) if args.camera is not None else None
-    hints = _read_hints(args.hints, args.body)
+    with warnings_to_stderr(ColourImageWarning):
+        frame = read_frame(args.image)
+    image = frame.data
+    geom = _spice(args, frame.meta)
+    camera = Camera.from_json(args.camera) if args.camera is not None else (geom.camera if geom else None)
+    hints = _read_hints(args.hints, args.body.lower() if args.body else (geom.target.lower() if geom else None),
+                        base=geom.hints() if geom else None)
     options = LocateOptions(front_end=args.front_end, model=args.model, solver=args.solver,
                             estimate_k=not args.fixed_k, profile=args.profile)
-    with warnings_to_stderr(ColourImageWarning):
-        image, _info = load_image(args.image, reject_constant=False)
     if hints.body == "earth":
         try:
             earth = importlib.import_module("jaxlimb.pipeline.earth")
@@ -94,8 +144,14 @@ def run(args: argparse.Namespace) -> int:
         from ..pipeline import save_locate_figure
 
         figure_error = try_save(lambda: save_locate_figure(image, meas, args.figure), "--figure")
+    spice = _spice_report(geom, meas) if geom is not None else None
     if args.json:
-        emit_json({**meas.to_json(), **({"figure_error": figure_error} if figure_error else {})})
+        out = meas.to_json()
+        if spice is not None:
+            out["spice"] = spice
+        if figure_error:
+            out["figure_error"] = figure_error
+        emit_json(out)
     else:
         print(f"centre (row, col): {meas.center_rc[0]:.4f} {meas.center_rc[1]:.4f} px")
         if meas.radius_px is not None:
@@ -111,6 +167,10 @@ def run(args: argparse.Namespace) -> int:
             print("LOS (camera):      " + " ".join(f"{v:.9f}" for v in meas.los_camera))
         if meas.range_km is not None:
             print(f"range:             {meas.range_km:.3f} km")
+        if spice is not None:
+            d = spice["measured_minus_predicted"]
+            print(f"measured - SPICE:  {d['delta_rc_px'][0]:.3f} {d['delta_rc_px'][1]:.3f} px "
+                  f"({d['angle_urad']:.1f} urad)")
         print(f"k {meas.k:.4f}, ymax {meas.ymax:.2f}, ymin {meas.ymin:.2f}; {meas.n_pixels} px, "
               f"{meas.iterations} iterations ({meas.solver}, {meas.front_end} front end)")
     return report_after_result(figure_error)

@@ -179,10 +179,16 @@ class Hints:
         return cls.from_dict(read_json_file(path, "hints file"))
 
     def radius_km(self) -> float | None:
-        """Nominal limb radius (km): mean of ``body_radii_km`` (or the named body's) plus ``atmosphere_km``."""
+        """Nominal limb radius (km): mean of ``body_radii_km`` (or the named body's: DESIGN.md's Moon and
+        Earth, else :data:`jaxlimb.geometry.bodies.BODY_TABLE`) plus ``atmosphere_km``."""
         radii = self.body_radii_km
         if radii is None and self.body is not None:
             radii = BODY_RADII_KM.get(self.body)
+        if radii is None and self.body is not None:
+            from ..geometry.bodies import BODY_TABLE
+
+            entry = BODY_TABLE.get(self.body)
+            radii = entry.radii_km if entry is not None else None
         if radii is None:
             return None
         return float(np.mean(radii)) + float(self.atmosphere_km or 0.0)
