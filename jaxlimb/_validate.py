@@ -59,10 +59,15 @@ class Range:
         if self.lo is None and self.hi is None:
             return ""
         if self.hi is None:
-            return f"{'>' if self.lo_open else '>='} {self.lo:g}"
+            return f"{'>' if self.lo_open else '>='} {_fmt(self.lo)}"
         if self.lo is None:
-            return f"{'<' if self.hi_open else '<='} {self.hi:g}"
-        return f"in {'(' if self.lo_open else '['}{self.lo:g}, {self.hi:g}{')' if self.hi_open else ']'}"
+            return f"{'<' if self.hi_open else '<='} {_fmt(self.hi)}"
+        return f"in {'(' if self.lo_open else '['}{_fmt(self.lo)}, {_fmt(self.hi)}{')' if self.hi_open else ']'}"
+
+
+def _fmt(x: float) -> str:
+    """``4294967295`` rather than ``4.29497e+09``; ``0.5``, ``1e-09`` as ``%g``."""
+    return str(int(x)) if float(x).is_integer() and abs(x) < 1e16 else f"{x:g}"
 
 
 #: Extensions a figure may be saved with (matplotlib back ends available offline).

@@ -10,6 +10,7 @@ and the RMS error, bias and RMS/CRLB of every free parameter are reported.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
@@ -66,6 +67,16 @@ class ModelStudyOptions:
         number(self.seed, "`seed`", Range(0, 2**32 - 1), integer=True, error=LimbInputError)
 
 
+def estimated_nbytes(opt: ModelStudyOptions) -> float:
+    """Peak memory (bytes) of :func:`run_model_study`: the pixel grid of :func:`model_problem`
+    (about six float64 images) and one batch of fits (data, residuals and the Jacobian of the
+    ``2 pi radius x 2 annulus`` band pixels, for every realisation of the batch)."""
+    rows, cols = opt.shape
+    n_pix = 2.0 * math.pi * opt.radius * 2.0 * opt.annulus
+    n_par = 8 if opt.model == "ellipse" else 6
+    return 8.0 * (6.0 * rows * cols + opt.batch * n_pix * (n_par + 6))
+
+
 def model_problem(opt: ModelStudyOptions) -> tuple[LimbModel, LimbParams, LimbParams, np.ndarray, tuple[str, ...]]:
     """The study's problem: ``(model, truth, init, coords, fixed)``.
 
@@ -101,6 +112,10 @@ def model_problem(opt: ModelStudyOptions) -> tuple[LimbModel, LimbParams, LimbPa
 def run_model_study(opt: ModelStudyOptions, solver: AbstractLimbSolver | None = None,
                     progress: bool = False) -> dict[str, object]:
     """Run the study; returns the dictionary printed by ``jaxlimb montecarlo --json``."""
+    from .._validate import check_memory
+
+    check_memory(estimated_nbytes(opt), f"a {opt.shape[0]}x{opt.shape[1]} study of radius {opt.radius:g} px "
+                 f"in batches of {opt.batch}")
     solver = NormalLM() if solver is None else solver
     model, truth, init, coords, fixed = model_problem(opt)
     clean = np.asarray(model.intensity(truth, jnp.asarray(coords)))

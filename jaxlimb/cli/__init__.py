@@ -52,7 +52,7 @@ class _Parser(argparse.ArgumentParser):
         if _STATE["json"]:
             print(json.dumps({"status": "error", "check": "bad_arguments", "message": message}))
         else:
-            print(f"{self.prog}: error: {message}", file=sys.stderr)
+            print(f"jaxlimb: error: {message} (see `{self.prog} --help`)", file=sys.stderr)
         raise SystemExit(2)
 
 

@@ -4,6 +4,17 @@ from __future__ import annotations
 
 import argparse
 
+from .._validate import Range, arg_number
+
+#: Argument ranges (exit 2 outside them); memory is estimated before allocating too.
+RANGES = {"radius": Range(5.0, 5000.0), "sigma": Range(0.0, 1e6, lo_open=True), "n": Range(2, 10_000_000),
+          "seed": Range(0, 2**32 - 1), "k": Range(0.0, 1e3, lo_open=True), "annulus": Range(0.0, 1000.0, lo_open=True),
+          "batch": Range(1, 100_000)}
+
+
+def _num(name: str, integer: bool = False):  # noqa: ANN202
+    return arg_number(RANGES[name], integer=integer)
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     from ..fitting import SOLVERS
@@ -15,15 +26,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         "around the limb, fit N noise realisations and compare the RMS error with the Cramér-Rao bound.",
     )
     p.add_argument("--model", choices=["circle", "ellipse"], default="circle")
-    p.add_argument("--radius", type=float, default=150.0, help="radius / semi-axis a in px (default 150)")
-    p.add_argument("--sigma", type=float, default=10.0, help="Gaussian noise in DN (default 10)")
-    p.add_argument("--n", type=int, default=1000, help="realisations (default 1000)")
+    p.add_argument("--radius", type=_num("radius"), default=150.0, help="radius / semi-axis a in px (default 150)")
+    p.add_argument("--sigma", type=_num("sigma"), default=10.0, help="Gaussian noise in DN (default 10)")
+    p.add_argument("--n", type=_num("n", True), default=1000, help="realisations (default 1000)")
     p.add_argument("--solver", choices=sorted(SOLVERS), default="lm")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--k", type=float, default=3.0, help="sigmoid steepness (default 3)")
-    p.add_argument("--annulus", type=float, default=6.0, help="half-width of the pixel band, px (default 6)")
+    p.add_argument("--seed", type=_num("seed", True), default=0)
+    p.add_argument("--k", type=_num("k"), default=3.0, help="sigmoid steepness (default 3)")
+    p.add_argument("--annulus", type=_num("annulus"), default=6.0, help="half-width of the pixel band, px (default 6)")
     p.add_argument("--fix", default="", help="comma-separated parameters held at truth, e.g. k,ymax,ymin")
-    p.add_argument("--batch", type=int, default=250, help="realisations per compiled batch (default 250)")
+    p.add_argument("--batch", type=_num("batch", True), default=250, help="realisations per compiled batch (default 250)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
@@ -41,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     )
     res = run_model_study(opt, solver_from_name(args.solver), progress=not args.json)
     if args.json:
-        emit_json(res)
+        emit_json({"status": "ok", **res})
     else:
         print(f"{res['converged']}/{res['n']} converged, {res['n_pixels']} pixels, solver {res['solver']}, "
               f"wall {res['wall_s']:.2f} s (fits {res['fit_s']:.2f} s)")
