@@ -57,11 +57,15 @@ def read_json_file(path: str | os.PathLike[str], what: str) -> Any:
     """
     from .errors import ConfigError
 
-    p = Path(path)
+    from ._validate import input_file
+
+    p = input_file(path, what, error=ConfigError)  # a directory is a directory, not "missing"
     try:
-        text = p.read_text()
+        text = p.read_text(encoding="utf-8")
     except OSError as e:
         raise ConfigError(f"cannot read {what} {str(p)!r}: {e.strerror or e}") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{what} {str(p)!r} is not valid JSON: it is not UTF-8 text (a binary file?)") from None
     try:
         return json.loads(text)
     except json.JSONDecodeError as e:

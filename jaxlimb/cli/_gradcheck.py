@@ -8,6 +8,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 
 from .._validate import Range, arg_number
 
@@ -41,8 +42,8 @@ def run(args: argparse.Namespace) -> int:
     from . import emit_json
 
     checks = run_gradcheck(n_points=args.n_points, seed=args.seed)
-    worst = max(checks, key=lambda c: c.max_rel_err)
-    ok = worst.max_rel_err <= args.tol  # NaN errors fail too
+    worst = max(checks, key=lambda c: (math.isnan(c.max_rel_err), c.max_rel_err))  # a NaN error is the worst
+    ok = worst.max_rel_err <= args.tol  # False for NaN: never a pass
     message = f"{worst.model}.{worst.param}: max_rel_err {worst.max_rel_err:.3e} > --tol {args.tol:g}"
     if args.json:
         head = {"status": "ok"} if ok else {"status": "error", "check": GradientMismatchError.check, "message": message}
