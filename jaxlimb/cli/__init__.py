@@ -176,7 +176,13 @@ def _stdout_closed() -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``jaxlimb`` command; returns the exit code."""
+    """Entry point of the ``jaxlimb`` command; returns the exit code.
+
+    JAX is imported only after the arguments are parsed (``jaxlimb --help`` does not pay for
+    it); the persistent compilation cache is switched on before the first compilation
+    (:mod:`jaxlimb._jaxcache`: ``JAXLIMB_CACHE_DIR``, ``off`` to disable).  A closed stdout
+    ends the command quietly (exit 141).
+    """
     _quiet_opencv()
     try:
         code = _main(argv)
@@ -187,9 +193,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _main(argv: Sequence[str] | None) -> int:
-    import jax
-
-    jax.config.update("jax_enable_x64", True)
     from ..errors import JaxlimbError
 
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -197,6 +200,7 @@ def _main(argv: Sequence[str] | None) -> int:
     _STATE["json"] = want_json
     try:
         args = build_parser().parse_args(argv)
+        _start_jax()
         with warnings.catch_warnings():
             warnings.simplefilter("default")
             warnings.showwarning = _one_line_warning
@@ -216,6 +220,15 @@ def _main(argv: Sequence[str] | None) -> int:
             raise
         _report(want_json, "internal_error", f"{type(e).__name__}: {e}")
         return 1
+
+
+def _start_jax() -> None:
+    import jax
+
+    from .._jaxcache import enable_compile_cache
+
+    jax.config.update("jax_enable_x64", True)
+    enable_compile_cache()
 
 
 def _report(want_json: bool, check: str, message: str) -> None:

@@ -6,7 +6,7 @@ import argparse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from ..fitting import SOLVERS
+    from .._solver_names import SOLVER_NAMES
 
     p = sub.add_parser(
         "locate",
@@ -33,7 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--front-end", choices=("gradient", "scanline"), default="gradient", dest="front_end",
                    help="candidate-limb front end (default gradient)")
     p.add_argument("--model", choices=("circle", "ellipse"), default="circle", help="limb model (default circle)")
-    p.add_argument("--solver", choices=sorted(SOLVERS), default="lm", help="least-squares solver (default lm)")
+    p.add_argument("--solver", choices=sorted(SOLVER_NAMES), default="lm", help="least-squares solver (default lm)")
     p.add_argument("--fixed-k", action="store_true",
                    help="hold k = 3 and ymax/ymin at the annulus edge means (illuminated-ellipsoid paper, Table 1)")
     p.add_argument("--profile", choices=("auto", "sigmoid", "lunar-lambert", "limb-darkened"), default="auto",

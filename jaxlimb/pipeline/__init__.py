@@ -10,8 +10,9 @@ Public API::
     checks: CenterOutOfFieldError, check_jump, check_radius_prior, check_size, check_center_in_field
     refinement: select_annulus, annulus_halfwidth, lit_halfangle, fit_circle_annulus, fit_sphere_annulus
     sphere image: SphereImage, sphere_from_ellipse_center, sphere_from_circle_fit
-    physical limb profile: LIMB_PROFILE, LimbProfileParams, limb_profile_intensity
-    the Sun's limb-darkened disc: LIMB_DARKENED, LimbDarkenedParams, fit_limb_darkened, SunLimbFit
+    physical limb profile: sphere_from_circle_fit (the models LIMB_PROFILE, LIMB_DARKENED, ELLIPSE_RAMP
+        live in jaxlimb.models and are re-exported here for older imports)
+    the Sun's limb-darkened disc: fit_limb_darkened, SunLimbFit
 """
 
 from .checks import (
@@ -35,18 +36,15 @@ from .refine import (
     lit_halfangle as lit_halfangle,
     select_annulus as select_annulus,
 )
-from .profile import (
+from ..models import (
+    LIMB_DARKENED as LIMB_DARKENED,
     LIMB_PROFILE as LIMB_PROFILE,
+    LimbDarkenedParams as LimbDarkenedParams,
     LimbProfileParams as LimbProfileParams,
     limb_profile_intensity as limb_profile_intensity,
-    sphere_from_circle_fit as sphere_from_circle_fit,
 )
-from .sun_profile import (
-    LIMB_DARKENED as LIMB_DARKENED,
-    LimbDarkenedParams as LimbDarkenedParams,
-    SunLimbFit as SunLimbFit,
-    fit_limb_darkened as fit_limb_darkened,
-)
+from .profile import sphere_from_circle_fit as sphere_from_circle_fit
+from .sun_profile import SunLimbFit as SunLimbFit, fit_limb_darkened as fit_limb_darkened
 from .result import EllipseResult as EllipseResult, LimbMeasurement as LimbMeasurement
 from .sphere import SphereImage as SphereImage, sphere_from_ellipse_center as sphere_from_ellipse_center
 

@@ -118,7 +118,6 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 from jaxtyping import ArrayLike
@@ -133,9 +132,9 @@ from ..geometry.earth import (
 )
 from ..geometry.ellipsoid import check_rotation, ellipse_to_conic, image_conic
 from ..imaging import Hints, front_end as run_front_end, sun_direction_image
-from ..models import LimbModel, LimbParams
-from ..models.sigmoid import ellipse_coords
-from .profile import LIMB_PROFILE, PROFILE_FIXED, LimbProfileParams, l_band, limb_profile_intensity, lunar_lambert_weight
+from ..models.ellipse_ramp import ELLIPSE_RAMP, EllipseRampParams, ellipse_ramp_intensity
+from ..models.lunar_lambert import LIMB_PROFILE, PROFILE_FIXED, LimbProfileParams, limb_profile_intensity, lunar_lambert_weight
+from .profile import l_band
 from .result import EllipseResult, LimbMeasurement
 
 __all__ = [
@@ -148,155 +147,6 @@ __all__ = [
     "image_ellipse_cone",
     "locate_earth",
 ]
-
-
-# =============================================================================== ramp model
-class EllipseRampParams(LimbParams):
-    """Parameters of :func:`ellipse_ramp_intensity`: those of the ESF plus the interior slope ``g``.
-
-    Attributes
-    ----------
-    r0, c0, a, theta, rho, k, ymax, ymin
-        As :class:`jaxlimb.models.EllipseParams` (Sec. V-C).
-    g
-        Slope of the body's brightness just inside the limb (grey levels per px of depth).
-    g2
-        Coefficient of the square root of the depth (grey levels per px^1/2).
-    h1, h2, h3, h4
-        Variation of the inside level along the limb: ``ymax + h1 cos(phi) + h2 sin(phi) +
-        h3 cos(2 phi) + h4 sin(2 phi)``, ``phi`` the polar angle in the ellipse frame.
-    """
-
-    r0: ArrayLike
-    c0: ArrayLike
-    a: ArrayLike
-    theta: ArrayLike
-    rho: ArrayLike
-    k: ArrayLike
-    ymax: ArrayLike
-    ymin: ArrayLike
-    g: ArrayLike
-    g2: ArrayLike
-    h1: ArrayLike
-    h2: ArrayLike
-    h3: ArrayLike
-    h4: ArrayLike
-
-
-def ellipse_ramp_intensity(p: EllipseRampParams, rc):
-    r"""Elliptical edge model (Sec. V-C) of a limb whose inside brightness varies.
-
-    .. math:: f = y_{\min} + (T(\varphi) - y_{\min})\,\Phi(k u)
-              + g\,[u\,\Phi(k u) + \phi(k u)/k] + g_2\,k^{-1/2} B_1(k u),
-              \qquad u = \rho a - \beta,\ \beta = \sqrt{\rho^2 x^2 + y^2}
-
-    with ``(x, y)`` of :func:`jaxlimb.models.ellipse_coords`, ``u`` ~ depth inside the limb (px),
-    ``\Phi``, ``\phi`` the normal CDF and density,
-    ``T(\varphi) = y_{\max} + h_1\cos\varphi + h_2\sin\varphi + h_3\cos 2\varphi + h_4\sin 2\varphi``
-    (``\varphi`` = polar angle of the pixel in the ellipse frame) and
-    ``B_1(x) = \int_0^\infty \sqrt{t}\,\phi(x - t)\,dt`` (:func:`_blurred_sqrt`).
-
-    Derivation.  The paper's ESF is a step ``H(u)`` blurred by a kernel whose CDF is the
-    logistic ``S(k u)``.  Two properties of a lit limb are not in it, and both move the fitted
-    50 % level off the limb (measured on gibbous renders with a 1 px Gaussian PSF, along the Sun
-    direction: 0.2-0.4 px for Lommel-Seeliger, 2-4 px for Lambert):
-
-    * the brightness just inside the limb varies with depth.  Near the limb the emission cosine
-      is ``\mu \approx \sqrt{2u/r}`` (``r`` the radius in px), and every photometric law is
-      smooth in ``\mu`` and ``\mu_0`` (``\mu_0`` changes by ``\cos\alpha\,\mu`` at phase ``\alpha``):
-      Lommel-Seeliger ``2\mu_0/(\mu_0+\mu) \approx 2 - 2\mu/\mu_0`` (limb brightening),
-      Lambert ``\mu_0`` (limb darkening).  So the profile is
-      ``H(u)\,(T + g_2\sqrt{u} + g u + \ldots)``.  Blurring by a Gaussian of sigma ``1/k``:
-      since ``d^2 (u H(u))/du^2 = \delta(u)``, the linear term gives
-      ``\int_{-\infty}^{u}\Phi(k\,.) = u\,\Phi(k u) + \phi(k u)/k``; the square-root term gives
-      ``\int_0^\infty \sqrt{t}\,k\phi(k(u - t))\,dt = k^{-1/2} B_1(k u)`` (substitute ``t \to t/k``);
-    * the level at the limb changes along a partial lit limb (it follows the incidence angle:
-      from ~0.9 to ~0.4 of the peak between the arc's middle and 80 deg off it for Lambert at
-      40 deg phase), and a single ``y_max`` puts the 50 % points of the dim parts inward: hence
-      the Fourier series ``T(\varphi)``.
-
-    The kernel is the Gaussian (the optics' PSF; ``1/k`` its sigma) rather than the logistic:
-    with the profile terms free, the logistic's shape mismatch to a Gaussian-blurred step is
-    absorbed by ``g`` and biases the edge (0.015 % in range on a flat disk at 380 000 km).
-    ``g = g_2 = h_i = 0`` is the paper's ESF with a Gaussian kernel.  Measured effect
-    (``tests``, ``benchmarks/horizon_vs_sigmoid.py``): at 380 000 km and 40 deg phase the
-    centre error drops from 0.42 to 0.06 px (Lommel-Seeliger) and from 4.4 to 0.02 px
-    (Lambert).  The Jacobian is obtained by forward-mode autodiff (``jax.jacfwd``).
-    """
-    x, y = ellipse_coords(p, rc)
-    sq = p.rho**2 * x * x + y * y
-    beta = jnp.sqrt(jnp.where(sq > 0, sq, 1.0))
-    u = p.rho * p.a - beta
-    rr = jnp.sqrt(jnp.where(x * x + y * y > 0, x * x + y * y, 1.0))
-    c, s = x / rr, y / rr
-    top = p.ymax + p.h1 * c + p.h2 * s + p.h3 * (c * c - s * s) + p.h4 * (2.0 * c * s)
-    t = p.k * u
-    cdf = jax.scipy.special.ndtr(t)
-    pdf = jnp.exp(-0.5 * t * t) / math.sqrt(2.0 * math.pi)
-    return p.ymin + (top - p.ymin) * cdf + p.g * (u * cdf + pdf / p.k) + p.g2 * _blurred_sqrt(t) / jnp.sqrt(p.k)
-
-
-_SQRT_X0, _SQRT_H, _SQRT_N = -10.0, 0.01, 2601  # table of B1 on [-10, 16]
-
-
-def _sqrt_table() -> tuple[np.ndarray, np.ndarray]:
-    r"""``B_1(x) = \int_0^\infty \sqrt{t}\,\phi(x - t)\,dt`` and ``B_1'(x)`` on the grid.
-
-    With ``t = s^2``: ``B_1 = 2\int_0^\infty s^2 \phi(x - s^2) ds``, ``B_1' = \int_0^\infty \phi(x - s^2) ds``
-    (smooth integrands; trapezoid rule on 3000 nodes).
-    """
-    x = _SQRT_X0 + _SQRT_H * np.arange(_SQRT_N)
-    smax = math.sqrt(x[-1] + 12.0)
-    sg = np.linspace(0.0, smax, 3001)
-    ph = np.exp(-0.5 * (x[:, None] - sg[None, :] ** 2) ** 2) / math.sqrt(2 * math.pi)
-    B = 2.0 * np.trapezoid(sg**2 * ph, sg, axis=1)
-    dB = np.trapezoid(ph, sg, axis=1)
-    return B, dB
-
-
-_SQRT_TAB: list = []
-
-
-def _blurred_sqrt(x):
-    r"""``B_1(x)``: the unit-Gaussian blur of ``H(t)\sqrt{t}`` (cubic Hermite on a table; ``\sqrt{x}`` asymptote).
-
-    The blur with sigma ``1/k`` of ``H(u)\sqrt{u}`` is ``k^{-1/2} B_1(k u)`` (substitute ``t = k u``).
-    """
-    if not _SQRT_TAB:
-        B, dB = _sqrt_table()
-        _SQRT_TAB.extend([B, dB])  # numpy: embedded as constants in each trace
-    B, dB = (jnp.asarray(v) for v in _SQRT_TAB)
-    xc = jnp.clip(x, _SQRT_X0, _SQRT_X0 + _SQRT_H * (_SQRT_N - 1) - 1e-9)
-    f = (xc - _SQRT_X0) / _SQRT_H
-    i = jnp.clip(jnp.floor(f).astype(int), 0, _SQRT_N - 2)
-    t = f - i
-    t2, t3 = t * t, t * t * t
-    val = ((2 * t3 - 3 * t2 + 1) * B[i] + (t3 - 2 * t2 + t) * _SQRT_H * dB[i]
-           + (-2 * t3 + 3 * t2) * B[i + 1] + (t3 - t2) * _SQRT_H * dB[i + 1])
-    big = x > _SQRT_X0 + _SQRT_H * (_SQRT_N - 1) - 1e-9
-    xs = jnp.where(big, x, 16.0)
-    # E[sqrt(x + Z)] = sqrt(x) (1 - 1/(8 x^2) - 15/(128 x^4) - ...), Z ~ N(0, 1)
-    return jnp.where(big, jnp.sqrt(xs) * (1.0 - 1.0 / (8.0 * xs**2) - 15.0 / (128.0 * xs**4)), val)
-
-
-def _ramp_f(theta, rc):
-    return ellipse_ramp_intensity(EllipseRampParams.from_vector(theta), rc)
-
-
-_ramp_jacfwd = jax.jacfwd(_ramp_f, argnums=0)
-
-
-def _ramp_jac(p: EllipseRampParams, rc):
-    return _ramp_jacfwd(p.to_vector(), rc)
-
-
-def _ramp_cols(p: EllipseRampParams, rc):
-    J = _ramp_jac(p, rc)
-    return tuple(J[:, i] for i in range(J.shape[1]))
-
-
-ELLIPSE_RAMP = LimbModel("ellipse_ramp", EllipseRampParams, ellipse_ramp_intensity, _ramp_jac, _ramp_cols)
-"""Elliptical edge model with an interior ramp and a varying level (:func:`ellipse_ramp_intensity`)."""
 
 
 # =============================================================================== options

@@ -158,7 +158,7 @@ def test_blurred_sqrt_matches_quadrature():
     from scipy.integrate import quad
     from scipy.stats import norm
 
-    from jaxlimb.pipeline.earth import _blurred_sqrt
+    from jaxlimb.models.ellipse_ramp import _blurred_sqrt
 
     xs = np.array([-4.0, -1.0, 0.0, 0.37, 2.5, 9.0, 15.99, 16.01, 40.0])
     got = np.asarray(_blurred_sqrt(xs))
@@ -171,7 +171,7 @@ def test_edge_model_is_exact_blur_of_profile():
     from scipy.integrate import quad
     from scipy.stats import norm
 
-    from jaxlimb.pipeline.earth import EllipseRampParams, ellipse_ramp_intensity
+    from jaxlimb.models import EllipseRampParams, ellipse_ramp_intensity
 
     k, T, ymin, g, g2 = 0.9, 1000.0, 50.0, -30.0, 80.0
     p = EllipseRampParams(r0=0.0, c0=0.0, a=100.0, theta=0.0, rho=1.0, k=k, ymax=T, ymin=ymin, g=g, g2=g2,
