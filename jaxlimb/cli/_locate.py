@@ -16,8 +16,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "the covariance and, with a camera, the line of sight and the range.  Exit 0 on success, 2 for "
         "unusable input, 3 when a check fails.",
     )
-    p.add_argument("image", metavar="IMAGE",
-                   help="image file: VICAR, PDS3 (.IMG/.LBL), PDS4 (.xml), FITS, PNG, TIFF, JPEG, JPEG 2000")
+    p.add_argument("image", metavar="IMAGE", nargs="+",
+                   help="image file: VICAR, PDS3 (.IMG/.LBL), PDS4 (.xml), FITS, PNG, TIFF, JPEG, JPEG 2000; "
+                   "several files, a directory, a quoted glob or @LIST.txt: one JSON line per frame (see --out)")
     p.add_argument("--camera", metavar="CAMERA.json",
                    help='camera file {"focal_length_mm", "pixel_pitch_mm", "rows", "cols", "principal_point_rc"}')
     p.add_argument("--hints", metavar="HINTS.json", help="navigation prior (DESIGN.md hints; every key optional)")
@@ -43,6 +44,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "lunar-lambert or limb-darkened")
     p.add_argument("--figure", metavar="PATH", help="also save a picture of the fit (PNG/PDF)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    from ._batch import add_batch_arguments
+
+    add_batch_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -106,19 +110,55 @@ def _spice_report(geom, meas) -> dict:
     return out
 
 
+def _read(path: str):
+    from ..imaging import ColourImageWarning
+    from ..imaging.formats import read_frame
+    from . import warnings_to_stderr
+
+    with warnings_to_stderr(ColourImageWarning):
+        return read_frame(path)
+
+
+def _json(meas, spice) -> dict:
+    out = meas.to_json()
+    if spice is not None:
+        out["spice"] = spice
+    return out
+
+
 def run(args: argparse.Namespace) -> int:
+    from . import _batch
+
+    images = list(args.image)
+    if _batch.is_many(images, args):  # many frames: JSON Lines, one per frame (cli/_batch.py)
+        if args.figure:
+            from ..errors import ConfigError
+
+            raise ConfigError("--figure saves one frame's picture: not with many frames")
+        return _batch.run_frames(images, args, _read, lambda path, frame: _json(*_measure(args, frame)[:2]))
+    from . import figure_path, report_after_result, try_save
+
+    args.image = images[0]
+    figure_path(args.figure, "--figure")  # before any work
+    meas, spice, image = _measure(args, _read(args.image))
+    figure_error = None
+    if args.figure:  # after the work: a failing writer must not lose the measurement
+        from ..pipeline import save_locate_figure
+
+        figure_error = try_save(lambda: save_locate_figure(image, meas, args.figure), "--figure")
+    _print(args, meas, spice, figure_error)
+    return report_after_result(figure_error)
+
+
+def _measure(args: argparse.Namespace, frame):
+    """``(measurement, SPICE report or None, image)`` of one frame."""
     import importlib
 
     from ..errors import ConfigError
     from ..geometry.camera import Camera
-    from ..imaging import ColourImageWarning
-    from ..imaging.formats import read_frame
     from ..pipeline import LocateOptions, locate
-    from . import emit_json, figure_path, report_after_result, try_save, warnings_to_stderr
+    from . import warnings_to_stderr
 
-    figure_path(args.figure, "--figure")  # before any work
-    with warnings_to_stderr(ColourImageWarning):
-        frame = read_frame(args.image)
     image = frame.data
     geom = _spice(args, frame.meta)
     camera = Camera.from_json(args.camera) if args.camera is not None else (geom.camera if geom else None)
@@ -139,19 +179,14 @@ def run(args: argparse.Namespace) -> int:
 
         with warnings_to_stderr(SaturationWarning):
             meas = locate(image, camera, hints, options)
-    figure_error = None
-    if args.figure:
-        from ..pipeline import save_locate_figure
+    return meas, (_spice_report(geom, meas) if geom is not None else None), image
 
-        figure_error = try_save(lambda: save_locate_figure(image, meas, args.figure), "--figure")
-    spice = _spice_report(geom, meas) if geom is not None else None
+
+def _print(args: argparse.Namespace, meas, spice, figure_error: str | None = None) -> None:
+    from . import emit_json
+
     if args.json:
-        out = meas.to_json()
-        if spice is not None:
-            out["spice"] = spice
-        if figure_error:
-            out["figure_error"] = figure_error
-        emit_json(out)
+        emit_json({**_json(meas, spice), **({"figure_error": figure_error} if figure_error else {})})
     else:
         print(f"centre (row, col): {meas.center_rc[0]:.4f} {meas.center_rc[1]:.4f} px")
         if meas.radius_px is not None:
@@ -173,4 +208,3 @@ def run(args: argparse.Namespace) -> int:
                   f"({d['angle_urad']:.1f} urad)")
         print(f"k {meas.k:.4f}, ymax {meas.ymax:.2f}, ymin {meas.ymin:.2f}; {meas.n_pixels} px, "
               f"{meas.iterations} iterations ({meas.solver}, {meas.front_end} front end)")
-    return report_after_result(figure_error)
