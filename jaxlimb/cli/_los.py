@@ -123,13 +123,10 @@ def run_build(args: argparse.Namespace) -> int:
 
 
 def _read_image(path: str) -> np.ndarray:
-    """The frame as float64; an all-black (constant) frame is a frame without a body (exit 3, as `locate`)."""
-    from ..errors import NoBodyError
+    """The frame as float64 (a constant frame is read: it is a frame without a body, exit 3 as for `locate`)."""
     from ..imaging.io import load_image
 
     img, _ = load_image(path, reject_constant=False)
-    if float(img.max()) == float(img.min()):
-        raise NoBodyError(f"image {path!r} is constant (every pixel = {float(img.min()):g}): no body")
     return img
 
 
@@ -234,6 +231,10 @@ def _locate_one(args: argparse.Namespace, path: str, image: np.ndarray, memo: di
     camera, hints = memo["camera"], memo["hints"]
     if image.shape != camera.shape:
         raise ImageContentError(f"image {path!r} has shape {image.shape}, the camera expects {camera.shape}")
+    if float(image.max()) == float(image.min()):  # before any database load or build
+        from ..errors import NoBodyError
+
+        raise NoBodyError(f"image {path!r} is constant (every pixel = {float(image.min()):g}): no body")
     if "db" not in memo:
         if args.db is not None:
             memo["db"] = load_database(args.db)
