@@ -178,7 +178,7 @@ def _measure(args: argparse.Namespace, frame):
         from ..errors import SaturationWarning
 
         with warnings_to_stderr(SaturationWarning):
-            meas = locate(image, camera, hints, options)
+            meas = locate(image, camera, hints, options, mask=frame.mask_or_none)
     return meas, (_spice_report(geom, meas) if geom is not None else None), image
 
 
