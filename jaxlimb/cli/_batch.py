@@ -53,7 +53,9 @@ def add_batch_arguments(p: argparse.ArgumentParser) -> None:
                    help="many frames: append one JSON line per frame to FILE (default: stdout)")
     p.add_argument("--resume", action="store_true",
                    help="many frames: skip the frames --out FILE already holds (continue an interrupted run)")
-    p.add_argument("--workers", type=int, default=None,
+    from .._validate import Range, arg_number
+
+    p.add_argument("--workers", type=arg_number(Range(1, 1024), integer=True), default=None,
                    help="many frames: measure chunks of frames on a Dask LocalCluster of N worker processes")
     p.add_argument("--scheduler", metavar="ADDRESS", default=None,
                    help="many frames: measure chunks of frames on a running Dask cluster (e.g. tcp://node:8786)")

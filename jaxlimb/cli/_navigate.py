@@ -40,6 +40,10 @@ from typing import Any
 
 import numpy as np
 
+from .._validate import Range, arg_number
+
+_ATT_SIGMA = Range(0.0, 648_000.0)  # arcsec: 0 to 180 deg
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -58,8 +62,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    '(scalar-last default) or {"C_ci": 3x3} (inertial -> camera)')
     p.add_argument("--body", choices=("moon", "earth"), default=None, help="the body (default: the hints' body, else moon)")
     p.add_argument("--hints", metavar="HINTS.json", help="navigation prior (DESIGN.md hints)")
-    p.add_argument("--attitude-sigma-arcsec", type=float, default=0.0, dest="attitude_sigma_arcsec",
-                   help="per-axis 1-sigma attitude error added to the covariance (arcsec, default 0)")
+    p.add_argument("--attitude-sigma-arcsec", type=arg_number(_ATT_SIGMA), default=0.0, dest="attitude_sigma_arcsec",
+                   help=f"per-axis 1-sigma attitude error added to the covariance, arcsec {_ATT_SIGMA} (default 0)")
     p.add_argument("--ephemeris", metavar="BSP", default=None,
                    help="JPL kernel (.bsp) or its directory (default: DE421 from skyfield-data)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
@@ -256,8 +260,6 @@ def _run(args: argparse.Namespace) -> int:
     from . import emit_json, warnings_to_stderr
     from ._locate import _read_hints
 
-    if not (math.isfinite(args.attitude_sigma_arcsec) and args.attitude_sigma_arcsec >= 0):
-        raise ConfigError(f"--attitude-sigma-arcsec must be finite and >= 0, got {args.attitude_sigma_arcsec!r}")
     camera = Camera.from_json(args.camera)
     C_ci, att_kind = parse_attitude(args.attitude)
     # epoch: ISO string or a TDB Julian date; checked against the kernel span before any image work
