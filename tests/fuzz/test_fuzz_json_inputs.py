@@ -131,3 +131,24 @@ def test_camera_and_hints_files_that_are_not_json_objects(command, which, name, 
         hints = inputs[which] if role == "hints" else inputs["hints.json"]
         res = run_cli(_argv(command, inputs, cam, hints))
         assert_refused(res, 2, (role, str(inputs[which].name)), check="bad_config")
+
+
+_ATTITUDES = st.one_of(
+    _bad_vector(4).map(json.dumps),  # booleans, numeric strings, NaN, wrong length ...
+    st.tuples(st.sampled_from([[1, 0, 0], [0, 1, 0], [0, 0, 1]]), st.sampled_from([True, "1", None, [1]]))
+    .map(lambda t: json.dumps([t[0], [0, 1, 0], [0, 0, t[1]]])),
+    st.sampled_from(['{"quaternion": [0, 0, 0, 1], "order": 5}', '{"foo": 1}', '{"C_ci": "eye"}', "[", "{}",
+                     '[[1, 0], [0, 1]]', "[0, 0, 0, 2]", '{"q": [0, 0, 0, true]}']),
+)
+
+
+def test_hostile_attitude_exits_2_naming_it(inputs):
+    @FUZZ
+    @given(attitude=_ATTITUDES)
+    def case(attitude: str) -> None:
+        res = run_cli(["navigate", inputs["moon.png"], "--camera", inputs["camera.json"], "--epoch",
+                       "2026-01-01T00:00:00Z", "--attitude", attitude, "--json"])
+        obj = assert_refused(res, 2, ("attitude", "quaternion", "C_ci"))
+        assert obj["check"] in ("bad_config", "bad_attitude")
+
+    case()
