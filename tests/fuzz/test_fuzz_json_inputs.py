@@ -88,36 +88,25 @@ def _argv(command: str, f: dict, camera, hints) -> list:
 COMMANDS = ("locate", "los-locate", "posterior", "navigate")
 
 
+FILES = {"camera": (CAMERA, CAMERA_BAD, Camera.from_dict), "hints": (HINTS, HINTS_BAD, Hints.from_dict)}
+
+
+@pytest.mark.parametrize("role", sorted(FILES))
 @pytest.mark.parametrize("command", COMMANDS)
-def test_hostile_camera_file_exits_2_naming_the_key(command, inputs, tmp_path_factory):
-    path = tmp_path_factory.mktemp("cam") / "camera.json"
+def test_hostile_camera_or_hints_file_exits_2_naming_the_key(command, role, inputs, tmp_path_factory):
+    valid, bad, build = FILES[role]
+    path = tmp_path_factory.mktemp(role) / f"{role}.json"
 
     @FUZZ
-    @given(key_value=st.sampled_from(sorted(CAMERA_BAD)).flatmap(lambda k: st.tuples(st.just(k), CAMERA_BAD[k])))
+    @given(key_value=st.sampled_from(sorted(bad)).flatmap(lambda k: st.tuples(st.just(k), bad[k])))
     def case(key_value) -> None:
         key, value = key_value
-        path.write_text(json.dumps({**CAMERA, key: value}))
-        res = run_cli(_argv(command, inputs, path, inputs["hints.json"] if command != "navigate" else None))
-        assert_refused(res, 2, key, check="bad_config")
+        path.write_text(json.dumps({**valid, key: value}))
+        camera = path if role == "camera" else inputs["camera.json"]
+        hints = path if role == "hints" else (inputs["hints.json"] if command != "navigate" else None)
+        assert_refused(run_cli(_argv(command, inputs, camera, hints)), 2, key, check="bad_config")
         with pytest.raises(ConfigError, match=key):
-            Camera.from_dict({**CAMERA, key: value})
-
-    case()
-
-
-@pytest.mark.parametrize("command", COMMANDS)
-def test_hostile_hints_file_exits_2_naming_the_key(command, inputs, tmp_path_factory):
-    path = tmp_path_factory.mktemp("hints") / "hints.json"
-
-    @FUZZ
-    @given(key_value=st.sampled_from(sorted(HINTS_BAD)).flatmap(lambda k: st.tuples(st.just(k), HINTS_BAD[k])))
-    def case(key_value) -> None:
-        key, value = key_value
-        path.write_text(json.dumps({**HINTS, key: value}))
-        res = run_cli(_argv(command, inputs, inputs["camera.json"], path))
-        assert_refused(res, 2, key, check="bad_config")
-        with pytest.raises(ConfigError, match=key):
-            Hints.from_dict({**HINTS, key: value})
+            build({**valid, key: value})
 
     case()
 
