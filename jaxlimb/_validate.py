@@ -125,6 +125,21 @@ def matrix(value: Any, name: str, shape: tuple[int, int], *,
     return tuple(vector(row, f"{name}[{i}]", shape[1], error=error) for i, row in enumerate(value))
 
 
+def real_array(value: Any, name: str, *, error: type[LimbInputError] = ConfigError) -> np.ndarray:
+    """A (nested) list of finite real numbers -- no bools, no strings -- as a float array of any shape."""
+
+    def walk(v: Any, where: str) -> Any:
+        if isinstance(v, (list, tuple)):
+            return [walk(x, f"{where}[{i}]") for i, x in enumerate(v)]
+        return number(v, where, error=error)
+
+    out = walk(value.tolist() if isinstance(value, np.ndarray) else value, name)
+    try:
+        return np.asarray(out, dtype=float)
+    except ValueError:  # ragged
+        raise error(f"{name} must be a rectangular array of numbers, got {value!r}") from None
+
+
 def arg_number(rng: Range = ANY, *, integer: bool = False) -> Callable[[str], Any]:
     """An argparse ``type=`` for a CLI flag: a finite number (or integer) inside ``rng``.
 
@@ -289,5 +304,6 @@ __all__ = [
     "number",
     "output_dir",
     "output_file",
+    "real_array",
     "vector",
 ]

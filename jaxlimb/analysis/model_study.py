@@ -75,6 +75,12 @@ class ModelStudyOptions:
         number(self.n, "`n`", Range(2, None), integer=True, error=LimbInputError)
         number(self.batch, "`batch`", Range(1, None), integer=True, error=LimbInputError)
         number(self.seed, "`seed`", Range(0, 2**32 - 1), integer=True, error=LimbInputError)
+        names = (CIRCLE if self.model == "circle" else ELLIPSE).param_names
+        unknown = sorted(set(self.fixed) - set(names))
+        if unknown:
+            raise LimbInputError(f"`fixed` (--fix) names unknown parameters {unknown}; the {self.model} model has {list(names)}")
+        if not set(names) - set(self.fixed) - {"rho"}:
+            raise LimbInputError(f"`fixed` (--fix) holds every parameter of the {self.model} model: nothing to estimate")
 
 
 def estimated_nbytes(opt: ModelStudyOptions) -> float:

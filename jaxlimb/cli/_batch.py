@@ -63,6 +63,10 @@ def add_batch_arguments(p: argparse.ArgumentParser) -> None:
 
 def is_many(images: list[str], args: argparse.Namespace) -> bool:
     """Whether the call is a many-frame run (several images, a directory, a glob, @LIST, or --out)."""
+    if any(not s.strip() for s in images):  # Path("") is the current directory: never a frame by accident
+        from ..errors import ImageReadError
+
+        raise ImageReadError("IMAGE is an empty path")
     if len(images) != 1 or args.out is not None or args.resume or args.workers is not None or args.scheduler:
         return True
     spec = images[0]

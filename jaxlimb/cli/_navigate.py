@@ -35,7 +35,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -84,17 +83,17 @@ def parse_attitude(text: str) -> tuple[np.ndarray, str]:
     from ..errors import ConfigError
     from ..geometry.attitude import quat_to_dcm, validate_dcm
 
+    from .._io import read_json_file
+    from .._validate import real_array
+
     src = text.strip()
-    if not (src.startswith("{") or src.startswith("[")):
-        p = Path(src)
+    if src.startswith("{") or src.startswith("["):
         try:
-            src = p.read_text()
-        except OSError as e:
-            raise ConfigError(f"--attitude: cannot read attitude file {str(p)!r}: {e.strerror or e}") from None
-    try:
-        obj = json.loads(src)
-    except json.JSONDecodeError as e:
-        raise ConfigError(f"--attitude is not valid JSON: {e.msg} at line {e.lineno}") from None
+            obj = json.loads(src)
+        except json.JSONDecodeError as e:
+            raise ConfigError(f"--attitude is not valid JSON: {e.msg} at line {e.lineno}") from None
+    else:
+        obj = read_json_file(src, "--attitude file")
     order = "xyzw"
     if isinstance(obj, dict):
         keys = {k.lower(): k for k in obj}
@@ -113,10 +112,7 @@ def parse_attitude(text: str) -> tuple[np.ndarray, str]:
                     break
             else:
                 raise ConfigError(f"--attitude object needs a `quaternion` or a `C_ci` key, got keys {sorted(obj)}")
-    try:
-        a = np.asarray(obj, dtype=float)
-    except (TypeError, ValueError):
-        raise ConfigError(f"--attitude must hold numbers, got {obj!r}") from None
+    a = real_array(obj, "--attitude")  # numbers only: `true` or "0" is not a quaternion component
     if a.shape == (4,):
         return quat_to_dcm(a, order=order), f"quaternion ({order})"
     if a.shape == (3, 3):

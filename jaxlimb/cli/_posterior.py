@@ -69,9 +69,12 @@ def _load(path: str):  # noqa: ANN202
 
     if path.endswith(".npy"):
         try:
-            return np.asarray(np.load(path, allow_pickle=False), dtype=float)
+            a = np.load(path, allow_pickle=False)
         except (OSError, ValueError) as e:
             raise ImageReadError(f"cannot read IMAGE {path!r}: {e}") from None
+        if not (np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating) or a.dtype == np.bool_):
+            raise ImageReadError(f"IMAGE {path!r} must hold real numbers, got dtype {a.dtype}")
+        return np.asarray(a, dtype=float)
     image, _ = load_image(path, reject_constant=False)
     return image
 

@@ -158,3 +158,31 @@ def test_choice_flag_with_unknown_value_exits_2_naming_it(command, flag, choices
 def test_missing_or_unknown_arguments_exit_2(argv, inputs):
     res = run_cli([str(inputs[a[1:-1]]) if a.startswith("{") else a for a in argv])
     assert_refused(res, 2, check="bad_arguments")
+
+
+@pytest.mark.parametrize(("argv", "names"), [
+    (["montecarlo", "--fix", "foo", "--json"], "foo"),  # exited 0, ignoring the name
+    (["montecarlo", "--fix", "r0,c0,radius,k,ymax,ymin", "--json"], "--fix"),
+    (["montecarlo", "--model", "ellipse", "--fix", "r0,c0,a,theta,k,ymax,ymin", "--json"], "--fix"),
+    (["montecarlo", "--resume", "--json"], "--resume"),
+    (["posterior", "{moon.png}", "--fix", "bogus", "--json"], "--fix"),
+    (["posterior", "{moon.png}", "--noise", "known", "--json"], "--sigma"),
+    (["posterior", "{moon.png}", "--radius", "10", "--json"], "--center-rc"),
+    (["posterior", "{moon.png}", "--walkers", "5", "--center-rc", "60", "80", "--radius", "30", "--json"], "n_walkers"),
+    (["posterior", "{moon.png}", "--center-rc", "1e5", "1e5", "--radius", "5", "--json"], "circle"),
+    (["locate", "", "--json"], "IMAGE"),  # Path("") is the current directory: never a many-frame run
+    (["locate", "{moon.png}", "--body", "earth", "--json"], "--camera"),
+    (["locate", "{moon.png}", "--hints", "{hints.json}", "--body", "earth", "--json"], "--body"),
+])
+def test_argument_combinations_without_an_answer_exit_2(argv, names, inputs):
+    res = run_cli([str(inputs[a[1:-1]]) if a.startswith("{") else a for a in argv])
+    assert_refused(res, 2, names)
+
+
+def test_complex_npy_image_is_refused(inputs, tmp_path):
+    import numpy as np
+
+    path = tmp_path / "complex.npy"
+    np.save(path, np.ones((40, 40)) * (1 + 1j))
+    res = run_cli(["posterior", path, "--center-rc", "20", "20", "--radius", "10", "--json"])
+    assert_refused(res, 2, "complex", check="bad_image")

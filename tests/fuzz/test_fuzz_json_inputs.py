@@ -88,36 +88,25 @@ def _argv(command: str, f: dict, camera, hints) -> list:
 COMMANDS = ("locate", "los-locate", "posterior", "navigate")
 
 
+FILES = {"camera": (CAMERA, CAMERA_BAD, Camera.from_dict), "hints": (HINTS, HINTS_BAD, Hints.from_dict)}
+
+
+@pytest.mark.parametrize("role", sorted(FILES))
 @pytest.mark.parametrize("command", COMMANDS)
-def test_hostile_camera_file_exits_2_naming_the_key(command, inputs, tmp_path_factory):
-    path = tmp_path_factory.mktemp("cam") / "camera.json"
+def test_hostile_camera_or_hints_file_exits_2_naming_the_key(command, role, inputs, tmp_path_factory):
+    valid, bad, build = FILES[role]
+    path = tmp_path_factory.mktemp(role) / f"{role}.json"
 
     @FUZZ
-    @given(key_value=st.sampled_from(sorted(CAMERA_BAD)).flatmap(lambda k: st.tuples(st.just(k), CAMERA_BAD[k])))
+    @given(key_value=st.sampled_from(sorted(bad)).flatmap(lambda k: st.tuples(st.just(k), bad[k])))
     def case(key_value) -> None:
         key, value = key_value
-        path.write_text(json.dumps({**CAMERA, key: value}))
-        res = run_cli(_argv(command, inputs, path, inputs["hints.json"] if command != "navigate" else None))
-        assert_refused(res, 2, key, check="bad_config")
+        path.write_text(json.dumps({**valid, key: value}))
+        camera = path if role == "camera" else inputs["camera.json"]
+        hints = path if role == "hints" else (inputs["hints.json"] if command != "navigate" else None)
+        assert_refused(run_cli(_argv(command, inputs, camera, hints)), 2, key, check="bad_config")
         with pytest.raises(ConfigError, match=key):
-            Camera.from_dict({**CAMERA, key: value})
-
-    case()
-
-
-@pytest.mark.parametrize("command", COMMANDS)
-def test_hostile_hints_file_exits_2_naming_the_key(command, inputs, tmp_path_factory):
-    path = tmp_path_factory.mktemp("hints") / "hints.json"
-
-    @FUZZ
-    @given(key_value=st.sampled_from(sorted(HINTS_BAD)).flatmap(lambda k: st.tuples(st.just(k), HINTS_BAD[k])))
-    def case(key_value) -> None:
-        key, value = key_value
-        path.write_text(json.dumps({**HINTS, key: value}))
-        res = run_cli(_argv(command, inputs, inputs["camera.json"], path))
-        assert_refused(res, 2, key, check="bad_config")
-        with pytest.raises(ConfigError, match=key):
-            Hints.from_dict({**HINTS, key: value})
+            build({**valid, key: value})
 
     case()
 
@@ -131,3 +120,24 @@ def test_camera_and_hints_files_that_are_not_json_objects(command, which, name, 
         hints = inputs[which] if role == "hints" else inputs["hints.json"]
         res = run_cli(_argv(command, inputs, cam, hints))
         assert_refused(res, 2, (role, str(inputs[which].name)), check="bad_config")
+
+
+_ATTITUDES = st.one_of(
+    _bad_vector(4).map(json.dumps),  # booleans, numeric strings, NaN, wrong length ...
+    st.tuples(st.sampled_from([[1, 0, 0], [0, 1, 0], [0, 0, 1]]), st.sampled_from([True, "1", None, [1]]))
+    .map(lambda t: json.dumps([t[0], [0, 1, 0], [0, 0, t[1]]])),
+    st.sampled_from(['{"quaternion": [0, 0, 0, 1], "order": 5}', '{"foo": 1}', '{"C_ci": "eye"}', "[", "{}",
+                     '[[1, 0], [0, 1]]', "[0, 0, 0, 2]", '{"q": [0, 0, 0, true]}']),
+)
+
+
+def test_hostile_attitude_exits_2_naming_it(inputs):
+    @FUZZ
+    @given(attitude=_ATTITUDES)
+    def case(attitude: str) -> None:
+        res = run_cli(["navigate", inputs["moon.png"], "--camera", inputs["camera.json"], "--epoch",
+                       "2026-01-01T00:00:00Z", "--attitude", attitude, "--json"])
+        obj = assert_refused(res, 2, ("attitude", "quaternion", "C_ci"))
+        assert obj["check"] in ("bad_config", "bad_attitude")
+
+    case()
