@@ -133,7 +133,10 @@ def _program(model: LimbModel, free_idx: tuple[int, ...], solver: AbstractLimbSo
     Each member draws its noise from ``jax.random.key(seed)`` inside the program and is fitted
     by the solver's fit core (``jax.lax.map``, as :func:`jaxlimb.fitting.fit_batch`'s ``"map"``
     strategy); the pixel set, the clean intensities and the start are arguments shared by
-    every member (no per-member or per-batch copies of them).
+    every member (no per-member or per-batch copies of them).  With several local devices
+    (e.g. ``XLA_FLAGS=--xla_force_host_platform_device_count=2`` on a 2-core CPU, which
+    ``jaxlimb montecarlo`` sets), the seeds are split over them (``jax.shard_map``, each device
+    fits its share one after another); the answer does not depend on the split.
     """
 
     def run(seeds: Array, theta0: Array, coords: Array, w: Array, clean: Array) -> LimbFit:
@@ -143,7 +146,14 @@ def _program(model: LimbModel, free_idx: tuple[int, ...], solver: AbstractLimbSo
 
         return jax.lax.map(one, seeds)
 
-    return jax.jit(run)
+    devices = jax.local_devices()
+    if len(devices) == 1:
+        return jax.jit(run)
+    from jax.sharding import Mesh, PartitionSpec
+
+    mesh, rep = Mesh(np.array(devices), ("batch",)), PartitionSpec()
+    return jax.jit(jax.shard_map(run, mesh=mesh, in_specs=(PartitionSpec("batch"), rep, rep, rep, rep),
+                                 out_specs=PartitionSpec("batch"), check_vma=False))
 
 
 def _noisy(seeds: Array, clean: Array, sigma: float) -> Array:
@@ -176,11 +186,13 @@ def _batch_trial(opt: ModelStudyOptions, solver: AbstractLimbSolver, prob: _Prob
     program = _program(model, model.free_indices(prob.fixed), solver, opt.sigma) if solver.jittable else None
     cols = [model.param_names.index(nm) for nm in names]
 
+    width = -(-opt.batch // jax.local_device_count()) * jax.local_device_count()  # a multiple of the devices
+
     def trial(seeds: np.ndarray, indices: np.ndarray) -> dict[str, np.ndarray]:
         del indices
         b = seeds.size
         if program is not None:
-            full = np.concatenate([seeds, np.repeat(seeds[:1], opt.batch - b)]) if b < opt.batch else seeds
+            full = np.concatenate([seeds, np.repeat(seeds[:1], width - b)]) if b < width else seeds
             res = program(jnp.asarray(full, dtype=jnp.int64), *shared)  # one shape: one compiled program
             vec, conv, nst = (np.asarray(x)[:b] for x in (res.params.to_vector(), res.converged, res.n_steps))
         else:
