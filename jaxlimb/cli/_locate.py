@@ -107,9 +107,6 @@ def _spice_report(geom, meas) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
-    import importlib
-
-    from ..errors import ConfigError
     from ..geometry.camera import Camera
     from ..imaging import ColourImageWarning
     from ..imaging.formats import read_frame
@@ -125,19 +122,10 @@ def run(args: argparse.Namespace) -> int:
                         base=geom.hints() if geom else None)
     options = LocateOptions(front_end=args.front_end, model=args.model, solver=args.solver,
                             estimate_k=not args.fixed_k, profile=args.profile)
-    if hints.body == "earth":
-        try:
-            earth = importlib.import_module("jaxlimb.pipeline.earth")
-        except ImportError:
-            raise ConfigError("the Earth pipeline (jaxlimb.pipeline.earth) is unavailable in this installation") from None
-        if camera is None:
-            raise ConfigError("--body earth needs --camera (the Earth pipeline measures the range)")
-        meas = earth.locate_earth(image, camera, hints, options)
-    else:
-        from ..errors import SaturationWarning
+    from ..errors import SaturationWarning
 
-        with warnings_to_stderr(SaturationWarning):
-            meas = locate(image, camera, hints, options)
+    with warnings_to_stderr(SaturationWarning):
+        meas = locate(image, camera, hints, options)
     if args.figure:
         from ..pipeline import save_locate_figure
 

@@ -223,18 +223,13 @@ def navigate_measurement(
 
 
 def locate_body(body: str, image: np.ndarray, camera, hints) -> Any:
-    """The limb measurement: :func:`locate_earth` (Earth) or the Moon pipeline's ``locate``."""
-    if body == "earth":
-        from ..pipeline.earth import locate_earth
+    """The limb measurement: :func:`jaxlimb.pipeline.locate` (the hints' body picks the strategy: the
+    Earth's ellipsoid, the Moon's sphere)."""
+    from dataclasses import replace
 
-        return locate_earth(image, camera, hints, None)
-    try:
-        from ..pipeline.locate import locate
-    except ImportError:  # pragma: no cover - the Moon pipeline is part of the package
-        locate = None
-    if locate is not None:
-        return locate(image, camera, hints, None)
-    raise ImportError("jaxlimb.pipeline.locate is unavailable")  # pragma: no cover
+    from ..pipeline import locate
+
+    return locate(image, camera, replace(hints, body=body) if hints.body != body else hints, None)
 
 
 def run(args: argparse.Namespace) -> int:
