@@ -190,12 +190,9 @@ def navigate_measurement(
     names, fn = _measurement_map(body, camera, meas)
     x0 = np.array([meas.center_rc[0], meas.center_rc[1], meas.range_km if body == "earth" else meas.radius_px], float)
     P = np.array([[meas.covariance[a][b] for b in names] for a in names])
-    G = np.empty((3, 3))
-    for i, h in enumerate((1e-3, 1e-3, 1e-3 if body != "earth" else 1e-3 * max(1.0, x0[2] * 1e-6))):
-        xp, xm = x0.copy(), x0.copy()
-        xp[i] += h
-        xm[i] -= h
-        G[:, i] = (fn(xp) - fn(xm)) / (2 * h)
+    from ..analysis.crlb import numerical_jacobian
+
+    G = numerical_jacobian(fn, x0, np.array([1e-3, 1e-3, 1e-3 if body != "earth" else 1e-3 * max(1.0, x0[2] * 1e-6)]))
     r_om = fn(x0)
     D = float(np.linalg.norm(r_om))
     sol = navigate(r_body, C_ci, r_om / D, D, attitude_cov_rad2=attitude_sigma_rad if attitude_sigma_rad > 0 else None)

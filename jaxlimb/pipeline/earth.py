@@ -1,11 +1,11 @@
-r"""Earth pipeline: elliptical-sigmoid limb fit, centre offset and range iteration (§IV, Fig. 2).
+r"""The Earth (any spheroid): elliptical-sigmoid limb fit, centre offset and range iteration (§IV, Fig. 2).
 
 Mortari, D'Souza & Zanetti, "Image Processing of Illuminated Ellipsoid" (J. Spacecraft and
 Rockets 53(3), 2016, doi:10.2514/1.A33342), §III-IV and §V-C; the flowchart of Fig. 1 with the
 Earth branch of step 5 and the position loop of Fig. 2.
 
-Steps of :func:`locate_earth`
------------------------------
+Steps of the ellipsoid strategy of :func:`jaxlimb.pipeline.locate` (:mod:`jaxlimb.pipeline.ellipsoid`)
+-------------------------------------------------------------------------------------------------
 1. **Limb candidates.**  One of the two front ends of :mod:`jaxlimb.imaging` (default the
    gradient + box filter + RANSAC + Taubin one of the Aerospace 2015 paper): limb points of the
    *lit* limb, an initial circle and the lit direction.  The Earth is a circle to 0.34 %
@@ -108,7 +108,17 @@ the edge model's 50 % level is taken to lie at that height.  It is the *effectiv
 the limb in the image, not the top of the atmosphere: a rendered glow shell 100 km high (scale
 height 8 km, brightness 0.3 of the surface) moves the fitted limb up by only 0.3-1.6 km (range
 0.004-0.025 % short, ``benchmarks/results/earth_targets.json``, variant ``glow100``), whereas
-``atmosphere_km = 100`` would make the range 1.6 % long.  The glow is never taken as the limb.
+``atmosphere_km = 100`` would make the range 1.6 % long.  The glow is never taken as the limb: the
+pixels fitted are the band of ``band_px`` about the predicted limb ellipse on the lit arc (the
+limb-pixel stage, :meth:`jaxlimb.pipeline.ellipsoid.Ellipsoid.limb_pixels` and
+:func:`_band_pixels`), and the edge model puts the limb at the 50 % point of the bright-to-dark
+transition, below a faint glow.
+
+Choosing ``atmosphere_km`` for a real frame: the altitude of the edge you measure -- ``0`` for a
+clear limb over ocean or land, the cloud-top height where clouds make the limb (~2 km low stratus,
+5-8 km mid-level, 10-12 km tropical cirrus and anvils), for a haze-resolving imager the altitude
+where the haze has fallen to half the disc's edge brightness (calibrate once on frames of known
+range).  A 1 km error biases the range by 1/6378 (0.016 %), not the line of sight (README).
 """
 
 from __future__ import annotations

@@ -324,6 +324,7 @@ def ellipsoid_center(body: Ellipsoid, frame: Frame, final: RefineResult) -> Body
     fitted = _as_ellipse(P)
     p, info = position(body, cam, fitted, frame_position_start(final, body, cam, fitted))
     geo = ("r0", "c0", "a") + (("rho", "theta") if body.free else ())
+    outputs = ("center_r", "center_c", "range_km") + geo[2:]
 
     def g(x: np.ndarray) -> np.ndarray:
         q = P.replace(**dict(zip(geo, (float(v) for v in x))))
@@ -337,14 +338,14 @@ def ellipsoid_center(body: Ellipsoid, frame: Frame, final: RefineResult) -> Body
     model_cov, goff = None, 0.0
     if body.free:
         model_cov, goff = unsigned_offset_cov(cam, fitted, rng, body.equatorial_km, body.polar_km, body.atmosphere_km,
-                                              len(geo))
+                                              len(outputs))
     (c, (a, b), th) = fitted
     model = {"LimbProfileParams": "lunar_limb", "EllipseRampParams": "ellipse_ramp"}.get(type(P).__name__, "ellipse")
     extras = {"model": model, "ellipse_center_rc": list(c), "rho": b / a, "theta_rad": th, "gamma_off_rad": float(info["gamma_off_rad"]),
               "gamma_off_unsigned_model_rad": goff, "a_prime": info["a_prime"], "b_prime": info["b_prime"]}
     return BodyCenter(tuple(float(v) for v in cam.project(-p)), None,
                       EllipseResult(center_rc=c, semi_axes_px=(a, b), angle_rad=th), tuple(float(v) for v in -p / rng),
-                      rng, ("center_r", "center_c", "range_km") + geo[2:], geo, G, model_cov, extras)
+                      rng, outputs, geo, G, model_cov, extras)
 
 
 def frame_position_start(final: RefineResult, body: Ellipsoid, cam: Camera, fitted: tuple) -> np.ndarray:
