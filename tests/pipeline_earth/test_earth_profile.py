@@ -68,9 +68,9 @@ def test_profile_removes_limb_brightening_bias_at_40000km(earth_near):
     assert es @ np.linalg.solve(_center_cov(s), es) > 13.8
     assert abs(m.range_km - truth.range_km) < 4 * math.sqrt(m.covariance["range_km"]["range_km"])
     # the edge fit is kept for reference; the same pixels are refitted
-    assert m.extras["profile"]["edge_fit"]["range_km"] == pytest.approx(s.range_km, rel=1e-9)
+    assert m.extras["edge_fit"]["range_km"] == pytest.approx(s.range_km, rel=1e-9)
     assert m.n_pixels == s.n_pixels
-    assert len(m.extras["profile"]["fits"]) == 1 and m.extras["profile"]["fits"][0]["range_iterations"] <= 6
+    assert len(m.extras["profile_fits"]) == 1 and m.extras["profile_fits"][0]["range_iterations"] <= 6
     assert m.iterations > s.iterations
 
 
