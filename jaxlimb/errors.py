@@ -162,6 +162,18 @@ class JumpError(ConvergenceError):
     check = "jump_from_initial"
 
 
+class MatchError(CheckFailed):
+    """The shape model does not explain the frame: poor residual or overlap (model-based line of sight)."""
+
+    check = "poor_match"
+
+
+class AmbiguousMatchError(MatchError):
+    """Two poses of the shape model that put the body centre apart explain the frame about equally well."""
+
+    check = "ambiguous_match"
+
+
 class SaturationWarning(UserWarning):
     """Pixels of the limb annulus are clipped (saturated): the measured radius, hence the range,
     can be biased outward (measured: 0.3-1 px on Moons over-exposed 1.5-6x; the centre stays
@@ -169,9 +181,7 @@ class SaturationWarning(UserWarning):
 
 
 __all__ = [
-    "LabelError",
-    "SpiceError",
-    "UnknownBodyError",
+    "AmbiguousMatchError",
     "ArcTooShortError",
     "AttitudeError",
     "CheckFailed",
@@ -184,13 +194,17 @@ __all__ = [
     "ImageReadError",
     "JaxlimbError",
     "JumpError",
+    "LabelError",
     "LimbInputError",
+    "MatchError",
     "MeshError",
     "NoBodyError",
     "RadiusInconsistentError",
     "SaturationWarning",
+    "SpiceError",
     "TooBigError",
     "TooManyOutliersError",
     "TooSmallError",
     "TooThinError",
+    "UnknownBodyError",
 ]

@@ -20,7 +20,10 @@ atomically (:func:`jaxlimb._io.atomic_path`: a temporary file renamed into place
 name of failed trials and one column per returned key.  ``out_dir/manifest.json`` records
 the study (name, seed, ``n_trials``, ``chunk_size``).  A rerun with the same settings
 skips the chunks already on disk, so an interrupted run loses only the chunk in
-progress; a rerun with *different* settings into the same directory is refused.
+progress; a chunk file that cannot be read back (truncated by a crash of the disk or the
+machine, corrupted) is computed again with a :class:`ChunkRecomputedWarning` naming the file
+(:func:`load_monte_carlo` raises a :class:`~jaxlimb.errors.ConfigError` naming it); a rerun with
+*different* settings into the same directory is refused.
 Failures: a trial that raises a :class:`~jaxlimb.errors.JaxlimbError` is recorded as
 failed (``ok=False``, ``error=<check name>``, NaN values) -- "save on failure and filter
 during analysis" (STYLE.md Sec. 7); any other exception stops the run.
@@ -50,6 +53,8 @@ from __future__ import annotations
 import json
 import math
 import time
+import warnings
+import zipfile
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -192,9 +197,39 @@ def _run_chunk(trial: Callable[..., Any], opt: MonteCarloOptions, c: int) -> dic
     return out
 
 
+class ChunkRecomputedWarning(UserWarning):
+    """A chunk file of a resumed study was unreadable (truncated, corrupt) and is computed again."""
+
+
+_CHUNK_KEYS = ("index", "seed", "ok", "error")
+
+
 def _load_chunk(path: Path) -> dict[str, np.ndarray]:
-    with np.load(path, allow_pickle=False) as f:
-        return {k: f[k] for k in f.files}
+    """Read one chunk file; an unreadable one (truncated, corrupt, not a chunk) is a :class:`ConfigError`."""
+    try:
+        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as f:  # our handle: closed on any error
+            data = {k: f[k] for k in f.files}
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as e:
+        raise ConfigError(f"chunk file {str(path)!r} is unreadable (truncated or corrupt: {type(e).__name__}: {e})") from None
+    missing = [k for k in _CHUNK_KEYS if k not in data]
+    if missing:
+        raise ConfigError(f"chunk file {str(path)!r} is not a Monte-Carlo chunk (no {missing})")
+    return data
+
+
+def _resume_chunk(path: Path, expected: np.ndarray) -> dict[str, np.ndarray] | None:
+    """A finished chunk from disk, or ``None`` (with a :class:`ChunkRecomputedWarning` naming the
+    file) when it is unreadable or holds other trials: the caller computes it again."""
+    try:
+        data = _load_chunk(path)
+    except ConfigError as e:
+        warnings.warn(f"{e}; computing it again", ChunkRecomputedWarning, stacklevel=3)
+        return None
+    if not np.array_equal(data["index"], expected):
+        warnings.warn(f"chunk file {str(path)!r} holds other trials than expected; computing it again",
+                      ChunkRecomputedWarning, stacklevel=3)
+        return None
+    return data
 
 
 @dataclass(frozen=True)
@@ -304,8 +339,10 @@ def run_monte_carlo(trial: Callable[..., Mapping[str, Any]], options: MonteCarlo
         mine = c % opt.shard[1] == opt.shard[0]
         if not mine and (path is None or not path.exists()):
             continue  # another process's chunk, not finished yet
-        if path is not None and path.exists():
-            data = _load_chunk(path)
+        lo = c * opt.chunk_size
+        data = _resume_chunk(path, np.arange(lo, min(lo + opt.chunk_size, opt.n_trials))) \
+            if path is not None and path.exists() else None
+        if data is not None:
             skipped += 1
         else:
             data = _run_chunk(trial, opt, c)
@@ -443,6 +480,7 @@ def stats_json(result: MonteCarloResult, **kw: Any) -> dict[str, Any]:
 
 
 __all__ = [
+    "ChunkRecomputedWarning",
     "MonteCarloOptions",
     "MonteCarloResult",
     "load_monte_carlo",

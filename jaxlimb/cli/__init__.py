@@ -91,10 +91,12 @@ def _json_default(o: object) -> object:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``jaxlimb`` command; returns the exit code."""
-    import jax
+    """Entry point of the ``jaxlimb`` command; returns the exit code.
 
-    jax.config.update("jax_enable_x64", True)
+    JAX is imported only after the arguments are parsed (``jaxlimb --help`` does not pay for
+    it); the persistent compilation cache is switched on before the first compilation
+    (:mod:`jaxlimb._jaxcache`: ``JAXLIMB_CACHE_DIR``, ``off`` to disable).
+    """
     from ..errors import JaxlimbError
 
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -102,6 +104,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     _STATE["json"] = want_json
     try:
         args = build_parser().parse_args(argv)
+        _start_jax()
         with warnings.catch_warnings():
             warnings.simplefilter("default")
             return int(args.func(args) or 0)
@@ -118,6 +121,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         _report(want_json, "internal_error", f"{type(e).__name__}: {e}")
         return 1
+
+
+def _start_jax() -> None:
+    import jax
+
+    from .._jaxcache import enable_compile_cache
+
+    jax.config.update("jax_enable_x64", True)
+    enable_compile_cache()
 
 
 def _report(want_json: bool, check: str, message: str) -> None:

@@ -6,7 +6,7 @@ import argparse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from ..fitting import SOLVERS
+    from .._solver_names import SOLVER_NAMES
 
     p = sub.add_parser(
         "locate",
@@ -16,8 +16,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "the covariance and, with a camera, the line of sight and the range.  Exit 0 on success, 2 for "
         "unusable input, 3 when a check fails.",
     )
-    p.add_argument("image", metavar="IMAGE",
-                   help="image file: VICAR, PDS3 (.IMG/.LBL), PDS4 (.xml), FITS, PNG, TIFF, JPEG, JPEG 2000")
+    p.add_argument("image", metavar="IMAGE", nargs="+",
+                   help="image file: VICAR, PDS3 (.IMG/.LBL), PDS4 (.xml), FITS, PNG, TIFF, JPEG, JPEG 2000; "
+                   "several files, a directory, a quoted glob or @LIST.txt: one JSON line per frame (see --out)")
     p.add_argument("--camera", metavar="CAMERA.json",
                    help='camera file {"focal_length_mm", "pixel_pitch_mm", "rows", "cols", "principal_point_rc"}')
     p.add_argument("--hints", metavar="HINTS.json", help="navigation prior (DESIGN.md hints; every key optional)")
@@ -33,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--front-end", choices=("gradient", "scanline"), default="gradient", dest="front_end",
                    help="candidate-limb front end (default gradient)")
     p.add_argument("--model", choices=("circle", "ellipse"), default="circle", help="limb model (default circle)")
-    p.add_argument("--solver", choices=sorted(SOLVERS), default="lm", help="least-squares solver (default lm)")
+    p.add_argument("--solver", choices=sorted(SOLVER_NAMES), default="lm", help="least-squares solver (default lm)")
     p.add_argument("--fixed-k", action="store_true",
                    help="hold k = 3 and ymax/ymin at the annulus edge means (illuminated-ellipsoid paper, Table 1)")
     p.add_argument("--profile", choices=("auto", "sigmoid", "lunar-lambert", "limb-darkened"), default="auto",
@@ -43,6 +44,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "lunar-lambert or limb-darkened")
     p.add_argument("--figure", metavar="PATH", help="also save a picture of the fit (PNG/PDF)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    from ._batch import add_batch_arguments
+
+    add_batch_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -106,15 +110,50 @@ def _spice_report(geom, meas) -> dict:
     return out
 
 
-def run(args: argparse.Namespace) -> int:
-    from ..geometry.camera import Camera
+def _read(path: str):
     from ..imaging import ColourImageWarning
     from ..imaging.formats import read_frame
-    from ..pipeline import LocateOptions, locate
-    from . import emit_json, warnings_to_stderr
+    from . import warnings_to_stderr
 
     with warnings_to_stderr(ColourImageWarning):
-        frame = read_frame(args.image)
+        return read_frame(path)
+
+
+def _json(meas, spice) -> dict:
+    out = meas.to_json()
+    if spice is not None:
+        out["spice"] = spice
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    from . import _batch
+
+    images = list(args.image)
+    if _batch.is_many(images, args):  # many frames: JSON Lines, one per frame (cli/_batch.py)
+        if args.figure:
+            from ..errors import ConfigError
+
+            raise ConfigError("--figure saves one frame's picture: not with many frames")
+        return _batch.run_frames(images, args, _read, lambda path, frame: _json(*_measure(args, frame)[:2]))
+    args.image = images[0]
+    meas, spice, image = _measure(args, _read(args.image))
+    if args.figure:
+        from ..pipeline import save_locate_figure
+
+        save_locate_figure(image, meas, args.figure)
+    _print(args, meas, spice)
+    return 0
+
+
+def _measure(args: argparse.Namespace, frame):
+    """``(measurement, SPICE report or None, image)`` of one frame.  The CLI chooses nothing but options:
+    :func:`jaxlimb.pipeline.locate` picks the body strategy from the hints' body."""
+    from ..errors import SaturationWarning
+    from ..geometry.camera import Camera
+    from ..pipeline import LocateOptions, locate
+    from . import warnings_to_stderr
+
     image = frame.data
     geom = _spice(args, frame.meta)
     camera = Camera.from_json(args.camera) if args.camera is not None else (geom.camera if geom else None)
@@ -122,20 +161,16 @@ def run(args: argparse.Namespace) -> int:
                         base=geom.hints() if geom else None)
     options = LocateOptions(front_end=args.front_end, model=args.model, solver=args.solver,
                             estimate_k=not args.fixed_k, profile=args.profile)
-    from ..errors import SaturationWarning
-
     with warnings_to_stderr(SaturationWarning):
-        meas = locate(image, camera, hints, options)
-    if args.figure:
-        from ..pipeline import save_locate_figure
+        meas = locate(image, camera, hints, options, mask=frame.mask_or_none)
+    return meas, (_spice_report(geom, meas) if geom is not None else None), image
 
-        save_locate_figure(image, meas, args.figure)
-    spice = _spice_report(geom, meas) if geom is not None else None
+
+def _print(args: argparse.Namespace, meas, spice) -> None:
+    from . import emit_json
+
     if args.json:
-        out = meas.to_json()
-        if spice is not None:
-            out["spice"] = spice
-        emit_json(out)
+        emit_json(_json(meas, spice))
     else:
         print(f"centre (row, col): {meas.center_rc[0]:.4f} {meas.center_rc[1]:.4f} px")
         if meas.radius_px is not None:
@@ -157,4 +192,3 @@ def run(args: argparse.Namespace) -> int:
                   f"({d['angle_urad']:.1f} urad)")
         print(f"k {meas.k:.4f}, ymax {meas.ymax:.2f}, ymin {meas.ymin:.2f}; {meas.n_pixels} px, "
               f"{meas.iterations} iterations ({meas.solver}, {meas.front_end} front end)")
-    return 0

@@ -219,6 +219,12 @@ def _core(solver: AbstractLimbSolver, problem: LimbProblem, max_steps: int) -> L
     return _make_fit(problem, y, n_steps, result, solver.name)
 
 
+def fit_core(solver: AbstractLimbSolver, problem: LimbProblem, max_steps: int = 256) -> LimbFit:
+    """The un-jitted single-fit core of :func:`fit`: for programs that build their problems inside
+    ``jax.jit`` (e.g. the Monte-Carlo study, :func:`jaxlimb.analysis.model_study._program`)."""
+    return _core(solver, problem, max_steps)
+
+
 def _make_fit(problem: LimbProblem, y: Array, n_steps: Array, result: FitResult, solver_name: str,
               normal: tuple[Array, Array, Array] | None = None) -> LimbFit:
     """Assemble the :class:`LimbFit`: covariance, residual statistics, full parameters."""

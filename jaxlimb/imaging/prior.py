@@ -74,6 +74,7 @@ _HINT_KEYS = (
     "atmosphere_km",
     "bit_depth",
     "R_body_to_camera",
+    "expected_center_rc",
 )
 
 
@@ -125,6 +126,9 @@ class Hints:
         Bits per pixel of the image (1..32).
     R_body_to_camera
         3x3 rotation (proper, orthonormal to 1e-6) body-fixed -> camera.
+    expected_center_rc
+        Predicted image ``(row, col)`` of the body centre (px), e.g. from SPICE; with a camera,
+        the range and the radii it places the predicted limb (:mod:`jaxlimb.imaging.predicted`).
     """
 
     body: str | None = None
@@ -136,9 +140,12 @@ class Hints:
     atmosphere_km: float | None = None
     bit_depth: int | None = None
     R_body_to_camera: tuple[tuple[float, float, float], ...] | None = None
+    expected_center_rc: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         s = object.__setattr__
+        if self.expected_center_rc is not None:
+            s(self, "expected_center_rc", _vec("expected_center_rc", self.expected_center_rc, 2))
         if self.body is not None:
             if not isinstance(self.body, str) or not self.body.strip():
                 raise ConfigError(f"hints `body` must be a non-empty string, got {self.body!r}")

@@ -101,7 +101,7 @@ class Frame:
         return float(np.arccos(np.clip(-s @ u, -1.0, 1.0)))
 
 
-def prepare(image: Any, camera: Any, hints: Any, options: Any) -> Frame:
+def prepare(image: Any, camera: Any, hints: Any, options: Any, mask: Any = None) -> Frame:
     """Stage 1: validate the image, camera, hints and options; Check 1 on the prior from the hints.
 
     A body the hints say is too small, too big or too thin is reported as such before the image
@@ -116,6 +116,8 @@ def prepare(image: Any, camera: Any, hints: Any, options: Any) -> Frame:
     hin = as_hints(hints)
     if cam is not None and (cam.rows, cam.cols) != img.shape:
         raise ConfigError(f"camera size {cam.rows}x{cam.cols} does not match the image size {img.shape[0]}x{img.shape[1]}")
+    if mask is not None and np.shape(mask) != img.shape:
+        raise ConfigError(f"mask shape {np.shape(mask)} does not match the image size {img.shape}")
     frame = Frame(img, cam, hin, opt, t0)
     if hin is not None:
         popt = getattr(frame.front_end_options(), "prior", None)
@@ -123,6 +125,13 @@ def prepare(image: Any, camera: Any, hints: Any, options: Any) -> Frame:
         if pri0 is not None and cam is None:
             check_prior(pri0, img.shape, popt)
     return frame
+
+
+def limb_predicted(frame: Frame) -> bool:
+    """The hints place the limb (SPICE-like prediction: expected centre, range prior, radii, pinhole camera)."""
+    cam, h = frame.cam, frame.hints
+    return (cam is not None and not cam.has_distortion and h is not None and h.expected_center_rc is not None
+            and h.range_prior_km is not None and h.radius_km() is not None)
 
 
 def candidates(frame: Frame) -> Any:
@@ -145,4 +154,4 @@ def arc_angles(coords: np.ndarray, center_rc) -> np.ndarray:
     return np.arctan2(coords[:, 0] - float(center_rc[0]), coords[:, 1] - float(center_rc[1]))
 
 
-__all__ = ["Frame", "arc_angles", "as_camera", "as_hints", "candidates", "min_diameter_px", "prepare"]
+__all__ = ["Frame", "arc_angles", "as_camera", "as_hints", "candidates", "limb_predicted", "min_diameter_px", "prepare"]

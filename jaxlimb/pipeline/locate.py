@@ -31,10 +31,12 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
 from ..geometry.camera import Camera
 from ..imaging import Hints
 from .bodies import body_strategy
-from .frame import candidates, prepare
+from .frame import candidates, limb_predicted, prepare
 from .options import LocateOptions
 from .report import check_physical, covariance, levels, measurement
 from .result import LimbMeasurement
@@ -45,6 +47,8 @@ def locate(
     camera: Camera | dict | None = None,
     hints: Hints | dict | None = None,
     options: LocateOptions | None = None,
+    *,
+    mask: np.ndarray | None = None,
 ) -> LimbMeasurement:
     """Locate the body in ``image``: centre of the body's image, radius, LOS and range (module docstring).
 
@@ -60,6 +64,12 @@ def locate(
         ellipsoid strategy, ``sun`` the disc), radii, range prior, Sun direction, attitude ...
     options
         :class:`~jaxlimb.pipeline.options.LocateOptions`.
+    mask
+        Validity mask (``True`` = measured pixel; :class:`jaxlimb.imaging.formats.Frame`); masked
+        pixels are neither limb nor background.  With a camera and hints that predict the limb of a
+        sphere (``expected_center_rc``, ``range_prior_km``, radii: SPICE), the whole limb, lit and
+        dark, is measured by :func:`jaxlimb.pipeline.whole_limb.locate_whole_limb` instead of the
+        stages below.
 
     Returns
     -------
@@ -77,8 +87,12 @@ def locate(
         out of field, arc too short, no convergence, jump, non-physical fit, centre too uncertain
         (:mod:`jaxlimb.pipeline.checks`).
     """
-    frame = prepare(image, camera, hints, options)
+    frame = prepare(image, camera, hints, options, mask)
     body = body_strategy(frame)
+    if body.name == "sphere" and limb_predicted(frame):
+        from .whole_limb import locate_whole_limb
+
+        return locate_whole_limb(frame.img, frame.cam, frame.hints, frame.opt, mask=mask)
     frame = body.prepare(frame)
     cand = candidates(frame)
     pixels = body.limb_pixels(frame, cand)

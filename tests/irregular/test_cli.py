@@ -125,3 +125,21 @@ def test_bad_image_and_camera(scene, capsys, tmp_path):
 def test_missing_arguments_exit_2(capsys):
     rc, out, _ = _run(capsys, ["los", "locate", "x.png", "--json"])
     assert rc == 2 and json.loads(out)["check"] == "bad_arguments"
+
+
+def test_locate_many_frames_loads_the_database_once(scene, capsys, tmp_path):
+    """Many frames (issue 13): one JSON line per frame; a wrong-size frame is an error line, the run goes on."""
+    d, truth = scene
+    db = tmp_path / "db.npz"
+    assert cli.main(["los", "build-db", str(d / "lumpy.obj"), "--step-deg", "30", "--template-size", "128", "--out", str(db), "--no-progress"]) == 0
+    cv2.imwrite(str(tmp_path / "small.png"), np.zeros((30, 40), np.uint8))
+    out = tmp_path / "los.jsonl"
+    argv = ["los", "locate", str(d / "img.png"), str(tmp_path / "small.png"), "--db", str(db), "--camera", str(d / "camera.json"),
+            "--no-refine", "--out", str(out)]
+    rc, _, err = _run(capsys, argv)
+    assert rc == 2 and "Traceback" not in err
+    recs = [json.loads(s) for s in out.read_text().splitlines()]
+    assert [r["status"] for r in recs] == ["ok", "error"] and recs[1]["image"].endswith("small.png")
+    assert np.linalg.norm(np.array(recs[0]["center_rc"]) - truth) < 3.0
+    rc, _, err = _run(capsys, [*argv, "--resume"])
+    assert rc == 0 and "0 frames" in err  # both frames answered: nothing to do
