@@ -355,15 +355,7 @@ def _band_pixels(shape, ell: tuple, band: float, lit_dir, half_angle: float) -> 
         return np.zeros((0, 2))
     rr, cc = np.meshgrid(rows.astype(float), cols.astype(float), indexing="ij")
     dr, dc = rr - r0, cc - c0
-    ct, st = math.cos(th), math.sin(th)
-    x = dc * ct - dr * st
-    y = -dr * ct - dc * st
-    # distance to the ellipse ~ (beta/rho - a) scaled to the local normal: use the
-    # first-order distance |F| / |grad F| with F = x^2/a^2 + y^2/b^2 - 1
-    F = x * x / (a * a) + y * y / (b * b) - 1.0
-    g = 2.0 * np.hypot(x / (a * a), y / (b * b))
-    dist = np.abs(F) / np.maximum(g, 1e-300)
-    m = dist <= band
+    m = np.abs(_band_signed(np.stack([rr, cc], axis=-1), ell)) <= band
     if lit_dir is not None:
         d = np.array(lit_dir, float)
         d /= np.linalg.norm(d)
@@ -374,12 +366,14 @@ def _band_pixels(shape, ell: tuple, band: float, lit_dir, half_angle: float) -> 
 
 
 def _band_signed(pts: np.ndarray, ell: tuple) -> np.ndarray:
-    """Signed first-order distance (px) of pixels to the ellipse (negative inside)."""
+    """Signed first-order distance (px) of pixels ``(..., 2)`` to the ellipse (negative inside):
+    ``F / |grad F|`` with ``F = x^2/a^2 + y^2/b^2 - 1`` in the ellipse frame of
+    :func:`jaxlimb.models.ellipse_coords`."""
+    from ..models import EllipseParams, ellipse_coords
+
     (r0, c0), (a, b), th = ell
-    dr, dc = pts[:, 0] - r0, pts[:, 1] - c0
-    ct, st = math.cos(th), math.sin(th)
-    x = dc * ct - dr * st
-    y = -dr * ct - dc * st
+    xj, yj = ellipse_coords(EllipseParams(r0, c0, a, th, b / a, 1.0, 1.0, 0.0), np.asarray(pts, float))
+    x, y = np.asarray(xj, float), np.asarray(yj, float)
     F = x * x / (a * a) + y * y / (b * b) - 1.0
     g = 2.0 * np.hypot(x / (a * a), y / (b * b))
     return F / np.maximum(g, 1e-300)

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import LimbInputError
+from ..geometry.ellipsoid import ellipse_points
 from .result import LimbMeasurement
 
 
@@ -17,10 +18,7 @@ def _limb_points(meas: LimbMeasurement, n: int = 720) -> np.ndarray:
     t = np.linspace(0.0, 2 * np.pi, n)
     ell = meas.ellipse.to_json() if meas.ellipse is not None else meas.extras.get("limb_ellipse")
     if ell is not None:
-        (r0, c0), (a, b), ang = ell["center_rc"], ell["semi_axes_px"], ell["angle_rad"]
-        x, y = a * np.cos(t), b * np.sin(t)
-        ct, st = math.cos(ang), math.sin(ang)
-        return np.stack([r0 - x * st - y * ct, c0 + x * ct - y * st], axis=1)
+        return ellipse_points(ell["center_rc"], ell["semi_axes_px"], ell["angle_rad"], t)
     r0, c0 = meas.center_rc
     R = float(meas.radius_px or 0.0)
     return np.stack([r0 + R * np.sin(t), c0 + R * np.cos(t)], axis=1)
@@ -36,10 +34,7 @@ def _truth_points(truth: Any, n: int = 720) -> tuple[np.ndarray | None, tuple[fl
     if center is None and isinstance(truth, dict):
         center = truth.get("center_rc")
     if limb is not None:
-        (r0, c0), (a, b), ang = limb.center_rc, limb.semi_axes_px, limb.angle_rad
-        x, y = a * np.cos(t), b * np.sin(t)
-        ct, st = math.cos(ang), math.sin(ang)
-        pts = np.stack([r0 - x * st - y * ct, c0 + x * ct - y * st], axis=1)
+        pts = ellipse_points(limb.center_rc, limb.semi_axes_px, limb.angle_rad, t)
         return pts, (float(center[0]), float(center[1])) if center is not None else None
     radius = getattr(truth, "radius_px", None)
     if radius is None and isinstance(truth, dict):
