@@ -1,8 +1,9 @@
-"""Small file helpers shared by every writer: atomic writes."""
+"""Small file helpers shared by every writer: atomic writes, the writer's lock, stale temporaries."""
 
 from __future__ import annotations
 
 import contextlib
+import glob
 import json
 import os
 import tempfile
@@ -56,11 +57,15 @@ def read_json_file(path: str | os.PathLike[str], what: str) -> Any:
     """
     from .errors import ConfigError
 
-    p = Path(path)
+    from ._validate import input_file
+
+    p = input_file(path, what, error=ConfigError)  # a directory is a directory, not "missing"
     try:
-        text = p.read_text()
+        text = p.read_text(encoding="utf-8")
     except OSError as e:
         raise ConfigError(f"cannot read {what} {str(p)!r}: {e.strerror or e}") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{what} {str(p)!r} is not valid JSON: it is not UTF-8 text (a binary file?)") from None
     try:
         return json.loads(text)
     except json.JSONDecodeError as e:
@@ -72,3 +77,51 @@ def write_json_atomic(path: str | os.PathLike[str], obj: Any) -> None:
     with atomic_open(path, "w") as fh:
         json.dump(obj, fh, indent=2, sort_keys=False)
         fh.write("\n")
+
+
+def stale_temporaries(path: str | os.PathLike[str]) -> list[Path]:
+    """The temporaries :func:`atomic_path` leaves beside ``path`` when its writer is killed."""
+    p = Path(path)
+    return sorted(p.parent.glob(f".{glob.escape(p.name)}.*.tmp")) if p.parent.is_dir() else []
+
+
+@contextlib.contextmanager
+def exclusive_output(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """Hold the writer's lock of ``path`` for the whole block (computation and write).
+
+    The lock is ``flock`` on a hidden lock file ``.NAME.lock`` beside ``path``; a second
+    writer of the same ``path`` is refused at once with
+    :class:`~jaxlimb.errors.OutputBusyError` (no database is silently lost to a race).
+    Under the lock, the temporaries of an earlier writer that was killed mid-write
+    (:func:`stale_temporaries`) are removed.  The lock file is removed on exit.
+    """
+    import fcntl
+
+    from .errors import OutputBusyError
+
+    p = Path(path)
+    lock = p.parent / f".{p.name}.lock"
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o666 & ~_umask())
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise OutputBusyError(f"another jaxlimb process is writing {str(p)!r} (lock {str(lock)!r} is held); "
+                                  "wait for it or choose another output") from None
+        try:
+            same = os.fstat(fd).st_ino == os.stat(lock).st_ino  # not unlinked by the previous holder meanwhile
+        except FileNotFoundError:
+            same = False
+        if same:
+            break
+        os.close(fd)
+    try:
+        for tmp in stale_temporaries(p):
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+        yield p
+    finally:
+        with contextlib.suppress(OSError):
+            lock.unlink()
+        os.close(fd)

@@ -15,6 +15,16 @@ from __future__ import annotations
 
 import argparse
 
+from .._validate import POSITIVE, Range, arg_number
+
+_PX = Range(0.0, 1e5, lo_open=True)  # a length in pixels (no image is 100 000 px wide)
+_COORD = Range(-1e5, 1e5)  # a pixel coordinate (may lie off the frame)
+_K = Range(0.0, 1e3, lo_open=True)  # sigmoid steepness, 1/px (analysis.posterior.MAX_K)
+_WALKERS = Range(4, 10_000)
+_STEPS = Range(1, 10_000_000)
+_SECONDS = Range(0.0, 86_400.0, lo_open=True)
+_SEED = Range(0, 2**32 - 1)
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -28,19 +38,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("image", metavar="IMAGE", help="image file (PNG, TIFF, FITS) or a .npy array")
     p.add_argument("--camera", metavar="CAMERA.json", help="camera file (enables LOS and range)")
     p.add_argument("--hints", metavar="HINTS.json", help="hints (DESIGN.md); expected_radius_px becomes a radius prior")
-    p.add_argument("--center-rc", nargs=2, type=float, metavar=("ROW", "COL"),
-                   help="skip locate: circle centre (with --radius)")
-    p.add_argument("--radius", type=float, help="skip locate: circle radius, px (with --center-rc)")
-    p.add_argument("--annulus", type=float, default=6.0, help="half-width of the pixel band for --center-rc, px (default 6)")
-    p.add_argument("--k", type=float, default=2.0, help="start (or fixed) steepness k for --center-rc, 1/px (default 2)")
+    p.add_argument("--center-rc", nargs=2, type=arg_number(_COORD), metavar=("ROW", "COL"),
+                   help=f"skip locate: circle centre, px {_COORD} (with --radius)")
+    p.add_argument("--radius", type=arg_number(_PX), help=f"skip locate: circle radius, px {_PX} (with --center-rc)")
+    p.add_argument("--annulus", type=arg_number(_PX), default=6.0,
+                   help=f"half-width of the pixel band for --center-rc, px {_PX} (default 6)")
+    p.add_argument("--k", type=arg_number(_K), default=2.0,
+                   help=f"start (or fixed) steepness k for --center-rc, 1/px {_K} (default 2)")
     p.add_argument("--fix", default="", help="comma-separated parameters held fixed, e.g. k,ymax,ymin")
     p.add_argument("--noise", choices=("marginal", "known", "free"), default="marginal",
                    help="noise treatment: sigma marginalised (default), known (--sigma), or sampled")
-    p.add_argument("--sigma", type=float, help="noise sd in DN for --noise known")
-    p.add_argument("--walkers", type=int, default=32, help="emcee walkers (default 32)")
-    p.add_argument("--max-steps", type=int, default=20000, help="stop unconverged after this many steps")
-    p.add_argument("--max-time", type=float, default=120.0, help="stop unconverged after this many seconds")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--sigma", type=arg_number(POSITIVE), help="noise sd in DN for --noise known (> 0)")
+    p.add_argument("--walkers", type=arg_number(_WALKERS, integer=True), default=32,
+                   help=f"emcee walkers, even, {_WALKERS} (default 32)")
+    p.add_argument("--max-steps", type=arg_number(_STEPS, integer=True), default=20000,
+                   help=f"stop unconverged after this many steps {_STEPS}")
+    p.add_argument("--max-time", type=arg_number(_SECONDS), default=120.0,
+                   help=f"stop unconverged after this many seconds {_SECONDS}")
+    p.add_argument("--seed", type=arg_number(_SEED, integer=True), default=0, help=f"random seed {_SEED}")
     p.add_argument("--plot", metavar="OUT.png", help="save a corner plot")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)
@@ -54,9 +69,12 @@ def _load(path: str):  # noqa: ANN202
 
     if path.endswith(".npy"):
         try:
-            return np.asarray(np.load(path, allow_pickle=False), dtype=float)
+            a = np.load(path, allow_pickle=False)
         except (OSError, ValueError) as e:
             raise ImageReadError(f"cannot read IMAGE {path!r}: {e}") from None
+        if not (np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating) or a.dtype == np.bool_):
+            raise ImageReadError(f"IMAGE {path!r} must hold real numbers, got dtype {a.dtype}")
+        return np.asarray(a, dtype=float)
     image, _ = load_image(path, reject_constant=False)
     return image
 
@@ -90,7 +108,6 @@ def _pixels_from_circle(image, center_rc, radius: float, annulus: float):  # noq
 
 
 def run(args: argparse.Namespace) -> int:
-    import json
     import math
 
     import numpy as np
@@ -106,12 +123,15 @@ def run(args: argparse.Namespace) -> int:
         priors_from_hints,
         sample_posterior,
     )
-    from ..errors import ConfigError, LimbInputError
+    from ..errors import LimbInputError
     from ..fitting import fit
     from ..geometry.camera import Camera
     from ..models import CIRCLE, CircleParams
-    from . import emit_json
+    from .._io import read_json_file
+    from ..imaging import Hints
+    from . import emit_json, figure_path, report_after_result, try_save
 
+    figure_path(args.plot, "--plot")  # before any work
     if (args.center_rc is None) != (args.radius is None):
         raise LimbInputError("`--center-rc` and `--radius` go together (both or neither)")
     if args.noise == "known" and args.sigma is None:
@@ -122,13 +142,8 @@ def run(args: argparse.Namespace) -> int:
     camera = Camera.from_json(args.camera) if args.camera is not None else None
     hints: dict = {}
     if args.hints is not None:
-        try:
-            with open(args.hints) as fh:
-                hints = json.load(fh)
-        except (OSError, json.JSONDecodeError) as e:
-            raise ConfigError(f"cannot read hints {args.hints!r}: {e}") from None
-        if not isinstance(hints, dict):
-            raise ConfigError(f"hints must be a JSON object, got {type(hints).__name__}")
+        hints = read_json_file(args.hints, "hints file")
+        Hints.from_dict(hints)  # every value checked (types, ranges) before any work
     fixed = tuple(s.strip() for s in args.fix.split(",") if s.strip())
     unknown = sorted(set(fixed) - set(CIRCLE.param_names))
     if unknown:
@@ -173,8 +188,6 @@ def run(args: argparse.Namespace) -> int:
     }
     body_radius = None
     if camera is not None and hints:
-        from ..imaging import Hints
-
         body_radius = Hints.from_dict(hints).radius_km()
     if camera is not None and body_radius is not None and {"r0", "c0", "radius"} <= set(post.names):
         idx = [post.names.index(n) for n in ("r0", "c0", "radius")]
@@ -183,12 +196,16 @@ def run(args: argparse.Namespace) -> int:
                            ("laplace", np.asarray(f.covariance)[np.ix_([f.free.index(n) for n in ("r0", "c0", "radius")],
                                                                        [f.free.index(n) for n in ("r0", "c0", "radius")])])):
             out.setdefault("los_range", {})[label] = los_range_bound(camera, mean[:2], mean[2], cov, body_radius).as_dict()
+    plot_error = None
     if args.plot:
-        corner_plot(post, args.plot, laplace=f, title=f"{args.image}: {z.size} px, {post.n_steps} steps"
-                    f"{'' if post.converged else ' (NOT converged)'}")
-        out["plot"] = args.plot
+        plot_error = try_save(lambda: corner_plot(post, args.plot, laplace=f, title=f"{args.image}: {z.size} px, "
+                                                  f"{post.n_steps} steps{'' if post.converged else ' (NOT converged)'}"),
+                              "--plot")
+        out["plot"] = args.plot if plot_error is None else None
+        if plot_error:
+            out["plot_error"] = plot_error
     if args.json:
-        emit_json(_finite(out))
+        emit_json(out)
     else:
         s = post.summary()
         print(f"{z.size} pixels ({source}); {s['n_steps']} steps x {s['n_walkers']} walkers in {s['wall_s']:.1f} s; "
@@ -197,17 +214,5 @@ def run(args: argparse.Namespace) -> int:
         if "los_range" in out:
             lr = out["los_range"]["posterior"]
             print(f"range {lr['range_km']:.2f} +- {lr['sigma_range_km']:.2f} km, LOS sigma {lr['sigma_los_arcsec']:.3f} arcsec")
-    return 0
+    return report_after_result(plot_error)
 
-
-def _finite(obj):  # noqa: ANN001, ANN202
-    """Non-finite floats -> None (the JSON output is strict: ``allow_nan=False``)."""
-    import math
-
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
