@@ -47,7 +47,7 @@ Steps of the ellipsoid strategy of :func:`jaxlimb.pipeline.locate` (:mod:`jaxlim
    covariance is ``G P_fit G^T`` with ``P_fit`` the fit covariance of ``(r0, c0, a)``
    (:math:`\hat\sigma^2 (J^\top J)^{-1}`) and ``G`` the central-difference Jacobian of steps 4-5.
 
-Physical limb profile (``EarthOptions.profile``, default ``"auto"``)
+Physical limb profile (``LocateOptions.profile``, default ``"auto"``)
 -------------------------------------------------------------------
 The edge models of step 3 put the limb where a blurred step with a smooth interior has its
 50 % level.  A lit limb seen from a finite range is brighter in a rim a fraction of a pixel
@@ -60,7 +60,7 @@ mean NEES 4-13 instead of 3).  With the Sun direction known, step 3 is followed 
 the *same* pixels with the blurred lunar-Lambert radiance of :mod:`jaxlimb.pipeline.profile`
 (:data:`~jaxlimb.pipeline.profile.LIMB_PROFILE`, as the Moon pipeline's
 ``profile="lunar-lambert"``): free ``(r0, c0, a, sigma, amp, ymin)`` and the lunar-Lambert
-weight ``L`` (0: Lambert, 1: Lommel-Seeliger; ``EarthOptions.lunar_lambert_L`` fixes it);
+weight ``L`` (0: Lambert, 1: Lommel-Seeliger; ``LocateOptions.lunar_lambert_L`` fixes it);
 the ellipse shape ``theta, rho`` held at the image of the limb spheroid at the current
 position (the same prediction as step 2, repeated after the fit while it moves the ellipse by
 more than ``refit_tol_px``; estimated with the free ellipse); the Sun's image direction

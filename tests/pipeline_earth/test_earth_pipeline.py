@@ -1,4 +1,4 @@
-"""Earth pipeline (§IV, Fig. 2): cone lifting, ellipse -> position, locate_earth on renders."""
+"""Earth pipeline (§IV, Fig. 2): cone lifting, ellipse -> position, locate (ellipsoid strategy) on renders."""
 
 from __future__ import annotations
 
