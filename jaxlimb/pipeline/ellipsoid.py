@@ -99,7 +99,8 @@ class Ellipsoid:
         """Validate what the ellipsoid needs (camera, spheroid radii, rotation) and refuse what it cannot honour."""
         opt, h = frame.opt, frame.hints
         if frame.cam is None:
-            raise ConfigError("the ellipsoid strategy (hints body 'earth') needs a camera: it measures the range")
+            raise ConfigError("the ellipsoid strategy (hints body 'earth') needs a camera (`camera`; the CLI's --camera): "
+                              "it measures the range")
         if not opt.estimate_k:
             raise ConfigError("estimate_k = False (the papers' fixed-k sphere setting) is not available for the "
                               "ellipsoid: its edge model estimates the kernel with the interior ramp")
