@@ -161,6 +161,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--noise", type=float, default=2.0, help="noise sigma (DN) on a 200 DN body")
     ap.add_argument("--baseline", action="store_true", help="also run the previous pipeline on the same frames")
     ap.add_argument("--seed", type=int, default=2026)
+    ap.add_argument("--bodies", nargs="*", help="only these bodies (names as printed)")
     ap.add_argument("--out", default=str(RESULTS))
     args = ap.parse_args(argv)
     os.environ.setdefault("JAXLIMB_CACHE", str(Path(__file__).resolve().parent / "results" / ".db-cache"))
@@ -168,9 +169,11 @@ def main(argv: list[str] | None = None) -> int:
     from jaxlimb.irregular.database import DatabaseOptions, cached_database
 
     cam = camera()
-    rng = np.random.default_rng(args.seed)
     rows: list[dict] = []
-    for name, (mesh, pole) in bodies(args.quick).items():
+    for ib, (name, (mesh, pole)) in enumerate(bodies(args.quick).items()):
+        if args.bodies and name not in args.bodies:
+            continue
+        rng = np.random.default_rng([args.seed, ib])  # per body: a subset run reproduces its views
         t0 = time.perf_counter()
         db = cached_database(mesh, DatabaseOptions(step_deg=3.0, pole_axis=pole), progress=False)
         print(f"{name}: database {len(db)} templates ({time.perf_counter() - t0:.1f} s)", flush=True)
