@@ -24,7 +24,9 @@ direction, and registers it to the frame.  Here:
    is the estimate itself.  The rendering is exact perspective, so no template
    approximation remains.
 4. **Covariance** ``sigma^2 (A^T A)^{-1}`` of the linear solve at convergence, with
-   ``sigma^2`` the residual variance, mapped to ``(row, col)`` by ``1/a``.
+   ``sigma^2`` the residual variance, mapped to ``(row, col)`` by ``1/a``, plus a
+   model floor (``model_floor_px``).  Monte Carlo (30 noise draws, Thebe, phase 30):
+   mean NEES 2.4 at 10 DN noise without the floor (chi^2_2: 2).
 5. **Checks** (:class:`~jaxlimb.errors.MatchError`, exit 3): the excess of the residual
    over the background noise relative to the body's contrast, the overlap (IoU) of
    the observed and predicted lit figures, and convergence.
@@ -78,6 +80,11 @@ class RegisterOptions:
         fitted contrast ``a`` (fraction).
     min_iou
         Smallest accepted overlap of the observed and predicted lit figures.
+    model_floor_px
+        Standard deviation (px, per axis) added to the covariance for the rendering's
+        own quantisation (sub-pixel coverage steps of 1/16 at ``supersample=4``):
+        measured by Monte Carlo on a Thebe frame at 2 DN noise, the scatter is
+        0.0035 px and the bias 0.003 px against a noise-only sigma of 0.001 px.
     """
 
     supersample: int = 4
@@ -93,6 +100,7 @@ class RegisterOptions:
     margin_px: int = 4
     max_excess_frac: float = 0.12
     min_iou: float = 0.9
+    model_floor_px: float = 0.004
 
 
 @dataclass(frozen=True)
@@ -439,7 +447,7 @@ def _finish(img, camera, segmentation, P, D, R, A, y, beta, lo, hi, iters, ncc, 
         cov_beta = s2 * np.linalg.inv(A.T @ A)
     except np.linalg.LinAlgError:
         raise ConvergenceError("registration: singular normal matrix") from None
-    cov = cov_beta[2:4, 2:4] / a**2
+    cov = cov_beta[2:4, 2:4] / a**2 + options.model_floor_px**2 * np.eye(2)
     sigma = _background_sigma(img, segmentation[0], lo, hi)
     rms = math.sqrt(s2)
     excess = math.sqrt(max(s2 - (sigma**2 if math.isfinite(sigma) else 0.0), 0.0)) / a
