@@ -129,7 +129,8 @@ def exclusive_output(path: str | os.PathLike[str]) -> Iterator[Path]:
     writer of the same ``path`` is refused at once with
     :class:`~jaxlimb.errors.OutputBusyError` (no database is silently lost to a race).
     Under the lock, the temporaries of an earlier writer that was killed mid-write
-    (:func:`stale_temporaries`) are removed.  The lock file is removed on exit.
+    (:func:`remove_dead_temporaries`, and untagged ones of older versions) are removed.
+    The lock file is removed on exit.
     """
     import fcntl
 
@@ -153,9 +154,11 @@ def exclusive_output(path: str | os.PathLike[str]) -> Iterator[Path]:
             break
         os.close(fd)
     try:
-        for tmp in stale_temporaries(p):
-            with contextlib.suppress(OSError):
-                tmp.unlink()
+        remove_dead_temporaries(p)
+        for tmp in stale_temporaries(p):  # untagged ones (older versions): only a lock holder may remove them
+            if _writer_pid(tmp, p.name) is None:
+                with contextlib.suppress(OSError):
+                    tmp.unlink()
         yield p
     finally:
         with contextlib.suppress(OSError):
