@@ -136,14 +136,18 @@ def run(args: argparse.Namespace) -> int:
 
             raise ConfigError("--figure saves one frame's picture: not with many frames")
         return _batch.run_frames(images, args, _read, lambda path, frame: _json(*_measure(args, frame)[:2]))
+    from . import figure_path, report_after_result, try_save
+
     args.image = images[0]
+    figure_path(args.figure, "--figure")  # before any work
     meas, spice, image = _measure(args, _read(args.image))
-    if args.figure:
+    figure_error = None
+    if args.figure:  # after the work: a failing writer must not lose the measurement
         from ..pipeline import save_locate_figure
 
-        save_locate_figure(image, meas, args.figure)
-    _print(args, meas, spice)
-    return 0
+        figure_error = try_save(lambda: save_locate_figure(image, meas, args.figure), "--figure")
+    _print(args, meas, spice, figure_error)
+    return report_after_result(figure_error)
 
 
 def _measure(args: argparse.Namespace, frame):
@@ -174,15 +178,15 @@ def _measure(args: argparse.Namespace, frame):
         from ..errors import SaturationWarning
 
         with warnings_to_stderr(SaturationWarning):
-            meas = locate(image, camera, hints, options)
+            meas = locate(image, camera, hints, options, mask=frame.mask_or_none)
     return meas, (_spice_report(geom, meas) if geom is not None else None), image
 
 
-def _print(args: argparse.Namespace, meas, spice) -> None:
+def _print(args: argparse.Namespace, meas, spice, figure_error: str | None = None) -> None:
     from . import emit_json
 
     if args.json:
-        emit_json(_json(meas, spice))
+        emit_json({**_json(meas, spice), **({"figure_error": figure_error} if figure_error else {})})
     else:
         print(f"centre (row, col): {meas.center_rc[0]:.4f} {meas.center_rc[1]:.4f} px")
         if meas.radius_px is not None:

@@ -227,6 +227,7 @@ class SpiceGeometry:
             expected_radius_uncertainty_frac=radius_uncertainty_frac,
             sun_dir_camera=self.sun_dir_camera,
             R_body_to_camera=self.R_body_to_camera,
+            expected_center_rc=self.center_rc,
         )
 
     def to_json(self) -> dict[str, Any]:

@@ -23,7 +23,8 @@ equals the fill value and lies in a horizontal *or* vertical run of at least
 ``1e-8`` per pixel for any image with noise of 1 DN or more, so real sky at 0 DN keeps its
 isolated zeros while every missing line, packet and window is caught.  FITS NaNs (off-disc
 corners of SDO frames) are invalid too.  Masked pixels are filled with the median of the
-valid pixels in ``Frame.data`` (so that no code that ignores the mask sees a step), and the
+valid pixels in ``Frame.data`` (so that no code that ignores the mask sees a step; FITS NaNs
+keep :func:`~jaxlimb.imaging.io.load_image`'s minimum-value fill), and the
 front ends and the annulus selection drop them (:func:`jaxlimb.imaging.masking.mask_gradient`).
 """
 
@@ -295,9 +296,9 @@ def _frame_from_file(p: Path, min_size: int) -> Frame:
     a, info = load_image(p, min_size=min_size, reject_constant=False)
     mask = np.ones(a.shape, dtype=bool)
     if info.format == "fits" and info.n_nonfinite_filled:
+        # load_image already filled the NaNs with the minimum finite value (SDO: the dark off-disc corners)
         raw, _, _ = _read_fits(p)
         mask = np.isfinite(np.asarray(raw, dtype=np.float64))
-        a = _fill_invalid(a, mask)
     return Frame(a, mask, info, meta_from_label(_fits_label(info.header)))
 
 

@@ -140,6 +140,8 @@ def locate(
     camera: Camera | dict | None = None,
     hints: Hints | dict | None = None,
     options: LocateOptions | None = None,
+    *,
+    mask: np.ndarray | None = None,
 ) -> LimbMeasurement:
     """Locate the body in ``image``: centre of the body's image, radius, LOS and range.
 
@@ -155,6 +157,11 @@ def locate(
         expected radius, range prior, Sun direction ...
     options
         :class:`~jaxlimb.pipeline.options.LocateOptions`.
+    mask
+        Validity mask (``True`` = measured pixel; :class:`jaxlimb.imaging.formats.Frame`);
+        masked pixels are neither limb nor background.  With a camera and hints that predict
+        the limb (``expected_center_rc``, ``range_prior_km``, radii: SPICE), the whole limb,
+        lit and dark, is measured by :func:`jaxlimb.pipeline.whole_limb.locate_whole_limb`.
 
     Returns
     -------
@@ -180,6 +187,12 @@ def locate(
     hin = _as_hints(hints)
     if cam is not None and (cam.rows, cam.cols) != img.shape:
         raise ConfigError(f"camera size {cam.rows}x{cam.cols} does not match the image size {img.shape[0]}x{img.shape[1]}")
+    if mask is not None and np.shape(mask) != img.shape:
+        raise ConfigError(f"mask shape {np.shape(mask)} does not match the image size {img.shape}")
+    if _limb_predicted(cam, hin):
+        from .whole_limb import locate_whole_limb
+
+        return locate_whole_limb(img, cam, hin, opt, mask=mask)
 
     # ------------------------------------------------------------------ Check 1 on the prior first
     # (Aerospace 2015 §3: "after internal parameter computation"): a body the hints say is too
@@ -535,6 +548,12 @@ def locate(
         extras=extras,
         selected_pixels_rc=pix,
     )
+
+
+def _limb_predicted(cam: Camera | None, hin: Hints | None) -> bool:
+    """The hints place the limb (SPICE-like prediction): the whole-limb stage applies."""
+    return (cam is not None and not cam.has_distortion and hin is not None and hin.expected_center_rc is not None
+            and hin.range_prior_km is not None and hin.radius_km() is not None)
 
 
 def _use_profile(opt: LocateOptions, hin: Hints | None) -> bool:

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
+from .._validate import NON_NEGATIVE, POSITIVE, number
 from ..errors import ConfigError
 
 FRONT_ENDS = ("gradient", "scanline")
@@ -15,10 +15,7 @@ PROFILES = ("auto", "sigmoid", "lunar-lambert", "limb-darkened")
 def _pos(name: str, v: object, *, allow_zero: bool = False, allow_none: bool = False) -> None:
     if v is None and allow_none:
         return
-    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and (v >= 0 if allow_zero else v > 0)
-    if not ok:
-        rng = ">= 0" if allow_zero else "> 0"
-        raise ConfigError(f"LocateOptions.{name} must be a finite number {rng}{' or None' if allow_none else ''}, got {v!r}")
+    number(v, f"LocateOptions.{name}", NON_NEGATIVE if allow_zero else POSITIVE)
 
 
 @dataclass(frozen=True)

@@ -53,6 +53,7 @@ def test_voyager_half_frames(name):
 def test_fits_nan_corners_are_invalid_and_jp2_header_metadata():
     fr = read_frame(DATA / "sun" / "resampled_hmi.fits")
     assert fr.n_invalid > 0 and np.isfinite(fr.data).all()
+    assert np.all(fr.data[~fr.mask] == fr.data[fr.mask].min())  # load_image's fill: dark corners
     assert fr.meta.image_time.startswith("2014-03-01")
     jp2 = read_frame(DATA / "sun" / "2023_01_31__03_39_23_200__SDO_HMI_HMI_continuum.jp2")
     assert jp2.meta.image_time.startswith("2023-01-31T03:39:23")
