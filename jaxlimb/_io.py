@@ -24,11 +24,14 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
 
     The rename is atomic on POSIX, so readers see either the old file or the whole
     new one, never a half-written file.  On an exception the temporary is removed
-    and ``path`` is untouched.
+    and ``path`` is untouched.  The temporary's name carries the writer's process id
+    (``.NAME.PID-XXXX.tmp``): a writer that was killed (SIGKILL, power loss) leaves its
+    temporary behind, and the next write of ``path`` removes it (:func:`remove_dead_temporaries`).
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    remove_dead_temporaries(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}-", suffix=".tmp", dir=path.parent)
     os.close(fd)
     tmp_path = Path(tmp)
     os.chmod(tmp_path, 0o666 & ~_umask())  # mkstemp makes 0600; give the file the usual mode
@@ -85,6 +88,39 @@ def stale_temporaries(path: str | os.PathLike[str]) -> list[Path]:
     return sorted(p.parent.glob(f".{glob.escape(p.name)}.*.tmp")) if p.parent.is_dir() else []
 
 
+def _writer_pid(tmp: Path, name: str) -> int | None:
+    """The process id in a temporary's name ``.NAME.PID-XXXX.tmp`` (None for other names)."""
+    pid = tmp.name[len(name) + 2 : -len(".tmp")].split("-", 1)[0]
+    return int(pid) if pid.isdigit() else None
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's live process
+        return True
+    return True
+
+
+def remove_dead_temporaries(path: str | os.PathLike[str]) -> list[Path]:
+    """Remove the temporaries of ``path`` whose writer process no longer exists; return them.
+
+    A live writer's temporary (its process still runs) is left alone, so concurrent atomic
+    writers of one file never remove each other's work.
+    """
+    p = Path(path)
+    removed = []
+    for tmp in stale_temporaries(p):
+        pid = _writer_pid(tmp, p.name)
+        if pid is not None and pid != os.getpid() and not _alive(pid):
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+                removed.append(tmp)
+    return removed
+
+
 @contextlib.contextmanager
 def exclusive_output(path: str | os.PathLike[str]) -> Iterator[Path]:
     """Hold the writer's lock of ``path`` for the whole block (computation and write).
@@ -93,7 +129,8 @@ def exclusive_output(path: str | os.PathLike[str]) -> Iterator[Path]:
     writer of the same ``path`` is refused at once with
     :class:`~jaxlimb.errors.OutputBusyError` (no database is silently lost to a race).
     Under the lock, the temporaries of an earlier writer that was killed mid-write
-    (:func:`stale_temporaries`) are removed.  The lock file is removed on exit.
+    (:func:`remove_dead_temporaries`, and untagged ones of older versions) are removed.
+    The lock file is removed on exit.
     """
     import fcntl
 
@@ -117,9 +154,11 @@ def exclusive_output(path: str | os.PathLike[str]) -> Iterator[Path]:
             break
         os.close(fd)
     try:
-        for tmp in stale_temporaries(p):
-            with contextlib.suppress(OSError):
-                tmp.unlink()
+        remove_dead_temporaries(p)
+        for tmp in stale_temporaries(p):  # untagged ones (older versions): only a lock holder may remove them
+            if _writer_pid(tmp, p.name) is None:
+                with contextlib.suppress(OSError):
+                    tmp.unlink()
         yield p
     finally:
         with contextlib.suppress(OSError):

@@ -147,7 +147,9 @@ def arg_number(rng: Range = ANY, *, integer: bool = False) -> Callable[[str], An
     """
 
     def parse(text: str) -> Any:
-        try:
+        try:  # plain ASCII decimal only: not "1_000", not Unicode digits, not surrounding blanks
+            if not text.isascii() or "_" in text or text != text.strip():
+                raise ValueError(text)
             x = int(text) if integer else float(text)
         except ValueError:
             x = math.nan

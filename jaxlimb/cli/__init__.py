@@ -200,7 +200,8 @@ def _main(argv: Sequence[str] | None) -> int:
     _STATE["json"] = want_json
     try:
         args = build_parser().parse_args(argv)
-        _start_jax()
+        if getattr(args, "needs_jax", True):  # a sub-command may declare it runs without JAX
+            _start_jax()
         with warnings.catch_warnings():
             warnings.simplefilter("default")
             warnings.showwarning = _one_line_warning

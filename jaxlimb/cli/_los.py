@@ -52,7 +52,7 @@ def register(subparsers: Any) -> None:
     b.add_argument("--out", required=True, metavar="DB", help="output database file (.npz)")
     _add_db_options(b)
     b.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
-    b.set_defaults(func=run_build)
+    b.set_defaults(func=run_build, needs_jax=False)
 
     q = sub.add_parser("locate", help="locate the image of the body centre and the line of sight")
     q.add_argument("image", metavar="IMAGE", nargs="+", help="grey image (PNG/TIFF/FITS); several files, a "
@@ -72,7 +72,7 @@ def register(subparsers: Any) -> None:
     from ._batch import add_batch_arguments
 
     add_batch_arguments(q)
-    q.set_defaults(func=run_locate)
+    q.set_defaults(func=run_locate, needs_jax=False)  # numpy + OpenCV only: no JAX start-up
 
 
 def _add_db_options(p: argparse.ArgumentParser) -> None:

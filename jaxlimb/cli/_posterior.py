@@ -107,12 +107,76 @@ def _pixels_from_circle(image, center_rc, radius: float, annulus: float):  # noq
     return rc, z, ymax, ymin
 
 
+def _inputs(args: argparse.Namespace):  # noqa: ANN202
+    """Every input checked and read before any work: ``(image, camera, hints dict, fixed names)``."""
+    from .._io import read_json_file
+    from ..errors import LimbInputError
+    from ..geometry.camera import Camera
+    from ..imaging import Hints
+    from ..models import CIRCLE
+    from . import figure_path
+
+    figure_path(args.plot, "--plot")
+    if (args.center_rc is None) != (args.radius is None):
+        raise LimbInputError("`--center-rc` and `--radius` go together (both or neither)")
+    if args.noise == "known" and args.sigma is None:
+        raise LimbInputError("`--noise known` needs `--sigma`")
+    fixed = tuple(s.strip() for s in args.fix.split(",") if s.strip())
+    unknown = sorted(set(fixed) - set(CIRCLE.param_names))
+    if unknown:
+        raise LimbInputError(f"`--fix` names unknown parameters {unknown}; the circle model has {list(CIRCLE.param_names)}")
+    image = _load(args.image)
+    if image.ndim != 2:
+        raise LimbInputError(f"IMAGE must be a 2-D grey image, got shape {image.shape}")
+    camera = Camera.from_json(args.camera) if args.camera is not None else None
+    hints: dict = {}
+    if args.hints is not None:
+        hints = read_json_file(args.hints, "hints file")
+        Hints.from_dict(hints)  # every value checked (types, ranges) before any work
+    return image, camera, hints, fixed
+
+
+def _pixels(args: argparse.Namespace, image, camera, hints: dict):  # noqa: ANN001, ANN202
+    """The pixels and the start of the fit: ``(rc, z, init, source)`` (``--center-rc`` or ``locate``)."""
+    import numpy as np
+
+    from ..models import CircleParams
+
+    if args.center_rc is not None:
+        rc, z, ymax, ymin = _pixels_from_circle(image, args.center_rc, args.radius, args.annulus)
+        return rc, z, CircleParams(args.center_rc[0], args.center_rc[1], args.radius, args.k, ymax, ymin), "center-rc"
+    from ..pipeline import LocateOptions, locate
+
+    m = locate(image, camera, hints or {"body": "moon"},
+               LocateOptions(model="circle", body_center_correction=False, keep_pixels=True))
+    rc = np.asarray(m.selected_pixels_rc, dtype=float)
+    z = image[np.rint(rc[:, 0]).astype(int), np.rint(rc[:, 1]).astype(int)].astype(float)
+    c = m.extras["circle_fit"]
+    return rc, z, CircleParams(c["center_rc"][0], c["center_rc"][1], c["radius_px"], m.k, m.ymax, m.ymin), "locate"
+
+
+def _los_range(post, f, camera, hints: dict) -> dict | None:  # noqa: ANN001
+    """LOS and range with their delta-method sigmas, from the posterior and the Laplace covariance."""
+    import numpy as np
+
+    from ..analysis.crlb import los_range_bound
+    from ..imaging import Hints
+
+    names = ("r0", "c0", "radius")
+    body_radius = Hints.from_dict(hints).radius_km() if camera is not None and hints else None
+    if body_radius is None or not set(names) <= set(post.names):
+        return None
+    idx = [post.names.index(n) for n in names]
+    fidx = [f.free.index(n) for n in names]
+    mean = post.mean[idx]
+    covs = {"posterior": post.covariance[np.ix_(idx, idx)], "laplace": np.asarray(f.covariance)[np.ix_(fidx, fidx)]}
+    return {label: los_range_bound(camera, mean[:2], mean[2], cov, body_radius).as_dict() for label, cov in covs.items()}
+
+
 def run(args: argparse.Namespace) -> int:
     import math
 
-    import numpy as np
-
-    from ..analysis.crlb import crlb, los_range_bound
+    from ..analysis.crlb import crlb
     from ..analysis.posterior import (
         PosteriorOptions,
         Priors,
@@ -123,54 +187,17 @@ def run(args: argparse.Namespace) -> int:
         priors_from_hints,
         sample_posterior,
     )
-    from ..errors import LimbInputError
     from ..fitting import fit
-    from ..geometry.camera import Camera
-    from ..models import CIRCLE, CircleParams
-    from .._io import read_json_file
-    from ..imaging import Hints
-    from . import emit_json, figure_path, report_after_result, try_save
+    from ..models import CIRCLE
+    from . import emit_json, report_after_result, try_save
 
-    figure_path(args.plot, "--plot")  # before any work
-    if (args.center_rc is None) != (args.radius is None):
-        raise LimbInputError("`--center-rc` and `--radius` go together (both or neither)")
-    if args.noise == "known" and args.sigma is None:
-        raise LimbInputError("`--noise known` needs `--sigma`")
-    image = _load(args.image)
-    if image.ndim != 2:
-        raise LimbInputError(f"IMAGE must be a 2-D grey image, got shape {image.shape}")
-    camera = Camera.from_json(args.camera) if args.camera is not None else None
-    hints: dict = {}
-    if args.hints is not None:
-        hints = read_json_file(args.hints, "hints file")
-        Hints.from_dict(hints)  # every value checked (types, ranges) before any work
-    fixed = tuple(s.strip() for s in args.fix.split(",") if s.strip())
-    unknown = sorted(set(fixed) - set(CIRCLE.param_names))
-    if unknown:
-        raise LimbInputError(f"`--fix` names unknown parameters {unknown}; the circle model has {list(CIRCLE.param_names)}")
-
-    if args.center_rc is not None:
-        rc, z, ymax, ymin = _pixels_from_circle(image, args.center_rc, args.radius, args.annulus)
-        if not args.k > 0:
-            raise LimbInputError(f"`--k` must be > 0, got {args.k!r}")
-        init = CircleParams(args.center_rc[0], args.center_rc[1], args.radius, args.k, ymax, ymin)
-        source = "center-rc"
-    else:
-        from ..pipeline import LocateOptions, locate
-
-        m = locate(image, camera, hints or {"body": "moon"},
-                   LocateOptions(model="circle", body_center_correction=False, keep_pixels=True))
-        rc = np.asarray(m.selected_pixels_rc, dtype=float)
-        ri, ci = np.rint(rc[:, 0]).astype(int), np.rint(rc[:, 1]).astype(int)
-        z = image[ri, ci].astype(float)
-        c = m.extras["circle_fit"]
-        init = CircleParams(c["center_rc"][0], c["center_rc"][1], c["radius_px"], m.k, m.ymax, m.ymin)
-        source = "locate"
+    image, camera, hints, fixed = _inputs(args)
+    rc, z, init, source = _pixels(args, image, camera, hints)
     f = fit(CIRCLE, rc, z, init, fixed=fixed)
     priors = priors_from_hints(hints, CIRCLE) if hints else Priors()
     lp = log_posterior(CIRCLE, rc, z, f.params, fixed=fixed, noise=args.noise, sigma=args.sigma, priors=priors)
     opt = PosteriorOptions(n_walkers=args.walkers, max_steps=args.max_steps, max_time_s=args.max_time, seed=args.seed)
-    post = sample_posterior(lp, f, options=opt, progress=not args.json)
+    post = sample_posterior(lp, f, options=opt, progress=not args.json)  # quality-checked (exit 3 on pure noise)
     sigma_hat = math.sqrt(float(f.sigma2))
     bound = crlb(CIRCLE, rc, f.params, args.sigma if args.noise == "known" else sigma_hat, fixed=fixed)
     cmp = compare_uncertainties(post, f, bound)
@@ -186,18 +213,11 @@ def run(args: argparse.Namespace) -> int:
         "comparison": cmp,
         "priors": {"gaussian": {k: list(v) for k, v in priors.gaussian.items()}},
     }
-    body_radius = None
-    if camera is not None and hints:
-        body_radius = Hints.from_dict(hints).radius_km()
-    if camera is not None and body_radius is not None and {"r0", "c0", "radius"} <= set(post.names):
-        idx = [post.names.index(n) for n in ("r0", "c0", "radius")]
-        mean = post.mean[idx]
-        for label, cov in (("posterior", post.covariance[np.ix_(idx, idx)]),
-                           ("laplace", np.asarray(f.covariance)[np.ix_([f.free.index(n) for n in ("r0", "c0", "radius")],
-                                                                       [f.free.index(n) for n in ("r0", "c0", "radius")])])):
-            out.setdefault("los_range", {})[label] = los_range_bound(camera, mean[:2], mean[2], cov, body_radius).as_dict()
+    lr = _los_range(post, f, camera, hints)
+    if lr is not None:
+        out["los_range"] = lr
     plot_error = None
-    if args.plot:
+    if args.plot:  # after the work: a failing writer must not lose the result
         plot_error = try_save(lambda: corner_plot(post, args.plot, laplace=f, title=f"{args.image}: {z.size} px, "
                                                   f"{post.n_steps} steps{'' if post.converged else ' (NOT converged)'}"),
                               "--plot")
@@ -211,8 +231,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{z.size} pixels ({source}); {s['n_steps']} steps x {s['n_walkers']} walkers in {s['wall_s']:.1f} s; "
               f"max tau {max(s['tau'].values()):.1f}; {'converged' if post.converged else 'NOT converged'}")
         print(comparison_table(cmp))
-        if "los_range" in out:
-            lr = out["los_range"]["posterior"]
-            print(f"range {lr['range_km']:.2f} +- {lr['sigma_range_km']:.2f} km, LOS sigma {lr['sigma_los_arcsec']:.3f} arcsec")
+        if lr is not None:
+            p = lr["posterior"]
+            print(f"range {p['range_km']:.2f} +- {p['sigma_range_km']:.2f} km, LOS sigma {p['sigma_los_arcsec']:.3f} arcsec")
     return report_after_result(plot_error)
-

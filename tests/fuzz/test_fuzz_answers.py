@@ -157,9 +157,22 @@ def test_second_writer_of_the_same_database_is_refused(inputs, tmp_path):
     assert not list(tmp_path.glob(".*.lock"))  # the lock file goes with its holder
 
 
+def _pid_exists(pid: int) -> bool:
+    import os
+
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
 def test_next_build_removes_the_temporaries_of_a_killed_build(inputs, tmp_path):
     target = tmp_path / "db.npz"
-    stale = [tmp_path / ".db.npz.k1ll3d.tmp", tmp_path / ".db.npz.x.tmp"]
+    dead = next(pid for pid in range(4_000_000, 1, -1) if not _pid_exists(pid))
+    stale = [tmp_path / ".db.npz.k1ll3d.tmp", tmp_path / f".db.npz.{dead}-x.tmp"]  # older name; a killed writer's
     for p in stale:
         p.write_bytes(b"half a database")
     other = tmp_path / ".other.npz.abc.tmp"  # another output's temporary is not ours to remove

@@ -104,3 +104,11 @@ def test_figures_out_is_relative_to_the_current_directory(tmp_path, monkeypatch)
     res = run_cli(["figures", "--quick", "--out", "figs"])
     assert res.code == 0, res
     assert record.read_text() == str(work / "figs")
+
+
+@pytest.mark.parametrize("which", ["missing", "dir", ""])
+def test_demo_sdo_that_is_not_a_file_exits_2_before_the_demo(which, inputs, tmp_path):
+    sdo = inputs[which] if which else ""
+    res = run_cli(["demo", "--out", tmp_path / "demo", "--sdo", sdo, "--json"])
+    assert_refused(res, 2, "--sdo")
+    assert not (tmp_path / "demo").exists()
