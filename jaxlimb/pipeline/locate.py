@@ -193,6 +193,11 @@ def locate(
         from .whole_limb import locate_whole_limb
 
         return locate_whole_limb(img, cam, hin, opt, mask=mask)
+    if _arc_only(cam, hin, img.shape):
+        # close approach: the disc exceeds the frame; measure the visible arc (too_big only without one)
+        from .whole_limb import locate_arc
+
+        return locate_arc(img, cam, hin, opt, mask=mask)
 
     # ------------------------------------------------------------------ Check 1 on the prior first
     # (Aerospace 2015 §3: "after internal parameter computation"): a body the hints say is too
@@ -554,6 +559,14 @@ def _limb_predicted(cam: Camera | None, hin: Hints | None) -> bool:
     """The hints place the limb (SPICE-like prediction): the whole-limb stage applies."""
     return (cam is not None and not cam.has_distortion and hin is not None and hin.expected_center_rc is not None
             and hin.range_prior_km is not None and hin.radius_km() is not None)
+
+
+def _arc_only(cam: Camera | None, hin: Hints | None, shape: tuple[int, int]) -> bool:
+    """Camera, range and radius known, and the expected disc larger than the frame's half-diagonal."""
+    if cam is None or cam.has_distortion or hin is None or hin.radius_km() is None or hin.range_prior_km is None:
+        return False
+    rkm, rng = hin.radius_km(), hin.range_prior_km
+    return rng > rkm and cam.focal_px * math.tan(math.asin(rkm / rng)) > 0.5 * math.hypot(*shape)
 
 
 def _use_profile(opt: LocateOptions, hin: Hints | None) -> bool:
