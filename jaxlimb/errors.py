@@ -156,10 +156,29 @@ class ConvergenceError(CheckFailed):
     check = "no_convergence"
 
 
+class PosteriorImproperError(ConvergenceError):
+    """The posterior cannot be sampled or is improper: the walkers run away (k, means -> 1e62),
+    or its spread is out of all proportion to the fit's Laplace covariance."""
+
+    check = "posterior_improper"
+
+
 class JumpError(ConvergenceError):
     """Check 5: the fit converged far away from its (Taubin) initial estimate."""
 
     check = "jump_from_initial"
+
+
+class GradientMismatchError(CheckFailed):
+    """``jaxlimb gradcheck``: an analytic Jacobian disagrees with autodiff beyond the tolerance."""
+
+    check = "gradient_mismatch"
+
+
+class OutputBusyError(LimbInputError):
+    """Another process holds the lock of the output file being written (concurrent writers)."""
+
+    check = "output_busy"
 
 
 class MatchError(CheckFailed):
@@ -190,6 +209,7 @@ __all__ = [
     "DatabaseError",
     "EphemerisError",
     "GeometryError",
+    "GradientMismatchError",
     "ImageContentError",
     "ImageReadError",
     "JaxlimbError",
@@ -199,6 +219,8 @@ __all__ = [
     "MatchError",
     "MeshError",
     "NoBodyError",
+    "OutputBusyError",
+    "PosteriorImproperError",
     "RadiusInconsistentError",
     "SaturationWarning",
     "SpiceError",

@@ -13,6 +13,7 @@ output directory and resumable.
 
 from __future__ import annotations
 
+import math
 import hashlib
 import json
 import time
@@ -67,14 +68,30 @@ class ModelStudyOptions:
     def __post_init__(self) -> None:
         if self.model not in ("circle", "ellipse"):
             raise LimbInputError(f"`model` must be 'circle' or 'ellipse', got {self.model!r}")
+        from .._validate import POSITIVE, Range, number
+
         for name in ("radius", "k", "sigma", "annulus"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise LimbInputError(f"`{name}` must be a finite number > 0, got {v!r}")
-        if self.n < 2:
-            raise LimbInputError(f"`n` must be >= 2, got {self.n!r}")
-        if self.batch < 1:
-            raise LimbInputError(f"`batch` must be >= 1, got {self.batch!r}")
+            number(getattr(self, name), f"`{name}`", POSITIVE, error=LimbInputError)
+        number(self.n, "`n`", Range(2, None), integer=True, error=LimbInputError)
+        number(self.batch, "`batch`", Range(1, None), integer=True, error=LimbInputError)
+        number(self.seed, "`seed`", Range(0, 2**32 - 1), integer=True, error=LimbInputError)
+        names = (CIRCLE if self.model == "circle" else ELLIPSE).param_names
+        unknown = sorted(set(self.fixed) - set(names))
+        if unknown:
+            raise LimbInputError(f"`fixed` (--fix) names unknown parameters {unknown}; the {self.model} model has {list(names)}")
+        if not set(names) - set(self.fixed) - {"rho"}:
+            raise LimbInputError(f"`fixed` (--fix) holds every parameter of the {self.model} model: nothing to estimate")
+
+
+def estimated_nbytes(opt: ModelStudyOptions) -> float:
+    """Peak memory (bytes) of :func:`run_model_study`: the pixel grid of :func:`model_problem`
+    (about six float64 images) and the fit of one realisation (the compiled program maps over a
+    batch one member at a time: data, residuals and the Jacobian of the ``2 pi radius x 2 annulus``
+    band pixels, padded to the next bucket, x4 for the solver's temporaries)."""
+    rows, cols = opt.shape
+    n_pix = 1.5 * 2.0 * math.pi * opt.radius * 2.0 * opt.annulus
+    n_par = 8 if opt.model == "ellipse" else 6
+    return 8.0 * (6.0 * rows * cols + 4.0 * n_pix * (n_par + 6) + 2.0 * opt.batch * n_par)
 
 
 def model_problem(opt: ModelStudyOptions) -> tuple[LimbModel, LimbParams, LimbParams, np.ndarray, tuple[str, ...]]:
@@ -196,6 +213,9 @@ def run_model_study(opt: ModelStudyOptions, solver: AbstractLimbSolver | None = 
     settings resumes.  ``compile_s`` is the time spent tracing and compiling (or loading from
     the persistent cache), ``fit_s`` the time of the fits alone, ``wall_s`` everything.
     """
+    from .._validate import check_memory
+
+    check_memory(estimated_nbytes(opt), f"a {opt.shape[0]}x{opt.shape[1]} study of radius {opt.radius:g} px")
     solver = NormalLM() if solver is None else solver
     t_start = time.perf_counter()
     prob = _Problem(*model_problem(opt))

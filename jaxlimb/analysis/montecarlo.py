@@ -348,8 +348,7 @@ def run_monte_carlo(trial: Callable[..., Mapping[str, Any]], options: MonteCarlo
             data = _run_chunk(trial, opt, c)
             run += 1
             if path is not None:
-                with atomic_open(path, "wb") as fh:
-                    np.savez(fh, **data)
+                _write_chunk(path, data)
         chunks.append(data)
         bar.update(int(data["index"].size))
     bar.close()
@@ -371,6 +370,43 @@ def run_monte_carlo(trial: Callable[..., Mapping[str, Any]], options: MonteCarlo
         chunks_skipped=skipped,
         options=opt,
     )
+
+
+def _write_chunk(path: Path, data: Mapping[str, np.ndarray]) -> None:
+    with atomic_open(path, "wb") as fh:
+        np.savez(fh, **data)
+
+
+def prepare_study(options: MonteCarloOptions) -> list[int]:
+    """Check (or write) ``options.out_dir``'s manifest and list the chunks still to compute.
+
+    The first half of a distributed run (:mod:`jaxlimb.analysis.distributed`): each listed
+    chunk is then one task, :func:`run_chunk_to_file`.  A chunk file that cannot be read back
+    is listed again (with a :class:`ChunkRecomputedWarning` naming it).
+    """
+    if options.out_dir is None:
+        raise LimbInputError("a distributed study needs `out_dir` (the chunks are its results)")
+    out_dir = Path(options.out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    _check_manifest(out_dir, options)
+    todo = []
+    for c in range(options.n_chunks):
+        path = _chunk_path(out_dir, c)
+        lo = c * options.chunk_size
+        if not path.exists() or _resume_chunk(path, np.arange(lo, min(lo + options.chunk_size, options.n_trials))) is None:
+            todo.append(c)
+    return todo
+
+
+def run_chunk_to_file(trial: Callable[..., Any], options: MonteCarloOptions, c: int) -> str:
+    """Compute chunk ``c`` of the study and write it atomically to ``options.out_dir``; returns the path.
+
+    The unit of work of a distributed run: a task killed before the rename leaves nothing
+    (the temporary file is removed or ignored), a finished one is never computed again.
+    """
+    path = _chunk_path(Path(options.out_dir), c)  # type: ignore[arg-type]
+    _write_chunk(path, _run_chunk(trial, options, c))
+    return str(path)
 
 
 def load_monte_carlo(out_dir: str | Path) -> MonteCarloResult:
@@ -485,6 +521,8 @@ __all__ = [
     "MonteCarloResult",
     "load_monte_carlo",
     "plot_errors",
+    "prepare_study",
+    "run_chunk_to_file",
     "plot_rms_vs_crlb",
     "run_monte_carlo",
     "stats_json",

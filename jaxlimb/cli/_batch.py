@@ -21,6 +21,10 @@ Exit code (of the frames processed by this call): 0 when every frame is ok; else
 1 (an internal error), 2 (a frame was unusable input, e.g. unreadable or wrong size) and 3 (a
 check failed), in that order.
 
+Dask.  ``--workers N`` (a ``LocalCluster``) or ``--scheduler ADDRESS`` (a running cluster) measures
+chunks of frames as Dask tasks (:mod:`jaxlimb.analysis.distributed`); the records still arrive
+in order and are written by this process, one line per frame, so ``--resume`` works the same.
+
 Speed.  Every frame runs in the same process, so the compiled programs are reused (frames of
 one camera share them: pixel sets are padded to size buckets) and the compilation is paid once
 per call (or loaded from the persistent cache, :mod:`jaxlimb._jaxcache`).
@@ -49,11 +53,21 @@ def add_batch_arguments(p: argparse.ArgumentParser) -> None:
                    help="many frames: append one JSON line per frame to FILE (default: stdout)")
     p.add_argument("--resume", action="store_true",
                    help="many frames: skip the frames --out FILE already holds (continue an interrupted run)")
+    from .._validate import Range, arg_number
+
+    p.add_argument("--workers", type=arg_number(Range(1, 1024), integer=True), default=None,
+                   help="many frames: measure chunks of frames on a Dask LocalCluster of N worker processes")
+    p.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                   help="many frames: measure chunks of frames on a running Dask cluster (e.g. tcp://node:8786)")
 
 
 def is_many(images: list[str], args: argparse.Namespace) -> bool:
     """Whether the call is a many-frame run (several images, a directory, a glob, @LIST, or --out)."""
-    if len(images) != 1 or args.out is not None or args.resume:
+    if any(not s.strip() for s in images):  # Path("") is the current directory: never a frame by accident
+        from ..errors import ImageReadError
+
+        raise ImageReadError("IMAGE is an empty path")
+    if len(images) != 1 or args.out is not None or args.resume or args.workers is not None or args.scheduler:
         return True
     spec = images[0]
     return spec.startswith("@") or Path(spec).is_dir() or (glob.has_magic(spec) and not Path(spec).exists())
@@ -168,6 +182,44 @@ def _error_record(e: BaseException) -> tuple[dict[str, Any], int]:
     return {"status": "error", "check": "internal_error", "message": f"{type(e).__name__}: {' '.join(str(e).split())}"}, 1
 
 
+def _one_frame(path: str, read: Callable[[str], Any], measure: Callable[[str, Any], dict[str, Any]]) -> tuple[dict[str, Any], int]:
+    try:
+        return {**measure(path, read(path)), "image": path}, 0
+    except Exception as e:  # noqa: BLE001 - a bad frame never stops the run
+        rec, code = _error_record(e)
+        return {**rec, "image": path}, code
+
+
+def _frame_chunk(paths: list[str], read: Callable[[str], Any],
+                 measure: Callable[[str, Any], dict[str, Any]]) -> list[tuple[dict[str, Any], int]]:
+    """A Dask task: the records of a chunk of frames (the worker sets up JAX as the command does)."""
+    from . import _start_jax
+
+    _start_jax()
+    return [_one_frame(p, read, measure) for p in paths]
+
+
+def _records(todo: list[str], args: argparse.Namespace, read: Callable[[str], Any],
+             measure: Callable[[str, Any], dict[str, Any]]) -> Any:
+    """``(record, exit code)`` per frame, in order: in this process, or chunks of frames on Dask."""
+    if args.workers is None and args.scheduler is None:
+        for path in todo:
+            yield _one_frame(path, read, measure)
+        return
+    from functools import partial
+
+    from ..analysis.distributed import close_client, make_client, map_chunks
+
+    client = make_client(args.scheduler, args.workers or 2)
+    n_workers = max(1, len(client.scheduler_info().get("workers", {})))
+    size = max(1, min(16, -(-len(todo) // (4 * n_workers))))
+    try:
+        for chunk in map_chunks(partial(_frame_chunk, read=read, measure=measure), todo, client, size):
+            yield from chunk
+    finally:
+        close_client(client)
+
+
 def run_frames(images: list[str], args: argparse.Namespace, read: Callable[[str], Any],
                measure: Callable[[str, Any], dict[str, Any]]) -> int:
     """Run ``measure(path, read(path))`` over the frames and stream JSON Lines (module docstring)."""
@@ -181,12 +233,7 @@ def run_frames(images: list[str], args: argparse.Namespace, read: Callable[[str]
     worst, counts = 0, {"ok": 0, "error": 0}
     bar = tqdm(total=len(todo), unit="frame", desc="frames", file=sys.stderr, disable=None)
     try:
-        for path in todo:
-            try:
-                rec, code = {**measure(path, read(path)), "image": path}, 0
-            except Exception as e:  # noqa: BLE001 - a bad frame never stops the run
-                rec, code = _error_record(e)
-                rec["image"] = path
+        for rec, code in _records(todo, args, read, measure):
             writer.write(rec)
             counts["ok" if code == 0 else "error"] += 1
             worst = max(worst, code, key=_SEVERITY.__getitem__)

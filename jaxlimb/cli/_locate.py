@@ -136,21 +136,24 @@ def run(args: argparse.Namespace) -> int:
 
             raise ConfigError("--figure saves one frame's picture: not with many frames")
         return _batch.run_frames(images, args, _read, lambda path, frame: _json(*_measure(args, frame)[:2]))
+    from . import figure_path, report_after_result, try_save
+
     args.image = images[0]
+    figure_path(args.figure, "--figure")  # before any work
     meas, spice, image = _measure(args, _read(args.image))
-    if args.figure:
+    figure_error = None
+    if args.figure:  # after the work: a failing writer must not lose the measurement
         from ..pipeline import save_locate_figure
 
-        save_locate_figure(image, meas, args.figure)
-    _print(args, meas, spice)
-    return 0
+        figure_error = try_save(lambda: save_locate_figure(image, meas, args.figure), "--figure")
+    _print(args, meas, spice, figure_error)
+    return report_after_result(figure_error)
 
 
 def _measure(args: argparse.Namespace, frame):
-    """``(measurement, SPICE report or None, image)`` of one frame."""
-    import importlib
-
-    from ..errors import ConfigError
+    """``(measurement, SPICE report or None, image)`` of one frame.  The CLI chooses nothing but options:
+    :func:`jaxlimb.pipeline.locate` picks the body strategy from the hints' body."""
+    from ..errors import SaturationWarning
     from ..geometry.camera import Camera
     from ..pipeline import LocateOptions, locate
     from . import warnings_to_stderr
@@ -162,27 +165,16 @@ def _measure(args: argparse.Namespace, frame):
                         base=geom.hints() if geom else None)
     options = LocateOptions(front_end=args.front_end, model=args.model, solver=args.solver,
                             estimate_k=not args.fixed_k, profile=args.profile)
-    if hints.body == "earth":
-        try:
-            earth = importlib.import_module("jaxlimb.pipeline.earth")
-        except ImportError:
-            raise ConfigError("the Earth pipeline (jaxlimb.pipeline.earth) is unavailable in this installation") from None
-        if camera is None:
-            raise ConfigError("--body earth needs --camera (the Earth pipeline measures the range)")
-        meas = earth.locate_earth(image, camera, hints, options)
-    else:
-        from ..errors import SaturationWarning
-
-        with warnings_to_stderr(SaturationWarning):
-            meas = locate(image, camera, hints, options, mask=frame.mask_or_none)
+    with warnings_to_stderr(SaturationWarning):
+        meas = locate(image, camera, hints, options, mask=frame.mask_or_none)
     return meas, (_spice_report(geom, meas) if geom is not None else None), image
 
 
-def _print(args: argparse.Namespace, meas, spice) -> None:
+def _print(args: argparse.Namespace, meas, spice, figure_error: str | None = None) -> None:
     from . import emit_json
 
     if args.json:
-        emit_json(_json(meas, spice))
+        emit_json({**_json(meas, spice), **({"figure_error": figure_error} if figure_error else {})})
     else:
         print(f"centre (row, col): {meas.center_rc[0]:.4f} {meas.center_rc[1]:.4f} px")
         if meas.radius_px is not None:

@@ -30,12 +30,16 @@ import json
 import math
 import sys
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..errors import ImageContentError, ImageReadError
+from .._validate import Range, arg_number, input_file, output_file
+from ..errors import ConfigError, DatabaseError, ImageContentError, MeshError
+
+#: ``--step-deg``: below 0.5 deg a database has > 250 000 views (> 10 min to build); above 60 no ring is left.
+STEP_DEG_RANGE = Range(0.5, 60.0)
+TEMPLATE_SIZE_RANGE = Range(32, 4096)
 
 
 def register(subparsers: Any) -> None:
@@ -48,7 +52,7 @@ def register(subparsers: Any) -> None:
     b.add_argument("--out", required=True, metavar="DB", help="output database file (.npz)")
     _add_db_options(b)
     b.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
-    b.set_defaults(func=run_build)
+    b.set_defaults(func=run_build, needs_jax=False)
 
     q = sub.add_parser("locate", help="locate the image of the body centre and the line of sight")
     q.add_argument("image", metavar="IMAGE", nargs="+", help="grey image (PNG/TIFF/FITS); several files, a "
@@ -68,13 +72,15 @@ def register(subparsers: Any) -> None:
     from ._batch import add_batch_arguments
 
     add_batch_arguments(q)
-    q.set_defaults(func=run_locate)
+    q.set_defaults(func=run_locate, needs_jax=False)  # numpy + OpenCV only: no JAX start-up
 
 
 def _add_db_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--step-deg", type=float, default=3.0, help="view-sphere sampling step (deg, default 3)")
+    p.add_argument("--step-deg", type=arg_number(STEP_DEG_RANGE), default=3.0,
+                   help=f"view-sphere sampling step, deg {STEP_DEG_RANGE} (default 3)")
     p.add_argument("--pole-axis", choices=("x", "y", "z"), default="z", help="mesh axis used as the sampling pole")
-    p.add_argument("--template-size", type=int, default=512, help="template image side (px, default 512)")
+    p.add_argument("--template-size", type=arg_number(TEMPLATE_SIZE_RANGE, integer=True), default=512,
+                   help=f"template image side, px, integer {TEMPLATE_SIZE_RANGE} (default 512)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -85,15 +91,19 @@ def _db_options(args: argparse.Namespace) -> Any:
 
 
 def run_build(args: argparse.Namespace) -> int:
+    from .._io import exclusive_output
     from ..irregular.database import build_database, save_database
     from ..irregular.mesh import load_mesh
 
     opts = _db_options(args)
+    input_file(args.mesh, "MESH", error=MeshError)
+    target = output_file(args.out, "--out", suffixes=(".npz",), error=ConfigError)  # before any work
     mesh = load_mesh(args.mesh)
-    t0 = time.perf_counter()
-    db = build_database(mesh, opts, progress=not args.no_progress)
-    dt = time.perf_counter() - t0
-    out = save_database(db, args.out)
+    with exclusive_output(target):  # a second build of the same --out is refused; stale temporaries removed
+        t0 = time.perf_counter()
+        db = build_database(mesh, opts, progress=not args.no_progress)
+        dt = time.perf_counter() - t0
+        out = save_database(db, target)
     summary = {
         "status": "ok",
         "database": str(out),
@@ -113,26 +123,11 @@ def run_build(args: argparse.Namespace) -> int:
 
 
 def _read_image(path: str) -> np.ndarray:
-    try:
-        from ..imaging.io import load_image
-    except ImportError:  # pragma: no cover - fallback while imaging.io is not in the tree
-        load_image = None
-    if load_image is not None:
-        img, _ = load_image(path)
-        return img
-    import cv2  # pragma: no cover
+    """The frame as float64 (a constant frame is read: it is a frame without a body, exit 3 as for `locate`)."""
+    from ..imaging.io import load_image
 
-    p = Path(path)  # pragma: no cover
-    if not p.is_file():  # pragma: no cover
-        raise ImageReadError(f"image file {path!r} does not exist")
-    a = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)  # pragma: no cover
-    if a is None:  # pragma: no cover
-        raise ImageReadError(f"image file {path!r} cannot be decoded")
-    if a.ndim == 3:  # pragma: no cover
-        a = cv2.cvtColor(a, cv2.COLOR_BGR2GRAY)
-    if a.ndim != 2 or min(a.shape) < 2:  # pragma: no cover
-        raise ImageContentError(f"image {path!r} has unusable shape {a.shape}")
-    return a.astype(np.float64)  # pragma: no cover
+    img, _ = load_image(path, reject_constant=False)
+    return img
 
 
 def _read_hints(path: str | None) -> Any:
@@ -199,6 +194,11 @@ def _locate_checked(image: np.ndarray, db: Any, camera: Any, hints: Any) -> dict
 def run_locate(args: argparse.Namespace) -> int:
     from . import _batch
 
+    # the database/mesh file is checked before any frame is read (and long before a database build)
+    if args.db is not None:
+        input_file(args.db, "--db", error=DatabaseError)
+    else:
+        input_file(args.mesh, "--mesh", error=MeshError)
     images = list(args.image)
     if _batch.is_many(images, args):  # many frames: JSON Lines, one per frame (cli/_batch.py)
         memo: dict[str, Any] = {}  # the camera and the database, loaded once for every frame
@@ -231,6 +231,10 @@ def _locate_one(args: argparse.Namespace, path: str, image: np.ndarray, memo: di
     camera, hints = memo["camera"], memo["hints"]
     if image.shape != camera.shape:
         raise ImageContentError(f"image {path!r} has shape {image.shape}, the camera expects {camera.shape}")
+    if float(image.max()) == float(image.min()):  # before any database load or build
+        from ..errors import NoBodyError
+
+        raise NoBodyError(f"image {path!r} is constant (every pixel = {float(image.min()):g}): no body")
     if "db" not in memo:
         if args.db is not None:
             memo["db"] = load_database(args.db)

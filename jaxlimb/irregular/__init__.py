@@ -32,11 +32,6 @@ from .mesh import MeshOptions as MeshOptions
 from .mesh import load_mesh as load_mesh
 from .mesh import mesh_hash as mesh_hash
 from .mesh import validate_mesh as validate_mesh
-from .refine import DensifyResult as DensifyResult
-from .refine import RefineOptions as RefineOptions
-from .refine import RefineResult as RefineResult
-from .refine import densify_match as densify_match
-from .refine import refine_centre as refine_centre
 from .silhouette import SegmentOptions as SegmentOptions
 from .silhouette import brightness_centre as brightness_centre
 from .silhouette import figure_centre as figure_centre
@@ -49,3 +44,15 @@ from .views import project_points as project_points
 from .views import template_rotations as template_rotations
 from .views import view_angles as view_angles
 from .views import view_count as view_count
+
+# The refinement imports JAX and optimistix (seconds): loaded on first use only, so that
+# ``jaxlimb los locate`` (numpy + OpenCV) does not pay for them.
+_LAZY = {"DensifyResult", "RefineOptions", "RefineResult", "densify_match", "refine_centre"}
+
+
+def __getattr__(name: str):  # type: ignore[no-untyped-def]
+    if name in _LAZY:
+        from . import refine
+
+        return getattr(refine, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

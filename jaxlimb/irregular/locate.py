@@ -20,7 +20,7 @@ comparable residuals, the match is ambiguous
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 
 import numpy as np
@@ -53,6 +53,12 @@ class LosOptions:
         Two accepted hypotheses more than ``ambiguity_px`` apart are ambiguous unless
         the runner-up's residual excess exceeds the best one's by ``ambiguity_margin``
         (fraction of the contrast).
+    search_max_excess_frac
+        Largest accepted residual excess (fraction of the contrast) when the attitude is
+        fitted: three free rotation angles can twist another body's model into a better
+        fit than a given attitude allows, so the acceptance is stricter than
+        ``register.max_excess_frac`` (a sphere frame against Thebe's model: 0.13-0.14;
+        correct fits in ``benchmarks/irregular_los.py``: at most 0.035).
     register, phase
         Options of the registration and of the template search.
     """
@@ -61,6 +67,7 @@ class LosOptions:
     min_phase_deg: float = 5.0
     ambiguity_px: float = 1.0
     ambiguity_margin: float = 0.01
+    search_max_excess_frac: float = 0.06
     register: RegisterOptions = field(default_factory=RegisterOptions)
     phase: PhaseSearchOptions = field(default_factory=PhaseSearchOptions)
 
@@ -123,16 +130,15 @@ def locate_los(
     s_img = _sun_image_direction(sun_dir_camera, camera, fc, options)
     popts = options.phase
     if s_img is None:  # zero phase: the whole silhouette is limb; any direction serves for the extents
-        from dataclasses import replace
-
         popts, s_img = replace(popts, limb_cos=-2.0), np.array([1.0, 0.0])
     hyps = phase_candidates(seg[0], db, camera, s_img, popts)[: options.n_verify]
+    ropts = replace(options.register, max_excess_frac=min(options.register.max_excess_frac, options.search_max_excess_frac))
     fits: list[tuple[RegisterResult, int]] = []
     errors: list[CheckFailed] = []
     for h in hyps:
         try:
             fit = register_known_attitude(
-                img, db.mesh, camera, h.R_body_to_camera, sun_dir_camera, None, options.register, seg,
+                img, db.mesh, camera, h.R_body_to_camera, sun_dir_camera, None, ropts, seg,
                 fit_attitude=True, initial=(h.centre_rc, h.range_km),
             )  # fmt: skip
         except CheckFailed as e:

@@ -24,7 +24,9 @@ direction, and registers it to the frame.  Here:
    is the estimate itself.  The rendering is exact perspective, so no template
    approximation remains.
 4. **Covariance** ``sigma^2 (A^T A)^{-1}`` of the linear solve at convergence, with
-   ``sigma^2`` the residual variance, mapped to ``(row, col)`` by ``1/a``.
+   ``sigma^2`` the residual variance, mapped to ``(row, col)`` by ``1/a``, plus a
+   model floor (``model_floor_px``).  Monte Carlo (30 noise draws, Thebe, phase 30):
+   mean NEES 2.4 at 10 DN noise without the floor (chi^2_2: 2).
 5. **Checks** (:class:`~jaxlimb.errors.MatchError`, exit 3): the excess of the residual
    over the background noise relative to the body's contrast, the overlap (IoU) of
    the observed and predicted lit figures, and convergence.
@@ -62,8 +64,11 @@ class RegisterOptions:
     max_final_step_px
         Largest last step (px) accepted as converged when ``max_iterations`` are used up
         (the rendering is quantised on the sub-pixel grid: steps jitter at ~0.005 px).
-    attitude_blur_px, attitude_fd_deg
-        Blur schedule and finite-difference step (deg) when the attitude is fitted too.
+    attitude_blur_frac, attitude_blur_min_px, attitude_fd_deg
+        When the attitude is fitted too: blur schedule in fractions of the figure size
+        (coarse to fine: a template a few degrees off moves the outline by a few percent
+        of the size), blurs below ``attitude_blur_min_px`` dropped, and the
+        finite-difference step (deg).
     blur_px
         Gaussian blur (px) of image and model in the first iterations (a wider basin).
     search_px
@@ -75,13 +80,19 @@ class RegisterOptions:
         fitted contrast ``a`` (fraction).
     min_iou
         Smallest accepted overlap of the observed and predicted lit figures.
+    model_floor_px
+        Standard deviation (px, per axis) added to the covariance for the rendering's
+        own quantisation (sub-pixel coverage steps of 1/16 at ``supersample=4``):
+        measured by Monte Carlo on a Thebe frame at 2 DN noise, the scatter is
+        0.0035 px and the bias 0.003 px against a noise-only sigma of 0.001 px.
     """
 
     supersample: int = 4
     reflectance: str = "lommel-seeliger"
     max_iterations: int = 16
     blur_px: tuple[float, ...] = (3.0, 1.5)
-    attitude_blur_px: tuple[float, ...] = (6.0, 4.0, 3.0, 2.0, 1.5, 1.0)
+    attitude_blur_frac: tuple[float, ...] = (0.04, 0.025, 0.015, 0.008, 0.004)
+    attitude_blur_min_px: float = 1.0
     attitude_fd_deg: float = 0.3
     tol_px: float = 0.01
     max_final_step_px: float = 0.05
@@ -89,6 +100,7 @@ class RegisterOptions:
     margin_px: int = 4
     max_excess_frac: float = 0.12
     min_iou: float = 0.9
+    model_floor_px: float = 0.004
 
 
 @dataclass(frozen=True)
@@ -313,7 +325,11 @@ def _gauss_newton(image, mesh, camera, R, sun, P, D, mask, options, fit_attitude
     it = 0
     n = math.inf
     ratio = 0.0
-    blur = options.attitude_blur_px if fit_attitude else options.blur_px
+    blur = options.blur_px
+    if fit_attitude:
+        rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
+        size = float(max(rr[-1] - rr[0], cc[-1] - cc[0]) + 1)
+        blur = tuple(f * size for f in options.attitude_blur_frac if f * size >= options.attitude_blur_min_px)
     for it in range(1, options.max_iterations + 1):
         sigma = blur[it - 1] if it <= len(blur) else 0.0
         lo, hi = _window(camera, P, D, mesh, mask, options.margin_px)
@@ -408,10 +424,17 @@ def register_known_attitude(
     return _finish(img, camera, (mask, thr), P, D, R, A, y, beta, lo, hi, iters, ncc, options)
 
 
-def _overlap(obs: np.ndarray, pred_flat: np.ndarray) -> float:
-    """IoU of the observed figure and the fitted model thresholded like the frame."""
-    pred = pred_flat.reshape(obs.shape)
-    return float(np.logical_and(pred, obs).sum()) / max(float(np.logical_or(pred, obs).sum()), 1.0)
+def _overlap(obs: np.ndarray, model_flat: np.ndarray, thr: float, sigma: float) -> float:
+    """IoU of the observed figure and the fitted model thresholded like the frame.
+
+    Pixels whose model value lies within 3 noise sigmas of the threshold (a dim
+    terminator, an edge) can fall either way by noise alone and are left out.
+    """
+    model = model_flat.reshape(obs.shape)
+    sure = np.abs(model - thr) > 3.0 * (sigma if math.isfinite(sigma) else 0.0)
+    pred = (model > thr) & sure
+    o = obs & sure
+    return float(np.logical_and(pred, o).sum()) / max(float(np.logical_or(pred, o).sum()), 1.0)
 
 
 def _finish(img, camera, segmentation, P, D, R, A, y, beta, lo, hi, iters, ncc, options) -> RegisterResult:  # type: ignore[no-untyped-def]
@@ -424,12 +447,12 @@ def _finish(img, camera, segmentation, P, D, R, A, y, beta, lo, hi, iters, ncc, 
         cov_beta = s2 * np.linalg.inv(A.T @ A)
     except np.linalg.LinAlgError:
         raise ConvergenceError("registration: singular normal matrix") from None
-    cov = cov_beta[2:4, 2:4] / a**2
+    cov = cov_beta[2:4, 2:4] / a**2 + options.model_floor_px**2 * np.eye(2)
     sigma = _background_sigma(img, segmentation[0], lo, hi)
     rms = math.sqrt(s2)
     excess = math.sqrt(max(s2 - (sigma**2 if math.isfinite(sigma) else 0.0), 0.0)) / a
     mask, thr = segmentation
-    iou = _overlap(mask[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1] > 0, (A[:, :2] @ beta[:2]) > thr)
+    iou = _overlap(mask[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1] > 0, A[:, :2] @ beta[:2], thr, sigma)
     if not np.all(np.isfinite(P)) or not np.all(np.isfinite(cov)):
         raise ConvergenceError("registration produced a non-finite centre or covariance")
     if excess > options.max_excess_frac:

@@ -32,7 +32,7 @@ Steps (:func:`locate_whole_limb`):
 
 6. a sphere with the Sun direction known, measured on its lit limb only (no dark-limb bins):
    the lit-limb pixels are refitted with the physical lunar-Lambert profile through the
-   pipeline's own refit (:func:`jaxlimb.pipeline.locate._fit_profile`), which removes the
+   pipeline's own refit (:func:`jaxlimb.pipeline.profile_fit.fit_lunar_profile`), which removes the
    sigmoid's edge bias (0.35-0.5 px on short arcs);
 7. the centre covariance: the larger of the pixel-independent and the cluster-robust one,
    plus an edge-model error (:data:`EDGE_MODEL_SIGMA_PX` through the arc's gains of
@@ -344,11 +344,14 @@ def _profile_refit(img, mask, shape: LimbShape, res: RefineResult, camera: Camer
                    noise: float, dr: float = 8.0):
     """The lunar-Lambert limb profile of :mod:`jaxlimb.pipeline.profile` on the lit limb (a sunlit
     sphere whose dark limb is not seen), through the pipeline's own refit
-    (:func:`jaxlimb.pipeline.locate._fit_profile`): removes the flat-topped sigmoid's edge bias."""
+    (:func:`jaxlimb.pipeline.profile_fit.fit_lunar_profile`): removes the flat-topped sigmoid's edge bias."""
     from types import SimpleNamespace
 
+    import time
+
     from ..models import CircleParams
-    from .locate import _fit_profile
+    from .frame import Frame
+    from .profile_fit import fit_lunar_profile
 
     data, _ = select_whole_limb(img, mask, shape, dr, noise)
     p = res.fit.params
@@ -357,7 +360,7 @@ def _profile_refit(img, mask, shape: LimbShape, res: RefineResult, camera: Camer
                           ymax=to_dn(p.ymax), ymin=to_dn(p.ymin))
     z = img[data.coords[:, 0].astype(np.int64), data.coords[:, 1].astype(np.int64)]
     circ = SimpleNamespace(fit=SimpleNamespace(params=circle), coords=data.coords, data=FitData(data.coords, z, None, 0.0, 1.0))
-    fitted, _ = _fit_profile(img, circ, camera, hints, opt, True, None)
+    fitted, _ = fit_lunar_profile(Frame(img, camera, hints, opt, time.perf_counter()), circ, None)
     return fitted
 
 

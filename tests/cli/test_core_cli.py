@@ -35,7 +35,7 @@ def test_bad_arguments_exit_2_with_json_error(capsys):
     assert out["status"] == "error" and "nope" in out["message"]
     assert main(["montecarlo", "--radius", "-3", "--json"]) == 2
     out = json.loads(capsys.readouterr().out)
-    assert out["check"] == "bad_input" and "radius" in out["message"]
+    assert out["check"] == "bad_arguments" and "radius" in out["message"]
 
 
 def test_error_without_json_is_one_line_on_stderr(capsys):

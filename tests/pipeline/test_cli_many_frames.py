@@ -98,3 +98,17 @@ def test_empty_pattern_and_directory(frames, capsys):
     (d / "emptydir").mkdir(exist_ok=True)
     assert main([*_args(d, d / "emptydir"), "--json"]) == 2
     assert "no image files" in capsys.readouterr().out
+
+
+def test_frames_on_a_dask_scheduler_equal_in_process(frames, capsys):
+    from dask.distributed import LocalCluster
+
+    d = frames
+    assert main(_args(d, d / "imgs")) == 0
+    ref = _lines(capsys.readouterr().out)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+        assert main([*_args(d, d / "imgs", d / "bad" / "black.png"), "--scheduler", cluster.scheduler_address]) == 3
+    recs = _lines(capsys.readouterr().out)
+    assert [r["image"] for r in recs[:3]] == [r["image"] for r in ref]  # in order
+    assert [r["center_rc"] for r in recs[:3]] == [r["center_rc"] for r in ref]
+    assert recs[3]["status"] == "error"
