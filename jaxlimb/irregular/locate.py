@@ -28,8 +28,8 @@ import numpy as np
 from ..errors import AmbiguousMatchError, CheckFailed, MatchError
 from .database import TemplateDatabase
 from .phase import PhaseSearchOptions, phase_candidates
-from .register import RegisterOptions, RegisterResult, register_known_attitude
-from .silhouette import figure_centre, segment_body
+from .register import RegisterOptions, RegisterResult, lit_figure, register_known_attitude
+from .silhouette import figure_centre
 
 
 class LosMode(str, Enum):
@@ -131,7 +131,7 @@ def locate_los(
         No hypothesis explains the frame, or two explain it with centres apart.
     """
     img = np.asarray(image, dtype=float)
-    seg = segment_body(img)
+    seg = lit_figure(img)
     if R_body_to_camera is not None:
         fit = register_known_attitude(img, db.mesh, camera, R_body_to_camera, sun_dir_camera, range_km, options.register, seg)
         return LosResult(LosMode.KNOWN_ATTITUDE, fit, None, 1, 1, None)
