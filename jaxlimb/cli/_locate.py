@@ -151,10 +151,9 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _measure(args: argparse.Namespace, frame):
-    """``(measurement, SPICE report or None, image)`` of one frame."""
-    import importlib
-
-    from ..errors import ConfigError
+    """``(measurement, SPICE report or None, image)`` of one frame.  The CLI chooses nothing but options:
+    :func:`jaxlimb.pipeline.locate` picks the body strategy from the hints' body."""
+    from ..errors import SaturationWarning
     from ..geometry.camera import Camera
     from ..pipeline import LocateOptions, locate
     from . import warnings_to_stderr
@@ -166,19 +165,8 @@ def _measure(args: argparse.Namespace, frame):
                         base=geom.hints() if geom else None)
     options = LocateOptions(front_end=args.front_end, model=args.model, solver=args.solver,
                             estimate_k=not args.fixed_k, profile=args.profile)
-    if hints.body == "earth":
-        try:
-            earth = importlib.import_module("jaxlimb.pipeline.earth")
-        except ImportError:
-            raise ConfigError("the Earth pipeline (jaxlimb.pipeline.earth) is unavailable in this installation") from None
-        if camera is None:
-            raise ConfigError("--body earth needs --camera (the Earth pipeline measures the range)")
-        meas = earth.locate_earth(image, camera, hints, options)
-    else:
-        from ..errors import SaturationWarning
-
-        with warnings_to_stderr(SaturationWarning):
-            meas = locate(image, camera, hints, options, mask=frame.mask_or_none)
+    with warnings_to_stderr(SaturationWarning):
+        meas = locate(image, camera, hints, options, mask=frame.mask_or_none)
     return meas, (_spice_report(geom, meas) if geom is not None else None), image
 
 

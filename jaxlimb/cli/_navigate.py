@@ -1,7 +1,7 @@
 r"""``jaxlimb navigate IMAGE``: the observer position (J2000) and its covariance from one image.
 
 Steps 1-7 of the flowchart of Mortari, D'Souza & Zanetti (§II): the limb measurement of the
-body (``locate`` for the Moon, :func:`jaxlimb.pipeline.earth.locate_earth` for the Earth) gives
+body (:func:`jaxlimb.pipeline.locate`: the sphere strategy for the Moon, the ellipsoid for the Earth) gives
 the body-centre line of sight ``u_c`` and range ``D`` in the camera frame; the attitude ``C_ci``
 (inertial -> camera) and the body's ephemeris ``r_b`` (DE421, offline) give::
 
@@ -190,12 +190,9 @@ def navigate_measurement(
     names, fn = _measurement_map(body, camera, meas)
     x0 = np.array([meas.center_rc[0], meas.center_rc[1], meas.range_km if body == "earth" else meas.radius_px], float)
     P = np.array([[meas.covariance[a][b] for b in names] for a in names])
-    G = np.empty((3, 3))
-    for i, h in enumerate((1e-3, 1e-3, 1e-3 if body != "earth" else 1e-3 * max(1.0, x0[2] * 1e-6))):
-        xp, xm = x0.copy(), x0.copy()
-        xp[i] += h
-        xm[i] -= h
-        G[:, i] = (fn(xp) - fn(xm)) / (2 * h)
+    from ..analysis.crlb import numerical_jacobian
+
+    G = numerical_jacobian(fn, x0, np.array([1e-3, 1e-3, 1e-3 if body != "earth" else 1e-3 * max(1.0, x0[2] * 1e-6)]))
     r_om = fn(x0)
     D = float(np.linalg.norm(r_om))
     sol = navigate(r_body, C_ci, r_om / D, D, attitude_cov_rad2=attitude_sigma_rad if attitude_sigma_rad > 0 else None)
@@ -223,18 +220,13 @@ def navigate_measurement(
 
 
 def locate_body(body: str, image: np.ndarray, camera, hints) -> Any:
-    """The limb measurement: :func:`locate_earth` (Earth) or the Moon pipeline's ``locate``."""
-    if body == "earth":
-        from ..pipeline.earth import locate_earth
+    """The limb measurement: :func:`jaxlimb.pipeline.locate` (the hints' body picks the strategy: the
+    Earth's ellipsoid, the Moon's sphere)."""
+    from dataclasses import replace
 
-        return locate_earth(image, camera, hints, None)
-    try:
-        from ..pipeline.locate import locate
-    except ImportError:  # pragma: no cover - the Moon pipeline is part of the package
-        locate = None
-    if locate is not None:
-        return locate(image, camera, hints, None)
-    raise ImportError("jaxlimb.pipeline.locate is unavailable")  # pragma: no cover
+    from ..pipeline import locate
+
+    return locate(image, camera, replace(hints, body=body) if hints.body != body else hints, None)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -3,8 +3,10 @@ body-centre correction and checks; the measurement types; the checks as typed er
 
 Public API::
 
-    locate(image, camera=None, hints=None, options=None) -> LimbMeasurement
-    LocateOptions(front_end, model, solver, estimate_k, k_fixed, annulus_px, ...)
+    locate(image, camera=None, hints=None, options=None) -> LimbMeasurement   (every body: sphere,
+        ellipsoid (hints body "earth"), disc (hints body "sun"); jaxlimb.pipeline.bodies)
+    LocateOptions(front_end, model, solver, estimate_k, k_fixed, annulus_px, shape, ellipsoid, ...)
+    FrontEnd, LimbModelKind, Profile, BodyShape   (the options' Enums); EllipsoidOptions
     LimbMeasurement, EllipseResult           (result types, ``to_json()``)
     save_locate_figure(image, measurement, path, selected_pixels=None, truth=None)
     checks: CenterOutOfFieldError, check_jump, check_radius_prior, check_size, check_center_in_field
@@ -25,7 +27,14 @@ from .checks import (
 )
 from .figure import save_locate_figure as save_locate_figure
 from .locate import locate as locate
-from .options import LocateOptions as LocateOptions
+from .earth import EllipsoidOptions as EllipsoidOptions
+from .options import (
+    BodyShape as BodyShape,
+    FrontEnd as FrontEnd,
+    LimbModelKind as LimbModelKind,
+    LocateOptions as LocateOptions,
+    Profile as Profile,
+)
 from .refine import (
     AnnulusSelection as AnnulusSelection,
     RefineResult as RefineResult,
@@ -61,7 +70,12 @@ __all__ = [
     "CenterOutOfFieldError",
     "EllipseResult",
     "LimbMeasurement",
+    "BodyShape",
+    "EllipsoidOptions",
+    "FrontEnd",
+    "LimbModelKind",
     "LocateOptions",
+    "Profile",
     "RefineResult",
     "SphereImage",
     "annulus_halfwidth",
