@@ -3,6 +3,8 @@ on the prior) and ``candidates`` (the front end, Checks 1-4); the typed value :c
 
 from __future__ import annotations
 
+import math
+
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -119,7 +121,7 @@ def prepare(image: Any, camera: Any, hints: Any, options: Any, mask: Any = None)
     if mask is not None and np.shape(mask) != img.shape:
         raise ConfigError(f"mask shape {np.shape(mask)} does not match the image size {img.shape}")
     frame = Frame(img, cam, hin, opt, t0)
-    if hin is not None:
+    if hin is not None and not arc_only(frame):  # (a disc larger than the frame: its arc is measured)
         popt = getattr(frame.front_end_options(), "prior", None)
         pri0 = prior_from_hints(hin, cam, options=popt, check=True)
         if pri0 is not None and cam is None:
@@ -132,6 +134,15 @@ def limb_predicted(frame: Frame) -> bool:
     cam, h = frame.cam, frame.hints
     return (cam is not None and not cam.has_distortion and h is not None and h.expected_center_rc is not None
             and h.range_prior_km is not None and h.radius_km() is not None)
+
+
+def arc_only(frame: Frame) -> bool:
+    """Camera (pinhole), range and radius known, and the expected disc larger than the frame's half-diagonal."""
+    cam, h = frame.cam, frame.hints
+    if cam is None or cam.has_distortion or h is None or h.radius_km() is None or h.range_prior_km is None:
+        return False
+    rkm, rng = h.radius_km(), h.range_prior_km
+    return rng > rkm and cam.focal_px * math.tan(math.asin(rkm / rng)) > 0.5 * math.hypot(*frame.img.shape)
 
 
 def candidates(frame: Frame) -> Any:
