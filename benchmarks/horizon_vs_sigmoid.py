@@ -11,13 +11,13 @@ and the same frame + front end to the sigmoid routes:
 
 * ``ESF``: the paper's elliptical sigmoid (flat top, ``interior_ramp=False``, logistic kernel)
   with ``rho, theta`` fixed from the prior geometry, then the centre offset and range iteration
-  (:func:`jaxlimb.pipeline.earth.locate_earth`);
+  (:func:`jaxlimb.pipeline.locate`, the ellipsoid strategy);
 * ``ESF+ramp``: the same with the edge model of
   :func:`jaxlimb.pipeline.earth.ellipse_ramp_intensity` (Gaussian kernel, interior ramp, level
   varying along the limb);
 * ``profile`` (our default since issue 4): ``ESF+ramp``, then the same pixels refitted with the
   physical lunar-Lambert limb profile (:data:`jaxlimb.pipeline.profile.LIMB_PROFILE`, ``L``
-  estimated; ``EarthOptions(profile="auto")``), Earth only;
+  estimated; ``LocateOptions(profile="auto")``), Earth only;
 * ``CSF`` (Moon only, whole limb): the Moon pipeline, :func:`jaxlimb.pipeline.locate.locate` with
   its defaults (the circular sigmoid, then the physical limb profile; it runs its own front end,
   so it has no short-arc row).
@@ -122,7 +122,8 @@ def run_frame(fr: Frame, n_noise: int, seed: int, reflectance: str = "lommel-see
               only: tuple[str, ...] = ()) -> list[dict[str, Any]]:
     from jaxlimb.geometry.horizon import horizon_from_pixels
     from jaxlimb.imaging import Hints, gradient_front_end
-    from jaxlimb.pipeline.earth import EarthOptions, locate_earth
+    from jaxlimb.pipeline import LocateOptions, locate as locate_any
+    from jaxlimb.pipeline.earth import EllipsoidOptions
 
     noisy = _noisy()
     cam, sc, frame, truth = render(fr, reflectance)
@@ -157,11 +158,11 @@ def run_frame(fr: Frame, n_noise: int, seed: int, reflectance: str = "lommel-see
                         t_est = time.perf_counter() - t1 - meas.extras.get("timings_s", {}).get("front_end", 0.0)
                         c_rc, rng = meas.center_rc, meas.range_km
                     else:
-                        opt = EarthOptions(interior_ramp=(m != "ESF"), arc_margin_deg=60.0 if arc == "short" else 30.0,
-                                           band_px=6.0 if m == "ESF" else 4.0,
-                                           profile="auto" if m == "profile" else "sigmoid")
-                        meas = locate_earth(img, cam, hints, opt)
-                        t_est = time.perf_counter() - t1 - t_fe[-1]  # locate_earth reruns the same front end
+                        eo = EllipsoidOptions(interior_ramp=(m != "ESF"), arc_margin_deg=60.0 if arc == "short" else 30.0,
+                                              band_px=6.0 if m == "ESF" else 4.0)
+                        opt = LocateOptions(ellipsoid=eo, profile="auto" if m == "profile" else "sigmoid")
+                        meas = locate_any(img, cam, hints, opt)
+                        t_est = time.perf_counter() - t1 - t_fe[-1]  # locate reruns the same front end
                         c_rc, rng = meas.center_rc, meas.range_km
                     rec["dc"].append(np.subtract(c_rc, truth.center_rc).tolist())
                     rec["dr"].append(100.0 * (rng / truth.range_km - 1.0))

@@ -1,255 +1,224 @@
-"""Benchmark of the model-based line of sight of irregular bodies (Wu et al., issue 5).
+"""Benchmark of the checked model-based line of sight of irregular bodies (issue 12).
 
-Measures, on rendered images with exact truth (``jaxlimb.render.mesh``):
+Independent renders (``jaxlimb.render.mesh``, Lommel-Seeliger, Gaussian noise
+``--noise`` DN) of the shared meshes (Thebe, Eros; Phobos unless ``--quick``) and of
+generated bodies no database was built from before (``jaxlimb.irregular.shapes``:
+Gaussian random sphere, contact binary, elongated body), random attitudes (uniform
+on SO(3), so off any template grid), phases 0/30/60 deg (Sun azimuth random), a
+1024^2 camera (focal 1500 px) at 3x and 10x the body's long axis (bounding-sphere
+diameter), every other frame off-centre.  Error = distance of ``center_rc`` to the
+projection of the mesh origin (DESIGN.md).
 
-* database build time at the paper's step (3 deg, 6962 views) for Thebe (5040
-  faces) and Phobos (49152 faces);
-* query time: match + similarity transform (``locate_in_mask``), and the
-  segmentation of the image separately;
-* accuracy of the body-centre image: template matching (Wu et al. + guards),
-  matching + local densification, + soft-silhouette refinement, against the
-  figure centre (FC) and brightness centre (BC) baselines; versus the angle to
-  the nearest template (the paper's Fig. 9 shape) and versus phase 0/30/60 deg.
+Two modes of :func:`jaxlimb.irregular.locate.locate_los`:
+
+* ``unknown``: Sun direction known, attitude unknown (template search + registration);
+* ``known``: ``R_body_to_camera`` known (render-and-register), phases up to 90 deg.
+
+``--baseline`` also runs the previous pipeline (template match + soft-silhouette
+refinement, ``--no-refine`` off) on the same frames, reported as "before".
 
 Run::
 
-    .venv/bin/python benchmarks/irregular_los.py            # full (~15-30 min on 2 busy cores)
-    .venv/bin/python benchmarks/irregular_los.py --quick    # a few minutes
+    .venv/bin/python benchmarks/irregular_los.py --quick      # ~25 min on 2 busy cores
+    .venv/bin/python benchmarks/irregular_los.py              # more views
 
 Writes ``benchmarks/results/irregular_los.json`` (or ``--out``).
 """
 
 from __future__ import annotations
 
-from jaxlimb._data import shared_data_dir
 import argparse
-import json
 import math
-import platform
+import os
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-MESHES = shared_data_dir() / "meshes"
 RESULTS = Path(__file__).resolve().parent / "results" / "irregular_los.json"
 
 
-def _git_sha() -> str | None:
-    from _common import environment
+def bodies(quick: bool) -> dict:
+    """name -> (mesh, pole axis of the view sphere)."""
+    from jaxlimb._data import shared_data_dir
+    from jaxlimb.irregular.mesh import load_mesh
+    from jaxlimb.irregular.shapes import generate_shape
 
-    return environment()["git_sha"]
-
-
-def _versions() -> dict[str, str]:
-    import cv2
-    import jax
-    import optimistix
-    import trimesh
-
-    return {
-        "python": platform.python_version(),
-        "numpy": np.__version__,
-        "jax": jax.__version__,
-        "optimistix": optimistix.__version__,
-        "opencv": cv2.__version__,
-        "trimesh": trimesh.__version__,
-    }
-
-
-def _sun(t: np.ndarray, phase_deg: float, rng: np.random.Generator) -> np.ndarray | None:
-    if phase_deg == 0:
-        return None
-    tv = -t / np.linalg.norm(t)
-    az = rng.uniform(0, 2 * math.pi)
-    ax = np.cross(tv, [math.cos(az), math.sin(az), 0.0])
-    ax /= np.linalg.norm(ax)
-    ph = math.radians(phase_deg)
-    return tv * math.cos(ph) + np.cross(ax, tv) * math.sin(ph)
-
-
-def _median(x: list[float]) -> float | None:
-    x = [v for v in x if v is not None and np.isfinite(v)]
-    return float(np.median(x)) if x else None
-
-
-def run_accuracy(db, mesh, camera, n: int, phase_deg: float, seed: int, refine: bool, pole_axis: str) -> list[dict]:
-    from jaxlimb.errors import JaxlimbError
-    from jaxlimb.irregular.matching import locate_centre
-    from jaxlimb.irregular.refine import densify_match, refine_centre
-    from jaxlimb.irregular.views import viewpoint_directions
-    from jaxlimb.render.mesh import look_at_rotation, render_mesh
-
-    rng = np.random.default_rng(seed)
-    dirs = viewpoint_directions(db.alpha, db.beta, pole_axis)
-    rows = []
-    for _ in range(n):
-        d = rng.normal(size=3)
-        d /= np.linalg.norm(d)
-        size = rng.uniform(150.0, 500.0)
-        D = 2.0 * mesh.max_radius * camera.focal_px / size
-        R = look_at_rotation(d, roll_rad=rng.uniform(0, 2 * math.pi))
-        off = rng.uniform(-400, 400, size=2)
-        t = np.array([off[1] * D / camera.focal_px, off[0] * D / camera.focal_px, D])
-        sun = _sun(t, phase_deg, rng)
-        out = render_mesh(mesh.vertices, mesh.faces, camera, R, t, sun_dir_camera=sun)
-        # angle between the actual viewing direction (body -> camera, body frame) and the nearest template
-        view = -R.T @ t / np.linalg.norm(t)
-        ang = float(np.degrees(np.arccos(np.clip(dirs @ view, -1, 1)).min()))
-        row = {"size_px": size, "angle_to_template_deg": ang, "phase_deg": phase_deg}
-        try:
-            m = locate_centre(out.image, db, camera)
-            row["err_match"] = float(np.linalg.norm(m.centre_rc - out.centre_rc))
-            row["err_fc"] = float(np.linalg.norm(m.figure_centre_rc - out.centre_rc))
-            row["err_bc"] = float(np.linalg.norm(m.brightness_centre_rc - out.centre_rc))
-            dn = densify_match(m.mask, db, camera, m)
-            row["err_densified"] = float(np.linalg.norm(dn.centre_rc - out.centre_rc))
-            if refine:
-                t0 = time.perf_counter()
-                r = refine_centre(out.image, db, camera, m, sun_dir_camera=sun)
-                row["refine_s"] = time.perf_counter() - t0
-                row["err_refined"] = float(np.linalg.norm(r.centre_rc - out.centre_rc))
-        except JaxlimbError as e:
-            row["error"] = f"{type(e).__name__}: {e}"
-        rows.append(row)
-        print("  " + "  ".join(f"{k}={v:.3f}" if isinstance(v, float) else f"{k}={v}" for k, v in row.items()), flush=True)
-    return rows
-
-
-def time_queries(db, mesh, camera, n: int, seed: int) -> dict:
-    from jaxlimb.irregular.matching import MatchOptions, locate_in_mask
-    from jaxlimb.irregular.silhouette import segment_body
-    from jaxlimb.render.mesh import look_at_rotation, render_mesh
-
-    rng = np.random.default_rng(seed)
-    t_seg, t_q = [], []
-    cache: dict = {}
-    for _ in range(n):
-        d = rng.normal(size=3)
-        size = rng.uniform(150.0, 500.0)
-        D = 2.0 * mesh.max_radius * camera.focal_px / size
-        out = render_mesh(mesh.vertices, mesh.faces, camera, look_at_rotation(d, roll_rad=rng.uniform(0, 6.28)), np.array([0, 0, D]))
-        t0 = time.perf_counter()
-        mask, _ = segment_body(out.image)
-        t1 = time.perf_counter()
-        for _rep in range(3):
-            t2 = time.perf_counter()
-            locate_in_mask(mask, db, camera, MatchOptions(), _cache=cache)
-            t_q.append(time.perf_counter() - t2)
-        t_seg.append(t1 - t0)
-    return {
-        "n": n,
-        "query_match_transform_ms_median": 1e3 * float(np.median(t_q)),
-        "query_match_transform_ms_p90": 1e3 * float(np.percentile(t_q, 90)),
-        "segmentation_ms_median": 1e3 * float(np.median(t_seg)),
-    }
-
-
-def summarise(rows: list[dict]) -> dict:
-    out = {"n": len(rows), "n_failed": sum("error" in r for r in rows)}
-    for k in ("err_match", "err_densified", "err_refined", "err_fc", "err_bc"):
-        vals = [r[k] for r in rows if k in r]
-        if vals:
-            out[k + "_median_px"] = _median(vals)
-            out[k + "_p90_px"] = float(np.percentile(vals, 90))
-    if any("err_match" in r and "err_fc" in r for r in rows):
-        out["match_better_than_fc_frac"] = float(np.mean([r["err_match"] < r["err_fc"] for r in rows if "err_match" in r]))
+    m = shared_data_dir() / "meshes"
+    out = {"thebe": (load_mesh(m / "thebe.obj"), "y"), "eros": (load_mesh(m / "eros007790.tab"), "z")}
+    if not quick:
+        out["phobos"] = (load_mesh(m / "phobos.obj"), "y")
+    for fam, seed in (("gaussian-sphere", 11), ("contact-binary", 12), ("elongated", 13)):
+        out[f"gen:{fam}"] = (generate_shape(fam, seed), "z")
     return out
 
 
-def by_angle(rows: list[dict]) -> list[dict]:
-    edges = [0.0, 0.5, 1.0, 1.5, 2.5]
-    table = []
-    for lo, hi in zip(edges[:-1], edges[1:]):
-        sel = [r for r in rows if lo <= r["angle_to_template_deg"] < hi]
-        table.append({"angle_deg": f"[{lo}, {hi})", **summarise(sel)})
-    return table
+def camera():
+    from jaxlimb.geometry.camera import Camera
+
+    return Camera(focal_length_mm=30.0, pixel_pitch_mm=0.02, rows=1024, cols=1024)
+
+
+def make_view(mesh, cam, phase_deg: float, dist_factor: float, off_centre: bool, noise: float, rng):
+    """A random view: image, truth centre, attitude, Sun direction (camera frame)."""
+    from scipy.spatial.transform import Rotation
+
+    from jaxlimb.render.mesh import MeshRenderOptions, render_mesh
+
+    D = dist_factor * 2.0 * mesh.max_radius
+    R = Rotation.random(random_state=int(rng.integers(1 << 31))).as_matrix()
+    u = np.array([0.0, 0.0, 1.0])
+    if off_centre:
+        rad_px = cam.focal_px * mesh.max_radius / (D - mesh.max_radius)
+        lim = max(cam.rows / 2 - rad_px - 20, 0.0)
+        off = rng.uniform(-lim, lim, 2)
+        u = np.array([off[1] / cam.focal_px, off[0] / cam.focal_px, 1.0])
+        u /= np.linalg.norm(u)
+    t = D * u
+    tv = -u
+    a = rng.normal(size=3)
+    a -= (a @ tv) * tv
+    a /= np.linalg.norm(a)
+    ph = math.radians(phase_deg)
+    sun = tv * math.cos(ph) + a * math.sin(ph)
+    opts = MeshRenderOptions(noise_sigma=noise, seed=int(rng.integers(1 << 30)), albedo=200.0, background=10.0)
+    out = render_mesh(mesh.vertices, mesh.faces, cam, R, t, sun_dir_camera=sun, options=opts)
+    return out.image, out.centre_rc, R, t, sun
+
+
+def run_case(db, cam, img, truth, R, t, sun, mode: str) -> dict:
+    from jaxlimb.errors import JaxlimbError
+    from jaxlimb.irregular.locate import locate_los
+
+    t0 = time.perf_counter()
+    row: dict = {}
+    try:
+        res = locate_los(img, db, cam, sun, R if mode == "known" else None, float(np.linalg.norm(t)) * 1.05)
+        row["err_px"] = float(np.linalg.norm(res.centre_rc - truth))
+        row["sd_px"] = float(math.sqrt(np.trace(res.fit.covariance_rc)))
+        row["excess"] = res.fit.excess_frac
+    except JaxlimbError as e:
+        row["failure"] = f"{e.check}: {e}"[:200]
+    row["seconds"] = time.perf_counter() - t0
+    return row
+
+
+def run_baseline(db, cam, img, truth, sun) -> dict:
+    """The previous pipeline: template match (Wu et al.) + soft-silhouette refinement, unchecked."""
+    from jaxlimb.errors import JaxlimbError
+    from jaxlimb.irregular.matching import locate_centre
+    from jaxlimb.irregular.refine import refine_centre
+
+    t0 = time.perf_counter()
+    try:
+        m = locate_centre(img, db, cam)
+        r = refine_centre(img, db, cam, m, sun_dir_camera=sun)
+        return {"err_px": float(np.linalg.norm(r.centre_rc - truth)), "seconds": time.perf_counter() - t0}
+    except JaxlimbError as e:
+        return {"failure": f"{e.check}: {e}"[:200], "seconds": time.perf_counter() - t0}
+
+
+def summarise(rows: list[dict]) -> dict:
+    errs = np.array([r["err_px"] for r in rows if "err_px" in r])
+    n = len(rows)
+    out = {"n": n, "failures": n - errs.size}
+    if errs.size:
+        out.update(
+            median_px=float(np.median(errs)),
+            p90_px=float(np.percentile(errs, 90)),
+            max_px=float(errs.max()),
+            ok_above_3px=int((errs > 3.0).sum()),
+            median_seconds=float(np.median([r["seconds"] for r in rows])),
+        )
+    return out
+
+
+def table(title: str, groups: dict[str, list[dict]]) -> str:
+    lines = [f"\n{title}", "| group | n | typed failures | median / p90 / max px | ok with error > 3 px | median s |", "|---|---|---|---|---|---|"]
+    for g, rows in groups.items():
+        s = summarise(rows)
+        if "median_px" in s:
+            cell = f"{s['median_px']:.3f} / {s['p90_px']:.3f} / {s['max_px']:.3f}"
+            lines.append(f"| {g} | {s['n']} | {s['failures']} | {cell} | {s['ok_above_3px']} | {s['median_seconds']:.1f} |")
+        else:
+            lines.append(f"| {g} | {s['n']} | {s['failures']} | - | 0 | - |")
+    return "\n".join(lines)
+
+
+def _groups(rows: list[dict], key: str) -> dict[str, list[dict]]:
+    g: dict[str, list[dict]] = {}
+    for r in rows:
+        g.setdefault(f"{key} {r[key]}", []).append(r)
+    g["all"] = rows
+    return g
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="fewer images, Phobos build skipped")
+    ap.add_argument("--quick", action="store_true", help="one view per body, phase and mode; Phobos skipped")
+    ap.add_argument("--views", type=int, default=2, help="views per body, phase and distance (full run)")
+    ap.add_argument("--noise", type=float, default=2.0, help="noise sigma (DN) on a 200 DN body")
+    ap.add_argument("--baseline", action="store_true", help="also run the previous pipeline on the same frames")
+    ap.add_argument("--seed", type=int, default=2026)
+    ap.add_argument("--bodies", nargs="*", help="only these bodies (names as printed)")
+    ap.add_argument("--merge", nargs="*", metavar="JSON", help="only combine the rows of earlier runs and print the tables")
     ap.add_argument("--out", default=str(RESULTS))
-    ap.add_argument("--no-refine", action="store_true")
     args = ap.parse_args(argv)
+    os.environ.setdefault("JAXLIMB_CACHE", str(Path(__file__).resolve().parent / "results" / ".db-cache"))
 
-    import jax
+    from jaxlimb.irregular.database import DatabaseOptions, cached_database
 
-    jax.config.update("jax_enable_x64", True)
-    from jaxlimb.geometry.camera import Camera
-    from jaxlimb.irregular.database import DatabaseOptions, build_database
-    from jaxlimb.irregular.mesh import load_mesh
+    cam = camera()
+    rows: list[dict] = []
+    if args.merge:
+        import json
 
-    camera = Camera.default()
-    result: dict = {"git_sha": _git_sha(), "versions": _versions(), "machine": platform.machine(), "quick": args.quick}
-    builds = {}
-    dbs = {}
-    for name, path in (("thebe", MESHES / "thebe.obj"), ("phobos", MESHES / "phobos.obj")):
-        if args.quick and name == "phobos":
+        for f in args.merge:
+            rows += json.loads(Path(f).read_text())["rows"]
+    for ib, (name, (mesh, pole)) in enumerate(bodies(args.quick).items()):
+        if args.merge is not None or (args.bodies and name not in args.bodies):
             continue
-        mesh = load_mesh(path)
-        opts = DatabaseOptions(step_deg=3.0, pole_axis="y")
+        rng = np.random.default_rng([args.seed, ib])  # per body: a subset run reproduces its views
         t0 = time.perf_counter()
-        db = build_database(mesh, opts, progress=False)
-        dt = time.perf_counter() - t0
-        builds[name] = {"faces": mesh.n_faces, "step_deg": 3.0, "n_templates": len(db), "build_s": dt}
-        dbs[name] = (db, mesh)
-        print(f"build {name}: {len(db)} templates in {dt:.1f} s", flush=True)
-    result["build"] = builds
+        db = cached_database(mesh, DatabaseOptions(step_deg=3.0, pole_axis=pole), progress=False)
+        print(f"{name}: database {len(db)} templates ({time.perf_counter() - t0:.1f} s)", flush=True)
+        for mode, phases in (("unknown", (0, 30, 60)), ("known", (0, 30, 60, 90))):
+            for ph in phases:
+                dists = (3.0, 10.0)
+                for k in range(1 if args.quick else args.views):
+                    df = dists[(k + ph // 30) % 2] if args.quick else dists[k % 2]
+                    off = bool((k + ph // 30) % 2)
+                    img, truth, R, t, sun = make_view(mesh, cam, ph, df, off, args.noise, rng)
+                    row = {"body": name, "mode": mode, "phase": ph, "distance_x_long_axis": df, "off_centre": off}
+                    row.update(run_case(db, cam, img, truth, R, t, sun, mode))
+                    if args.baseline and mode == "unknown":
+                        row["before"] = run_baseline(db, cam, img, truth, sun)
+                    rows.append(row)
+                    print("  ", {k2: (round(v, 4) if isinstance(v, float) else v) for k2, v in row.items()}, flush=True)
+    report = []
+    for mode in ("unknown", "known"):
+        sel = [r for r in rows if r["mode"] == mode]
+        title = "Attitude unknown, Sun known" if mode == "unknown" else "Attitude known (render-and-register)"
+        report.append(table(f"{title}: by phase", _groups(sel, "phase")))
+        report.append(table(f"{title}: by body", _groups(sel, "body")))
+    before = [{**r["before"], "phase": r["phase"], "body": r["body"]} for r in rows if "before" in r]
+    if before:
+        after = [r for r in rows if "before" in r]
+        report.append(table("After, on the same frames as the baseline: by phase", _groups(after, "phase")))
+        report.append(table("Before (template match + soft-silhouette refinement, unchecked): by phase", _groups(before, "phase")))
+    text = "\n".join(report)
+    print(text)
+    from _common import environment
 
-    db, mesh = dbs["thebe"]
-    result["query"] = time_queries(db, mesh, camera, 5 if args.quick else 20, seed=1)
-    print("query:", result["query"], flush=True)
-
-    n0 = 8 if args.quick else 40
-    nph = 3 if args.quick else 10
-    refine = not args.no_refine
-    acc: dict = {}
-    rows0 = run_accuracy(db, mesh, camera, n0, 0.0, seed=2, refine=refine, pole_axis="y")
-    acc["phase_0"] = summarise(rows0)
-    acc["phase_0_by_angle_to_template"] = by_angle(rows0)
-    for ph in (30.0, 60.0):
-        rows = run_accuracy(db, mesh, camera, nph, ph, seed=3 + int(ph), refine=refine, pole_axis="y")
-        acc[f"phase_{int(ph)}"] = summarise(rows)
-        acc[f"phase_{int(ph)}_rows"] = rows
-    acc["phase_0_rows"] = rows0
-    result["accuracy_thebe"] = acc
-    if "phobos" in dbs:
-        pdb, pmesh = dbs["phobos"]
-        prow = run_accuracy(pdb, pmesh, camera, 10, 0.0, seed=5, refine=refine, pole_axis="y")
-        result["accuracy_phobos"] = {"phase_0": summarise(prow), "phase_0_rows": prow}
-
-    # table
-    print("\nbuild:")
-    for k, v in builds.items():
-        print(f"  {k:7s} {v['faces']:6d} faces  {v['n_templates']} views  {v['build_s']:7.1f} s")
-    q = result["query"]
-    print(f"query (match + transform): median {q['query_match_transform_ms_median']:.1f} ms, p90 {q['query_match_transform_ms_p90']:.1f} ms; segmentation {q['segmentation_ms_median']:.1f} ms")
-    print("\nThebe accuracy, body-centre error (px), median / p90:")
-    print(f"  {'case':12s} {'match':>14s} {'densified':>14s} {'refined':>14s} {'FC':>14s} {'BC':>14s}")
-
-    def cell(s: dict, k: str) -> str:
-        m, p = s.get(k + "_median_px"), s.get(k + "_p90_px")
-        return f"{m:6.3f}/{p:6.3f}" if m is not None else f"{'-':>13s}"
-
-    for ph in ("phase_0", "phase_30", "phase_60"):
-        s = acc[ph]
-        print(f"  {ph:12s} " + " ".join(cell(s, k) for k in ("err_match", "err_densified", "err_refined", "err_fc", "err_bc")))
-    print("\nphase 0 vs angle to the nearest template:")
-    for s in acc["phase_0_by_angle_to_template"]:
-        print(f"  {s['angle_deg']:12s} n={s['n']:3d} " + " ".join(cell(s, k) for k in ("err_match", "err_densified", "err_refined", "err_fc")))
-    if "accuracy_phobos" in result:
-        s = result["accuracy_phobos"]["phase_0"]
-        print("\nPhobos phase 0: " + " ".join(cell(s, k) for k in ("err_match", "err_densified", "err_refined", "err_fc", "err_bc")))
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     from jaxlimb._io import write_json_atomic
 
-    write_json_atomic(out, json.loads(json.dumps(result, default=float)))
-    print(f"\nwrote {out}")
+    env = environment()
+    write_json_atomic(Path(args.out), {"environment": env, "args": vars(args), "rows": rows, "report": text})
+    print(f"\nwrote {args.out}")
     return 0
 
 
 if __name__ == "__main__":
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
     sys.exit(main())

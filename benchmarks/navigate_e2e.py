@@ -184,7 +184,7 @@ def hints_for(built: dict[str, Any], truth) -> dict[str, Any]:
 
 PROFILE: dict[str, str | None] = {"moon": None, "earth": None}
 """``--moon-profile`` / ``--earth-profile``: the limb model (``LocateOptions.profile`` /
-``EarthOptions.profile``) per body; ``None`` = the CLI's default (auto)."""
+``LocateOptions.profile``) per body; ``None`` = the CLI's default (auto)."""
 
 
 def run_once(built: dict[str, Any], image: np.ndarray, truth) -> dict[str, Any]:
@@ -200,9 +200,9 @@ def run_once(built: dict[str, Any], image: np.ndarray, truth) -> dict[str, Any]:
         R = built["C_ci"] @ earth_rotation_icrf_to_itrs(built["epoch"]).T
         hints = replace(hints, R_body_to_camera=R.tolist())
     if case.body == "earth" and PROFILE["earth"] is not None:
-        from jaxlimb.pipeline.earth import EarthOptions, locate_earth
+        from jaxlimb.pipeline import LocateOptions, locate
 
-        meas = locate_earth(image, built["camera"], hints, EarthOptions(profile=PROFILE["earth"]))
+        meas = locate(image, built["camera"], hints, LocateOptions(profile=PROFILE["earth"]))
     elif case.body == "moon" and PROFILE["moon"] is not None:
         from jaxlimb.pipeline import LocateOptions, locate
 
@@ -279,10 +279,10 @@ def earth_targets(n_noise: int, seed: int, reflectance: str = "lommel-seeliger",
     """
     from jaxlimb.geometry.camera import Camera
     from jaxlimb.imaging import Hints
-    from jaxlimb.pipeline.earth import EarthOptions, locate_earth
+    from jaxlimb.pipeline import LocateOptions, locate
     from jaxlimb.render import Atmosphere, RenderOptions, earth_scene, render_body
 
-    opts = None if profile is None else EarthOptions(profile=profile)
+    opts = None if profile is None else LocateOptions(profile=profile)
     rows = []
     for D, f, size in ((380000.0, 16.0, 340), (40000.0, 8.0, 1300)):
         cam = Camera(focal_length_mm=f, rows=size, cols=size)
@@ -300,7 +300,7 @@ def earth_targets(n_noise: int, seed: int, reflectance: str = "lommel-seeliger",
                 for k in range(n_noise):
                     img = noisy(frame, seed + k, "12bit")
                     t0 = time.perf_counter()
-                    m = locate_earth(img, cam, hints, opts)
+                    m = locate(img, cam, hints, opts)
                     ts.append(time.perf_counter() - t0)
                     dc.append(np.subtract(m.center_rc, truth.center_rc))
                     dr.append(100.0 * (m.range_km / truth.range_km - 1))
@@ -364,7 +364,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="instead: the Earth locate targets (latitudes 0/30/60, known R / free / glow), "
                     "writes results/earth_targets.json")
     ap.add_argument("--earth-profile", choices=("auto", "sigmoid", "lunar-lambert"), default=None,
-                    help="Earth limb model (EarthOptions.profile; default: the CLI's, i.e. auto)")
+                    help="Earth limb model (LocateOptions.profile; default: the CLI's, i.e. auto)")
     ap.add_argument("--moon-profile", choices=("auto", "sigmoid", "lunar-lambert"), default=None,
                     help="Moon limb model (LocateOptions.profile; default: the CLI's, i.e. auto)")
     args = ap.parse_args(argv)

@@ -24,9 +24,15 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 import time
 
-import jax
+# SciPy at its best here: single-threaded BLAS (OpenBLAS threads slow MINPACK's small QRs 2-3x on
+# this shared 2-core machine); JAX's CPU backend does not use these variables.
+for _v in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_v, "1")
+
+import jax  # noqa: E402
 
 jax.config.update("jax_enable_x64", True)
 
@@ -37,8 +43,10 @@ from jaxlimb.analysis.model_study import ModelStudyOptions, model_problem  # noq
 from jaxlimb.fitting import SOLVERS, fit, fit_batch, solver_from_name  # noqa: E402
 
 from _common import environment, save  # noqa: E402
+from _scipy_numpy import fit_circle_scipy  # noqa: E402
 
-SOLVER_ORDER = ["lm", "optx-normal-lm", "optx-lm", "dogleg", "gauss-newton", "bfgs", "paper", "scipy"]
+SOLVER_ORDER = ["lm", "optx-normal-lm", "optx-lm", "dogleg", "gauss-newton", "bfgs", "paper", "scipy", "scipy-numpy"]
+NUMPY_BASELINE = "scipy-numpy"  # SciPy lm + the model and its Jacobian in NumPy (_scipy_numpy.py): the strongest baseline
 # batch timings: every strategy for the default, the fast "map" path for the others (vmap of the
 # slow solvers takes minutes for 1000 realisations and is measured in --quick mode only)
 BATCH_STRATEGIES = {"lm": ("map", "vmap"), "optx-normal-lm": ("map",), "optx-lm": ("map",), "dogleg": ("map",),
@@ -64,6 +72,25 @@ def _scenario_inits(name: str, truth, rng: np.random.Generator, n: int):  # noqa
     return out
 
 
+def _numpy_row(scen: str, coords, data, inits, fixed, truth, model) -> dict:  # noqa: ANN001
+    """The strongest SciPy baseline on one scenario (no JAX in its loop)."""
+    free = np.array([i for i, n in enumerate(model.param_names) if n not in fixed])
+    ok, steps, est, times = [], [], [], []
+    for i in range(len(data)):
+        t0 = time.perf_counter()
+        x, nj, conv = fit_circle_scipy(coords, data[i], inits[i], free)
+        times.append(time.perf_counter() - t0)
+        ok.append(conv and abs(x[0] - float(truth.r0)) < 0.1 and abs(x[2] - float(truth.radius)) < 0.1)
+        steps.append(nj)
+        est.append(x[:3])
+    row = {"scenario": scen, "solver": NUMPY_BASELINE, "success_rate": float(np.mean(ok)),
+           "iterations_mean": float(np.mean(steps)), "ms_per_fit_median": 1e3 * float(np.median(times)),
+           "compile_s": 0.0, "n": len(data), "_est": np.asarray(est)}
+    print(f"{scen:8s} {NUMPY_BASELINE:15s} ok {row['success_rate']:6.1%}  it {row['iterations_mean']:6.1f}  "
+          f"{row['ms_per_fit_median']:8.2f} ms/fit", flush=True)
+    return row
+
+
 def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="fewer realisations (for CI / a first look)")
@@ -75,7 +102,7 @@ def main(argv: list[str] | None = None) -> dict:
     n_succ = 20 if args.quick else args.n_success
     solvers = [s for s in args.solvers.split(",") if s]
     for s in solvers:
-        if s not in SOLVERS:
+        if s not in SOLVERS and s != NUMPY_BASELINE:
             ap.error(f"unknown solver {s!r}")
 
     opt = ModelStudyOptions()
@@ -91,6 +118,9 @@ def main(argv: list[str] | None = None) -> dict:
         fixed = ("k", "ymax", "ymin") if scen == "table1" else ()
         inits = _scenario_inits(scen, truth, np.random.default_rng(7), n_succ)
         for name in solvers:
+            if name == NUMPY_BASELINE:
+                rows.append(_numpy_row(scen, coords, data, inits, fixed, truth, model))
+                continue
             solver = solver_from_name(name)
             p0 = model.params_type.from_vector(jnp.asarray(inits[0]))
             t0 = time.perf_counter()
@@ -126,11 +156,15 @@ def main(argv: list[str] | None = None) -> dict:
         est = row.pop("_est")
         if ref is not None:
             row["max_abs_diff_vs_scipy_px"] = float(np.max(np.abs(est - ref)))
-    # ratios to scipy per scenario
+    # ratios to the strongest SciPy (NumPy model) and to SciPy driving the JAX model, per scenario
     for row in rows:
-        ref = next((r for r in rows if r["scenario"] == row["scenario"] and r["solver"] == "scipy"), None)
-        if ref is not None:
-            row["speedup_vs_scipy_single"] = ref["ms_per_fit_median"] / row["ms_per_fit_median"]
+        for base, key in ((NUMPY_BASELINE, "speedup_vs_scipy_numpy_single"), ("scipy", "speedup_vs_scipy_single")):
+            ref = next((r for r in rows if r["scenario"] == row["scenario"] and r["solver"] == base), None)
+            if ref is not None:
+                row[key] = ref["ms_per_fit_median"] / row["ms_per_fit_median"]
+        lm = next((r for r in rows if r["scenario"] == row["scenario"] and r["solver"] == "lm"), None)
+        if lm is not None:
+            row["ms_over_lm"] = row["ms_per_fit_median"] / lm["ms_per_fit_median"]
 
     # batch: n_batch realisations, nominal scenario
     coords = coords_nominal
@@ -139,9 +173,9 @@ def main(argv: list[str] | None = None) -> dict:
     inits = _scenario_inits("nominal", truth, np.random.default_rng(8), n_batch)
     batch = {}
     for name in solvers:
-        solver = solver_from_name(name)
         if name not in BATCH_STRATEGIES and name != "scipy":
             continue
+        solver = solver_from_name(name)
         if solver.jittable:
             for strategy in BATCH_STRATEGIES[name]:
                 cb = np.broadcast_to(coords, (n_batch, *coords.shape))
@@ -167,25 +201,37 @@ def main(argv: list[str] | None = None) -> dict:
             secs = time.perf_counter() - t0
             batch["scipy/loop"] = {"seconds": secs, "converged": conv}
             print(f"batch {n_batch:5d} scipy           loop  {secs:8.2f} s, converged {conv}", flush=True)
-    if "scipy/loop" in batch:
-        for k, v in batch.items():
-            v["speedup_vs_scipy_loop"] = batch["scipy/loop"]["seconds"] / v["seconds"]
+    if NUMPY_BASELINE in solvers:
+        t0 = time.perf_counter()
+        free = np.arange(6)
+        conv = sum(fit_circle_scipy(coords, data[i], inits[i], free)[2] for i in range(n_batch))
+        batch["scipy-numpy/loop"] = {"seconds": time.perf_counter() - t0, "converged": int(conv)}
+        print(f"batch {n_batch:5d} scipy-numpy     loop  {batch['scipy-numpy/loop']['seconds']:8.2f} s, converged {conv}",
+              flush=True)
+    for base, key in (("scipy-numpy/loop", "speedup_vs_scipy_numpy_loop"), ("scipy/loop", "speedup_vs_scipy_loop")):
+        if base in batch:
+            for v in batch.values():
+                v[key] = batch[base]["seconds"] / v["seconds"]
 
-    table = ["| scenario | solver | success | iterations | ms/fit | vs SciPy | max |Δ| vs SciPy (px) | first call (s) |",
-             "|---|---|---|---|---|---|---|---|"]
+    nan = float("nan")
+    table = ["| scenario | solver | success | iterations | ms/fit | / lm | vs SciPy+NumPy | vs SciPy+JAX | "
+             "max |Δ| vs SciPy (px) | first call (s) |", "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         table.append(f"| {r['scenario']} | {r['solver']} | {r['success_rate']:.1%} | {r['iterations_mean']:.1f} | "
-                     f"{r['ms_per_fit_median']:.2f} | {r.get('speedup_vs_scipy_single', float('nan')):.1f}x | "
-                     f"{r.get('max_abs_diff_vs_scipy_px', float('nan')):.1e} | {r['compile_s']:.2f} |")
+                     f"{r['ms_per_fit_median']:.2f} | {r.get('ms_over_lm', nan):.2f} | "
+                     f"{r.get('speedup_vs_scipy_numpy_single', nan):.1f}x | {r.get('speedup_vs_scipy_single', nan):.1f}x | "
+                     f"{r.get('max_abs_diff_vs_scipy_px', nan):.1e} | {r['compile_s']:.2f} |")
     table.append("")
-    table.append(f"| batch of {n_batch} | seconds | vs SciPy loop |")
-    table.append("|---|---|---|")
+    table.append(f"| batch of {n_batch} | seconds | vs SciPy+NumPy loop | vs SciPy+JAX loop |")
+    table.append("|---|---|---|---|")
     for k, v in batch.items():
-        table.append(f"| {k} | {v['seconds']:.2f} | {v.get('speedup_vs_scipy_loop', float('nan')):.1f}x |")
+        table.append(f"| {k} | {v['seconds']:.2f} | {v.get('speedup_vs_scipy_numpy_loop', nan):.1f}x | "
+                     f"{v.get('speedup_vs_scipy_loop', nan):.1f}x |")
     print("\n".join(table))
     out = {"problem": {"shape": list(opt.shape), "radius": opt.radius, "k": opt.k, "ymax": opt.ymax, "ymin": opt.ymin,
                        "sigma": opt.sigma, "n_pixels": int(coords.shape[0])},
            "rows": rows, "batch": batch, "n_batch": n_batch, "quick": args.quick, "table_md": "\n".join(table),
+           "loadavg": open("/proc/loadavg").read().split()[:3] if os.path.exists("/proc/loadavg") else None,
            "environment": environment()}
     path = save("solvers_quick" if args.quick else "solvers", out)
     print(f"wrote {path}")

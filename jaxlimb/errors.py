@@ -82,6 +82,25 @@ class DatabaseError(LimbInputError):
 
 
 # --------------------------------------------------------------------------- checks
+class UnknownBodyError(ConfigError):
+    """A body name with no known radii (neither the SPICE kernels nor the shipped table)."""
+
+    check = "unknown_body"
+
+
+class SpiceError(LimbInputError):
+    """SPICE geometry cannot be computed: kernels missing or unreadable, an unknown instrument,
+    an image time outside the kernels' coverage, a label without an image time."""
+
+    check = "spice"
+
+
+class LabelError(ImageReadError):
+    """A planetary-format label (VICAR, PDS3, PDS4) is corrupt or lacks a needed keyword."""
+
+    check = "bad_label"
+
+
 class CheckFailed(JaxlimbError):
     """A check of the method failed on a readable input (CLI exit 3)."""
 
@@ -137,10 +156,41 @@ class ConvergenceError(CheckFailed):
     check = "no_convergence"
 
 
+class PosteriorImproperError(ConvergenceError):
+    """The posterior cannot be sampled or is improper: the walkers run away (k, means -> 1e62),
+    or its spread is out of all proportion to the fit's Laplace covariance."""
+
+    check = "posterior_improper"
+
+
 class JumpError(ConvergenceError):
     """Check 5: the fit converged far away from its (Taubin) initial estimate."""
 
     check = "jump_from_initial"
+
+
+class GradientMismatchError(CheckFailed):
+    """``jaxlimb gradcheck``: an analytic Jacobian disagrees with autodiff beyond the tolerance."""
+
+    check = "gradient_mismatch"
+
+
+class OutputBusyError(LimbInputError):
+    """Another process holds the lock of the output file being written (concurrent writers)."""
+
+    check = "output_busy"
+
+
+class MatchError(CheckFailed):
+    """The shape model does not explain the frame: poor residual or overlap (model-based line of sight)."""
+
+    check = "poor_match"
+
+
+class AmbiguousMatchError(MatchError):
+    """Two poses of the shape model that put the body centre apart explain the frame about equally well."""
+
+    check = "ambiguous_match"
 
 
 class SaturationWarning(UserWarning):
@@ -150,6 +200,7 @@ class SaturationWarning(UserWarning):
 
 
 __all__ = [
+    "AmbiguousMatchError",
     "ArcTooShortError",
     "AttitudeError",
     "CheckFailed",
@@ -158,17 +209,24 @@ __all__ = [
     "DatabaseError",
     "EphemerisError",
     "GeometryError",
+    "GradientMismatchError",
     "ImageContentError",
     "ImageReadError",
     "JaxlimbError",
     "JumpError",
+    "LabelError",
     "LimbInputError",
+    "MatchError",
     "MeshError",
     "NoBodyError",
+    "OutputBusyError",
+    "PosteriorImproperError",
     "RadiusInconsistentError",
     "SaturationWarning",
+    "SpiceError",
     "TooBigError",
     "TooManyOutliersError",
     "TooSmallError",
     "TooThinError",
+    "UnknownBodyError",
 ]

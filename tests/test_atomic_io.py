@@ -24,3 +24,29 @@ def test_failure_keeps_old_file(tmp_path):
             raise RuntimeError("interrupted")
     assert json.loads(p.read_text()) == {"old": True}
     assert sorted(x.name for x in tmp_path.iterdir()) == ["a.json"]
+
+
+def _dead_pid() -> int:
+    pid = 4_000_000
+    while True:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return pid
+        except PermissionError:
+            pass
+        pid -= 1
+
+
+def test_next_write_removes_the_temporary_of_a_killed_writer(tmp_path):
+    """A writer killed mid-write leaves ``.NAME.PID-XXXX.tmp``; the next write of NAME removes it,
+    but never a live writer's temporary nor another file's."""
+    p = tmp_path / "a.json"
+    dead = tmp_path / f".a.json.{_dead_pid()}-k1ll3d.tmp"
+    live = tmp_path / f".a.json.{os.getppid()}-w0rk1ng.tmp"  # our parent process: alive
+    other = tmp_path / f".b.json.{_dead_pid()}-x.tmp"
+    for t in (dead, live, other):
+        t.write_text("half")
+    write_json_atomic(p, {"x": 1})
+    assert not dead.exists() and live.exists() and other.exists()
+    assert json.loads(p.read_text()) == {"x": 1}

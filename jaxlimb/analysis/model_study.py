@@ -3,25 +3,36 @@
 A disk (or ellipse) is rendered with the model itself on a pixel grid; the
 pixels within ``annulus`` px of the limb of the *initial guess* are selected
 (one fixed pixel set, so the Cramér--Rao bound applies to every realisation);
-``n`` Gaussian noise realisations are fitted in batches with
-:func:`jaxlimb.fitting.fit_batch` (or one by one for non-batchable solvers),
-and the RMS error, bias and RMS/CRLB of every free parameter are reported.
+``n`` Gaussian noise realisations are fitted in batches by one compiled program
+(:func:`_program`: noise drawn inside it, the solver's fit core under ``jax.lax.map`` --
+the program of :func:`jaxlimb.fitting.fit_batch`; one by one for non-batchable solvers),
+and the RMS error, bias and RMS/CRLB of every free parameter are reported.  The batches run
+as chunks of the Monte-Carlo engine (:mod:`jaxlimb.analysis.montecarlo`): written to an
+output directory and resumable.
 """
 
 from __future__ import annotations
 
+import math
+import hashlib
+import json
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
+from typing import NamedTuple
 
+import jax
 import jax.numpy as jnp
 import numpy as np
-from tqdm.auto import tqdm
+from jaxtyping import Array
 
+from .._jaxcache import CompileTimer
 from ..errors import LimbInputError
-from ..fitting import AbstractLimbSolver, NormalLM, fit, fit_batch
+from ..fitting import AbstractLimbSolver, LimbFit, LimbProblem, NormalLM, bucket_size, fit, pad_pixels
+from ..fitting.fit import fit_core
 from ..models import CIRCLE, ELLIPSE, CircleParams, EllipseParams, LimbModel, LimbParams
 from .crlb import crlb
+from .montecarlo import MonteCarloOptions, run_monte_carlo
 
 
 @dataclass(frozen=True)
@@ -57,14 +68,30 @@ class ModelStudyOptions:
     def __post_init__(self) -> None:
         if self.model not in ("circle", "ellipse"):
             raise LimbInputError(f"`model` must be 'circle' or 'ellipse', got {self.model!r}")
+        from .._validate import POSITIVE, Range, number
+
         for name in ("radius", "k", "sigma", "annulus"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v > 0):
-                raise LimbInputError(f"`{name}` must be a finite number > 0, got {v!r}")
-        if self.n < 2:
-            raise LimbInputError(f"`n` must be >= 2, got {self.n!r}")
-        if self.batch < 1:
-            raise LimbInputError(f"`batch` must be >= 1, got {self.batch!r}")
+            number(getattr(self, name), f"`{name}`", POSITIVE, error=LimbInputError)
+        number(self.n, "`n`", Range(2, None), integer=True, error=LimbInputError)
+        number(self.batch, "`batch`", Range(1, None), integer=True, error=LimbInputError)
+        number(self.seed, "`seed`", Range(0, 2**32 - 1), integer=True, error=LimbInputError)
+        names = (CIRCLE if self.model == "circle" else ELLIPSE).param_names
+        unknown = sorted(set(self.fixed) - set(names))
+        if unknown:
+            raise LimbInputError(f"`fixed` (--fix) names unknown parameters {unknown}; the {self.model} model has {list(names)}")
+        if not set(names) - set(self.fixed) - {"rho"}:
+            raise LimbInputError(f"`fixed` (--fix) holds every parameter of the {self.model} model: nothing to estimate")
+
+
+def estimated_nbytes(opt: ModelStudyOptions) -> float:
+    """Peak memory (bytes) of :func:`run_model_study`: the pixel grid of :func:`model_problem`
+    (about six float64 images) and the fit of one realisation (the compiled program maps over a
+    batch one member at a time: data, residuals and the Jacobian of the ``2 pi radius x 2 annulus``
+    band pixels, padded to the next bucket, x4 for the solver's temporaries)."""
+    rows, cols = opt.shape
+    n_pix = 1.5 * 2.0 * math.pi * opt.radius * 2.0 * opt.annulus
+    n_par = 8 if opt.model == "ellipse" else 6
+    return 8.0 * (6.0 * rows * cols + 4.0 * n_pix * (n_par + 6) + 2.0 * opt.batch * n_par)
 
 
 def model_problem(opt: ModelStudyOptions) -> tuple[LimbModel, LimbParams, LimbParams, np.ndarray, tuple[str, ...]]:
@@ -99,70 +126,153 @@ def model_problem(opt: ModelStudyOptions) -> tuple[LimbModel, LimbParams, LimbPa
     return model, truth, init, grid[sel], fixed
 
 
-def run_model_study(opt: ModelStudyOptions, solver: AbstractLimbSolver | None = None,
-                    progress: bool = False) -> dict[str, object]:
-    """Run the study; returns the dictionary printed by ``jaxlimb montecarlo --json``."""
-    solver = NormalLM() if solver is None else solver
-    model, truth, init, coords, fixed = model_problem(opt)
-    clean = np.asarray(model.intensity(truth, jnp.asarray(coords)))
-    bound = crlb(model, coords, truth, opt.sigma, fixed=fixed)
-    rng = np.random.default_rng(opt.seed)
-    names = bound.free
-    idx = [model.param_names.index(n) for n in names]
-    est = np.full((opt.n, len(names)), np.nan)
-    steps = np.zeros(opt.n, dtype=int)
-    ok = np.zeros(opt.n, dtype=bool)
-    theta0 = np.asarray(init.to_vector())
-    t_start = time.perf_counter()
-    fit_s = 0.0
-    bar = tqdm(total=opt.n, desc=f"montecarlo {opt.model} ({solver.name})", unit="fit", disable=not progress)
-    done = 0
-    while done < opt.n:
-        b = min(opt.batch, opt.n - done) if solver.jittable else 1
-        z = clean[None, :] + opt.sigma * rng.standard_normal((b, clean.size))
-        t0 = time.perf_counter()
-        if solver.jittable:
-            # fixed batch size (pad the last batch) so every call reuses one compiled program
-            zb = np.concatenate([z, np.repeat(z[:1], opt.batch - b, axis=0)]) if b < opt.batch else z
-            init_b = model.params_type.from_vector(jnp.asarray(np.repeat(theta0[None], zb.shape[0], 0)))
-            coords_b = np.broadcast_to(coords, (zb.shape[0], *coords.shape))
-            res = fit_batch(model, coords_b, zb, init_b, solver, fixed=fixed)
-            vec = np.asarray(res.params.to_vector())[:b]
-            conv = np.asarray(res.converged)[:b]
-            nst = np.asarray(res.n_steps)[:b]
+def _program(model: LimbModel, free_idx: tuple[int, ...], solver: AbstractLimbSolver, sigma: float,
+             max_steps: int = 256) -> Callable[..., LimbFit]:
+    """The compiled study program: ``run(seeds (B,), theta0, coords, w, clean) -> LimbFit (B,)``.
+
+    Each member draws its noise from ``jax.random.key(seed)`` inside the program and is fitted
+    by the solver's fit core (``jax.lax.map``, as :func:`jaxlimb.fitting.fit_batch`'s ``"map"``
+    strategy); the pixel set, the clean intensities and the start are arguments shared by
+    every member (no per-member or per-batch copies of them).  With several local devices
+    (e.g. ``XLA_FLAGS=--xla_force_host_platform_device_count=2`` on a 2-core CPU, which
+    ``jaxlimb montecarlo`` sets), the seeds are split over them (``jax.shard_map``, each device
+    fits its share one after another); the answer does not depend on the split.
+    """
+
+    def run(seeds: Array, theta0: Array, coords: Array, w: Array, clean: Array) -> LimbFit:
+        def one(seed: Array) -> LimbFit:
+            z = clean + sigma * jax.random.normal(jax.random.key(seed), clean.shape, clean.dtype)
+            return fit_core(solver, LimbProblem(model, free_idx, True, theta0, coords, z, w), max_steps)
+
+        return jax.lax.map(one, seeds)
+
+    devices = jax.local_devices()
+    if len(devices) == 1:
+        return jax.jit(run)
+    from jax.sharding import Mesh, PartitionSpec
+
+    mesh, rep = Mesh(np.array(devices), ("batch",)), PartitionSpec()
+    return jax.jit(jax.shard_map(run, mesh=mesh, in_specs=(PartitionSpec("batch"), rep, rep, rep, rep),
+                                 out_specs=PartitionSpec("batch"), check_vma=False))
+
+
+def _noisy(seeds: Array, clean: Array, sigma: float) -> Array:
+    """The study's noisy intensities ``(B, N)`` (the same draws as :func:`_program`'s)."""
+    def one(seed: Array) -> Array:
+        return clean + sigma * jax.random.normal(jax.random.key(seed), clean.shape, clean.dtype)
+
+    return jax.vmap(one)(seeds)
+
+
+_noisy_jit = jax.jit(_noisy, static_argnums=2)
+
+
+class _Problem(NamedTuple):
+    model: LimbModel
+    truth: LimbParams
+    init: LimbParams
+    coords: np.ndarray
+    fixed: tuple[str, ...]
+
+
+def _batch_trial(opt: ModelStudyOptions, solver: AbstractLimbSolver, prob: _Problem,
+                 names: Sequence[str]) -> Callable[[np.ndarray, np.ndarray], dict[str, np.ndarray]]:
+    """The engine's batched trial: ``trial(seeds, indices) -> {param: (b,), n_steps, ok}``."""
+    model, coords = prob.model, prob.coords
+    n = coords.shape[0]
+    clean = np.asarray(model.intensity(prob.truth, jnp.asarray(coords)))
+    c_p, clean_p, w_p = pad_pixels(coords, clean, np.ones(n), bucket_size(n))
+    shared = [jnp.asarray(a) for a in (np.asarray(prob.init.to_vector()), c_p, w_p, clean_p)]
+    width = -(-opt.batch // jax.local_device_count()) * jax.local_device_count()  # a multiple of the devices
+    program = None
+    if solver.jittable:  # compiled here, ahead of the trials (the caller times it apart)
+        jitted = _program(model, model.free_indices(prob.fixed), solver, opt.sigma)
+        program = jitted.lower(jax.ShapeDtypeStruct((width,), jnp.int64), *shared).compile()
+    cols = [model.param_names.index(nm) for nm in names]
+
+    def trial(seeds: np.ndarray, indices: np.ndarray) -> dict[str, np.ndarray]:
+        del indices
+        b = seeds.size
+        if program is not None:
+            full = np.concatenate([seeds, np.repeat(seeds[:1], width - b)]) if b < width else seeds
+            res = program(jnp.asarray(full, dtype=jnp.int64), *shared)  # one shape: one compiled program
+            vec, conv, nst = (np.asarray(x)[:b] for x in (res.params.to_vector(), res.converged, res.n_steps))
         else:
-            res1 = fit(model, coords, z[0], init, solver, fixed=fixed, throw=False)
-            vec = np.asarray(res1.params.to_vector())[None]
-            conv = np.asarray(res1.converged)[None]
-            nst = np.asarray(res1.n_steps)[None]
-        fit_s += time.perf_counter() - t0
-        est[done : done + b] = vec[:, idx]
-        ok[done : done + b] = conv
-        steps[done : done + b] = nst
-        done += b
-        bar.update(b)
-    bar.close()
-    wall = time.perf_counter() - t_start
-    tv = np.asarray(truth.to_vector())[idx]
-    err = est[ok] - tv
-    rms = np.sqrt(np.mean(err**2, axis=0)) if ok.any() else np.full(len(names), np.nan)
-    bias = np.mean(err, axis=0) if ok.any() else np.full(len(names), np.nan)
+            z = np.asarray(_noisy_jit(jnp.asarray(seeds, dtype=jnp.int64), shared[3], opt.sigma))[:, :n]
+            fits = [fit(model, coords, zi, prob.init, solver, fixed=prob.fixed, throw=False) for zi in z]
+            vec = np.stack([np.asarray(f.params.to_vector()) for f in fits])
+            conv = np.array([bool(f.converged) for f in fits])
+            nst = np.array([int(f.n_steps) for f in fits])
+        out = {nm: vec[:, c] for nm, c in zip(names, cols)}
+        return {**out, "n_steps": nst.astype(float), "ok": conv.astype(float)}
+
+    return trial
+
+
+def study_name(opt: ModelStudyOptions, solver: AbstractLimbSolver) -> str:
+    """The study's identity in an output directory's manifest (a resume must match it)."""
+    d = {k: v for k, v in asdict(opt).items() if k not in ("n", "seed", "batch")}
+    key = json.dumps({**d, "solver": solver.name}, sort_keys=True, default=list)
+    return f"model-study-{hashlib.sha1(key.encode()).hexdigest()[:12]}"
+
+
+def run_model_study(opt: ModelStudyOptions, solver: AbstractLimbSolver | None = None, progress: bool = False,
+                    out_dir: str | None = None) -> dict[str, object]:
+    """Run the study; returns the dictionary printed by ``jaxlimb montecarlo --json``.
+
+    The realisations run in chunks of ``opt.batch`` through the Monte-Carlo engine
+    (:func:`jaxlimb.analysis.montecarlo.run_monte_carlo`): realisation ``i`` draws its noise
+    from ``jax.random.key(trial_seed(opt.seed, i))`` (independent of the batch size and of a
+    resume); with ``out_dir`` each finished chunk is written there and a rerun with the same
+    settings resumes.  ``compile_s`` is the time spent tracing and compiling the program (or
+    loading it from the persistent cache), before the trials; ``fit_s`` the wall time of the fits
+    alone and ``fit_cpu_s`` their CPU time (less sensitive to a loaded machine); ``wall_s``
+    everything.
+    """
+    from .._validate import check_memory
+
+    check_memory(estimated_nbytes(opt), f"a {opt.shape[0]}x{opt.shape[1]} study of radius {opt.radius:g} px")
+    solver = NormalLM() if solver is None else solver
+    t_start = time.perf_counter()
+    prob = _Problem(*model_problem(opt))
+    bound = crlb(prob.model, prob.coords, prob.truth, opt.sigma, fixed=prob.fixed)
+    names = bound.free
+    t0 = time.perf_counter()
+    trial = _batch_trial(opt, solver, prob, names)
+    build_s = time.perf_counter() - t0
+    mc_opt = MonteCarloOptions(n_trials=opt.n, chunk_size=opt.batch, seed=opt.seed, out_dir=out_dir,
+                               name=study_name(opt, solver), progress=progress, batched=True)
+    with CompileTimer() as ct:  # non-jittable solvers (SciPy) compile their callables on first use
+        t0, c0 = time.perf_counter(), time.process_time()
+        res = run_monte_carlo(trial, mc_opt)
+        loop_s, loop_cpu = time.perf_counter() - t0, time.process_time() - c0
+    ok = res.ok
+    tv = np.asarray(prob.truth.to_vector())
+    truth = {nm: float(tv[prob.model.param_names.index(nm)]) for nm in names}
+    stats = res.stats(truth=truth, keys=names)["params"]
+    steps = res.values["n_steps"][ok]
     c = bound.std
+    nan = float("nan")
     return {
+        "status": "ok",
         "n": opt.n,
         "converged": int(ok.sum()),
-        "wall_s": wall,
-        "fit_s": fit_s,
-        "rms": {n: float(rms[i]) for i, n in enumerate(names)},
-        "bias": {n: float(bias[i]) for i, n in enumerate(names)},
-        "crlb": {n: c[n] for n in names},
-        "rms_over_crlb": {n: float(rms[i] / c[n]) for i, n in enumerate(names)},
-        "iterations": {"mean": float(steps[ok].mean()) if ok.any() else None,
-                       "max": int(steps[ok].max()) if ok.any() else None},
-        "n_pixels": int(coords.shape[0]),
+        "wall_s": time.perf_counter() - t_start,
+        "fit_s": loop_s - ct.seconds,
+        "fit_cpu_s": loop_cpu,
+        "compile_s": build_s + ct.seconds,
+        "chunks_run": res.chunks_run,
+        "chunks_resumed": res.chunks_skipped,
+        "rms": {nm: stats[nm].get("rms", nan) for nm in names},
+        "bias": {nm: stats[nm].get("bias", nan) for nm in names},
+        "crlb": {nm: c[nm] for nm in names},
+        "rms_over_crlb": {nm: stats[nm].get("rms", nan) / c[nm] for nm in names},
+        "iterations": {"mean": float(steps.mean()) if ok.any() else None,
+                       "max": int(steps.max()) if ok.any() else None},
+        "n_pixels": int(prob.coords.shape[0]),
         "solver": solver.name,
         "options": asdict(opt),
-        "fixed": list(fixed),
+        "fixed": list(prob.fixed),
     }
 
 

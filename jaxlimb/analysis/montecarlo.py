@@ -20,7 +20,10 @@ atomically (:func:`jaxlimb._io.atomic_path`: a temporary file renamed into place
 name of failed trials and one column per returned key.  ``out_dir/manifest.json`` records
 the study (name, seed, ``n_trials``, ``chunk_size``).  A rerun with the same settings
 skips the chunks already on disk, so an interrupted run loses only the chunk in
-progress; a rerun with *different* settings into the same directory is refused.
+progress; a chunk file that cannot be read back (truncated by a crash of the disk or the
+machine, corrupted) is computed again with a :class:`ChunkRecomputedWarning` naming the file
+(:func:`load_monte_carlo` raises a :class:`~jaxlimb.errors.ConfigError` naming it); a rerun with
+*different* settings into the same directory is refused.
 Failures: a trial that raises a :class:`~jaxlimb.errors.JaxlimbError` is recorded as
 failed (``ok=False``, ``error=<check name>``, NaN values) -- "save on failure and filter
 during analysis" (STYLE.md Sec. 7); any other exception stops the run.
@@ -50,6 +53,8 @@ from __future__ import annotations
 import json
 import math
 import time
+import warnings
+import zipfile
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -192,9 +197,39 @@ def _run_chunk(trial: Callable[..., Any], opt: MonteCarloOptions, c: int) -> dic
     return out
 
 
+class ChunkRecomputedWarning(UserWarning):
+    """A chunk file of a resumed study was unreadable (truncated, corrupt) and is computed again."""
+
+
+_CHUNK_KEYS = ("index", "seed", "ok", "error")
+
+
 def _load_chunk(path: Path) -> dict[str, np.ndarray]:
-    with np.load(path, allow_pickle=False) as f:
-        return {k: f[k] for k in f.files}
+    """Read one chunk file; an unreadable one (truncated, corrupt, not a chunk) is a :class:`ConfigError`."""
+    try:
+        with open(path, "rb") as fh, np.load(fh, allow_pickle=False) as f:  # our handle: closed on any error
+            data = {k: f[k] for k in f.files}
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile) as e:
+        raise ConfigError(f"chunk file {str(path)!r} is unreadable (truncated or corrupt: {type(e).__name__}: {e})") from None
+    missing = [k for k in _CHUNK_KEYS if k not in data]
+    if missing:
+        raise ConfigError(f"chunk file {str(path)!r} is not a Monte-Carlo chunk (no {missing})")
+    return data
+
+
+def _resume_chunk(path: Path, expected: np.ndarray) -> dict[str, np.ndarray] | None:
+    """A finished chunk from disk, or ``None`` (with a :class:`ChunkRecomputedWarning` naming the
+    file) when it is unreadable or holds other trials: the caller computes it again."""
+    try:
+        data = _load_chunk(path)
+    except ConfigError as e:
+        warnings.warn(f"{e}; computing it again", ChunkRecomputedWarning, stacklevel=3)
+        return None
+    if not np.array_equal(data["index"], expected):
+        warnings.warn(f"chunk file {str(path)!r} holds other trials than expected; computing it again",
+                      ChunkRecomputedWarning, stacklevel=3)
+        return None
+    return data
 
 
 @dataclass(frozen=True)
@@ -304,15 +339,16 @@ def run_monte_carlo(trial: Callable[..., Mapping[str, Any]], options: MonteCarlo
         mine = c % opt.shard[1] == opt.shard[0]
         if not mine and (path is None or not path.exists()):
             continue  # another process's chunk, not finished yet
-        if path is not None and path.exists():
-            data = _load_chunk(path)
+        lo = c * opt.chunk_size
+        data = _resume_chunk(path, np.arange(lo, min(lo + opt.chunk_size, opt.n_trials))) \
+            if path is not None and path.exists() else None
+        if data is not None:
             skipped += 1
         else:
             data = _run_chunk(trial, opt, c)
             run += 1
             if path is not None:
-                with atomic_open(path, "wb") as fh:
-                    np.savez(fh, **data)
+                _write_chunk(path, data)
         chunks.append(data)
         bar.update(int(data["index"].size))
     bar.close()
@@ -334,6 +370,43 @@ def run_monte_carlo(trial: Callable[..., Mapping[str, Any]], options: MonteCarlo
         chunks_skipped=skipped,
         options=opt,
     )
+
+
+def _write_chunk(path: Path, data: Mapping[str, np.ndarray]) -> None:
+    with atomic_open(path, "wb") as fh:
+        np.savez(fh, **data)
+
+
+def prepare_study(options: MonteCarloOptions) -> list[int]:
+    """Check (or write) ``options.out_dir``'s manifest and list the chunks still to compute.
+
+    The first half of a distributed run (:mod:`jaxlimb.analysis.distributed`): each listed
+    chunk is then one task, :func:`run_chunk_to_file`.  A chunk file that cannot be read back
+    is listed again (with a :class:`ChunkRecomputedWarning` naming it).
+    """
+    if options.out_dir is None:
+        raise LimbInputError("a distributed study needs `out_dir` (the chunks are its results)")
+    out_dir = Path(options.out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    _check_manifest(out_dir, options)
+    todo = []
+    for c in range(options.n_chunks):
+        path = _chunk_path(out_dir, c)
+        lo = c * options.chunk_size
+        if not path.exists() or _resume_chunk(path, np.arange(lo, min(lo + options.chunk_size, options.n_trials))) is None:
+            todo.append(c)
+    return todo
+
+
+def run_chunk_to_file(trial: Callable[..., Any], options: MonteCarloOptions, c: int) -> str:
+    """Compute chunk ``c`` of the study and write it atomically to ``options.out_dir``; returns the path.
+
+    The unit of work of a distributed run: a task killed before the rename leaves nothing
+    (the temporary file is removed or ignored), a finished one is never computed again.
+    """
+    path = _chunk_path(Path(options.out_dir), c)  # type: ignore[arg-type]
+    _write_chunk(path, _run_chunk(trial, options, c))
+    return str(path)
 
 
 def load_monte_carlo(out_dir: str | Path) -> MonteCarloResult:
@@ -443,10 +516,13 @@ def stats_json(result: MonteCarloResult, **kw: Any) -> dict[str, Any]:
 
 
 __all__ = [
+    "ChunkRecomputedWarning",
     "MonteCarloOptions",
     "MonteCarloResult",
     "load_monte_carlo",
     "plot_errors",
+    "prepare_study",
+    "run_chunk_to_file",
     "plot_rms_vs_crlb",
     "run_monte_carlo",
     "stats_json",

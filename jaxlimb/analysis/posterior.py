@@ -80,7 +80,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..errors import ConvergenceError, LimbInputError
+from ..errors import ConvergenceError, LimbInputError, NoBodyError, PosteriorImproperError
 from ..fitting import LimbFit
 from ..models import LimbModel, LimbParams
 from .crlb import CramerRao
@@ -131,12 +131,11 @@ def priors_from_hints(hints: Mapping[str, Any], model: LimbModel, default_frac: 
     gauss: dict[str, tuple[float, float]] = {}
     r = hints.get("expected_radius_px")
     if r is not None:
-        frac = float(hints.get("expected_radius_uncertainty_frac", default_frac))
-        r = float(r)
-        if not (math.isfinite(r) and r > 0 and math.isfinite(frac) and frac > 0):
-            raise LimbInputError(
-                f"hints `expected_radius_px` and `expected_radius_uncertainty_frac` must be > 0, got {r!r}, {frac!r}"
-            )
+        from .._validate import POSITIVE, number
+
+        frac = number(hints.get("expected_radius_uncertainty_frac", default_frac),
+                      "hints `expected_radius_uncertainty_frac`", POSITIVE, error=LimbInputError)
+        r = number(r, "hints `expected_radius_px`", POSITIVE, error=LimbInputError)
         name = "radius" if "radius" in model.param_names else ("a" if "a" in model.param_names else None)
         if name is not None:
             gauss[name] = (r, frac * r)
@@ -167,15 +166,15 @@ class PosteriorOptions:
     """Seed of the initial ball and of emcee's generator."""
 
     def __post_init__(self) -> None:
-        if self.n_walkers < 4 or self.n_walkers % 2:
+        from .._validate import POSITIVE, Range, number
+
+        if number(self.n_walkers, "`n_walkers`", Range(4, 100_000), integer=True, error=LimbInputError) % 2:
             raise LimbInputError(f"`n_walkers` must be an even number >= 4, got {self.n_walkers!r}")
-        for name in ("chunk", "max_steps"):
-            if int(getattr(self, name)) < 1:
-                raise LimbInputError(f"`{name}` must be >= 1, got {getattr(self, name)!r}")
+        for name in ("chunk", "max_steps", "seed"):
+            number(getattr(self, name), f"`{name}`", Range(1 if name != "seed" else 0, 2**32 - 1), integer=True,
+                   error=LimbInputError)
         for name in ("max_time_s", "tau_factor", "tau_rtol", "init_scale"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise LimbInputError(f"`{name}` must be a finite number > 0, got {v!r}")
+            number(getattr(self, name), f"`{name}`", POSITIVE, error=LimbInputError)
 
 
 # =============================================================================== log posterior
@@ -296,6 +295,74 @@ def log_posterior(model: LimbModel, coords: Any, z: Any, init: LimbParams, *, fi
     return LogPosterior(names, jax.jit(single), jax.jit(jax.vmap(single)), theta0, free_idx, n, model)
 
 
+# =============================================================================== quality checks
+#: Smallest significance ``|ymax - ymin| / sd(ymax - ymin)`` of a limb (a detection with margin
+#: for the search over centre and radius: pure noise fits give a few; real limbs hundreds).
+MIN_CONTRAST_SIGNIFICANCE = 8.0
+#: Largest physical sigmoid steepness (1/px): an edge sharper than 1/1000 px is not resolved by any
+#: pixel grid -- k beyond it means the fit put a step through noise.
+MAX_K = 1e3
+#: Largest ratio of a posterior sd to the fit's Laplace sd: beyond it the walkers ran away.
+MAX_STD_RATIO = 100.0
+
+
+def check_limb_fit(fit_: LimbFit) -> None:
+    """Refuse a fit that measured no limb (before any sampling).
+
+    Raises
+    ------
+    NoBodyError
+        Non-finite estimate or covariance, ``k`` above :data:`MAX_K`, or an edge contrast
+        ``|ymax - ymin|`` below :data:`MIN_CONTRAST_SIGNIFICANCE` times its standard deviation
+        (from the Laplace covariance, floored at ``2 sigma_hat / sqrt(n)``): pure noise.
+    """
+    p = {k: float(v) for k, v in fit_.params.as_dict().items()}
+    cov = np.asarray(fit_.covariance, dtype=float)
+    sigma = math.sqrt(max(float(fit_.sigma2), 0.0))
+    if not (all(math.isfinite(v) for v in p.values()) and np.all(np.isfinite(cov)) and math.isfinite(sigma)):
+        raise NoBodyError("no limb: the fit's estimate or covariance is not finite")
+    if "k" in p and not 0.0 < p["k"] <= MAX_K:
+        raise NoBodyError(f"no limb: the fitted steepness k = {p['k']:.3g} /px is outside (0, {MAX_K:g}]")
+    if "ymax" not in p or "ymin" not in p:
+        return
+    g = np.array([1.0 if n == "ymax" else -1.0 if n == "ymin" else 0.0 for n in fit_.free])
+    n_pix = max(int(fit_.n_pixels), 2)
+    sd = math.sqrt(max(float(g @ cov @ g) if g.size else 0.0, 4.0 * sigma**2 / n_pix))
+    t = abs(p["ymax"] - p["ymin"]) / sd if sd > 0 else math.inf
+    if not t >= MIN_CONTRAST_SIGNIFICANCE:
+        raise NoBodyError(f"no limb: the edge contrast |ymax - ymin| = {abs(p['ymax'] - p['ymin']):.3g} is "
+                          f"{t:.2f} sd, below {MIN_CONTRAST_SIGNIFICANCE:g} (noise sd {sigma:.3g})")
+
+
+def check_posterior(post: Posterior, fit_: LimbFit | None = None) -> None:
+    """Refuse an improper posterior (after sampling).
+
+    Raises
+    ------
+    PosteriorImproperError
+        A non-finite mean or sd, ``k`` beyond :data:`MAX_K`, or (with the fit) a posterior sd
+        more than :data:`MAX_STD_RATIO` times the Laplace sd or a mean further than that many
+        Laplace sd from the fit: the walkers ran away from the mode.
+    """
+    if not (np.all(np.isfinite(post.mean)) and np.all(np.isfinite(post.std))):
+        raise PosteriorImproperError("the posterior has non-finite means or sds: the walkers ran away")
+    means = post.mean_dict()
+    if "k" in means and not 0.0 < means["k"] <= MAX_K:
+        raise PosteriorImproperError(f"the posterior mean of k is {means['k']:.3g} /px, outside (0, {MAX_K:g}]")
+    if fit_ is None:
+        return
+    lap = {n: float(s) for n, s in fit_.std.items()}
+    est = {n: float(v) for n, v in fit_.params.as_dict().items()}
+    for n, sd in post.std_dict().items():
+        ref = lap.get(n)
+        if ref is None or not ref > 0:
+            continue
+        if sd > MAX_STD_RATIO * ref or abs(means[n] - est[n]) > MAX_STD_RATIO * ref:
+            raise PosteriorImproperError(
+                f"the posterior of {n} (mean {means[n]:.4g}, sd {sd:.3g}) is out of all proportion to the fit "
+                f"({est[n]:.4g} +- {ref:.3g}): improper posterior")
+
+
 # =============================================================================== sampling
 @dataclass(frozen=True)
 class Posterior:
@@ -412,6 +479,13 @@ def sample_posterior(lp: LogPosterior, start: np.ndarray | LimbFit, *, covarianc
     -------
     Posterior
         ``converged=False`` if ``max_steps`` or ``max_time_s`` was reached first.
+
+    Raises
+    ------
+    NoBodyError
+        ``start`` is a fit that measured no limb (:func:`check_limb_fit`).
+    PosteriorImproperError
+        emcee cannot move the ensemble, or the posterior is improper (:func:`check_posterior`).
     """
     import emcee  # the only module that imports emcee (STYLE.md Sec. 1)
 
@@ -419,6 +493,7 @@ def sample_posterior(lp: LogPosterior, start: np.ndarray | LimbFit, *, covarianc
     d = len(lp.names)
     if isinstance(start, LimbFit):
         fit_ = start
+        check_limb_fit(fit_)
         q = len(lp.free_idx)
         free_names = lp.names[:q]
         if tuple(fit_.free) != tuple(free_names):
@@ -457,7 +532,10 @@ def sample_posterior(lp: LogPosterior, start: np.ndarray | LimbFit, *, covarianc
     bar = tqdm(total=opt.max_steps, desc="emcee", unit="step", disable=not progress)
     while sampler.iteration < opt.max_steps:
         n = min(opt.chunk, opt.max_steps - sampler.iteration)
-        state = sampler.run_mcmc(state, n)
+        try:
+            state = sampler.run_mcmc(state, n)
+        except ValueError as e:  # emcee: "Initial state has a large condition number", ...
+            raise PosteriorImproperError(f"emcee cannot sample this posterior: {e}") from None
         bar.update(n)
         with np.errstate(invalid="ignore", divide="ignore"):  # a chain of constant walkers early on
             tau = sampler.get_autocorr_time(tol=0)
@@ -479,7 +557,7 @@ def sample_posterior(lp: LogPosterior, start: np.ndarray | LimbFit, *, covarianc
     burn = int(min(2 * np.max(tau_ok), sampler.iteration // 2))
     thin = max(1, int(0.5 * np.min(tau_ok)))
     flat = sampler.get_chain(discard=burn, thin=thin, flat=True)
-    return Posterior(
+    post = Posterior(
         names=lp.names,
         samples=flat,
         mean=flat.mean(axis=0),
@@ -496,6 +574,8 @@ def sample_posterior(lp: LogPosterior, start: np.ndarray | LimbFit, *, covarianc
         start=start_vec,
         n_walkers=opt.n_walkers,
     )
+    check_posterior(post, start if isinstance(start, LimbFit) else None)
+    return post
 
 
 def vectorize_speedup(lp: LogPosterior, start: np.ndarray | LimbFit, n_steps: int = 200, n_walkers: int = 32,

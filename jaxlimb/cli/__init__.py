@@ -9,7 +9,13 @@ Each sub-command lives in its own module ``jaxlimb/cli/_<name>.py`` that defines
 * exit 3 for a failed check (:class:`~jaxlimb.errors.CheckFailed`);
 * with ``--json`` the error goes to stdout as
   ``{"status": "error", "check": NAME, "message": TEXT}``, otherwise one line
-  on stderr -- never a traceback (set ``JAXLIMB_DEBUG=1`` to see one).
+  on stderr -- never a traceback (set ``JAXLIMB_DEBUG=1`` to see one);
+* stderr carries only one-line messages: a Python warning is printed as one
+  ``jaxlimb: warning: ...`` line (NumPy/JAX ``RuntimeWarning`` noise is dropped unless
+  ``JAXLIMB_DEBUG`` is set) and OpenCV's own ``[ WARN ]`` logging is silenced (the
+  image readers report every failure themselves);
+* a closed stdout (``jaxlimb ... --json | head -c 1``) ends the command quietly
+  with exit 141 (128 + SIGPIPE, as the POSIX tools do).
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ import json
 import os
 import sys
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 
 # Sub-command modules, in the order they appear in --help.
 _COMMANDS = (
@@ -46,7 +52,7 @@ class _Parser(argparse.ArgumentParser):
         if _STATE["json"]:
             print(json.dumps({"status": "error", "check": "bad_arguments", "message": message}))
         else:
-            print(f"{self.prog}: error: {message}", file=sys.stderr)
+            print(f"jaxlimb: error: {message} (see `{self.prog} --help`)", file=sys.stderr)
         raise SystemExit(2)
 
 
@@ -60,8 +66,26 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def emit_json(obj: object) -> None:
-    """Print one JSON object on stdout (the ``--json`` output of every command)."""
-    print(json.dumps(obj, allow_nan=False, default=_json_default))
+    """Print one JSON object on stdout (the ``--json`` output of every command).
+
+    The output is strict JSON: a non-finite float (NaN, inf) is written as ``null``.
+    """
+    print(json.dumps(finite_json(obj), allow_nan=False, default=_json_default))
+
+
+def finite_json(obj: object) -> object:
+    """``obj`` with every non-finite float (also NumPy scalars) replaced by ``None``."""
+    import math
+
+    if isinstance(obj, dict):
+        return {k: finite_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [finite_json(v) for v in obj]
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if type(obj).__module__ == "numpy" and getattr(obj, "ndim", None) == 0:
+        return finite_json(obj.item())  # type: ignore[attr-defined]
+    return obj
 
 
 @contextlib.contextmanager
@@ -78,6 +102,39 @@ def warnings_to_stderr(*categories: type[Warning]) -> Iterator[None]:
             print(f"jaxlimb: warning: {' '.join(str(w.message).split())}", file=sys.stderr)
 
 
+def figure_path(path: str | None, flag: str) -> str | None:
+    """Check an output picture path (``--figure``, ``--plot``) before any computation:
+    a known extension, a directory that exists and accepts a file (exit 2 otherwise)."""
+    from .._validate import FIGURE_SUFFIXES, output_file
+
+    if path is not None:
+        output_file(path, flag, suffixes=FIGURE_SUFFIXES)
+    return path
+
+
+def try_save(save: Callable[[], object], flag: str) -> str | None:
+    """Run a picture writer after the result is computed; return ``None`` or the one-line error.
+
+    The caller still prints its result (adding the error to it) and then reports the error
+    with :func:`report_after_result`: a computed result is never lost to a figure that fails.
+    """
+    try:
+        save()
+    except Exception as e:  # matplotlib/OS errors of many types; the result must survive them
+        if os.environ.get("JAXLIMB_DEBUG"):
+            raise
+        return " ".join(f"could not write {flag}: {type(e).__name__}: {e}".split())
+    return None
+
+
+def report_after_result(error: str | None) -> int:
+    """Exit code after the result was printed: 0, or 2 with ``error`` as one stderr line."""
+    if error is None:
+        return 0
+    print(f"jaxlimb: error: {error}", file=sys.stderr)
+    return 2
+
+
 def _json_default(o: object) -> object:
     import numpy as np
 
@@ -90,11 +147,52 @@ def _json_default(o: object) -> object:
     raise TypeError(f"not JSON serialisable: {type(o).__name__}")
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``jaxlimb`` command; returns the exit code."""
-    import jax
+_EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE
 
-    jax.config.update("jax_enable_x64", True)
+
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ANN001
+    """``warnings.showwarning`` of the CLI: one ``jaxlimb: warning:`` line, no source line."""
+    if issubclass(category, RuntimeWarning) and not os.environ.get("JAXLIMB_DEBUG"):
+        return  # numeric noise of NumPy/JAX (nan in a masked pixel, ...): never a user message
+    text = " ".join(str(message).split())
+    print(f"jaxlimb: warning: {text}", file=sys.stderr if file is None else file)
+
+
+def _quiet_opencv() -> None:
+    """Silence OpenCV's ``[ WARN ]`` logging (it writes to the stderr fd from C++)."""
+    os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")  # read when cv2 is first imported
+    cv2 = sys.modules.get("cv2")
+    if cv2 is not None:
+        with contextlib.suppress(AttributeError):
+            cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_ERROR)
+
+
+def _stdout_closed() -> int:
+    """stdout's reader went away: point fd 1 at /dev/null so the exit flush is silent."""
+    with contextlib.suppress(OSError, ValueError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    return _EXIT_BROKEN_PIPE
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``jaxlimb`` command; returns the exit code.
+
+    JAX is imported only after the arguments are parsed (``jaxlimb --help`` does not pay for
+    it); the persistent compilation cache is switched on before the first compilation
+    (:mod:`jaxlimb._jaxcache`: ``JAXLIMB_CACHE_DIR``, ``off`` to disable).  A closed stdout
+    ends the command quietly (exit 141).
+    """
+    _quiet_opencv()
+    try:
+        code = _main(argv)
+        sys.stdout.flush()
+        return code
+    except BrokenPipeError:
+        return _stdout_closed()
+
+
+def _main(argv: Sequence[str] | None) -> int:
     from ..errors import JaxlimbError
 
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -102,9 +200,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     _STATE["json"] = want_json
     try:
         args = build_parser().parse_args(argv)
+        if getattr(args, "needs_jax", True):  # a sub-command may declare it runs without JAX
+            _start_jax()
         with warnings.catch_warnings():
             warnings.simplefilter("default")
+            warnings.showwarning = _one_line_warning
             return int(args.func(args) or 0)
+    except BrokenPipeError:
+        raise
     except JaxlimbError as e:
         _report(want_json, e.check, str(e))
         return e.exit_code
@@ -118,6 +221,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         _report(want_json, "internal_error", f"{type(e).__name__}: {e}")
         return 1
+
+
+def _start_jax() -> None:
+    import jax
+
+    from .._jaxcache import enable_compile_cache
+
+    jax.config.update("jax_enable_x64", True)
+    enable_compile_cache()
 
 
 def _report(want_json: bool, check: str, message: str) -> None:

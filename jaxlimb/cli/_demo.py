@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import os
-from pathlib import Path
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -55,7 +54,11 @@ def _fit_demo() -> dict[str, object]:
 def run(args: argparse.Namespace) -> int:
     from . import emit_json
 
-    out_dir = Path(args.out)
+    from .._validate import input_file, output_dir
+
+    out_dir = output_dir(args.out, "--out")  # before any work; relative to the current directory
+    if args.sdo is not None:
+        input_file(args.sdo, "--sdo")
     report: dict[str, object] = {"status": "ok", "model_fit": _fit_demo()}
     try:
         from ._demo_locate import locate_demos

@@ -6,7 +6,7 @@ import argparse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from ..fitting import SOLVERS
+    from .._solver_names import SOLVER_NAMES
 
     p = sub.add_parser(
         "locate",
@@ -16,16 +16,25 @@ def register(sub: argparse._SubParsersAction) -> None:
         "the covariance and, with a camera, the line of sight and the range.  Exit 0 on success, 2 for "
         "unusable input, 3 when a check fails.",
     )
-    p.add_argument("image", metavar="IMAGE", help="image file (PNG, TIFF, FITS, JPEG 2000)")
+    p.add_argument("image", metavar="IMAGE", nargs="+",
+                   help="image file: VICAR, PDS3 (.IMG/.LBL), PDS4 (.xml), FITS, PNG, TIFF, JPEG, JPEG 2000; "
+                   "several files, a directory, a quoted glob or @LIST.txt: one JSON line per frame (see --out)")
     p.add_argument("--camera", metavar="CAMERA.json",
                    help='camera file {"focal_length_mm", "pixel_pitch_mm", "rows", "cols", "principal_point_rc"}')
     p.add_argument("--hints", metavar="HINTS.json", help="navigation prior (DESIGN.md hints; every key optional)")
-    p.add_argument("--body", choices=("moon", "earth", "sun"), default=None,
-                   help="the body (default: the hints' body, else moon); sun: the limb-darkened disc profile")
+    p.add_argument("--body", metavar="NAME", default=None,
+                   help="the body: moon, earth, sun (limb-darkened disc) or any body with known radii (e.g. enceladus; "
+                   "SPICE PCK with --kernels, else the IAU 2015 table; hints body_radii_km override); default: the "
+                   "hints' body, the label's TARGET_NAME with --kernels, else moon")
+    p.add_argument("--kernels", metavar="KERNEL", nargs="+", default=None,
+                   help="SPICE meta-kernel or kernel files (never downloaded): camera, predicted limb, Sun direction, "
+                   "range and orientation from the label's image time; reports measured - predicted")
+    p.add_argument("--instrument", metavar="NAME", default=None,
+                   help="SPICE instrument (e.g. CASSINI_ISS_NAC); default: the label's INSTRUMENT_ID")
     p.add_argument("--front-end", choices=("gradient", "scanline"), default="gradient", dest="front_end",
                    help="candidate-limb front end (default gradient)")
     p.add_argument("--model", choices=("circle", "ellipse"), default="circle", help="limb model (default circle)")
-    p.add_argument("--solver", choices=sorted(SOLVERS), default="lm", help="least-squares solver (default lm)")
+    p.add_argument("--solver", choices=sorted(SOLVER_NAMES), default="lm", help="least-squares solver (default lm)")
     p.add_argument("--fixed-k", action="store_true",
                    help="hold k = 3 and ymax/ymin at the annulus edge means (illuminated-ellipsoid paper, Table 1)")
     p.add_argument("--profile", choices=("auto", "sigmoid", "lunar-lambert", "limb-darkened"), default="auto",
@@ -35,15 +44,22 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "lunar-lambert or limb-darkened")
     p.add_argument("--figure", metavar="PATH", help="also save a picture of the fit (PNG/PDF)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    from ._batch import add_batch_arguments
+
+    add_batch_arguments(p)
     p.set_defaults(func=run)
 
 
-def _read_hints(path: str | None, body: str | None):
+def _read_hints(path: str | None, body: str | None, base=None):
+    """Hints from ``path`` (its keys over ``base``'s, e.g. SPICE's), with ``--body``; unknown body -> exit 2."""
     from dataclasses import replace
 
     from ..imaging import Hints
 
     hints = Hints.from_json(path) if path is not None else None
+    if base is not None:
+        given = {} if hints is None else {k: v for k, v in vars(hints).items() if v is not None}
+        hints = replace(base, **given)
     if body is not None:
         if hints is None:
             hints = Hints(body=body)
@@ -57,43 +73,132 @@ def _read_hints(path: str | None, body: str | None):
         hints = Hints(body="moon")
     elif hints.body is None:
         hints = replace(hints, body="moon")
+    _check_body(hints)
     return hints
 
 
-def run(args: argparse.Namespace) -> int:
-    import importlib
+def _check_body(hints) -> None:
+    """A body without radii (hints, the IAU table) is unusable input (exit 2), except the Sun/Moon/Earth paths."""
+    from ..geometry.bodies import body_from_table
 
-    from ..errors import ConfigError
-    from ..geometry.camera import Camera
-    from ..imaging import ColourImageWarning, load_image
-    from ..pipeline import LocateOptions, locate
-    from . import emit_json, warnings_to_stderr
+    if hints.body_radii_km is None:
+        body_from_table(hints.body)
 
-    camera = Camera.from_json(args.camera) if args.camera is not None else None
-    hints = _read_hints(args.hints, args.body)
-    options = LocateOptions(front_end=args.front_end, model=args.model, solver=args.solver,
-                            estimate_k=not args.fixed_k, profile=args.profile)
+
+def _spice(args, meta):
+    """The SPICE prediction for the frame (``None`` without ``--kernels``)."""
+    if not args.kernels:
+        return None
+    from ..geometry.spice import spice_geometry
+
+    return spice_geometry(args.kernels, meta.image_time, args.instrument or meta.instrument_id,
+                          args.body or meta.target_name)
+
+
+def _spice_report(geom, meas) -> dict:
+    """Prediction, measured - predicted and the observer position from the measurement."""
+    from ..geometry.spice import observer_from_measurement, pointing_residual
+
+    cov = meas.covariance
+    cov_rc = None
+    if "center_r" in cov and "center_c" in cov:
+        cov_rc = [[cov["center_r"]["center_r"], cov["center_r"]["center_c"]],
+                  [cov["center_c"]["center_r"], cov["center_c"]["center_c"]]]
+    out = {"predicted": geom.to_json(), "measured_minus_predicted": pointing_residual(geom, meas.center_rc, cov_rc)}
+    if meas.los_camera is not None and meas.range_km is not None:
+        out["observer_from_measurement"] = observer_from_measurement(geom, meas.los_camera, meas.range_km)
+    return out
+
+
+def _read(path: str):
+    from ..imaging import ColourImageWarning
+    from ..imaging.formats import read_frame
+    from . import warnings_to_stderr
+
     with warnings_to_stderr(ColourImageWarning):
-        image, _info = load_image(args.image, reject_constant=False)
-    if hints.body == "earth":
-        try:
-            earth = importlib.import_module("jaxlimb.pipeline.earth")
-        except ImportError:
-            raise ConfigError("the Earth pipeline (jaxlimb.pipeline.earth) is unavailable in this installation") from None
-        if camera is None:
-            raise ConfigError("--body earth needs --camera (the Earth pipeline measures the range)")
-        meas = earth.locate_earth(image, camera, hints, options)
-    else:
-        from ..errors import SaturationWarning
+        return read_frame(path)
 
-        with warnings_to_stderr(SaturationWarning):
-            meas = locate(image, camera, hints, options)
-    if args.figure:
+
+def _json(meas, spice, timing: dict | None = None) -> dict:
+    out = meas.to_json()
+    if spice is not None:
+        out["spice"] = spice
+    if timing is not None:  # compile_s: tracing + compiling (or loading from the persistent cache)
+        out["timing"] = timing
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    from . import _batch
+
+    images = list(args.image)
+    if _batch.is_many(images, args):  # many frames: JSON Lines, one per frame (cli/_batch.py)
+        if args.figure:
+            from ..errors import ConfigError
+
+            raise ConfigError("--figure saves one frame's picture: not with many frames")
+        return _batch.run_frames(images, args, _read, _frame_json(args))
+    from . import figure_path, report_after_result, try_save
+
+    args.image = images[0]
+    figure_path(args.figure, "--figure")  # before any work
+    meas, spice, image, timing = _measure(args, _read(args.image))
+    figure_error = None
+    if args.figure:  # after the work: a failing writer must not lose the measurement
         from ..pipeline import save_locate_figure
 
-        save_locate_figure(image, meas, args.figure)
+        figure_error = try_save(lambda: save_locate_figure(image, meas, args.figure), "--figure")
+    _print(args, meas, spice, figure_error, timing)
+    return report_after_result(figure_error)
+
+
+def _frame_json(args: argparse.Namespace):  # noqa: ANN202
+    """The per-frame measure of the many-frame runner: ``(path, frame) -> --json object``."""
+    def measure(path: str, frame) -> dict:  # noqa: ANN001
+        meas, spice, _, timing = _measure(args, frame)
+        return _json(meas, spice, timing)
+
+    return measure
+
+
+def _measure(args: argparse.Namespace, frame):
+    """``(measurement, SPICE report or None, image, timing)`` of one frame; ``timing`` holds the
+    seconds of the measurement and ``compile_s``, the part spent compiling (0 once compiled)."""
+    import time
+
+    from .._jaxcache import CompileTimer
+
+    t0 = time.perf_counter()
+    with CompileTimer() as ct:
+        meas, spice, image = _measure_frame(args, frame)
+    return meas, spice, image, {"seconds": time.perf_counter() - t0, "compile_s": ct.seconds}
+
+
+def _measure_frame(args: argparse.Namespace, frame):
+    """The CLI chooses nothing but options: :func:`jaxlimb.pipeline.locate` picks the body strategy
+    from the hints' body."""
+    from ..errors import SaturationWarning
+    from ..geometry.camera import Camera
+    from ..pipeline import LocateOptions, locate
+    from . import warnings_to_stderr
+
+    image = frame.data
+    geom = _spice(args, frame.meta)
+    camera = Camera.from_json(args.camera) if args.camera is not None else (geom.camera if geom else None)
+    hints = _read_hints(args.hints, args.body.lower() if args.body else (geom.target.lower() if geom else None),
+                        base=geom.hints() if geom else None)
+    options = LocateOptions(front_end=args.front_end, model=args.model, solver=args.solver,
+                            estimate_k=not args.fixed_k, profile=args.profile)
+    with warnings_to_stderr(SaturationWarning):
+        meas = locate(image, camera, hints, options, mask=frame.mask_or_none)
+    return meas, (_spice_report(geom, meas) if geom is not None else None), image
+
+
+def _print(args: argparse.Namespace, meas, spice, figure_error: str | None = None, timing: dict | None = None) -> None:
+    from . import emit_json
+
     if args.json:
-        emit_json(meas.to_json())
+        emit_json({**_json(meas, spice, timing), **({"figure_error": figure_error} if figure_error else {})})
     else:
         print(f"centre (row, col): {meas.center_rc[0]:.4f} {meas.center_rc[1]:.4f} px")
         if meas.radius_px is not None:
@@ -109,6 +214,9 @@ def run(args: argparse.Namespace) -> int:
             print("LOS (camera):      " + " ".join(f"{v:.9f}" for v in meas.los_camera))
         if meas.range_km is not None:
             print(f"range:             {meas.range_km:.3f} km")
+        if spice is not None:
+            d = spice["measured_minus_predicted"]
+            print(f"measured - SPICE:  {d['delta_rc_px'][0]:.3f} {d['delta_rc_px'][1]:.3f} px "
+                  f"({d['angle_urad']:.1f} urad)")
         print(f"k {meas.k:.4f}, ymax {meas.ymax:.2f}, ymin {meas.ymin:.2f}; {meas.n_pixels} px, "
               f"{meas.iterations} iterations ({meas.solver}, {meas.front_end} front end)")
-    return 0

@@ -9,12 +9,16 @@ Sub-commands::
 ``locate --mesh`` builds the template database once and caches it by mesh hash
 and settings in ``$JAXLIMB_CACHE`` (default ``~/.cache/jaxlimb``).
 
-Output of ``locate --json``::
+Output of ``locate --json`` (:func:`jaxlimb.irregular.locate.locate_los`)::
 
-    {"status": "ok", "center_rc": [r, c], "los_camera": [x, y, z],
-     "template": {"index", "alpha_deg", "beta_deg", "rotation_deg", "scale"},
-     "match_distance": SE, "match_center_rc": [r, c], "refined": bool,
-     "figure_center_rc": [r, c], "brightness_center_rc": [r, c], ...}
+    {"status": "ok", "center_rc": [r, c], "los_camera": [x, y, z], "checked": true,
+     "mode": "known-attitude" | "template-search", "covariance": {"center_rc": 2x2},
+     "range_km", "R_body_to_camera", "quality": {"residual_excess_frac", "iou", ...},
+     "template": {"index", "alpha_deg", "beta_deg"}, "iterations", "locate_seconds", "mesh_hash"}
+
+``--no-refine`` prints the unchecked template match of Wu et al. (``"checked": false``).
+A frame the shape model does not explain, or explains with two poses whose centres
+differ, is a typed failure (exit 3, checks ``poor_match`` / ``ambiguous_match``).
 
 Errors follow the contract of :mod:`jaxlimb.cli` (exit 2 unusable input, 3 failed check).
 """
@@ -26,12 +30,16 @@ import json
 import math
 import sys
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..errors import ConfigError, ImageContentError, ImageReadError
+from .._validate import Range, arg_number, input_file, output_file
+from ..errors import ConfigError, DatabaseError, ImageContentError, MeshError
+
+#: ``--step-deg``: below 0.5 deg a database has > 250 000 views (> 10 min to build); above 60 no ring is left.
+STEP_DEG_RANGE = Range(0.5, 60.0)
+TEMPLATE_SIZE_RANGE = Range(32, 4096)
 
 
 def register(subparsers: Any) -> None:
@@ -44,25 +52,35 @@ def register(subparsers: Any) -> None:
     b.add_argument("--out", required=True, metavar="DB", help="output database file (.npz)")
     _add_db_options(b)
     b.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
-    b.set_defaults(func=run_build)
+    b.set_defaults(func=run_build, needs_jax=False)
 
     q = sub.add_parser("locate", help="locate the image of the body centre and the line of sight")
-    q.add_argument("image", metavar="IMAGE", help="grey image (PNG/TIFF/FITS)")
+    q.add_argument("image", metavar="IMAGE", nargs="+", help="grey image (PNG/TIFF/FITS); several files, a "
+                   "directory, a quoted glob or @LIST.txt: one JSON line per frame (see --out)")
     src = q.add_mutually_exclusive_group(required=True)
     src.add_argument("--db", metavar="DB", help="template database built by `los build-db`")
     src.add_argument("--mesh", metavar="MESH", help="shape model; the database is built once and cached")
     q.add_argument("--camera", required=True, metavar="CAMERA", help="camera JSON file")
-    q.add_argument("--hints", metavar="HINTS", help="hints JSON (uses `sun_dir_camera`)")
-    q.add_argument("--no-refine", action="store_true", help="skip the soft-silhouette refinement")
+    q.add_argument(
+        "--hints",
+        metavar="HINTS",
+        help="hints JSON (uses `sun_dir_camera`, `R_body_to_camera` (attitude known: render-and-register), `range_prior_km`)",
+    )
+    q.add_argument("--no-refine", action="store_true", help="the template match of Wu et al. alone: no registration, no checks")
     _add_db_options(q)
     q.add_argument("--json", action="store_true", help="print the result as one JSON object")
-    q.set_defaults(func=run_locate)
+    from ._batch import add_batch_arguments
+
+    add_batch_arguments(q)
+    q.set_defaults(func=run_locate, needs_jax=False)  # numpy + OpenCV only: no JAX start-up
 
 
 def _add_db_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--step-deg", type=float, default=3.0, help="view-sphere sampling step (deg, default 3)")
+    p.add_argument("--step-deg", type=arg_number(STEP_DEG_RANGE), default=3.0,
+                   help=f"view-sphere sampling step, deg {STEP_DEG_RANGE} (default 3)")
     p.add_argument("--pole-axis", choices=("x", "y", "z"), default="z", help="mesh axis used as the sampling pole")
-    p.add_argument("--template-size", type=int, default=512, help="template image side (px, default 512)")
+    p.add_argument("--template-size", type=arg_number(TEMPLATE_SIZE_RANGE, integer=True), default=512,
+                   help=f"template image side, px, integer {TEMPLATE_SIZE_RANGE} (default 512)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -73,15 +91,19 @@ def _db_options(args: argparse.Namespace) -> Any:
 
 
 def run_build(args: argparse.Namespace) -> int:
+    from .._io import exclusive_output
     from ..irregular.database import build_database, save_database
     from ..irregular.mesh import load_mesh
 
     opts = _db_options(args)
+    input_file(args.mesh, "MESH", error=MeshError)
+    target = output_file(args.out, "--out", suffixes=(".npz",), error=ConfigError)  # before any work
     mesh = load_mesh(args.mesh)
-    t0 = time.perf_counter()
-    db = build_database(mesh, opts, progress=not args.no_progress)
-    dt = time.perf_counter() - t0
-    out = save_database(db, args.out)
+    with exclusive_output(target):  # a second build of the same --out is refused; stale temporaries removed
+        t0 = time.perf_counter()
+        db = build_database(mesh, opts, progress=not args.no_progress)
+        dt = time.perf_counter() - t0
+        out = save_database(db, target)
     summary = {
         "status": "ok",
         "database": str(out),
@@ -101,94 +123,28 @@ def run_build(args: argparse.Namespace) -> int:
 
 
 def _read_image(path: str) -> np.ndarray:
-    try:
-        from ..imaging.io import load_image
-    except ImportError:  # pragma: no cover - fallback while imaging.io is not in the tree
-        load_image = None
-    if load_image is not None:
-        img, _ = load_image(path)
-        return img
-    import cv2  # pragma: no cover
+    """The frame as float64 (a constant frame is read: it is a frame without a body, exit 3 as for `locate`)."""
+    from ..imaging.io import load_image
 
-    p = Path(path)  # pragma: no cover
-    if not p.is_file():  # pragma: no cover
-        raise ImageReadError(f"image file {path!r} does not exist")
-    a = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)  # pragma: no cover
-    if a is None:  # pragma: no cover
-        raise ImageReadError(f"image file {path!r} cannot be decoded")
-    if a.ndim == 3:  # pragma: no cover
-        a = cv2.cvtColor(a, cv2.COLOR_BGR2GRAY)
-    if a.ndim != 2 or min(a.shape) < 2:  # pragma: no cover
-        raise ImageContentError(f"image {path!r} has unusable shape {a.shape}")
-    return a.astype(np.float64)  # pragma: no cover
+    img, _ = load_image(path, reject_constant=False)
+    return img
 
 
-def _read_hints(path: str | None) -> dict[str, Any]:
-    if path is None:
-        return {}
-    try:
-        d = json.loads(Path(path).read_text())
-    except OSError as e:
-        raise ConfigError(f"cannot read hints file {path!r}: {e.strerror or e}") from None
-    except json.JSONDecodeError as e:
-        raise ConfigError(f"hints file {path!r} is not valid JSON: {e.msg} at line {e.lineno}") from None
-    if not isinstance(d, dict):
-        raise ConfigError(f"hints file {path!r} must hold a JSON object, got {type(d).__name__}")
-    return d
+def _read_hints(path: str | None) -> Any:
+    from ..imaging import Hints
+
+    return Hints.from_json(path) if path is not None else Hints()
 
 
-def _sun_dir(hints: dict[str, Any]) -> np.ndarray | None:
-    s = hints.get("sun_dir_camera")
-    if s is None:
-        return None
-    try:
-        v = np.asarray(s, dtype=float).reshape(3)
-    except (TypeError, ValueError):
-        raise ConfigError(f"hint `sun_dir_camera` must be a 3-vector, got {s!r}") from None
-    n = float(np.linalg.norm(v))
-    if not (np.all(np.isfinite(v)) and n > 0):
-        raise ConfigError(f"hint `sun_dir_camera` must be a finite non-zero 3-vector, got {s!r}")
-    return v / n
-
-
-def run_locate(args: argparse.Namespace) -> int:
-    from ..geometry.camera import Camera
-    from ..irregular.database import cached_database, load_database
+def _locate_unchecked(image: np.ndarray, db: Any, camera: Any) -> dict[str, Any]:
+    """``--no-refine``: the template match of Wu et al. alone (Eq. 15-25), without the checks."""
     from ..irregular.matching import MatchOptions, locate_centre
-    from ..irregular.mesh import load_mesh
 
-    camera = Camera.from_json(args.camera)
-    hints = _read_hints(args.hints)
-    sun = _sun_dir(hints)
-    image = _read_image(args.image)
-    if image.shape != camera.shape:
-        raise ImageContentError(f"image {args.image!r} has shape {image.shape}, the camera expects {camera.shape}")
-    if args.db is not None:
-        db = load_database(args.db)
-    else:
-        mesh = load_mesh(args.mesh)
-        db = cached_database(mesh, _db_options(args), progress=not args.no_progress)
-    t0 = time.perf_counter()
     res = locate_centre(image, db, camera, MatchOptions())
-    t_match = time.perf_counter() - t0
-    centre = res.centre_rc
-    refined = False
-    extra: dict[str, Any] = {}
-    if not args.no_refine:
-        from ..irregular.refine import refine_centre
-
-        t1 = time.perf_counter()
-        ref = refine_centre(image, db, camera, res, sun_dir_camera=sun)
-        extra["refine_seconds"] = round(time.perf_counter() - t1, 4)
-        extra["refine"] = {"iterations": ref.iterations, "rms_residual": ref.rms_residual, "k": ref.k}
-        centre = ref.centre_rc
-        refined = True
-    los = camera.los(centre)
     j = res.template_index
-    out = {
-        "status": "ok",
-        "center_rc": [float(centre[0]), float(centre[1])],
-        "los_camera": [float(v) for v in los],
+    return {
+        "center_rc": [float(v) for v in res.centre_rc],
+        "checked": False,
         "template": {
             "index": int(j),
             "alpha_deg": math.degrees(float(db.alpha[j])),
@@ -197,26 +153,105 @@ def run_locate(args: argparse.Namespace) -> int:
             "scale": res.scale,
         },
         "match_distance": res.match_distance,
-        "match_center_rc": [float(v) for v in res.centre_rc],
-        "refined": refined,
         "figure_center_rc": [float(v) for v in res.figure_centre_rc],
         "brightness_center_rc": [float(v) for v in res.brightness_centre_rc],
-        "contour_mean_px": res.contour_mean_px,
-        "match_seconds": round(t_match, 4),
-        "mesh_hash": db.mesh_hash,
-        **extra,
     }
+
+
+def _locate_checked(image: np.ndarray, db: Any, camera: Any, hints: Any) -> dict[str, Any]:
+    """The checked line of sight of :func:`jaxlimb.irregular.locate.locate_los` as a JSON dict."""
+    from ..irregular.locate import locate_los
+
+    sun = None if hints.sun_dir_camera is None else np.asarray(hints.sun_dir_camera, dtype=float)
+    R = None if hints.R_body_to_camera is None else np.asarray(hints.R_body_to_camera, dtype=float)
+    res = locate_los(image, db, camera, sun, R, hints.range_prior_km)
+    fit = res.fit
+    out: dict[str, Any] = {
+        "center_rc": [float(v) for v in fit.centre_rc],
+        "checked": True,
+        "mode": res.mode.value,
+        "covariance": {"center_rc": fit.covariance_rc.tolist()},
+        "range_km": fit.range_km,
+        "R_body_to_camera": fit.R_body_to_camera.tolist(),
+        "quality": {
+            "residual_excess_frac": fit.excess_frac,
+            "iou": fit.iou,
+            "rms_residual": fit.rms_residual,
+            "noise_sigma": fit.noise_sigma,
+            "ncc": fit.ncc,
+            "hypotheses_tried": res.n_tried,
+            "hypotheses_accepted": res.n_accepted,
+            "runner_up_excess_frac": res.runner_up_excess,
+        },
+        "iterations": fit.iterations,
+    }
+    if res.template_index is not None:
+        j = res.template_index
+        out["template"] = {"index": int(j), "alpha_deg": math.degrees(float(db.alpha[j])), "beta_deg": math.degrees(float(db.beta[j]))}
+    return out
+
+
+def run_locate(args: argparse.Namespace) -> int:
+    from . import _batch
+
+    # the database/mesh file is checked before any frame is read (and long before a database build)
+    if args.db is not None:
+        input_file(args.db, "--db", error=DatabaseError)
+    else:
+        input_file(args.mesh, "--mesh", error=MeshError)
+    images = list(args.image)
+    if _batch.is_many(images, args):  # many frames: JSON Lines, one per frame (cli/_batch.py)
+        memo: dict[str, Any] = {}  # the camera and the database, loaded once for every frame
+        return _batch.run_frames(images, args, _read_image, lambda path, image: _locate_one(args, path, image, memo))
+    args.image = images[0]
+    out = _locate_one(args, args.image, _read_image(args.image), {})
     if args.json:
         from . import emit_json
 
         emit_json(out)
     else:
+        c, los = out["center_rc"], out["los_camera"]
         print(
-            f"body centre (row, col) = ({centre[0]:.3f}, {centre[1]:.3f})  LOS = [{los[0]:.6f}, {los[1]:.6f}, {los[2]:.6f}]"
-            f"  template {j}  match distance {res.match_distance:.4g}",
+            f"body centre (row, col) = ({c[0]:.3f}, {c[1]:.3f})  LOS = [{los[0]:.6f}, {los[1]:.6f}, {los[2]:.6f}]"
+            f"  ({out.get('mode', 'unchecked template match')})",
             file=sys.stdout,
         )
     return 0
+
+
+def _locate_one(args: argparse.Namespace, path: str, image: np.ndarray, memo: dict[str, Any]) -> dict[str, Any]:
+    """The ``--json`` object of one frame; ``memo`` keeps the camera, hints and database between frames."""
+    from ..geometry.camera import Camera
+    from ..irregular.database import cached_database, load_database
+    from ..irregular.mesh import load_mesh
+
+    if "camera" not in memo:
+        memo["camera"] = Camera.from_json(args.camera)
+        memo["hints"] = _read_hints(args.hints)
+    camera, hints = memo["camera"], memo["hints"]
+    if image.shape != camera.shape:
+        raise ImageContentError(f"image {path!r} has shape {image.shape}, the camera expects {camera.shape}")
+    if float(image.max()) == float(image.min()):  # before any database load or build
+        from ..errors import NoBodyError
+
+        raise NoBodyError(f"image {path!r} is constant (every pixel = {float(image.min()):g}): no body")
+    if "db" not in memo:
+        if args.db is not None:
+            memo["db"] = load_database(args.db)
+        else:
+            memo["db"] = cached_database(load_mesh(args.mesh), _db_options(args), progress=not args.no_progress)
+    db = memo["db"]
+    t0 = time.perf_counter()
+    body = _locate_unchecked(image, db, camera) if args.no_refine else _locate_checked(image, db, camera, hints)
+    centre = np.asarray(body["center_rc"], dtype=float)
+    los = camera.los(centre)
+    return {
+        "status": "ok",
+        **body,
+        "los_camera": [float(v) for v in los],
+        "locate_seconds": round(time.perf_counter() - t0, 4),
+        "mesh_hash": db.mesh_hash,
+    }
 
 
 __all__ = ["register", "run_build", "run_locate"]

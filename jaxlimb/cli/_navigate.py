@@ -1,7 +1,7 @@
 r"""``jaxlimb navigate IMAGE``: the observer position (J2000) and its covariance from one image.
 
 Steps 1-7 of the flowchart of Mortari, D'Souza & Zanetti (§II): the limb measurement of the
-body (``locate`` for the Moon, :func:`jaxlimb.pipeline.earth.locate_earth` for the Earth) gives
+body (:func:`jaxlimb.pipeline.locate`: the sphere strategy for the Moon, the ellipsoid for the Earth) gives
 the body-centre line of sight ``u_c`` and range ``D`` in the camera frame; the attitude ``C_ci``
 (inertial -> camera) and the body's ephemeris ``r_b`` (DE421, offline) give::
 
@@ -35,10 +35,13 @@ from __future__ import annotations
 import argparse
 import json
 import math
-from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from .._validate import Range, arg_number
+
+_ATT_SIGMA = Range(0.0, 648_000.0)  # arcsec: 0 to 180 deg
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -58,8 +61,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    '(scalar-last default) or {"C_ci": 3x3} (inertial -> camera)')
     p.add_argument("--body", choices=("moon", "earth"), default=None, help="the body (default: the hints' body, else moon)")
     p.add_argument("--hints", metavar="HINTS.json", help="navigation prior (DESIGN.md hints)")
-    p.add_argument("--attitude-sigma-arcsec", type=float, default=0.0, dest="attitude_sigma_arcsec",
-                   help="per-axis 1-sigma attitude error added to the covariance (arcsec, default 0)")
+    p.add_argument("--attitude-sigma-arcsec", type=arg_number(_ATT_SIGMA), default=0.0, dest="attitude_sigma_arcsec",
+                   help=f"per-axis 1-sigma attitude error added to the covariance, arcsec {_ATT_SIGMA} (default 0)")
     p.add_argument("--ephemeris", metavar="BSP", default=None,
                    help="JPL kernel (.bsp) or its directory (default: DE421 from skyfield-data)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
@@ -80,17 +83,17 @@ def parse_attitude(text: str) -> tuple[np.ndarray, str]:
     from ..errors import ConfigError
     from ..geometry.attitude import quat_to_dcm, validate_dcm
 
+    from .._io import read_json_file
+    from .._validate import real_array
+
     src = text.strip()
-    if not (src.startswith("{") or src.startswith("[")):
-        p = Path(src)
+    if src.startswith("{") or src.startswith("["):
         try:
-            src = p.read_text()
-        except OSError as e:
-            raise ConfigError(f"--attitude: cannot read attitude file {str(p)!r}: {e.strerror or e}") from None
-    try:
-        obj = json.loads(src)
-    except json.JSONDecodeError as e:
-        raise ConfigError(f"--attitude is not valid JSON: {e.msg} at line {e.lineno}") from None
+            obj = json.loads(src)
+        except json.JSONDecodeError as e:
+            raise ConfigError(f"--attitude is not valid JSON: {e.msg} at line {e.lineno}") from None
+    else:
+        obj = read_json_file(src, "--attitude file")
     order = "xyzw"
     if isinstance(obj, dict):
         keys = {k.lower(): k for k in obj}
@@ -109,10 +112,7 @@ def parse_attitude(text: str) -> tuple[np.ndarray, str]:
                     break
             else:
                 raise ConfigError(f"--attitude object needs a `quaternion` or a `C_ci` key, got keys {sorted(obj)}")
-    try:
-        a = np.asarray(obj, dtype=float)
-    except (TypeError, ValueError):
-        raise ConfigError(f"--attitude must hold numbers, got {obj!r}") from None
+    a = real_array(obj, "--attitude")  # numbers only: `true` or "0" is not a quaternion component
     if a.shape == (4,):
         return quat_to_dcm(a, order=order), f"quaternion ({order})"
     if a.shape == (3, 3):
@@ -190,12 +190,9 @@ def navigate_measurement(
     names, fn = _measurement_map(body, camera, meas)
     x0 = np.array([meas.center_rc[0], meas.center_rc[1], meas.range_km if body == "earth" else meas.radius_px], float)
     P = np.array([[meas.covariance[a][b] for b in names] for a in names])
-    G = np.empty((3, 3))
-    for i, h in enumerate((1e-3, 1e-3, 1e-3 if body != "earth" else 1e-3 * max(1.0, x0[2] * 1e-6))):
-        xp, xm = x0.copy(), x0.copy()
-        xp[i] += h
-        xm[i] -= h
-        G[:, i] = (fn(xp) - fn(xm)) / (2 * h)
+    from ..analysis.crlb import numerical_jacobian
+
+    G = numerical_jacobian(fn, x0, np.array([1e-3, 1e-3, 1e-3 if body != "earth" else 1e-3 * max(1.0, x0[2] * 1e-6)]))
     r_om = fn(x0)
     D = float(np.linalg.norm(r_om))
     sol = navigate(r_body, C_ci, r_om / D, D, attitude_cov_rad2=attitude_sigma_rad if attitude_sigma_rad > 0 else None)
@@ -223,18 +220,13 @@ def navigate_measurement(
 
 
 def locate_body(body: str, image: np.ndarray, camera, hints) -> Any:
-    """The limb measurement: :func:`locate_earth` (Earth) or the Moon pipeline's ``locate``."""
-    if body == "earth":
-        from ..pipeline.earth import locate_earth
+    """The limb measurement: :func:`jaxlimb.pipeline.locate` (the hints' body picks the strategy: the
+    Earth's ellipsoid, the Moon's sphere)."""
+    from dataclasses import replace
 
-        return locate_earth(image, camera, hints, None)
-    try:
-        from ..pipeline.locate import locate
-    except ImportError:  # pragma: no cover - the Moon pipeline is part of the package
-        locate = None
-    if locate is not None:
-        return locate(image, camera, hints, None)
-    raise ImportError("jaxlimb.pipeline.locate is unavailable")  # pragma: no cover
+    from ..pipeline import locate
+
+    return locate(image, camera, replace(hints, body=body) if hints.body != body else hints, None)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -256,8 +248,6 @@ def _run(args: argparse.Namespace) -> int:
     from . import emit_json, warnings_to_stderr
     from ._locate import _read_hints
 
-    if not (math.isfinite(args.attitude_sigma_arcsec) and args.attitude_sigma_arcsec >= 0):
-        raise ConfigError(f"--attitude-sigma-arcsec must be finite and >= 0, got {args.attitude_sigma_arcsec!r}")
     camera = Camera.from_json(args.camera)
     C_ci, att_kind = parse_attitude(args.attitude)
     # epoch: ISO string or a TDB Julian date; checked against the kernel span before any image work

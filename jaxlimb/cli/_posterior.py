@@ -15,6 +15,16 @@ from __future__ import annotations
 
 import argparse
 
+from .._validate import POSITIVE, Range, arg_number
+
+_PX = Range(0.0, 1e5, lo_open=True)  # a length in pixels (no image is 100 000 px wide)
+_COORD = Range(-1e5, 1e5)  # a pixel coordinate (may lie off the frame)
+_K = Range(0.0, 1e3, lo_open=True)  # sigmoid steepness, 1/px (analysis.posterior.MAX_K)
+_WALKERS = Range(4, 10_000)
+_STEPS = Range(1, 10_000_000)
+_SECONDS = Range(0.0, 86_400.0, lo_open=True)
+_SEED = Range(0, 2**32 - 1)
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
@@ -28,19 +38,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("image", metavar="IMAGE", help="image file (PNG, TIFF, FITS) or a .npy array")
     p.add_argument("--camera", metavar="CAMERA.json", help="camera file (enables LOS and range)")
     p.add_argument("--hints", metavar="HINTS.json", help="hints (DESIGN.md); expected_radius_px becomes a radius prior")
-    p.add_argument("--center-rc", nargs=2, type=float, metavar=("ROW", "COL"),
-                   help="skip locate: circle centre (with --radius)")
-    p.add_argument("--radius", type=float, help="skip locate: circle radius, px (with --center-rc)")
-    p.add_argument("--annulus", type=float, default=6.0, help="half-width of the pixel band for --center-rc, px (default 6)")
-    p.add_argument("--k", type=float, default=2.0, help="start (or fixed) steepness k for --center-rc, 1/px (default 2)")
+    p.add_argument("--center-rc", nargs=2, type=arg_number(_COORD), metavar=("ROW", "COL"),
+                   help=f"skip locate: circle centre, px {_COORD} (with --radius)")
+    p.add_argument("--radius", type=arg_number(_PX), help=f"skip locate: circle radius, px {_PX} (with --center-rc)")
+    p.add_argument("--annulus", type=arg_number(_PX), default=6.0,
+                   help=f"half-width of the pixel band for --center-rc, px {_PX} (default 6)")
+    p.add_argument("--k", type=arg_number(_K), default=2.0,
+                   help=f"start (or fixed) steepness k for --center-rc, 1/px {_K} (default 2)")
     p.add_argument("--fix", default="", help="comma-separated parameters held fixed, e.g. k,ymax,ymin")
     p.add_argument("--noise", choices=("marginal", "known", "free"), default="marginal",
                    help="noise treatment: sigma marginalised (default), known (--sigma), or sampled")
-    p.add_argument("--sigma", type=float, help="noise sd in DN for --noise known")
-    p.add_argument("--walkers", type=int, default=32, help="emcee walkers (default 32)")
-    p.add_argument("--max-steps", type=int, default=20000, help="stop unconverged after this many steps")
-    p.add_argument("--max-time", type=float, default=120.0, help="stop unconverged after this many seconds")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--sigma", type=arg_number(POSITIVE), help="noise sd in DN for --noise known (> 0)")
+    p.add_argument("--walkers", type=arg_number(_WALKERS, integer=True), default=32,
+                   help=f"emcee walkers, even, {_WALKERS} (default 32)")
+    p.add_argument("--max-steps", type=arg_number(_STEPS, integer=True), default=20000,
+                   help=f"stop unconverged after this many steps {_STEPS}")
+    p.add_argument("--max-time", type=arg_number(_SECONDS), default=120.0,
+                   help=f"stop unconverged after this many seconds {_SECONDS}")
+    p.add_argument("--seed", type=arg_number(_SEED, integer=True), default=0, help=f"random seed {_SEED}")
     p.add_argument("--plot", metavar="OUT.png", help="save a corner plot")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)
@@ -54,9 +69,12 @@ def _load(path: str):  # noqa: ANN202
 
     if path.endswith(".npy"):
         try:
-            return np.asarray(np.load(path, allow_pickle=False), dtype=float)
+            a = np.load(path, allow_pickle=False)
         except (OSError, ValueError) as e:
             raise ImageReadError(f"cannot read IMAGE {path!r}: {e}") from None
+        if not (np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating) or a.dtype == np.bool_):
+            raise ImageReadError(f"IMAGE {path!r} must hold real numbers, got dtype {a.dtype}")
+        return np.asarray(a, dtype=float)
     image, _ = load_image(path, reject_constant=False)
     return image
 
@@ -89,13 +107,76 @@ def _pixels_from_circle(image, center_rc, radius: float, annulus: float):  # noq
     return rc, z, ymax, ymin
 
 
-def run(args: argparse.Namespace) -> int:
-    import json
-    import math
+def _inputs(args: argparse.Namespace):  # noqa: ANN202
+    """Every input checked and read before any work: ``(image, camera, hints dict, fixed names)``."""
+    from .._io import read_json_file
+    from ..errors import LimbInputError
+    from ..geometry.camera import Camera
+    from ..imaging import Hints
+    from ..models import CIRCLE
+    from . import figure_path
 
+    figure_path(args.plot, "--plot")
+    if (args.center_rc is None) != (args.radius is None):
+        raise LimbInputError("`--center-rc` and `--radius` go together (both or neither)")
+    if args.noise == "known" and args.sigma is None:
+        raise LimbInputError("`--noise known` needs `--sigma`")
+    fixed = tuple(s.strip() for s in args.fix.split(",") if s.strip())
+    unknown = sorted(set(fixed) - set(CIRCLE.param_names))
+    if unknown:
+        raise LimbInputError(f"`--fix` names unknown parameters {unknown}; the circle model has {list(CIRCLE.param_names)}")
+    image = _load(args.image)
+    if image.ndim != 2:
+        raise LimbInputError(f"IMAGE must be a 2-D grey image, got shape {image.shape}")
+    camera = Camera.from_json(args.camera) if args.camera is not None else None
+    hints: dict = {}
+    if args.hints is not None:
+        hints = read_json_file(args.hints, "hints file")
+        Hints.from_dict(hints)  # every value checked (types, ranges) before any work
+    return image, camera, hints, fixed
+
+
+def _pixels(args: argparse.Namespace, image, camera, hints: dict):  # noqa: ANN001, ANN202
+    """The pixels and the start of the fit: ``(rc, z, init, source)`` (``--center-rc`` or ``locate``)."""
     import numpy as np
 
-    from ..analysis.crlb import crlb, los_range_bound
+    from ..models import CircleParams
+
+    if args.center_rc is not None:
+        rc, z, ymax, ymin = _pixels_from_circle(image, args.center_rc, args.radius, args.annulus)
+        return rc, z, CircleParams(args.center_rc[0], args.center_rc[1], args.radius, args.k, ymax, ymin), "center-rc"
+    from ..pipeline import LocateOptions, locate
+
+    m = locate(image, camera, hints or {"body": "moon"},
+               LocateOptions(model="circle", body_center_correction=False, keep_pixels=True))
+    rc = np.asarray(m.selected_pixels_rc, dtype=float)
+    z = image[np.rint(rc[:, 0]).astype(int), np.rint(rc[:, 1]).astype(int)].astype(float)
+    c = m.extras["circle_fit"]
+    return rc, z, CircleParams(c["center_rc"][0], c["center_rc"][1], c["radius_px"], m.k, m.ymax, m.ymin), "locate"
+
+
+def _los_range(post, f, camera, hints: dict) -> dict | None:  # noqa: ANN001
+    """LOS and range with their delta-method sigmas, from the posterior and the Laplace covariance."""
+    import numpy as np
+
+    from ..analysis.crlb import los_range_bound
+    from ..imaging import Hints
+
+    names = ("r0", "c0", "radius")
+    body_radius = Hints.from_dict(hints).radius_km() if camera is not None and hints else None
+    if body_radius is None or not set(names) <= set(post.names):
+        return None
+    idx = [post.names.index(n) for n in names]
+    fidx = [f.free.index(n) for n in names]
+    mean = post.mean[idx]
+    covs = {"posterior": post.covariance[np.ix_(idx, idx)], "laplace": np.asarray(f.covariance)[np.ix_(fidx, fidx)]}
+    return {label: los_range_bound(camera, mean[:2], mean[2], cov, body_radius).as_dict() for label, cov in covs.items()}
+
+
+def run(args: argparse.Namespace) -> int:
+    import math
+
+    from ..analysis.crlb import crlb
     from ..analysis.posterior import (
         PosteriorOptions,
         Priors,
@@ -106,56 +187,17 @@ def run(args: argparse.Namespace) -> int:
         priors_from_hints,
         sample_posterior,
     )
-    from ..errors import ConfigError, LimbInputError
     from ..fitting import fit
-    from ..geometry.camera import Camera
-    from ..models import CIRCLE, CircleParams
-    from . import emit_json
+    from ..models import CIRCLE
+    from . import emit_json, report_after_result, try_save
 
-    if (args.center_rc is None) != (args.radius is None):
-        raise LimbInputError("`--center-rc` and `--radius` go together (both or neither)")
-    if args.noise == "known" and args.sigma is None:
-        raise LimbInputError("`--noise known` needs `--sigma`")
-    image = _load(args.image)
-    if image.ndim != 2:
-        raise LimbInputError(f"IMAGE must be a 2-D grey image, got shape {image.shape}")
-    camera = Camera.from_json(args.camera) if args.camera is not None else None
-    hints: dict = {}
-    if args.hints is not None:
-        try:
-            with open(args.hints) as fh:
-                hints = json.load(fh)
-        except (OSError, json.JSONDecodeError) as e:
-            raise ConfigError(f"cannot read hints {args.hints!r}: {e}") from None
-        if not isinstance(hints, dict):
-            raise ConfigError(f"hints must be a JSON object, got {type(hints).__name__}")
-    fixed = tuple(s.strip() for s in args.fix.split(",") if s.strip())
-    unknown = sorted(set(fixed) - set(CIRCLE.param_names))
-    if unknown:
-        raise LimbInputError(f"`--fix` names unknown parameters {unknown}; the circle model has {list(CIRCLE.param_names)}")
-
-    if args.center_rc is not None:
-        rc, z, ymax, ymin = _pixels_from_circle(image, args.center_rc, args.radius, args.annulus)
-        if not args.k > 0:
-            raise LimbInputError(f"`--k` must be > 0, got {args.k!r}")
-        init = CircleParams(args.center_rc[0], args.center_rc[1], args.radius, args.k, ymax, ymin)
-        source = "center-rc"
-    else:
-        from ..pipeline import LocateOptions, locate
-
-        m = locate(image, camera, hints or {"body": "moon"},
-                   LocateOptions(model="circle", body_center_correction=False, keep_pixels=True))
-        rc = np.asarray(m.selected_pixels_rc, dtype=float)
-        ri, ci = np.rint(rc[:, 0]).astype(int), np.rint(rc[:, 1]).astype(int)
-        z = image[ri, ci].astype(float)
-        c = m.extras["circle_fit"]
-        init = CircleParams(c["center_rc"][0], c["center_rc"][1], c["radius_px"], m.k, m.ymax, m.ymin)
-        source = "locate"
+    image, camera, hints, fixed = _inputs(args)
+    rc, z, init, source = _pixels(args, image, camera, hints)
     f = fit(CIRCLE, rc, z, init, fixed=fixed)
     priors = priors_from_hints(hints, CIRCLE) if hints else Priors()
     lp = log_posterior(CIRCLE, rc, z, f.params, fixed=fixed, noise=args.noise, sigma=args.sigma, priors=priors)
     opt = PosteriorOptions(n_walkers=args.walkers, max_steps=args.max_steps, max_time_s=args.max_time, seed=args.seed)
-    post = sample_posterior(lp, f, options=opt, progress=not args.json)
+    post = sample_posterior(lp, f, options=opt, progress=not args.json)  # quality-checked (exit 3 on pure noise)
     sigma_hat = math.sqrt(float(f.sigma2))
     bound = crlb(CIRCLE, rc, f.params, args.sigma if args.noise == "known" else sigma_hat, fixed=fixed)
     cmp = compare_uncertainties(post, f, bound)
@@ -171,43 +213,25 @@ def run(args: argparse.Namespace) -> int:
         "comparison": cmp,
         "priors": {"gaussian": {k: list(v) for k, v in priors.gaussian.items()}},
     }
-    body_radius = None
-    if camera is not None and hints:
-        from ..imaging import Hints
-
-        body_radius = Hints.from_dict(hints).radius_km()
-    if camera is not None and body_radius is not None and {"r0", "c0", "radius"} <= set(post.names):
-        idx = [post.names.index(n) for n in ("r0", "c0", "radius")]
-        mean = post.mean[idx]
-        for label, cov in (("posterior", post.covariance[np.ix_(idx, idx)]),
-                           ("laplace", np.asarray(f.covariance)[np.ix_([f.free.index(n) for n in ("r0", "c0", "radius")],
-                                                                       [f.free.index(n) for n in ("r0", "c0", "radius")])])):
-            out.setdefault("los_range", {})[label] = los_range_bound(camera, mean[:2], mean[2], cov, body_radius).as_dict()
-    if args.plot:
-        corner_plot(post, args.plot, laplace=f, title=f"{args.image}: {z.size} px, {post.n_steps} steps"
-                    f"{'' if post.converged else ' (NOT converged)'}")
-        out["plot"] = args.plot
+    lr = _los_range(post, f, camera, hints)
+    if lr is not None:
+        out["los_range"] = lr
+    plot_error = None
+    if args.plot:  # after the work: a failing writer must not lose the result
+        plot_error = try_save(lambda: corner_plot(post, args.plot, laplace=f, title=f"{args.image}: {z.size} px, "
+                                                  f"{post.n_steps} steps{'' if post.converged else ' (NOT converged)'}"),
+                              "--plot")
+        out["plot"] = args.plot if plot_error is None else None
+        if plot_error:
+            out["plot_error"] = plot_error
     if args.json:
-        emit_json(_finite(out))
+        emit_json(out)
     else:
         s = post.summary()
         print(f"{z.size} pixels ({source}); {s['n_steps']} steps x {s['n_walkers']} walkers in {s['wall_s']:.1f} s; "
               f"max tau {max(s['tau'].values()):.1f}; {'converged' if post.converged else 'NOT converged'}")
         print(comparison_table(cmp))
-        if "los_range" in out:
-            lr = out["los_range"]["posterior"]
-            print(f"range {lr['range_km']:.2f} +- {lr['sigma_range_km']:.2f} km, LOS sigma {lr['sigma_los_arcsec']:.3f} arcsec")
-    return 0
-
-
-def _finite(obj):  # noqa: ANN001, ANN202
-    """Non-finite floats -> None (the JSON output is strict: ``allow_nan=False``)."""
-    import math
-
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite(v) for v in obj]
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return None
-    return obj
+        if lr is not None:
+            p = lr["posterior"]
+            print(f"range {p['range_km']:.2f} +- {p['sigma_range_km']:.2f} km, LOS sigma {p['sigma_los_arcsec']:.3f} arcsec")
+    return report_after_result(plot_error)

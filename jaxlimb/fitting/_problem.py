@@ -72,3 +72,37 @@ def residual_fn(model: LimbModel, free_idx: tuple[int, ...], analytic: bool):  #
         return w * (f(expand(theta0, free_idx, y), coords) - z)
 
     return residual
+
+
+def fused_residual_fn(model: LimbModel, free_idx: tuple[int, ...]):  # noqa: ANN201
+    """``residual(y, args)`` as :func:`residual_fn` with the analytic Jacobian, fused.
+
+    The residual is a :func:`jax.custom_jvp` whose primal pass computes the intensities and
+    the Jacobian columns of the free parameters together
+    (:meth:`~jaxlimb.models.LimbModel.intensity_and_jacobian_columns`, the pass
+    :class:`~jaxlimb.fitting.NormalLM` uses) and whose tangent is ``J @ dy``.  Under
+    ``jax.linearize`` (how optimistix's Gauss--Newton family builds its Jacobian operator) the
+    columns are computed once per point and the linear map is a ``(n, q)`` matrix product --
+    no trace through the model's formulas.
+    """
+    ptype = model.params_type
+
+    def parts(y: Array, args: tuple[Array, Array, Array, Array]) -> tuple[Array, Array]:
+        theta0, coords, z, w = args
+        params = ptype.from_vector(expand(theta0, free_idx, y))
+        f, cols = model.intensity_and_jacobian_columns(params, coords)
+        jt = jnp.stack([cols[i] for i in free_idx], axis=0) * w  # (q, n)
+        return w * (f - z), jt
+
+    @jax.custom_jvp
+    def residual(y: Array, args: tuple[Array, Array, Array, Array]) -> Array:
+        return parts(y, args)[0]
+
+    @residual.defjvp
+    def _residual_jvp(primals, tangents):  # type: ignore[no-untyped-def]
+        y, args = primals
+        dy, _ = tangents  # the data (theta0, coords, z, w) carry no derivative
+        r, jt = parts(y, args)
+        return r, dy @ jt
+
+    return residual

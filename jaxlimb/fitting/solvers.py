@@ -39,12 +39,13 @@ from typing import Any, ClassVar
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import lineax as lx
 import numpy as np
 import optimistix as optx
 from jaxtyping import Array, Bool, Float, Int, PyTree, Scalar
 
 from ..models import LimbModel
-from ._problem import expand, jacobian_fn, residual_fn
+from ._problem import expand, fused_residual_fn, jacobian_fn, residual_fn
 
 
 class FitResult(optx.RESULTS):  # type: ignore[misc]
@@ -150,7 +151,21 @@ def _finish(problem: LimbProblem, y: Array, result: Any) -> FitResult:
 
 # ============================================================================ optimistix
 class Optimistix(AbstractLimbSolver):
-    """Any optimistix least-squares solver or minimiser, used as it comes.
+    """Any optimistix least-squares solver or minimiser, given what the default solver has.
+
+    With ``fused=True`` (default) and the analytic Jacobian, the residual handed to optimistix
+    is :func:`~jaxlimb.fitting._problem.fused_residual_fn`: a ``jax.custom_jvp`` whose primal
+    pass computes the intensities and the Jacobian columns together, so optimistix's
+    ``jax.linearize`` gets the paper's Jacobian as one ``(n, q)`` matrix instead of tracing the
+    model.  With ``normal=True`` (default) the linear solver of the solver's descent
+    (``LevenbergMarquardt``, ``Dogleg``, ``GaussNewton``: their ``descent.linear_solver``) is
+    replaced by ``lineax.Normal(lineax.Cholesky())``: the ``q x q`` normal equations by
+    Cholesky instead of a QR of the ``n x q`` (or stacked ``(n + q) x q``) operator.  Both
+    change the cost of a step, not the algorithm (its steps, damping and stopping rule).  So
+    ``benchmarks/solvers.py`` compares algorithms, not plumbing (the remaining gap to
+    :class:`NormalLM` is mostly the number of steps: optimistix's trust region starts at radius
+    1 and its stopping rule, and :class:`NormalLM`'s coarse-to-fine phase).
+    ``Optimistix(solver, fused=False, normal=False)`` is optimistix as it comes.
 
     Examples
     --------
@@ -159,16 +174,31 @@ class Optimistix(AbstractLimbSolver):
     """
 
     solver: optx.AbstractLeastSquaresSolver | optx.AbstractMinimiser
+    fused: bool = eqx.field(static=True, default=True)
+    normal: bool = eqx.field(static=True, default=True)
 
     @property
     def name(self) -> str:
         return type(self.solver).__name__
 
+    def configured(self) -> optx.AbstractLeastSquaresSolver | optx.AbstractMinimiser:
+        """The optimistix solver as run: with the normal-equations linear solve if ``normal``."""
+        descent = getattr(self.solver, "descent", None)
+        if not self.normal or not isinstance(getattr(descent, "linear_solver", None), lx.AbstractLinearSolver):
+            return self.solver
+        return eqx.tree_at(lambda s: s.descent.linear_solver, self.solver, lx.Normal(lx.Cholesky()))
+
     def solve(self, problem, y0, max_steps):  # type: ignore[no-untyped-def]
-        sol = optx.least_squares(
-            problem.residual, self.solver, y0, args=problem.args, max_steps=max_steps, throw=False
-        )
+        residual = (fused_residual_fn(problem.model, problem.free_idx) if self.fused and problem.analytic
+                    else problem.residual)
+        sol = optx.least_squares(residual, self.configured(), y0, args=problem.args, max_steps=max_steps, throw=False)
         return sol.value, sol.stats["num_steps"], _finish(problem, sol.value, sol.result)
+
+
+def _coarse(problem: LimbProblem, k: int) -> LimbProblem:
+    """Every ``k``-th pixel of ``problem`` (the coarse phase of coarse-to-fine)."""
+    return LimbProblem(problem.model, problem.free_idx, problem.analytic, problem.theta0,
+                       problem.coords[::k], problem.z[::k], problem.w[::k])
 
 
 class _NormalState(eqx.Module):
@@ -266,8 +296,7 @@ class NormalLM(AbstractLimbSolver):
         n_pix = problem.z.shape[-1]
         if self.coarse_stride > 1 and n_pix >= self.coarse_min_pixels:
             k = self.coarse_stride
-            coarse = LimbProblem(problem.model, problem.free_idx, problem.analytic, problem.theta0,
-                                 problem.coords[::k], problem.z[::k], problem.w[::k])
+            coarse = _coarse(problem, k)
             y_c, n_c, done_c, stuck_c, _ = self._lm_loop(coarse, y0, max_steps, self.coarse_tol_px, 0.0)
             y0 = jnp.where(done_c & ~stuck_c, y_c, y0)  # a failed coarse phase starts the fine one afresh
             steps = n_c

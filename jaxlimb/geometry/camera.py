@@ -58,10 +58,13 @@ from typing import Any
 
 import numpy as np
 
+from .._validate import Range, number, vector
 from ..errors import ConfigError, GeometryError
 
 _CAMERA_KEYS = ("focal_length_mm", "pixel_pitch_mm", "rows", "cols", "principal_point_rc")
 _DISTORTION_KEYS = ("k1", "k2", "k3", "p1", "p2")
+#: Largest image side accepted (px): beyond any detector, and a bound on every allocation sized by a camera.
+_MAX_SIDE_PX = 100_000
 
 
 @dataclass(frozen=True)
@@ -95,31 +98,18 @@ class Camera:
     p2: float = 0.0
 
     def __post_init__(self) -> None:
-        f, p = self.focal_length_mm, self.pixel_pitch_mm
-        for name, val in (("focal_length_mm", f), ("pixel_pitch_mm", p)):
-            if not (isinstance(val, (int, float)) and math.isfinite(val) and val > 0):
-                raise ConfigError(f"camera `{name}` must be a finite number > 0, got {val!r}")
-        for name, val in (("rows", self.rows), ("cols", self.cols)):
-            if not (isinstance(val, (int, np.integer)) and not isinstance(val, bool) and val >= 2):
-                raise ConfigError(f"camera `{name}` must be an integer >= 2, got {val!r}")
+        s = object.__setattr__
+        for name, rng in (("focal_length_mm", Range(0.0, 1e7, lo_open=True)), ("pixel_pitch_mm", Range(0.0, 1e3, lo_open=True))):
+            s(self, name, number(getattr(self, name), f"camera `{name}`", rng))
+        for name in ("rows", "cols"):
+            s(self, name, number(getattr(self, name), f"camera `{name}`", Range(2, _MAX_SIDE_PX), integer=True))
         pp = self.principal_point_rc
         if pp is None:
-            object.__setattr__(self, "principal_point_rc", ((self.rows - 1) / 2.0, (self.cols - 1) / 2.0))
+            s(self, "principal_point_rc", ((self.rows - 1) / 2.0, (self.cols - 1) / 2.0))
         else:
-            try:
-                r, c = (float(v) for v in pp)
-            except (TypeError, ValueError):
-                raise ConfigError(
-                    f"camera `principal_point_rc` must be two numbers [row, col], got {pp!r}"
-                ) from None
-            if not (math.isfinite(r) and math.isfinite(c)):
-                raise ConfigError(f"camera `principal_point_rc` must be finite, got {pp!r}")
-            object.__setattr__(self, "principal_point_rc", (r, c))
+            s(self, "principal_point_rc", vector(pp, "camera `principal_point_rc`", 2))
         for name in _DISTORTION_KEYS:
-            val = getattr(self, name)
-            if isinstance(val, bool) or not isinstance(val, (int, float, np.floating, np.integer)) or not math.isfinite(val):
-                raise ConfigError(f"camera distortion `{name}` must be a finite number, got {val!r}")
-            object.__setattr__(self, name, float(val))
+            s(self, name, number(getattr(self, name), f"camera distortion `{name}`"))
         if self.has_distortion:
             self._check_distortion_monotonic()
 

@@ -55,6 +55,7 @@ from typing import Any
 
 import numpy as np
 
+from .._validate import Range, matrix, number, vector
 from ..errors import ConfigError, TooBigError, TooSmallError, TooThinError
 from ..geometry.camera import Camera
 
@@ -74,31 +75,16 @@ _HINT_KEYS = (
     "atmosphere_km",
     "bit_depth",
     "R_body_to_camera",
+    "expected_center_rc",
 )
 
 
 def _num(key: str, v: Any, *, lo: float | None = None, hi: float | None = None, lo_open: bool = False) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-        raise ConfigError(f"hints `{key}` must be a number, got {v!r}")
-    x = float(v)
-    if not math.isfinite(x):
-        raise ConfigError(f"hints `{key}` must be finite, got {v!r}")
-    if lo is not None and (x < lo or (lo_open and x == lo)):
-        rng = f"{'>' if lo_open else '>='} {lo}" + (f" and <= {hi}" if hi is not None else "")
-        raise ConfigError(f"hints `{key}` must be {rng}, got {v!r}")
-    if hi is not None and x > hi:
-        raise ConfigError(f"hints `{key}` must be <= {hi}, got {v!r}")
-    return x
+    return number(v, f"hints `{key}`", Range(lo, hi, lo_open=lo_open))
 
 
 def _vec(key: str, v: Any, n: int) -> tuple[float, ...]:
-    try:
-        a = np.asarray(v, dtype=float)
-    except (TypeError, ValueError):
-        raise ConfigError(f"hints `{key}` must be a list of {n} numbers, got {v!r}") from None
-    if a.shape != (n,) or not np.isfinite(a).all():
-        raise ConfigError(f"hints `{key}` must be a list of {n} finite numbers, got {v!r}")
-    return tuple(float(x) for x in a)
+    return vector(v, f"hints `{key}`", n)
 
 
 @dataclass(frozen=True)
@@ -125,6 +111,9 @@ class Hints:
         Bits per pixel of the image (1..32).
     R_body_to_camera
         3x3 rotation (proper, orthonormal to 1e-6) body-fixed -> camera.
+    expected_center_rc
+        Predicted image ``(row, col)`` of the body centre (px), e.g. from SPICE; with a camera,
+        the range and the radii it places the predicted limb (:mod:`jaxlimb.imaging.predicted`).
     """
 
     body: str | None = None
@@ -136,9 +125,12 @@ class Hints:
     atmosphere_km: float | None = None
     bit_depth: int | None = None
     R_body_to_camera: tuple[tuple[float, float, float], ...] | None = None
+    expected_center_rc: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         s = object.__setattr__
+        if self.expected_center_rc is not None:
+            s(self, "expected_center_rc", _vec("expected_center_rc", self.expected_center_rc, 2))
         if self.body is not None:
             if not isinstance(self.body, str) or not self.body.strip():
                 raise ConfigError(f"hints `body` must be a non-empty string, got {self.body!r}")
@@ -167,17 +159,9 @@ class Hints:
         if self.atmosphere_km is not None:
             s(self, "atmosphere_km", _num("atmosphere_km", self.atmosphere_km, lo=0))
         if self.bit_depth is not None:
-            b = self.bit_depth
-            if isinstance(b, bool) or not isinstance(b, (int, np.integer)) or not 1 <= int(b) <= 32:
-                raise ConfigError(f"hints `bit_depth` must be an integer in [1, 32], got {b!r}")
-            s(self, "bit_depth", int(b))
+            s(self, "bit_depth", number(self.bit_depth, "hints `bit_depth`", Range(1, 32), integer=True))
         if self.R_body_to_camera is not None:
-            try:
-                R = np.asarray(self.R_body_to_camera, dtype=float)
-            except (TypeError, ValueError):
-                raise ConfigError(f"hints `R_body_to_camera` must be a 3x3 matrix, got {self.R_body_to_camera!r}") from None
-            if R.shape != (3, 3) or not np.isfinite(R).all():
-                raise ConfigError(f"hints `R_body_to_camera` must be a finite 3x3 matrix, got shape {R.shape}")
+            R = np.asarray(matrix(self.R_body_to_camera, "hints `R_body_to_camera`", (3, 3)))
             err = float(np.abs(R @ R.T - np.eye(3)).max())
             if err > 1e-6 or np.linalg.det(R) < 0:
                 raise ConfigError(
@@ -202,10 +186,16 @@ class Hints:
         return cls.from_dict(read_json_file(path, "hints file"))
 
     def radius_km(self) -> float | None:
-        """Nominal limb radius (km): mean of ``body_radii_km`` (or the named body's) plus ``atmosphere_km``."""
+        """Nominal limb radius (km): mean of ``body_radii_km`` (or the named body's: DESIGN.md's Moon and
+        Earth, else :data:`jaxlimb.geometry.bodies.BODY_TABLE`) plus ``atmosphere_km``."""
         radii = self.body_radii_km
         if radii is None and self.body is not None:
             radii = BODY_RADII_KM.get(self.body)
+        if radii is None and self.body is not None:
+            from ..geometry.bodies import BODY_TABLE
+
+            entry = BODY_TABLE.get(self.body)
+            radii = entry.radii_km if entry is not None else None
         if radii is None:
             return None
         return float(np.mean(radii)) + float(self.atmosphere_km or 0.0)

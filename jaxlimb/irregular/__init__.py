@@ -5,6 +5,11 @@ Shape model -> view sphere (Eq. 5-7) -> template silhouettes and features
 similarity transform to the body-centre image (Eq. 18-25) -> line of sight
 (Eq. 1-4), plus the FC/BC baselines and a soft-silhouette least-squares
 refinement (:mod:`.refine`, beyond the paper).
+
+Beyond the paper, for frames at any phase: :func:`locate_los` (:mod:`.locate`) --
+phase-aware template search (:mod:`.phase`) and render-and-register with the attitude
+known or fitted (:mod:`.register`), with typed failures when the model does not explain
+the frame; generated test bodies in :mod:`.shapes`.
 """
 
 from .database import DatabaseOptions as DatabaseOptions
@@ -19,6 +24,10 @@ from .features import features_from_contours as features_from_contours
 from .features import features_from_mask as features_from_mask
 from .features import hu_from_central as hu_from_central
 from .features import log_hu as log_hu
+from .locate import LosMode as LosMode
+from .locate import LosOptions as LosOptions
+from .locate import LosResult as LosResult
+from .locate import locate_los as locate_los
 from .matching import LocateResult as LocateResult
 from .matching import MatchOptions as MatchOptions
 from .matching import line_of_sight as line_of_sight
@@ -32,11 +41,6 @@ from .mesh import MeshOptions as MeshOptions
 from .mesh import load_mesh as load_mesh
 from .mesh import mesh_hash as mesh_hash
 from .mesh import validate_mesh as validate_mesh
-from .refine import DensifyResult as DensifyResult
-from .refine import RefineOptions as RefineOptions
-from .refine import RefineResult as RefineResult
-from .refine import densify_match as densify_match
-from .refine import refine_centre as refine_centre
 from .silhouette import SegmentOptions as SegmentOptions
 from .silhouette import brightness_centre as brightness_centre
 from .silhouette import figure_centre as figure_centre
@@ -49,3 +53,15 @@ from .views import project_points as project_points
 from .views import template_rotations as template_rotations
 from .views import view_angles as view_angles
 from .views import view_count as view_count
+
+# The refinement imports JAX and optimistix (seconds): loaded on first use only, so that
+# ``jaxlimb los locate`` (numpy + OpenCV) does not pay for them.
+_LAZY = {"DensifyResult", "RefineOptions", "RefineResult", "densify_match", "refine_centre"}
+
+
+def __getattr__(name: str):  # type: ignore[no-untyped-def]
+    if name in _LAZY:
+        from . import refine
+
+        return getattr(refine, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -52,7 +52,7 @@ from ..errors import ConfigError, DatabaseError
 from .features import features_from_contours
 from .mesh import Mesh, MeshOptions, mesh_hash, validate_mesh
 from .silhouette import mesh_topology, render_silhouette
-from .views import ViewSphereOptions, template_rotations
+from .views import ViewSphereOptions, template_rotations, view_count
 
 FORMAT_VERSION = 1
 _MAGIC = "jaxlimb-template-db"
@@ -100,14 +100,12 @@ class DatabaseOptions:
 
     def __post_init__(self) -> None:
         ViewSphereOptions(self.step_deg, self.pole_axis, self.rings)  # validates those three
-        if not (isinstance(self.template_size_px, int) and 32 <= self.template_size_px <= 8192):
-            raise ConfigError(f"`template_size_px` must be an integer in [32, 8192], got {self.template_size_px!r}")
-        if not (0.1 <= float(self.fill_fraction) <= 0.95):
-            raise ConfigError(f"`fill_fraction` must be in [0.1, 0.95], got {self.fill_fraction!r}")
-        if not (float(self.distance_factor) >= 1.5 and math.isfinite(self.distance_factor)):
-            raise ConfigError(f"`distance_factor` must be >= 1.5, got {self.distance_factor!r}")
-        if not (isinstance(self.n_contour, int) and 16 <= self.n_contour <= 4096):
-            raise ConfigError(f"`n_contour` must be an integer in [16, 4096], got {self.n_contour!r}")
+        from .._validate import Range, number
+
+        number(self.template_size_px, "`template_size_px`", Range(32, 8192), integer=True)
+        number(self.fill_fraction, "`fill_fraction`", Range(0.1, 0.95))
+        number(self.distance_factor, "`distance_factor`", Range(1.5, 1e6))
+        number(self.n_contour, "`n_contour`", Range(16, 4096), integer=True)
 
     @property
     def view_sphere(self) -> ViewSphereOptions:
@@ -171,6 +169,14 @@ def _template_camera(mesh: Mesh, options: DatabaseOptions) -> tuple[float, tuple
     return focal, pp, distance
 
 
+def estimated_nbytes(options: DatabaseOptions) -> float:
+    """Memory (bytes) a build with ``options`` needs: the per-template arrays, held about
+    three times (the arrays, their copy for the file, the checksum pass), and the template image."""
+    per_template = 8 * (2 + 9 + 1 + 2 + 7 + 1 + 1 + 2) + 4 * 2 * options.n_contour
+    n = view_count(options.step_deg, options.rings)
+    return 3.0 * n * per_template + 32.0 * options.template_size_px**2
+
+
 def build_database(mesh: Mesh, options: DatabaseOptions = DatabaseOptions(), progress: bool = True) -> TemplateDatabase:
     """Render every template and extract its features (Sec. 3 of Wu et al.).
 
@@ -185,6 +191,10 @@ def build_database(mesh: Mesh, options: DatabaseOptions = DatabaseOptions(), pro
     """
     from tqdm import tqdm
 
+    from .._validate import check_memory
+
+    check_memory(estimated_nbytes(options), f"a template database of {view_count(options.step_deg, options.rings)} "
+                 f"views (step {options.step_deg:g} deg)")
     topo = mesh_topology(mesh)
     focal, pp, distance = _template_camera(mesh, options)
     S = options.template_size_px
@@ -285,9 +295,9 @@ def load_database(
         Missing, truncated or corrupt file, other format version, checksum or
         mesh-hash mismatch, or other mesh / settings than expected.
     """
-    p = Path(path)
-    if not p.is_file():
-        raise DatabaseError(f"template database {str(p)!r} does not exist")
+    from .._validate import input_file
+
+    p = input_file(path, "template database", error=DatabaseError)
     try:
         with open(p, "rb") as fh, np.load(fh, allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}  # reads (and CRC-checks) every member

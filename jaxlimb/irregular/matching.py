@@ -309,7 +309,17 @@ class _Chamfer:
         edge = np.ones_like(crop)
         contours, _ = cv2.findContours(crop, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
         cv2.drawContours(edge, contours, -1, color=0, thickness=1)
-        self.dt = cv2.distanceTransform(edge, cv2.DIST_L2, cv2.DIST_MASK_PRECISE).astype(float)
+        self.dt32 = cv2.distanceTransform(edge, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+        self.dt = self.dt32.astype(float)
+
+    def remap(self, rc: np.ndarray) -> np.ndarray:
+        """Like ``__call__`` (without the distance outside the crop), bilinear in C (``cv2.remap``)."""
+        shp = rc.shape[:-1]
+        flat = rc.reshape(-1, shp[-1], 2)
+        mr = (flat[..., 0] - self.r0).astype(np.float32)
+        mc = (flat[..., 1] - self.c0).astype(np.float32)
+        out = cv2.remap(self.dt32, mc, mr, interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        return out.reshape(shp)
 
     def __call__(self, rc: np.ndarray) -> np.ndarray:
         h, w = self.dt.shape

@@ -184,18 +184,41 @@ def _read_table(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(verts, dtype=np.float64), np.asarray(faces, dtype=np.int64)
 
 
+#: Formats that are text only: a file that is not UTF-8 text is not a mesh of that format.
+_TEXT_EXT = {".obj", ".off", ".gltf"}
+
+
+def _check_text(path: Path) -> None:
+    """A text-only format (OBJ ...) that is binary garbage is "not a mesh" (trimesh would try to
+    guess its encoding and fail with an unrelated error)."""
+    head = path.read_bytes()[: 1 << 16]
+    try:
+        ok = b"\0" not in head and head.decode("utf-8", errors="strict") is not None
+    except UnicodeDecodeError as e:
+        ok = e.start > len(head) - 4  # a multi-byte character cut by the 64 KiB window
+    if not ok:
+        raise MeshError(f"{str(path)!r} is not a mesh: a {path.suffix} file must be text, this one is binary")
+
+
 def _read_trimesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
     import trimesh
 
+    if path.suffix.lower() in _TEXT_EXT:
+        _check_text(path)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            # process=True merges duplicate vertices (STL stores each triangle on its own).
-            tm = trimesh.load(str(path), force="mesh", process=True)
+            tm = trimesh.load(str(path), force="mesh", process=False)
     except Exception as e:  # trimesh raises many types on bad files
-        raise MeshError(f"cannot read mesh {str(path)!r}: {type(e).__name__}: {e}") from None
+        raise MeshError(f"{str(path)!r} is not a readable mesh: {type(e).__name__}: {e}") from None
     if not isinstance(tm, trimesh.Trimesh) or len(tm.faces) == 0:
-        raise MeshError(f"mesh file {str(path)!r} holds no triangles")
+        raise MeshError(f"{str(path)!r} is not a mesh: it holds no triangles")
+    bad = ~np.isfinite(np.asarray(tm.vertices, dtype=np.float64)).all(axis=1)
+    if bad.any():  # trimesh's processing would drop them silently and leave a hole
+        raise MeshError(f"{path.name}: {int(bad.sum())} vertices are not finite (NaN/inf), e.g. vertex {int(np.argmax(bad)) + 1}")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tm.process()  # merges duplicate vertices (STL stores each triangle on its own)
     return np.asarray(tm.vertices, dtype=np.float64), np.asarray(tm.faces, dtype=np.int64)
 
 
@@ -216,9 +239,9 @@ def load_mesh(path: str | os.PathLike[str], options: MeshOptions = MeshOptions()
         Missing or unreadable file, unsupported format, or a mesh that fails
         validation and cannot be repaired.
     """
-    p = Path(path)
-    if not p.is_file():
-        raise MeshError(f"mesh file {str(p)!r} does not exist")
+    from .._validate import input_file
+
+    p = input_file(path, "mesh file", error=MeshError)
     ext = p.suffix.lower()
     if ext in _TABLE_EXT:
         v, f = _read_table(p)

@@ -74,9 +74,9 @@ class ViewSphereOptions:
     rings: str = "paper"
 
     def __post_init__(self) -> None:
-        s = self.step_deg
-        if not (isinstance(s, (int, float)) and math.isfinite(s) and 0.0 < s <= 90.0):
-            raise ConfigError(f"view sphere `step_deg` must be in (0, 90], got {s!r}")
+        from .._validate import Range, number
+
+        s = number(self.step_deg, "view sphere `step_deg`", Range(0.0, 90.0, lo_open=True))
         if self.pole_axis not in _POLE_PERMUTATION:
             raise ConfigError(f"view sphere `pole_axis` must be 'x', 'y' or 'z', got {self.pole_axis!r}")
         if self.rings not in ("paper", "grid"):

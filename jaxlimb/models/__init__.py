@@ -1,6 +1,34 @@
-"""Sigmoid limb models (LSF, CSF, ESF) and their analytic Jacobians, Sec. V of Mortari et al. 2016."""
+"""Limb models and their analytic Jacobians.
+
+* the sigmoid models (LSF, CSF, ESF) of Sec. V of Mortari et al. 2016 (:mod:`.sigmoid`);
+* the elliptical edge with an interior ramp and a varying limb level (:mod:`.ellipse_ramp`);
+* the physical limb profile of a sunlit lunar-Lambert sphere blurred by a PSF (:mod:`.lunar_lambert`);
+* the limb-darkened disc of a self-luminous star (:mod:`.limb_darkened`).
+
+Every model carries its Jacobian beside its intensity and is checked by ``jaxlimb gradcheck``
+(:mod:`.gradcheck`) against ``jax.jacfwd`` and central differences.
+"""
 
 from ._base import LimbModel as LimbModel, LimbParams as LimbParams
+from .ellipse_ramp import (
+    ELLIPSE_RAMP as ELLIPSE_RAMP,
+    EllipseRampParams as EllipseRampParams,
+    ellipse_ramp_intensity as ellipse_ramp_intensity,
+    ellipse_ramp_intensity_jac as ellipse_ramp_intensity_jac,
+)
+from .limb_darkened import (
+    LIMB_DARKENED as LIMB_DARKENED,
+    LimbDarkenedParams as LimbDarkenedParams,
+    limb_darkened_intensity as limb_darkened_intensity,
+    limb_darkening as limb_darkening,
+)
+from .lunar_lambert import (
+    LIMB_PROFILE as LIMB_PROFILE,
+    PROFILE_FIXED as PROFILE_FIXED,
+    LimbProfileParams as LimbProfileParams,
+    limb_profile_intensity as limb_profile_intensity,
+    lunar_lambert_weight as lunar_lambert_weight,
+)
 from .sigmoid import (
     CIRCLE as CIRCLE,
     ELLIPSE as ELLIPSE,
@@ -18,3 +46,7 @@ from .sigmoid import (
     linear_intensity as linear_intensity,
     linear_intensity_jac as linear_intensity_jac,
 )
+
+#: Every limb model, by name (the sigmoids, the ramp, the physical profiles).
+ALL_MODELS: dict[str, LimbModel] = {m.name: m for m in (LINEAR, CIRCLE, ELLIPSE, ELLIPSE_RAMP, LIMB_PROFILE,
+                                                        LIMB_DARKENED)}

@@ -1,6 +1,7 @@
-"""Check the paper's analytic Jacobians against autodiff and central differences.
+"""Check every limb model's analytic Jacobian against autodiff and central differences.
 
-For each model (linear, circle, ellipse) we draw random parameter points --
+For each model (the linear, circle and ellipse sigmoids; the elliptical ramp; the lunar-Lambert
+limb profile; the limb-darkened disc) we draw random parameter points --
 steep and shallow ``k`` (log-uniform over [0.05, 20] 1/px), bright-on-dark and
 dark-on-bright levels, any orientation -- and, for each, pixels inside, outside
 and on the edge of the limb.  The analytic Jacobian (Eq. 14, Eq. 17, Sec. V-C
@@ -16,19 +17,58 @@ The central-difference check steps each parameter by ``h_j = 1e-5 (ymax - ymin)
 / c_j`` (so the intensity moves by at most 1e-5 of its range) and reports the
 largest error relative to the column scale ``c_j``; it is limited by the O(h^2)
 truncation and by rounding, ~1e-8.
+
+Tolerances (:data:`SPECS`, per model).  The sigmoids, the ramp and the limb-darkened disc have
+Jacobians equal to the derivative of their intensity to rounding: 1e-9 against ``jax.jacfwd`` (1e-8
+for the ramp, whose centre and orientation columns add two terms -- the depth's change and the limb
+level's change along the limb -- that cancel at some pixels, measured up to 1.5e-9).  The
+lunar-Lambert profile's columns are the integrals of the *differentiated integrand* (the derivative
+of the exact integral), while ``jax.jacfwd`` and central differences differentiate the quadrature
+rule: they agree to the rule's error on the derivative (~5e-4 of the column scale with the 20 nodes
+the fits use), so the profile is checked with a 64-node rule (:func:`quadrature_nodes`; the
+formulas do not depend on the rule), to 1e-6 of the column scale, on pixels of the lit limb (the
+radiance has a kink at the terminator).  The limb-darkened disc's central differences are taken of
+its quadrature at every pixel (its tabulated intensity moves its grid with ``a``), to 1e-5.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from contextlib import AbstractContextManager, nullcontext
 from dataclasses import asdict, dataclass
+from typing import Any
+
+import math
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ._base import LimbModel
+from .ellipse_ramp import ELLIPSE_RAMP, EllipseRampParams
+from .limb_darkened import LIMB_DARKENED, LimbDarkenedParams, limb_darkened_intensity_direct
+from .lunar_lambert import LIMB_PROFILE, LimbProfileParams, quadrature_nodes
 from .sigmoid import CIRCLE, ELLIPSE, LINEAR, CircleParams, EllipseParams, LinearParams
 
+@dataclass(frozen=True)
+class _Spec:
+    """How one model is checked: tolerances, the floor of the relative error (a fraction of the column
+    scale) and the intensity whose central differences are the reference (``None``: the model's)."""
+
+    tol: float = 1e-9
+    fd_tol: float = 1e-6
+    floor: float = 1e-8
+    fd_intensity: Callable[..., Any] | None = None
+    context: Callable[[], AbstractContextManager[Any]] = nullcontext
+
+
+#: Per-model check settings (module docstring); the limb-darkened disc's central differences are
+#: taken of the quadrature at every pixel (its tabulated intensity moves its grid with ``a``).
+SPECS: dict[str, _Spec] = {
+    "ellipse_ramp": _Spec(tol=1e-8),
+    "lunar_limb": _Spec(tol=1e-6, fd_tol=1e-6, floor=1.0, context=lambda: quadrature_nodes(64)),
+    "limb_darkened": _Spec(fd_tol=1e-5, fd_intensity=limb_darkened_intensity_direct),
+}
 
 @dataclass(frozen=True)
 class GradCheck:
@@ -39,20 +79,42 @@ class GradCheck:
     max_rel_err: float
     max_fd_err: float
     n_points: int
+    tol: float = 1e-9
+    fd_tol: float = 1e-6
+
+    @property
+    def passed(self) -> bool:
+        return self.max_rel_err <= self.tol and self.max_fd_err <= self.fd_tol
+
+
+def _edge_offsets(rng: np.random.Generator, n_pix: int, width: float) -> np.ndarray:
+    """Signed distances (px) from the limb: a third inside, a third on the edge, a third outside."""
+    return np.concatenate(
+        [rng.uniform(-3 * width, -0.5 * width, n_pix // 3),  # inside
+         rng.uniform(-0.5 * width, 0.5 * width, n_pix // 3),  # on the edge
+         rng.uniform(0.5 * width, 3 * width, n_pix - 2 * (n_pix // 3))]  # outside
+    )
+
+
+def _ellipse_pixels(r0, c0, a, theta, rho, offs, phi) -> np.ndarray:
+    """Pixels at "ellipse distance" ``beta = rho a + offs`` along eccentric anomalies ``phi`` (Eq. 20)."""
+    scale = (rho * a + offs) / (rho * a)
+    x = a * np.cos(phi) * scale
+    y = rho * a * np.sin(phi) * scale
+    ct, st = np.cos(theta), np.sin(theta)
+    return np.stack([r0 - x * st - y * ct, c0 + x * ct - y * st], -1)
 
 
 def _random_case(model: LimbModel, rng: np.random.Generator, n_pix: int):  # noqa: ANN202
     """A random parameter point and pixels inside / on / outside its limb."""
+    if model.name in _PHYSICAL_CASES:
+        return _PHYSICAL_CASES[model.name](rng, n_pix)
     k = float(np.exp(rng.uniform(np.log(0.05), np.log(20.0))))
     ymax, ymin = rng.uniform(50, 250), rng.uniform(0, 40)
     if rng.random() < 0.2:  # dark body on a bright sky
         ymax, ymin = ymin, ymax
     width = max(4.0 / k, 1.0)  # the transition is ~4/k px wide
-    offs = np.concatenate(
-        [rng.uniform(-3 * width, -0.5 * width, n_pix // 3),  # inside
-         rng.uniform(-0.5 * width, 0.5 * width, n_pix // 3),  # on the edge
-         rng.uniform(0.5 * width, 3 * width, n_pix - 2 * (n_pix // 3))]  # outside
-    )
+    offs = _edge_offsets(rng, n_pix, width)
     if model.name == "linear":
         xt = rng.uniform(-50, 50)
         return LinearParams(xt, k, ymax, ymin), jnp.asarray(xt + offs)
@@ -66,22 +128,70 @@ def _random_case(model: LimbModel, rng: np.random.Generator, n_pix: int):  # noq
         return CircleParams(r0, c0, radius, k, ymax, ymin), jnp.asarray(rc)
     rho = rng.uniform(0.5, 1.0)
     theta = rng.uniform(-np.pi, np.pi)
-    p = EllipseParams(r0, c0, radius, theta, rho, k, ymax, ymin)
-    # points at "ellipse distance" beta = rho*a + offs along eccentric anomaly phi
-    scale = (rho * radius + offs) / (rho * radius)
-    x = radius * np.cos(phi) * scale
-    y = rho * radius * np.sin(phi) * scale
-    ct, st = np.cos(theta), np.sin(theta)
-    rc = np.stack([r0 - x * st - y * ct, c0 + x * ct - y * st], -1)
+    rc = jnp.asarray(_ellipse_pixels(r0, c0, radius, theta, rho, offs, phi))
+    if model.name == "ellipse_ramp":
+        g, g2 = rng.uniform(-5, 5), rng.uniform(-10, 10)
+        hs = rng.uniform(-0.1, 0.1, 4) * (ymax - ymin)
+        return EllipseRampParams(r0, c0, radius, theta, rho, k, ymax, ymin, g, g2, *hs), rc
+    return EllipseParams(r0, c0, radius, theta, rho, k, ymax, ymin), rc
+
+
+def _profile_case(rng: np.random.Generator, n_pix: int):  # noqa: ANN202
+    """The lunar-Lambert profile: any size, PSF, phase (to 125 deg), angular radius (to 0.3 rad) and
+    ``L``; pixels within 55 deg of the Sun's image direction (the lit limb), +-6 sigma of the edge."""
+    a, rho, theta = rng.uniform(30, 400), rng.uniform(0.9, 1.0), rng.uniform(-np.pi, np.pi)
+    sigma = rng.uniform(0.3, 2.0)
+    r0, c0 = rng.uniform(-100, 1000, 2)
+    phi_sun = rng.uniform(-np.pi, np.pi)
+    phi = phi_sun + rng.uniform(-np.radians(55), np.radians(55), n_pix)
+    se = math.sqrt(sigma * sigma + 1.0 / 12.0)
+    offs = np.maximum(rng.uniform(-6 * se, 6 * se, n_pix), -0.9 * rho * a)
+    rc = _ellipse_pixels(r0, c0, a, theta, rho, offs, phi)
+    # the Sun's image direction: the mean direction of the pixels from the centre
+    d = np.mean(rc - np.array([r0, c0]), axis=0)
+    d /= np.linalg.norm(d)
+    inv_f = math.tan(rng.uniform(1e-3, 0.3)) / (rho * a)
+    p = LimbProfileParams(r0, c0, a, theta, rho, sigma, rng.uniform(50, 250), rng.uniform(0, 40), d[0], d[1],
+                          rng.uniform(0.0, np.radians(125)), inv_f, rng.uniform(0, 1))
     return p, jnp.asarray(rc)
+
+
+def _limb_darkened_case(rng: np.random.Generator, n_pix: int):  # noqa: ANN202
+    """The limb-darkened disc: any size, PSF and quadratic coefficients; pixels all round the limb."""
+    a, sigma = rng.uniform(30, 400), rng.uniform(0.2, 2.0)
+    r0, c0 = rng.uniform(-100, 1000, 2)
+    offs = _edge_offsets(rng, n_pix, 2.0 * math.sqrt(sigma * sigma + 1.0 / 12.0))
+    phi = rng.uniform(0, 2 * np.pi, n_pix)
+    d = a + offs
+    rc = np.stack([r0 + d * np.sin(phi), c0 + d * np.cos(phi)], -1)
+    p = LimbDarkenedParams(r0, c0, a, sigma, rng.uniform(50, 250), rng.uniform(0, 40), rng.uniform(0.2, 0.8),
+                           rng.uniform(-0.3, 0.4))
+    return p, jnp.asarray(rc)
+
+
+_PHYSICAL_CASES = {"lunar_limb": _profile_case, "limb_darkened": _limb_darkened_case}
+
+
+def _intensity_range(p: Any) -> float:
+    """The intensity range of a parameter point (levels for the sigmoids, ``amp`` for the physical profiles)."""
+    if hasattr(p, "ymax"):
+        return abs(float(p.ymax) - float(p.ymin))
+    return abs(float(p.amp))
 
 
 def check_model(model: LimbModel, n_points: int = 100, n_pix: int = 60, seed: int = 0) -> list[GradCheck]:
     """Compare ``model.jacobian`` with ``jax.jacfwd`` and central differences at ``n_points`` random points."""
+    with SPECS.get(model.name, _Spec()).context():
+        return _check_model(model, n_points, n_pix, seed)
+
+
+def _check_model(model: LimbModel, n_points: int, n_pix: int, seed: int) -> list[GradCheck]:
     rng = np.random.default_rng(seed)
     ptype = model.params_type
     names = model.param_names
-    f = jax.jit(lambda v, x: model.intensity(ptype.from_vector(v), x))
+    spec = SPECS.get(model.name, _Spec())
+    f_ref = spec.fd_intensity if spec.fd_intensity is not None else model.intensity
+    f = jax.jit(lambda v, x: f_ref(ptype.from_vector(v), x))
     jac_ad = jax.jit(jax.jacfwd(lambda v, x: model.intensity(ptype.from_vector(v), x)))
     jac_an = jax.jit(lambda v, x: model.jacobian(ptype.from_vector(v), x))
     worst = np.zeros(len(names))
@@ -92,8 +202,8 @@ def check_model(model: LimbModel, n_points: int = 100, n_pix: int = 60, seed: in
         a = np.asarray(jac_an(v, x))
         b = np.asarray(jac_ad(v, x))
         col = np.max(np.abs(b), axis=0)
-        dy = abs(float(p.ymax) - float(p.ymin))
-        denom = np.maximum(np.abs(b), 1e-8 * col[None, :])
+        dy = _intensity_range(p)
+        denom = np.maximum(np.abs(b), spec.floor * col[None, :])
         denom = np.where(denom > 0, denom, 1.0)
         worst = np.maximum(worst, np.max(np.abs(a - b) / denom, axis=0))
         for j in range(len(names)):
@@ -101,17 +211,18 @@ def check_model(model: LimbModel, n_points: int = 100, n_pix: int = 60, seed: in
             e = jnp.zeros_like(v).at[j].set(h)
             fd = (np.asarray(f(v + e, x)) - np.asarray(f(v - e, x))) / (2 * h)
             worst_fd[j] = max(worst_fd[j], float(np.max(np.abs(fd - a[:, j])) / max(col[j], 1e-300)))
-    return [GradCheck(model.name, n, float(worst[i]), float(worst_fd[i]), n_points) for i, n in enumerate(names)]
+    return [GradCheck(model.name, n, float(worst[i]), float(worst_fd[i]), n_points, spec.tol, spec.fd_tol)
+            for i, n in enumerate(names)]
 
 
 def run_gradcheck(n_points: int = 100, seed: int = 0) -> list[GradCheck]:
-    """All three models; see :func:`check_model`."""
+    """Every limb model; see :func:`check_model`."""
     out: list[GradCheck] = []
-    for i, model in enumerate((LINEAR, CIRCLE, ELLIPSE)):
+    for i, model in enumerate((LINEAR, CIRCLE, ELLIPSE, ELLIPSE_RAMP, LIMB_PROFILE, LIMB_DARKENED)):
         out.extend(check_model(model, n_points=n_points, seed=seed + i))
     return out
 
 
 def report(checks: list[GradCheck]) -> dict[str, list[dict[str, object]]]:
     """The ``jaxlimb gradcheck --json`` object."""
-    return {"checks": [asdict(c) for c in checks]}
+    return {"checks": [{**asdict(c), "passed": c.passed} for c in checks]}

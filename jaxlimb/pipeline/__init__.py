@@ -3,15 +3,18 @@ body-centre correction and checks; the measurement types; the checks as typed er
 
 Public API::
 
-    locate(image, camera=None, hints=None, options=None) -> LimbMeasurement
-    LocateOptions(front_end, model, solver, estimate_k, k_fixed, annulus_px, ...)
+    locate(image, camera=None, hints=None, options=None) -> LimbMeasurement   (every body: sphere,
+        ellipsoid (hints body "earth"), disc (hints body "sun"); jaxlimb.pipeline.bodies)
+    LocateOptions(front_end, model, solver, estimate_k, k_fixed, annulus_px, shape, ellipsoid, ...)
+    FrontEnd, LimbModelKind, Profile, BodyShape   (the options' Enums); EllipsoidOptions
     LimbMeasurement, EllipseResult           (result types, ``to_json()``)
     save_locate_figure(image, measurement, path, selected_pixels=None, truth=None)
     checks: CenterOutOfFieldError, check_jump, check_radius_prior, check_size, check_center_in_field
     refinement: select_annulus, annulus_halfwidth, lit_halfangle, fit_circle_annulus, fit_sphere_annulus
     sphere image: SphereImage, sphere_from_ellipse_center, sphere_from_circle_fit
-    physical limb profile: LIMB_PROFILE, LimbProfileParams, limb_profile_intensity
-    the Sun's limb-darkened disc: LIMB_DARKENED, LimbDarkenedParams, fit_limb_darkened, SunLimbFit
+    physical limb profile: sphere_from_circle_fit (the models LIMB_PROFILE, LIMB_DARKENED, ELLIPSE_RAMP
+        live in jaxlimb.models and are re-exported here for older imports)
+    the Sun's limb-darkened disc: fit_limb_darkened, SunLimbFit
 """
 
 from .checks import (
@@ -24,7 +27,14 @@ from .checks import (
 )
 from .figure import save_locate_figure as save_locate_figure
 from .locate import locate as locate
-from .options import LocateOptions as LocateOptions
+from .earth import EllipsoidOptions as EllipsoidOptions
+from .options import (
+    BodyShape as BodyShape,
+    FrontEnd as FrontEnd,
+    LimbModelKind as LimbModelKind,
+    LocateOptions as LocateOptions,
+    Profile as Profile,
+)
 from .refine import (
     AnnulusSelection as AnnulusSelection,
     RefineResult as RefineResult,
@@ -35,18 +45,15 @@ from .refine import (
     lit_halfangle as lit_halfangle,
     select_annulus as select_annulus,
 )
-from .profile import (
+from ..models import (
+    LIMB_DARKENED as LIMB_DARKENED,
     LIMB_PROFILE as LIMB_PROFILE,
+    LimbDarkenedParams as LimbDarkenedParams,
     LimbProfileParams as LimbProfileParams,
     limb_profile_intensity as limb_profile_intensity,
-    sphere_from_circle_fit as sphere_from_circle_fit,
 )
-from .sun_profile import (
-    LIMB_DARKENED as LIMB_DARKENED,
-    LimbDarkenedParams as LimbDarkenedParams,
-    SunLimbFit as SunLimbFit,
-    fit_limb_darkened as fit_limb_darkened,
-)
+from .profile import sphere_from_circle_fit as sphere_from_circle_fit
+from .sun_profile import SunLimbFit as SunLimbFit, fit_limb_darkened as fit_limb_darkened
 from .result import EllipseResult as EllipseResult, LimbMeasurement as LimbMeasurement
 from .sphere import SphereImage as SphereImage, sphere_from_ellipse_center as sphere_from_ellipse_center
 
@@ -63,7 +70,12 @@ __all__ = [
     "CenterOutOfFieldError",
     "EllipseResult",
     "LimbMeasurement",
+    "BodyShape",
+    "EllipsoidOptions",
+    "FrontEnd",
+    "LimbModelKind",
     "LocateOptions",
+    "Profile",
     "RefineResult",
     "SphereImage",
     "annulus_halfwidth",

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import LimbInputError
+from ..geometry.ellipsoid import ellipse_points
 from .result import LimbMeasurement
 
 
@@ -17,10 +18,7 @@ def _limb_points(meas: LimbMeasurement, n: int = 720) -> np.ndarray:
     t = np.linspace(0.0, 2 * np.pi, n)
     ell = meas.ellipse.to_json() if meas.ellipse is not None else meas.extras.get("limb_ellipse")
     if ell is not None:
-        (r0, c0), (a, b), ang = ell["center_rc"], ell["semi_axes_px"], ell["angle_rad"]
-        x, y = a * np.cos(t), b * np.sin(t)
-        ct, st = math.cos(ang), math.sin(ang)
-        return np.stack([r0 - x * st - y * ct, c0 + x * ct - y * st], axis=1)
+        return ellipse_points(ell["center_rc"], ell["semi_axes_px"], ell["angle_rad"], t)
     r0, c0 = meas.center_rc
     R = float(meas.radius_px or 0.0)
     return np.stack([r0 + R * np.sin(t), c0 + R * np.cos(t)], axis=1)
@@ -36,10 +34,7 @@ def _truth_points(truth: Any, n: int = 720) -> tuple[np.ndarray | None, tuple[fl
     if center is None and isinstance(truth, dict):
         center = truth.get("center_rc")
     if limb is not None:
-        (r0, c0), (a, b), ang = limb.center_rc, limb.semi_axes_px, limb.angle_rad
-        x, y = a * np.cos(t), b * np.sin(t)
-        ct, st = math.cos(ang), math.sin(ang)
-        pts = np.stack([r0 - x * st - y * ct, c0 + x * ct - y * st], axis=1)
+        pts = ellipse_points(limb.center_rc, limb.semi_axes_px, limb.angle_rad, t)
         return pts, (float(center[0]), float(center[1])) if center is not None else None
     radius = getattr(truth, "radius_px", None)
     if radius is None and isinstance(truth, dict):
@@ -48,6 +43,47 @@ def _truth_points(truth: Any, n: int = 720) -> tuple[np.ndarray | None, tuple[fl
         raise LimbInputError("`truth` needs `center_rc` and either `limb` (RenderTruth) or `radius_px`")
     r0, c0 = float(center[0]), float(center[1])
     return np.stack([r0 + radius * np.sin(t), c0 + radius * np.cos(t)], axis=1), (r0, c0)
+
+
+def _crop(limb: np.ndarray, shape: tuple[int, int]) -> tuple[int, int, int, int]:
+    """The limb's box plus a 10 % margin, clipped to the frame (the whole frame if empty)."""
+    R, C = shape
+    lo, hi = limb.min(0), limb.max(0)
+    m = 0.1 * float(max(hi - lo)) + 5.0
+    r0, r1 = int(max(0, math.floor(lo[0] - m))), int(min(R, math.ceil(hi[0] + m) + 1))
+    c0, c1 = int(max(0, math.floor(lo[1] - m))), int(min(C, math.ceil(hi[1] + m) + 1))
+    return (r0, r1, c0, c1) if (r1 > r0 and c1 > c0) else (0, R, 0, C)
+
+
+def _zoom_box(measurement: LimbMeasurement, limb: np.ndarray) -> tuple[float, float, float, float]:
+    """30 x 30 px about the limb point farthest in the lit direction (the top of the limb without one)."""
+    d = measurement.extras.get("lit_direction_rc")
+    cen = np.asarray(measurement.center_rc)
+    k = int(np.argmax((limb - cen) @ np.asarray(d, float))) if d is not None else int(np.argmin(limb[:, 0]))
+    pr, pc = limb[k]
+    return pr - 15, pr + 15, pc - 15, pc + 15
+
+
+def _panel(ax: Any, img: np.ndarray, vrange, measurement: LimbMeasurement, limb, pix, tpts, tcen, box, zoom: bool) -> None:
+    """One panel: the image, the fitted pixels, the fitted and true limbs and centres, in ``box``."""
+    R, C = img.shape
+    zr0, zr1, zc0, zc1 = box
+    ax.imshow(img, cmap="gray", vmin=vrange[0], vmax=vrange[1], interpolation="nearest", origin="upper",
+              extent=(-0.5, C - 0.5, R - 0.5, -0.5))
+    if pix is not None and pix.size:
+        step = max(1, pix.shape[0] // (20000 if zoom else 4000))
+        ax.plot(pix[::step, 1], pix[::step, 0], ",", color="yellow", alpha=0.6 if zoom else 0.35,
+                label="fitted pixels" if not zoom else None)
+    ax.plot(limb[:, 1], limb[:, 0], "-", color="red", lw=1.0, label="fitted limb" if not zoom else None)
+    ax.plot([measurement.center_rc[1]], [measurement.center_rc[0]], "+", color="red", ms=10)
+    if tpts is not None:
+        ax.plot(tpts[:, 1], tpts[:, 0], "--", color="cyan", lw=0.8, label="truth" if not zoom else None)
+        if tcen is not None:
+            ax.plot([tcen[1]], [tcen[0]], "x", color="cyan", ms=8)
+    ax.set_xlim(zc0, zc1)
+    ax.set_ylim(zr1, zr0)
+    ax.set_xlabel("col (px)")
+    ax.set_ylabel("row (px)")
 
 
 def save_locate_figure(
@@ -89,45 +125,12 @@ def save_locate_figure(
     pix = None if pix is None else np.asarray(pix, dtype=float)
     limb = _limb_points(measurement)
     tpts, tcen = _truth_points(truth)
-    R, C = img.shape
-    lo = limb.min(0)
-    hi = limb.max(0)
-    m = 0.1 * float(max(hi - lo)) + 5.0
-    r0, r1 = int(max(0, math.floor(lo[0] - m))), int(min(R, math.ceil(hi[0] + m) + 1))
-    c0, c1 = int(max(0, math.floor(lo[1] - m))), int(min(C, math.ceil(hi[1] + m) + 1))
-    if r1 <= r0 or c1 <= c0:
-        r0, r1, c0, c1 = 0, R, 0, C
+    r0, r1, c0, c1 = _crop(limb, img.shape)
     fig, axes = plt.subplots(1, 2, figsize=(11, 5.2), gridspec_kw={"width_ratios": [1.6, 1]})
     vmin, vmax = np.percentile(img[r0:r1, c0:c1], [0.5, 99.8])
     for ax, zoom in zip(axes, (False, True)):
-        if zoom:
-            d = measurement.extras.get("lit_direction_rc")
-            cen = np.asarray(measurement.center_rc)
-            if d is not None:
-                dv = np.asarray(d, float)
-                k = int(np.argmax((limb - cen) @ dv))
-            else:
-                k = int(np.argmin(limb[:, 0]))
-            pr, pc = limb[k]
-            zr0, zr1, zc0, zc1 = pr - 15, pr + 15, pc - 15, pc + 15
-        else:
-            zr0, zr1, zc0, zc1 = r0 - 0.5, r1 - 0.5, c0 - 0.5, c1 - 0.5
-        ax.imshow(img, cmap="gray", vmin=vmin, vmax=vmax, interpolation="nearest", origin="upper",
-                  extent=(-0.5, C - 0.5, R - 0.5, -0.5))
-        if pix is not None and pix.size:
-            step = max(1, pix.shape[0] // (20000 if zoom else 4000))
-            ax.plot(pix[::step, 1], pix[::step, 0], ",", color="yellow", alpha=0.6 if zoom else 0.35,
-                    label="fitted pixels" if not zoom else None)
-        ax.plot(limb[:, 1], limb[:, 0], "-", color="red", lw=1.0, label="fitted limb" if not zoom else None)
-        ax.plot([measurement.center_rc[1]], [measurement.center_rc[0]], "+", color="red", ms=10)
-        if tpts is not None:
-            ax.plot(tpts[:, 1], tpts[:, 0], "--", color="cyan", lw=0.8, label="truth" if not zoom else None)
-            if tcen is not None:
-                ax.plot([tcen[1]], [tcen[0]], "x", color="cyan", ms=8)
-        ax.set_xlim(zc0, zc1)
-        ax.set_ylim(zr1, zr0)
-        ax.set_xlabel("col (px)")
-        ax.set_ylabel("row (px)")
+        _panel(ax, img, (vmin, vmax), measurement, limb, pix, tpts, tcen,
+               _zoom_box(measurement, limb) if zoom else (r0 - 0.5, r1 - 0.5, c0 - 0.5, c1 - 0.5), zoom)
     axes[0].legend(loc="upper right", fontsize=8, framealpha=0.6)
     axes[1].set_title("zoom on the lit limb", fontsize=9)
     r = measurement.radius_px

@@ -2,23 +2,70 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
+from enum import Enum
 
+from .._validate import NON_NEGATIVE, POSITIVE, number
 from ..errors import ConfigError
 
-FRONT_ENDS = ("gradient", "scanline")
-LIMB_MODELS = ("circle", "ellipse")
-PROFILES = ("auto", "sigmoid", "lunar-lambert", "limb-darkened")
+
+class _Choice(str, Enum):
+    """A setting with named values; compares equal to its string (``FrontEnd.GRADIENT == "gradient"``)."""
+
+    def __str__(self) -> str:
+        return str(self.value)
+
+    @classmethod
+    def parse(cls, name: str, v: object) -> "_Choice":
+        try:
+            return cls(v)
+        except ValueError:
+            raise ConfigError(f"LocateOptions.{name} must be one of {[m.value for m in cls]}, got {v!r}") from None
+
+
+class FrontEnd(_Choice):
+    """The limb-candidate front end (:func:`jaxlimb.imaging.front_end`)."""
+
+    GRADIENT = "gradient"
+    SCANLINE = "scanline"
+
+
+class LimbModelKind(_Choice):
+    """The limb's shape in the edge fit: a circle (a sphere's limb, corrected to its ellipse with a camera)
+    or a free ellipse."""
+
+    CIRCLE = "circle"
+    ELLIPSE = "ellipse"
+
+
+class Profile(_Choice):
+    """The edge model of the profile-refit stage."""
+
+    AUTO = "auto"
+    SIGMOID = "sigmoid"
+    LUNAR_LAMBERT = "lunar-lambert"
+    LIMB_DARKENED = "limb-darkened"
+
+
+class BodyShape(_Choice):
+    """The body strategy of :func:`~jaxlimb.pipeline.locate`: ``auto`` (the Sun: ``disc``; the Earth:
+    ``ellipsoid``; any other body: ``sphere``), or one of them."""
+
+    AUTO = "auto"
+    SPHERE = "sphere"
+    ELLIPSOID = "ellipsoid"
+    DISC = "disc"
+
+
+FRONT_ENDS = tuple(m.value for m in FrontEnd)
+LIMB_MODELS = tuple(m.value for m in LimbModelKind)
+PROFILES = tuple(m.value for m in Profile)
 
 
 def _pos(name: str, v: object, *, allow_zero: bool = False, allow_none: bool = False) -> None:
     if v is None and allow_none:
         return
-    ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and (v >= 0 if allow_zero else v > 0)
-    if not ok:
-        rng = ">= 0" if allow_zero else "> 0"
-        raise ConfigError(f"LocateOptions.{name} must be a finite number {rng}{' or None' if allow_none else ''}, got {v!r}")
+    number(v, f"LocateOptions.{name}", NON_NEGATIVE if allow_zero else POSITIVE)
 
 
 @dataclass(frozen=True)
@@ -128,6 +175,17 @@ class LocateOptions:
     keep_pixels
         Keep the fitted pixel coordinates in ``LimbMeasurement.selected_pixels_rc`` (for
         figures; not part of the JSON output).
+    max_psf_sigma_px
+        A fit whose edge blur (Gaussian PSF sigma, or the sigmoid's ``1.7/k`` less the pixel box)
+        exceeds this is not a limb: :class:`~jaxlimb.pipeline.checks.NonPhysicalFitError` (default 5 px).
+    max_center_sigma_px
+        The stated tolerance on the centre: a measurement whose own 1-sigma (larger axis) exceeds it
+        fails with :class:`~jaxlimb.pipeline.checks.CenterTooUncertainError` (default 1 px; ``None``:
+        no limit, the covariance says how good it is).
+    shape
+        The body strategy (:class:`BodyShape`; default ``auto``: the hints' body decides).
+    ellipsoid
+        :class:`~jaxlimb.pipeline.ellipsoid.EllipsoidOptions` of the ellipsoid strategy (``None`` = defaults).
     gradient
         :class:`~jaxlimb.imaging.GradientOptions` (``None`` = defaults).
     scanline
@@ -158,21 +216,23 @@ class LocateOptions:
     compute_crlb: bool = True
     border_px: int = 0
     keep_pixels: bool = True
+    max_psf_sigma_px: float = 5.0
+    max_center_sigma_px: float | None = 1.0
+    shape: BodyShape = BodyShape.AUTO
+    ellipsoid: object | None = None
     gradient: object | None = None
     scanline: object | None = None
 
     def __post_init__(self) -> None:
-        if self.front_end not in FRONT_ENDS:
-            raise ConfigError(f"LocateOptions.front_end must be one of {list(FRONT_ENDS)}, got {self.front_end!r}")
-        if self.model not in LIMB_MODELS:
-            raise ConfigError(f"LocateOptions.model must be one of {list(LIMB_MODELS)}, got {self.model!r}")
+        for name, kind in (("front_end", FrontEnd), ("model", LimbModelKind), ("profile", Profile), ("shape", BodyShape)):
+            object.__setattr__(self, name, kind.parse(name, getattr(self, name)))
         from ..fitting import SOLVERS
 
         if self.solver not in SOLVERS:
             raise ConfigError(f"LocateOptions.solver must be one of {sorted(SOLVERS)}, got {self.solver!r}")
         _pos("k_fixed", self.k_fixed)
-        if self.profile not in PROFILES:
-            raise ConfigError(f"LocateOptions.profile must be one of {list(PROFILES)}, got {self.profile!r}")
+        _pos("max_psf_sigma_px", self.max_psf_sigma_px)
+        _pos("max_center_sigma_px", self.max_center_sigma_px, allow_none=True)
         if self.lunar_lambert_L is not None:
             _pos("lunar_lambert_L", self.lunar_lambert_L, allow_zero=True)
             if self.lunar_lambert_L > 1:
@@ -204,4 +264,5 @@ class LocateOptions:
             raise ConfigError(f"LocateOptions.border_px must be an integer >= 0, got {self.border_px!r}")
 
 
-__all__ = ["FRONT_ENDS", "LIMB_MODELS", "PROFILES", "LocateOptions"]
+__all__ = ["FRONT_ENDS", "LIMB_MODELS", "PROFILES", "BodyShape", "FrontEnd", "LimbModelKind", "LocateOptions",
+           "Profile"]

@@ -1,298 +1,26 @@
-r"""A physically based limb profile: the blurred radiance of a sunlit sphere near its limb.
+"""The pipeline's side of the physical limb profile: the accepted range of the fitted ``L`` and the
+sphere whose image has a given centre and mean radius.
 
-Why.  A sigmoid puts its 50 % level where a *flat-topped* blurred step has it.  A real lit
-limb is not flat-topped: seen from a finite range, the limb is at emission :math:`e = 90^\circ`
-while the incidence there is :math:`< 90^\circ` (the view rays converge, the Sun's are
-parallel), so the Lommel-Seeliger term :math:`2\mu_0/(\mu_0 + \mu)` of the lunar-Lambert law
-reaches 2 in a rim a fraction of a pixel wide; and at larger phases the Lambert term dims
-the limb toward the horns.  Blurred, the rim moves the sigmoid's 50 % point outward
-(measured 0.03-0.13 px at zero phase, 0.2-0.3 px at 90 deg, ~0.65 px at 120 deg; see
-``benchmarks/locate_accuracy.py``).  This model fits the profile itself.
-
-Geometry (circle model, small angles).  A pixel at distance ``d`` from the centre of the
-body's image, polar direction at angle :math:`\psi'` from the Sun's image direction.  With
-:math:`q = d/R` (``R`` the apparent radius, px) and :math:`\alpha_0 = \arctan(R/f)` the
-angular radius, the ray is at :math:`\beta = q\,\alpha_0` from the centre direction and hits
-the sphere with :math:`\sin e = \sin\beta / \sin\alpha_0 \approx q`.  In the frame with ``z``
-from the body toward the observer and ``x`` along the pixel's image direction, the normal
-is :math:`n = (\sin(e - \beta), \cdot, \cos(e - \beta))` (the normal is turned by ``e`` from
-the direction back to the observer, which is itself turned by :math:`-\beta` from ``z``),
-and the Sun direction is :math:`s = (\sin\vartheta\cos\psi', \cdot, \cos\vartheta)`
-(:math:`\vartheta` the phase angle), so
-
-.. math:: \mu_0 = \cos i = \sin(e-\beta)\sin\vartheta\cos\psi' + \cos(e-\beta)\cos\vartheta,
-          \qquad \mu = \cos e = \sqrt{1 - q^2}.
-
-Radiance (lunar-Lambert, McEwen): :math:`I = L\,2\mu_0/(\mu_0+\mu) + (1-L)\,\mu_0` for
-:math:`\mu_0 > 0`, 0 otherwise (``L`` fixed from the phase).
-
-Blur.  The observed intensity is ``ymin + amp * (I H) * N_sigma`` along the radial
-direction (1-D: ``R >> sigma``): with the depth :math:`u' = R - d' = v^2`,
-
-.. math:: f(d) = y_{\min} + A \int_{v_0}^{v_1} I(R - v^2)\, N(d - R + v^2; \sigma_e)\, 2v\,dv
-
-by 20-point Gauss-Legendre quadrature, :math:`v_{0,1} = \sqrt{\max(0, R - d \mp 6\sigma_e)}`
-(the substitution removes the square-root behaviour of :math:`\mu` at the limb), and
-:math:`\sigma_e^2 = \sigma^2 + 1/12` (pixel integration as a box), plus the first-order
-curvature term of the 2-D blur, :math:`\sigma_e^2/(2d)\,\partial f/\partial d` (without it the
-radius of a 33 px Moon came out 0.01-0.024 px short; with it |bias| <= 0.008 px from 33 to 210 px,
-``benchmarks/locate_accuracy.py`` bias study).  Parameters
-``(r0, c0, a, sigma, amp, ymin)`` are estimated; ``theta, rho`` (limb ellipse shape),
-``sun_r, sun_c`` (unit image direction of the Sun), ``phase`` (rad), ``inv_f`` (1/focal px;
-0 = orthographic) and ``L`` are held fixed (``fixed=PROFILE_FIXED``).  The Jacobian is computed in
-the same pass as the intensity, by differentiating under the integral (13 columns for about
-three times the cost of the intensity; ``jax.jacfwd`` took 13 times) and is checked against
-``jax.jacfwd``.
-
-Off the optical axis the limb is an ellipse (``a - b`` reaches ~5 px at the corner of the
-default imager for the Moon at 60 000 km): the model carries the ellipse ``(r0, c0, a, theta,
-rho)``; with a camera, ``theta`` and ``rho`` are held at the values of the image of a sphere
-at the current estimate and iterated, exactly as the sigmoid's body-centre correction
-(:func:`jaxlimb.pipeline.refine.fit_sphere_annulus`), and ``(r0, c0, a)`` map exactly to the
-body centre (:func:`jaxlimb.pipeline.sphere.sphere_from_ellipse_center`).  Without a camera
-``rho = 1`` (a circle of radius ``a``).
+The model itself (:data:`LIMB_PROFILE`, :func:`limb_profile_intensity`, its Jacobian) lives in
+:mod:`jaxlimb.models.lunar_lambert`; its names are re-exported here for older imports.
 """
 
 from __future__ import annotations
 
 import math
 
-import jax
-import jax.numpy as jnp
 import numpy as np
-from jaxtyping import ArrayLike
 
 from ..errors import GeometryError
-from ..models import LimbModel, LimbParams, ellipse_coords
+from ..models.lunar_lambert import (  # noqa: F401  (the model moved to jaxlimb.models; re-exported)
+    LIMB_PROFILE as LIMB_PROFILE,
+    PHYSICAL_L as PHYSICAL_L,
+    PROFILE_FIXED as PROFILE_FIXED,
+    LimbProfileParams as LimbProfileParams,
+    limb_profile_intensity as limb_profile_intensity,
+    lunar_lambert_weight as lunar_lambert_weight,
+)
 from .sphere import SphereImage, _a_of_alpha, _tan_theta, sphere_from_ellipse_center
-
-_GL_X, _GL_W = np.polynomial.legendre.leggauss(20)
-PROFILE_FIXED = ("theta", "rho", "sun_r", "sun_c", "phase", "inv_f", "L")
-
-
-class LimbProfileParams(LimbParams):
-    """Parameters of :func:`limb_profile_intensity` (module docstring).
-
-    ``r0, c0, a, theta, rho`` are the limb ellipse as in :class:`jaxlimb.models.EllipseParams`
-    (``rho = 1``: a circle of radius ``a``); ``sigma`` the Gaussian PSF (px); ``amp``, ``ymin``
-    the radiance scale and the sky level; ``sun_r, sun_c, phase, inv_f, L`` fixed geometry.
-    """
-
-    r0: ArrayLike
-    c0: ArrayLike
-    a: ArrayLike
-    theta: ArrayLike
-    rho: ArrayLike
-    sigma: ArrayLike
-    amp: ArrayLike
-    ymin: ArrayLike
-    sun_r: ArrayLike
-    sun_c: ArrayLike
-    phase: ArrayLike
-    inv_f: ArrayLike
-    L: ArrayLike
-
-
-def _cos_sin_small(x, small):
-    """``(cos x, sin x)``; by Taylor series (to 1e-16 for ``|x| <= 0.2``) when ``small`` (a
-    scalar: the body's angular radius, which bounds ``|x|``, is below 0.2 rad), else
-    ``jnp.cos``, ``jnp.sin`` (the series is ~5x cheaper)."""
-
-    def series(x):
-        x2 = x * x
-        c = 1.0 - x2 / 2.0 * (1.0 - x2 / 12.0 * (1.0 - x2 / 30.0 * (1.0 - x2 / 56.0 * (1.0 - x2 / 90.0))))
-        s = x * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0 * (1.0 - x2 / 72.0 * (1.0 - x2 / 110.0)))))
-        return c, s
-
-    return jax.lax.cond(small, series, lambda x: (jnp.cos(x), jnp.sin(x)), x)
-
-
-def _radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0):
-    """Radiance and its partial derivatives at depth ``v**2`` below the limb (module docstring).
-
-    With ``q = 1 - v^2/R`` the emission cosine is computed as ``mu = v sqrt((1 + q)/R)``
-    (no cancellation in ``1 - q^2`` at the limb).  Returns ``I`` and, at fixed ``v``,
-    ``dI/dR``, ``dI/dcpsi``, ``dI/dalpha0``, ``dI/dphase``, ``dI/dL``.
-    """
-    v2 = v * v
-    inv_R = 1.0 / R
-    q = jnp.clip(1.0 - v2 * inv_R, 0.0, 1.0)
-    rt = jnp.sqrt((1.0 + q) * inv_R)
-    mu = v * rt
-    q_R = v2 * inv_R * inv_R
-    mu_R = -v * q * inv_R / (R * rt)
-    beta = q * alpha0
-    cb, sb = _cos_sin_small(beta, jnp.abs(alpha0) <= 0.2)
-    s_em = q * cb - mu * sb  # sin(e - beta)
-    c_em = mu * cb + q * sb  # cos(e - beta)
-    sph, cph = jnp.sin(p.phase), jnp.cos(p.phase)
-    a_s = sph * cpsi
-    mu0 = s_em * a_s + c_em * cph
-    lit = mu0 > 0
-    m0 = jnp.where(lit, mu0, 0.0)
-    inv_den = 1.0 / jnp.where(lit, m0 + mu, 1.0)
-    two_L = 2.0 * p.L
-    ratio = m0 * inv_den  # mu0 / (mu0 + mu)
-    I = two_L * ratio + (1.0 - p.L) * m0
-    I_mu0 = jnp.where(lit, two_L * mu * inv_den * inv_den + (1.0 - p.L), 0.0)
-    I_mu = -two_L * ratio * inv_den
-    # d mu0 / d beta, / d R (fixed v), / d cpsi, / d phase
-    mu0_beta = -c_em * a_s + s_em * cph
-    s_R = q_R * cb - mu_R * sb
-    c_R = mu_R * cb + q_R * sb
-    mu0_R = s_R * a_s + c_R * cph + mu0_beta * q_R * alpha0
-    I_R = I_mu0 * mu0_R + I_mu * mu_R
-    I_cpsi = I_mu0 * s_em * sph
-    I_a0 = I_mu0 * mu0_beta * q
-    I_ph = I_mu0 * (s_em * cph * cpsi - c_em * sph)
-    I_L = 2.0 * ratio - m0
-    return I, I_R, I_cpsi, I_a0, I_ph, I_L
-
-
-def _geometry(p: LimbProfileParams, rc):
-    rc = jnp.asarray(rc)
-    dr = rc[..., 0] - p.r0
-    dc = rc[..., 1] - p.c0
-    x, y = ellipse_coords(p, rc)
-    d2 = dr * dr + dc * dc
-    d = jnp.sqrt(jnp.where(d2 > 0, d2, 1.0))
-    b2 = p.rho * p.rho * x * x + y * y
-    beta = jnp.sqrt(jnp.where(b2 > 0, b2, 1.0))
-    R = p.rho * p.a * d / beta
-    cpsi = (dr * p.sun_r + dc * p.sun_c) / d
-    return dr, dc, x, y, d, beta, R, cpsi
-
-
-def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool):
-    """The blurred profile ``F`` (module docstring) and, if asked, its partials.
-
-    ``F = F1 + sigma_e^2 / (2 d) dF1/dd``: the 1-D radial blur ``F1`` plus the first-order
-    curvature term of the 2-D blur of a round edge (the ``(1/r) d/dr`` part of the Laplacian:
-    the blurred disc's edge moves inward by ``sigma_e^2 / 2R``, 0.02 px for ``R = 33 px``,
-    ``sigma = 1.2 px``).  Partials ``F_d, F_R`` (at fixed ``d``/``R``), ``F_cpsi, F_se, F_a0,
-    F_ph, F_L``: the integrands differentiated under the integral; the limits sit 6 sigma out
-    in the Gaussian, so their own derivative terms are below 1e-8 of ``F``'s and are dropped.
-    """
-    alpha0 = jnp.arctan(p.rho * p.a * p.inv_f)
-    se = jnp.sqrt(p.sigma * p.sigma + 1.0 / 12.0)
-    v0 = jnp.sqrt(jnp.maximum(R - d - 6.0 * se, 1e-12))
-    v1 = jnp.sqrt(jnp.maximum(R - d + 6.0 * se, 1e-12))
-    xg = jnp.asarray(_GL_X)
-    half = 0.5 * (v1 - v0)
-    w = jnp.asarray(_GL_W) * (2.0 * half)[..., None]
-    v = half[..., None] * (xg + 1.0) + v0[..., None]  # (n, nodes)
-    t = (d[..., None] - R[..., None] + v * v) / se  # (d - d') / se
-    g = jnp.exp(-0.5 * t * t) * (v * w / (se * math.sqrt(2 * math.pi)))  # Gaussian x 2v dv / 2 ... x weights
-    I, I_R, I_cpsi, I_a0, I_ph, I_L = _radiance_parts(p, v, R[..., None], cpsi[..., None], alpha0)
-    tg = t * g / se  # -dg/dd
-    F1 = jnp.sum(I * g, axis=-1)
-    F1_d = -jnp.sum(I * tg, axis=-1)
-    s2d = se * se / (2.0 * d)
-    F = F1 + s2d * F1_d
-    if not derivatives:
-        return F, None
-    t2m1 = t * t - 1.0
-    F1_dd = jnp.sum(I * t2m1 * g, axis=-1) / (se * se)
-
-    def pair(J):  # (integral of J g, of -J tg): a partial of F1 and the matching partial of F1_d
-        return jnp.sum(J * g, axis=-1), -jnp.sum(J * tg, axis=-1)
-
-    F1_R, F1_dR = pair(I_R)
-    F1_cp, F1_dcp = pair(I_cpsi)
-    F1_a0, F1_da0 = pair(I_a0)
-    F1_ph, F1_dph = pair(I_ph)
-    F1_L, F1_dL = pair(I_L)
-    F1_se = F1_dd * se
-    F1_dse = -jnp.sum(I * t * (t * t - 3.0) * g, axis=-1) / (se * se)
-    parts = {
-        "F_d": F1_d + s2d * (F1_dd - F1_d / d),
-        "F_R": (-F1_d + F1_R) + s2d * (-F1_dd + F1_dR),
-        "F_cpsi": F1_cp + s2d * F1_dcp,
-        "F_se": F1_se + s2d * F1_dse + se / d * F1_d,
-        "F_a0": F1_a0 + s2d * F1_da0,
-        "F_ph": F1_ph + s2d * F1_dph,
-        "F_L": F1_L + s2d * F1_dL,
-        "alpha0": alpha0,
-        "se": se,
-    }
-    return F, parts
-
-
-def limb_profile_intensity(p: LimbProfileParams, rc):
-    """Blurred limb radiance (module docstring) at pixels ``rc`` ``(n, 2)``.
-
-    Along the ray from the ellipse centre through a pixel at distance ``d``, the limb is at
-    ``R = rho a d / beta`` (``beta = sqrt(rho^2 x^2 + y^2)`` in the ellipse frame of
-    :func:`jaxlimb.models.ellipse_coords`); the circle formulas apply with that ``R``.
-    """
-    _, _, _, _, d, _, R, cpsi = _geometry(p, rc)
-    F, _ = _profile_integrals(p, d, R, cpsi, derivatives=False)
-    return p.ymin + p.amp * F
-
-
-def _profile_value_and_columns(p: LimbProfileParams, rc):
-    """Intensity and all 13 Jacobian columns from one pass (derivatives under the integral).
-
-    The chain rule from the per-pixel quantities ``(d, R, cpsi, se, alpha0)`` to the
-    parameters is written out; checked against ``jax.jacfwd`` of :func:`limb_profile_intensity`
-    in ``tests/pipeline/test_profile.py``.
-    """
-    dr, dc, x, y, d, beta, R, cpsi = _geometry(p, rc)
-    F, P = _profile_integrals(p, d, R, cpsi, derivatives=True)
-    A = p.amp
-    ct, st = jnp.cos(p.theta), jnp.sin(p.theta)
-    # d/dr0, d/dc0 of d, beta, R, cpsi
-    d_r0, d_c0 = -dr / d, -dc / d
-    x_r0, x_c0, y_r0, y_c0 = st, -ct, ct, st
-    rho2 = p.rho * p.rho
-    b_r0 = (rho2 * x * x_r0 + y * y_r0) / beta
-    b_c0 = (rho2 * x * x_c0 + y * y_c0) / beta
-    R_r0 = R * (d_r0 / d - b_r0 / beta)
-    R_c0 = R * (d_c0 / d - b_c0 / beta)
-    cp_r0 = (-p.sun_r - cpsi * d_r0) / d
-    cp_c0 = (-p.sun_c - cpsi * d_c0) / d
-    # theta: x_th = -y... (x, y rotate with theta): dx/dtheta = y, dy/dtheta = -x
-    b_th = (rho2 * x * y - y * x) / beta
-    R_th = -R * b_th / beta
-    R_rho = R / p.rho - R * (p.rho * x * x) / (beta * beta)
-    u = p.rho * p.a * p.inv_f
-    a0_common = 1.0 / (1.0 + u * u)
-    F_d, F_R, F_cp, F_a0 = P["F_d"], P["F_R"], P["F_cpsi"], P["F_a0"]
-    cols = {
-        "r0": A * (F_d * d_r0 + F_R * R_r0 + F_cp * cp_r0),
-        "c0": A * (F_d * d_c0 + F_R * R_c0 + F_cp * cp_c0),
-        "a": A * (F_R * R / p.a + F_a0 * a0_common * p.rho * p.inv_f),
-        "theta": A * F_R * R_th,
-        "rho": A * (F_R * R_rho + F_a0 * a0_common * p.a * p.inv_f),
-        "sigma": A * P["F_se"] * p.sigma / P["se"],
-        "amp": F,
-        "ymin": jnp.ones_like(F),
-        "sun_r": A * F_cp * dr / d,
-        "sun_c": A * F_cp * dc / d,
-        "phase": A * P["F_ph"],
-        "inv_f": A * F_a0 * a0_common * p.rho * p.a,
-        "L": A * P["F_L"],
-    }
-    return p.ymin + A * F, tuple(cols[n] for n in LimbProfileParams.field_names())
-
-
-def _profile_cols(p: LimbProfileParams, rc):
-    return _profile_value_and_columns(p, rc)[1]
-
-
-def _profile_jac(p: LimbProfileParams, rc):
-    return jnp.stack(_profile_cols(p, rc), axis=-1)
-
-
-LIMB_PROFILE = LimbModel("lunar_limb", LimbProfileParams, limb_profile_intensity, _profile_jac, _profile_cols,
-                         _profile_value_and_columns)
-"""The physical lunar-Lambert limb profile model (circle geometry)."""
-
-
-PHYSICAL_L = (-0.1, 1.1)
-"""Lunar-Lambert weights ``L`` a fitted profile may take under ``profile="auto"``: ``[0, 1]`` with a
-margin, widened by 3 of the fit's own sigma of ``L`` (a 33 px Moon with 10 DN of noise fits a
-Lommel-Seeliger limb, ``L = 1``, at 1.13 now and then)."""
 
 
 def l_band(fit) -> tuple[float, float]:
@@ -303,48 +31,6 @@ def l_band(fit) -> tuple[float, float]:
     i = list(fit.free).index("L")
     s = float(np.sqrt(max(float(np.asarray(fit.covariance)[i, i]), 0.0)))
     return (PHYSICAL_L[0] - 3.0 * s, PHYSICAL_L[1] + 3.0 * s)
-
-
-def lunar_lambert_weight(phase_rad: float, coeffs=(-0.019, 2.42e-4, -1.46e-6)) -> float:
-    """McEwen's ``L(alpha)`` (alpha in degrees, clipped to [0, 1])."""
-    a = math.degrees(phase_rad)
-    A, B, C = coeffs
-    return float(min(1.0, max(0.0, 1.0 + A * a + B * a * a + C * a**3)))
-
-
-_VALUE_AND_COLUMNS = jax.jit(_profile_value_and_columns)
-MODEL_ERROR_SECTORS = 24
-"""Angular sectors of the cluster-robust model-error term (:func:`add_model_error`)."""
-
-
-def add_model_error(fit, coords, z, center_rc, n_sectors: int = MODEL_ERROR_SECTORS):
-    """``fit`` (a :class:`~jaxlimb.fitting.LimbFit` of :data:`LIMB_PROFILE` on pixels ``coords``,
-    values ``z``) with its covariance widened by the cluster-robust model-error term of
-    :mod:`jaxlimb.analysis.model_error` over ``n_sectors`` sectors of the limb about ``center_rc``;
-    and the ratio of the centre's variance after/before (the model error's share).
-
-    Measured (``benchmarks/families.py``): an albedo that varies along and across the limb
-    (maria) biases the centre by up to 0.1 px for a reported 0.005-0.01 px; with this term the
-    centre NEES of the maria Moons is ~4 instead of 129 (own family ~2-3)."""
-    import equinox as eqx
-
-    from ..analysis.model_error import cluster_robust_covariance, sector_groups, with_model_error
-
-    from ..fitting.fit import bucket_size
-
-    coords = np.asarray(coords, float)
-    n = coords.shape[0]
-    padded = np.concatenate([coords, np.repeat(coords[:1], bucket_size(n) - n, axis=0)])  # no recompiles
-    f, cols = _VALUE_AND_COLUMNS(fit.params, jnp.asarray(padded))
-    names = LimbProfileParams.field_names()
-    J = np.stack([np.asarray(cols[names.index(k)])[:n] for k in fit.free], axis=1)
-    r = np.asarray(z, float) - np.asarray(f)[:n]
-    C = np.asarray(fit.covariance)
-    C_s = cluster_robust_covariance(J, r, sector_groups(coords, center_rc, n_sectors))
-    C_new = with_model_error(C, C_s)
-    ic = [fit.free.index(n) for n in ("r0", "c0") if n in fit.free]
-    ratio = float(np.trace(C_new[np.ix_(ic, ic)]) / max(np.trace(C[np.ix_(ic, ic)]), 1e-300)) if ic else 1.0
-    return eqx.tree_at(lambda f: f.covariance, fit, jnp.asarray(C_new)), ratio
 
 
 def sphere_from_circle_fit(focal_px: float, principal_point_rc, center_rc, mean_radius: float,
@@ -380,8 +66,6 @@ def sphere_from_circle_fit(focal_px: float, principal_point_rc, center_rc, mean_
 
 
 __all__ = [
-    "MODEL_ERROR_SECTORS",
-    "add_model_error",
     "LIMB_PROFILE",
     "LimbProfileParams",
     "PHYSICAL_L",

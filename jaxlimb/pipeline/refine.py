@@ -170,69 +170,12 @@ def select_annulus(
     TooManyOutliersError
         Fewer than 20 pixels survive (the limb is not in the frame, or no bin has contrast).
     """
-    img = np.asarray(image)
-    R, C = img.shape
     cr, cc = float(center_rc[0]), float(center_rc[1])
-    b = int(options.border_px)
-    rmax = radius + dr
-    r0, r1 = max(b, int(math.floor(cr - rmax))), min(R - b, int(math.ceil(cr + rmax)) + 1)
-    c0, c1 = max(b, int(math.floor(cc - rmax))), min(C - b, int(math.ceil(cc + rmax)) + 1)
-    if r1 <= r0 or c1 <= c0:
-        raise TooManyOutliersError("the limb annulus lies outside the frame: no pixels to fit")
-    rows = np.arange(r0, r1, dtype=np.float64)[:, None]
-    cols = np.arange(c0, c1, dtype=np.float64)[None, :]
-    drow = rows - cr
-    dcol = cols - cc
-    d = np.sqrt(drow * drow + dcol * dcol)
-    m = np.abs(d - radius) <= dr
-    if direction is not None and halfangle < math.pi:
-        cos_h = math.cos(halfangle)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            cosang = (drow * direction[0] + dcol * direction[1]) / np.where(d > 0, d, 1.0)
-        m &= cosang >= cos_h
-    ir, ic = np.nonzero(m)
-    if ir.size < 20 and direction is not None and halfangle < math.pi and np.count_nonzero(np.abs(d - radius) <= dr) >= 20:
-        from ..errors import ArcTooShortError
-
-        # the limb is in the frame, but not its lit side: a cropped body facing the Sun out of the frame
-        raise ArcTooShortError(
-            f"the lit limb (within {math.degrees(halfangle):.0f} deg of the Sun direction) is outside the frame: "
-            f"only {ir.size} pixels of the annulus on the lit side (need >= 20)"
-        )
-    if ir.size < 20:
-        raise TooManyOutliersError(f"only {ir.size} pixels in the lit limb annulus (need >= 20)")
-    dsel = d[ir, ic]
-    coords = np.stack([ir + r0, ic + c0], axis=1).astype(np.float64)
-    z = img[ir + r0, ic + c0].astype(np.float64)
+    coords, z, dsel = _annulus_window(np.asarray(image), (cr, cc), radius, dr, direction, halfangle, options.border_px)
     ang = np.arctan2(coords[:, 0] - cr, coords[:, 1] - cc)
-    # rule 3: contrast per angular bin (medians: robust to stars, hot pixels, craters)
-    width = max(math.radians(options.angular_bin_deg), 4.0 / max(radius, 1e-9))
-    nb = max(1, int(math.ceil(2 * math.pi / width)))
-    bins = np.minimum(((ang + math.pi) / (2 * math.pi) * nb).astype(np.int64), nb - 1)
     inner = dsel <= radius - 0.5 * dr
     outer = dsel >= radius + 0.5 * dr
-    lev_in, n_in = _bin_median(bins[inner], z[inner], nb)
-    lev_out, n_out = _bin_median(bins[outer], z[outer], nb)
-    have = (n_in >= 2) & (n_out >= 2)
-    contrast = np.full(nb, -np.inf)
-    contrast[have] = lev_in[have] - lev_out[have]
-    n_bins = int(np.count_nonzero(np.bincount(bins, minlength=nb)))
-    if have.any():
-        ref = float(np.percentile(contrast[have], 90))
-        keep_bin = have & (contrast >= options.min_lit_contrast_frac * ref) & (contrast > 0)
-    else:
-        keep_bin = have
-    # rule 4: the edge of each bin must be at the limb, not inside it (a terminator or the
-    # dark limb beyond a horn): e_b = r - dr + 2 dr <z_n>, z_n the bin-normalised intensities
-    if options.max_edge_offset_px is not None and keep_bin.any():
-        zn = np.clip((z - lev_out[bins]) / np.where(contrast[bins] > 0, contrast[bins], np.inf), -0.5, 1.5)
-        s_zn = np.bincount(bins, weights=zn, minlength=nb)
-        cnt = np.bincount(bins, minlength=nb)
-        e_b = np.full(nb, np.nan)
-        ok = keep_bin & (cnt > 0)
-        e_b[ok] = radius - dr + 2.0 * dr * s_zn[ok] / cnt[ok]
-        ref_e = float(np.percentile(e_b[ok], 75)) if ok.any() else radius
-        keep_bin = keep_bin & ~(e_b < ref_e - options.max_edge_offset_px)
+    bins, keep_bin, lev_in, lev_out, n_bins = _lit_bins(z, ang, inner, outer, radius, dr, options)
     keep = keep_bin[bins]
     if np.count_nonzero(keep) < 20 or not np.any(inner & keep) or not np.any(outer & keep):
         raise TooManyOutliersError(
@@ -263,6 +206,74 @@ def select_annulus(
         pixel_inner=lev_in[bins],
         pixel_outer=lev_out[bins],
     )
+
+
+def _annulus_window(img: np.ndarray, center_rc: tuple[float, float], radius: float, dr: float,
+                    direction: tuple[float, float] | None, halfangle: float, border_px: int):
+    """Rules 1-2: the pixels ``(coords, z, distance)`` of the annulus ``radius +- dr`` inside the frame (less
+    ``border_px``) and inside the lit-side window; the typed failures when too few are left."""
+    R, C = img.shape
+    cr, cc = center_rc
+    b = int(border_px)
+    rmax = radius + dr
+    r0, r1 = max(b, int(math.floor(cr - rmax))), min(R - b, int(math.ceil(cr + rmax)) + 1)
+    c0, c1 = max(b, int(math.floor(cc - rmax))), min(C - b, int(math.ceil(cc + rmax)) + 1)
+    if r1 <= r0 or c1 <= c0:
+        raise TooManyOutliersError("the limb annulus lies outside the frame: no pixels to fit")
+    drow = np.arange(r0, r1, dtype=np.float64)[:, None] - cr
+    dcol = np.arange(c0, c1, dtype=np.float64)[None, :] - cc
+    d = np.sqrt(drow * drow + dcol * dcol)
+    m = np.abs(d - radius) <= dr
+    windowed = direction is not None and halfangle < math.pi
+    if windowed:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cosang = (drow * direction[0] + dcol * direction[1]) / np.where(d > 0, d, 1.0)
+        m &= cosang >= math.cos(halfangle)
+    ir, ic = np.nonzero(m)
+    if ir.size < 20 and windowed and np.count_nonzero(np.abs(d - radius) <= dr) >= 20:
+        from ..errors import ArcTooShortError
+
+        # the limb is in the frame, but not its lit side: a cropped body facing the Sun out of the frame
+        raise ArcTooShortError(
+            f"the lit limb (within {math.degrees(halfangle):.0f} deg of the Sun direction) is outside the frame: "
+            f"only {ir.size} pixels of the annulus on the lit side (need >= 20)"
+        )
+    if ir.size < 20:
+        raise TooManyOutliersError(f"only {ir.size} pixels in the lit limb annulus (need >= 20)")
+    coords = np.stack([ir + r0, ic + c0], axis=1).astype(np.float64)
+    return coords, img[ir + r0, ic + c0].astype(np.float64), d[ir, ic]
+
+
+def _lit_bins(z: np.ndarray, ang: np.ndarray, inner: np.ndarray, outer: np.ndarray, radius: float, dr: float,
+              options: LocateOptions):
+    """Rules 3-4: angular bins of the annulus with a lit edge at the limb.  Returns each pixel's bin, the
+    bins kept, the bins' inner and outer levels and the number of bins with pixels."""
+    # rule 3: contrast per angular bin (medians: robust to stars, hot pixels, craters)
+    width = max(math.radians(options.angular_bin_deg), 4.0 / max(radius, 1e-9))
+    nb = max(1, int(math.ceil(2 * math.pi / width)))
+    bins = np.minimum(((ang + math.pi) / (2 * math.pi) * nb).astype(np.int64), nb - 1)
+    lev_in, n_in = _bin_median(bins[inner], z[inner], nb)
+    lev_out, n_out = _bin_median(bins[outer], z[outer], nb)
+    have = (n_in >= 2) & (n_out >= 2)
+    contrast = np.full(nb, -np.inf)
+    contrast[have] = lev_in[have] - lev_out[have]
+    n_bins = int(np.count_nonzero(np.bincount(bins, minlength=nb)))
+    keep_bin = have
+    if have.any():
+        ref = float(np.percentile(contrast[have], 90))
+        keep_bin = have & (contrast >= options.min_lit_contrast_frac * ref) & (contrast > 0)
+    # rule 4: the edge of each bin must be at the limb, not inside it (a terminator or the
+    # dark limb beyond a horn): e_b = r - dr + 2 dr <z_n>, z_n the bin-normalised intensities
+    if options.max_edge_offset_px is not None and keep_bin.any():
+        zn = np.clip((z - lev_out[bins]) / np.where(contrast[bins] > 0, contrast[bins], np.inf), -0.5, 1.5)
+        s_zn = np.bincount(bins, weights=zn, minlength=nb)
+        cnt = np.bincount(bins, minlength=nb)
+        e_b = np.full(nb, np.nan)
+        ok = keep_bin & (cnt > 0)
+        e_b[ok] = radius - dr + 2.0 * dr * s_zn[ok] / cnt[ok]
+        ref_e = float(np.percentile(e_b[ok], 75)) if ok.any() else radius
+        keep_bin = keep_bin & ~(e_b < ref_e - options.max_edge_offset_px)
+    return bins, keep_bin, lev_in, lev_out, n_bins
 
 
 def _bin_median(bins: np.ndarray, values: np.ndarray, nb: int) -> tuple[np.ndarray, np.ndarray]:

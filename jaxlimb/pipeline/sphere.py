@@ -163,18 +163,14 @@ def sphere_jacobian(focal_px: float, principal_point_rc, ellipse_center_rc, a_px
     body centre and the equivalent radius.  Step 1e-4 px: the map is smooth on the px scale,
     so the truncation error (~1e-8 relative) is far below the statistical errors.
     """
+    from ..analysis.crlb import numerical_jacobian
+
+    def out(x: np.ndarray) -> np.ndarray:
+        s = sphere_from_ellipse_center(focal_px, principal_point_rc, (x[0], x[1]), x[2])
+        return np.array([s.body_center_rc[0], s.body_center_rc[1], s.radius_equivalent_px])
+
     x0 = np.array([float(ellipse_center_rc[0]), float(ellipse_center_rc[1]), float(a_px)])
-    J = np.empty((3, 3))
-    h = 1e-4
-    for j in range(3):
-        out = []
-        for sgn in (1.0, -1.0):
-            x = x0.copy()
-            x[j] += sgn * h
-            s = sphere_from_ellipse_center(focal_px, principal_point_rc, (x[0], x[1]), x[2])
-            out.append(np.array([s.body_center_rc[0], s.body_center_rc[1], s.radius_equivalent_px]))
-        J[:, j] = (out[0] - out[1]) / (2 * h)
-    return J
+    return numerical_jacobian(out, x0, 1e-4)
 
 
 __all__ = ["SphereImage", "sphere_from_ellipse_center", "sphere_jacobian"]

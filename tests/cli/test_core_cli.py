@@ -6,11 +6,13 @@ from jaxlimb.cli import main
 
 
 def test_gradcheck_json(capsys):
-    assert main(["gradcheck", "--n-points", "100", "--json"]) == 0
+    assert main(["gradcheck", "--n-points", "10", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert len(out["checks"]) == 18
+    assert len(out["checks"]) == 53
+    assert {c["model"] for c in out["checks"]} == {"linear", "circle", "ellipse", "ellipse_ramp", "lunar_limb",
+                                                   "limb_darkened"}
     for c in out["checks"]:
-        assert c["n_points"] == 100 and c["max_rel_err"] <= 1e-9
+        assert c["n_points"] == 10 and c["passed"] and c["max_rel_err"] <= c["tol"]
 
 
 def test_montecarlo_json(capsys):
@@ -33,7 +35,7 @@ def test_bad_arguments_exit_2_with_json_error(capsys):
     assert out["status"] == "error" and "nope" in out["message"]
     assert main(["montecarlo", "--radius", "-3", "--json"]) == 2
     out = json.loads(capsys.readouterr().out)
-    assert out["check"] == "bad_input" and "radius" in out["message"]
+    assert out["check"] == "bad_arguments" and "radius" in out["message"]
 
 
 def test_error_without_json_is_one_line_on_stderr(capsys):

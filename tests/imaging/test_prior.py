@@ -71,7 +71,7 @@ def test_hints_bad_json(tmp_path):
     p.write_text("{not json")
     with pytest.raises(ConfigError, match="not valid JSON"):
         Hints.from_json(p)
-    with pytest.raises(ConfigError, match="cannot read"):
+    with pytest.raises(ConfigError, match="does not exist"):
         Hints.from_json(tmp_path / "missing.json")
     with pytest.raises(ConfigError, match="JSON object"):
         Hints.from_dict([1, 2])

@@ -125,3 +125,60 @@ def test_bad_image_and_camera(scene, capsys, tmp_path):
 def test_missing_arguments_exit_2(capsys):
     rc, out, _ = _run(capsys, ["los", "locate", "x.png", "--json"])
     assert rc == 2 and json.loads(out)["check"] == "bad_arguments"
+
+
+def test_locate_many_frames_loads_the_database_once(scene, capsys, tmp_path):
+    """Many frames (issue 13): one JSON line per frame; a wrong-size frame is an error line, the run goes on."""
+    d, truth = scene
+    db = tmp_path / "db.npz"
+    assert cli.main(["los", "build-db", str(d / "lumpy.obj"), "--step-deg", "30", "--template-size", "128", "--out", str(db), "--no-progress"]) == 0
+    cv2.imwrite(str(tmp_path / "small.png"), np.zeros((30, 40), np.uint8))
+    out = tmp_path / "los.jsonl"
+    argv = ["los", "locate", str(d / "img.png"), str(tmp_path / "small.png"), "--db", str(db), "--camera", str(d / "camera.json"),
+            "--no-refine", "--out", str(out)]
+    rc, _, err = _run(capsys, argv)
+    assert rc == 2 and "Traceback" not in err
+    recs = [json.loads(s) for s in out.read_text().splitlines()]
+    assert [r["status"] for r in recs] == ["ok", "error"] and recs[1]["image"].endswith("small.png")
+    assert np.linalg.norm(np.array(recs[0]["center_rc"]) - truth) < 3.0
+    rc, _, err = _run(capsys, [*argv, "--resume"])
+    assert rc == 0 and "0 frames" in err  # both frames answered: nothing to do
+
+
+def test_locate_checked_modes_and_wrong_body(scene, capsys, tmp_path):
+    """Issue 12/14: attitude known -> render-and-register; another body's frame -> a typed failure (exit 3)."""
+    from irregular_helpers import lumpy_ellipsoid
+
+    from jaxlimb.geometry.camera import Camera
+    from jaxlimb.irregular.shapes import ShapeFamily, generate_shape
+    from jaxlimb.render.mesh import MeshRenderOptions, look_at_rotation, render_mesh
+
+    d, _ = scene
+    mesh = lumpy_ellipsoid(subdivisions=3)
+    cam = Camera.from_json(d / "camera.json")
+    R = look_at_rotation(np.array([0.2, 0.7, 0.5]), roll_rad=1.1)
+    t = np.array([0.4, -0.3, 2.0 * mesh.max_radius * cam.focal_px / 140.0])
+    sun = -t / np.linalg.norm(t) * np.cos(0.7) + np.array([1.0, 0.0, 0.0]) * np.sin(0.7)
+    sun /= np.linalg.norm(sun)
+    out = render_mesh(mesh.vertices, mesh.faces, cam, R, t, sun, MeshRenderOptions(albedo=100.0, noise_sigma=1.0, quantize_bits=8))
+    cv2.imwrite(str(tmp_path / "lit.png"), out.image.astype(np.uint8))
+    (tmp_path / "hints.json").write_text(json.dumps({"sun_dir_camera": sun.tolist(), "R_body_to_camera": R.tolist()}))
+    db = tmp_path / "db.npz"
+    assert cli.main(["los", "build-db", str(d / "lumpy.obj"), "--step-deg", "30", "--template-size", "128", "--out", str(db), "--no-progress"]) == 0
+    capsys.readouterr()
+    base = ["--db", str(db), "--camera", str(d / "camera.json"), "--json"]
+    rc, o, err = _run(capsys, ["los", "locate", str(tmp_path / "lit.png"), *base, "--hints", str(tmp_path / "hints.json")])
+    assert rc == 0, o + err
+    res = json.loads(o)
+    assert res["mode"] == "known-attitude" and res["checked"] is True
+    assert np.linalg.norm(np.array(res["center_rc"]) - out.centre_rc) < 0.05  # 8-bit quantised frame, not saturated
+    assert np.all(np.linalg.eigvalsh(np.array(res["covariance"]["center_rc"])) > 0)
+    # a frame of another body against this body's model: exit 3, never ok
+    other = generate_shape(ShapeFamily.CONTACT_BINARY, 3)
+    t2 = np.array([0.0, 0.0, 2.0 * other.max_radius * cam.focal_px / 140.0])
+    img2 = render_mesh(other.vertices, other.faces, cam, R, t2, sun, MeshRenderOptions(albedo=100.0, noise_sigma=1.0, quantize_bits=8)).image
+    cv2.imwrite(str(tmp_path / "other.png"), img2.astype(np.uint8))
+    for extra in ([], ["--hints", str(tmp_path / "hints.json")]):
+        rc, o, err = _run(capsys, ["los", "locate", str(tmp_path / "other.png"), *base, *extra])
+        assert rc == 3, o + err
+        assert json.loads(o)["check"] in ("poor_match", "ambiguous_match", "no_convergence")

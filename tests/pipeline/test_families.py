@@ -51,9 +51,7 @@ def test_maria_bias_is_carried_by_the_covariance():
 
 def test_earth_far_own_family_with_attitude():
     case = earth_case("own", np.random.default_rng([SEED, 1, EARTH_FAMILIES.index("own"), 1]), far=True)
-    from jaxlimb.pipeline.earth import locate_earth
-
-    m = locate_earth(case.image, case.camera, Hints.from_dict(case.hints))
+    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     err, _ = _errors(case, m)
     assert err < 0.05
     assert abs(m.range_km - case.truth.range_km) / case.truth.range_km < 5e-4

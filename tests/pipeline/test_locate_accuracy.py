@@ -165,12 +165,12 @@ def test_auto_profile_keeps_the_sigmoid_when_the_profile_fit_fails(monkeypatch):
 
     from jaxlimb.errors import ConvergenceError
 
-    loc = importlib.import_module("jaxlimb.pipeline.locate")
+    loc = importlib.import_module("jaxlimb.pipeline.round_body")
 
     def boom(*a, **k):
         raise ConvergenceError("Check 5: forced failure")
 
-    monkeypatch.setattr(loc, "_fit_profile", boom)
+    monkeypatch.setattr(loc, "fit_lunar_profile", boom)
     img, tr = scene(30000.0, 0.0, (200.0, 250.0), 30.0, "lunar-lambert")
     m = locate(img, SMALL_CAMERA, sun_hints(tr))
     assert "forced failure" in m.extras["profile_rejected"]["reason"] and "profile" not in m.extras

@@ -9,8 +9,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import jaxlimb.pipeline.profile as prof
-from jaxlimb.pipeline.profile import LIMB_PROFILE, LimbProfileParams, limb_profile_intensity
+import jaxlimb.models.lunar_lambert as prof
+from jaxlimb.models import LIMB_PROFILE, LimbProfileParams, limb_profile_intensity
 
 jax.config.update("jax_enable_x64", True)
 

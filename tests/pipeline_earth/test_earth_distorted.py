@@ -7,7 +7,7 @@ import numpy as np
 
 from jaxlimb.geometry.camera import Camera
 from jaxlimb.imaging.undistort import pinhole_of, undistort_image
-from jaxlimb.pipeline.earth import locate_earth
+from jaxlimb.pipeline import locate
 from jaxlimb.render import RenderOptions, earth_scene, render_body
 
 
@@ -39,7 +39,7 @@ def test_earth_with_a_distorted_camera():
     frame = _distorted_frame(img, cam)
     hints = {"body": "earth", "range_prior_km": 1.01 * truth.range_km, "sun_dir_camera": list(truth.sun_dir_cam),
              "R_body_to_camera": np.asarray(sc.R_body_to_camera).tolist()}
-    m = locate_earth(frame, cam, hints)
+    m = locate(frame, cam, hints)
     c_obs = cam.distort(np.asarray(truth.center_rc, float))
     assert np.hypot(*np.subtract(m.center_rc, c_obs)) <= 0.05
     assert abs(m.range_km / truth.range_km - 1.0) <= 1e-3

@@ -1,4 +1,4 @@
-"""Earth pipeline (§IV, Fig. 2): cone lifting, ellipse -> position, locate_earth on renders."""
+"""Earth pipeline (§IV, Fig. 2): cone lifting, ellipse -> position, locate (ellipsoid strategy) on renders."""
 
 from __future__ import annotations
 
@@ -11,12 +11,8 @@ from jaxlimb.errors import ConfigError, GeometryError
 from jaxlimb.geometry.camera import Camera
 from jaxlimb.geometry.earth import EARTH_EQUATORIAL_KM, EARTH_POLAR_KM, earth_radii
 from jaxlimb.geometry.ellipsoid import image_conic, limb_cone
-from jaxlimb.pipeline.earth import (
-    EarthOptions,
-    earth_position_from_ellipse,
-    image_ellipse_cone,
-    locate_earth,
-)
+from jaxlimb.pipeline import LocateOptions, locate
+from jaxlimb.pipeline.earth import EllipsoidOptions, earth_position_from_ellipse, image_ellipse_cone
 from jaxlimb.render import RenderOptions, earth_scene, render_body
 
 RADII = (EARTH_EQUATORIAL_KM, EARTH_EQUATORIAL_KM, EARTH_POLAR_KM)
@@ -97,7 +93,7 @@ def _hints(sc, truth, known_R=True, **kw):
 
 def test_locate_earth_known_attitude_meets_targets(earth_far):
     cam, sc, img, truth = earth_far
-    m = locate_earth(img, cam, _hints(sc, truth), None)
+    m = locate(img, cam, _hints(sc, truth))
     err = np.hypot(*np.subtract(m.center_rc, truth.center_rc))
     assert err <= 0.1, f"centre error {err:.3f} px"
     assert abs(m.range_km / truth.range_km - 1) <= 1e-3
@@ -119,8 +115,8 @@ def test_locate_earth_known_attitude_meets_targets(earth_far):
 def test_flat_sigmoid_is_biased_on_gibbous_earth(earth_far):
     """The paper's flat-topped ESF (interior_ramp=False) is pulled toward the Sun; the ramp model is not."""
     cam, sc, img, truth = earth_far
-    m0 = locate_earth(img, cam, _hints(sc, truth), EarthOptions(interior_ramp=False, band_px=6.0))
-    m1 = locate_earth(img, cam, _hints(sc, truth), None)
+    m0 = locate(img, cam, _hints(sc, truth), LocateOptions(ellipsoid=EllipsoidOptions(interior_ramp=False, band_px=6.0)))
+    m1 = locate(img, cam, _hints(sc, truth))
     e0 = np.hypot(*np.subtract(m0.center_rc, truth.center_rc))
     e1 = np.hypot(*np.subtract(m1.center_rc, truth.center_rc))
     assert e0 > 2 * e1
@@ -128,7 +124,7 @@ def test_flat_sigmoid_is_biased_on_gibbous_earth(earth_far):
 
 def test_locate_earth_free_ellipse(earth_far):
     cam, sc, img, truth = earth_far
-    m = locate_earth(img, cam, _hints(sc, truth, known_R=False), None)
+    m = locate(img, cam, _hints(sc, truth, known_R=False))
     assert m.extras["free_ellipse"]
     err = np.subtract(m.center_rc, truth.center_rc)
     P = np.array([[m.covariance["center_r"]["center_r"], m.covariance["center_r"]["center_c"]],
@@ -141,13 +137,13 @@ def test_locate_earth_free_ellipse(earth_far):
 def test_locate_earth_bad_inputs(earth_far):
     cam, sc, img, truth = earth_far
     with pytest.raises(ConfigError, match="camera"):
-        locate_earth(img, None, _hints(sc, truth))
+        locate(img, None, _hints(sc, truth))
     with pytest.raises(GeometryError, match="spheroid"):
-        locate_earth(img, cam, _hints(sc, truth, body_radii_km=[6378.0, 6370.0, 6357.0]))
+        locate(img, cam, _hints(sc, truth, body_radii_km=[6378.0, 6370.0, 6357.0]))
     with pytest.raises(ConfigError, match="R_body_to_camera"):
-        locate_earth(img, cam, _hints(sc, truth, R_body_to_camera=[[1, 0, 0], [0, 1, 0], [0, 0, 2]]))
+        locate(img, cam, _hints(sc, truth, R_body_to_camera=[[1, 0, 0], [0, 1, 0], [0, 0, 2]]))
     with pytest.raises(ConfigError, match="band_px"):
-        EarthOptions(band_px=-1.0)
+        LocateOptions(ellipsoid=EllipsoidOptions(band_px=-1.0))
 
 
 def test_earth_radii_helper_unchanged():
@@ -158,7 +154,7 @@ def test_blurred_sqrt_matches_quadrature():
     from scipy.integrate import quad
     from scipy.stats import norm
 
-    from jaxlimb.pipeline.earth import _blurred_sqrt
+    from jaxlimb.models.ellipse_ramp import _blurred_sqrt
 
     xs = np.array([-4.0, -1.0, 0.0, 0.37, 2.5, 9.0, 15.99, 16.01, 40.0])
     got = np.asarray(_blurred_sqrt(xs))
@@ -171,7 +167,7 @@ def test_edge_model_is_exact_blur_of_profile():
     from scipy.integrate import quad
     from scipy.stats import norm
 
-    from jaxlimb.pipeline.earth import EllipseRampParams, ellipse_ramp_intensity
+    from jaxlimb.models import EllipseRampParams, ellipse_ramp_intensity
 
     k, T, ymin, g, g2 = 0.9, 1000.0, 50.0, -30.0, 80.0
     p = EllipseRampParams(r0=0.0, c0=0.0, a=100.0, theta=0.0, rho=1.0, k=k, ymax=T, ymin=ymin, g=g, g2=g2,

@@ -9,7 +9,8 @@ import pytest
 
 from jaxlimb.errors import ConfigError
 from jaxlimb.geometry.camera import Camera
-from jaxlimb.pipeline.earth import EarthOptions, locate_earth
+from jaxlimb.pipeline import LocateOptions, locate
+from jaxlimb.pipeline.earth import EllipsoidOptions
 from jaxlimb.render import Atmosphere, RenderOptions, earth_scene, render_body
 
 
@@ -51,8 +52,8 @@ def test_profile_removes_limb_brightening_bias_at_40000km(earth_near):
     (NEES ~230): that is the bias of issue 4.
     """
     cam, sc, img, truth = earth_near
-    m = locate_earth(img, cam, _hints(sc, truth), None)
-    s = locate_earth(img, cam, _hints(sc, truth), EarthOptions(profile="sigmoid"))
+    m = locate(img, cam, _hints(sc, truth))
+    s = locate(img, cam, _hints(sc, truth), LocateOptions(profile="sigmoid"))
     assert m.extras["model"] == "lunar_limb" and s.extras["model"] == "ellipse_ramp"
     assert 0.9 <= m.extras["profile"]["L"] <= 1.1  # Lommel-Seeliger rendered
     assert m.extras["profile"]["psf_sigma_px"] == pytest.approx(1.0, abs=0.1)  # renderer's PSF
@@ -67,9 +68,9 @@ def test_profile_removes_limb_brightening_bias_at_40000km(earth_near):
     assert es @ np.linalg.solve(_center_cov(s), es) > 13.8
     assert abs(m.range_km - truth.range_km) < 4 * math.sqrt(m.covariance["range_km"]["range_km"])
     # the edge fit is kept for reference; the same pixels are refitted
-    assert m.extras["profile"]["edge_fit"]["range_km"] == pytest.approx(s.range_km, rel=1e-9)
+    assert m.extras["edge_fit"]["range_km"] == pytest.approx(s.range_km, rel=1e-9)
     assert m.n_pixels == s.n_pixels
-    assert len(m.extras["profile"]["fits"]) == 1 and m.extras["profile"]["fits"][0]["range_iterations"] <= 6
+    assert len(m.extras["profile_fits"]) == 1 and m.extras["profile_fits"][0]["range_iterations"] <= 6
     assert m.iterations > s.iterations
 
 
@@ -77,7 +78,7 @@ def test_profile_on_lambert_earth_at_380000km():
     """A Lambert render (limb darkening instead of brightening): the fitted L follows the photometry
     (~0) and the targets hold (Lommel-Seeliger at 380 000 km: ``test_earth_pipeline.py``)."""
     cam, sc, img, truth = _far("lambert")
-    m = locate_earth(img, cam, _hints(sc, truth), None)
+    m = locate(img, cam, _hints(sc, truth))
     assert m.extras["model"] == "lunar_limb", m.extras.get("profile_rejected")
     assert -0.1 <= m.extras["profile"]["L"] <= 0.1
     assert np.hypot(*np.subtract(m.center_rc, truth.center_rc)) <= 0.03
@@ -91,7 +92,7 @@ def test_profile_on_short_crescent_arc():
     cam = Camera(focal_length_mm=16.0, rows=300, cols=300)
     sc = earth_scene(380000.0, 30.0, 120.0, center_rc=(142.7, 161.9), camera=cam, sun_angle_deg=30.0, north_angle_deg=80.0)
     img, truth = render_body(sc, cam, RenderOptions(), seed=3)
-    m = locate_earth(img, cam, _hints(sc, truth), EarthOptions(arc_margin_deg=60.0))
+    m = locate(img, cam, _hints(sc, truth), LocateOptions(ellipsoid=EllipsoidOptions(arc_margin_deg=60.0)))
     assert m.extras["model"] == "lunar_limb", m.extras.get("profile_rejected")
     assert 0.8 <= m.extras["profile"]["L"] <= 1.2
     assert np.hypot(*np.subtract(m.center_rc, truth.center_rc)) <= 0.1
@@ -102,19 +103,19 @@ def test_profile_falls_back_to_sigmoid():
     """A flat (uniform) disc is not lunar-Lambert-like: auto keeps the edge fit and says why;
     ``"lunar-lambert"`` forces the profile; no Sun direction: the edge fit (or an error when forced)."""
     cam, sc, img, truth = _far("uniform")
-    m = locate_earth(img, cam, _hints(sc, truth), None)
+    m = locate(img, cam, _hints(sc, truth))
     assert m.extras["model"] == "ellipse_ramp"
     rej = m.extras["profile_rejected"]
     assert rej["model"] == "lunar-lambert" and not -0.1 <= rej["L"] <= 1.1
     assert np.hypot(*np.subtract(m.center_rc, truth.center_rc)) <= 0.1
-    forced = locate_earth(img, cam, _hints(sc, truth), EarthOptions(profile="lunar-lambert"))
+    forced = locate(img, cam, _hints(sc, truth), LocateOptions(profile="lunar-lambert"))
     assert forced.extras["model"] == "lunar_limb" and forced.extras["profile"]["L"] == pytest.approx(rej["L"])
-    no_sun = locate_earth(img, cam, _hints(sc, truth, sun_dir_camera=None), None)
+    no_sun = locate(img, cam, _hints(sc, truth, sun_dir_camera=None))
     assert no_sun.extras["model"] == "ellipse_ramp" and "profile_rejected" not in no_sun.extras
     with pytest.raises(ConfigError, match="sun_dir_camera"):
-        locate_earth(img, cam, _hints(sc, truth, sun_dir_camera=None), EarthOptions(profile="lunar-lambert"))
+        locate(img, cam, _hints(sc, truth, sun_dir_camera=None), LocateOptions(profile="lunar-lambert"))
     with pytest.raises(ConfigError, match="profile"):
-        EarthOptions(profile="lambert")
+        LocateOptions(profile="lambert")
 
 
 def test_profile_with_atmosphere_glow():
@@ -122,7 +123,7 @@ def test_profile_with_atmosphere_glow():
     ``atmosphere_km`` 0 or 1 km (the glow lifts the effective limb by ~1 km)."""
     cam, sc, img, truth = _far(atmosphere=Atmosphere(height_km=100.0), seed=12)
     for atm in (None, 1.0):
-        m = locate_earth(img, cam, _hints(sc, truth, atmosphere_km=atm), None)
+        m = locate(img, cam, _hints(sc, truth, atmosphere_km=atm))
         assert m.extras["model"] == "lunar_limb"
         assert np.hypot(*np.subtract(m.center_rc, truth.center_rc)) <= 0.05
         assert abs(m.range_km / truth.range_km - 1) <= 1e-3

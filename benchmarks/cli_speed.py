@@ -1,0 +1,143 @@
+"""What a user of the command line feels: start-up of repeated commands, and many frames per call.
+
+Same run, interleaved (so that every ratio compares commands under the same machine load):
+
+* ``python -c "import jax; jax.numpy.zeros(1)"`` -- the cost of starting JAX itself (baseline);
+* ``jaxlimb --help`` (must not import JAX);
+* ``jaxlimb locate`` on a rendered 1944x2592 Moon frame, second and later processes (the
+  persistent compilation cache filled by the first);
+* ``jaxlimb locate --body sun`` on the SDO/HMI 512x512 PNG (shared data);
+* ``jaxlimb los locate`` on a rendered Thebe frame (``--db`` of the shared Thebe mesh, 10 deg);
+* ``jaxlimb locate DIR --out F.jsonl`` on N Moon frames: frames per second after the first,
+  ``(N - 1) / (t_N - t_1)`` from a one-frame and an N-frame call.
+
+Each command runs ``--repeats`` times after one warm-up; medians are reported with the ratio to
+the JAX start-up median and the load average before and after.  The compile cache of the runs is
+a fresh directory (``JAXLIMB_CACHE_DIR``), filled by the warm-ups.
+
+Run:  python benchmarks/cli_speed.py [--repeats 5] [--frames 30]
+Writes benchmarks/results/cli_speed.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from _common import environment, save
+
+JAXLIMB = [sys.executable, "-m", "jaxlimb.cli"]
+
+
+def _load() -> list[float]:
+    return [float(v) for v in Path("/proc/loadavg").read_text().split()[:3]]
+
+
+def _time(cmd: list[str], env: dict[str, str], ok_codes=(0,)) -> float:
+    t0 = time.perf_counter()
+    p = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    dt = time.perf_counter() - t0
+    if p.returncode not in ok_codes:
+        raise RuntimeError(f"{' '.join(cmd)} -> {p.returncode}: {p.stdout[-400:]} {p.stderr[-400:]}")
+    return dt
+
+
+def _make_inputs(d: Path, n_frames: int) -> dict[str, list[str]]:
+    """Moon frames + camera + hints, the Thebe database + frame; returns the commands."""
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    import cv2
+
+    from jaxlimb._data import shared_data_dir
+    from jaxlimb.geometry.camera import Camera
+    from jaxlimb.imaging.sdo import HMI_512_PNG
+    from jaxlimb.irregular.mesh import load_mesh
+    from jaxlimb.render import RenderOptions, moon_scene, render_body
+    from jaxlimb.render.mesh import MeshRenderOptions, look_at_rotation, render_mesh
+
+    cam = Camera.default()
+    (d / "frames").mkdir()
+    for i in range(n_frames):
+        sc = moon_scene(150_000.0 + 1500 * i, 45.0, center_rc=(900.0 + 3 * i, 1400.0 - 2 * i), camera=cam,
+                        sun_angle_deg=30.0)
+        img, truth = render_body(sc, cam, RenderOptions(reflectance="lunar-lambert", psf_sigma_px=1.0, bit_depth=8), seed=i)
+        cv2.imwrite(str(d / "frames" / f"moon_{i:03d}.png"), np.asarray(img).astype(np.uint8))
+        if i == 0:
+            (d / "hints.json").write_text(json.dumps({"body": "moon", "sun_dir_camera": [float(v) for v in truth.sun_dir_cam]}))
+    (d / "cam.json").write_text(json.dumps(cam.to_dict()))
+    data = shared_data_dir()
+    mesh_path = data / "meshes" / "thebe.obj"
+    mesh = load_mesh(mesh_path)
+    small = Camera(rows=400, cols=500)
+    (d / "small.json").write_text(json.dumps(small.to_dict()))
+    dist = 2.0 * mesh.max_radius * small.focal_px / 160.0
+    r = render_mesh(mesh.vertices, mesh.faces, small, look_at_rotation(np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])),
+                    np.array([0.0, 0.0, dist]), options=MeshRenderOptions())
+    cv2.imwrite(str(d / "thebe.png"), np.clip(np.asarray(r.image), 0, 255).astype(np.uint8))
+    subprocess.run([*JAXLIMB, "los", "build-db", str(mesh_path), "--step-deg", "10", "--out", str(d / "thebe.npz"),
+                    "--no-progress"], check=True, capture_output=True)
+    first = str(d / "frames" / "moon_000.png")
+    return {
+        "jax_start": [sys.executable, "-c", "import jax; jax.numpy.zeros(1)"],
+        "help": [*JAXLIMB, "--help"],
+        "locate_moon": [*JAXLIMB, "locate", first, "--camera", str(d / "cam.json"), "--hints", str(d / "hints.json"), "--json"],
+        "locate_sun": [*JAXLIMB, "locate", str(data / "sun" / HMI_512_PNG), "--body", "sun", "--json"],
+        "los_locate": [*JAXLIMB, "los", "locate", str(d / "thebe.png"), "--db", str(d / "thebe.npz"),
+                       "--camera", str(d / "small.json"), "--json"],
+    }
+
+
+def main(argv: list[str] | None = None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--frames", type=int, default=30)
+    args = ap.parse_args(argv)
+    d = Path(tempfile.mkdtemp(prefix="cli_speed_"))
+    env = {**os.environ, "JAXLIMB_CACHE_DIR": str(d / "jaxcache")}
+    cmds = _make_inputs(d, args.frames)
+    load_before = _load()
+    first_call = {k: _time(c, env, ok_codes=(0, 3)) for k, c in cmds.items()}  # warm-up: fills the cache
+    times: dict[str, list[float]] = {k: [] for k in cmds}
+    for _ in range(args.repeats):
+        for k, c in cmds.items():
+            times[k].append(_time(c, env, ok_codes=(0, 3)))
+    many = [*JAXLIMB, "locate", str(d / "frames"), "--camera", str(d / "cam.json"), "--hints", str(d / "hints.json")]
+    one = [*JAXLIMB, "locate", "@" + str(d / "one.txt"), "--camera", str(d / "cam.json"), "--hints", str(d / "hints.json")]
+    (d / "one.txt").write_text(str(d / "frames" / "moon_000.png") + "\n")
+    t_many, t_one = [], []
+    for i in range(max(2, args.repeats // 2)):
+        t_one.append(_time([*one, "--out", str(d / f"one{i}.jsonl")], env))
+        t_many.append(_time([*many, "--out", str(d / f"many{i}.jsonl")], env))
+    load_after = _load()
+    med = {k: float(np.median(v)) for k, v in times.items()}
+    base = med["jax_start"]
+    fps = (args.frames - 1) / (float(np.median(t_many)) - float(np.median(t_one)))
+    out = {
+        "median_s": med, "all_s": times, "first_call_s": first_call,
+        "ratio_to_jax_start": {k: v / base for k, v in med.items()},
+        "many_frames": {"n": args.frames, "one_frame_call_s": t_one, "n_frame_call_s": t_many,
+                        "frames_per_s_after_first": fps, "frame": [1944, 2592]},
+        "loadavg_before": load_before, "loadavg_after": load_after, "commands": {k: " ".join(c) for k, c in cmds.items()},
+        "environment": environment(),
+    }
+    print(f"load average before {load_before}, after {load_after}")
+    for k in cmds:
+        print(f"{k:12s} median {med[k]:6.2f} s  = {med[k] / base:4.2f}x JAX start-up   (first call {first_call[k]:6.2f} s)")
+    print(f"many frames: {args.frames} frames of 1944x2592 -> {fps:.1f} frames/s after the first "
+          f"(one-frame call {np.median(t_one):.2f} s, {args.frames}-frame call {np.median(t_many):.2f} s)")
+    path = save("cli_speed", out)
+    print(f"wrote {path}")
+    return out
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,193 @@
+r"""Scale-out with Dask (``dask.distributed``): Monte-Carlo chunks and frame archives as tasks.
+
+A study of the Monte-Carlo engine (:mod:`jaxlimb.analysis.montecarlo`) is cut into chunks;
+each missing chunk is one task, :func:`~jaxlimb.analysis.montecarlo.run_chunk_to_file`, which
+runs the chunk's trials on a worker and writes ``chunk_NNNNNN.npz`` atomically into the study's
+``out_dir`` (a temporary file renamed into place).  So:
+
+* a killed worker loses only the chunk it was running (Dask reschedules the task elsewhere);
+* a killed client, or a rerun, finds the finished chunks on disk and submits only the others
+  (:func:`~jaxlimb.analysis.montecarlo.prepare_study`); the seeds of trial ``i`` do not depend on
+  who ran it, so the result is the same as an uninterrupted run's, file for file;
+* the result is assembled from the chunk files by the engine itself.
+
+JAX inside a worker.  Each worker process imports JAX once, enables float64 and the persistent
+compilation cache (:mod:`jaxlimb._jaxcache`), and keeps its compiled programs and the trial's
+constant inputs (e.g. the noise-free rendered frame of :class:`LocateTrial`) between tasks; a
+worker on a machine with several devices can still spread a batched fit over them with
+:func:`jaxlimb.analysis.sharding.sharded_fit_batch`.
+
+Clusters.  :func:`make_client` starts a ``LocalCluster`` (``workers`` processes, one thread each)
+or connects to a running scheduler (``scheduler="tcp://host:8786"``).  On a SLURM machine, with
+``dask-jobqueue`` installed (not a dependency of jaxlimb)::
+
+    from dask_jobqueue import SLURMCluster
+    from dask.distributed import Client
+    cluster = SLURMCluster(cores=2, processes=2, memory="8GB", walltime="02:00:00",
+                           job_extra_directives=["--partition=compute"])
+    cluster.scale(jobs=10)                       # 10 SLURM jobs x 2 workers
+    client = Client(cluster)
+    run_monte_carlo_distributed(LocateTrial(...), MonteCarloOptions(..., out_dir="/shared/mc"), client)
+
+or start ``dask scheduler`` on one node and ``dask worker tcp://node:8786`` on the others and
+pass ``--scheduler tcp://node:8786`` to ``jaxlimb montecarlo --pipeline`` /
+``jaxlimb locate ... --scheduler``.  ``out_dir`` must then be on a file system every worker sees.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError, LimbInputError
+from .montecarlo import MonteCarloOptions, MonteCarloResult, prepare_study, run_chunk_to_file, run_monte_carlo
+
+
+def make_client(scheduler: str | None = None, workers: int = 2, processes: bool = True) -> Any:
+    """A ``dask.distributed.Client``: to ``scheduler`` if given, else on a new ``LocalCluster``.
+
+    Raises
+    ------
+    ConfigError
+        ``dask.distributed`` is not installed, or the scheduler cannot be reached.
+    """
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:  # pragma: no cover - a dependency of jaxlimb
+        raise ConfigError("Dask is not installed: pip install 'dask[distributed]'") from None
+    if scheduler is not None:
+        try:
+            return Client(scheduler, timeout="10s")
+        except (OSError, TimeoutError) as e:
+            raise ConfigError(f"cannot reach the Dask scheduler {scheduler!r}: {e}") from None
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise LimbInputError(f"`workers` must be an integer >= 1, got {workers!r}")
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
+                           dashboard_address=None, silence_logs=50)
+    return Client(cluster)
+
+
+def close_client(client: Any) -> None:
+    """Close ``client`` and the ``LocalCluster`` it started (a remote scheduler is left running)."""
+    cluster = getattr(client, "cluster", None)
+    client.close()
+    if cluster is not None:
+        cluster.close()
+
+
+def run_monte_carlo_distributed(trial: Callable[..., Any], options: MonteCarloOptions, client: Any,
+                                progress: bool = True) -> MonteCarloResult:
+    """:func:`~jaxlimb.analysis.montecarlo.run_monte_carlo` with one Dask task per missing chunk.
+
+    ``options.out_dir`` is required (the chunk files are the results).  ``trial`` must be
+    picklable (a module-level function or a dataclass like :class:`LocateTrial`).  Returns
+    the same :class:`~jaxlimb.analysis.montecarlo.MonteCarloResult` as an in-process run.
+    """
+    from dask.distributed import as_completed
+    from tqdm.auto import tqdm
+
+    todo = prepare_study(options)
+    opt = replace(options, progress=False)
+    bar = tqdm(total=len(todo), desc=options.name, unit="chunk", disable=not progress)
+    futures = [client.submit(run_chunk_to_file, trial, opt, c, key=f"{options.name}-chunk-{c}-{options.seed}",
+                             pure=False) for c in todo]
+    try:
+        for fut in as_completed(futures):
+            fut.result()  # re-raises a task's error here
+            bar.update(1)
+    finally:
+        bar.close()
+        for f in futures:
+            f.cancel()
+    res = run_monte_carlo(trial, opt)  # every chunk is on disk now: assembled, nothing recomputed
+    return replace(res, chunks_run=len(todo), chunks_skipped=options.n_chunks - len(todo))
+
+
+def chunked(items: Sequence[Any], size: int) -> Iterator[list[Any]]:
+    """``items`` in consecutive lists of at most ``size``."""
+    for i in range(0, len(items), size):
+        yield list(items[i : i + size])
+
+
+def map_chunks(fn: Callable[[list[Any]], Any], items: Sequence[Any], client: Any, chunk_size: int) -> Iterator[Any]:
+    """``fn(chunk)`` for consecutive chunks of ``items`` as Dask tasks, yielded in order.
+
+    The frame-archive path of ``jaxlimb locate ... --workers N``: the caller writes each
+    chunk's records as soon as it arrives (in order, so an interrupted run resumes cleanly).
+    """
+    futures = [client.submit(fn, ch, pure=False) for ch in chunked(items, chunk_size)]
+    try:
+        for fut in futures:
+            yield fut.result()
+    finally:
+        for f in futures:
+            f.cancel()
+
+
+# ============================================================================ full-pipeline trial
+_BASE: dict[Any, Any] = {}  # per worker process: the noise-free frame of each LocateTrial
+
+
+@dataclass(frozen=True)
+class LocateTrial:
+    """One trial of the full-pipeline Monte Carlo: a rendered Moon + noise through ``locate``.
+
+    The Moon is rendered once per process without noise (lunar-Lambert, PSF 1 px) and scaled
+    to 80 % of the 8-bit range; trial ``seed`` adds Gaussian noise of ``sigma_dn``, rounds and
+    clips to 8 bits, and runs :func:`jaxlimb.pipeline.locate` with the Sun direction as hint
+    (``benchmarks/locate_montecarlo.py``'s setting).  Returns the errors against the render's
+    truth: ``row``, ``col``, ``radius`` (px) and the solver's ``iterations``.  A
+    :class:`~jaxlimb.errors.JaxlimbError` (a failed check) is a failed trial.
+    """
+
+    camera: Any = None
+    """A :class:`~jaxlimb.geometry.camera.Camera` (default: ``Camera.default()``, 1944x2592)."""
+    range_km: float = 150_000.0
+    phase_deg: float = 45.0
+    sigma_dn: float = 10.0
+    profile: str = "sigmoid"
+
+    def _base(self) -> tuple[np.ndarray, Any, Any, Any]:
+        if self not in _BASE:
+            from .._jaxcache import enable_compile_cache
+            import jax
+
+            jax.config.update("jax_enable_x64", True)
+            enable_compile_cache()
+            from ..geometry.camera import Camera
+            from ..imaging import Hints
+            from ..render import RenderOptions, moon_scene, render_body
+
+            cam = self.camera if self.camera is not None else Camera.default()
+            centre = (cam.rows * 0.46, cam.cols * 0.54)
+            scene = moon_scene(self.range_km, self.phase_deg, center_rc=centre, camera=cam, sun_angle_deg=30.0)
+            clean, truth = render_body(scene, cam, RenderOptions(reflectance="lunar-lambert", psf_sigma_px=1.0,
+                                                                 bit_depth=None, noise=False), seed=0)
+            base = np.asarray(clean) * (255.0 * 0.8 / float(np.max(clean)))
+            hints = Hints(body="moon", sun_dir_camera=tuple(float(v) for v in truth.sun_dir_cam))
+            _BASE[self] = (base, truth, hints, cam)
+        return _BASE[self]
+
+    def __call__(self, seed: int, i: int) -> dict[str, float]:
+        from ..pipeline import LocateOptions, locate
+
+        del i
+        base, truth, hints, cam = self._base()
+        rng = np.random.default_rng(seed)
+        img = np.clip(np.round(base + self.sigma_dn * rng.standard_normal(base.shape)), 0, 255)
+        m = locate(img, cam, hints, LocateOptions(compute_crlb=False, keep_pixels=False, profile=self.profile))
+        return {"row": m.center_rc[0] - truth.center_rc[0], "col": m.center_rc[1] - truth.center_rc[1],
+                "radius": m.radius_px - truth.apparent_radius_px, "iterations": float(m.iterations)}
+
+
+def default_chunk(n: int, workers: int) -> int:
+    """A chunk size giving each worker about four tasks (at least 1, at most 50 trials)."""
+    return max(1, min(50, math.ceil(n / (4 * max(workers, 1)))))
+
+
+__all__ = ["LocateTrial", "chunked", "close_client", "default_chunk", "make_client", "map_chunks",
+           "run_monte_carlo_distributed"]

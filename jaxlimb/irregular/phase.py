@@ -1,0 +1,180 @@
+r"""Phase-aware template search: match what is lit when the Sun direction is known (beyond Wu et al.).
+
+At phase angle ``phi > 0`` the figure in the frame is the *lit* part of the body:
+the lit limb plus the terminator.  The Hu moments of Eq. (10)-(13) describe the
+whole silhouette, so Eq. (15)-(17) compares unlike figures.  With the Sun
+direction known in the camera frame, its image-plane direction ``s`` fixes which
+part of any template silhouette is lit limb: a silhouette point whose outward
+normal ``n`` (image plane) has ``n . s > 0`` is lit (the surface normal there is
+``(n, 0)`` in the camera frame, and ``(n, 0) . s_3d = sin(phi) n . s``); the rest
+of the silhouette is dark, and the terminator is *not* limb.
+
+Search over every template ``j`` and in-plane roll ``theta`` (grid of
+``roll_step_deg``):
+
+1. rotate the template contour (Eq. 22-23's rotation) and take its extents across
+   ``s`` (the limb/terminator cusps) and toward ``s`` (the sub-solar limb): for a
+   convex body these are the lit figure's extents, so the ratio of the cross-Sun
+   widths gives the scale ``k`` (Eq. 20) and the extents give the translation;
+2. score: mean distance (truncated) from the template's lit-limb points
+   (``n . s > limb_cos``) to the observed outline -- the terminator never enters.
+
+The best distinct hypotheses are returned as poses ``(R_body_to_camera, P, D)``
+in the frame's camera, for the render-and-register stage (:mod:`.register`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .database import TemplateDatabase
+from .matching import _Chamfer, _rot_z_to
+
+
+@dataclass(frozen=True)
+class PhaseSearchOptions:
+    """Options of :func:`phase_candidates`.
+
+    Parameters
+    ----------
+    roll_step_deg
+        In-plane roll grid step (deg).
+    n_points
+        Contour points per template used in the search.
+    limb_cos
+        A template point is lit limb when ``n . s`` exceeds this.
+    truncate_frac
+        Chamfer distances are truncated at this fraction of the figure size.
+    n_candidates
+        Distinct hypotheses returned.
+    chunk
+        Templates scored per vectorised block (memory).
+    """
+
+    roll_step_deg: float = 5.0
+    n_points: int = 32
+    limb_cos: float = 0.25
+    truncate_frac: float = 0.1
+    n_candidates: int = 4
+    chunk: int = 256
+
+
+@dataclass(frozen=True)
+class PoseHypothesis:
+    """A candidate pose: template, roll, scale and the implied pose in the frame's camera."""
+
+    template_index: int
+    theta: float
+    scale: float
+    score_px: float
+    centre_rc: np.ndarray
+    R_body_to_camera: np.ndarray
+    range_km: float
+
+
+def contour_normals(xy: np.ndarray) -> np.ndarray:
+    """Outward unit normals ``(..., n, 2)`` of closed contours ``(..., n, 2)`` (x, y)."""
+    d = np.roll(xy, -1, axis=-2) - np.roll(xy, 1, axis=-2)
+    nrm = np.stack([d[..., 1], -d[..., 0]], axis=-1)
+    area2 = np.sum(xy[..., 0] * np.roll(xy[..., 1], -1, axis=-1) - np.roll(xy[..., 0], -1, axis=-1) * xy[..., 1], axis=-1)
+    nrm = nrm * np.sign(area2)[..., None, None]
+    return nrm / np.maximum(np.linalg.norm(nrm, axis=-1, keepdims=True), 1e-12)
+
+
+def _observed_extents(mask: np.ndarray, axes: np.ndarray) -> np.ndarray:
+    rr, cc = np.nonzero(mask)
+    xy = np.stack([cc, rr], axis=1).astype(float)
+    return (xy @ axes.T).max(axis=0)
+
+
+def _score_block(conts, nrms, rolls, s_xy, xo, chamfer, opts, size):  # type: ignore[no-untyped-def]
+    """Scores, scales and translations ``(B, T)`` for a block of templates and every roll."""
+    c, s = np.cos(rolls)[None, :, None], np.sin(rolls)[None, :, None]
+    x, y = conts[:, None, :, 0], conts[:, None, :, 1]
+    X = np.stack([c * x - s * y, s * x + c * y], axis=-1)  # (B, T, n, 2) rotated template contour
+    nx, ny = nrms[:, None, :, 0], nrms[:, None, :, 1]
+    N = np.stack([c * nx - s * ny, s * nx + c * ny], axis=-1)
+    e = np.array([-s_xy[1], s_xy[0]])
+    pe, ps = X @ e, X @ s_xy
+    xp = np.stack([pe.max(-1), (-pe).max(-1), ps.max(-1)], axis=-1)
+    k = (xo[0] + xo[1]) / np.maximum(xp[..., 0] + xp[..., 1], 1e-9)
+    d_e = 0.5 * (xo[0] - xo[1]) - k * 0.5 * (xp[..., 0] - xp[..., 1])
+    d_s = xo[2] - k * xp[..., 2]
+    T = d_e[..., None] * e + d_s[..., None] * s_xy  # (B, T, 2) translation (x, y)
+    pts = k[..., None, None] * X + T[..., None, :]
+    lit = (N @ s_xy) > opts.limb_cos
+    d = np.minimum(chamfer.remap(pts[..., ::-1]), opts.truncate_frac * size)
+    n_lit = np.maximum(lit.sum(-1), 1)
+    score = np.where(lit, d, 0.0).sum(-1) / n_lit + np.where(n_lit < 3, np.inf, 0.0)
+    return score, k, T
+
+
+def phase_candidates(
+    mask: np.ndarray, db: TemplateDatabase, camera: object, s_img_rc: np.ndarray, options: PhaseSearchOptions = PhaseSearchOptions()
+) -> list[PoseHypothesis]:
+    """Best distinct pose hypotheses for the lit figure ``mask`` (module docstring).
+
+    ``s_img_rc`` is the unit image-plane direction (row, col) toward the Sun.
+    """
+    s_xy = np.array([s_img_rc[1], s_img_rc[0]], dtype=float)
+    s_xy /= np.linalg.norm(s_xy)
+    e = np.array([-s_xy[1], s_xy[0]])
+    xo = _observed_extents(mask, np.stack([e, -e, s_xy]))
+    chamfer = _Chamfer(mask)
+    rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
+    size = float(max(rr[-1] - rr[0], cc[-1] - cc[0]) + 1)
+    n_all = db.contour_xy.shape[1]
+    sub = np.linspace(0, n_all, options.n_points, endpoint=False).astype(int)
+    conts_all = np.asarray(db.contour_xy, dtype=float)
+    nrms_all = contour_normals(conts_all)[:, sub]
+    conts_all = conts_all[:, sub]
+    rolls = np.radians(np.arange(0.0, 360.0, options.roll_step_deg))
+    scores = np.empty((len(db), rolls.size))
+    ks = np.empty_like(scores)
+    Ts = np.empty(scores.shape + (2,))
+    for i0 in range(0, len(db), options.chunk):
+        sl = slice(i0, i0 + options.chunk)
+        scores[sl], ks[sl], Ts[sl] = _score_block(conts_all[sl], nrms_all[sl], rolls, s_xy, xo, chamfer, options, size)
+    return _hypotheses(db, camera, scores, ks, Ts, rolls, options)
+
+
+def _hypotheses(db, camera, scores, ks, Ts, rolls, options) -> list[PoseHypothesis]:  # type: ignore[no-untyped-def]
+    """The ``n_candidates`` best (template, roll) cells, at least one step apart in view and roll."""
+    order = np.argsort(scores, axis=None)
+    out: list[PoseHypothesis] = []
+    taken: list[np.ndarray] = []
+    for flat in order[: 20000]:
+        j, r = np.unravel_index(int(flat), scores.shape)
+        if not np.isfinite(scores[j, r]):
+            break
+        h = _pose_of(db, camera, int(j), float(rolls[r]), float(ks[j, r]), Ts[j, r], float(scores[j, r]))
+        if any(_angle(h.R_body_to_camera, R0) < math.radians(3 * db.options.step_deg) for R0 in taken):
+            continue
+        taken.append(h.R_body_to_camera)
+        out.append(h)
+        if len(out) >= options.n_candidates:
+            break
+    return out
+
+
+def _angle(Ra: np.ndarray, Rb: np.ndarray) -> float:
+    return math.acos(max(-1.0, min(1.0, (float(np.trace(Ra @ Rb.T)) - 1.0) / 2.0)))
+
+
+def _pose_of(db, camera, j, theta, k, T_xy, score) -> PoseHypothesis:  # type: ignore[no-untyped-def]
+    """Pose implied by template ``j`` rolled by ``theta``, scaled by ``k``, translated by ``T`` (Eq. 24-25)."""
+    d = np.asarray(db.centre_image_rc, dtype=float) - np.asarray(db.centre_rc[j], dtype=float)
+    dx, dy = d[1], d[0]
+    c, s = math.cos(theta), math.sin(theta)
+    P = np.array([T_xy[1] + k * (s * dx + c * dy), T_xy[0] + k * (c * dx - s * dy)])
+    cR = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    u = np.asarray(camera.los(P))  # type: ignore[attr-defined]
+    R = _rot_z_to(u) @ cR @ np.asarray(db.R_body_to_camera[j])
+    D = camera.focal_px * db.distance_km / (db.focal_px * k)  # type: ignore[attr-defined]
+    return PoseHypothesis(j, theta, k, score, P, R, float(D))
+
+
+__all__ = ["PhaseSearchOptions", "PoseHypothesis", "contour_normals", "phase_candidates"]

@@ -1,0 +1,176 @@
+r"""Stages 3-4 of :func:`jaxlimb.pipeline.locate` for a round limb (sphere, disc): the limb pixels (an
+annulus on the lit side, Aerospace 2015 §5) and the edge fit (the circular sigmoid, Eq. 16 of the
+illuminated-ellipsoid paper, with ``k`` estimated or held), then Checks 5, 1 and 4 on the fitted circle.
+
+The lit-side window and the annulus' angular bins are the *band/selection* stage: everything
+that decides which pixels are the limb (and so keeps a glow, a terminator or the dark limb out
+of the fit) is in :func:`limb_pixels`; the fits that follow only use the pixels it returns.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+
+from .checks import (
+    MIN_LIT_ARC_DEG,
+    MIN_LIT_ARC_PROFILE_DEG,
+    check_center_in_field,
+    check_jump,
+    check_lit_arc,
+    check_radius_prior,
+    check_size,
+    jump_threshold,
+    max_limb_displacement,
+)
+from .frame import Frame, arc_angles, min_diameter_px
+from .refine import (
+    LOGISTIC_TO_GAUSS,
+    AnnulusSelection,
+    RefineResult,
+    annulus_halfwidth,
+    fit_circle_annulus,
+    lit_halfangle,
+    select_annulus,
+)
+
+#: Widen the annulus when it is narrower than this many Gaussian-equivalent edge sigmas.
+EDGE_SIGMAS = 4.5
+
+
+@dataclass(frozen=True)
+class LimbPixels:
+    """The pixels of the lit limb: the annulus and the lit-side window it was cut with.
+
+    ``direction`` (unit ``(d_row, d_col)`` toward the lit side, ``None``: all round) and ``half``
+    (rad) the window; ``phase`` (rad) the phase angle used (``None``: unknown); ``dr`` the annulus
+    half-width (px); ``min_arc_deg`` the shortest lit arc accepted.
+    """
+
+    sel: AnnulusSelection
+    dr: float
+    direction: tuple[float, float] | None
+    half: float
+    phase: float | None
+    min_arc_deg: float
+
+
+@dataclass(frozen=True)
+class EdgeFit:
+    """The edge fit of a round limb: the circular sigmoid on the final annulus, and how it was reached."""
+
+    circ: RefineResult
+    pixels: LimbPixels
+    widened: bool
+    recentred: bool
+    arc_deg: float
+    jump_px: float = 0.0
+    jump_limit_px: float = 0.0
+
+    @property
+    def center_rc(self) -> tuple[float, float]:
+        p = self.circ.fit.params
+        return (float(p.r0), float(p.c0))
+
+    @property
+    def radius(self) -> float:
+        return float(self.circ.fit.params.radius)
+
+
+def lit_window(frame: Frame, cand: Any, dr: float) -> tuple[tuple[float, float] | None, float, float | None]:
+    """The lit side: ``(direction, half-angle, phase)`` from the Sun direction, else from the image."""
+    prior = cand.info.get("prior")
+    opt = frame.opt
+    phase = frame.phase(cand.center_rc) if frame.sun_known else (prior.phase_rad if prior is not None else None)
+    direction = cand.lit_direction
+    if direction is None:
+        return None, math.pi, phase
+    if frame.sun_known:
+        return direction, lit_halfangle(phase, cand.radius, dr, opt.horn_margin_deg), phase
+    # Sun unknown: the arc of the front end's points, but never more than the lit half-circle of the
+    # phase measured on the image (more is the dark limb / terminator)
+    ph_img = prior.phase_rad if prior is not None else None
+    half = min(cand.lit_halfangle + math.radians(2.0), lit_halfangle(ph_img, cand.radius, dr, opt.horn_margin_deg))
+    return direction, half, phase
+
+
+def limb_pixels(frame: Frame, cand: Any, physical_profile: bool) -> LimbPixels:
+    """Stage 3: the annulus ``r_hat +- dr`` on the lit side (:func:`~jaxlimb.pipeline.refine.select_annulus`),
+    and the lit-arc check before any fit (cropped body, Sun-facing side out of the frame)."""
+    opt = frame.opt
+    dr = annulus_halfwidth(cand.radius, cand.residual_rms, opt)
+    direction, half, phase = lit_window(frame, cand, dr)
+    sel = select_annulus(frame.img, cand.center_rc, cand.radius, dr, direction, half, opt)
+    min_arc = float(opt.min_lit_arc_deg) if opt.min_lit_arc_deg is not None else (
+        MIN_LIT_ARC_PROFILE_DEG if physical_profile else MIN_LIT_ARC_DEG)
+    check_lit_arc(sel.angles(), min_arc, half)
+    return LimbPixels(sel, dr, direction, half, phase, min_arc)
+
+
+def _reselect(frame: Frame, pix: LimbPixels, circ: RefineResult, dr: float) -> tuple[LimbPixels, RefineResult]:
+    p = circ.fit.params
+    sel = select_annulus(frame.img, (float(p.r0), float(p.c0)), float(p.radius), dr, pix.direction, pix.half,
+                         frame.opt)
+    pix = LimbPixels(sel, dr, pix.direction, pix.half, pix.phase, pix.min_arc_deg)
+    return pix, fit_circle_annulus(sel, frame.opt)
+
+
+def edge_fit(frame: Frame, pix: LimbPixels) -> EdgeFit:
+    """Stage 4: the circular sigmoid on the annulus; the annulus widened to ``EDGE_SIGMAS`` edge sigmas
+    when the fitted edge is broader, and re-centred on the fitted circle when the limb moved by more than
+    half a pixel (the annulus was built on the front end's circle); the lit-arc check on the fitted pixels."""
+    opt = frame.opt
+    circ = fit_circle_annulus(pix.sel, opt)
+    widened = recentred = False
+    if opt.estimate_k and opt.annulus_px is None:
+        need = EDGE_SIGMAS * LOGISTIC_TO_GAUSS / max(float(circ.fit.params.k), 1e-6)
+        cap = max(opt.annulus_min_px, 0.5 * pix.sel.radius)
+        if need > 1.05 * pix.dr and pix.dr < cap:
+            pix, circ = _reselect(frame, pix, circ, min(cap, need))
+            widened = True
+    p = circ.fit.params
+    if max_limb_displacement(pix.sel.center_rc, pix.sel.radius, (float(p.r0), float(p.c0)), float(p.radius),
+                             pix.sel.angles()) > 0.5:
+        pix, circ = _reselect(frame, pix, circ, pix.dr)
+        recentred = True
+    p = circ.fit.params
+    arc = check_lit_arc(arc_angles(circ.coords, (p.r0, p.c0)), pix.min_arc_deg, pix.half)
+    frame.mark("refine")
+    return EdgeFit(circ, pix, widened, recentred, arc)
+
+
+def check_edge(frame: Frame, cand: Any, edge: EdgeFit) -> EdgeFit:
+    """Checks 5 (jump from the front end's circle), 1 (size), 3/4 (radius in the prior's band) and 4
+    (centre in the field) on the fitted circle; returns ``edge`` with the jump and its limit."""
+    thr = jump_threshold(edge.pixels.dr, frame.opt.max_jump_px)
+    jump = check_jump(cand.center_rc, cand.radius, edge.center_rc, edge.radius, edge.pixels.sel.angles(), thr)
+    check_size(edge.radius, frame.img.shape, min_diameter_px(frame))
+    prior = cand.info.get("prior")
+    if prior is not None:
+        check_radius_prior(edge.radius, prior.radius_range, prior.source)
+    check_center_in_field(edge.center_rc, edge.radius, frame.img.shape)
+    return EdgeFit(edge.circ, edge.pixels, edge.widened, edge.recentred, edge.arc_deg, jump, thr)
+
+
+def edge_report(frame: Frame, cand: Any, edge: EdgeFit) -> dict[str, Any]:
+    """The intermediate values of the round limb's first stages, for ``extras``."""
+    circ, pix = edge.circ, edge.pixels
+    prior = cand.info.get("prior")
+    return {
+        "initial_circle": {"center_rc": list(cand.center_rc), "radius_px": cand.radius, "rms_px": cand.residual_rms},
+        "circle_fit": {"center_rc": list(edge.center_rc), "radius_px": edge.radius},
+        "annulus_px": pix.dr, "annulus_widened": edge.widened, "annulus_recentred": edge.recentred,
+        "lit_arc_deg": edge.arc_deg,
+        "lit_direction_rc": list(pix.direction) if pix.direction is not None else None,
+        "lit_halfangle_deg": math.degrees(pix.half), "sun_direction_known": frame.sun_known,
+        "phase_deg": math.degrees(pix.phase) if pix.phase is not None else None,
+        "n_angular_bins": [pix.sel.n_bins_kept, pix.sel.n_bins],
+        "n_outliers": int(circ.n_outliers), "jump_px": edge.jump_px, "jump_limit_px": edge.jump_limit_px,
+        "levels_normalized": circ.data.weights is not None, "k_estimated": bool(frame.opt.estimate_k),
+        "prior_source": prior.source if prior is not None else None,
+    }
+
+
+__all__ = ["EDGE_SIGMAS", "edge_report", "EdgeFit", "LimbPixels", "check_edge", "edge_fit", "limb_pixels", "lit_window"]

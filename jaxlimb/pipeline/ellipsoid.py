@@ -1,0 +1,358 @@
+r"""The ellipsoid strategy of :func:`jaxlimb.pipeline.locate` (the Earth; any spheroid): the stages that
+differ from a sphere's.  The method (limb cone, elliptical edge with interior ramp, physical profile,
+Earth offset and range iteration of Mortari, D'Souza & Zanetti 2016 §IV, Fig. 2) is described in
+:mod:`jaxlimb.pipeline.earth`, which holds its geometry (:func:`earth_position_from_ellipse`).
+
+* **prepare**: a camera is required (the range needs it); with lens distortion the frame is resampled
+  onto the ideal pixel grid (the limb is a conic only there) and ``finish`` maps the centre and its
+  covariance back through the distortion's Jacobian.
+* **limb pixels**: the lit window from the Sun direction (else the front end's arc) less
+  ``arc_margin_deg`` at each horn (:class:`~jaxlimb.errors.ArcTooShortError` when nothing is left),
+  and the band of half-width ``band_px`` about the current ellipse (:func:`~jaxlimb.pipeline.earth._band_pixels`).
+* **edge fit**: the elliptical sigmoid with interior ramp (:data:`jaxlimb.models.ELLIPSE_RAMP`), ``rho,
+  theta`` predicted from the limb cone at the current position (``R_body_to_camera`` known; else or with
+  ``model="ellipse"`` free), repeated while the prediction moves the ellipse; Checks 1, 3/4 (radius in the
+  prior's band), 4 and 5 (jump from the front end's circle) as for a sphere.
+* **profile refit**: the lunar-Lambert profile on the same pixels (Sun direction known).
+* **body-centre mapping**: the range iteration; the covariance of ``(center_r, center_c, range_km)`` through
+  its central-difference Jacobian; with a free ellipse the unsigned centre offset as a model error.
+
+``estimate_k=False`` (the papers' fixed-``k`` sphere setting) is refused: the ellipsoid's edge model
+estimates its kernel with the ramp.  ``model="ellipse"`` frees ``rho, theta``.  ``compute_crlb`` as for
+every body (:func:`jaxlimb.pipeline.report.crlb`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from ..analysis.crlb import numerical_jacobian
+from ..errors import ArcTooShortError, ConfigError, ConvergenceError, GeometryError, LimbInputError, TooManyOutliersError
+from ..fitting import fit, solver_from_name
+from ..geometry.camera import Camera
+from ..geometry.ellipsoid import check_rotation, image_conic
+from ..imaging import sun_direction_image
+from ..models import ELLIPSE, ELLIPSE_RAMP, EllipseParams, EllipseRampParams
+from .checks import check_center_in_field, check_radius_prior, check_size, jump_threshold
+from .earth import (
+    EllipsoidOptions,
+    _band_pixels,
+    _band_signed,
+    _ell_change,
+    _spheroid,
+    earth_position_from_ellipse,
+    unsigned_offset_cov,
+)
+from .ellipsoid_profile import fit_profile_ellipsoid
+from .frame import Frame, min_diameter_px
+from .geometry import BodyCenter
+from .refine import FitData, RefineResult
+from .result import EllipseResult, LimbMeasurement
+
+
+@dataclass(frozen=True)
+class EllipsePixels:
+    """The start of the ellipsoid's edge fit: position prior, lit window and initial ellipse."""
+
+    p0: np.ndarray
+    range_prior_km: float
+    lit_dir: tuple[float, float] | None
+    half: float
+    ellipse: tuple
+
+
+@dataclass(frozen=True)
+class EllipsoidEdge:
+    """The ellipsoid's edge fit: the last fit, its pixels, ellipse ``((r0, c0), (a, b), theta)``, position."""
+
+    final: RefineResult
+    pixels: EllipsePixels
+    fitted: tuple
+    p: np.ndarray
+    history: list
+    jump_px: float
+    jump_limit_px: float
+
+    @property
+    def n_steps(self) -> int:
+        return int(sum(h["fit_steps"] for h in self.history))
+
+
+@dataclass(frozen=True)
+class Ellipsoid:
+    """The ellipsoid strategy (module docstring)."""
+
+    eo: EllipsoidOptions
+    equatorial_km: float
+    polar_km: float
+    atmosphere_km: float
+    R: np.ndarray | None
+    free: bool
+    name: str = "ellipsoid"
+
+    @classmethod
+    def for_frame(cls, frame: Frame) -> "Ellipsoid":
+        """Validate what the ellipsoid needs (camera, spheroid radii, rotation) and refuse what it cannot honour."""
+        opt, h = frame.opt, frame.hints
+        if frame.cam is None:
+            raise ConfigError("the ellipsoid strategy (hints body 'earth') needs a camera (`camera`; the CLI's --camera): "
+                              "it measures the range")
+        if not opt.estimate_k:
+            raise ConfigError("estimate_k = False (the papers' fixed-k sphere setting) is not available for the "
+                              "ellipsoid: its edge model estimates the kernel with the interior ramp")
+        if opt.profile == "limb-darkened":
+            raise ConfigError("profile = 'limb-darkened' is the disc strategy's (the Sun), not the ellipsoid's")
+        eo = opt.ellipsoid if opt.ellipsoid is not None else EllipsoidOptions()
+        if not isinstance(eo, EllipsoidOptions):
+            raise ConfigError(f"LocateOptions.ellipsoid must be an EllipsoidOptions, got {type(eo).__name__}")
+        h = h if h is not None else _earth_hints()
+        Re, Rp, atm = _spheroid(h)
+        R = None if h.R_body_to_camera is None else check_rotation(np.asarray(h.R_body_to_camera), "R_body_to_camera",
+                                                                   tol=1e-6)
+        free = True if opt.model == "ellipse" else (eo.free_ellipse if eo.free_ellipse is not None else R is None)
+        return cls(eo, Re, Rp, atm, R, bool(free))
+
+    @property
+    def radii_limb(self) -> np.ndarray:
+        a, c, h = self.equatorial_km, self.polar_km, self.atmosphere_km
+        return np.array([a + h, a + h, c + h])
+
+    @property
+    def pole(self) -> np.ndarray | None:
+        return None if (self.free or self.R is None) else self.R[:, 2]
+
+    def _solver(self, frame: Frame):  # noqa: ANN202
+        return None if frame.opt.solver == "lm" else solver_from_name(frame.opt.solver)
+
+    # ------------------------------------------------------------------------------------------- stages
+    def prepare(self, frame: Frame) -> Frame:
+        """Lens distortion: measure in the ideal image (resampled), the observed camera kept for ``finish``."""
+        cam = frame.cam
+        if frame.hints is None or frame.hints.body is None:
+            frame = replace(frame, hints=_earth_hints(frame.hints))
+        if cam is None or not cam.has_distortion:
+            return frame
+        from ..imaging.undistort import pinhole_of, undistort_image
+
+        return replace(frame, img=undistort_image(frame.img, cam), cam=pinhole_of(cam), observed_cam=cam)
+
+    def limb_pixels(self, frame: Frame, cand: Any) -> EllipsePixels:
+        """The position prior, the lit window (arc check) and the initial ellipse."""
+        cam, h, eo = frame.cam, frame.hints, self.eo
+        c_rc = np.array(cand.center_rc, float)
+        rl = self.equatorial_km + self.atmosphere_km
+        D0 = h.range_prior_km or rl / math.sin(math.atan(cand.radius / cam.focal_px))
+        if not D0 > rl:
+            raise GeometryError(f"range prior {D0:.6g} km puts the observer inside the Earth (radius {rl:.6g} km)")
+        p0 = -D0 * cam.los(c_rc)  # observer relative to the body centre, camera frame
+        lit_dir, half = cand.lit_direction, cand.lit_halfangle
+        sd = sun_direction_image(h.sun_dir_camera, cam, tuple(c_rc)) if h.sun_dir_camera is not None else None
+        if sd is not None:
+            lit_dir, half = sd, math.pi / 2
+        if lit_dir is not None:
+            half = min(half, math.pi / 2) - math.radians(eo.arc_margin_deg)
+            if half <= math.radians(5):
+                raise ArcTooShortError(
+                    f"the lit limb arc left after {eo.arc_margin_deg:g} deg at each horn spans "
+                    f"{max(0.0, 2 * math.degrees(half)):.3g} deg (at least 10 deg needed): too short for the ellipse")
+        rho, th = (0.999, 0.0) if self.R is None else self._predicted_shape(cam, -p0)
+        a0 = cand.radius / math.sqrt(rho)
+        return EllipsePixels(p0, float(D0), lit_dir, half if lit_dir is not None else math.pi,
+                             ((float(c_rc[0]), float(c_rc[1])), (a0, a0 * rho), th))
+
+    def _predicted_shape(self, cam: Camera, center_km: np.ndarray) -> tuple[float, float]:
+        ic = image_conic(cam, self.radii_limb, center_km, self.R)
+        return float(ic.rho), float(ic.angle_rad)
+
+    def edge_fit(self, frame: Frame, cand: Any, pix: EllipsePixels) -> EllipsoidEdge:
+        """The ramp ESF loop (module docstring), then Checks 1, 3/4, 4, 5 on the fitted ellipse."""
+        edge = _edge_loop(self, frame, pix)
+        (r0, c0), (a, b), _ = edge.fitted
+        check_size(0.5 * (a + b), frame.img.shape, min_diameter_px(frame))
+        prior = cand.info.get("prior")
+        if prior is not None:
+            check_radius_prior(0.5 * (a + b), prior.radius_range, prior.source)
+        check_center_in_field((r0, c0), a, frame.img.shape)
+        return _check_jump(frame, cand, edge, self.eo)
+
+    def report(self, frame: Frame, cand: Any, edge: EllipsoidEdge) -> dict[str, Any]:
+        prior = cand.info.get("prior")
+        return {"initial_circle": {"center_rc": list(cand.center_rc), "radius_px": cand.radius,
+                                   "n_points": cand.n_points},
+                "edge_fit": {"model": edge.final.fit.params.__class__.__name__, "fits": edge.history,
+                             "ellipse_center_rc": list(edge.fitted[0]), "semi_axes_px": list(edge.fitted[1]),
+                             "range_km": float(np.linalg.norm(edge.p))},
+                "fits": edge.history, "range_prior_km": edge.pixels.range_prior_km, "free_ellipse": self.free,
+                "atmosphere_km": self.atmosphere_km, "jump_px": edge.jump_px, "jump_limit_px": edge.jump_limit_px,
+                "sun_direction_known": frame.sun_known, "prior_source": prior.source if prior is not None else None}
+
+    def refit(self, frame: Frame, cand: Any, edge: EllipsoidEdge, extras: dict[str, Any]) -> RefineResult:
+        """The lunar-Lambert profile on the edge fit's pixels (Sun direction known), else the edge fit."""
+        return fit_profile_ellipsoid(self, frame, edge, extras)
+
+    def body_center(self, frame: Frame, final: RefineResult) -> BodyCenter:
+        return ellipsoid_center(self, frame, final)
+
+    def iterations(self, edge: EllipsoidEdge, final: RefineResult) -> int:
+        return edge.n_steps + (int(final.fit.n_steps) if final is not edge.final else 0)
+
+    def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
+        """Distorted camera: ``center_rc`` and its covariance rows mapped to the observed image."""
+        cam = frame.observed_cam
+        if cam is None:
+            return meas
+        c_id = np.asarray(meas.center_rc, float)
+        Jd = numerical_jacobian(lambda x: cam.distort(x), c_id, 1e-3)
+        names = list(meas.covariance)
+        P = np.array([[meas.covariance[a][b] for b in names] for a in names])
+        T = np.eye(len(names))
+        idx = [names.index("center_r"), names.index("center_c")]
+        T[np.ix_(idx, idx)] = Jd
+        P = T @ P @ T.T
+        cov = {a: {b: float(P[i, j]) for j, b in enumerate(names)} for i, a in enumerate(names)}
+        c_obs = cam.distort(c_id)
+        pix = None if meas.selected_pixels_rc is None else cam.distort(np.asarray(meas.selected_pixels_rc, float))
+        extras = {**meas.extras, "ellipse_frame": "ideal (undistorted) pixels", "undistorted_image": True}
+        return replace(meas, center_rc=(float(c_obs[0]), float(c_obs[1])), covariance=cov, selected_pixels_rc=pix,
+                       extras=extras)
+
+
+def _earth_hints(h: Any = None) -> Any:
+    from ..imaging import Hints
+
+    return Hints(body="earth") if h is None else replace(h, body="earth")
+
+
+def _first_levels(img: np.ndarray, pts: np.ndarray, z: np.ndarray, ell: tuple, band: float) -> tuple[float, float]:
+    F = _band_signed(pts, ell)
+    inner, outer = z[F < -0.5 * band], z[F > 0.5 * band]
+    ymax = float(np.median(inner)) if inner.size else float(np.percentile(z, 90))
+    ymin = float(np.median(outer)) if outer.size else float(np.percentile(z, 10))
+    return ymax, ymin
+
+
+def _edge_start(eo: EllipsoidOptions, ell: tuple, prev: Any, levels: tuple[float, float]) -> Any:
+    """The edge model's start: the current ellipse, the previous fit's other parameters (or the levels)."""
+    (r0, c0), (a, b), th = ell
+    geo = dict(r0=r0, c0=c0, a=a, theta=th, rho=b / a)
+    if prev is not None:
+        return prev.replace(**geo)
+    kw = dict(**geo, k=eo.k_init, ymax=levels[0], ymin=levels[1])
+    return EllipseRampParams(**kw, g=0.0, g2=0.0, h1=0.0, h2=0.0, h3=0.0, h4=0.0) if eo.interior_ramp else EllipseParams(**kw)
+
+
+def _as_ellipse(P: Any) -> tuple:
+    """The fitted ellipse ``((r0, c0), (a, b), theta)`` with ``a >= b``, ``theta`` in ``[0, pi)``."""
+    a, rho, th = float(P.a), float(P.rho), float(P.theta)
+    if a <= 0 or rho <= 0:
+        raise ConvergenceError(f"the elliptical edge fit gave a non-physical ellipse: a = {a}, rho = {rho}")
+    b = rho * a
+    if b > a:  # a free fit may swap the axes: keep a >= b, theta along a
+        a, b, th = b, a, th + math.pi / 2
+    return ((float(P.r0), float(P.c0)), (a, b), th % math.pi)
+
+
+def _edge_loop(body: Ellipsoid, frame: Frame, pix: EllipsePixels) -> EllipsoidEdge:
+    """Steps 2-5 of the module docstring of :mod:`jaxlimb.pipeline.earth`: fit, range iteration, predicted
+    shape, refit while the prediction moves the ellipse by more than ``refit_tol_px``."""
+    eo, cam, img = body.eo, frame.cam, frame.img
+    model = ELLIPSE_RAMP if eo.interior_ramp else ELLIPSE
+    fixed = (() if body.free else ("rho", "theta")) + (tuple(eo.fix_profile) if eo.interior_ramp else ())
+    ell, p, prev, res, hist = pix.ellipse, pix.p0, None, None, []
+    for it in range(eo.max_refits):
+        pts = _band_pixels(img.shape, ell, eo.band_px, pix.lit_dir, pix.half)
+        if pts.shape[0] < 50:
+            raise TooManyOutliersError(f"only {pts.shape[0]} pixels in the lit limb band (need >= 50)")
+        z = np.asarray(img[pts[:, 0].astype(int), pts[:, 1].astype(int)], float)
+        init = _edge_start(eo, ell, res.params if res is not None else None,
+                           _first_levels(img, pts, z, ell, eo.band_px) if res is None else (0.0, 0.0))
+        res = fit(model, pts, z, init, body._solver(frame), fixed=fixed, throw=True)
+        fitted = _as_ellipse(res.params)
+        p, info = position(body, cam, fitted, p)
+        hist.append({"fit": it + 1, "range_km": float(np.linalg.norm(p)), "range_iterations": info["iterations"],
+                     "fit_steps": int(res.n_steps)})
+        if body.free:
+            done, ell = prev is not None and _ell_change(prev, fitted) < eo.refit_tol_px, fitted
+            prev = fitted
+        else:  # the shape predicted at the new position; refit only if it moves the ellipse noticeably
+            rho, th = body._predicted_shape(cam, -p)
+            ell = (fitted[0], (fitted[1][0], fitted[1][0] * rho), th)
+            done = _ell_change(fitted, ell) < eo.refit_tol_px
+        if done:
+            break
+    frame.mark("refine")
+    final = RefineResult(res, FitData(pts, z, None, 0.0, 1.0), 0, tuple(n for n in model.param_names if n not in res.free))
+    return EllipsoidEdge(final, pix, fitted, p, hist, 0.0, 0.0)
+
+
+def _check_jump(frame: Frame, cand: Any, edge: EllipsoidEdge, eo: EllipsoidOptions) -> EllipsoidEdge:
+    """Check 5: the fitted ellipse must lie within ``max(2, band/2) + (a - b)`` px of the front end's circle on
+    the fitted arc (the circle cannot follow the ellipse's out-of-roundness ``a - b``)."""
+    from ..errors import JumpError
+
+    pts = edge.final.coords
+    ang = np.arctan2(pts[:, 0] - cand.center_rc[0], pts[:, 1] - cand.center_rc[1])
+    on_circle = np.column_stack([cand.center_rc[0] + cand.radius * np.sin(ang), cand.center_rc[1] + cand.radius * np.cos(ang)])
+    disp = float(np.max(np.abs(_band_signed(on_circle, edge.fitted)))) if pts.size else math.inf
+    (_, _), (a, b), _ = edge.fitted
+    thr = jump_threshold(eo.band_px, frame.opt.max_jump_px) + (a - b)
+    if not disp <= thr:
+        raise JumpError(f"Check 5: the elliptical fit moved the limb by up to {disp:.3g} px from the front end's "
+                        f"circle (limit {thr:.3g} px)")
+    return replace(edge, jump_px=disp, jump_limit_px=thr)
+
+
+def position(body: Ellipsoid, cam: Camera, fitted: tuple, p0: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
+    """The observer position from a fitted ellipse (range iteration); no convergence is a failed check."""
+    try:
+        return earth_position_from_ellipse(
+            cam, *fitted, p0, pole_camera=body.pole, equatorial_km=body.equatorial_km, polar_km=body.polar_km,
+            atmosphere_km=body.atmosphere_km, eps_rad=body.eo.eps_rad, max_iter=body.eo.max_iter)
+    except ConvergenceError:
+        raise
+    except LimbInputError as e:  # a bad ellipse (no limb cone): not a measurement of this body
+        raise ConvergenceError(f"the fitted ellipse does not give a position: {e}") from None
+
+
+def ellipsoid_center(body: Ellipsoid, frame: Frame, final: RefineResult) -> BodyCenter:
+    """Stage "body-centre mapping" of the ellipsoid: the range iteration from the final fit's ellipse and its
+    central-difference Jacobian; outputs ``center_r, center_c, range_km, a`` (and ``rho, theta`` when free)."""
+    cam, P = frame.cam, final.fit.params
+    fitted = _as_ellipse(P)
+    p, info = position(body, cam, fitted, frame_position_start(final, body, cam, fitted))
+    geo = ("r0", "c0", "a") + (("rho", "theta") if body.free else ())
+    outputs = ("center_r", "center_c", "range_km") + geo[2:]
+
+    def g(x: np.ndarray) -> np.ndarray:
+        q = P.replace(**dict(zip(geo, (float(v) for v in x))))
+        pp, _ = position(body, cam, _as_ellipse(q), p)
+        rc = cam.project(-pp)
+        return np.concatenate([[rc[0], rc[1], np.linalg.norm(pp)], x[2:]])
+
+    x0 = np.array([float(getattr(P, n)) for n in geo])
+    G = numerical_jacobian(g, x0, np.array([1e-3, 1e-3, 1e-3, 1e-5, 1e-4][: len(geo)]))
+    rng = float(np.linalg.norm(p))
+    model_cov, goff = None, 0.0
+    if body.free:
+        model_cov, goff = unsigned_offset_cov(cam, fitted, rng, body.equatorial_km, body.polar_km, body.atmosphere_km,
+                                              len(outputs))
+    (c, (a, b), th) = fitted
+    model = {"LimbProfileParams": "lunar_limb", "EllipseRampParams": "ellipse_ramp"}.get(type(P).__name__, "ellipse")
+    extras = {"model": model, "ellipse_center_rc": list(c), "rho": b / a, "theta_rad": th, "gamma_off_rad": float(info["gamma_off_rad"]),
+              "gamma_off_unsigned_model_rad": goff, "a_prime": info["a_prime"], "b_prime": info["b_prime"]}
+    return BodyCenter(tuple(float(v) for v in cam.project(-p)), None,
+                      EllipseResult(center_rc=c, semi_axes_px=(a, b), angle_rad=th), tuple(float(v) for v in -p / rng),
+                      rng, outputs, geo, G, model_cov, extras)
+
+
+def frame_position_start(final: RefineResult, body: Ellipsoid, cam: Camera, fitted: tuple) -> np.ndarray:
+    """The range iteration's start: the free-ellipse position of ``fitted`` (``(Re + h) / a'`` along the cone axis)."""
+    free = Ellipsoid(body.eo, body.equatorial_km, body.polar_km, body.atmosphere_km, None, True)
+    return position(free, cam, fitted, np.zeros(3))[0]
+
+
+__all__ = ["Ellipsoid", "EllipsoidEdge", "EllipsePixels", "ellipsoid_center", "position"]

@@ -1,0 +1,149 @@
+r"""The profile-refit stage of the ellipsoid strategy: the edge fit's pixels refitted with the blurred
+lunar-Lambert radiance (:data:`jaxlimb.models.LIMB_PROFILE`); see "Physical limb profile" in
+:mod:`jaxlimb.pipeline.earth`.
+
+Known attitude: ``theta, rho`` held at the image of the limb spheroid at the current position,
+re-predicted after the fit and the fit repeated (once is typical) while they move the ellipse by more
+than ``refit_tol_px``; free ellipse: ``theta, rho`` estimated.  ``profile="auto"`` keeps the edge fit
+(``extras["profile_rejected"]`` says why) when the fit fails, its ``L`` is outside the band of
+lunar-Lambert-like limbs, or it moves the limb by more than half the band from the edge fit.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import jax.numpy as jnp
+import numpy as np
+
+from ..errors import ConfigError, ConvergenceError, GeometryError, LimbInputError
+from ..fitting import NormalLM, fit, solver_from_name
+from ..imaging import sun_direction_image
+from ..models import LIMB_PROFILE, PROFILE_FIXED, EllipseRampParams, LimbProfileParams, limb_profile_intensity
+from ..models import lunar_lambert_weight
+from .earth import _band_pixels, _ell_change
+from .frame import Frame
+from .profile import l_band
+from .profile_fit import gaussian_sigma_of_k, with_model_error
+from .refine import FitData, RefineResult, _pad_bucket
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .ellipsoid import Ellipsoid, EllipsoidEdge
+
+
+def profile_wanted(frame: Frame, interior_ramp: bool) -> bool:
+    """``profile="auto"``: the physical profile when the Sun direction is known and the edge model is the
+    default one (the paper's flat ESF, ``interior_ramp=False``, is a sigmoid experiment: kept as it is, as
+    the sphere keeps the papers' fixed-``k`` CSF); ``"lunar-lambert"``: always (needs the Sun)."""
+    prof = frame.opt.profile
+    if prof == "sigmoid":
+        return False
+    if not frame.sun_known:
+        if prof == "lunar-lambert":
+            raise ConfigError("LocateOptions.profile = 'lunar-lambert' needs the Sun direction (hints `sun_dir_camera`)")
+        return False
+    return prof == "lunar-lambert" or interior_ramp
+
+
+def _start(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", pts: np.ndarray, z: np.ndarray) -> LimbProfileParams:
+    """The profile's start: the edge fit's ellipse (shape predicted with a known attitude), the PSF of its
+    kernel, the Sun from the hints, and the levels at their linear least-squares values for this geometry
+    (the edge fit's ``ymax`` is no radiance scale when its ramp terms carry the interior)."""
+    cam, h, e = frame.cam, frame.hints, edge.final.fit.params
+    (r0, c0), (a, b), th = edge.fitted
+    phase = frame.phase((r0, c0))
+    sun_rc = sun_direction_image(h.sun_dir_camera, cam, (r0, c0))
+    if sun_rc is None:
+        sun_rc = (1.0, 0.0)  # full or new: the direction does not matter (sin(phase) ~ 0)
+    rho0, th0 = body._predicted_shape(cam, -edge.p) if not body.free and body.R is not None else (b / a, th)
+    k = float(e.k)
+    sigma0 = (math.sqrt(max(1.0 / max(k, 1e-6) ** 2 - 1.0 / 12.0, 0.09)) if isinstance(e, EllipseRampParams)
+              else gaussian_sigma_of_k(k))  # the ramp's kernel is a Gaussian of sigma 1/k; the ESF's a logistic
+    L = frame.opt.lunar_lambert_L
+    q = LimbProfileParams(r0=r0, c0=c0, a=float(a), theta=th0, rho=rho0, sigma=sigma0, amp=1.0, ymin=0.0,
+                          sun_r=sun_rc[0], sun_c=sun_rc[1], phase=phase, inv_f=1.0 / cam.focal_px,
+                          L=lunar_lambert_weight(phase) if L is None else float(L))
+    F0 = np.asarray(limb_profile_intensity(q, jnp.asarray(np.asarray(pts, float))))
+    (amp0, ymin0), *_ = np.linalg.lstsq(np.column_stack([F0, np.ones_like(F0)]), z, rcond=None)
+    if not (math.isfinite(amp0) and amp0 > 0):
+        amp0, ymin0 = max(float(np.percentile(z, 95)) - float(e.ymin), 1e-6), float(e.ymin)
+    return q.replace(amp=float(amp0), ymin=float(ymin0))
+
+
+def _one_fit(frame: Frame, data: tuple, q: LimbProfileParams, fixed: tuple, i: int):  # noqa: ANN202
+    """One profile fit (the parameters' own tolerance, px and DN, as the sphere's); non-finite or
+    non-physical answers are failures."""
+    solver = None if frame.opt.solver == "lm" else solver_from_name(frame.opt.solver)
+    if solver is None:
+        solver = NormalLM(rtol=0.0, atol=1e-7) if i == 0 else NormalLM(rtol=0.0, atol=1e-5, coarse_stride=1)
+    coords, zz, w = data
+    res = fit(LIMB_PROFILE, coords, zz, q, solver, fixed=fixed, weights=w, throw=False)
+    if not bool(res.converged):
+        raise ConvergenceError(f"the lunar-Lambert limb profile fit ({res.solver}) did not converge: {res.message}")
+    q = res.params
+    vals = np.array([float(getattr(q, n)) for n in LIMB_PROFILE.param_names])
+    if not np.all(np.isfinite(vals)):
+        raise ConvergenceError(f"the lunar-Lambert limb profile fit returned non-finite parameters {vals.tolist()}")
+    if float(q.a) <= 0 or float(q.rho) <= 0 or float(q.amp) <= 0:
+        raise GeometryError(f"limb profile fit gave a non-physical limb: a = {float(q.a)}, rho = {float(q.rho)}, "
+                            f"sigma = {float(q.sigma)}, amp = {float(q.amp)}")
+    return res, q.replace(sigma=abs(float(q.sigma)))  # the model depends on sigma^2 only (|sigma| reported)
+
+
+def _passes(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", pts, z, band: float):  # noqa: ANN202
+    """The profile fits with the shape re-predicted at each new position (module docstring)."""
+    from .ellipsoid import _as_ellipse, position
+
+    fixed = tuple(n for n in PROFILE_FIXED if not (n == "L" and frame.opt.lunar_lambert_L is None))
+    if body.free:
+        fixed = tuple(n for n in fixed if n not in ("theta", "rho"))
+    data = _pad_bucket(FitData(np.asarray(pts, float), np.asarray(z, float), None, 0.0, 1.0))
+    q, p, hist, res = _start(body, frame, edge, pts, z), edge.p, [], None
+    for i in range(body.eo.max_refits):
+        res, q = _one_fit(frame, data, q, fixed, i)
+        pf = _as_ellipse(q)
+        moved = _ell_change(edge.fitted, pf)
+        if not moved <= 0.5 * band:  # a sub-pixel correction of the edge fit is expected
+            raise GeometryError(f"the limb profile fit moved the limb by {moved:.3g} px from the edge fit "
+                                f"(more than half the band, {0.5 * band:g} px)")
+        p, info = position(body, frame.cam, pf, p)
+        hist.append({"fit": i + 1, "range_km": float(np.linalg.norm(p)), "range_iterations": info["iterations"],
+                     "fit_steps": int(res.n_steps)})
+        if body.free:
+            break
+        rho, th = body._predicted_shape(frame.cam, -p)
+        if _ell_change(pf, (pf[0], (float(q.a), float(q.a) * rho), th)) < body.eo.refit_tol_px:
+            break
+        q = q.replace(theta=th, rho=rho)
+    return res, fixed, hist
+
+
+def fit_profile_ellipsoid(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", extras: dict[str, Any]) -> RefineResult:
+    """The stage (module docstring): the profile's :class:`RefineResult`, or the edge fit's."""
+    if not profile_wanted(frame, body.eo.interior_ramp):
+        return edge.final
+    band = body.eo.profile_band_px if body.eo.profile_band_px is not None else body.eo.band_px
+    pts, z = edge.final.coords, edge.final.data.z
+    if band != body.eo.band_px:
+        pts = _band_pixels(frame.img.shape, edge.fitted, band, edge.pixels.lit_dir, edge.pixels.half)
+        z = np.asarray(frame.img[pts[:, 0].astype(int), pts[:, 1].astype(int)], float)
+    try:
+        res, fixed, hist = _passes(body, frame, edge, pts, z, band)
+    except (ConvergenceError, GeometryError, LimbInputError) as e:
+        if frame.opt.profile != "auto":
+            raise
+        extras["profile_rejected"] = {"model": "lunar-lambert", "reason": f"{type(e).__name__}: {e}"}
+        return edge.final
+    L, band_L = float(res.params.L), l_band(res)
+    if frame.opt.profile == "auto" and not band_L[0] <= L <= band_L[1]:
+        # the limb is not lunar-Lambert-like (e.g. a flat disc): keep the edge fit, say why
+        extras["profile_rejected"] = {"model": "lunar-lambert", "L": L, "allowed_L": list(band_L)}
+        return edge.final
+    extras["profile_fits"] = hist
+    extras["L_estimated"] = frame.opt.lunar_lambert_L is None
+    data = FitData(np.asarray(pts, float), np.asarray(z, float), None, 0.0, 1.0)
+    return with_model_error(RefineResult(res, data, 0, fixed))
+
+
+__all__ = ["fit_profile_ellipsoid", "profile_wanted"]

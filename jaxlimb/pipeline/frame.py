@@ -1,0 +1,168 @@
+"""The first two stages of :func:`jaxlimb.pipeline.locate`: ``prepare`` (validate and bundle the inputs, Check 1
+on the prior) and ``candidates`` (the front end, Checks 1-4); the typed value :class:`Frame` they pass on."""
+
+from __future__ import annotations
+
+import math
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..geometry.camera import Camera
+from ..imaging import Hints, check_prior, front_end, prior_from_hints, validate_image
+from .options import LocateOptions
+
+
+def as_hints(hints: Any) -> Hints | None:
+    """Hints from a :class:`~jaxlimb.imaging.Hints`, its dict or ``None``."""
+    if hints is None or isinstance(hints, Hints):
+        return hints
+    if isinstance(hints, dict):
+        return Hints.from_dict(hints)
+    raise ConfigError(f"`hints` must be a jaxlimb.imaging.Hints, a dict or None, got {type(hints).__name__}")
+
+
+def as_camera(camera: Any) -> Camera | None:
+    """A camera from a :class:`~jaxlimb.geometry.camera.Camera`, its dict or ``None``."""
+    if camera is None or isinstance(camera, Camera):
+        return camera
+    if isinstance(camera, dict):
+        return Camera.from_dict(camera)
+    raise ConfigError(f"`camera` must be a jaxlimb.geometry.Camera, a dict or None, got {type(camera).__name__}")
+
+
+@dataclass(frozen=True)
+class Frame:
+    """The validated inputs of one measurement.
+
+    Attributes
+    ----------
+    img : the grey image (float or integer array, 2-D).
+    cam : the camera or ``None``; ``pin`` its pinhole part (no distortion).
+    hints, opt : the hints (or ``None``) and the options.
+    t0 : start time (``time.perf_counter``) for the timings.
+    timings : stage name -> end time, filled in as the stages run.
+    observed_cam : the camera of the observed image when a strategy resampled it onto the ideal grid
+        (``img``/``cam`` are then the resampled image and its pinhole camera).
+    """
+
+    img: np.ndarray
+    cam: Camera | None
+    hints: Hints | None
+    opt: LocateOptions
+    t0: float
+    timings: dict[str, float] = field(default_factory=dict)
+    observed_cam: Camera | None = None
+
+    @property
+    def pin(self) -> Camera | None:
+        c = self.cam
+        return None if c is None else Camera(c.focal_length_mm, c.pixel_pitch_mm, c.rows, c.cols, c.principal_point_rc)
+
+    @property
+    def use_camera(self) -> bool:
+        """The body-centre correction applies (a camera, and the option on)."""
+        return self.cam is not None and self.opt.body_center_correction
+
+    @property
+    def sun_known(self) -> bool:
+        return self.hints is not None and self.hints.sun_dir_camera is not None
+
+    @property
+    def body_radius_km(self) -> float | None:
+        return self.hints.radius_km() if self.hints is not None else None
+
+    def front_end_options(self) -> Any:
+        return self.opt.gradient if self.opt.front_end == "gradient" else self.opt.scanline
+
+    def to_observed(self, rc_ideal) -> tuple[float, float]:
+        """Ideal (pinhole) pixel -> observed pixel (through the lens distortion, if any)."""
+        if self.cam is not None and self.cam.has_distortion:
+            return tuple(float(v) for v in self.cam.distort(np.asarray(rc_ideal, float)))
+        return (float(rc_ideal[0]), float(rc_ideal[1]))
+
+    def to_ideal(self, rc: np.ndarray) -> np.ndarray:
+        """Observed pixels ``(n, 2)`` (or one) -> ideal pixels."""
+        if self.cam is not None and self.cam.has_distortion:
+            return np.asarray(self.cam.undistort(np.asarray(rc, float)))
+        return np.asarray(rc, float)
+
+    def mark(self, stage: str) -> None:
+        self.timings[stage] = time.perf_counter()
+
+    def phase(self, center_rc) -> float:
+        """Phase angle (rad) at ``center_rc`` from the hints' Sun direction (Eq. 2 of Aerospace 2015)."""
+        assert self.hints is not None and self.hints.sun_dir_camera is not None
+        s = np.asarray(self.hints.sun_dir_camera, dtype=float)
+        s = s / np.linalg.norm(s)
+        u = self.cam.los(np.asarray(center_rc, dtype=float)) if self.cam is not None else np.array([0.0, 0.0, 1.0])
+        return float(np.arccos(np.clip(-s @ u, -1.0, 1.0)))
+
+
+def prepare(image: Any, camera: Any, hints: Any, options: Any, mask: Any = None) -> Frame:
+    """Stage 1: validate the image, camera, hints and options; Check 1 on the prior from the hints.
+
+    A body the hints say is too small, too big or too thin is reported as such before the image
+    is searched (Aerospace 2015 §3: "after internal parameter computation").
+    """
+    opt = options if options is not None else LocateOptions()
+    if not isinstance(opt, LocateOptions):
+        raise ConfigError(f"`options` must be a LocateOptions, got {type(opt).__name__}")
+    t0 = time.perf_counter()
+    img = validate_image(image, reject_constant=False)
+    cam = as_camera(camera)
+    hin = as_hints(hints)
+    if cam is not None and (cam.rows, cam.cols) != img.shape:
+        raise ConfigError(f"camera size {cam.rows}x{cam.cols} does not match the image size {img.shape[0]}x{img.shape[1]}")
+    if mask is not None and np.shape(mask) != img.shape:
+        raise ConfigError(f"mask shape {np.shape(mask)} does not match the image size {img.shape}")
+    frame = Frame(img, cam, hin, opt, t0)
+    if hin is not None and not arc_only(frame):  # (a disc larger than the frame: its arc is measured)
+        popt = getattr(frame.front_end_options(), "prior", None)
+        pri0 = prior_from_hints(hin, cam, options=popt, check=True)
+        if pri0 is not None and cam is None:
+            check_prior(pri0, img.shape, popt)
+    return frame
+
+
+def limb_predicted(frame: Frame) -> bool:
+    """The hints place the limb (SPICE-like prediction: expected centre, range prior, radii, pinhole camera)."""
+    cam, h = frame.cam, frame.hints
+    return (cam is not None and not cam.has_distortion and h is not None and h.expected_center_rc is not None
+            and h.range_prior_km is not None and h.radius_km() is not None)
+
+
+def arc_only(frame: Frame) -> bool:
+    """Camera (pinhole), range and radius known, and the expected disc larger than the frame's half-diagonal."""
+    cam, h = frame.cam, frame.hints
+    if cam is None or cam.has_distortion or h is None or h.radius_km() is None or h.range_prior_km is None:
+        return False
+    rkm, rng = h.radius_km(), h.range_prior_km
+    return rng > rkm and cam.focal_px * math.tan(math.asin(rkm / rng)) > 0.5 * math.hypot(*frame.img.shape)
+
+
+def candidates(frame: Frame) -> Any:
+    """Stage 2: the front end's limb candidates, circle and lit direction (Checks 1-4)."""
+    cand = front_end(frame.opt.front_end, frame.img, None, hints=frame.hints, camera=frame.cam,
+                     options=frame.front_end_options())
+    frame.mark("front_end")
+    return cand
+
+
+def min_diameter_px(frame: Frame) -> float:
+    """Check 1's smallest diameter: the gradient front end's prior setting, else 10 px."""
+    if frame.opt.gradient is not None and frame.opt.front_end == "gradient":
+        return float(frame.opt.gradient.prior.min_diameter_px)  # type: ignore[attr-defined]
+    return 10.0
+
+
+def arc_angles(coords: np.ndarray, center_rc) -> np.ndarray:
+    """Polar angles (rad) of pixels about a centre."""
+    return np.arctan2(coords[:, 0] - float(center_rc[0]), coords[:, 1] - float(center_rc[1]))
+
+
+__all__ = ["Frame", "arc_angles", "as_camera", "as_hints", "candidates", "limb_predicted", "min_diameter_px", "prepare"]

@@ -1,0 +1,187 @@
+r"""The fit of the physical limb profile (:data:`jaxlimb.models.LIMB_PROFILE`) on a round limb's pixels:
+its start from the circular sigmoid, the clipped (saturated) pixels left out, and the sphere-shape
+iteration with a camera (as :func:`~jaxlimb.pipeline.refine.fit_sphere_annulus`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..errors import ConfigError
+from ..fitting import NormalLM
+from ..imaging import sun_direction_image
+from ..models import LIMB_PROFILE, PROFILE_FIXED, LimbProfileParams, lunar_lambert_weight
+from .frame import Frame
+from .profile import sphere_from_circle_fit
+from .refine import LOGISTIC_TO_GAUSS, FitData, RefineResult, _run, predict
+from .sphere import sphere_from_ellipse_center
+
+
+def saturation_level(img: np.ndarray) -> float | None:
+    """The clip level of ``img`` if it has one: its maximum when >= 20 pixels sit exactly on it
+    (noise never makes a plateau; clipping, including 12-bit data in 16-bit words, does)."""
+    m = float(np.max(img))
+    return m if np.count_nonzero(img == m) >= 20 else None
+
+
+def gaussian_sigma_of_k(k: float) -> float:
+    """The PSF sigma (px, pixel box removed) of a blurred edge whose logistic steepness is ``k``:
+    ``sqrt((LOGISTIC_TO_GAUSS / k)^2 - 1/12)``, at least 0.3 px."""
+    s_e = LOGISTIC_TO_GAUSS / max(float(k), 1e-6)
+    return math.sqrt(max(s_e * s_e - 1.0 / 12.0, 0.09))
+
+
+def _inv_focal(frame: Frame, radius_px: float) -> float:
+    """``1/f`` (px^-1); without a camera from the range prior (``tan(asin(R/D)) / radius``), else 0 (orthographic)."""
+    if frame.cam is not None:
+        return 1.0 / frame.cam.focal_px
+    h = frame.hints
+    rng, rkm = (h.range_prior_km, h.radius_km()) if h is not None else (None, None)
+    return (math.tan(math.asin(rkm / rng)) / radius_px) if (rng and rkm and rng > rkm) else 0.0
+
+
+def profile_start(frame: Frame, circ: RefineResult, center) -> LimbProfileParams:
+    """The profile's start: the CSF circle and levels, the PSF from its ``k``, the Sun from the hints."""
+    p = circ.fit.params
+    h = frame.hints
+    assert h is not None and h.sun_dir_camera is not None
+    phase = frame.phase((float(p.r0), float(p.c0)))
+    sun_rc = sun_direction_image(h.sun_dir_camera, frame.cam, (float(p.r0), float(p.c0)) if frame.cam is not None
+                                 else None)
+    if sun_rc is None:
+        sun_rc = (1.0, 0.0)  # full or new: the direction does not matter (sin(phase) ~ 0)
+    normalised = circ.data.weights is not None
+    scale = float(circ.data.scale) if normalised else float(p.ymax) - float(p.ymin)
+    offset = float(circ.data.offset) if normalised else float(p.ymin)
+    L = frame.opt.lunar_lambert_L
+    return LimbProfileParams(r0=center[0], c0=center[1], a=float(p.radius), theta=0.0, rho=1.0,
+                             sigma=gaussian_sigma_of_k(float(p.k)), amp=max(scale, 1e-6), ymin=offset, sun_r=sun_rc[0],
+                             sun_c=sun_rc[1], phase=phase, inv_f=_inv_focal(frame, float(p.radius)),
+                             L=lunar_lambert_weight(phase) if L is None else float(L))
+
+
+def fit_lunar_profile(frame: Frame, circ: RefineResult, sat: float | None = None) -> tuple[RefineResult, int]:
+    """Refit the pixels of the CSF with the physical lunar-Lambert limb profile.
+
+    ``sat``: the image's clip level (:func:`saturation_level`), if any.  Returns the
+    :class:`~jaxlimb.pipeline.refine.RefineResult` and the number of clipped pixels left out."""
+    h, opt = frame.hints, frame.opt
+    if h is None or h.sun_dir_camera is None:
+        raise ConfigError("LocateOptions.profile = 'lunar-lambert' needs the Sun direction (hints `sun_dir_camera`)")
+    p = circ.fit.params
+    coords = circ.coords
+    z = frame.img[coords[:, 0].astype(np.int64), coords[:, 1].astype(np.int64)].astype(np.float64)
+    center = (float(p.r0), float(p.c0))
+    if frame.use_camera:
+        coords = frame.to_ideal(coords)
+        center = tuple(float(v) for v in frame.to_ideal(np.array(center)))
+    init = profile_start(frame, circ, center)
+    data = FitData(coords, z, None, 0.0, 1.0)
+    # L is estimated unless given: it adapts the profile to Lambert (0) ... Lommel-Seeliger (1) limbs
+    fixed = PROFILE_FIXED if opt.lunar_lambert_L is not None else tuple(n for n in PROFILE_FIXED if n != "L")
+    # the default solver with a tolerance on the parameters' own scale (px, DN): 1e-7 is
+    # far below any measurable change; 1e-10 relative costs ~4 more passes for nothing
+    solver = NormalLM(rtol=0.0, atol=1e-7) if opt.solver == "lm" else None
+    if sat is None or np.count_nonzero(z >= sat) < 20:  # (a few hot pixels are not a clipped limb)
+        res, sph = _profile_passes(frame, data, init, center, float(p.radius), fixed, solver)
+        out, n_clipped = RefineResult(res, data, 0, fixed, sphere=sph), 0
+    else:
+        s_e = LOGISTIC_TO_GAUSS / max(float(p.k), 1e-6)
+        out, n_clipped = _fit_clipped(frame, data, init, center, float(p.radius), sat, s_e, solver)
+    return with_model_error(out), n_clipped
+
+
+MODEL_ERROR_SECTORS = 24
+"""Angular sectors of the cluster-robust model-error term (:func:`with_model_error`)."""
+_VALUE_AND_COLUMNS = jax.jit(LIMB_PROFILE.value_and_columns)
+
+
+def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS) -> RefineResult:
+    """``rr`` (a profile fit) with its covariance widened by the cluster-robust model-error term of
+    :mod:`jaxlimb.analysis.model_error` over ``n_sectors`` sectors of the limb about the fitted centre.
+
+    Why: an albedo that varies along and across the limb (maria, clouds), another reflectance
+    law, a glow or a PSF of another shape bias the centre by more than the noise-only sigma
+    (maria Moons: up to 0.1 px for a reported 0.005-0.01 px; ``benchmarks/families.py``: centre
+    NEES 129 -> ~4 with this term, the own family ~2-3).  ``extras``-free: the ratio of the centre's
+    variance after/before is not reported."""
+    from ..analysis.model_error import cluster_robust_covariance, sector_groups, with_model_error as widen
+    from ..fitting.fit import bucket_size
+
+    fit = rr.fit
+    coords = np.asarray(rr.data.coords, float)
+    n = coords.shape[0]
+    padded = np.concatenate([coords, np.repeat(coords[:1], bucket_size(n) - n, axis=0)])  # no recompiles
+    f, cols = _VALUE_AND_COLUMNS(fit.params, jnp.asarray(padded))
+    names = LimbProfileParams.field_names()
+    J = np.stack([np.asarray(cols[names.index(k)])[:n] for k in fit.free], axis=1)
+    r = np.asarray(rr.data.z, float) - np.asarray(f)[:n]
+    groups = sector_groups(coords, (float(fit.params.r0), float(fit.params.c0)), n_sectors)
+    C = widen(np.asarray(fit.covariance), cluster_robust_covariance(J, r, groups))
+    return dataclasses.replace(rr, fit=eqx.tree_at(lambda x: x.covariance, fit, jnp.asarray(C)))
+
+
+def _fit_clipped(frame: Frame, data: FitData, init: LimbProfileParams, center, radius: float, sat: float,
+                 s_e: float, solver) -> tuple[RefineResult, int]:
+    """The profile with clipped pixels left out.  A sensor clips at its full well *before* the read noise,
+    so clipped pixels scatter a few DN below the top code: fit the pixels 4 noise sigmas below it, then
+    keep those whose *model* value is (a selection that does not depend on the noise) and refit.  The
+    noise sigma: robust spread of the sky side of the annulus.  The clipped interior hides the brightness
+    profile that sets ``L``: it is held (McEwen's or the given value)."""
+    coords, z = data.coords, data.z
+    d_c = np.hypot(coords[:, 0] - center[0], coords[:, 1] - center[1])
+    sky = z[d_c > radius + 3.0 * s_e]
+    noise = 1.4826 * float(np.median(np.abs(sky - np.median(sky)))) if sky.size >= 20 else 1.0
+    margin = 4.0 * max(noise, 0.5)
+    keep = z < sat - margin
+    n_clipped = int(np.count_nonzero(~keep))
+    fixed = PROFILE_FIXED
+    res, sph = _profile_passes(frame, data.subset(keep), init, center, radius, fixed, solver)
+    pred = predict(LIMB_PROFILE, res.params, coords)
+    data = data.subset((pred < sat - margin) & (z < sat))
+    res, sph = _profile_passes(frame, data, res.params, None, None, fixed, solver)
+    return RefineResult(res, data, 0, fixed, sphere=sph), n_clipped
+
+
+def _profile_passes(frame: Frame, data: FitData, start: LimbProfileParams, center, radius, fixed, solver):
+    """The profile fit (``center``/``radius``: the circle to start the sphere's shape from; ``None``:
+    from ``start``).  With a camera, the sphere's ellipse shape is held fixed and iterated.  The shape
+    (``a - b`` ~ 5 px at the corner of the default imager for a 210 px Moon) changes by ~0.006 px per px
+    of centre shift, so a second pass is run only when the shape at the fitted centre differs from the
+    one fitted by more than 1e-3 px anywhere on the limb; it starts at the answer, without coarse phase."""
+    opt = frame.opt
+    if not frame.use_camera:
+        return _run(LIMB_PROFILE, data, start, opt, fixed, solver), None
+    f, pp = frame.cam.focal_px, frame.cam.principal_point_rc
+    q = start
+    if center is not None:
+        sph = sphere_from_circle_fit(f, pp, center, radius)
+        q = start.replace(a=sph.a, theta=sph.angle_rad, rho=sph.rho)
+    res = sph = None
+    for i in range(2):
+        s_i = solver if (i == 0 or solver is None) else NormalLM(rtol=0.0, atol=1e-5, coarse_stride=1)
+        res = _run(LIMB_PROFILE, data, q, opt, fixed, s_i)
+        q = res.params
+        sph = sphere_from_ellipse_center(f, pp, (float(q.r0), float(q.c0)), float(q.a))
+        if _shape_change_px(q, sph) < 1e-3:
+            break
+        q = q.replace(theta=float(sph.angle_rad), rho=float(sph.rho))
+    return res, sph
+
+
+def _shape_change_px(q: LimbProfileParams, sph) -> float:
+    """Largest radial change (px) of the limb ellipse of ``q`` if its axis ratio and orientation
+    were those of ``sph`` (same ``a``): ``|d(a - b)| + (a - b) |d theta|``."""
+    a = float(q.a)
+    dab = abs(a * (1.0 - float(q.rho)) - a * (1.0 - float(sph.rho)))
+    dth = abs(math.remainder(float(q.theta) - float(sph.angle_rad), math.pi))
+    return dab + a * abs(1.0 - float(sph.rho)) * dth
+
+
+__all__ = ["fit_lunar_profile", "gaussian_sigma_of_k", "profile_start", "saturation_level", "with_model_error"]

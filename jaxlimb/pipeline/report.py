@@ -1,0 +1,157 @@
+r"""The last stages of :func:`jaxlimb.pipeline.locate`, the same for every body: covariance, Cramér--Rao bound,
+physical checks and the :class:`~jaxlimb.pipeline.result.LimbMeasurement`.
+
+Covariance.  The fit's :math:`\hat\sigma^2 (J^\top J)^{-1}` over its free parameters is propagated through the
+body-centre map (:class:`~jaxlimb.pipeline.geometry.BodyCenter`): the mapped quantities (``center_r``,
+``center_c``, ``radius`` or ``range_km`` ...) replace the fit parameters they are a function of, the other
+free parameters are carried as they are.  One square matrix, reported as ``{name: {name: value}}``
+(DESIGN.md).  A model-error term of the map (the free ellipse's unsigned centre offset) is added to the
+mapped block.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..models import CIRCLE, ELLIPSE, ELLIPSE_RAMP, CircleParams, EllipseRampParams, LimbDarkenedParams, LimbProfileParams
+from .checks import check_center_sigma, check_edge_width, check_levels
+from .frame import Frame
+from .geometry import BodyCenter
+from .refine import LOGISTIC_TO_GAUSS, RefineResult, fisher_information
+from .result import LimbMeasurement
+
+
+@dataclass(frozen=True)
+class Covariance:
+    """A square covariance and the names of its rows (and the Jacobian from the fit's free parameters)."""
+
+    names: list[str]
+    matrix: np.ndarray
+    jacobian: np.ndarray
+
+    def as_dict(self) -> dict[str, dict[str, float]]:
+        return {a: {b: float(self.matrix[i, j]) for j, b in enumerate(self.names)} for i, a in enumerate(self.names)}
+
+    def block(self, names: tuple[str, ...]) -> np.ndarray:
+        idx = [self.names.index(n) for n in names]
+        return self.matrix[np.ix_(idx, idx)]
+
+
+def covariance(final: RefineResult, geo: BodyCenter) -> Covariance:
+    """Stage "covariance": ``J P_fit J^T`` with ``J`` the body-centre map on the mapped parameters and the
+    identity on the others (module docstring)."""
+    free = list(final.fit.free)
+    gidx = [free.index(n) for n in geo.params]
+    other = [i for i in range(len(free)) if i not in gidx]
+    m = len(geo.outputs)
+    J = np.zeros((m + len(other), len(free)))
+    J[:m, gidx] = geo.jacobian
+    for row, i in enumerate(other):
+        J[m + row, i] = 1.0
+    P = J @ np.asarray(final.fit.covariance) @ J.T
+    if geo.model_cov is not None:
+        P[:m, :m] += geo.model_cov
+    return Covariance(list(geo.outputs) + [free[i] for i in other], 0.5 * (P + P.T), J)
+
+
+def crlb(frame: Frame, final: RefineResult, cov: Covariance) -> dict[str, float] | None:
+    """The Cramér--Rao bound at the estimate with :math:`\\hat\\sigma` as the noise level, propagated as the
+    covariance.  With unit pixel weights it *is* the fit's own covariance (no second pass over the
+    pixels); with the level normalisation's weights it is :func:`~jaxlimb.analysis.crlb.crlb`'s Fisher
+    information with per-pixel noise ``sigma / w_i``."""
+    if not frame.opt.compute_crlb:
+        return None
+    C = cov.matrix
+    if final.data.weights is not None:
+        fp = final.fit.params
+        model = {CircleParams: CIRCLE, EllipseRampParams: ELLIPSE_RAMP}.get(type(fp), ELLIPSE)
+        sigma = math.sqrt(max(float(final.fit.sigma2), 1e-300))
+        try:
+            C = cov.jacobian @ np.linalg.inv(fisher_information(model, fp, final.data, final.fixed, sigma)) @ cov.jacobian.T
+        except np.linalg.LinAlgError:  # pragma: no cover - singular Fisher matrix
+            return None
+    return {n: float(math.sqrt(max(C[i, i], 0.0))) for i, n in enumerate(cov.names)}
+
+
+@dataclass(frozen=True)
+class Levels:
+    """The edge in the units of the result: logistic ``k``, inside/outside levels (DN) and the PSF sigma."""
+
+    k: float
+    ymax: float
+    ymin: float
+    psf_sigma_px: float
+    profile: dict[str, Any] | None
+
+
+def levels(final: RefineResult) -> Levels:
+    """The fitted edge as ``k, ymax, ymin`` (the physical profiles: the logistic ``k`` equivalent to their
+    Gaussian edge, ``ymin + amp`` as ``ymax``) and its PSF sigma (``sqrt((1.7/k)^2 - 1/12)`` for a logistic;
+    ``1/k`` for the ramp's Gaussian kernel, pixel box included)."""
+    fp = final.fit.params
+    if isinstance(fp, (LimbProfileParams, LimbDarkenedParams)):
+        sig = abs(float(fp.sigma))
+        s_e = math.sqrt(sig * sig + 1.0 / 12.0)
+        if isinstance(fp, LimbProfileParams):
+            prof = {"model": "lunar-lambert", "psf_sigma_px": sig, "amp": float(fp.amp),
+                    "phase_deg": math.degrees(float(fp.phase)), "L": float(fp.L)}
+        else:
+            prof = {"model": "limb-darkened", "psf_sigma_px": sig, "amp": float(fp.amp), "u1": float(fp.u1),
+                    "u2": float(fp.u2)}
+        return Levels(LOGISTIC_TO_GAUSS / s_e, float(fp.ymin) + float(fp.amp), float(fp.ymin), sig, prof)
+    d = final.data
+    k = float(fp.k)
+    s_e = (1.0 / abs(k)) if isinstance(fp, EllipseRampParams) else LOGISTIC_TO_GAUSS / abs(k) if k != 0 else math.inf
+    sig = math.sqrt(max(s_e * s_e - 1.0 / 12.0, 0.0)) if k > 0 else math.inf
+    return Levels(k, float(d.offset + d.scale * float(fp.ymax)), float(d.offset + d.scale * float(fp.ymin)), sig, None)
+
+
+def check_physical(frame: Frame, lev: Levels, cov: Covariance, what: str) -> None:
+    """Stage "checks" (a fit is physical or it is a failure): the body brighter than the sky, the edge blur
+    plausible, the centre's sigma within ``max_center_sigma_px``."""
+    check_levels(lev.ymax, lev.ymin, what)
+    if lev.profile is not None and float(lev.profile["amp"]) <= 0:
+        check_levels(lev.ymin + float(lev.profile["amp"]), lev.ymin, what)
+    check_edge_width(lev.psf_sigma_px, frame.opt.max_psf_sigma_px, what)
+    if "center_r" in cov.names:
+        check_center_sigma(cov.block(("center_r", "center_c")), frame.opt.max_center_sigma_px)
+
+
+def timings(frame: Frame) -> dict[str, float]:
+    """Seconds spent in each stage (``frame.timings`` holds the end time of each) and the total."""
+    out, t = {}, frame.t0
+    for name, end in frame.timings.items():
+        out[name] = end - t
+        t = end
+    out["total"] = time.perf_counter() - frame.t0
+    return out
+
+
+def measurement(frame: Frame, cand: Any, final: RefineResult, geo: BodyCenter, cov: Covariance, lev: Levels,
+                extras: dict[str, Any], iterations: int) -> LimbMeasurement:
+    """Stage "result": the :class:`~jaxlimb.pipeline.result.LimbMeasurement` (the same type for every body)."""
+    pix = None
+    if frame.opt.keep_pixels:
+        pix = final.coords
+        if frame.use_camera and frame.cam is not None and frame.cam.has_distortion:
+            pix = frame.cam.distort(final.coords)
+    if lev.profile is not None:
+        extras = {"profile": lev.profile, **extras}
+    extras = {**geo.extras, **extras, "sigma_hat": math.sqrt(max(float(final.fit.sigma2), 0.0)) * final.data.scale,
+              "timings_s": timings(frame)}
+    return LimbMeasurement(
+        center_rc=(float(geo.center_rc[0]), float(geo.center_rc[1])),
+        radius_px=None if geo.radius_px is None else float(geo.radius_px),
+        ellipse=geo.ellipse, k=lev.k, ymax=lev.ymax, ymin=lev.ymin, covariance=cov.as_dict(),
+        iterations=int(iterations), solver=final.fit.solver, front_end=cand.front_end,
+        n_pixels=int(final.fit.n_pixels), los_camera=geo.los, range_km=geo.range_km,
+        crlb=crlb(frame, final, cov), extras={k: v for k, v in extras.items() if v is not None},
+        selected_pixels_rc=pix)
+
+
+__all__ = ["Covariance", "Levels", "check_physical", "covariance", "crlb", "levels", "measurement", "timings"]

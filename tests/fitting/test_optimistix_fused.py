@@ -1,0 +1,45 @@
+"""optimistix solvers with the fused analytic Jacobian and the normal-equations solve (issue 13)."""
+
+import lineax as lx
+import numpy as np
+import optimistix as optx
+import pytest
+
+from jaxlimb.fitting import NormalLM, Optimistix, fit
+from jaxlimb.models import CIRCLE, ELLIPSE
+
+from .helpers import circle_problem, ellipse_problem
+
+
+@pytest.mark.parametrize("make", [lambda: optx.LevenbergMarquardt(rtol=1e-10, atol=1e-10),
+                                  lambda: optx.Dogleg(rtol=1e-10, atol=1e-10)])
+def test_fused_normal_optimistix_gives_the_same_answer(make):
+    coords, z, truth = circle_problem(radius=60.0, shape=(160, 160), seed=3)
+    init = truth.replace(r0=truth.r0 + 0.4, radius=truth.radius - 0.4, k=2.5, ymax=180.0)
+    ref = fit(CIRCLE, coords, z, init, NormalLM())
+    fast = fit(CIRCLE, coords, z, init, Optimistix(make()))
+    plain = fit(CIRCLE, coords, z, init, Optimistix(make(), fused=False, normal=False))
+    a, b, c = (np.asarray(r.params.to_vector()) for r in (ref, fast, plain))
+    np.testing.assert_allclose(b, a, atol=1e-7)
+    np.testing.assert_allclose(c, a, atol=1e-7)
+    # the same algorithm: the same steps up to rounding near convergence
+    assert abs(int(fast.n_steps) - int(plain.n_steps)) <= 0.2 * int(plain.n_steps) + 1
+
+
+def test_normal_swaps_only_the_linear_solver():
+    s = Optimistix(optx.LevenbergMarquardt(rtol=1e-8, atol=1e-8))
+    conf = s.configured()
+    assert isinstance(conf.descent.linear_solver, lx.Normal)
+    assert conf.rtol == 1e-8 and type(conf) is optx.LevenbergMarquardt
+    assert Optimistix(optx.BFGS(rtol=1e-8, atol=1e-8)).configured() is not None  # no descent.linear_solver: as is
+    assert isinstance(Optimistix(optx.Dogleg(rtol=1e-8, atol=1e-8), normal=False).configured().descent.linear_solver,
+                      lx.AutoLinearSolver)
+
+
+def test_fused_residual_on_the_ellipse_with_fixed_parameters():
+    coords, z, truth = ellipse_problem(a=60.0, shape=(300, 300), seed=1)
+    init = truth.replace(a=truth.a + 0.5, theta=truth.theta + 0.02)
+    fixed = ("rho", "k")
+    ref = fit(ELLIPSE, coords, z, init, NormalLM(), fixed=fixed)
+    fast = fit(ELLIPSE, coords, z, init, Optimistix(optx.LevenbergMarquardt(rtol=1e-10, atol=1e-10)), fixed=fixed)
+    np.testing.assert_allclose(np.asarray(fast.params.to_vector()), np.asarray(ref.params.to_vector()), atol=1e-6)

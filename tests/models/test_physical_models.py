@@ -1,0 +1,65 @@
+"""The limb models that moved out of the pipeline (ramp, lunar-Lambert profile, limb-darkened disc):
+their analytic Jacobians against jax.jacfwd and central differences, as ``jaxlimb gradcheck`` runs them."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from jaxlimb.models import (
+    ALL_MODELS,
+    ELLIPSE_RAMP,
+    LIMB_DARKENED,
+    LIMB_PROFILE,
+    EllipseRampParams,
+    LimbModel,
+    ellipse_ramp_intensity,
+    ellipse_ramp_intensity_jac,
+)
+from jaxlimb.models.gradcheck import SPECS, check_model
+from jaxlimb.models.lunar_lambert import quadrature_nodes
+
+jax.config.update("jax_enable_x64", True)
+
+
+@pytest.mark.parametrize("model, n_points", [(ELLIPSE_RAMP, 30), (LIMB_PROFILE, 12), (LIMB_DARKENED, 8)],
+                         ids=lambda m: getattr(m, "name", ""))
+def test_analytic_jacobian_matches_autodiff_and_fd(model, n_points):
+    checks = check_model(model, n_points=n_points, seed=11)
+    assert [c.param for c in checks] == list(model.param_names)
+    for c in checks:
+        assert c.passed, c
+    assert checks[0].tol == SPECS.get(model.name).tol if model.name in SPECS else checks[0].tol == 1e-9
+
+
+def test_every_model_is_in_the_registry_with_its_jacobian():
+    assert set(ALL_MODELS) == {"linear", "circle", "ellipse", "ellipse_ramp", "lunar_limb", "limb_darkened"}
+    for m in ALL_MODELS.values():
+        assert m.value_and_columns is not None, m.name  # the fits' one-pass path, not autodiff
+
+
+def test_gradcheck_catches_a_wrong_ramp_column():
+    """A factor error in one column of the ramp (dk) shows up as an O(1) relative error."""
+    bad_jac = lambda p, x: ellipse_ramp_intensity_jac(p, x).at[:, 5].multiply(1.01)  # noqa: E731
+    bad = LimbModel("ellipse_ramp", EllipseRampParams, ellipse_ramp_intensity, bad_jac, ELLIPSE_RAMP.jacobian_columns)
+    errs = {c.param: c.max_rel_err for c in check_model(bad, n_points=3)}
+    assert errs["k"] > 1e-3 and errs["r0"] < 1e-9
+
+
+def test_quadrature_nodes_is_scoped():
+    import jaxlimb.models.lunar_lambert as ll
+
+    n0 = ll._GL_X.size
+    with quadrature_nodes(64):
+        assert ll._GL_X.size == 64
+    assert ll._GL_X.size == n0 == ll.N_NODES
+
+
+def test_ramp_jacobian_at_the_table_edges():
+    """The blurred square root switches from its table to its asymptote at k u = 16 and is flat below -10."""
+    p = EllipseRampParams(0.0, 0.0, 100.0, 0.2, 0.95, 2.0, 200.0, 10.0, 1.5, 7.0, 3.0, -2.0, 1.0, 0.5)
+    us = np.array([-6.0, -5.0, -0.3, 0.0, 4.0, 7.99, 8.01, 9.0])  # k u from -12 to 18
+    rc = jnp.asarray(np.column_stack([np.zeros_like(us), 95.0 - us]))
+    J = np.asarray(ellipse_ramp_intensity_jac(p, rc))
+    Ja = np.asarray(jax.jacfwd(lambda v: ellipse_ramp_intensity(EllipseRampParams.from_vector(v), rc))(p.to_vector()))
+    np.testing.assert_allclose(J, Ja, rtol=1e-10, atol=1e-10 * np.abs(Ja).max())

@@ -1,0 +1,157 @@
+"""One ``locate`` pipeline of small stages over body strategies: its structure, its options, and "a fit
+is physical or it is a failure" (issue 10, items 1-2)."""
+
+from __future__ import annotations
+
+import ast
+import json
+import math
+import pathlib
+from types import SimpleNamespace
+
+import cv2
+import numpy as np
+import pytest
+
+import jaxlimb.pipeline as pipeline_pkg
+from jaxlimb.cli import main
+from jaxlimb.errors import ArcTooShortError, CheckFailed, ConfigError, ConvergenceError
+from jaxlimb.geometry.camera import Camera
+from jaxlimb.pipeline import LocateOptions, locate
+from jaxlimb.pipeline.checks import (
+    CenterTooUncertainError,
+    NonPhysicalFitError,
+    check_center_sigma,
+    check_edge_width,
+    check_levels,
+)
+from jaxlimb.pipeline.options import BodyShape, FrontEnd, Profile
+
+from ._scenes import SMALL_CAMERA, scene, sun_hints
+
+
+def _functions(root: pathlib.Path):
+    for path in sorted(root.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                yield path.name, node.name, node.end_lineno - node.lineno + 1
+
+
+def test_no_pipeline_function_over_80_lines():
+    root = pathlib.Path(pipeline_pkg.__file__).parent
+    long = [(f, n, k) for f, n, k in _functions(root) if k > 80]
+    assert long == [], long
+    # the entry point is a short composition of stages
+    assert max(k for f, n, k in _functions(root) if n == "locate" and f == "locate.py") <= 80
+
+
+def test_locate_earth_is_gone_and_the_strategies_are_chosen_by_the_hints():
+    import jaxlimb.pipeline.earth as earth
+    from jaxlimb.pipeline.bodies import Disc, Sphere, body_strategy
+    from jaxlimb.pipeline.ellipsoid import Ellipsoid
+    from jaxlimb.pipeline.frame import prepare
+
+    assert not hasattr(earth, "locate_earth")
+    img = np.zeros((64, 80), np.uint8)
+    cam = Camera(focal_length_mm=8.0, rows=64, cols=80)
+    pick = lambda h, o=None: body_strategy(prepare(img, cam, h, o))  # noqa: E731
+    assert isinstance(pick({"body": "earth"}), Ellipsoid)
+    assert isinstance(pick({"body": "sun"}), Disc)
+    assert type(pick({"body": "moon"})) is Sphere and type(pick(None)) is Sphere
+    assert isinstance(pick({"body": "moon"}, LocateOptions(shape="ellipsoid")), Ellipsoid)
+    # the ellipsoid honours `model` (free ellipse) and refuses what it cannot do
+    assert pick({"body": "earth", "R_body_to_camera": np.eye(3).tolist()}).free is False
+    assert pick({"body": "earth", "R_body_to_camera": np.eye(3).tolist()}, LocateOptions(model="ellipse")).free
+    with pytest.raises(ConfigError, match="estimate_k"):
+        pick({"body": "earth"}, LocateOptions(estimate_k=False))
+    with pytest.raises(ConfigError, match="camera"):
+        body_strategy(prepare(img, None, {"body": "earth"}, None))
+
+
+def test_options_are_enums_checked_at_construction():
+    o = LocateOptions(front_end="scanline", profile="sigmoid", shape="disc")
+    assert o.front_end is FrontEnd.SCANLINE and o.front_end == "scanline" and str(o.front_end) == "scanline"
+    assert o.profile is Profile.SIGMOID and o.shape is BodyShape.DISC
+    assert json.dumps({"f": o.front_end}) == '{"f": "scanline"}'
+    for bad in (dict(front_end="sobel"), dict(model="square"), dict(profile="lambert"), dict(shape="cube"),
+                dict(max_psf_sigma_px=0.0), dict(max_center_sigma_px=-1.0)):
+        with pytest.raises(ConfigError):
+            LocateOptions(**bad)
+
+
+def test_physical_checks_are_typed_exit_3():
+    with pytest.raises(NonPhysicalFitError, match="wrong sign") as e:
+        check_levels(-1830.0, 12.0, "ellipsoid")
+    assert e.value.exit_code == 3 and e.value.check == "non_physical_fit"
+    check_levels(200.0, 10.0, "sphere")
+    with pytest.raises(NonPhysicalFitError, match="PSF"):
+        check_edge_width(7.5, 5.0, "sphere")
+    with pytest.raises(NonPhysicalFitError):
+        check_edge_width(float("nan"), 5.0, "sphere")
+    check_edge_width(1.2, 5.0, "sphere")
+    with pytest.raises(CenterTooUncertainError, match="1-sigma is 2") as e:
+        check_center_sigma(np.diag([4.0, 0.01]), 1.0)
+    assert e.value.exit_code == 3
+    assert check_center_sigma(np.diag([4.0, 0.01]), None) == pytest.approx(2.0)
+
+
+def test_covariance_is_one_square_matrix_and_a_stated_tolerance_fails_the_frame():
+    img, tr = scene(30000.0, 30.0, (190.0, 260.0), 20.0)
+    m = locate(img, SMALL_CAMERA, sun_hints(tr))
+    names = list(m.covariance)
+    assert names[:3] == ["center_r", "center_c", "radius"]
+    assert all(list(row) == names for row in m.covariance.values())
+    P = np.array([[m.covariance[a][b] for b in names] for a in names])
+    assert np.allclose(P, P.T) and np.all(np.linalg.eigvalsh(P) > -1e-12 * np.abs(P).max())
+    s = math.sqrt(max(np.linalg.eigvalsh(P[:2, :2])))
+    assert m.extras["timings_s"]["total"] > 0 and {"front_end", "refine", "profile", "body_center"} <= set(
+        m.extras["timings_s"])
+    with pytest.raises(CenterTooUncertainError):
+        locate(img, SMALL_CAMERA, sun_hints(tr), LocateOptions(max_center_sigma_px=0.5 * s))
+
+
+def test_earth_short_arc_is_arc_too_short():
+    from jaxlimb.pipeline.bodies import body_strategy
+    from jaxlimb.pipeline.frame import prepare
+
+    cam = Camera(focal_length_mm=8.0, rows=400, cols=400)
+    frame = prepare(np.zeros((400, 400), np.uint8), cam, {"body": "earth"}, None)
+    body = body_strategy(frame)
+    cand = SimpleNamespace(center_rc=(200.0, 200.0), radius=120.0, lit_direction=(0.0, 1.0),
+                           lit_halfangle=math.radians(33.0), info={})
+    with pytest.raises(ArcTooShortError) as e:
+        body.limb_pixels(frame, cand)
+    assert e.value.check == "arc_too_short"
+
+
+def test_range_iteration_without_convergence_is_a_failed_check():
+    from jaxlimb.geometry.ellipsoid import image_conic
+    from jaxlimb.pipeline.earth import earth_position_from_ellipse
+    from jaxlimb.render import earth_scene
+
+    cam = Camera(focal_length_mm=8.0, rows=1400, cols=1400)
+    sc = earth_scene(40000.0, 35.0, 40.0, center_rc=(650.0, 760.0), camera=cam, north_angle_deg=70.0)
+    ic = image_conic(cam, sc.radii, sc.q, sc.R_body_to_camera)
+    p0 = -1.2 * sc.q
+    with pytest.raises(ConvergenceError) as e:
+        earth_position_from_ellipse(cam, ic.center_rc, ic.semi_axes_px, ic.angle_rad, p0,
+                                    pole_camera=sc.R_body_to_camera[:, 2], max_iter=1)
+    assert e.value.exit_code == 3
+
+
+def test_earth_on_a_moon_frame_is_not_ok(tmp_path, capsys):
+    """A 100 008 km Moon measured as the Earth: the Earth's radius at the hints' range does not fit the
+    disc in the frame -- a failed check (exit 3), never ``status: ok`` with a 366 000 km range."""
+    cam = SMALL_CAMERA
+    img, tr = scene(100008.0, 30.0, (190.0, 260.0), 20.0)
+    cv2.imwrite(str(tmp_path / "moon.png"), img)
+    (tmp_path / "camera.json").write_text(json.dumps(cam.to_dict()))
+    (tmp_path / "hints.json").write_text(json.dumps({"sun_dir_camera": list(map(float, tr.sun_dir_cam)),
+                                                     "range_prior_km": 100008.0}))
+    with pytest.raises(CheckFailed):
+        locate(img, cam, {"body": "earth", "sun_dir_camera": list(map(float, tr.sun_dir_cam)),
+                          "range_prior_km": 100008.0})
+    code = main(["locate", str(tmp_path / "moon.png"), "--camera", str(tmp_path / "camera.json"), "--hints",
+                 str(tmp_path / "hints.json"), "--body", "earth", "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert code == 3 and out["status"] == "error", out
