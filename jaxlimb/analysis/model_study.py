@@ -133,7 +133,10 @@ def _program(model: LimbModel, free_idx: tuple[int, ...], solver: AbstractLimbSo
     Each member draws its noise from ``jax.random.key(seed)`` inside the program and is fitted
     by the solver's fit core (``jax.lax.map``, as :func:`jaxlimb.fitting.fit_batch`'s ``"map"``
     strategy); the pixel set, the clean intensities and the start are arguments shared by
-    every member (no per-member or per-batch copies of them).
+    every member (no per-member or per-batch copies of them).  With several local devices
+    (e.g. ``XLA_FLAGS=--xla_force_host_platform_device_count=2`` on a 2-core CPU, which
+    ``jaxlimb montecarlo`` sets), the seeds are split over them (``jax.shard_map``, each device
+    fits its share one after another); the answer does not depend on the split.
     """
 
     def run(seeds: Array, theta0: Array, coords: Array, w: Array, clean: Array) -> LimbFit:
@@ -143,7 +146,14 @@ def _program(model: LimbModel, free_idx: tuple[int, ...], solver: AbstractLimbSo
 
         return jax.lax.map(one, seeds)
 
-    return jax.jit(run)
+    devices = jax.local_devices()
+    if len(devices) == 1:
+        return jax.jit(run)
+    from jax.sharding import Mesh, PartitionSpec
+
+    mesh, rep = Mesh(np.array(devices), ("batch",)), PartitionSpec()
+    return jax.jit(jax.shard_map(run, mesh=mesh, in_specs=(PartitionSpec("batch"), rep, rep, rep, rep),
+                                 out_specs=PartitionSpec("batch"), check_vma=False))
 
 
 def _noisy(seeds: Array, clean: Array, sigma: float) -> Array:
@@ -173,14 +183,18 @@ def _batch_trial(opt: ModelStudyOptions, solver: AbstractLimbSolver, prob: _Prob
     clean = np.asarray(model.intensity(prob.truth, jnp.asarray(coords)))
     c_p, clean_p, w_p = pad_pixels(coords, clean, np.ones(n), bucket_size(n))
     shared = [jnp.asarray(a) for a in (np.asarray(prob.init.to_vector()), c_p, w_p, clean_p)]
-    program = _program(model, model.free_indices(prob.fixed), solver, opt.sigma) if solver.jittable else None
+    width = -(-opt.batch // jax.local_device_count()) * jax.local_device_count()  # a multiple of the devices
+    program = None
+    if solver.jittable:  # compiled here, ahead of the trials (the caller times it apart)
+        jitted = _program(model, model.free_indices(prob.fixed), solver, opt.sigma)
+        program = jitted.lower(jax.ShapeDtypeStruct((width,), jnp.int64), *shared).compile()
     cols = [model.param_names.index(nm) for nm in names]
 
     def trial(seeds: np.ndarray, indices: np.ndarray) -> dict[str, np.ndarray]:
         del indices
         b = seeds.size
         if program is not None:
-            full = np.concatenate([seeds, np.repeat(seeds[:1], opt.batch - b)]) if b < opt.batch else seeds
+            full = np.concatenate([seeds, np.repeat(seeds[:1], width - b)]) if b < width else seeds
             res = program(jnp.asarray(full, dtype=jnp.int64), *shared)  # one shape: one compiled program
             vec, conv, nst = (np.asarray(x)[:b] for x in (res.params.to_vector(), res.converged, res.n_steps))
         else:
@@ -210,8 +224,10 @@ def run_model_study(opt: ModelStudyOptions, solver: AbstractLimbSolver | None = 
     (:func:`jaxlimb.analysis.montecarlo.run_monte_carlo`): realisation ``i`` draws its noise
     from ``jax.random.key(trial_seed(opt.seed, i))`` (independent of the batch size and of a
     resume); with ``out_dir`` each finished chunk is written there and a rerun with the same
-    settings resumes.  ``compile_s`` is the time spent tracing and compiling (or loading from
-    the persistent cache), ``fit_s`` the time of the fits alone, ``wall_s`` everything.
+    settings resumes.  ``compile_s`` is the time spent tracing and compiling the program (or
+    loading it from the persistent cache), before the trials; ``fit_s`` the wall time of the fits
+    alone and ``fit_cpu_s`` their CPU time (less sensitive to a loaded machine); ``wall_s``
+    everything.
     """
     from .._validate import check_memory
 
@@ -221,13 +237,15 @@ def run_model_study(opt: ModelStudyOptions, solver: AbstractLimbSolver | None = 
     prob = _Problem(*model_problem(opt))
     bound = crlb(prob.model, prob.coords, prob.truth, opt.sigma, fixed=prob.fixed)
     names = bound.free
+    t0 = time.perf_counter()
     trial = _batch_trial(opt, solver, prob, names)
+    build_s = time.perf_counter() - t0
     mc_opt = MonteCarloOptions(n_trials=opt.n, chunk_size=opt.batch, seed=opt.seed, out_dir=out_dir,
                                name=study_name(opt, solver), progress=progress, batched=True)
-    with CompileTimer() as ct:
-        t0 = time.perf_counter()
+    with CompileTimer() as ct:  # non-jittable solvers (SciPy) compile their callables on first use
+        t0, c0 = time.perf_counter(), time.process_time()
         res = run_monte_carlo(trial, mc_opt)
-        loop_s = time.perf_counter() - t0
+        loop_s, loop_cpu = time.perf_counter() - t0, time.process_time() - c0
     ok = res.ok
     tv = np.asarray(prob.truth.to_vector())
     truth = {nm: float(tv[prob.model.param_names.index(nm)]) for nm in names}
@@ -241,7 +259,8 @@ def run_model_study(opt: ModelStudyOptions, solver: AbstractLimbSolver | None = 
         "converged": int(ok.sum()),
         "wall_s": time.perf_counter() - t_start,
         "fit_s": loop_s - ct.seconds,
-        "compile_s": ct.seconds,
+        "fit_cpu_s": loop_cpu,
+        "compile_s": build_s + ct.seconds,
         "chunks_run": res.chunks_run,
         "chunks_resumed": res.chunks_skipped,
         "rms": {nm: stats[nm].get("rms", nan) for nm in names},

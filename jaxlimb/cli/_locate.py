@@ -119,10 +119,12 @@ def _read(path: str):
         return read_frame(path)
 
 
-def _json(meas, spice) -> dict:
+def _json(meas, spice, timing: dict | None = None) -> dict:
     out = meas.to_json()
     if spice is not None:
         out["spice"] = spice
+    if timing is not None:  # compile_s: tracing + compiling (or loading from the persistent cache)
+        out["timing"] = timing
     return out
 
 
@@ -135,24 +137,46 @@ def run(args: argparse.Namespace) -> int:
             from ..errors import ConfigError
 
             raise ConfigError("--figure saves one frame's picture: not with many frames")
-        return _batch.run_frames(images, args, _read, lambda path, frame: _json(*_measure(args, frame)[:2]))
+        return _batch.run_frames(images, args, _read, _frame_json(args))
     from . import figure_path, report_after_result, try_save
 
     args.image = images[0]
     figure_path(args.figure, "--figure")  # before any work
-    meas, spice, image = _measure(args, _read(args.image))
+    meas, spice, image, timing = _measure(args, _read(args.image))
     figure_error = None
     if args.figure:  # after the work: a failing writer must not lose the measurement
         from ..pipeline import save_locate_figure
 
         figure_error = try_save(lambda: save_locate_figure(image, meas, args.figure), "--figure")
-    _print(args, meas, spice, figure_error)
+    _print(args, meas, spice, figure_error, timing)
     return report_after_result(figure_error)
 
 
+def _frame_json(args: argparse.Namespace):  # noqa: ANN202
+    """The per-frame measure of the many-frame runner: ``(path, frame) -> --json object``."""
+    def measure(path: str, frame) -> dict:  # noqa: ANN001
+        meas, spice, _, timing = _measure(args, frame)
+        return _json(meas, spice, timing)
+
+    return measure
+
+
 def _measure(args: argparse.Namespace, frame):
-    """``(measurement, SPICE report or None, image)`` of one frame.  The CLI chooses nothing but options:
-    :func:`jaxlimb.pipeline.locate` picks the body strategy from the hints' body."""
+    """``(measurement, SPICE report or None, image, timing)`` of one frame; ``timing`` holds the
+    seconds of the measurement and ``compile_s``, the part spent compiling (0 once compiled)."""
+    import time
+
+    from .._jaxcache import CompileTimer
+
+    t0 = time.perf_counter()
+    with CompileTimer() as ct:
+        meas, spice, image = _measure_frame(args, frame)
+    return meas, spice, image, {"seconds": time.perf_counter() - t0, "compile_s": ct.seconds}
+
+
+def _measure_frame(args: argparse.Namespace, frame):
+    """The CLI chooses nothing but options: :func:`jaxlimb.pipeline.locate` picks the body strategy
+    from the hints' body."""
     from ..errors import SaturationWarning
     from ..geometry.camera import Camera
     from ..pipeline import LocateOptions, locate
@@ -170,11 +194,11 @@ def _measure(args: argparse.Namespace, frame):
     return meas, (_spice_report(geom, meas) if geom is not None else None), image
 
 
-def _print(args: argparse.Namespace, meas, spice, figure_error: str | None = None) -> None:
+def _print(args: argparse.Namespace, meas, spice, figure_error: str | None = None, timing: dict | None = None) -> None:
     from . import emit_json
 
     if args.json:
-        emit_json({**_json(meas, spice), **({"figure_error": figure_error} if figure_error else {})})
+        emit_json({**_json(meas, spice, timing), **({"figure_error": figure_error} if figure_error else {})})
     else:
         print(f"centre (row, col): {meas.center_rc[0]:.4f} {meas.center_rc[1]:.4f} px")
         if meas.radius_px is not None:

@@ -40,7 +40,7 @@ def _summary(res: Any, opt: Any, args: argparse.Namespace, camera: Any) -> dict[
             "error_px": {k: {m: st["params"][k].get(m) for m in ("rms", "bias", "std", "max_abs", "n")} for k in _KEYS},
             "iterations_mean": float(it.mean()) if it.size else None,
             "study": {"frame": [camera.rows, camera.cols], "range_km": args.range_km, "phase_deg": args.phase_deg,
-                      "sigma_dn": args.sigma, "seed": args.seed, "chunk_size": opt.chunk_size}}
+                      "sigma_dn": args.sigma, "seed": args.seed}}
 
 
 def run_pipeline(args: argparse.Namespace) -> int:

@@ -35,6 +35,7 @@ from jaxtyping import Array, Float, Int
 
 from ..errors import ConvergenceError, LimbInputError
 from ..models import LimbModel, LimbParams
+from ._aot import ExportedCore, stable_ident
 from .solvers import AbstractLimbSolver, FitResult, LimbProblem, NormalLM
 
 _MIN_BUCKET = 256
@@ -273,8 +274,22 @@ def _core_jit(solver: AbstractLimbSolver, problem: LimbProblem, max_steps: int) 
         def run(theta0: Array, coords: Array, z: Array, w: Array) -> LimbFit:
             return _traced_core(solver, LimbProblem(model, free_idx, analytic, theta0, coords, z, w), max_steps)
 
-        fn = _JITTED[key] = jax.jit(run)
+        ident = stable_ident(solver, model, free_idx, analytic, max_steps)
+        fn = _JITTED[key] = jax.jit(run) if ident is None else ExportedCore(run, ident, _template(model, free_idx, solver.name))
     return fn(*problem.args)
+
+
+def _template(model: LimbModel, free_idx: tuple[int, ...], solver_name: str) -> Any:
+    """``(*args) -> LimbFit`` of placeholders: the output structure of the fit core, without tracing."""
+    def template(*args: Any) -> LimbFit:
+        del args
+        q, zero = len(free_idx), np.zeros(())
+        return LimbFit(params=model.params_type.from_vector(np.zeros(len(model.param_names))),
+                       free=tuple(model.param_names[i] for i in free_idx), covariance=np.zeros((q, q)),
+                       sigma2=zero, rms=zero, n_pixels=zero, n_steps=zero, result=FitResult.successful,
+                       solver=solver_name)
+
+    return template
 def batch_core(solver: AbstractLimbSolver, problem: LimbProblem, max_steps: int) -> LimbFit:
     """Fit every member of a batched ``problem`` one after another (``jax.lax.map``); un-jitted.
 

@@ -197,4 +197,65 @@ def fit_shape(points_rc: np.ndarray, shape: LimbShape, *, n_trim: int = 3, min_p
     return out, full
 
 
-__all__ = ["LimbShape", "fit_shape", "limb_edges", "predicted_limb"]
+def edge_bias_gain(points_rc: np.ndarray, shape: LimbShape) -> np.ndarray:
+    """Centre shifts ``(3, 2)`` of the fixed-shape fit per px of three edge-error patterns along the arc.
+
+    A limb model not quite the scene's places the edge ``delta(phi)`` px off, ``phi`` the
+    angle around the centre.  Rows: a uniform shift (the scale absorbs it: ~0), and the
+    first harmonic ``cos(phi - phi_m)``, ``sin(phi - phi_m)`` about the arc's mid-angle
+    ``phi_m`` (a pure centre shift on a whole limb, amplified on a short arc where centre and
+    scale trade off).
+    """
+    p = np.asarray(points_rc, float)
+    p = p[np.isfinite(p).all(axis=1)]
+    x, y = shape.to_frame(p)
+    nx, ny = x / shape.a**2, y / (shape.rho * shape.a) ** 2
+    nn = np.hypot(nx, ny)
+    phi = np.arctan2(y, x)
+    phi_m = float(np.angle(np.mean(np.exp(1j * phi))))
+    base, _ = fit_shape(p, shape, n_trim=0)
+    out = []
+    for pattern in (np.ones_like(phi), np.cos(phi - phi_m), np.sin(phi - phi_m)):
+        moved = shape.from_frame(x + pattern * nx / nn, y + pattern * ny / nn)
+        b, _ = fit_shape(moved, shape, n_trim=0)
+        out.append(np.subtract(b.center_rc, base.center_rc))
+    return np.array(out)
+
+
+def arc_center(image: np.ndarray, expected_radius_px: float, radius_uncertainty_frac: float, *,
+               mask: np.ndarray | None = None, n_points: int = 3000, smooth_px: float = 1.5) -> tuple[float, float]:
+    """Centre of a limb arc whose circle is larger than the frame (close approach), for the start.
+
+    The ``n_points`` strongest gradients of the smoothed image (invalid pixels and the 3-px
+    frame border left out: a frame edge is not a limb), and RANSAC with index rotation
+    (:func:`jaxlimb.conics.ransac_circle`, Aerospace 2015 §5) for a circle of radius within
+    ``expected_radius_px (1 -/+ 3 u)``.  The centre may lie outside the frame.
+
+    Raises
+    ------
+    TooBigError
+        No arc of that radius in the frame: the body fills the image and no limb is visible.
+    """
+    from ..conics import RansacOptions, ransac_circle
+    from ..errors import TooBigError
+    from .gradient import strongest_pixels
+
+    img = np.asarray(image, dtype=np.float64)
+    sm = ndimage.gaussian_filter(img, smooth_px, mode="nearest")
+    g = np.hypot(ndimage.sobel(sm, 0), ndimage.sobel(sm, 1))
+    g[:3], g[-3:], g[:, :3], g[:, -3:] = 0, 0, 0, 0
+    if mask is not None:
+        g[~ndimage.binary_erosion(mask, iterations=int(math.ceil(3 * smooth_px)) + 1, border_value=1)] = 0
+    pts = strongest_pixels(g, n_points).astype(np.float64)
+    pr, u = float(expected_radius_px), float(radius_uncertainty_frac)
+    opt = RansacOptions(threshold=max(2.0, 0.01 * pr), max_tests=500, min_inliers=30, min_inlier_fraction=0.2,
+                        radius_range=(pr * max(0.2, 1 - 3 * u), pr * (1 + 3 * u)))
+    res = ransac_circle(pts, opt) if len(pts) >= 30 else None
+    if not res or res.circle is None:
+        raise TooBigError(
+            f"Check 1: the expected radius {pr:.0f} px exceeds the frame and no limb arc of that radius is visible "
+            f"({'no' if res is None else res.reason}): the body fills the image")
+    return (float(res.circle.center_rc[0]), float(res.circle.center_rc[1]))
+
+
+__all__ = ["LimbShape", "arc_center", "edge_bias_gain", "fit_shape", "limb_edges", "predicted_limb"]

@@ -5,6 +5,11 @@ Shape model -> view sphere (Eq. 5-7) -> template silhouettes and features
 similarity transform to the body-centre image (Eq. 18-25) -> line of sight
 (Eq. 1-4), plus the FC/BC baselines and a soft-silhouette least-squares
 refinement (:mod:`.refine`, beyond the paper).
+
+Beyond the paper, for frames at any phase: :func:`locate_los` (:mod:`.locate`) --
+phase-aware template search (:mod:`.phase`) and render-and-register with the attitude
+known or fitted (:mod:`.register`), with typed failures when the model does not explain
+the frame; generated test bodies in :mod:`.shapes`.
 """
 
 from .database import DatabaseOptions as DatabaseOptions
@@ -19,6 +24,10 @@ from .features import features_from_contours as features_from_contours
 from .features import features_from_mask as features_from_mask
 from .features import hu_from_central as hu_from_central
 from .features import log_hu as log_hu
+from .locate import LosMode as LosMode
+from .locate import LosOptions as LosOptions
+from .locate import LosResult as LosResult
+from .locate import locate_los as locate_los
 from .matching import LocateResult as LocateResult
 from .matching import MatchOptions as MatchOptions
 from .matching import line_of_sight as line_of_sight

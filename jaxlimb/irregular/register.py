@@ -234,6 +234,28 @@ def initial_centre(mesh: Mesh, camera: object, R: np.ndarray, sun, mask: np.ndar
     return P, D
 
 
+def lit_figure(image: np.ndarray, min_frac: float = 0.02) -> tuple[np.ndarray, float]:
+    """The whole lit figure: :func:`segment_body`'s threshold, every component of at least
+    ``min_frac`` of the largest one (holes filled).
+
+    At phase > 0 the lit part of a non-convex body (a contact binary's two lobes, a
+    ridge beyond a dark valley) can fall apart into several pieces; the largest alone
+    is not the figure the model predicts.
+    """
+    mask, thr = segment_body(image)
+    binary = (np.asarray(image, dtype=float) > thr).astype(np.uint8)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
+    if n <= 2:
+        return mask, thr
+    area = stats[1:, cv2.CC_STAT_AREA]
+    keep = 1 + np.nonzero(area >= max(min_frac * float(area.max()), 20.0))[0]
+    comp = np.isin(labels, keep).astype(np.uint8)
+    contours, _ = cv2.findContours(comp, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    full = np.zeros_like(comp)
+    cv2.drawContours(full, contours, -1, color=1, thickness=cv2.FILLED)
+    return full, thr
+
+
 def _window(camera: object, P: np.ndarray, D: float, mesh: Mesh, mask: np.ndarray, pad: int):  # type: ignore[no-untyped-def]
     """Pixel window holding the predicted body (bounding sphere) and the observed figure, plus ``pad``."""
     rad = camera.focal_px * mesh.max_radius / max(D - mesh.max_radius, 1e-9 * D)  # type: ignore[attr-defined]
@@ -320,13 +342,13 @@ def _attitude_columns(mesh, camera, R, t, sun, lo, hi, G, ratio, sigma, options)
     return np.stack(cols, axis=1)
 
 
-def _gauss_newton(image, mesh, camera, R, sun, P, D, mask, options, fit_attitude=False):  # type: ignore[no-untyped-def]
+def _gauss_newton(image, mesh, camera, R, sun, P, D, mask, options, fit_attitude=False, wide=False):  # type: ignore[no-untyped-def]
     """Step 3 of the module docstring (coarse-to-fine: blurred iterations first); state of the last solve."""
     it = 0
     n = math.inf
     ratio = 0.0
     blur = options.blur_px
-    if fit_attitude:
+    if fit_attitude or wide:
         rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
         size = float(max(rr[-1] - rr[0], cc[-1] - cc[0]) + 1)
         blur = tuple(f * size for f in options.attitude_blur_frac if f * size >= options.attitude_blur_min_px)
@@ -397,8 +419,7 @@ def register_known_attitude(
     options
         Registration options.
     segmentation
-        ``(mask, threshold)`` of :func:`~jaxlimb.irregular.silhouette.segment_body`, if
-        already segmented.
+        ``(mask, threshold)`` of :func:`lit_figure`, if already segmented.
     fit_attitude
         Also fit a small rotation of ``R_body_to_camera`` (finite-difference columns,
         used when the attitude comes from a template match, not from the hints).
@@ -414,13 +435,19 @@ def register_known_attitude(
     """
     img = np.asarray(image, dtype=float)
     R = np.asarray(R_body_to_camera, dtype=float)
-    mask, thr = segment_body(img) if segmentation is None else segmentation
+    mask, thr = lit_figure(img) if segmentation is None else segmentation
     P, D = initial_centre(mesh, camera, R, sun_dir_camera, mask, range_km) if initial is None else initial
     lo, hi = _window(camera, P, D, mesh, mask, options.margin_px)
     M, _ = render_model(mesh, camera, R, _pose(camera, P, D), sun_dir_camera, lo, hi, options)
     shift, ncc = ncc_shift(img, M, lo, options.search_px)
     P = P + shift
-    P, D, R, A, y, beta, lo, hi, iters = _gauss_newton(img, mesh, camera, R, sun_dir_camera, P, D, mask, options, fit_attitude)
+    try:
+        P, D, R, A, y, beta, lo, hi, iters = _gauss_newton(img, mesh, camera, R, sun_dir_camera, P, D, mask, options, fit_attitude)
+    except ConvergenceError:
+        if fit_attitude:
+            raise
+        # a poor start (a non-convex body's extents): again with the coarse-to-fine blur of the attitude fit
+        P, D, R, A, y, beta, lo, hi, iters = _gauss_newton(img, mesh, camera, R, sun_dir_camera, P, D, mask, options, False, True)
     return _finish(img, camera, (mask, thr), P, D, R, A, y, beta, lo, hi, iters, ncc, options)
 
 
@@ -481,4 +508,4 @@ def _finish(img, camera, segmentation, P, D, R, A, y, beta, lo, hi, iters, ncc, 
     )
 
 
-__all__ = ["RegisterOptions", "RegisterResult", "initial_centre", "ncc_shift", "register_known_attitude", "render_model"]
+__all__ = ["RegisterOptions", "RegisterResult", "initial_centre", "lit_figure", "ncc_shift", "register_known_attitude", "render_model"]

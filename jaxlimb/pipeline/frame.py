@@ -3,6 +3,8 @@ on the prior) and ``candidates`` (the front end, Checks 1-4); the typed value :c
 
 from __future__ import annotations
 
+import math
+
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -46,6 +48,8 @@ class Frame:
     timings : stage name -> end time, filled in as the stages run.
     observed_cam : the camera of the observed image when a strategy resampled it onto the ideal grid
         (``img``/``cam`` are then the resampled image and its pinhole camera).
+    mask : validity mask (``True`` = measured pixel) or ``None``; the gradient front end drops
+        candidates near invalid pixels.
     """
 
     img: np.ndarray
@@ -55,6 +59,7 @@ class Frame:
     t0: float
     timings: dict[str, float] = field(default_factory=dict)
     observed_cam: Camera | None = None
+    mask: np.ndarray | None = None
 
     @property
     def pin(self) -> Camera | None:
@@ -118,8 +123,8 @@ def prepare(image: Any, camera: Any, hints: Any, options: Any, mask: Any = None)
         raise ConfigError(f"camera size {cam.rows}x{cam.cols} does not match the image size {img.shape[0]}x{img.shape[1]}")
     if mask is not None and np.shape(mask) != img.shape:
         raise ConfigError(f"mask shape {np.shape(mask)} does not match the image size {img.shape}")
-    frame = Frame(img, cam, hin, opt, t0)
-    if hin is not None:
+    frame = Frame(img, cam, hin, opt, t0, mask=None if mask is None else np.asarray(mask, dtype=bool))
+    if hin is not None and not arc_only(frame):  # (a disc larger than the frame: its arc is measured)
         popt = getattr(frame.front_end_options(), "prior", None)
         pri0 = prior_from_hints(hin, cam, options=popt, check=True)
         if pri0 is not None and cam is None:
@@ -134,10 +139,20 @@ def limb_predicted(frame: Frame) -> bool:
             and h.range_prior_km is not None and h.radius_km() is not None)
 
 
+def arc_only(frame: Frame) -> bool:
+    """Camera (pinhole), range and radius known, and the expected disc larger than the frame's half-diagonal."""
+    cam, h = frame.cam, frame.hints
+    if cam is None or cam.has_distortion or h is None or h.radius_km() is None or h.range_prior_km is None:
+        return False
+    rkm, rng = h.radius_km(), h.range_prior_km
+    return rng > rkm and cam.focal_px * math.tan(math.asin(rkm / rng)) > 0.5 * math.hypot(*frame.img.shape)
+
+
 def candidates(frame: Frame) -> Any:
     """Stage 2: the front end's limb candidates, circle and lit direction (Checks 1-4)."""
+    mask = frame.mask if frame.observed_cam is None else None  # (a resampled frame: the mask no longer fits)
     cand = front_end(frame.opt.front_end, frame.img, None, hints=frame.hints, camera=frame.cam,
-                     options=frame.front_end_options())
+                     options=frame.front_end_options(), mask=mask)
     frame.mark("front_end")
     return cand
 

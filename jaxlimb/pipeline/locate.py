@@ -36,7 +36,7 @@ import numpy as np
 from ..geometry.camera import Camera
 from ..imaging import Hints
 from .bodies import body_strategy
-from .frame import candidates, limb_predicted, prepare
+from .frame import arc_only, candidates, limb_predicted, prepare
 from .options import LocateOptions
 from .report import check_physical, covariance, levels, measurement
 from .result import LimbMeasurement
@@ -69,7 +69,8 @@ def locate(
         pixels are neither limb nor background.  With a camera and hints that predict the limb of a
         sphere (``expected_center_rc``, ``range_prior_km``, radii: SPICE), the whole limb, lit and
         dark, is measured by :func:`jaxlimb.pipeline.whole_limb.locate_whole_limb` instead of the
-        stages below.
+        stages below; a sphere whose expected disc exceeds the frame (camera, range, radius) is
+        measured on its visible arc by :func:`jaxlimb.pipeline.whole_limb.locate_arc`.
 
     Returns
     -------
@@ -93,6 +94,11 @@ def locate(
         from .whole_limb import locate_whole_limb
 
         return locate_whole_limb(frame.img, frame.cam, frame.hints, frame.opt, mask=mask)
+    if body.name == "sphere" and arc_only(frame):
+        # close approach: the disc exceeds the frame; the visible arc is measured (too_big only without one)
+        from .whole_limb import locate_arc
+
+        return locate_arc(frame.img, frame.cam, frame.hints, frame.opt, mask=mask)
     frame = body.prepare(frame)
     cand = candidates(frame)
     pixels = body.limb_pixels(frame, cand)

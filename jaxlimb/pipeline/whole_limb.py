@@ -30,6 +30,18 @@ Steps (:func:`locate_whole_limb`):
    the on-axis radius and the range scale with :math:`a / a_{pred}`;
    covariance :math:`\hat\sigma^2 (J^\top J)^{-1}` of the fit mapped the same way.
 
+6. a sphere with the Sun direction known, measured on its lit limb only (no dark-limb bins):
+   the lit-limb pixels are refitted with the physical lunar-Lambert profile through the
+   pipeline's own refit (:func:`jaxlimb.pipeline.profile_fit.fit_lunar_profile`), which removes the
+   sigmoid's edge bias (0.35-0.5 px on short arcs);
+7. the centre covariance: the larger of the pixel-independent and the cluster-robust one,
+   plus an edge-model error (:data:`EDGE_MODEL_SIGMA_PX` through the arc's gains of
+   :func:`jaxlimb.imaging.predicted.edge_bias_gain`).
+
+Bodies larger than the frame (:func:`locate_arc`): the visible arc's circle is found by RANSAC
+with the radius the range predicts and the same stage runs from there; too-big only when no
+arc is visible (``benchmarks/limb_arc.py``).
+
 Accuracy (renders with exact truth, ``tests/mission/test_whole_limb.py``): uniform discs,
 lit or dark against the sky, 0.006-0.06 px; a lit crescent whose brightness ramps from the
 terminator to the limb over 10 px biases the sigmoid's edge by ~0.35 px along the Sun
@@ -48,15 +60,20 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ConfigError, RadiusInconsistentError, TooManyOutliersError
+from ..errors import ConfigError, ConvergenceError, RadiusInconsistentError, TooManyOutliersError
 from ..geometry.camera import Camera
 from ..imaging import Hints
 from ..imaging.crop import estimate_noise
-from ..imaging.predicted import LimbShape, fit_shape, limb_edges, predicted_limb
+from ..imaging.predicted import LimbShape, edge_bias_gain, fit_shape, limb_edges, predicted_limb
 from ..models import ELLIPSE, EllipseParams
 from .options import LocateOptions
 from .refine import K_INIT, FitData, RefineResult, _bin_median, _fixed, _run, predict
 from .result import EllipseResult, LimbMeasurement
+
+#: 1-sigma of a limb model's edge position error common to the whole limb (px): the physical
+#: profile's accuracy on renders of its own family (README: ~0.01-0.02 px).  Through
+#: :func:`~jaxlimb.imaging.predicted.edge_bias_gain` it dominates the centre covariance of short arcs.
+EDGE_MODEL_SIGMA_PX = 0.02
 
 #: Shape parameters held at the prediction.
 _SHAPE_FIXED = ("theta", "rho")
@@ -162,7 +179,8 @@ def _fit_pass(img, mask, shape: LimbShape, dr: float, noise: float, opt: LocateO
     return RefineResult(res, data, nb, fixed), new, counts
 
 
-def cluster_covariance(final: RefineResult, shape: LimbShape, cluster_deg: float = 10.0, h: float = 1e-5) -> np.ndarray:
+def cluster_covariance(final: RefineResult, shape: LimbShape, cluster_deg: float = 10.0, h: float = 1e-5,
+                       model=ELLIPSE) -> np.ndarray:
     r"""Cluster-robust (sandwich) covariance of the fit, pixels clustered by ``cluster_deg`` of limb angle.
 
     :math:`\mathrm{cov} = (J^\top W J)^{-1} \big(\sum_c g_c g_c^\top\big) (J^\top W J)^{-1}\,
@@ -173,12 +191,12 @@ def cluster_covariance(final: RefineResult, shape: LimbShape, cluster_deg: float
     """
     p, free, data = final.fit.params, list(final.fit.free), final.data
     w = np.ones(len(data.z)) if data.weights is None else np.asarray(data.weights)
-    r = data.z - predict(ELLIPSE, p, data.coords)
+    r = data.z - predict(model, p, data.coords)
     J = np.empty((len(data.z), len(free)))
     for j, n in enumerate(free):
         v = float(getattr(p, n))
-        J[:, j] = (predict(ELLIPSE, p.replace(**{n: v + h}), data.coords)
-                   - predict(ELLIPSE, p.replace(**{n: v - h}), data.coords)) / (2 * h)
+        J[:, j] = (predict(model, p.replace(**{n: v + h}), data.coords)
+                   - predict(model, p.replace(**{n: v - h}), data.coords)) / (2 * h)
     Jw = J * w[:, None]
     bread = np.linalg.inv(Jw.T @ Jw)
     cl = _stretches(shape, data.coords, cluster_deg)
@@ -277,7 +295,9 @@ def locate_whole_limb(image: np.ndarray, camera: Camera, hints: Hints, options: 
         raise RadiusInconsistentError(
             f"Check 4: the limb's semi-major axis {shape.a:.2f} px differs from the predicted {pred.a:.2f} px by more "
             f"than 3 x {u:g} (expected_radius_uncertainty_frac)")
-    extras = {"predicted_limb": {"center_rc": list(pred.center_rc), "semi_axes_px": [pred.a, pred.a * pred.rho],
+    gain = edge_bias_gain(pts[used], shape)
+    extras = {"edge_bias_gain": np.asarray(gain).tolist(), "edge_model_sigma_px": EDGE_MODEL_SIGMA_PX,
+              "predicted_limb": {"center_rc": list(pred.center_rc), "semi_axes_px": [pred.a, pred.a * pred.rho],
                                  "angle_rad": pred.theta},
               "edge_fit": {"center_rc": list(coarse.center_rc), "a": coarse.a, "n_points": int(used.sum()),
                            "n_lit": int(np.count_nonzero(used & (step > 0))),
@@ -286,7 +306,129 @@ def locate_whole_limb(image: np.ndarray, camera: Camera, hints: Hints, options: 
               "scale_vs_predicted": shape.a / pred.a,
               "sigma_hat": math.sqrt(max(float(res.fit.sigma2), 0.0)) * res.data.scale,
               "n_masked": 0 if mask is None else int(mask.size - np.count_nonzero(mask))}
-    return _measurement(res, shape, pred, camera, hints, extras)
+    if _sunlit_sphere(hints, counts):
+        try:
+            prof = _profile_refit(img, mask, shape, res, camera, hints, opt, noise)
+            return _with_edge_model_error(_profile_measurement(prof, shape, camera, hints, extras), gain)
+        except ConvergenceError as e:  # the sigmoid's answer stands; say why
+            extras["profile_rejected"] = {"model": "lunar-lambert", "reason": str(e)}
+    return _with_edge_model_error(_measurement(res, shape, pred, camera, hints, extras), gain)
 
 
-__all__ = ["locate_whole_limb", "select_whole_limb"]
+def _sunlit_sphere(hints: Hints, counts: dict[str, int]) -> bool:
+    """A sphere (equal radii) with the Sun direction known, measured on its lit limb only."""
+    radii = hints.body_radii_km
+    if radii is None and hints.body is not None:
+        from ..geometry.bodies import BODY_TABLE
+
+        radii = BODY_TABLE[hints.body].radii_km if hints.body in BODY_TABLE else None
+    return (hints.sun_dir_camera is not None and radii is not None and max(radii) - min(radii) < 1e-6 * max(radii)
+            and counts["bins_dark"] == 0)
+
+
+def _with_edge_model_error(m: LimbMeasurement, gain: np.ndarray) -> LimbMeasurement:
+    """Add the edge-model error ``sigma_e^2 sum_k g_k g_k^T`` (:data:`EDGE_MODEL_SIGMA_PX`, the three
+    patterns of :func:`~jaxlimb.imaging.predicted.edge_bias_gain`) to the centre covariance."""
+    from dataclasses import replace as _replace
+
+    cov = {a: dict(row) for a, row in m.covariance.items()}
+    extra = EDGE_MODEL_SIGMA_PX**2 * np.asarray(gain).T @ np.asarray(gain)
+    names = ("center_r", "center_c")
+    for i, a in enumerate(names):
+        for j, b in enumerate(names):
+            cov[a][b] += float(extra[i, j])
+    return _replace(m, covariance=cov)
+
+
+def _profile_refit(img, mask, shape: LimbShape, res: RefineResult, camera: Camera, hints: Hints, opt: LocateOptions,
+                   noise: float, dr: float = 8.0):
+    """The lunar-Lambert limb profile of :mod:`jaxlimb.pipeline.profile` on the lit limb (a sunlit
+    sphere whose dark limb is not seen), through the pipeline's own refit
+    (:func:`jaxlimb.pipeline.profile_fit.fit_lunar_profile`): removes the flat-topped sigmoid's edge bias."""
+    from types import SimpleNamespace
+
+    import time
+
+    from ..models import CircleParams
+    from .frame import Frame
+    from .profile_fit import fit_lunar_profile
+
+    data, _ = select_whole_limb(img, mask, shape, dr, noise)
+    p = res.fit.params
+    to_dn = lambda y: float(res.data.offset + res.data.scale * float(y))  # noqa: E731
+    circle = CircleParams(r0=p.r0, c0=p.c0, radius=float(np.sqrt(shape.a * shape.a * shape.rho)), k=p.k,
+                          ymax=to_dn(p.ymax), ymin=to_dn(p.ymin))
+    z = img[data.coords[:, 0].astype(np.int64), data.coords[:, 1].astype(np.int64)]
+    circ = SimpleNamespace(fit=SimpleNamespace(params=circle), coords=data.coords, data=FitData(data.coords, z, None, 0.0, 1.0))
+    fitted, _ = fit_lunar_profile(Frame(img, camera, hints, opt, time.perf_counter()), circ, None)
+    return fitted
+
+
+def _profile_measurement(prof: RefineResult, shape: LimbShape, camera: Camera, hints: Hints,
+                         extras: dict[str, Any]) -> LimbMeasurement:
+    """Body centre, radius, LOS, range and covariance of the sphere profile fit (as ``locate`` maps them)."""
+    from .sphere import sphere_from_ellipse_center
+
+    p, free = prof.fit.params, list(prof.fit.free)
+    f, pp = camera.focal_px, camera.principal_point_rc
+
+    def out(x):
+        s_ = sphere_from_ellipse_center(f, pp, (x[0], x[1]), x[2])
+        return np.array([s_.body_center_rc[0], s_.body_center_rc[1], s_.radius_equivalent_px])
+
+    x0 = np.array([float(p.r0), float(p.c0), float(p.a)])
+    from ..models import LIMB_PROFILE
+
+    cov_pix = np.asarray(prof.fit.covariance)
+    cov_cl = cluster_covariance(prof, shape, model=LIMB_PROFILE)
+    cov_fit = cov_cl if np.trace(cov_cl[:2, :2]) > np.trace(cov_pix[:2, :2]) else cov_pix
+    extras["sigma_center_pixel_independent_px"] = [float(math.sqrt(cov_pix[i, i])) for i in (0, 1)]
+    extras["sigma_center_cluster_robust_px"] = [float(math.sqrt(cov_cl[i, i])) for i in (0, 1)]
+    h = 1e-4
+    Jg = np.stack([(out(x0 + h * e) - out(x0 - h * e)) / (2 * h) for e in np.eye(3)], axis=1)
+    gidx = [free.index(n) for n in ("r0", "c0", "a")]
+    cov = Jg @ cov_fit[np.ix_(gidx, gidx)] @ Jg.T
+    sph = sphere_from_ellipse_center(f, pp, (x0[0], x0[1]), x0[2])
+    names = ["center_r", "center_c", "radius"]
+    rkm = hints.radius_km()
+    extras["profile"] = {"model": "lunar-lambert", "psf_sigma_px": float(p.sigma), "L": float(p.L)}
+    return LimbMeasurement(
+        center_rc=tuple(float(v) for v in sph.body_center_rc), radius_px=float(sph.radius_equivalent_px), ellipse=None,
+        k=1.7 / math.sqrt(float(p.sigma) ** 2 + 1.0 / 12.0), ymax=float(p.ymin) + float(p.amp), ymin=float(p.ymin),
+        covariance={a: {b: float(cov[i, j]) for j, b in enumerate(names)} for i, a in enumerate(names)},
+        iterations=int(prof.fit.n_steps), solver=prof.fit.solver, front_end="predicted", n_pixels=int(prof.fit.n_pixels),
+        los_camera=tuple(float(v) for v in sph.los), range_km=float(rkm / math.sin(sph.alpha_rad)) if rkm else None,
+        extras=extras, selected_pixels_rc=prof.data.coords,
+    )
+
+
+def locate_arc(image: np.ndarray, camera: Camera, hints: Hints, options: LocateOptions | None = None, *,
+               mask: np.ndarray | None = None) -> LimbMeasurement:
+    """A body larger than the frame (close approach): the visible limb arc, shape from the hints.
+
+    The arc's circle is found by RANSAC among the strongest gradients
+    (:func:`jaxlimb.imaging.predicted.arc_center`) with the radius the range predicts; the
+    limb ellipse of the body placed there (camera, radii, range, ``R_body_to_camera``) is then
+    fitted as in :func:`locate_whole_limb` (shape held, centre and scale free), so the short
+    arc's weak geometry shows in the covariance instead of in a free radius.
+
+    Raises
+    ------
+    TooBigError
+        No limb arc is visible (the body fills the frame).
+    """
+    from dataclasses import replace as _replace
+
+    from ..imaging.predicted import arc_center
+
+    img = np.asarray(image, dtype=np.float64)
+    rkm = hints.radius_km()
+    pr = camera.focal_px * math.tan(math.asin(rkm / hints.range_prior_km))
+    u = hints.expected_radius_uncertainty_frac or 0.05
+    c = arc_center(img, pr, u, mask=mask)
+    m = locate_whole_limb(img, camera, _replace(hints, expected_center_rc=c), options, mask=mask)
+    m.extras["arc_start_center_rc"] = list(c)
+    return m
+
+
+__all__ = ["locate_arc", "locate_whole_limb", "select_whole_limb"]

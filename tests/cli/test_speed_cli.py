@@ -107,3 +107,34 @@ def test_chunk_file_error_names_the_file(tmp_path):
     p.write_bytes(b"PK\x03\x04garbage")
     with pytest.raises(ConfigError, match="chunk_000000.npz"):
         load_monte_carlo(tmp_path / "s")
+
+
+FIT_SCRIPT = """
+import json, sys
+import jax
+jax.config.update("jax_enable_x64", True)
+from jaxlimb._jaxcache import enable_compile_cache
+enable_compile_cache()
+import numpy as np
+from jaxlimb.fitting import compile_count, fit
+from jaxlimb.models import CIRCLE, CircleParams
+rr, cc = np.mgrid[0:120, 0:120]
+coords = np.stack([rr.ravel(), cc.ravel()], -1).astype(float)
+truth = CircleParams(60.3, 59.6, 40.0, 3.0, 200.0, 20.0)
+z = np.asarray(CIRCLE.intensity(truth, coords)) + np.random.default_rng(0).normal(0, 5, coords.shape[0])
+r = fit(CIRCLE, coords, z, truth.replace(r0=60.8, radius=40.4))
+print(json.dumps({"x": np.asarray(r.params.to_vector()).tolist(), "cov": np.asarray(r.covariance).tolist(),
+                  "traces": compile_count()}))
+"""
+
+
+def test_fit_core_is_traced_once_per_machine(tmp_path):
+    """The exported fit core (fitting/_aot.py): a second process loads it instead of tracing, same numbers."""
+    env = {"JAXLIMB_CACHE_DIR": str(tmp_path / "c")}
+    first = json.loads(_run(FIT_SCRIPT, env))
+    assert first["traces"] == 1 and list((tmp_path / "c" / "exported").glob("*.bin"))
+    second = json.loads(_run(FIT_SCRIPT, env))
+    assert second["traces"] == 0  # loaded: no trace
+    assert second["x"] == first["x"] and second["cov"] == first["cov"]
+    off = json.loads(_run(FIT_SCRIPT, {"JAXLIMB_CACHE_DIR": "off"}))
+    np.testing.assert_allclose(off["x"], first["x"], rtol=0, atol=1e-12)

@@ -71,3 +71,31 @@ def test_uniform_dark_disc_on_bright_sky_is_unbiased():
     m = locate(img, CAM, _hints((244.0, 270.0)))
     assert np.hypot(*np.subtract(m.center_rc, ic.body_center_rc)) < 0.1
     assert m.extras["angular_bins"]["bins_lit"] == 0
+
+
+def test_arc_of_a_body_larger_than_the_frame():
+    """26 % of a 330 px Moon's limb in a 400x500 frame, centre outside: measured, not refused."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "pipeline"))
+    from _scenes import SMALL_CAMERA, scene
+
+    img, truth = scene(7386.0, 30.0, (-40.0, 250.0), sun_angle_deg=-90.0, seed=3)
+    assert truth.center_rc[0] < 0  # the centre is outside the frame
+    h = Hints(body="moon", range_prior_km=7386.0 * 1.01, sun_dir_camera=tuple(float(v) for v in truth.sun_dir_cam))
+    m = locate(img, SMALL_CAMERA, h)
+    err = np.subtract(m.center_rc, truth.center_rc)
+    assert np.hypot(*err) < 0.5 and m.extras["profile"]["model"] == "lunar-lambert"
+    sig = np.sqrt([m.covariance["center_r"]["center_r"], m.covariance["center_c"]["center_c"]])
+    assert np.all(np.abs(err) < 5 * sig)
+    assert m.range_km == pytest.approx(truth.range_km, rel=0.01)
+
+
+def test_too_big_only_when_no_limb_is_visible():
+    from jaxlimb.errors import TooBigError
+
+    rng = np.random.default_rng(0)
+    img = 120.0 + rng.normal(0, 2.0, (512, 512))  # the disc fills the frame: no limb in it
+    with pytest.raises(TooBigError, match="no limb arc"):
+        locate(img, CAM, Hints(body="moon", range_prior_km=20_000.0))

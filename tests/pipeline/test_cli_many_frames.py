@@ -44,10 +44,12 @@ def test_directory_streams_one_line_per_frame_equal_to_single_runs(frames, capsy
     recs = _lines(capsys.readouterr().out)
     assert [r["image"] for r in recs] == [str(d / "imgs" / f"f{i}.png") for i in range(3)]
     assert all(r["status"] == "ok" for r in recs)
+    assert all(r["timing"]["compile_s"] <= r["timing"]["seconds"] for r in recs)  # compile time reported apart
     assert main([*_args(d, d / "imgs" / "f1.png"), "--json"]) == 0
     single = json.loads(capsys.readouterr().out)
     assert "image" not in single  # one image: the single-frame contract, unchanged
     assert recs[1]["center_rc"] == pytest.approx(single["center_rc"], abs=1e-9)
+    assert single["timing"]["compile_s"] >= 0 and single["timing"]["seconds"] > 0
 
 
 def test_bad_frames_give_error_lines_and_the_run_goes_on(frames, capsys):
@@ -106,7 +108,7 @@ def test_frames_on_a_dask_scheduler_equal_in_process(frames, capsys):
     d = frames
     assert main(_args(d, d / "imgs")) == 0
     ref = _lines(capsys.readouterr().out)
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=":0") as cluster:
         assert main([*_args(d, d / "imgs", d / "bad" / "black.png"), "--scheduler", cluster.scheduler_address]) == 3
     recs = _lines(capsys.readouterr().out)
     assert [r["image"] for r in recs[:3]] == [r["image"] for r in ref]  # in order

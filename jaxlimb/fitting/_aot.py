@@ -1,0 +1,140 @@
+"""Traced once per machine: the fit core exported (``jax.export``) beside the compilation cache.
+
+JAX's persistent compilation cache (:mod:`jaxlimb._jaxcache`) stores compiled programs, but a
+new process still traces and lowers every function before it can look the program up: for the
+fit cores of ``locate`` (sigmoid and physical limb profiles) that is seconds per process.  When
+the cache is on, :class:`ExportedCore` serialises the traced and lowered fit core
+(``jax.export``) to ``<cache dir>/exported/<digest>.bin`` on first use, keyed by the jaxlimb
+source, the JAX version, the solver, model, free set, step limit and the argument shapes; a
+later process deserialises it (milliseconds), and its compilation hits the persistent cache.
+The result is the same program, so the same numbers.
+
+Anything unexpected (an output structure that cannot be rebuilt, a failed export or read) falls
+back to plain ``jax.jit``; a tracer argument (a fit inside another ``jit``) always uses it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import jax
+import numpy as np
+
+_SOURCE: dict[str, str] = {}
+
+
+def _source_digest() -> str:
+    """Digest of the jaxlimb sources (a changed package never loads an old export)."""
+    if "d" not in _SOURCE:
+        h = hashlib.sha256(jax.__version__.encode())
+        root = Path(__file__).resolve().parents[1]
+        for p in sorted(root.rglob("*.py")):
+            h.update(p.relative_to(root).as_posix().encode())
+            h.update(p.read_bytes())
+        _SOURCE["d"] = h.hexdigest()
+    return _SOURCE["d"]
+
+
+def _cache_dir() -> Path | None:
+    d = jax.config.jax_compilation_cache_dir
+    return Path(d) / "exported" if d else None
+
+
+class ExportedCore:
+    """``fn(*args) -> pytree`` of ``run``, loaded from / saved to the export cache per argument shapes.
+
+    ``template(*args)`` builds, without tracing, an object with the output's tree structure.
+    """
+
+    def __init__(self, run: Callable[..., Any], ident: str, template: Callable[..., Any]) -> None:
+        self._jit = jax.jit(run)
+        self._run = run
+        self._ident = ident
+        self._template = template
+        self._by_shape: dict[Any, Callable[..., Any]] = {}
+
+    def __call__(self, *args: Any) -> Any:
+        if _cache_dir() is None or any(isinstance(a, jax.core.Tracer) for a in args):
+            return self._jit(*args)
+        sig = tuple((tuple(np.shape(a)), str(a.dtype)) for a in args)
+        fn = self._by_shape.get(sig)
+        if fn is None:
+            fn = self._by_shape[sig] = self._build(sig, args)
+        return fn(*args)
+
+    def _build(self, sig: Any, args: tuple[Any, ...]) -> Callable[..., Any]:
+        folder = _cache_dir()
+        if folder is None:
+            return self._jit
+        try:
+            treedef = jax.tree_util.tree_structure(self._template(*args))
+            key = hashlib.sha256(f"{_source_digest()}|{self._ident}|{sig}|{jax.config.jax_enable_x64}".encode())
+            path = folder / f"{key.hexdigest()[:40]}.bin"
+            exp = self._load(path) if path.exists() else self._export(path, treedef, args)
+        except Exception:  # noqa: BLE001 - an optimisation: never a reason to fail a fit
+            return self._jit
+        if exp is None:
+            return self._jit
+        call = jax.jit(exp.call)
+        return lambda *a: jax.tree_util.tree_unflatten(treedef, call(*a))
+
+    @staticmethod
+    def _load(path: Path) -> Any:
+        try:
+            return jax.export.deserialize(bytearray(path.read_bytes()))
+        except Exception:  # noqa: BLE001 - a damaged entry: export again
+            path.unlink(missing_ok=True)
+            return None
+
+    def _export(self, path: Path, treedef: Any, args: tuple[Any, ...]) -> Any:
+        from .._io import atomic_open
+
+        seen: dict[str, Any] = {}
+
+        def flat(*a: Any) -> list[Any]:
+            leaves, seen["treedef"] = jax.tree_util.tree_flatten(self._run(*a))
+            return leaves
+
+        exp = jax.export.export(jax.jit(flat))(*args)
+        if seen.get("treedef") != treedef:  # the template does not rebuild this output: no export
+            return None
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_open(path, "wb") as fh:
+            fh.write(exp.serialize())
+        return exp
+
+
+def stable_ident(*parts: Any) -> str | None:
+    """A description of ``parts`` that is the same in every process, or ``None`` (no export).
+
+    Functions count by module and qualified name and must not be closures (captured values
+    would not be in the key); dataclass-like objects (models, solvers) field by field.
+    """
+    out = []
+    for p in parts:
+        s = _describe(p)
+        if s is None:
+            return None
+        out.append(s)
+    return "|".join(out)
+
+
+def _describe(x: Any) -> str | None:
+    import dataclasses
+
+    if isinstance(x, type):
+        return f"{x.__module__}.{x.__qualname__}"
+    if callable(x) and hasattr(x, "__qualname__") and not dataclasses.is_dataclass(x):
+        if getattr(x, "__closure__", None) or "<locals>" in x.__qualname__ or "<lambda>" in x.__qualname__:
+            return None
+        return f"{x.__module__}.{x.__qualname__}"
+    if dataclasses.is_dataclass(x):
+        fields = [_describe(getattr(x, f.name)) for f in dataclasses.fields(x)]
+        if any(f is None for f in fields):
+            return None
+        return f"{type(x).__module__}.{type(x).__qualname__}({','.join(fields)})"  # type: ignore[arg-type]
+    s = repr(x)
+    return None if " at 0x" in s else s
