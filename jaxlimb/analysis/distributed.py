@@ -66,8 +66,9 @@ def make_client(scheduler: str | None = None, workers: int = 2, processes: bool 
             raise ConfigError(f"cannot reach the Dask scheduler {scheduler!r}: {e}") from None
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise LimbInputError(f"`workers` must be an integer >= 1, got {workers!r}")
+    # dashboard_address ":0": the scheduler's HTTP server (always started) on a free port, never a clash on 8787
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                           dashboard_address=None, silence_logs=50)
+                           dashboard_address=":0", silence_logs=50)
     return Client(cluster)
 
 

@@ -65,11 +65,12 @@ from .scanline import (
 from .sdo import SunTruth as SunTruth, hmi_512_truth as hmi_512_truth, sun_truth_from_header as sun_truth_from_header
 
 
-def front_end(name: str, image, prior=None, *, hints=None, camera=None, options=None) -> LimbCandidates:
+def front_end(name: str, image, prior=None, *, hints=None, camera=None, options=None, mask=None) -> LimbCandidates:
     """Run the front end called ``name`` (``"gradient"`` or ``"scanline"``).
 
     ``hints`` may be a :class:`Hints` or the hints JSON dict; ``options`` must be the
-    matching :class:`GradientOptions` / :class:`ScanlineOptions` (or ``None``).
+    matching :class:`GradientOptions` / :class:`ScanlineOptions` (or ``None``); ``mask`` (``True``
+    = valid) is respected by the gradient front end (not yet by the scan-line one).
 
     Raises
     ------
@@ -86,6 +87,8 @@ def front_end(name: str, image, prior=None, *, hints=None, camera=None, options=
         raise ConfigError(f"options for the {name} front end must be {opt_type.__name__}, got {type(options).__name__}")
     if hints is not None and not isinstance(hints, Hints):
         hints = Hints.from_dict(hints)
+    if mask is not None and name == "gradient":
+        return fn(image, prior, hints=hints, camera=camera, options=options, mask=mask)
     return fn(image, prior, hints=hints, camera=camera, options=options)
 
 

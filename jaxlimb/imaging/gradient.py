@@ -314,6 +314,15 @@ def _lit_side_only(pts: np.ndarray, inl: np.ndarray, fit, offset_rc, hints: Hint
     return inl, fit, n0 - int(inl.sum())
 
 
+def valid_zone(mask: np.ndarray, reach: int) -> np.ndarray:
+    """Pixels farther than ``reach`` px from every invalid pixel of ``mask`` (frame borders are not invalid)."""
+    from scipy import ndimage
+
+    if mask.all():
+        return mask
+    return ndimage.binary_erosion(mask, structure=np.ones((3, 3), bool), iterations=max(1, reach), border_value=1)
+
+
 def gradient_front_end(
     image: np.ndarray,
     prior: Prior | None = None,
@@ -321,6 +330,7 @@ def gradient_front_end(
     hints: Hints | None = None,
     camera: Camera | None = None,
     options: GradientOptions | None = None,
+    mask: np.ndarray | None = None,
 ) -> LimbCandidates:
     """Limb points and initial circle by gradient + box filter + RANSAC + Taubin (§3-5).
 
@@ -335,6 +345,10 @@ def gradient_front_end(
         Navigation hints and camera (optional).
     options
         :class:`GradientOptions`.
+    mask
+        Validity mask (``True`` = measured; :class:`jaxlimb.imaging.formats.Frame`): the gradient
+        within the kernel's reach (4 px + 3 pre-smoothing sigmas) of an invalid pixel is zeroed, so
+        a missing line or a readout window's edge is never a limb candidate.
 
     Returns
     -------
@@ -375,6 +389,8 @@ def gradient_front_end(
     else:
         sub_s = sub
     g, gr, gc = richardson_gradient(sub_s, richardson=opt.richardson, dtype=np.float32)
+    if mask is not None:
+        g = np.where(valid_zone(np.asarray(mask, bool)[r0:r1, c0:c1], 4 + int(math.ceil(3 * sigma_pre))), g, 0)
     n_req = int(min(st.n_points, max(10, g.size // 4)))
     cand = strongest_pixels(g, n_req)
     t_grad = time.perf_counter()

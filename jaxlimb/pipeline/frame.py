@@ -48,6 +48,8 @@ class Frame:
     timings : stage name -> end time, filled in as the stages run.
     observed_cam : the camera of the observed image when a strategy resampled it onto the ideal grid
         (``img``/``cam`` are then the resampled image and its pinhole camera).
+    mask : validity mask (``True`` = measured pixel) or ``None``; the gradient front end drops
+        candidates near invalid pixels.
     """
 
     img: np.ndarray
@@ -57,6 +59,7 @@ class Frame:
     t0: float
     timings: dict[str, float] = field(default_factory=dict)
     observed_cam: Camera | None = None
+    mask: np.ndarray | None = None
 
     @property
     def pin(self) -> Camera | None:
@@ -120,7 +123,7 @@ def prepare(image: Any, camera: Any, hints: Any, options: Any, mask: Any = None)
         raise ConfigError(f"camera size {cam.rows}x{cam.cols} does not match the image size {img.shape[0]}x{img.shape[1]}")
     if mask is not None and np.shape(mask) != img.shape:
         raise ConfigError(f"mask shape {np.shape(mask)} does not match the image size {img.shape}")
-    frame = Frame(img, cam, hin, opt, t0)
+    frame = Frame(img, cam, hin, opt, t0, mask=None if mask is None else np.asarray(mask, dtype=bool))
     if hin is not None and not arc_only(frame):  # (a disc larger than the frame: its arc is measured)
         popt = getattr(frame.front_end_options(), "prior", None)
         pri0 = prior_from_hints(hin, cam, options=popt, check=True)
@@ -147,8 +150,9 @@ def arc_only(frame: Frame) -> bool:
 
 def candidates(frame: Frame) -> Any:
     """Stage 2: the front end's limb candidates, circle and lit direction (Checks 1-4)."""
+    mask = frame.mask if frame.observed_cam is None else None  # (a resampled frame: the mask no longer fits)
     cand = front_end(frame.opt.front_end, frame.img, None, hints=frame.hints, camera=frame.cam,
-                     options=frame.front_end_options())
+                     options=frame.front_end_options(), mask=mask)
     frame.mark("front_end")
     return cand
 

@@ -90,3 +90,26 @@ def test_corrupt_vicar_label_is_a_typed_error(tmp_path):
         read_frame(p)
     with pytest.raises(ImageReadError):
         read_frame(tmp_path / "missing.IMG")
+
+
+def test_gradient_front_end_ignores_the_edges_of_missing_lines():
+    """A zero-filled band across a rendered Moon: with the mask no candidate lies near it."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "pipeline"))
+    from _scenes import scene
+
+    from jaxlimb.imaging import gradient_front_end
+
+    img, truth = scene(20000.0, 20.0, (200.0, 250.0))
+    ref = gradient_front_end(img)  # the same frame without the band
+    img = np.array(img, dtype=float)
+    img[150:170] = 0.0
+    mask = np.ones(img.shape, bool)
+    mask[150:170] = False
+    cand = gradient_front_end(img, mask=mask)
+    assert not np.any((cand.points_rc[:, 0] > 140) & (cand.points_rc[:, 0] < 180))
+    blind = gradient_front_end(img)  # the band's edges taken for limb points
+    assert np.any((blind.points_rc[:, 0] > 140) & (blind.points_rc[:, 0] < 180))
+    assert np.hypot(*np.subtract(cand.center_rc, ref.center_rc)) < 5.0

@@ -108,7 +108,7 @@ def test_frames_on_a_dask_scheduler_equal_in_process(frames, capsys):
     d = frames
     assert main(_args(d, d / "imgs")) == 0
     ref = _lines(capsys.readouterr().out)
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=":0") as cluster:
         assert main([*_args(d, d / "imgs", d / "bad" / "black.png"), "--scheduler", cluster.scheduler_address]) == 3
     recs = _lines(capsys.readouterr().out)
     assert [r["image"] for r in recs[:3]] == [r["image"] for r in ref]  # in order

@@ -1,0 +1,70 @@
+"""optimistix with and without the fused Jacobian / normal-equations plumbing, against NormalLM.
+
+The nominal problem of ``benchmarks/solvers.py`` (400x400, radius 150, +-6 px band, sigma 10),
+``--n`` realisations from the same start; ms per fit (median, after compilation), steps, and the
+largest difference of the estimates from NormalLM's.  ``fused+normal`` is the package's default
+``Optimistix(solver)``; ``as it comes`` is ``Optimistix(solver, fused=False, normal=False)``.
+
+Run:  python benchmarks/optimistix_plumbing.py [--n 40]
+Writes benchmarks/results/optimistix_plumbing.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import jax
+
+jax.config.update("jax_enable_x64", True)
+
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+import optimistix as optx  # noqa: E402
+
+from _common import environment, save  # noqa: E402
+from jaxlimb.analysis.model_study import ModelStudyOptions, model_problem  # noqa: E402
+from jaxlimb.fitting import NormalLM, Optimistix, fit  # noqa: E402
+
+
+def main(argv: list[str] | None = None) -> dict:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--n", type=int, default=40)
+    args = ap.parse_args(argv)
+    model, truth, init, coords, _ = model_problem(ModelStudyOptions())
+    clean = np.asarray(model.intensity(truth, jnp.asarray(coords)))
+    data = clean[None] + 10.0 * np.random.default_rng(0).standard_normal((args.n, clean.size))
+    lm_ = lambda: optx.LevenbergMarquardt(rtol=1e-10, atol=1e-10)  # noqa: E731
+    dl_ = lambda: optx.Dogleg(rtol=1e-10, atol=1e-10)  # noqa: E731
+    solvers = {"NormalLM": NormalLM(), "LevenbergMarquardt fused+normal": Optimistix(lm_()),
+               "LevenbergMarquardt as it comes": Optimistix(lm_(), fused=False, normal=False),
+               "Dogleg fused+normal": Optimistix(dl_()), "Dogleg as it comes": Optimistix(dl_(), fused=False, normal=False)}
+    load0 = Path("/proc/loadavg").read_text().split()[:3]
+    rows, ref = [], None
+    for name, s in solvers.items():
+        fit(model, coords, data[0], init, s, throw=False)
+        ts, est, steps = [], [], []
+        for z in data:
+            t0 = time.perf_counter()
+            r = fit(model, coords, z, init, s, throw=False)
+            jax.block_until_ready(r.params.r0)
+            ts.append(time.perf_counter() - t0)
+            est.append(np.asarray(r.params.to_vector()))
+            steps.append(int(r.n_steps))
+        est = np.asarray(est)
+        ref = est if ref is None else ref
+        rows.append({"solver": name, "ms_per_fit": 1e3 * float(np.median(ts)), "steps_mean": float(np.mean(steps)),
+                     "max_abs_diff_vs_normal_lm": float(np.abs(est - ref)[:, :3].max())})
+    for r in rows:
+        r["over_normal_lm"] = r["ms_per_fit"] / rows[0]["ms_per_fit"]
+        print(f"{r['solver']:34s} {r['ms_per_fit']:8.2f} ms/fit  {r['over_normal_lm']:6.2f}x NormalLM  "
+              f"steps {r['steps_mean']:5.1f}  max|d| {r['max_abs_diff_vs_normal_lm']:.1e} px")
+    out = {"rows": rows, "n": args.n, "loadavg_before": load0, "loadavg_after": Path("/proc/loadavg").read_text().split()[:3],
+           "environment": environment()}
+    print(f"load {out['loadavg_before']} -> {out['loadavg_after']}; wrote {save('optimistix_plumbing', out)}")
+    return out
+
+
+if __name__ == "__main__":
+    main()
