@@ -37,6 +37,7 @@ pass ``--scheduler tcp://node:8786`` to ``jaxlimb montecarlo --pipeline`` /
 from __future__ import annotations
 
 import math
+import uuid
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
@@ -94,8 +95,11 @@ def run_monte_carlo_distributed(trial: Callable[..., Any], options: MonteCarloOp
     todo = prepare_study(options)
     opt = replace(options, progress=False)
     bar = tqdm(total=len(todo), desc=options.name, unit="chunk", disable=not progress)
-    futures = [client.submit(run_chunk_to_file, trial, opt, c, key=f"{options.name}-chunk-{c}-{options.seed}",
-                             pure=False) for c in todo]
+    # one key per call: a rerun on the same client must not reuse the keys whose futures the
+    # previous call cancels in its ``finally`` (the scheduler would cancel the new tasks too)
+    run_id = uuid.uuid4().hex[:8]
+    futures = [client.submit(run_chunk_to_file, trial, opt, c,
+                             key=f"{options.name}-chunk-{c}-{options.seed}-{run_id}", pure=False) for c in todo]
     try:
         for fut in as_completed(futures):
             fut.result()  # re-raises a task's error here
