@@ -2,8 +2,10 @@
 
 The nominal problem of ``benchmarks/solvers.py`` (400x400, radius 150, +-6 px band, sigma 10),
 ``--n`` realisations from the same start; ms per fit (median, after compilation), steps, and the
-largest difference of the estimates from NormalLM's.  ``fused+normal`` is the package's default
-``Optimistix(solver)``; ``as it comes`` is ``Optimistix(solver, fused=False, normal=False)``.
+largest difference of the estimates from NormalLM's.  ``package default`` is ``Optimistix(solver)`` (fused
+Jacobian, normal equations, coarse-to-fine start, ``OPTX_ATOL``); ``as it comes`` is
+``Optimistix(solver, fused=False, normal=False, coarse_stride=1)``; the other rows remove one
+ingredient each.
 
 Run:  python benchmarks/optimistix_plumbing.py [--n 40]
 Writes benchmarks/results/optimistix_plumbing.json.
@@ -26,6 +28,7 @@ import optimistix as optx  # noqa: E402
 from _common import environment, save  # noqa: E402
 from jaxlimb.analysis.model_study import ModelStudyOptions, model_problem  # noqa: E402
 from jaxlimb.fitting import NormalLM, Optimistix, fit  # noqa: E402
+from jaxlimb.fitting.solvers import OPTX_ATOL, OPTX_RTOL  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -35,11 +38,16 @@ def main(argv: list[str] | None = None) -> dict:
     model, truth, init, coords, _ = model_problem(ModelStudyOptions())
     clean = np.asarray(model.intensity(truth, jnp.asarray(coords)))
     data = clean[None] + 10.0 * np.random.default_rng(0).standard_normal((args.n, clean.size))
-    lm_ = lambda: optx.LevenbergMarquardt(rtol=1e-10, atol=1e-10)  # noqa: E731
-    dl_ = lambda: optx.Dogleg(rtol=1e-10, atol=1e-10)  # noqa: E731
-    solvers = {"NormalLM": NormalLM(), "LevenbergMarquardt fused+normal": Optimistix(lm_()),
-               "LevenbergMarquardt as it comes": Optimistix(lm_(), fused=False, normal=False),
-               "Dogleg fused+normal": Optimistix(dl_()), "Dogleg as it comes": Optimistix(dl_(), fused=False, normal=False)}
+    lm_ = lambda atol=OPTX_ATOL: optx.LevenbergMarquardt(rtol=OPTX_RTOL, atol=atol)  # noqa: E731
+    dl_ = lambda atol=OPTX_ATOL: optx.Dogleg(rtol=OPTX_RTOL, atol=atol)  # noqa: E731
+    plain = {"fused": False, "normal": False, "coarse_stride": 1}
+    solvers = {"NormalLM": NormalLM(), "LevenbergMarquardt (package default)": Optimistix(lm_()),
+               "LevenbergMarquardt, no coarse phase": Optimistix(lm_(), coarse_stride=1),
+               "LevenbergMarquardt, atol=1e-10": Optimistix(lm_(1e-10)),
+               "LevenbergMarquardt as it comes": Optimistix(lm_(), **plain),
+               "Dogleg (package default)": Optimistix(dl_()),
+               "Dogleg, no coarse phase": Optimistix(dl_(), coarse_stride=1),
+               "Dogleg as it comes": Optimistix(dl_(), **plain)}
     load0 = Path("/proc/loadavg").read_text().split()[:3]
     rows, ref = [], None
     for name, s in solvers.items():
@@ -58,7 +66,7 @@ def main(argv: list[str] | None = None) -> dict:
                      "max_abs_diff_vs_normal_lm": float(np.abs(est - ref)[:, :3].max())})
     for r in rows:
         r["over_normal_lm"] = r["ms_per_fit"] / rows[0]["ms_per_fit"]
-        print(f"{r['solver']:34s} {r['ms_per_fit']:8.2f} ms/fit  {r['over_normal_lm']:6.2f}x NormalLM  "
+        print(f"{r['solver']:38s} {r['ms_per_fit']:8.2f} ms/fit  {r['over_normal_lm']:6.2f}x NormalLM  "
               f"steps {r['steps_mean']:5.1f}  max|d| {r['max_abs_diff_vs_normal_lm']:.1e} px")
     out = {"rows": rows, "n": args.n, "loadavg_before": load0, "loadavg_after": Path("/proc/loadavg").read_text().split()[:3],
            "environment": environment()}

@@ -201,6 +201,8 @@ def _main(argv: Sequence[str] | None) -> int:
     try:
         args = build_parser().parse_args(argv)
         if getattr(args, "needs_jax", True):  # a sub-command may declare it runs without JAX
+            host_devices = getattr(args, "host_devices", None)
+            _request_host_devices(host_devices(args) if host_devices else 1)
             _start_jax()
         with warnings.catch_warnings():
             warnings.simplefilter("default")
@@ -221,6 +223,19 @@ def _main(argv: Sequence[str] | None) -> int:
             raise
         _report(want_json, "internal_error", f"{type(e).__name__}: {e}")
         return 1
+
+
+def _request_host_devices(n: int) -> None:
+    """Ask XLA for ``n`` CPU devices (``--xla_force_host_platform_device_count``) before JAX starts.
+
+    Only for a command that splits its batches over devices (``montecarlo``); a no-op when JAX
+    is already running in this process or the user's ``XLA_FLAGS`` already set the count.
+    """
+    if n <= 1 or "jax" in sys.modules:
+        return
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_force_host_platform_device_count" not in flags:
+        os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={n}".strip()
 
 
 def _start_jax() -> None:

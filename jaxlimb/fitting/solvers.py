@@ -150,6 +150,22 @@ def _finish(problem: LimbProblem, y: Array, result: Any) -> FitResult:
 
 
 # ============================================================================ optimistix
+OPTX_RTOL = 1e-10
+OPTX_ATOL = 1e-6
+r"""Tolerances of the optimistix solvers registered by name (``--solver optx-lm`` ...).
+
+optimistix's Cauchy test stops on an *accepted* step with
+:math:`|\Delta y_j| < atol + rtol|y_j|` for every parameter **and**
+:math:`|\Delta r_i| < atol + rtol|r_i|` for every pixel residual.  Residuals near zero make
+``atol`` an absolute bound in DN on every pixel: with ``atol = 1e-10`` the last steps' changes
+sit at the rounding level, the loss goes up or down by 1e-9 of itself at random, steps are
+rejected and the trust region shrinks for ~20 extra steps (``benchmarks/optimistix_plumbing.py``
+shows the row).  ``atol = 1e-6`` (px and DN, far below any noise) stops where the estimate
+has converged: the answers agree with :class:`NormalLM` (``rtol = atol = 1e-10`` on the
+step) to ~1e-9 px.
+"""
+
+
 class Optimistix(AbstractLimbSolver):
     """Any optimistix least-squares solver or minimiser, given what the default solver has.
 
@@ -165,17 +181,24 @@ class Optimistix(AbstractLimbSolver):
     ``benchmarks/solvers.py`` compares algorithms, not plumbing (the remaining gap to
     :class:`NormalLM` is mostly the number of steps: optimistix's trust region starts at radius
     1 and its stopping rule, and :class:`NormalLM`'s coarse-to-fine phase).
-    ``Optimistix(solver, fused=False, normal=False)`` is optimistix as it comes.
+    ``Optimistix(solver, fused=False, normal=False, coarse_stride=1)`` is optimistix as it
+    comes.  With ``coarse_stride > 1`` (default 4, as :class:`NormalLM`) the solver first runs
+    on every ``coarse_stride``-th pixel to ``coarse_tol_px``, then on all pixels from there
+    (:meth:`_coarse_phase`); ``n_steps`` counts both phases.  Choose ``atol`` with
+    :data:`OPTX_ATOL` in mind: it bounds every pixel's residual change in DN.
 
     Examples
     --------
     >>> import optimistix as optx
-    >>> Optimistix(optx.Dogleg(rtol=1e-10, atol=1e-10))  # doctest: +SKIP
+    >>> Optimistix(optx.Dogleg(rtol=OPTX_RTOL, atol=OPTX_ATOL))  # doctest: +SKIP
     """
 
     solver: optx.AbstractLeastSquaresSolver | optx.AbstractMinimiser
     fused: bool = eqx.field(static=True, default=True)
     normal: bool = eqx.field(static=True, default=True)
+    coarse_stride: int = eqx.field(static=True, default=4)
+    coarse_tol_px: float = eqx.field(static=True, default=1e-2)
+    coarse_min_pixels: int = eqx.field(static=True, default=1024)
 
     @property
     def name(self) -> str:
@@ -191,8 +214,28 @@ class Optimistix(AbstractLimbSolver):
     def solve(self, problem, y0, max_steps):  # type: ignore[no-untyped-def]
         residual = (fused_residual_fn(problem.model, problem.free_idx) if self.fused and problem.analytic
                     else problem.residual)
-        sol = optx.least_squares(residual, self.configured(), y0, args=problem.args, max_steps=max_steps, throw=False)
-        return sol.value, sol.stats["num_steps"], _finish(problem, sol.value, sol.result)
+        solver = self.configured()
+        y0, steps = self._coarse_phase(residual, solver, problem, y0, max_steps)
+        sol = optx.least_squares(residual, solver, y0, args=problem.args, max_steps=max_steps, throw=False)
+        return sol.value, steps + sol.stats["num_steps"], _finish(problem, sol.value, sol.result)
+
+    def _coarse_phase(self, residual, solver, problem, y0, max_steps):  # type: ignore[no-untyped-def]
+        """:class:`NormalLM`'s coarse-to-fine start: the same solver on every ``coarse_stride``-th pixel.
+
+        Runs to ``coarse_tol_px`` (the basin of the full problem's minimum) and hands its answer
+        to the full-data solve, which alone decides convergence: the answer is the full-data
+        minimum either way, only the early, far-from-converged steps get cheaper.  Skipped on
+        fewer than ``coarse_min_pixels`` pixels and for solvers without ``rtol``/``atol``; a
+        failed coarse phase starts the full one afresh.
+        """
+        n_pix = problem.z.shape[-1]
+        if self.coarse_stride <= 1 or n_pix < self.coarse_min_pixels or not hasattr(solver, "atol"):
+            return y0, jnp.asarray(0)
+        loose = eqx.tree_at(lambda s: (s.rtol, s.atol), solver, (1e-6, self.coarse_tol_px))
+        coarse = _coarse(problem, self.coarse_stride)
+        sol = optx.least_squares(residual, loose, y0, args=coarse.args, max_steps=max_steps, throw=False)
+        ok = (sol.result == optx.RESULTS.successful) & coarse.admissible(sol.value)
+        return jnp.where(ok, sol.value, y0), sol.stats["num_steps"]
 
 
 def _coarse(problem: LimbProblem, k: int) -> LimbProblem:
@@ -476,11 +519,11 @@ def _scipy_callables(problem: LimbProblem):  # noqa: ANN202
 # ============================================================================ names
 SOLVERS: dict[str, Callable[[], AbstractLimbSolver]] = {
     "lm": NormalLM,
-    "optx-lm": lambda: Optimistix(optx.LevenbergMarquardt(rtol=1e-10, atol=1e-10)),
+    "optx-lm": lambda: Optimistix(optx.LevenbergMarquardt(rtol=OPTX_RTOL, atol=OPTX_ATOL)),
     "optx-normal-lm": optimistix_normal_lm,
-    "dogleg": lambda: Optimistix(optx.Dogleg(rtol=1e-10, atol=1e-10)),
-    "gauss-newton": lambda: Optimistix(optx.GaussNewton(rtol=1e-10, atol=1e-10)),
-    "bfgs": lambda: Optimistix(optx.BFGS(rtol=1e-10, atol=1e-10)),
+    "dogleg": lambda: Optimistix(optx.Dogleg(rtol=OPTX_RTOL, atol=OPTX_ATOL)),
+    "gauss-newton": lambda: Optimistix(optx.GaussNewton(rtol=OPTX_RTOL, atol=OPTX_ATOL)),
+    "bfgs": lambda: Optimistix(optx.BFGS(rtol=OPTX_RTOL, atol=OPTX_ATOL)),
     "paper": PaperGaussNewton,
     "scipy": ScipyLeastSquares,
 }

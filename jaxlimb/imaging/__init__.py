@@ -70,7 +70,7 @@ def front_end(name: str, image, prior=None, *, hints=None, camera=None, options=
 
     ``hints`` may be a :class:`Hints` or the hints JSON dict; ``options`` must be the
     matching :class:`GradientOptions` / :class:`ScanlineOptions` (or ``None``); ``mask`` (``True``
-    = valid) is respected by the gradient front end (not yet by the scan-line one).
+    = valid) is respected by both: masked pixels are neither limb nor background.
 
     Raises
     ------
@@ -87,9 +87,7 @@ def front_end(name: str, image, prior=None, *, hints=None, camera=None, options=
         raise ConfigError(f"options for the {name} front end must be {opt_type.__name__}, got {type(options).__name__}")
     if hints is not None and not isinstance(hints, Hints):
         hints = Hints.from_dict(hints)
-    if mask is not None and name == "gradient":
-        return fn(image, prior, hints=hints, camera=camera, options=options, mask=mask)
-    return fn(image, prior, hints=hints, camera=camera, options=options)
+    return fn(image, prior, hints=hints, camera=camera, options=options, mask=mask)
 
 
 __all__ = [

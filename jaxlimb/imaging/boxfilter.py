@@ -30,6 +30,9 @@ Decisions (the paper is silent on these):
   sky offset does not break the ratio test.
 * "Small" far gradient: below 0.5 g(p) (threshold missing in the paper).  It is
   skipped for ``h < 3`` (a box of 3 or 5 px is within one blur width of the edge).
+* Validity mask (``valid``, :mod:`jaxlimb.imaging.formats`): invalid pixels carry no gradient mass,
+  and a candidate whose edge-end or far pixel is invalid is rejected -- a masked pixel is neither
+  limb nor background, so the tests cannot be made there.
 """
 
 from __future__ import annotations
@@ -81,6 +84,7 @@ def box_filter(
     *,
     background: float = 0.0,
     options: BoxFilterOptions | None = None,
+    valid: np.ndarray | None = None,
 ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Apply the box-based outlier filter to integer candidate pixels (vectorised).
 
@@ -96,6 +100,8 @@ def box_filter(
         Sky level subtracted from the grey tones of the far-pixel test.
     options
         :class:`BoxFilterOptions`.
+    valid
+        Optional validity mask of the same shape (``True`` = measured pixel; module docstring).
 
     Returns
     -------
@@ -126,7 +132,13 @@ def box_filter(
     vc = (cols >= 0) & (cols < C)
     rows_c = np.clip(rows, 0, R - 1)
     cols_c = np.clip(cols, 0, C - 1)
-    patch = G0[rows_c[:, :, None], cols_c[:, None, :]].astype(np.float64) * (vr[:, :, None] & vc[:, None, :])
+    inb = vr[:, :, None] & vc[:, None, :]
+    if valid is not None:
+        V = np.asarray(valid, bool)
+        if V.shape != G0.shape:
+            raise ConfigError(f"valid mask shape {V.shape} does not match the gradient shape {G0.shape}")
+        inb = inb & V[rows_c[:, :, None], cols_c[:, None, :]]
+    patch = G0[rows_c[:, :, None], cols_c[:, None, :]].astype(np.float64) * inb
     g0 = G0[pr, pc].astype(np.float64)
     w = np.maximum(patch - opt.weight_floor * g0[:, None, None], 0.0)
     o = off.astype(np.float64)
@@ -180,6 +192,10 @@ def box_filter(
     if h >= 3:
         keep &= far_grad < opt.far_gradient_max
     keep &= g0 > 0
+    if valid is not None:
+        for dr_, dc_ in ((t_r, t_c), (-t_r, -t_c), (n_r, n_c), (-n_r, -n_c)):
+            keep &= samp(V, h * dr_, h * dc_, False) > 0.5
+        keep &= V[pr, pc]
     # normal oriented from bright to dark (outward from the body)
     sign = np.where(i1 >= i2, -1.0, 1.0)
     diag = {

@@ -247,6 +247,22 @@ def detect_cropping(image: np.ndarray, threshold: float | None = None, width_fra
     return CropInfo(n_crossings=n, sides=sides, border_lit_fraction=float(lit.mean()))
 
 
+def nearest_fill(image: np.ndarray, mask: np.ndarray | None) -> np.ndarray:
+    """``image`` with each invalid pixel of ``mask`` (``False``) replaced by its nearest valid pixel.
+
+    What body detection sees of a masked pixel: a missing band across the disc then neither cuts the
+    lit region in two nor adds an edge (masked pixels are neither limb nor background)."""
+    if mask is None:
+        return image
+    valid = np.asarray(mask, bool)
+    if valid.all() or not valid.any():
+        return image
+    from scipy import ndimage
+
+    idx = ndimage.distance_transform_edt(~valid, return_distances=False, return_indices=True)
+    return np.asarray(image)[idx[0], idx[1]]
+
+
 def detect_body(image: np.ndarray, options: DetectOptions | None = None) -> BodyRegion:
     """Find the lit body: no-body test, threshold (Eq. 10), ROI, Checks 1-2 on the image.
 

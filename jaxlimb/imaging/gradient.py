@@ -74,7 +74,7 @@ from ..errors import ConfigError, RadiusInconsistentError, TooManyOutliersError
 from ..geometry.camera import Camera
 from .boxfilter import BoxFilterOptions, box_filter
 from .candidates import LimbCandidates, lit_arc
-from .crop import BodyRegion, DetectOptions, detect_body
+from .crop import BodyRegion, DetectOptions, detect_body, nearest_fill
 from .io import validate_image
 from .prior import Hints, Prior, PriorOptions, derived_settings, prior_from_hints, prior_from_image, ransac_tests, sun_direction_image
 
@@ -369,7 +369,7 @@ def gradient_front_end(
     opt = options or GradientOptions()
     t0 = time.perf_counter()
     img = validate_image(image, reject_constant=False, as_float64=False)
-    region = detect_body(img, opt.detect)
+    region = detect_body(nearest_fill(img, mask), opt.detect)
     t_detect = time.perf_counter()
     pri = resolve_prior(img, region, prior, hints, camera, opt.prior)
     st = derived_settings(pri, opt.prior)
@@ -389,12 +389,15 @@ def gradient_front_end(
     else:
         sub_s = sub
     g, gr, gc = richardson_gradient(sub_s, richardson=opt.richardson, dtype=np.float32)
+    vsub = None
     if mask is not None:
-        g = np.where(valid_zone(np.asarray(mask, bool)[r0:r1, c0:c1], 4 + int(math.ceil(3 * sigma_pre))), g, 0)
+        vsub = np.asarray(mask, bool)[r0:r1, c0:c1]
+        g = np.where(valid_zone(vsub, 4 + int(math.ceil(3 * sigma_pre))), g, 0)
     n_req = int(min(st.n_points, max(10, g.size // 4)))
     cand = strongest_pixels(g, n_req)
     t_grad = time.perf_counter()
-    keep, _diag = box_filter(g, sub_s, cand, st.box_size, background=region.background, options=opt.box)
+    keep, _diag = box_filter(g, sub_s, cand, st.box_size, background=region.background, options=opt.box,
+                             valid=vsub)
     n_box = int(keep.sum())
     if n_box < opt.min_points_box:
         raise TooManyOutliersError(

@@ -79,8 +79,8 @@ from ..conics.taubin import CircleFit, DegenerateFitError, circle_residuals, fit
 from ..errors import ConfigError, TooManyOutliersError, TooThinError
 from ..geometry.camera import Camera
 from .candidates import LimbCandidates, lit_arc
-from .crop import DetectOptions, detect_body
-from .gradient import _bilinear, check_radius, radius_band, resolve_prior
+from .crop import DetectOptions, detect_body, nearest_fill
+from .gradient import _bilinear, check_radius, radius_band, resolve_prior, valid_zone
 from .io import validate_image
 from .prior import Hints, Prior, PriorOptions, sun_direction_image
 
@@ -225,11 +225,13 @@ def scan_transitions(
     subpixel: bool = True,
     valid_shape: tuple[int, int] | None = None,
     valid_offset: tuple[int, int] = (0, 0),
+    valid_mask: np.ndarray | None = None,
 ):
     """Transitions of a binary image along parallel lines (mask correlation, §VI).
 
     Lines: ``origin + k n + t a`` for each offset ``k`` (``n`` perpendicular to
-    ``a``), ``t`` in unit steps over the whole array.
+    ``a``), ``t`` in unit steps over the whole array.  ``valid_mask`` (shape of ``binary``,
+    ``True`` = usable pixel): windows touching an unusable pixel are not transitions.
 
     Returns
     -------
@@ -259,6 +261,9 @@ def scan_transitions(
         valid = (fr >= 1) & (fr < valid_shape[0] - 1) & (fc >= 1) & (fc < valid_shape[1] - 1)
     else:
         valid = inside
+    if valid_mask is not None:
+        vm = np.asarray(valid_mask, bool)
+        valid = valid & inside & vm[np.clip(ir, 0, R - 1), np.clip(ic, 0, C - 1)]
     prof = np.zeros(pr.shape)
     prof[inside] = B[ir[inside], ic[inside]]
     m = 2.0 * np.asarray(SCAN_MASK, float) - 1.0  # [-1]*4 + [1]*4
@@ -311,6 +316,21 @@ class Transitions:
 
     def __iter__(self):
         return iter((self.entry, self.exit))
+
+
+#: Transitions closer than this to a masked pixel are dropped: the grey profile of :func:`_refine`
+#: (+-8 px) and the 3x3 median must not see the fill value of a masked pixel.
+MASK_REACH_PX = 9
+
+
+def _masked_binary(binary: np.ndarray, valid: np.ndarray | None) -> np.ndarray:
+    """The thresholded image with each masked pixel set to its nearest valid pixel's value."""
+    if valid is None or valid.all() or not valid.any():
+        return binary
+    from scipy import ndimage
+
+    idx = ndimage.distance_transform_edt(~valid, return_distances=False, return_indices=True)
+    return binary[idx[0], idx[1]]
 
 
 def _refine(grey: np.ndarray, base: np.ndarray, a: np.ndarray, t0: np.ndarray, sgn: np.ndarray, half: int = 8):
@@ -385,10 +405,15 @@ def scanline_front_end(
     hints: Hints | None = None,
     camera: Camera | None = None,
     options: ScanlineOptions | None = None,
+    mask: np.ndarray | None = None,
 ) -> LimbCandidates:
     """Limb points and initial circle by threshold + inertia axis + scan lines (§IV-A, §VI).
 
-    Parameters and raised errors as :func:`jaxlimb.imaging.gradient.gradient_front_end`;
+    Parameters and raised errors as :func:`jaxlimb.imaging.gradient.gradient_front_end`.  ``mask``
+    (``True`` = measured pixel, :mod:`jaxlimb.imaging.formats`): masked pixels are neither limb nor
+    background -- the threshold uses the valid pixels only, a masked pixel takes the thresholded value
+    of its nearest valid pixel (so a missing band does not cut the lit region in two), and a transition
+    whose window or grey profile (:data:`MASK_REACH_PX`) reaches a masked pixel is dropped;
     additionally :class:`~jaxlimb.errors.TooThinError` when the eigenvalue ratio is
     below ``min_eigen_ratio`` and :class:`~jaxlimb.errors.TooManyOutliersError`
     when fewer than ``min_points`` lines cross the lit limb.
@@ -402,7 +427,7 @@ def scanline_front_end(
     opt = options or ScanlineOptions()
     t0 = time.perf_counter()
     img = validate_image(image, reject_constant=False, as_float64=False)
-    region = detect_body(img, opt.detect)
+    region = detect_body(nearest_fill(img, mask), opt.detect)
     pri = resolve_prior(img, region, prior, hints, camera, opt.prior)
     band = radius_band(pri, region)
 
@@ -414,9 +439,15 @@ def scanline_front_end(
         sub_f = sub
     # Eq. (10), floored at 6 sigma above the sky as in detect_body (the 3x3 median
     # leaves ~1/2 of the per-pixel noise)
-    sky = float(np.percentile(sub_f[:: max(1, sub_f.shape[0] // 200), :: max(1, sub_f.shape[1] // 200)], 2.0))
-    gt = max(threshold_eq10(sub_f), sky + 6.0 * (0.5 if opt.median_ksize > 1 else 1.0) * region.noise_sigma)
-    binary = _largest_filled(sub_f > gt)
+    vsub = None if mask is None else np.asarray(mask, bool)[r0:r1, c0:c1]
+    if vsub is None or not vsub.any():
+        vals = sub_f
+        sky = float(np.percentile(sub_f[:: max(1, sub_f.shape[0] // 200), :: max(1, sub_f.shape[1] // 200)], 2.0))
+    else:
+        vals = sub_f[vsub]
+        sky = float(np.percentile(vals[:: max(1, vals.size // 40_000)], 2.0))
+    gt = max(threshold_eq10(vals), sky + 6.0 * (0.5 if opt.median_ksize > 1 else 1.0) * region.noise_sigma)
+    binary = _largest_filled(_masked_binary(sub_f > gt, vsub))
     ax = inertia_axes(binary)
     if ax.eigen_ratio < opt.min_eigen_ratio:
         raise TooThinError(
@@ -443,6 +474,7 @@ def scanline_front_end(
         subpixel=opt.subpixel,
         valid_shape=img.shape,
         valid_offset=(r0, c0),
+        valid_mask=None if vsub is None else valid_zone(vsub, MASK_REACH_PX),
     )
     entry, exit_ = tr.entry, tr.exit
     f_in, k_in = _trimmed_fit(entry, opt.min_points)

@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from .database import TemplateDatabase
@@ -91,25 +92,46 @@ def _observed_extents(mask: np.ndarray, axes: np.ndarray) -> np.ndarray:
 
 
 def _score_block(conts, nrms, rolls, s_xy, xo, chamfer, opts, size):  # type: ignore[no-untyped-def]
-    """Scores, scales and translations ``(B, T)`` for a block of templates and every roll."""
-    c, s = np.cos(rolls)[None, :, None], np.sin(rolls)[None, :, None]
+    """Scores, scales and translations ``(B, T)`` for a block of templates and every roll (float32)."""
+    f4 = np.float32
+    c, s = np.cos(rolls).astype(f4)[None, :, None], np.sin(rolls).astype(f4)[None, :, None]
     x, y = conts[:, None, :, 0], conts[:, None, :, 1]
-    X = np.stack([c * x - s * y, s * x + c * y], axis=-1)  # (B, T, n, 2) rotated template contour
-    nx, ny = nrms[:, None, :, 0], nrms[:, None, :, 1]
-    N = np.stack([c * nx - s * ny, s * nx + c * ny], axis=-1)
+    X0, X1 = c * x - s * y, s * x + c * y  # (B, T, n) rotated template contour (x, y)
     e = np.array([-s_xy[1], s_xy[0]])
-    pe, ps = X @ e, X @ s_xy
-    xp = np.stack([pe.max(-1), (-pe).max(-1), ps.max(-1)], axis=-1)
+    pe, ps = X0 * f4(e[0]) + X1 * f4(e[1]), X0 * f4(s_xy[0]) + X1 * f4(s_xy[1])
+    xp = np.stack([pe.max(-1), (-pe).max(-1), ps.max(-1)], axis=-1).astype(float)
     k = (xo[0] + xo[1]) / np.maximum(xp[..., 0] + xp[..., 1], 1e-9)
     d_e = 0.5 * (xo[0] - xo[1]) - k * 0.5 * (xp[..., 0] - xp[..., 1])
     d_s = xo[2] - k * xp[..., 2]
     T = d_e[..., None] * e + d_s[..., None] * s_xy  # (B, T, 2) translation (x, y)
-    pts = k[..., None, None] * X + T[..., None, :]
-    lit = (N @ s_xy) > opts.limb_cos
-    d = np.minimum(chamfer.remap(pts[..., ::-1]), opts.truncate_frac * size)
+    kf = k.astype(f4)[..., None]
+    mx = kf * X0 + (T[..., 0] - chamfer.c0).astype(f4)[..., None]
+    my = kf * X1 + (T[..., 1] - chamfer.r0).astype(f4)[..., None]
+    # n . s of the rotated normals: nx (c s0 + s s1) + ny (c s1 - s s0)
+    nx, ny = nrms[:, None, :, 0], nrms[:, None, :, 1]
+    lit = nx * (c * f4(s_xy[0]) + s * f4(s_xy[1])) + ny * (c * f4(s_xy[1]) - s * f4(s_xy[0])) > opts.limb_cos
+    n = mx.shape[-1]
+    d = cv2.remap(chamfer.dt32, mx.reshape(-1, n), my.reshape(-1, n), interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    d = np.minimum(d.reshape(mx.shape), f4(opts.truncate_frac * size))
     n_lit = np.maximum(lit.sum(-1), 1)
-    score = np.where(lit, d, 0.0).sum(-1) / n_lit + np.where(n_lit < 3, np.inf, 0.0)
+    score = np.where(lit, d, f4(0.0)).sum(-1, dtype=np.float64) / n_lit + np.where(n_lit < 3, np.inf, 0.0)
     return score, k, T
+
+
+_CONTOURS: dict = {}
+
+
+def _template_contours(db: TemplateDatabase, n_points: int) -> tuple[np.ndarray, np.ndarray]:
+    """Subsampled template contours and their outward normals (float32), kept for the last database."""
+    key = (id(db), n_points)
+    if key not in _CONTOURS:
+        n_all = db.contour_xy.shape[1]
+        sub = np.linspace(0, n_all, n_points, endpoint=False).astype(int)
+        conts_all = np.asarray(db.contour_xy, dtype=float)
+        nrms = contour_normals(conts_all)[:, sub].astype(np.float32)
+        _CONTOURS.clear()
+        _CONTOURS[key] = (db, np.ascontiguousarray(conts_all[:, sub], dtype=np.float32), nrms)
+    return _CONTOURS[key][1], _CONTOURS[key][2]
 
 
 def phase_candidates(
@@ -126,11 +148,7 @@ def phase_candidates(
     chamfer = _Chamfer(mask)
     rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
     size = float(max(rr[-1] - rr[0], cc[-1] - cc[0]) + 1)
-    n_all = db.contour_xy.shape[1]
-    sub = np.linspace(0, n_all, options.n_points, endpoint=False).astype(int)
-    conts_all = np.asarray(db.contour_xy, dtype=float)
-    nrms_all = contour_normals(conts_all)[:, sub]
-    conts_all = conts_all[:, sub]
+    conts_all, nrms_all = _template_contours(db, options.n_points)
     rolls = np.radians(np.arange(0.0, 360.0, options.roll_step_deg))
     scores = np.empty((len(db), rolls.size))
     ks = np.empty_like(scores)

@@ -37,7 +37,6 @@ no cast shadows) in a window camera around the body.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -46,6 +45,7 @@ import numpy as np
 
 from ..errors import ConvergenceError, MatchError
 from .mesh import Mesh
+from .model_render import attitude_columns, downsample, level_camera, render_window
 from .silhouette import figure_centre, mesh_topology, render_silhouette, segment_body
 
 
@@ -64,11 +64,15 @@ class RegisterOptions:
     max_final_step_px
         Largest last step (px) accepted as converged when ``max_iterations`` are used up
         (the rendering is quantised on the sub-pixel grid: steps jitter at ~0.005 px).
-    attitude_blur_frac, attitude_blur_min_px, attitude_fd_deg
+    attitude_blur_frac, attitude_blur_min_px
         When the attitude is fitted too: blur schedule in fractions of the figure size
         (coarse to fine: a template a few degrees off moves the outline by a few percent
-        of the size), blurs below ``attitude_blur_min_px`` dropped, and the
-        finite-difference step (deg).
+        of the size), blurs below ``attitude_blur_min_px`` dropped.  The attitude
+        columns come from the same render (:func:`.model_render.attitude_columns`).
+    pyramid_blur_px, pyramid_min_size_px
+        An iteration with blur ``sigma`` runs on the frame box-averaged by
+        ``k = floor(sigma / pyramid_blur_px)`` (:mod:`.model_render`), as long as the
+        figure stays at least ``pyramid_min_size_px`` across.
     blur_px
         Gaussian blur (px) of image and model in the first iterations (a wider basin).
     search_px
@@ -93,7 +97,8 @@ class RegisterOptions:
     blur_px: tuple[float, ...] = (3.0, 1.5)
     attitude_blur_frac: tuple[float, ...] = (0.04, 0.025, 0.015, 0.008, 0.004)
     attitude_blur_min_px: float = 1.0
-    attitude_fd_deg: float = 0.3
+    pyramid_blur_px: float = 2.0
+    pyramid_min_size_px: float = 48.0
     tol_px: float = 0.01
     max_final_step_px: float = 0.05
     search_px: int = 12
@@ -154,23 +159,12 @@ def _topology(mesh: Mesh):  # type: ignore[no-untyped-def]
     return _TOPO[key][1]
 
 
-def _window_camera(camera: object, lo: np.ndarray, hi: np.ndarray) -> object:
-    """The camera restricted to pixels ``lo..hi`` (inclusive, (row, col))."""
-    r0, c0 = camera.principal_point_rc  # type: ignore[attr-defined]
-    shape = (int(hi[0] - lo[0] + 1), int(hi[1] - lo[1] + 1))
-    return dataclasses.replace(camera, rows=shape[0], cols=shape[1], principal_point_rc=(r0 - lo[0], c0 - lo[1]))  # type: ignore[type-var]
-
-
 def render_model(
     mesh: Mesh, camera: object, R: np.ndarray, t: np.ndarray, sun: np.ndarray | None, lo, hi, options: RegisterOptions
 ) -> tuple[np.ndarray, np.ndarray]:
     """Radiance (unit albedo, zero background) and coverage of the mesh at pose ``(R, t)`` in the window ``lo..hi``."""
-    from ..render.mesh import MeshRenderOptions, render_mesh
-
-    cam = _window_camera(camera, lo, hi)
-    opts = MeshRenderOptions(supersample=options.supersample, reflectance=options.reflectance, albedo=1.0, background=0.0)
-    out = render_mesh(mesh.vertices, mesh.faces, cam, R, t, sun_dir_camera=sun, options=opts)
-    return out.image, out.coverage
+    m = render_window(mesh, camera, R, t, sun, lo, hi, options.supersample, options.reflectance)
+    return m.M, m.C
 
 
 def _lit_figure(topo, camera, R, t, sun):  # type: ignore[no-untyped-def]
@@ -330,62 +324,127 @@ def _rotvec_matrix(w: np.ndarray) -> np.ndarray:
     return np.eye(3) + math.sin(th) * K + (1.0 - math.cos(th)) * K @ K
 
 
-def _attitude_columns(mesh, camera, R, t, sun, lo, hi, G, ratio, sigma, options):  # type: ignore[no-untyped-def]
-    """Finite-difference columns ``dG/domega`` (camera-frame rotation vector, rad) for the attitude fit."""
-    eps = math.radians(options.attitude_fd_deg)
-    cols = []
-    for i in range(3):
-        w = np.zeros(3)
-        w[i] = eps
-        Mi, Ci = (_blur(v, sigma) for v in render_model(mesh, camera, _rotvec_matrix(w) @ R, t, sun, lo, hi, options))
-        cols.append(((Mi - ratio * Ci) - G).ravel() / eps)
-    return np.stack(cols, axis=1)
+class _Pyramid:
+    """The frame, camera and lit figure box-averaged by integer factors (:mod:`.model_render`), made on demand."""
+
+    def __init__(self, image: np.ndarray, camera: object, mask: np.ndarray) -> None:
+        self.levels = {1: (image, camera, mask)}
+
+    def __getitem__(self, k: int):  # type: ignore[no-untyped-def]
+        if k not in self.levels:
+            image, camera, mask = self.levels[1]
+            self.levels[k] = (downsample(image, k), level_camera(camera, k), downsample(mask.astype(np.float32), k) > 0)
+        return self.levels[k]
+
+
+def _level(sigma: float, size: float, options: RegisterOptions) -> int:
+    """Pyramid factor of an iteration with blur ``sigma`` (px) on a figure ``size`` px across."""
+    k = int(sigma // options.pyramid_blur_px)
+    return max(1, min(k, int(size // options.pyramid_min_size_px)))
+
+
+def _figure_size(mask: np.ndarray) -> float:
+    rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
+    return float(max(rr[-1] - rr[0], cc[-1] - cc[0]) + 1)
+
+
+def _gn_step(pyr, mesh, camera, R, sun, P, D, sigma, k, ratio, options, fit_attitude):  # type: ignore[no-untyped-def]
+    """One linearised solve at pyramid factor ``k``: ``(beta, A, y, lo, hi)`` (window in level-``k`` pixels)."""
+    img, cam, mask = pyr[k]
+    s = sigma / k
+    Pk = (P - (k - 1) / 2.0) / k
+    lo, hi = _window(cam, Pk, D, mesh, mask, options.margin_px)
+    model = render_window(mesh, cam, R, _pose(camera, P, D), sun, lo, hi, options.supersample, options.reflectance, fit_attitude)
+    A = _gn_system(_blur(model.M, s), _blur(model.C, s), ratio, Pk - lo)
+    if fit_attitude:
+        A = np.concatenate([A, attitude_columns(model, ratio, lambda a: _blur(a, s))], axis=1)
+    y = _blur(img[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1], s).ravel()
+    return _solve(A, y), A, y, lo, hi
+
+
+@dataclass
+class GNState:
+    """State of the Gauss-Newton registration between stages (:func:`start_registration`).
+
+    ``rms_frac`` is the RMS residual of the last solve over the fitted contrast ``a``
+    (comparable between hypotheses registered on the same frame at the same blur).
+    """
+
+    P: np.ndarray
+    D: float
+    R: np.ndarray
+    ratio: float = 0.0
+    it: int = 0
+    step_px: float = math.inf
+    rms_frac: float = math.nan
+    last: tuple | None = None  # (A, y, beta, lo, hi) of the last solve
+
+
+def _blur_schedule(mask: np.ndarray, options: RegisterOptions, wide: bool) -> tuple[float, ...]:
+    if not wide:
+        return tuple(options.blur_px)
+    size = _figure_size(mask)
+    return tuple(f * size for f in options.attitude_blur_frac if f * size >= options.attitude_blur_min_px)
+
+
+def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude) -> bool:  # type: ignore[no-untyped-def]
+    """One Gauss-Newton iteration at blur ``sigma`` (in place); ``True`` when converged (sharp, small steps)."""
+    size = _figure_size(pyr[1][2])
+    k = _level(sigma, size, options)
+    beta, A, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude)
+    a = float(beta[0])
+    if not a > 0:
+        raise ConvergenceError("registration: the fitted contrast of the model is not positive")
+    res = y - A @ beta
+    st.it, st.ratio, st.last = st.it + 1, float(beta[1]) / a, (A, y, beta, lo, hi)
+    st.rms_frac = math.sqrt(float(res @ res) / res.size) / a
+    step, ds = beta[2:4] / a * k, float(beta[4] / a)
+    n = float(np.linalg.norm(step))
+    if n > 2.0 + 2.0 * sigma:
+        f = (2.0 + 2.0 * sigma) / n
+        step, ds, beta = step * f, ds * f, np.concatenate([beta[:5], beta[5:] * f])
+    st.P = st.P + step
+    st.D = st.D * math.exp(-max(min(ds, 0.05), -0.05))
+    dw = 0.0
+    if fit_attitude:
+        w = beta[5:8] / a
+        dw = float(np.linalg.norm(w))
+        if dw > math.radians(3.0):
+            w = w * (math.radians(3.0) / dw)
+        st.R = _rotvec_matrix(w) @ st.R
+    prev, st.step_px = st.step_px, n
+    # the attitude of an elongated body far away jitters at ~1e-3 rad, moving the centre by ~0.01 px
+    return sigma == 0 and abs(ds) < 1e-4 and ((n < options.tol_px and dw < 1e-4) or max(n, prev) < 2.0 * options.tol_px)
+
+
+def coarse_stage(st: GNState, pyr, mesh, camera, sun, options, fit_attitude, wide) -> GNState:  # type: ignore[no-untyped-def]
+    """The blurred iterations of :func:`_blur_schedule` whose pyramid factor is above 1 (cheap)."""
+    size = _figure_size(pyr[1][2])
+    for sigma in _blur_schedule(pyr[1][2], options, wide):
+        if st.it and _level(sigma, size, options) == 1:
+            break
+        _iterate(st, pyr, mesh, camera, sun, sigma, options, fit_attitude)
+    return st
+
+
+def fine_stage(st: GNState, pyr, mesh, camera, sun, options, fit_attitude, wide) -> GNState:  # type: ignore[no-untyped-def]
+    """The rest of the blur schedule, then sharp iterations to convergence (``max_iterations`` in all)."""
+    blur = _blur_schedule(pyr[1][2], options, wide)
+    while st.it < options.max_iterations:
+        sigma = blur[st.it] if st.it < len(blur) else 0.0
+        if _iterate(st, pyr, mesh, camera, sun, sigma, options, fit_attitude):
+            break
+    if st.step_px > options.max_final_step_px:
+        raise ConvergenceError(f"registration did not converge in {options.max_iterations} iterations (last step {st.step_px:.3g} px)")
+    return st
 
 
 def _gauss_newton(image, mesh, camera, R, sun, P, D, mask, options, fit_attitude=False, wide=False):  # type: ignore[no-untyped-def]
-    """Step 3 of the module docstring (coarse-to-fine: blurred iterations first); state of the last solve."""
-    it = 0
-    n = math.inf
-    ratio = 0.0
-    blur = options.blur_px
-    if fit_attitude or wide:
-        rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
-        size = float(max(rr[-1] - rr[0], cc[-1] - cc[0]) + 1)
-        blur = tuple(f * size for f in options.attitude_blur_frac if f * size >= options.attitude_blur_min_px)
-    for it in range(1, options.max_iterations + 1):
-        sigma = blur[it - 1] if it <= len(blur) else 0.0
-        lo, hi = _window(camera, P, D, mesh, mask, options.margin_px)
-        t = _pose(camera, P, D)
-        M, C = (_blur(v, sigma) for v in render_model(mesh, camera, R, t, sun, lo, hi, options))
-        A = _gn_system(M, C, ratio, P - lo)
-        if fit_attitude:
-            A = np.concatenate([A, _attitude_columns(mesh, camera, R, t, sun, lo, hi, M - ratio * C, ratio, sigma, options)], axis=1)
-        y = _blur(image[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1], sigma).ravel()
-        beta = _solve(A, y)
-        a = float(beta[0])
-        if not a > 0:
-            raise ConvergenceError("registration: the fitted contrast of the model is not positive")
-        ratio = float(beta[1]) / a
-        step = beta[2:4] / a
-        ds = float(beta[4] / a)
-        n = float(np.linalg.norm(step))
-        if n > 2.0 + 2.0 * sigma:
-            f = (2.0 + 2.0 * sigma) / n
-            step, ds, beta = step * f, ds * f, np.concatenate([beta[:5], beta[5:] * f])
-        P = P + step
-        D = D * math.exp(-max(min(ds, 0.05), -0.05))
-        dw = 0.0
-        if fit_attitude:
-            w = beta[5:8] / a
-            dw = float(np.linalg.norm(w))
-            if dw > math.radians(3.0):
-                w = w * (math.radians(3.0) / dw)
-            R = _rotvec_matrix(w) @ R
-        if sigma == 0 and n < options.tol_px and abs(ds) < 1e-4 and dw < 1e-4:
-            break
-    if n > options.max_final_step_px:
-        raise ConvergenceError(f"registration did not converge in {options.max_iterations} iterations (last step {n:.3g} px)")
-    return P, D, R, A, y, beta, lo, hi, it
+    """Step 3 of the module docstring (coarse to fine: blurred iterations first, on the pyramid)."""
+    pyr = _Pyramid(image, camera, mask)
+    st = GNState(np.asarray(P, dtype=float), float(D), np.asarray(R, dtype=float))
+    coarse_stage(st, pyr, mesh, camera, sun, options, fit_attitude, fit_attitude or wide)
+    return fine_stage(st, pyr, mesh, camera, sun, options, fit_attitude, fit_attitude or wide)
 
 
 def register_known_attitude(
@@ -436,19 +495,62 @@ def register_known_attitude(
     img = np.asarray(image, dtype=float)
     R = np.asarray(R_body_to_camera, dtype=float)
     mask, thr = lit_figure(img) if segmentation is None else segmentation
-    P, D = initial_centre(mesh, camera, R, sun_dir_camera, mask, range_km) if initial is None else initial
-    lo, hi = _window(camera, P, D, mesh, mask, options.margin_px)
-    M, _ = render_model(mesh, camera, R, _pose(camera, P, D), sun_dir_camera, lo, hi, options)
-    shift, ncc = ncc_shift(img, M, lo, options.search_px)
-    P = P + shift
+    P, D, ncc = _start(img, mesh, camera, R, sun_dir_camera, range_km, options, mask, initial)
     try:
-        P, D, R, A, y, beta, lo, hi, iters = _gauss_newton(img, mesh, camera, R, sun_dir_camera, P, D, mask, options, fit_attitude)
+        st = _gauss_newton(img, mesh, camera, R, sun_dir_camera, P, D, mask, options, fit_attitude)
     except ConvergenceError:
         if fit_attitude:
             raise
         # a poor start (a non-convex body's extents): again with the coarse-to-fine blur of the attitude fit
-        P, D, R, A, y, beta, lo, hi, iters = _gauss_newton(img, mesh, camera, R, sun_dir_camera, P, D, mask, options, False, True)
-    return _finish(img, camera, (mask, thr), P, D, R, A, y, beta, lo, hi, iters, ncc, options)
+        st = _gauss_newton(img, mesh, camera, R, sun_dir_camera, P, D, mask, options, False, True)
+    return finish_registration(img, camera, (mask, thr), st, ncc, options)
+
+
+def _start(img, mesh, camera, R, sun, range_km, options, mask, initial):  # type: ignore[no-untyped-def]
+    """Steps 1-2: initial pose (or ``initial``) moved by the NCC peak; ``(P, D, ncc)``."""
+    P, D = initial_centre(mesh, camera, R, sun, mask, range_km) if initial is None else initial
+    lo, hi = _window(camera, P, D, mesh, mask, options.margin_px)
+    M, _ = render_model(mesh, camera, R, _pose(camera, P, D), sun, lo, hi, options)
+    shift, ncc = ncc_shift(img, M, lo, options.search_px)
+    return P + shift, D, ncc
+
+
+@dataclass
+class Registration:
+    """A registration with the attitude fitted, stopped after :func:`coarse_stage` (:func:`start_search_registration`)."""
+
+    image: np.ndarray
+    mesh: Mesh
+    camera: object
+    sun: np.ndarray | None
+    segmentation: tuple[np.ndarray, float]
+    pyramid: _Pyramid
+    state: GNState
+    ncc: float
+    options: RegisterOptions
+
+
+def start_search_registration(
+    image: np.ndarray, mesh: Mesh, camera: object, R: np.ndarray, sun: np.ndarray | None, initial: tuple[np.ndarray, float],
+    segmentation: tuple[np.ndarray, float], options: RegisterOptions = RegisterOptions(),
+) -> Registration:  # fmt: skip
+    """NCC and the coarse (pyramid) iterations of a template hypothesis, attitude fitted; cheap.
+
+    ``state.rms_frac`` then ranks the hypotheses before the expensive full-resolution
+    iterations (:func:`complete_search_registration`).
+    """
+    img = np.asarray(image, dtype=float)
+    R = np.asarray(R, dtype=float)
+    P, D, ncc = _start(img, mesh, camera, R, sun, None, options, segmentation[0], initial)
+    pyr = _Pyramid(img, camera, segmentation[0])
+    st = coarse_stage(GNState(np.asarray(P, dtype=float), float(D), R), pyr, mesh, camera, sun, options, True, True)
+    return Registration(img, mesh, camera, sun, segmentation, pyr, st, ncc, options)
+
+
+def complete_search_registration(reg: Registration) -> RegisterResult:
+    """The full-resolution iterations and the checks of a :func:`start_search_registration`."""
+    st = fine_stage(reg.state, reg.pyramid, reg.mesh, reg.camera, reg.sun, reg.options, True, True)
+    return finish_registration(reg.image, reg.camera, reg.segmentation, st, reg.ncc, reg.options)
 
 
 def _overlap(obs: np.ndarray, model_flat: np.ndarray, thr: float, sigma: float) -> float:
@@ -464,8 +566,10 @@ def _overlap(obs: np.ndarray, model_flat: np.ndarray, thr: float, sigma: float) 
     return float(np.logical_and(pred, o).sum()) / max(float(np.logical_or(pred, o).sum()), 1.0)
 
 
-def _finish(img, camera, segmentation, P, D, R, A, y, beta, lo, hi, iters, ncc, options) -> RegisterResult:  # type: ignore[no-untyped-def]
-    """Covariance and the checks of step 4-5."""
+def finish_registration(img, camera, segmentation, st: GNState, ncc: float, options: RegisterOptions) -> RegisterResult:  # type: ignore[no-untyped-def]
+    """Covariance and the checks of step 4-5, from the last (sharp, full-resolution) solve of ``st``."""
+    P, D, R, iters = st.P, st.D, st.R, st.it
+    A, y, beta, lo, hi = st.last  # type: ignore[misc]
     a, b = float(beta[0]), float(beta[1])
     res = y - A @ beta
     dof = max(res.size - A.shape[1], 1)
@@ -508,4 +612,4 @@ def _finish(img, camera, segmentation, P, D, R, A, y, beta, lo, hi, iters, ncc, 
     )
 
 
-__all__ = ["RegisterOptions", "RegisterResult", "initial_centre", "lit_figure", "ncc_shift", "register_known_attitude", "render_model"]
+__all__ = ["RegisterOptions", "RegisterResult", "initial_centre", "lit_figure", "complete_search_registration", "ncc_shift", "register_known_attitude", "start_search_registration", "render_model"]

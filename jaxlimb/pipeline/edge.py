@@ -25,7 +25,7 @@ from .checks import (
     jump_threshold,
     max_limb_displacement,
 )
-from .frame import Frame, arc_angles, min_diameter_px
+from .frame import Frame, arc_angles, frame_mask, min_diameter_px
 from .refine import (
     LOGISTIC_TO_GAUSS,
     AnnulusSelection,
@@ -102,7 +102,7 @@ def limb_pixels(frame: Frame, cand: Any, physical_profile: bool) -> LimbPixels:
     opt = frame.opt
     dr = annulus_halfwidth(cand.radius, cand.residual_rms, opt)
     direction, half, phase = lit_window(frame, cand, dr)
-    sel = select_annulus(frame.img, cand.center_rc, cand.radius, dr, direction, half, opt)
+    sel = select_annulus(frame.img, cand.center_rc, cand.radius, dr, direction, half, opt, frame_mask(frame))
     min_arc = float(opt.min_lit_arc_deg) if opt.min_lit_arc_deg is not None else (
         MIN_LIT_ARC_PROFILE_DEG if physical_profile else MIN_LIT_ARC_DEG)
     check_lit_arc(sel.angles(), min_arc, half)
@@ -112,7 +112,7 @@ def limb_pixels(frame: Frame, cand: Any, physical_profile: bool) -> LimbPixels:
 def _reselect(frame: Frame, pix: LimbPixels, circ: RefineResult, dr: float) -> tuple[LimbPixels, RefineResult]:
     p = circ.fit.params
     sel = select_annulus(frame.img, (float(p.r0), float(p.c0)), float(p.radius), dr, pix.direction, pix.half,
-                         frame.opt)
+                         frame.opt, frame_mask(frame))
     pix = LimbPixels(sel, dr, pix.direction, pix.half, pix.phase, pix.min_arc_deg)
     return pix, fit_circle_annulus(sel, frame.opt)
 

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, ImageContentError
 from ..geometry.camera import Camera
 from ..imaging import Hints, check_prior, front_end, prior_from_hints, validate_image
 from .options import LocateOptions
@@ -123,13 +123,28 @@ def prepare(image: Any, camera: Any, hints: Any, options: Any, mask: Any = None)
         raise ConfigError(f"camera size {cam.rows}x{cam.cols} does not match the image size {img.shape[0]}x{img.shape[1]}")
     if mask is not None and np.shape(mask) != img.shape:
         raise ConfigError(f"mask shape {np.shape(mask)} does not match the image size {img.shape}")
-    frame = Frame(img, cam, hin, opt, t0, mask=None if mask is None else np.asarray(mask, dtype=bool))
+    mask = None if mask is None else np.asarray(mask, dtype=bool)
+    if mask is not None and not mask.all():
+        img = fill_invalid(img, mask)
+    frame = Frame(img, cam, hin, opt, t0, mask=mask)
     if hin is not None and not arc_only(frame):  # (a disc larger than the frame: its arc is measured)
         popt = getattr(frame.front_end_options(), "prior", None)
         pri0 = prior_from_hints(hin, cam, options=popt, check=True)
         if pri0 is not None and cam is None:
             check_prior(pri0, img.shape, popt)
     return frame
+
+
+def fill_invalid(img: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """A copy of ``img`` whose invalid pixels hold the median of the valid ones (the convention of
+    :func:`jaxlimb.imaging.formats.read_frame`): whatever a caller left there (zeros, saturated fill)
+    shows no step to a stage that reads the image without the mask (body detection, the prior)."""
+    if not mask.any():
+        raise ImageContentError("the validity mask marks every pixel invalid: nothing to measure")
+    out = np.array(img)  # (the dtype is kept: the saturation level of integer frames depends on it)
+    med = float(np.median(out[mask]))
+    out[~mask] = round(med) if np.issubdtype(out.dtype, np.integer) else med
+    return out
 
 
 def limb_predicted(frame: Frame) -> bool:
@@ -148,9 +163,15 @@ def arc_only(frame: Frame) -> bool:
     return rng > rkm and cam.focal_px * math.tan(math.asin(rkm / rng)) > 0.5 * math.hypot(*frame.img.shape)
 
 
+def frame_mask(frame: Frame) -> np.ndarray | None:
+    """The validity mask of ``frame.img`` (``None`` when all valid or when a strategy resampled the frame:
+    the observed mask no longer fits its grid)."""
+    return frame.mask if frame.observed_cam is None else None
+
+
 def candidates(frame: Frame) -> Any:
     """Stage 2: the front end's limb candidates, circle and lit direction (Checks 1-4)."""
-    mask = frame.mask if frame.observed_cam is None else None  # (a resampled frame: the mask no longer fits)
+    mask = frame_mask(frame)
     cand = front_end(frame.opt.front_end, frame.img, None, hints=frame.hints, camera=frame.cam,
                      options=frame.front_end_options(), mask=mask)
     frame.mark("front_end")
@@ -169,4 +190,4 @@ def arc_angles(coords: np.ndarray, center_rc) -> np.ndarray:
     return np.arctan2(coords[:, 0] - float(center_rc[0]), coords[:, 1] - float(center_rc[1]))
 
 
-__all__ = ["Frame", "arc_angles", "as_camera", "as_hints", "candidates", "limb_predicted", "min_diameter_px", "prepare"]
+__all__ = ["Frame", "arc_angles", "as_camera", "as_hints", "candidates", "frame_mask", "limb_predicted", "min_diameter_px", "prepare"]

@@ -88,7 +88,7 @@ def fit_lunar_profile(frame: Frame, circ: RefineResult, sat: float | None = None
     fixed = PROFILE_FIXED if opt.lunar_lambert_L is not None else tuple(n for n in PROFILE_FIXED if n != "L")
     # the default solver with a tolerance on the parameters' own scale (px, DN): 1e-7 is
     # far below any measurable change; 1e-10 relative costs ~4 more passes for nothing
-    solver = NormalLM(rtol=0.0, atol=1e-7) if opt.solver == "lm" else None
+    solver = NormalLM(rtol=0.0, atol=1e-7, coarse_stride=1) if opt.solver == "lm" else None
     if sat is None or np.count_nonzero(z >= sat) < 20:  # (a few hot pixels are not a clipped limb)
         res, sph = _profile_passes(frame, data, init, center, float(p.radius), fixed, solver)
         out, n_clipped = RefineResult(res, data, 0, fixed, sphere=sph), 0

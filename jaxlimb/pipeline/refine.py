@@ -160,8 +160,13 @@ def select_annulus(
     direction: tuple[float, float] | None,
     halfangle: float,
     options: LocateOptions,
+    mask: np.ndarray | None = None,
 ) -> AnnulusSelection:
     """Pixels of the annulus ``radius +- dr`` on the lit side (module docstring, rules 1-3).
+
+    ``mask`` (``True`` = measured pixel, :mod:`jaxlimb.imaging.formats`): invalid pixels (line prefixes,
+    missing lines, zero-filled readout windows) are left out of the annulus -- neither limb nor background
+    (they enter neither the bins' levels nor the fit).
 
     Raises
     ------
@@ -171,7 +176,8 @@ def select_annulus(
         Fewer than 20 pixels survive (the limb is not in the frame, or no bin has contrast).
     """
     cr, cc = float(center_rc[0]), float(center_rc[1])
-    coords, z, dsel = _annulus_window(np.asarray(image), (cr, cc), radius, dr, direction, halfangle, options.border_px)
+    coords, z, dsel = _annulus_window(np.asarray(image), (cr, cc), radius, dr, direction, halfangle, options.border_px,
+                                      mask)
     ang = np.arctan2(coords[:, 0] - cr, coords[:, 1] - cc)
     inner = dsel <= radius - 0.5 * dr
     outer = dsel >= radius + 0.5 * dr
@@ -209,9 +215,10 @@ def select_annulus(
 
 
 def _annulus_window(img: np.ndarray, center_rc: tuple[float, float], radius: float, dr: float,
-                    direction: tuple[float, float] | None, halfangle: float, border_px: int):
+                    direction: tuple[float, float] | None, halfangle: float, border_px: int,
+                    mask: np.ndarray | None = None):
     """Rules 1-2: the pixels ``(coords, z, distance)`` of the annulus ``radius +- dr`` inside the frame (less
-    ``border_px``) and inside the lit-side window; the typed failures when too few are left."""
+    ``border_px``), valid in ``mask`` and inside the lit-side window; the typed failures when too few are left."""
     R, C = img.shape
     cr, cc = center_rc
     b = int(border_px)
@@ -224,6 +231,8 @@ def _annulus_window(img: np.ndarray, center_rc: tuple[float, float], radius: flo
     dcol = np.arange(c0, c1, dtype=np.float64)[None, :] - cc
     d = np.sqrt(drow * drow + dcol * dcol)
     m = np.abs(d - radius) <= dr
+    if mask is not None:
+        m &= np.asarray(mask, bool)[r0:r1, c0:c1]
     windowed = direction is not None and halfangle < math.pi
     if windowed:
         with np.errstate(invalid="ignore", divide="ignore"):

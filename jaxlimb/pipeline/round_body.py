@@ -23,7 +23,7 @@ from ..fitting import solver_from_name
 from ..models import CircleParams, EllipseParams, LimbDarkenedParams, LimbProfileParams
 from .checks import MIN_LIT_ARC_DEG, check_lit_arc
 from .edge import EdgeFit
-from .frame import Frame, arc_angles
+from .frame import Frame, arc_angles, frame_mask
 from .geometry import BodyCenter, circle_center, free_ellipse_center, sphere_center
 from .profile import l_band
 from .profile_fit import fit_lunar_profile, saturation_level
@@ -140,9 +140,12 @@ def disc_refit(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> RefineRes
     """Stage "profile refit" of a self-luminous disc: the limb-darkened disc on a full annulus."""
     opt = frame.opt
     _saturation(frame, edge, extras)
-    sun = fit_limb_darkened(frame.img, edge.center_rc, edge.radius,
+    mask = frame_mask(frame)
+    # invalid pixels (mask) become NaN: the disc fit ignores non-finite pixels (neither limb nor sky)
+    img = frame.img if mask is None else np.where(mask, np.asarray(frame.img, float), np.nan)
+    sun = fit_limb_darkened(img, edge.center_rc, edge.radius,
                             solver=None if opt.solver == "lm" else solver_from_name(opt.solver))
-    coords, z = select_sun_annulus(frame.img, edge.center_rc, edge.radius, sun.annulus_px)
+    coords, z = select_sun_annulus(img, edge.center_rc, edge.radius, sun.annulus_px)
     held = tuple(n for n in LimbDarkenedParams.field_names() if n not in sun.fit.free)
     return RefineResult(sun.fit, FitData(coords, z, None, 0.0, 1.0), 0, held)
 

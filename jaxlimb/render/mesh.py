@@ -107,6 +107,73 @@ def _box_down(sub: np.ndarray, h: int, w: int) -> np.ndarray:
     return cv2.resize(sub, (w, h), interpolation=cv2.INTER_AREA).astype(np.float64)
 
 
+@dataclass(frozen=True)
+class Raster:
+    """Face-index buffer of :func:`rasterise`.
+
+    Attributes
+    ----------
+    buf
+        ``(h * ss, w * ss)`` int32: 1 + index of the face seen at each sub-pixel (0: sky).
+    r0, c0, h, w
+        The buffer covers pixels ``r0 .. r0 + h - 1``, ``c0 .. c0 + w - 1``.
+    normals, mu
+        Unit face normals (camera frame) and ``mu = n . e`` toward the camera, per face.
+    """
+
+    buf: np.ndarray
+    r0: int
+    c0: int
+    h: int
+    w: int
+    normals: np.ndarray
+    mu: np.ndarray
+
+
+def rasterise(Xc: np.ndarray, F: np.ndarray, camera: object, ss: int) -> Raster | None:
+    """Painter's-algorithm face-index buffer of the mesh (camera-frame vertices ``Xc``) at ``ss`` x the pixels.
+
+    ``None`` when the projected mesh misses the frame.  Front-facing faces are filled
+    far to near (centroid depth) with ``cv2.fillConvexPoly`` (module docstring).
+    """
+    rows, cols = camera.shape  # type: ignore[attr-defined]
+    f = camera.focal_px  # type: ignore[attr-defined]
+    r0, c0 = camera.principal_point_rc  # type: ignore[attr-defined]
+    rc = np.stack([r0 + f * Xc[:, 1] / Xc[:, 2], c0 + f * Xc[:, 0] / Xc[:, 2]], axis=1)
+    rmin, cmin = np.floor(rc.min(axis=0)).astype(int) - 2
+    rmax, cmax = np.ceil(rc.max(axis=0)).astype(int) + 2
+    rmin, cmin = max(rmin, 0), max(cmin, 0)
+    rmax, cmax = min(rmax, rows - 1), min(cmax, cols - 1)
+    if rmin > rmax or cmin > cmax:
+        return None
+    h, w = rmax - rmin + 1, cmax - cmin + 1
+    # sub-pixel coordinates: pixel r covers [r-0.5, r+0.5]; sub-pixel centres at (r_ss+0.5)/ss-0.5
+    sub = (rc - np.array([rmin, cmin]) + 0.5) * ss - 0.5
+    v0, v1, v2 = (Xc[F[:, i]] for i in range(3))
+    n = np.cross(v1 - v0, v2 - v0)
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    cen = (v0 + v1 + v2) / 3.0
+    e = -cen / np.linalg.norm(cen, axis=1, keepdims=True)
+    mu = np.einsum("ij,ij->i", n, e)
+    front = np.nonzero(mu > 0)[0]
+    order = front[np.argsort(-cen[front, 2])]  # far to near
+    buf = np.zeros((h * ss, w * ss), dtype=np.int32)
+    pts = np.round(sub[F[order]][:, :, ::-1] * 256.0).astype(np.int32)  # (x, y), 8 fractional bits
+    fill = cv2.fillConvexPoly
+    for k, tri in zip((order + 1).tolist(), pts):
+        fill(buf, tri, k, cv2.LINE_8, 8)
+    return Raster(buf, int(rmin), int(cmin), int(h), int(w), n, mu)
+
+
+def shade(mu0: np.ndarray, mu: np.ndarray, reflectance: str) -> np.ndarray:
+    """Radiance per unit albedo of faces with cosines ``mu0`` (Sun) and ``mu`` (camera); 0 where unlit or unseen."""
+    if reflectance == "lommel-seeliger":
+        rad = np.where(mu0 > 0, 2.0 * mu0 / np.maximum(mu0 + mu, 1e-12), 0.0)
+    else:
+        rad = np.maximum(mu0, 0.0)
+    return np.where(mu > 0, rad, 0.0)
+
+
 def render_mesh(
     vertices: np.ndarray,
     faces: np.ndarray,
@@ -149,43 +216,21 @@ def render_mesh(
     rows, cols = camera.shape  # type: ignore[attr-defined]
     f = camera.focal_px  # type: ignore[attr-defined]
     r0, c0 = camera.principal_point_rc  # type: ignore[attr-defined]
-    rc = np.stack([r0 + f * Xc[:, 1] / Xc[:, 2], c0 + f * Xc[:, 0] / Xc[:, 2]], axis=1)
     centre = np.array([r0 + f * t[1] / t[2], c0 + f * t[0] / t[2]])
 
-    ss = options.supersample
     image = np.full((rows, cols), float(options.background))
     coverage = np.zeros((rows, cols))
-    rmin, cmin = np.floor(rc.min(axis=0)).astype(int) - 2
-    rmax, cmax = np.ceil(rc.max(axis=0)).astype(int) + 2
-    rmin, cmin = max(rmin, 0), max(cmin, 0)
-    rmax, cmax = min(rmax, rows - 1), min(cmax, cols - 1)
-    if rmin <= rmax and cmin <= cmax:
-        h, w = rmax - rmin + 1, cmax - cmin + 1
-        # sub-pixel coordinates: pixel r covers [r-0.5, r+0.5]; sub-pixel centres at (r_ss+0.5)/ss-0.5
-        sub = (rc - np.array([rmin, cmin]) + 0.5) * ss - 0.5
-        v0, v1, v2 = (Xc[F[:, i]] for i in range(3))
-        n = np.cross(v1 - v0, v2 - v0)
-        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
-        cen = (v0 + v1 + v2) / 3.0
-        e = -cen / np.linalg.norm(cen, axis=1, keepdims=True)
-        mu = np.einsum("ij,ij->i", n, e)
-        front = np.nonzero(mu > 0)[0]
-        order = front[np.argsort(-cen[front, 2])]  # far to near
-        buf = np.zeros((h * ss, w * ss), dtype=np.int32)
-        pts = np.round(sub[F[order]][:, :, ::-1] * 256.0).astype(np.int32)  # (x, y), 8 fractional bits
-        for k, tri in zip(order, pts):
-            cv2.fillConvexPoly(buf, tri, int(k) + 1, lineType=cv2.LINE_8, shift=8)
+    ras = rasterise(Xc, F, camera, options.supersample)
+    if ras is not None:
+        n, mu = ras.normals, ras.mu
         mu0 = mu if headlight else n @ s
-        if options.reflectance == "lommel-seeliger":
-            rad = np.where(mu0 > 0, 2.0 * mu0 / np.maximum(mu0 + mu, 1e-12), 0.0)
-        else:
-            rad = np.maximum(mu0, 0.0)
-        rad = np.where(mu > 0, rad, 0.0) * options.albedo
+        rad = shade(mu0, mu, options.reflectance) * options.albedo
         lut = np.concatenate([[0.0], rad]).astype(np.float32)
-        block = _box_down(lut[buf], h, w)
-        cblock = _box_down((buf > 0).astype(np.float32), h, w)
-        image[rmin : rmax + 1, cmin : cmax + 1] = options.background * (1.0 - cblock) + block
-        coverage[rmin : rmax + 1, cmin : cmax + 1] = cblock
+        block = _box_down(lut[ras.buf], ras.h, ras.w)
+        cblock = _box_down((ras.buf > 0).astype(np.float32), ras.h, ras.w)
+        win = (slice(ras.r0, ras.r0 + ras.h), slice(ras.c0, ras.c0 + ras.w))
+        image[win] = options.background * (1.0 - cblock) + block
+        coverage[win] = cblock
     if options.noise_sigma > 0:
         image = image + np.random.default_rng(options.seed).normal(0.0, options.noise_sigma, image.shape)
     if options.quantize_bits is not None:
@@ -216,4 +261,4 @@ def look_at_rotation(view_dir_body: np.ndarray, up_body: np.ndarray | None = Non
     return Rz @ R
 
 
-__all__ = ["MeshRender", "MeshRenderOptions", "look_at_rotation", "render_mesh"]
+__all__ = ["MeshRender", "MeshRenderOptions", "Raster", "look_at_rotation", "rasterise", "render_mesh", "shade"]

@@ -138,3 +138,27 @@ def test_fit_core_is_traced_once_per_machine(tmp_path):
     assert second["x"] == first["x"] and second["cov"] == first["cov"]
     off = json.loads(_run(FIT_SCRIPT, {"JAXLIMB_CACHE_DIR": "off"}))
     np.testing.assert_allclose(off["x"], first["x"], rtol=0, atol=1e-12)
+
+
+def test_montecarlo_splits_the_batch_over_cpu_devices_with_the_same_answer(tmp_path):
+    """``--devices 2``: the seeds are split over two XLA CPU devices; the study is the same."""
+    env = {**os.environ, "JAXLIMB_CACHE_DIR": str(tmp_path / "cache")}
+    env.pop("XLA_FLAGS", None)
+    cmd = [sys.executable, "-m", "jaxlimb.cli", *MC[:5], "--batch", "15", *MC[7:]]
+    one, two = (json.loads(subprocess.run([*cmd, "--devices", d], capture_output=True, text=True, check=True,
+                                          env=env).stdout) for d in ("1", "2"))
+    assert (one["devices"], two["devices"]) == (1, 2)
+    for k in one["rms"]:
+        np.testing.assert_allclose(two["rms"][k], one["rms"][k], rtol=1e-9)
+
+
+def test_host_device_request_respects_the_users_xla_flags(monkeypatch):
+    from jaxlimb import cli
+
+    monkeypatch.setattr(cli.sys, "modules", {k: v for k, v in sys.modules.items() if k != "jax"})
+    monkeypatch.setenv("XLA_FLAGS", "--xla_force_host_platform_device_count=3")
+    cli._request_host_devices(2)
+    assert os.environ["XLA_FLAGS"] == "--xla_force_host_platform_device_count=3"
+    monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_enable_fast_math=false")
+    cli._request_host_devices(2)
+    assert os.environ["XLA_FLAGS"] == "--xla_cpu_enable_fast_math=false --xla_force_host_platform_device_count=2"

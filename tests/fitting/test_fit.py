@@ -27,15 +27,16 @@ from jaxlimb.fitting import (
     solver_from_name,
 )
 from jaxlimb.models import CIRCLE, ELLIPSE, LINEAR, CircleParams, LinearParams
+from jaxlimb.fitting.solvers import OPTX_ATOL, OPTX_RTOL
 
 from .helpers import circle_problem, ellipse_problem
 
 SOLVERS = {
     "lm": NormalLM(),
     "optx-normal-lm": optimistix_normal_lm(),
-    "optx-lm": Optimistix(optx.LevenbergMarquardt(rtol=1e-10, atol=1e-10)),
-    "dogleg": Optimistix(optx.Dogleg(rtol=1e-10, atol=1e-10)),
-    "gauss-newton": Optimistix(optx.GaussNewton(rtol=1e-10, atol=1e-10)),
+    "optx-lm": Optimistix(optx.LevenbergMarquardt(rtol=OPTX_RTOL, atol=OPTX_ATOL)),
+    "dogleg": Optimistix(optx.Dogleg(rtol=OPTX_RTOL, atol=OPTX_ATOL)),
+    "gauss-newton": Optimistix(optx.GaussNewton(rtol=OPTX_RTOL, atol=OPTX_ATOL)),
     "bfgs": Optimistix(optx.BFGS(rtol=1e-12, atol=1e-12)),
     "paper": PaperGaussNewton(),
     "scipy": ScipyLeastSquares(),

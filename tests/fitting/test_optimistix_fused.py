@@ -6,6 +6,7 @@ import optimistix as optx
 import pytest
 
 from jaxlimb.fitting import NormalLM, Optimistix, fit
+from jaxlimb.fitting.solvers import OPTX_ATOL, OPTX_RTOL
 from jaxlimb.models import CIRCLE, ELLIPSE
 
 from .helpers import circle_problem, ellipse_problem
@@ -17,8 +18,8 @@ def test_fused_normal_optimistix_gives_the_same_answer(make):
     coords, z, truth = circle_problem(radius=60.0, shape=(160, 160), seed=3)
     init = truth.replace(r0=truth.r0 + 0.4, radius=truth.radius - 0.4, k=2.5, ymax=180.0)
     ref = fit(CIRCLE, coords, z, init, NormalLM())
-    fast = fit(CIRCLE, coords, z, init, Optimistix(make()))
-    plain = fit(CIRCLE, coords, z, init, Optimistix(make(), fused=False, normal=False))
+    fast = fit(CIRCLE, coords, z, init, Optimistix(make(), coarse_stride=1))
+    plain = fit(CIRCLE, coords, z, init, Optimistix(make(), fused=False, normal=False, coarse_stride=1))
     a, b, c = (np.asarray(r.params.to_vector()) for r in (ref, fast, plain))
     np.testing.assert_allclose(b, a, atol=1e-7)
     np.testing.assert_allclose(c, a, atol=1e-7)
@@ -43,3 +44,28 @@ def test_fused_residual_on_the_ellipse_with_fixed_parameters():
     ref = fit(ELLIPSE, coords, z, init, NormalLM(), fixed=fixed)
     fast = fit(ELLIPSE, coords, z, init, Optimistix(optx.LevenbergMarquardt(rtol=1e-10, atol=1e-10)), fixed=fixed)
     np.testing.assert_allclose(np.asarray(fast.params.to_vector()), np.asarray(ref.params.to_vector()), atol=1e-6)
+
+
+@pytest.mark.parametrize("make", [lambda: optx.LevenbergMarquardt(rtol=OPTX_RTOL, atol=OPTX_ATOL),
+                                  lambda: optx.Dogleg(rtol=OPTX_RTOL, atol=OPTX_ATOL)])
+def test_coarse_phase_changes_the_cost_not_the_answer(make):
+    coords, z, truth = circle_problem(radius=150.0, shape=(400, 400), seed=5)
+    assert len(z) >= 4 * 1024  # the coarse phase runs on every 4th of >= 1024 pixels
+    init = truth.replace(r0=truth.r0 + 0.35, c0=truth.c0 - 0.35, radius=truth.radius + 0.5, k=2.5, ymax=180.0)
+    ref = fit(CIRCLE, coords, z, init, NormalLM())
+    coarse = fit(CIRCLE, coords, z, init, Optimistix(make()))
+    fine = fit(CIRCLE, coords, z, init, Optimistix(make(), coarse_stride=1))
+    assert coarse.converged and fine.converged
+    a, b, c = (np.asarray(r.params.to_vector()) for r in (ref, coarse, fine))
+    np.testing.assert_allclose(b, a, atol=1e-6)
+    np.testing.assert_allclose(c, a, atol=1e-6)
+
+
+def test_tolerance_at_the_rounding_floor_still_converges_to_the_same_answer():
+    """atol = 1e-10 DN per pixel: more steps (OPTX_ATOL's note), the same minimum."""
+    coords, z, truth = circle_problem(radius=60.0, shape=(160, 160), seed=3)
+    init = truth.replace(r0=truth.r0 + 0.4, k=2.5)
+    tight = fit(CIRCLE, coords, z, init, Optimistix(optx.LevenbergMarquardt(rtol=1e-10, atol=1e-10)))
+    loose = fit(CIRCLE, coords, z, init, Optimistix(optx.LevenbergMarquardt(rtol=OPTX_RTOL, atol=OPTX_ATOL)))
+    assert int(loose.n_steps) <= int(tight.n_steps)
+    np.testing.assert_allclose(np.asarray(loose.params.to_vector()), np.asarray(tight.params.to_vector()), atol=1e-6)

@@ -1,0 +1,155 @@
+"""Speed of ``jaxlimb los locate`` with the attitude unknown (issue 12: <= 3 s per call, process start included).
+
+Frames of ``benchmarks/irregular_los.py`` (same renderer, camera and noise): Thebe
+and a generated contact binary at phase 30 deg and 3x / 10x the long axis, plus Phobos
+(49 152 facets) at 3x unless ``--quick``.  For each frame:
+
+* **in process** (warm: the database loaded, one call made before):
+  :func:`jaxlimb.irregular.locate.locate_los` median of ``--repeats`` calls, and the
+  stages (phase-aware template search, coarse stage of every hypothesis,
+  full-resolution stage and checks);
+* **CLI**: wall time of ``jaxlimb los locate FRAME --db DB.npz --camera C --hints H
+  --json`` (Sun direction and range prior in the hints, attitude unknown), first
+  process and the median of the later ones, beside ``python -c "import jax;
+  jax.numpy.zeros(1)"`` measured in the same run;
+* the centre error of the answer (px).
+
+Run::
+
+    nice -n 5 .venv/bin/python benchmarks/irregular_speed.py --quick
+
+Writes ``benchmarks/results/irregular_speed.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import environment, save  # noqa: E402
+
+JAXLIMB = [sys.executable, "-m", "jaxlimb.cli"]
+CASES = (("thebe", 30, 3.0), ("thebe", 30, 10.0), ("gen:contact-binary", 30, 3.0), ("phobos", 30, 3.0))
+
+
+def _wall(cmd: list[str], env: dict[str, str]) -> tuple[float, dict | None]:
+    t0 = time.perf_counter()
+    p = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    dt = time.perf_counter() - t0
+    if p.returncode not in (0, 3):
+        raise RuntimeError(f"{' '.join(cmd)} -> {p.returncode}: {p.stderr[-400:]}")
+    try:
+        return dt, json.loads(p.stdout.strip().splitlines()[-1])
+    except (json.JSONDecodeError, IndexError):
+        return dt, None
+
+
+def _stages(img, db, cam, sun, range_km) -> dict[str, float]:
+    """Wall time of each stage of the template search (same code path as ``locate_los``)."""
+    from dataclasses import replace
+
+    from jaxlimb.irregular.locate import LosOptions, _register_hypotheses, _sun_image_direction
+    from jaxlimb.irregular.phase import phase_candidates
+    from jaxlimb.irregular.register import lit_figure
+    from jaxlimb.irregular.silhouette import figure_centre
+
+    o = LosOptions()
+    t0 = time.perf_counter()
+    seg = lit_figure(img)
+    s = _sun_image_direction(sun, cam, figure_centre(seg[0]), o)
+    t1 = time.perf_counter()
+    hyps = phase_candidates(seg[0], db, cam, s, o.phase)[: o.n_verify]
+    t2 = time.perf_counter()
+    ropts = replace(o.register, max_excess_frac=min(o.register.max_excess_frac, o.search_max_excess_frac))
+    _register_hypotheses(img, db, cam, sun, seg, hyps, ropts, o)
+    t3 = time.perf_counter()
+    return {"segment_s": t1 - t0, "template_search_s": t2 - t1, "register_s": t3 - t2}
+
+
+def _frame(name, ph, df, bodies, cam, d: Path, rng) -> dict:
+    """Write the frame, database, camera and hints of one case; the in-process timings."""
+    import cv2
+
+    from irregular_los import make_view
+    from jaxlimb.irregular.database import DatabaseOptions, cached_database, save_database
+    from jaxlimb.irregular.locate import locate_los
+
+    mesh, pole = bodies[name]
+    db = cached_database(mesh, DatabaseOptions(step_deg=3.0, pole_axis=pole), progress=False)
+    img, truth, _, t, sun = make_view(mesh, cam, ph, df, True, 2.0, rng)
+    img = np.clip(np.round(img), 0, 65535)
+    tag = f"{name.replace(':', '_')}_{ph}_{int(df)}"
+    cv2.imwrite(str(d / f"{tag}.png"), img.astype(np.uint16))
+    dbp = d / f"{name.replace(':', '_')}.npz"
+    if not dbp.exists():
+        save_database(db, dbp)
+    rng_km = float(np.linalg.norm(t)) * 1.05
+    (d / f"{tag}.hints.json").write_text(json.dumps({"sun_dir_camera": [float(v) for v in sun], "range_prior_km": rng_km}))
+    locate_los(img, db, cam, sun, None, rng_km)  # warm-up
+    times, err = [], float("nan")
+    for _ in range(REPEATS):
+        t0 = time.perf_counter()
+        res = locate_los(img, db, cam, sun, None, rng_km)
+        times.append(time.perf_counter() - t0)
+        err = float(np.linalg.norm(res.centre_rc - truth))
+    row = {"case": tag, "in_process_s": statistics.median(times), "error_px": err, **_stages(img, db, cam, sun, rng_km)}
+    row["cmd"] = [*JAXLIMB, "los", "locate", str(d / f"{tag}.png"), "--db", str(dbp), "--camera", str(d / "camera.json"),
+                  "--hints", str(d / f"{tag}.hints.json"), "--json"]  # fmt: skip
+    row["truth_rc"] = [float(v) for v in truth]
+    return row
+
+
+REPEATS = 3
+
+
+def main(argv: list[str] | None = None) -> dict:
+    global REPEATS
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="Thebe 3x and the contact binary only, no Phobos")
+    ap.add_argument("--repeats", type=int, default=3, help="in-process calls and later CLI processes per frame")
+    args = ap.parse_args(argv)
+    REPEATS = args.repeats
+    os.environ.setdefault("JAXLIMB_CACHE", str(Path(__file__).resolve().parent / "results" / ".db-cache"))
+    from irregular_los import bodies, camera
+
+    cam = camera()
+    d = Path(tempfile.mkdtemp(prefix="irregular_speed_"))
+    (d / "camera.json").write_text(json.dumps(cam.to_dict()))
+    cases = [c for c in CASES if not (args.quick and (c[0] == "phobos" or c[2] == 10.0))]
+    allb = bodies(quick=False)
+    rows = [_frame(n, ph, df, allb, cam, d, np.random.default_rng([2026, i])) for i, (n, ph, df) in enumerate(cases)]
+    env = {**os.environ, "JAXLIMB_CACHE_DIR": str(d / "jaxcache")}
+    jax_cmd = [sys.executable, "-c", "import jax; jax.numpy.zeros(1)"]
+    _wall(jax_cmd, env)
+    jax_s = statistics.median(_wall(jax_cmd, env)[0] for _ in range(args.repeats))
+    for r in rows:
+        first, out = _wall(r["cmd"], env)
+        later = [_wall(r["cmd"], env)[0] for _ in range(args.repeats)]
+        r.update(cli_first_s=first, cli_s=statistics.median(later), cli_status=(out or {}).get("status", "?"))
+        if out and "center_rc" in out:
+            r["cli_error_px"] = float(np.linalg.norm(np.asarray(out["center_rc"]) - np.asarray(r["truth_rc"])))
+        r["cli_vs_jax_start"] = r["cli_s"] / jax_s
+        r["cmd"] = " ".join(r["cmd"][2:]).replace(str(d), "$TMP")
+    print(f"python -c 'import jax; jax.numpy.zeros(1)': {jax_s:.2f} s (load {os.getloadavg()[0]:.1f})")
+    print("| frame | in process s | search / register s | CLI first / later s | CLI / jax start | error px | CLI status |")
+    print("|---|---|---|---|---|---|---|")
+    for r in rows:
+        print(f"| {r['case']} | {r['in_process_s']:.2f} | {r['template_search_s']:.2f} / {r['register_s']:.2f} |"
+              f" {r['cli_first_s']:.2f} / {r['cli_s']:.2f} | {r['cli_vs_jax_start']:.2f} | {r['error_px']:.3f} | {r['cli_status']} |")
+    out = {"environment": environment(), "jax_start_s": jax_s, "load_after": os.getloadavg()[0], "rows": rows}
+    print("wrote", save("irregular_speed", out))
+    return out
+
+
+if __name__ == "__main__":
+    main()

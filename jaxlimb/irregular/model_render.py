@@ -1,0 +1,205 @@
+r"""Model images for render-and-register (:mod:`.register`): radiance, coverage, attitude derivatives, pyramid.
+
+**Model image.**  The shape model at pose ``(R, t)`` is rasterised in a pixel window
+(:func:`jaxlimb.render.mesh.rasterise`, flat facets, ``supersample`` sub-pixels per
+side, box filter): the radiance ``M`` (unit albedo, zero sky) and the coverage ``C``.
+
+**Attitude derivatives without extra renders.**  A small rotation ``omega`` (camera
+frame) of the body about its centre ``t`` moves the surface point ``X`` by
+``dX = omega x (X - t)`` and turns the facet normals by ``omega x n``.  With the
+visible point ``X = Z (x_n, y_n, 1)`` of each pixel (the ray through the pixel
+centre meets the plane of the facet seen there) the pinhole image moves by
+
+.. math::  \dot c = f\,(\dot X_x - x_n \dot X_z)/Z, \qquad
+           \dot r = f\,(\dot X_y - y_n \dot X_z)/Z,
+
+so ``dM/domega_i = -grad M . flow_i + dM_shading/domega_i``: one render gives the
+three columns the finite differences took three more renders for.  For
+Lommel-Seeliger ``rho = 2 mu0 / (mu0 + mu)``:
+``d rho = 2 (mu d mu0 - mu0 d mu) / (mu0 + mu)^2`` with ``d mu0 = omega . (n x s)``,
+``d mu = omega . (n x e)``.  The outline is not a material line: within 2 px of it
+the flow is that of the nearest limb vertex (the contour generator).
+
+**Pyramid.**  A blur of ``sigma`` px makes detail finer than ``sigma / 2`` useless:
+those iterations run on the frame box-averaged by an integer factor ``k``
+(``cv2.INTER_AREA``) against the model rendered by the camera whose pixels are
+``k`` times larger (:func:`level_camera`), whose pixel ``(R, C)`` is the mean of the
+fine pixels ``k R .. k R + k - 1``: fine coordinate ``x = k X + (k - 1) / 2``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from ..render.mesh import rasterise, shade
+from .mesh import Mesh
+
+
+@dataclass(frozen=True)
+class ModelImage:
+    """The model in the window ``lo..hi`` (:func:`render_window`).
+
+    Attributes
+    ----------
+    M, C
+        Radiance (unit albedo) and coverage, ``(h, w)``.
+    flow
+        ``(3, 2, h, w)``: image motion (row, col px per rad) of the visible surface for a
+        rotation about each camera axis; ``None`` unless asked for.  Zero off the body.
+    shading
+        ``(3, h, w)``: derivative of the radiance for the same rotations (facet normals).
+    on_body
+        ``(h, w)`` bool: pixels whose centre sees a facet (where ``flow`` is defined).
+    """
+
+    M: np.ndarray
+    C: np.ndarray
+    flow: np.ndarray | None = None
+    shading: np.ndarray | None = None
+    on_body: np.ndarray | None = None
+
+
+def window_camera(camera: object, lo: np.ndarray, hi: np.ndarray) -> object:
+    """The camera restricted to pixels ``lo..hi`` (inclusive, (row, col))."""
+    r0, c0 = camera.principal_point_rc  # type: ignore[attr-defined]
+    shape = (int(hi[0] - lo[0] + 1), int(hi[1] - lo[1] + 1))
+    return dataclasses.replace(camera, rows=shape[0], cols=shape[1], principal_point_rc=(r0 - lo[0], c0 - lo[1]))  # type: ignore[type-var]
+
+
+def level_camera(camera: object, k: int) -> object:
+    """The camera of the frame box-averaged ``k x k`` (pixels ``k`` times larger; module docstring)."""
+    if k == 1:
+        return camera
+    r0, c0 = camera.principal_point_rc  # type: ignore[attr-defined]
+    rows, cols = camera.shape  # type: ignore[attr-defined]
+    return dataclasses.replace(  # type: ignore[type-var]
+        camera,
+        rows=rows // k,
+        cols=cols // k,
+        pixel_pitch_mm=camera.pixel_pitch_mm * k,  # type: ignore[attr-defined]
+        principal_point_rc=((r0 - (k - 1) / 2.0) / k, (c0 - (k - 1) / 2.0) / k),
+    )
+
+
+def downsample(image: np.ndarray, k: int) -> np.ndarray:
+    """``k x k`` box average (the last rows/cols that do not fill a block are dropped)."""
+    if k == 1:
+        return image
+    h, w = image.shape[0] // k, image.shape[1] // k
+    return cv2.resize(np.ascontiguousarray(image[: h * k, : w * k], dtype=np.float32), (w, h), interpolation=cv2.INTER_AREA).astype(np.float64)
+
+
+def render_window(
+    mesh: Mesh, camera: object, R: np.ndarray, t: np.ndarray, sun: np.ndarray | None, lo, hi, supersample: int,
+    reflectance: str = "lommel-seeliger", jacobian: bool = False,
+) -> ModelImage:  # fmt: skip
+    """The model image in the window ``lo..hi`` of ``camera`` (module docstring); ``sun=None``: zero phase."""
+    cam = window_camera(camera, lo, hi)
+    h, w = cam.shape  # type: ignore[attr-defined]
+    M, C = np.zeros((h, w)), np.zeros((h, w))
+    t = np.asarray(t, dtype=float)
+    Xc = np.asarray(mesh.vertices, dtype=float) @ np.asarray(R, dtype=float).T + t
+    F = np.asarray(mesh.faces, dtype=np.int64)
+    ras = rasterise(Xc, F, cam, supersample)
+    if ras is None:
+        return ModelImage(M, C, np.zeros((3, 2, h, w)) if jacobian else None, np.zeros((3, h, w)) if jacobian else None)
+    s = -t / np.linalg.norm(t) if sun is None else np.asarray(sun, dtype=float)
+    mu0 = ras.normals @ s
+    lut = np.concatenate([[0.0], shade(mu0, ras.mu, reflectance)]).astype(np.float32)
+    win = (slice(ras.r0, ras.r0 + ras.h), slice(ras.c0, ras.c0 + ras.w))
+    size = (ras.w, ras.h)
+    M[win] = cv2.resize(lut[ras.buf], size, interpolation=cv2.INTER_AREA)
+    C[win] = cv2.resize((ras.buf > 0).astype(np.float32), size, interpolation=cv2.INTER_AREA)
+    if not jacobian:
+        return ModelImage(M, C)
+    flow, shading, on = np.zeros((3, 2, h, w)), np.zeros((3, h, w)), np.zeros((h, w), dtype=bool)
+    f_sub, f_sh, f_on = _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, supersample, reflectance)
+    flow[:, :, win[0], win[1]], shading[:, win[0], win[1]], on[win] = f_sub, f_sh, f_on
+    return ModelImage(M, C, flow, shading, on)
+
+
+def _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, ss, reflectance):  # type: ignore[no-untyped-def]
+    """Flow ``(3, 2, h, w)``, shading derivative ``(3, h, w)`` and on-body mask of the raster's pixels."""
+    idx = ras.buf[ss // 2 :: ss, ss // 2 :: ss][: ras.h, : ras.w]
+    on = idx > 0
+    face = np.maximum(idx - 1, 0)
+    n = ras.normals
+    d = np.einsum("ij,ij->i", n, Xc[F[:, 0]])  # facet planes n . X = d
+    f = cam.focal_px  # type: ignore[attr-defined]
+    pr, pc = cam.principal_point_rc  # type: ignore[attr-defined]
+    yn = ((ras.r0 + np.arange(ras.h)) - pr)[:, None] / f * np.ones((1, ras.w))
+    xn = ((ras.c0 + np.arange(ras.w)) - pc)[None, :] / f * np.ones((ras.h, 1))
+    nf = n[face]
+    den = nf[..., 0] * xn + nf[..., 1] * yn + nf[..., 2]
+    Z = np.where(on, d[face] / np.where(np.abs(den) > 1e-12, den, 1e-12), 1.0)
+    Q = np.stack([Z * xn - t[0], Z * yn - t[1], Z - t[2]])
+    flow = np.zeros((3, 2) + idx.shape)
+    for i in range(3):
+        dX = np.cross(np.eye(3)[i], Q, axisb=0, axisc=0)
+        flow[i, 0] = f * (dX[1] - yn * dX[2]) / Z
+        flow[i, 1] = f * (dX[0] - xn * dX[2]) / Z
+    flow *= on
+    _limb_flow(flow, ras, Xc, F, cam, t, ss)
+    cen = (Xc[F[:, 0]] + Xc[F[:, 1]] + Xc[F[:, 2]]) / 3.0
+    e = -cen / np.linalg.norm(cen, axis=1, keepdims=True)
+    dmu0, dmu = np.cross(n, s), np.cross(n, e)  # (nf, 3): d mu0 / d omega, d mu / d omega
+    mu = ras.mu
+    lit = (mu0 > 0) & (mu > 0)
+    if reflectance == "lommel-seeliger":
+        drho = 2.0 * (mu[:, None] * dmu0 - mu0[:, None] * dmu) / np.maximum(mu0 + mu, 1e-12)[:, None] ** 2
+    else:
+        drho = dmu0
+    drho = np.where(lit[:, None], drho, 0.0)
+    shading = np.moveaxis(drho[face], -1, 0) * on
+    return flow, shading, on
+
+
+def _limb_flow(flow, ras, Xc, F, cam, t, ss) -> None:  # type: ignore[no-untyped-def]
+    """Within 2 px of the outline, the flow of the nearest limb vertex (in place).
+
+    The outline of a smooth body is not a material line: it moves with the contour
+    generator (vertices shared by a facet turned to the camera and one turned away), whose
+    image velocity, not that of the grazing facet behind the pixel, moves the edge.
+    """
+    from scipy.spatial import cKDTree
+
+    front = ras.mu > 0
+    seen, unseen = np.zeros(len(Xc), bool), np.zeros(len(Xc), bool)
+    seen[F[front].ravel()] = True
+    unseen[F[~front].ravel()] = True
+    limb = np.nonzero(seen & unseen)[0]
+    cover = cv2.resize((ras.buf > 0).astype(np.uint8) * 255, (ras.w, ras.h), interpolation=cv2.INTER_AREA) > 127
+    k5 = np.ones((5, 5), np.uint8)
+    band = (cv2.dilate(cover.astype(np.uint8), k5) > 0) & ~(cv2.erode(cover.astype(np.uint8), k5) > 0)
+    if limb.size == 0 or not band.any():
+        return
+    X = Xc[limb]
+    f = cam.focal_px  # type: ignore[attr-defined]
+    pr, pc = cam.principal_point_rc  # type: ignore[attr-defined]
+    rc = np.stack([pr + f * X[:, 1] / X[:, 2] - ras.r0, pc + f * X[:, 0] / X[:, 2] - ras.c0], axis=1)
+    rr, cc = np.nonzero(band)
+    _, j = cKDTree(rc).query(np.stack([rr, cc], axis=1), k=1)
+    Q, Z = X[j] - t, X[j, 2]
+    xn, yn = X[j, 0] / Z, X[j, 1] / Z
+    for i in range(3):
+        dX = np.cross(np.eye(3)[i], Q)
+        flow[i, 0, rr, cc] = f * (dX[:, 1] - yn * dX[:, 2]) / Z
+        flow[i, 1, rr, cc] = f * (dX[:, 0] - xn * dX[:, 2]) / Z
+
+
+def attitude_columns(model: ModelImage, ratio: float, blur) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """``(n, 3)`` derivatives of the blurred ``G = M - ratio C`` for rotations about the camera axes (rad)."""
+    G = model.M - ratio * model.C
+    gr, gc = np.gradient(G)
+    cols = []
+    for i in range(3):
+        d = -(gr * model.flow[i, 0] + gc * model.flow[i, 1]) + model.shading[i]  # type: ignore[index]
+        cols.append(blur(d).ravel())
+    return np.stack(cols, axis=1)
+
+
+__all__ = ["ModelImage", "attitude_columns", "downsample", "level_camera", "render_window", "window_camera"]
