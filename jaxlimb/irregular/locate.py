@@ -176,6 +176,7 @@ def _register_hypotheses(img, db, camera, sun, seg, hyps, ropts, options):  # ty
             errors.append(e)
     regs.sort(key=lambda r: r[0].state.rms_frac if math.isfinite(r[0].state.rms_frac) else math.inf)
     fits: list[tuple[RegisterResult, int]] = []
+    accepted: list = []
     for reg, h in regs:
         st = reg.state
         if st.rms_frac > min(regs[0][0].state.rms_frac + options.prune_rms_frac, options.prune_max_rms_frac):
@@ -184,34 +185,40 @@ def _register_hypotheses(img, db, camera, sun, seg, hyps, ropts, options):  # ty
         if any(float(np.linalg.norm(st.P - f.centre_rc)) < options.same_centre_px for f, _ in fits):
             continue
         try:
-            fit = complete_search_registration(reg, _runner_up_guard(fits, options) if fits else None)
+            fit = complete_search_registration(reg, _runner_up_guard(accepted, options) if accepted else None)
         except CheckFailed as e:
             errors.append(e)
             continue
         fits.append((fit, h.template_index))
+        accepted.append(reg.state)
     return fits, errors
 
 
-def _runner_up_guard(fits, options):  # type: ignore[no-untyped-def]
+def _runner_up_guard(accepted, options):  # type: ignore[no-untyped-def]
     """Abandon a further hypothesis that cannot change the answer (:func:`_register_hypotheses`).
 
-    On sharp iterations: its centre within ``same_centre_px`` of an accepted fit (the same
-    answer), or, from its second sharp iteration on, an RMS residual above every accepted
-    fit's by ``3 ambiguity_margin`` (its residual excess then exceeds theirs by more than
-    the margin too, since ``excess^2 = rms^2 - noise^2`` with ``excess <= rms``: it can
-    neither win nor make the match ambiguous).
+    ``accepted``: the :class:`~.register.GNState` of the accepted fits.  After each
+    iteration of the candidate:
+
+    * at full resolution (blur below ``2 pyramid_blur_px``), its centre within
+      ``same_centre_px`` of an accepted fit: the same answer;
+    * from its second iteration on, an RMS residual (fraction of the contrast) above that
+      of every accepted fit at the same iteration (same blur; the last one for later
+      sharp iterations) by ``3 ambiguity_margin``.  On sharp iterations its residual excess
+      then exceeds theirs by more than the margin too (``excess^2 = rms^2 - noise^2`` with
+      ``excess <= rms``): it can neither win nor make the match ambiguous.
     """
-    best_rms = min(f.rms_residual / f.gain for f, _ in fits)
-    sharp = [0]
+    count = [0]
+    full_res = 2.0 * options.register.pyramid_blur_px
 
     def guard(st, sigma) -> None:  # type: ignore[no-untyped-def]
-        if sigma > 0:
-            return
-        sharp[0] += 1
-        if any(float(np.linalg.norm(st.P - f.centre_rc)) < options.same_centre_px for f, _ in fits):
+        count[0] += 1
+        if sigma < full_res and any(float(np.linalg.norm(st.P - a.P)) < options.same_centre_px for a in accepted):
             raise MatchError("the hypothesis converges to an accepted fit")
-        if sharp[0] >= 2 and st.rms_frac > best_rms + 3.0 * options.ambiguity_margin:
-            raise MatchError(f"residual {st.rms_frac:.3f} of the contrast against {best_rms:.3f} of an accepted fit")
+        i = len(st.history) - 1
+        ref = min(a.history[min(i, len(a.history) - 1)] for a in accepted)
+        if count[0] >= 2 and st.rms_frac > ref + 3.0 * options.ambiguity_margin:
+            raise MatchError(f"residual {st.rms_frac:.3f} of the contrast against {ref:.3f} of an accepted fit")
 
     return guard
 

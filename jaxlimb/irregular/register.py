@@ -37,6 +37,7 @@ no cast shadows) in a window camera around the body.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -383,6 +384,7 @@ class GNState:
     step_px: float = math.inf
     rms_frac: float = math.nan
     last: tuple | None = None  # (A, y, beta, lo, hi) of the last solve
+    history: list = dataclasses.field(default_factory=list)  # rms_frac of every iteration
 
 
 def _blur_schedule(mask: np.ndarray, options: RegisterOptions, wide: bool) -> tuple[float, ...]:
@@ -403,6 +405,7 @@ def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude) 
     res = y - A @ beta
     st.it, st.ratio, st.last = st.it + 1, float(beta[1]) / a, (A, y, beta, lo, hi)
     st.rms_frac = math.sqrt(float(res @ res) / res.size) / a
+    st.history.append(st.rms_frac)
     step, ds = beta[2:4] / a * k, float(beta[4] / a)
     n = float(np.linalg.norm(step))
     if n > 2.0 + 2.0 * sigma:
