@@ -121,6 +121,15 @@ def remove_dead_temporaries(path: str | os.PathLike[str]) -> list[Path]:
     return removed
 
 
+def sweep_dead_temporaries(directory: str | os.PathLike[str]) -> list[Path]:
+    """:func:`remove_dead_temporaries` for every file of ``directory`` (a killed run's leftovers)."""
+    d = Path(directory)
+    if not d.is_dir():
+        return []
+    names = {t.name[1:-len(".tmp")].rsplit(".", 1)[0] for t in d.glob(".*.tmp")}
+    return [t for name in sorted(names) for t in remove_dead_temporaries(d / name)]
+
+
 @contextlib.contextmanager
 def exclusive_output(path: str | os.PathLike[str]) -> Iterator[Path]:
     """Hold the writer's lock of ``path`` for the whole block (computation and write).

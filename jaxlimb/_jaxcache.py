@@ -45,6 +45,46 @@ _COMPILE_EVENTS = (
 )
 
 
+def preload_lapack_kernels() -> bool:
+    """Load SciPy's ``cython_blas`` / ``cython_lapack`` without the ``scipy.linalg`` package.
+
+    jaxlib finds its CPU LAPACK kernels in these two Cython modules (``GetLapackKernelsFromScipy``)
+    the first time a program with a linear-algebra call, or any exported program
+    (:mod:`jaxlimb.fitting._aot`), is lowered.  Importing them by name first runs
+    ``scipy/linalg/__init__.py``: ~0.1-0.25 s of CPU per process, most of it modules no command
+    uses.  Loaded from their own files into ``sys.modules`` under their own names, they are the
+    same modules; a later ``import scipy.linalg`` works as usual.  Called by the command line
+    before JAX starts; any failure leaves the normal import path (returns False).
+    """
+    import importlib.util
+    import sys
+
+    if "scipy.linalg" in sys.modules:
+        return True
+    try:
+        import scipy
+
+        folder = Path(scipy.__file__).parent / "linalg"
+        for name in ("cython_blas", "cython_lapack"):
+            full = f"scipy.linalg.{name}"
+            if full in sys.modules:
+                continue
+            path = next(p for p in folder.iterdir() if p.name.startswith(name + ".") and p.suffix in (".so", ".pyd"))
+            spec = importlib.util.spec_from_file_location(full, path)
+            if spec is None or spec.loader is None:
+                return False
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[full] = module
+            try:
+                spec.loader.exec_module(module)
+            except BaseException:
+                del sys.modules[full]
+                raise
+    except Exception:  # noqa: BLE001 - an optimisation only
+        return False
+    return True
+
+
 def cache_dir() -> Path | None:
     """The directory the persistent cache uses, or ``None`` when disabled (module docstring)."""
     env = os.environ.get(ENV_DIR)

@@ -51,6 +51,13 @@ class ConfigError(LimbInputError):
     check = "bad_config"
 
 
+class UsageError(ConfigError):
+    """Command-line arguments that do not go together (a flag missing for the chosen mode, a value outside
+    the mode's choices): the same check as argparse's usage errors."""
+
+    check = "bad_arguments"
+
+
 class GeometryError(LimbInputError):
     """Impossible geometry: observer inside the ellipsoid, degenerate radii, ..."""
 
@@ -144,6 +151,12 @@ class RadiusInconsistentError(CheckFailed):
     check = "radius_inconsistent"
 
 
+class DarkLimbInconsistentError(CheckFailed):
+    """The dark limb visible against a brighter sky lies off the circle fitted to the lit limb."""
+
+    check = "dark_limb_inconsistent"
+
+
 class ArcTooShortError(CheckFailed):
     """Check 3/4: the lit limb visible in the frame is too short an arc to fix a circle (cropped body)."""
 
@@ -202,6 +215,8 @@ class SaturationWarning(UserWarning):
 __all__ = [
     "AmbiguousMatchError",
     "ArcTooShortError",
+    "DarkLimbInconsistentError",
+    "UsageError",
     "AttitudeError",
     "CheckFailed",
     "ConfigError",

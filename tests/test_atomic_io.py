@@ -50,3 +50,17 @@ def test_next_write_removes_the_temporary_of_a_killed_writer(tmp_path):
     write_json_atomic(p, {"x": 1})
     assert not dead.exists() and live.exists() and other.exists()
     assert json.loads(p.read_text()) == {"x": 1}
+
+
+def test_sweep_removes_every_dead_writers_temporary_of_a_directory(tmp_path):
+    """A killed Monte Carlo leaves ``.chunk_NNNNNN.npz.PID-XXXX.tmp`` files; the next run sweeps them."""
+    from jaxlimb._io import sweep_dead_temporaries
+
+    dead = [tmp_path / f".chunk_00000{i}.npz.{_dead_pid()}-k1ll3d.tmp" for i in range(3)]
+    live = tmp_path / f".chunk_000009.npz.{os.getppid()}-w0rk1ng.tmp"
+    keep = tmp_path / "chunk_000001.npz"
+    for t in (*dead, live, keep):
+        t.write_text("x")
+    assert sorted(sweep_dead_temporaries(tmp_path)) == sorted(dead)
+    assert live.exists() and keep.exists() and not any(t.exists() for t in dead)
+    assert sweep_dead_temporaries(tmp_path / "missing") == []

@@ -18,13 +18,22 @@ from one sector to the next (what biases them) makes the scores large and :math:
 them.  The reported covariance is the fit's plus the positive part of the difference,
 :math:`C + [C_s - C]_+` (eigenvalues of the difference clipped at 0): never below the
 noise-only covariance.
+
+A misfit that is the same all along the limb (another reflectance law's limb brightening, a glow,
+a PSF of another shape) moves the parameters without leaving sector-to-sector structure in the
+residuals: the sandwich cannot see it.  The second term is a specification test's difference
+(Hausman 1978, *Econometrica* 46, 1251, Eq. 2.1-2.2): the same model refitted on a subset of the
+pixels that weighs the suspect part of the profile differently (only the sky side and the edge; only
+the edge and the disc).  With an exact model both estimates are unbiased and
+:math:`\mathrm{Var}(\hat\theta_{sub} - \hat\theta) = C_{sub} - C`; a difference :math:`d` beyond that is
+model error, carried as :math:`[d d^\top - (C_{sub} - C)]_+` (:func:`hausman_term`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["cluster_robust_covariance", "sector_groups", "with_model_error"]
+__all__ = ["cluster_robust_covariance", "hausman_term", "positive_part", "sector_groups", "with_model_error"]
 
 
 def sector_groups(coords: np.ndarray, center_rc, n_groups: int) -> np.ndarray:
@@ -56,9 +65,21 @@ def cluster_robust_covariance(J: np.ndarray, r: np.ndarray, groups: np.ndarray) 
     return G / max(G - 1, 1) * bread @ meat @ bread
 
 
+def positive_part(D: np.ndarray) -> np.ndarray:
+    """The symmetric part of ``D`` with its negative eigenvalues set to 0."""
+    D = np.asarray(D, float)
+    lam, V = np.linalg.eigh(0.5 * (D + D.T))
+    return (V * np.maximum(lam, 0.0)) @ V.T
+
+
 def with_model_error(C_fit: np.ndarray, C_s: np.ndarray) -> np.ndarray:
     """``C + [C_s - C]_+`` (module docstring)."""
     C = np.asarray(C_fit, float)
-    D = 0.5 * ((C_s - C) + (C_s - C).T)
-    lam, V = np.linalg.eigh(D)
-    return C + (V * np.maximum(lam, 0.0)) @ V.T
+    return C + positive_part(np.asarray(C_s, float) - C)
+
+
+def hausman_term(d: np.ndarray, C_sub: np.ndarray, C_full: np.ndarray) -> np.ndarray:
+    """``[d d^T - (C_sub - C_full)]_+``: the part of the difference ``d`` between a subset fit and the
+    full fit that the noise does not explain (module docstring, Hausman 1978)."""
+    d = np.asarray(d, float).reshape(-1)
+    return positive_part(np.outer(d, d) - (np.asarray(C_sub, float) - np.asarray(C_full, float)))

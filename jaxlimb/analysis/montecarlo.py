@@ -126,6 +126,9 @@ def _manifest(opt: MonteCarloOptions) -> dict[str, Any]:
 
 
 def _check_manifest(out_dir: Path, opt: MonteCarloOptions) -> None:
+    from .._io import sweep_dead_temporaries
+
+    sweep_dead_temporaries(out_dir)  # chunk temporaries of a killed run (a live writer's are kept)
     path = out_dir / _MANIFEST
     want = _manifest(opt)
     if path.exists():

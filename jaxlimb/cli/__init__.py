@@ -239,9 +239,10 @@ def _request_host_devices(n: int) -> None:
 
 
 def _start_jax() -> None:
-    import jax
+    from .._jaxcache import enable_compile_cache, preload_lapack_kernels
 
-    from .._jaxcache import enable_compile_cache
+    preload_lapack_kernels()  # before JAX: its LAPACK lookup then skips scipy.linalg's package import
+    import jax
 
     jax.config.update("jax_enable_x64", True)
     enable_compile_cache()

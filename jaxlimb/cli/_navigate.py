@@ -52,14 +52,23 @@ def register(sub: argparse._SubParsersAction) -> None:
         "attitude and the DE421 ephemeris (offline) into the observer position, geocentric ICRF/J2000 (km), "
         "with its first-order covariance.  Exit 0 on success, 2 for unusable input, 3 when a check fails.",
     )
-    p.add_argument("image", metavar="IMAGE", help="image file (PNG, TIFF, FITS)")
-    p.add_argument("--camera", required=True, metavar="CAMERA.json", help="camera file (DESIGN.md)")
-    p.add_argument("--epoch", required=True, metavar="T",
-                   help="epoch of the image: ISO 8601 UTC (e.g. 2026-03-01T12:00:00Z) or a TDB Julian date")
-    p.add_argument("--attitude", required=True, metavar="Q|DCM",
+    p.add_argument("image", metavar="IMAGE", help="image file (PNG, TIFF, FITS; VICAR/PDS with --kernels)")
+    p.add_argument("--camera", metavar="CAMERA.json", help="camera file (DESIGN.md); required without --kernels")
+    p.add_argument("--epoch", metavar="T",
+                   help="epoch of the image: ISO 8601 UTC (e.g. 2026-03-01T12:00:00Z) or a TDB Julian date; "
+                   "required without --kernels")
+    p.add_argument("--attitude", metavar="Q|DCM",
                    help='JSON file or inline JSON: {"quaternion": [q1,q2,q3,q4], "order": "xyzw"} '
-                   '(scalar-last default) or {"C_ci": 3x3} (inertial -> camera)')
-    p.add_argument("--body", choices=("moon", "earth"), default=None, help="the body (default: the hints' body, else moon)")
+                   '(scalar-last default) or {"C_ci": 3x3} (inertial -> camera); required without --kernels')
+    p.add_argument("--body", default=None,
+                   help="the body: moon or earth (default: the hints' body, else moon); with --kernels any body "
+                   "SPICE knows (default: the label's TARGET_NAME)")
+    p.add_argument("--kernels", metavar="KERNEL", nargs="+", default=None,
+                   help="SPICE meta-kernel or kernel files (never downloaded), as for `jaxlimb locate`: camera, image "
+                   "time, attitude (CK), Sun, range and orientation from the label; the position is the observer's "
+                   "relative to the body, J2000, beside SPICE's")
+    p.add_argument("--instrument", metavar="NAME", default=None,
+                   help="SPICE instrument with --kernels (default: the label's INSTRUMENT_ID)")
     p.add_argument("--hints", metavar="HINTS.json", help="navigation prior (DESIGN.md hints)")
     p.add_argument("--attitude-sigma-arcsec", type=arg_number(_ATT_SIGMA), default=0.0, dest="attitude_sigma_arcsec",
                    help=f"per-axis 1-sigma attitude error added to the covariance, arcsec {_ATT_SIGMA} (default 0)")
@@ -242,6 +251,18 @@ def _run(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from ..errors import ConfigError
+
+    if args.kernels:
+        from ._navigate_spice import run_spice
+
+        return run_spice(args)
+    from ..errors import UsageError
+
+    missing = [f"--{n}" for n in ("camera", "epoch", "attitude") if getattr(args, n) is None]
+    if missing:
+        raise UsageError(f"navigate needs {', '.join(missing)} (or --kernels with a labelled frame)")
+    if args.body is not None and args.body not in ("moon", "earth"):
+        raise UsageError(f"--body must be moon or earth without --kernels, got {args.body!r}")
     from ..geometry.camera import Camera
     from ..geometry.ephemeris import load_ephemeris
     from ..imaging import ColourImageWarning, Hints, load_image

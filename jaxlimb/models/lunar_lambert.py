@@ -169,7 +169,10 @@ def _radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0):
     return I, I_R, I_cpsi, I_a0, I_ph, I_L
 
 
-def _geometry(p: LimbProfileParams, rc):
+def limb_geometry(p: LimbProfileParams, rc):
+    """``(dr, dc, x, y, d, beta, R, cpsi)`` of the pixels ``rc``: offsets from the centre, ellipse-frame
+    coordinates, distance ``d`` from the centre, the limb's radius ``R`` in the pixel's direction and the
+    cosine of its angle from the Sun's image direction (module docstring)."""
     rc = jnp.asarray(rc)
     dr = rc[..., 0] - p.r0
     dc = rc[..., 1] - p.c0
@@ -245,7 +248,7 @@ def limb_profile_intensity(p: LimbProfileParams, rc):
     ``R = rho a d / beta`` (``beta = sqrt(rho^2 x^2 + y^2)`` in the ellipse frame of
     :func:`jaxlimb.models.ellipse_coords`); the circle formulas apply with that ``R``.
     """
-    _, _, _, _, d, _, R, cpsi = _geometry(p, rc)
+    _, _, _, _, d, _, R, cpsi = limb_geometry(p, rc)
     F, _ = _profile_integrals(p, d, R, cpsi, derivatives=False)
     return p.ymin + p.amp * F
 
@@ -257,7 +260,7 @@ def _profile_value_and_columns(p: LimbProfileParams, rc):
     parameters is written out; checked against ``jax.jacfwd`` of :func:`limb_profile_intensity`
     in ``tests/pipeline/test_profile.py``.
     """
-    dr, dc, x, y, d, beta, R, cpsi = _geometry(p, rc)
+    dr, dc, x, y, d, beta, R, cpsi = limb_geometry(p, rc)
     F, P = _profile_integrals(p, d, R, cpsi, derivatives=True)
     A = p.amp
     ct, st = jnp.cos(p.theta), jnp.sin(p.theta)

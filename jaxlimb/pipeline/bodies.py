@@ -65,7 +65,11 @@ class Sphere:
         return int(edge.circ.fit.n_steps) + (int(final.fit.n_steps) if final is not edge.circ else 0)
 
     def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
-        return meas
+        if self.name != "sphere":
+            return meas
+        from .dark_limb import check_measurement
+
+        return check_measurement(frame, meas)
 
 
 @dataclass(frozen=True)

@@ -406,6 +406,9 @@ class RefineResult:
     fixed : names of the parameters held fixed.
     sphere : for :func:`fit_sphere_annulus`, the :class:`~jaxlimb.pipeline.sphere.SphereImage`
         of the final estimate.
+    noise_covariance : the fit's noise-only covariance :math:`\hat\sigma^2 (J^\top J)^{-1}` when
+        ``fit.covariance`` carries a model-error term (:func:`jaxlimb.pipeline.profile_fit.with_model_error`);
+        ``None``: ``fit.covariance`` is noise-only.  The Cramér--Rao bound uses this one.
     """
 
     fit: LimbFit
@@ -413,10 +416,16 @@ class RefineResult:
     n_outliers: int
     fixed: tuple[str, ...]
     sphere: SphereImage | None = None
+    noise_covariance: np.ndarray | None = None
 
     @property
     def coords(self) -> np.ndarray:
         return self.data.coords
+
+    @property
+    def covariance_noise(self) -> np.ndarray:
+        """The noise-only covariance of the free parameters (see ``noise_covariance``)."""
+        return np.asarray(self.fit.covariance if self.noise_covariance is None else self.noise_covariance)
 
 
 @eqx.filter_jit

@@ -61,12 +61,14 @@ def covariance(final: RefineResult, geo: BodyCenter) -> Covariance:
 
 def crlb(frame: Frame, final: RefineResult, cov: Covariance) -> dict[str, float] | None:
     """The Cramér--Rao bound at the estimate with :math:`\\hat\\sigma` as the noise level, propagated as the
-    covariance.  With unit pixel weights it *is* the fit's own covariance (no second pass over the
-    pixels); with the level normalisation's weights it is :func:`~jaxlimb.analysis.crlb.crlb`'s Fisher
-    information with per-pixel noise ``sigma / w_i``."""
+    covariance.  Noise only: the model-error terms of the covariance (the profile's cluster-robust term,
+    :func:`~jaxlimb.pipeline.profile_fit.with_model_error`; the free ellipse's offset) are not in it.  With
+    unit pixel weights it is the fit's noise-only covariance :math:`\\hat\\sigma^2 (J^\\top J)^{-1}` (no second
+    pass over the pixels); with the level normalisation's weights it is :func:`~jaxlimb.analysis.crlb.crlb`'s
+    Fisher information with per-pixel noise ``sigma / w_i``."""
     if not frame.opt.compute_crlb:
         return None
-    C = cov.matrix
+    C = cov.jacobian @ final.covariance_noise @ cov.jacobian.T
     if final.data.weights is not None:
         fp = final.fit.params
         model = {CircleParams: CIRCLE, EllipseRampParams: ELLIPSE_RAMP}.get(type(fp), ELLIPSE)

@@ -129,7 +129,7 @@ def fit_limb_darkened(img, center_rc, radius_px: float, *, annulus_px: float | N
     h = min(h, 0.5 * R)
     coords, z = select_sun_annulus(img, center_rc, R, h)
     init = _initial(coords, z, center_rc, R, h, u1, u2, sigma0)
-    solver = solver if solver is not None else NormalLM()
+    solver = solver if solver is not None else NormalLM(coarse_stride=1)
     fixed = tuple(fixed)
     free_sigma = "sigma" not in fixed
     first_steps = min(max_steps, _FIRST_STEPS) if free_sigma else max_steps

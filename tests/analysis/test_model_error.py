@@ -35,3 +35,60 @@ def test_sectors_follow_the_arc_across_the_cut():
     g = sector_groups(rc, (0.0, 0.0), 12)
     assert np.all(np.diff(g) >= 0) and g[0] == 0 and g[-1] == 11
     assert np.bincount(g).min() == 50
+
+
+def test_hausman_term_is_the_unexplained_part_of_a_difference():
+    from jaxlimb.analysis.model_error import hausman_term, positive_part
+
+    C = np.diag([1.0, 1.0])
+    C_sub = np.diag([2.0, 2.0])
+    # a difference the noise explains (|d|^2 <= C_sub - C): nothing
+    assert np.allclose(hausman_term([0.5, -0.8], C_sub, C), 0.0)
+    # a difference far beyond it: about d d^T, positive semi-definite
+    W = hausman_term([10.0, 0.0], C_sub, C)
+    assert np.isclose(W[0, 0], 99.0)
+    assert np.all(np.linalg.eigvalsh(W) >= -1e-12)
+    assert np.allclose(positive_part(np.diag([1.0, -2.0])), np.diag([1.0, 0.0]))
+
+
+def test_split_witness_sees_a_misfit_the_same_all_along_the_limb():
+    """A 1-D edge whose inner side is brighter than the model's flat top (a limb brightening the model
+    has no parameter for): the sky-side subset moves the edge, the Hausman term carries it; with the
+    exact model the term stays at the noise level."""
+    from jaxlimb.analysis.model_error import hausman_term
+
+    def fit(y, x):
+        # model: ymin + amp * step blurred (erf) at x0, linearised around x0 = 0 by Gauss-Newton (3 iters)
+        from scipy.special import erf
+
+        p = np.array([0.0, 1.0, 0.0])  # x0, amp, ymin
+        for _ in range(20):
+            u = (p[0] - x) / 1.0
+            f = p[2] + p[1] * 0.5 * (1 + erf(u / np.sqrt(2)))
+            g = p[1] * np.exp(-0.5 * u * u) / np.sqrt(2 * np.pi)
+            J = np.column_stack([g, 0.5 * (1 + erf(u / np.sqrt(2))), np.ones_like(x)])
+            p = p + np.linalg.lstsq(J, y - f, rcond=None)[0]
+        r = y - f
+        return p, J, r, np.sum(r**2) / (x.size - 3) * np.linalg.inv(J.T @ J)
+
+    from scipy.special import erf
+
+    rng = np.random.default_rng(1)
+    x = np.tile(np.linspace(-8, 6, 57), 40)  # x > 0: sky side
+    truth = 0.5 * (1 + erf(-x / np.sqrt(2)))
+    out = {}
+    for name, extra in (("exact", 0 * x), ("brightened", 0.4 * np.exp(np.minimum(x, 0) / 0.7) * (x < 0))):
+        y = truth + extra + 0.01 * rng.standard_normal(x.size)
+        p, J, r, C = fit(y, x)
+        W = 0.0
+        for keep in (x > -2.0, x < 2.0):
+            Jk, rk = J[keep], r[keep]
+            Ai = np.linalg.pinv(Jk.T @ Jk)
+            step = Ai @ Jk.T @ rk
+            s2 = np.sum((rk - Jk @ step) ** 2) / (keep.sum() - 3)
+            W = W + hausman_term(step[:1], s2 * Ai[:1, :1], C[:1, :1])[0, 0]
+        out[name] = (p[0], C[0, 0], W)
+    x0, c, w = out["brightened"]
+    assert abs(x0) > 10 * np.sqrt(c)  # biased far beyond the noise-only sigma ...
+    assert x0**2 / (c + w) < 9.0  # ... but not beyond the witness's
+    assert out["exact"][2] < 4 * out["exact"][1]

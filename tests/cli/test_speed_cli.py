@@ -162,3 +162,16 @@ def test_host_device_request_respects_the_users_xla_flags(monkeypatch):
     monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_enable_fast_math=false")
     cli._request_host_devices(2)
     assert os.environ["XLA_FLAGS"] == "--xla_cpu_enable_fast_math=false --xla_force_host_platform_device_count=2"
+
+
+def test_lapack_kernels_without_the_scipy_linalg_package():
+    """The command line's start-up loads SciPy's Cython BLAS/LAPACK alone; linear algebra still works."""
+    code = ("import sys; from jaxlimb._jaxcache import preload_lapack_kernels; assert preload_lapack_kernels(); "
+            "import jax, jax.numpy as jnp; jax.config.update('jax_enable_x64', True); "
+            "a = jnp.array([[4.0, 1.0], [1.0, 3.0]]); c = jnp.linalg.cholesky(a); "
+            "print('scipy.linalg' in sys.modules, float(c[1, 1]), float(jnp.linalg.solve(a, jnp.ones(2))[0])); "
+            "import scipy.linalg; print(float(scipy.linalg.cho_factor(a)[0][0, 0]))")
+    first, second = _run(code).split("\n")[:2]
+    loaded, c11, x0 = first.split()
+    assert loaded == "False" and abs(float(c11) - 11 ** 0.5 / 2) < 1e-12 and abs(float(x0) - 2 / 11) < 1e-12
+    assert float(second) == 2.0

@@ -56,3 +56,17 @@ def test_earth_far_own_family_with_attitude():
     assert err < 0.05
     assert abs(m.range_km - case.truth.range_km) / case.truth.range_km < 5e-4
     assert math.isfinite(m.covariance["center_r"]["center_r"])
+
+
+def test_minnaert_bias_is_carried_and_the_crlb_stays_noise_only():
+    """A Minnaert rim (k < 1: brighter at the limb than any lunar-Lambert ``L``) biases the centre by
+    ~0.3 px (benchmark row ``minnaert`` 2), the same all along the limb: the sector term cannot see it,
+    the split witness does (without it NEES ~ 225).  The Cramér--Rao bound stays the noise-only one."""
+    case = _moon("minnaert", 2)
+    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
+    err, nees = _errors(case, m)
+    assert 0.2 < err < 0.5
+    assert nees < 13.8
+    sig = math.sqrt(m.covariance["center_r"]["center_r"])
+    assert m.crlb["center_r"] < 0.25 * sig
+    assert m.to_json()["crlb"]["center_r"] == pytest.approx(m.crlb["center_r"])
