@@ -121,6 +121,20 @@ def _window(pts: np.ndarray, shape: tuple[int, int], margin: int) -> tuple[tuple
             (int(np.clip(lo[1], 0, shape[1])), int(np.clip(hi[1], 0, shape[1]))))
 
 
+def _bilinear(img: np.ndarray, r: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Bilinear samples of ``img`` at ``(r, c)``, coordinates clamped to the image (edge values outside)."""
+    R, C = img.shape
+    r = np.clip(r, 0, R - 1)
+    c = np.clip(c, 0, C - 1)
+    i = np.minimum(np.floor(r).astype(int), max(R - 2, 0))
+    j = np.minimum(np.floor(c).astype(int), max(C - 2, 0))
+    fr, fc = r - i, c - j
+    i1, j1 = np.minimum(i + 1, R - 1), np.minimum(j + 1, C - 1)
+    top = (1 - fc) * img[i, j] + fc * img[i, j1]
+    bottom = (1 - fc) * img[i1, j] + fc * img[i1, j1]
+    return (1 - fr) * top + fr * bottom
+
+
 def _outermost_peak(ad: np.ndarray, frac: float = 0.5) -> np.ndarray:
     """Per row, the index of the outermost local maximum of ``ad`` within ``frac`` of the row's maximum.
 
@@ -144,7 +158,7 @@ def limb_edges(image: np.ndarray, shape: LimbShape, *, mask: np.ndarray | None =
         Points for every bin (NaN where none), the signed derivative (DN/px; > 0 where the
         disc is brighter than the sky), and the bins kept (in frame, valid, strong enough).
     """
-    from scipy import ndimage
+    import cv2
 
     img = np.asarray(image, dtype=np.float64)
     pts, t = _profiles(img, shape, n_bins, search_px)
@@ -152,13 +166,15 @@ def limb_edges(image: np.ndarray, shape: LimbShape, *, mask: np.ndarray | None =
     inside = (pts[..., 0] >= 0) & (pts[..., 0] <= R - 1) & (pts[..., 1] >= 0) & (pts[..., 1] <= C - 1)
     erode = int(math.ceil(3 * smooth_px)) + 1
     (r0, r1), (c0, c1) = _window(pts, img.shape, max(int(math.ceil(4 * smooth_px)) + 2, erode + 2))
-    sm = ndimage.gaussian_filter(img[r0:r1, c0:c1], smooth_px, mode="nearest")  # the same values as on the
-    prof = ndimage.map_coordinates(sm, [pts[..., 0].ravel() - r0, pts[..., 1].ravel() - c0], order=1,  # frame
-                                   mode="nearest")
-    d = np.gradient(prof.reshape(pts.shape[:2]), t, axis=1)
+    # Gaussian of reach 4 sigma, replicated border: the same values on the window as on the frame
+    sm = cv2.GaussianBlur(np.ascontiguousarray(img[r0:r1, c0:c1]), (0, 0), smooth_px, borderType=cv2.BORDER_REPLICATE)
+    prof = _bilinear(sm, pts[..., 0] - r0, pts[..., 1] - c0)
+    d = np.gradient(prof, t, axis=1)
     bad = ~inside
-    if mask is not None:
-        invalid = ~ndimage.binary_erosion(np.asarray(mask)[r0:r1, c0:c1], iterations=erode, border_value=1)
+    if mask is not None:  # valid pixels at least `erode` (4-connected steps) from any invalid one
+        win = np.asarray(mask)[r0:r1, c0:c1].astype(np.uint8)
+        kernel = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
+        invalid = cv2.erode(win, kernel, iterations=erode, borderType=cv2.BORDER_CONSTANT, borderValue=1) == 0
         ir = np.clip(np.rint(pts[..., 0]).astype(int), r0, r1 - 1) - r0
         ic = np.clip(np.rint(pts[..., 1]).astype(int), c0, c1 - 1) - c0
         bad |= invalid[ir, ic]
