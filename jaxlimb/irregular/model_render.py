@@ -30,6 +30,7 @@ fine pixels ``k R .. k R + k - 1``: fine coordinate ``x = k X + (k - 1) / 2``.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -61,6 +62,41 @@ class ModelImage:
     flow: np.ndarray | None = None
     shading: np.ndarray | None = None
     on_body: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class _Facets:
+    vertices: np.ndarray
+    faces: np.ndarray
+
+
+_CLUSTERED: dict = {}
+
+
+def clustered_mesh(mesh: Mesh, cell_km: float) -> Mesh | _Facets:
+    """The mesh simplified by vertex clustering on a grid of ``cell_km`` (kept for the last few cells).
+
+    Vertices in one grid cell merge into their mean; facets that collapse are dropped,
+    the others keep their winding.  Used on the coarse pyramid levels only, with cells
+    of two level pixels: the outline moves by about a pixel there, under a blur of at
+    least two; the full-resolution iterations use the full mesh.  The cell is rounded down to a power of 2**0.5 so that successive
+    iterations reuse the same simplified mesh.
+    """
+    q = 2.0 ** (math.floor(2.0 * math.log2(cell_km)) / 2.0)
+    key = (id(mesh), q)
+    if key not in _CLUSTERED:
+        V = np.asarray(mesh.vertices, dtype=float)
+        F = np.asarray(mesh.faces, dtype=np.int64)
+        _, inv = np.unique(np.floor(V / q).astype(np.int64), axis=0, return_inverse=True)
+        inv = inv.ravel()
+        counts = np.bincount(inv).astype(float)
+        Vn = np.stack([np.bincount(inv, weights=V[:, i]) for i in range(3)], axis=1) / counts[:, None]
+        Fn = inv[F]
+        Fn = Fn[(Fn[:, 0] != Fn[:, 1]) & (Fn[:, 1] != Fn[:, 2]) & (Fn[:, 0] != Fn[:, 2])]
+        if len(_CLUSTERED) > 8:
+            _CLUSTERED.clear()
+        _CLUSTERED[key] = (mesh, _Facets(Vn, Fn) if len(Fn) >= 20 else mesh)
+    return _CLUSTERED[key][1]
 
 
 def window_camera(camera: object, lo: np.ndarray, hi: np.ndarray) -> object:
@@ -202,4 +238,4 @@ def attitude_columns(model: ModelImage, ratio: float, blur) -> np.ndarray:  # ty
     return np.stack(cols, axis=1)
 
 
-__all__ = ["ModelImage", "attitude_columns", "downsample", "level_camera", "render_window", "window_camera"]
+__all__ = ["ModelImage", "attitude_columns", "clustered_mesh", "downsample", "level_camera", "render_window", "window_camera"]
