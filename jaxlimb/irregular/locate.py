@@ -76,6 +76,9 @@ class LosOptions:
         ``prune_max_rms_frac``, is dropped, and one whose centre lies within ``same_centre_px`` of an accepted fit is
         not refined again.  On ``benchmarks/irregular_los.py`` frames the coarse residual
         of a correct pose is 0.001-0.04 and of a wrong one 0.09-0.13.
+    sharp_level2_iterations
+        Unblurred iterations on the 2x2-averaged frame before full resolution when the
+        attitude is fitted (:class:`~.register.RegisterOptions`).
     register, phase
         Options of the registration and of the template search.
     """
@@ -89,6 +92,7 @@ class LosOptions:
     prune_rms_frac: float = 0.04
     prune_max_rms_frac: float = 0.1
     same_centre_px: float = 0.5
+    sharp_level2_iterations: int = 6
     register: RegisterOptions = field(default_factory=RegisterOptions)
     phase: PhaseSearchOptions = field(default_factory=PhaseSearchOptions)
 
@@ -153,7 +157,11 @@ def locate_los(
     if s_img is None:  # zero phase: the whole silhouette is limb; any direction serves for the extents
         popts, s_img = replace(popts, limb_cos=-2.0), np.array([1.0, 0.0])
     hyps = phase_candidates(seg[0], db, camera, s_img, popts)[: options.n_verify]
-    ropts = replace(options.register, max_excess_frac=min(options.register.max_excess_frac, options.search_max_excess_frac))
+    ropts = replace(
+        options.register,
+        max_excess_frac=min(options.register.max_excess_frac, options.search_max_excess_frac),
+        sharp_level2_iterations=options.sharp_level2_iterations,
+    )
     fits, errors = _register_hypotheses(img, db, camera, sun_dir_camera, seg, hyps, ropts, options)
     return _choose(fits, errors, len(hyps), options)
 
