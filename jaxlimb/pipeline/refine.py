@@ -395,7 +395,7 @@ def _run(model, data: FitData, init, options: LocateOptions, fixed, solver=None)
 
 @dataclass(frozen=True)
 class RefineResult:
-    """A sigmoid fit on an annulus, after the outlier pass.
+    r"""A sigmoid fit on an annulus, after the outlier pass.
 
     Attributes
     ----------
