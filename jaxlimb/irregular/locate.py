@@ -65,17 +65,20 @@ class LosOptions:
     search_floor_px
         Standard deviation (px, per axis) added to the covariance when the attitude is
         fitted: the attitude's residual error (a flat cost along some rotations) moves
-        the centre by more than the noise.  Calibrated on ``benchmarks/irregular_los.py``
-        (34 accepted views; errors median 0.018, p90 0.087, max 0.124 px): the mean of
-        ``error^2 / trace(cov)`` (1 expected) is 55 without the floor, 0.68 with it, and 6 %
-        of the views fall beyond the 95 % bound (in-sample calibration; the errors are
-        heavy-tailed, largest on the elongated body at 10x its long axis).
+        the centre by more than the noise.  Calibrated on ``benchmarks/irregular_los.py
+        --views 2`` (36 views, all accepted; errors median 0.005, p90 0.015, max 0.022 px):
+        the mean of ``error^2 / trace(cov)`` (1 expected) is 0.78 with it, 0.03 with the
+        0.04 px of the slower pipeline before, and 8 % of the views fall beyond the 95 %
+        bound (in-sample calibration; the errors are heavy-tailed).
     prune_rms_frac, prune_max_rms_frac, same_centre_px
         After the coarse (pyramid) iterations of every hypothesis, one whose RMS residual
         (fraction of the contrast) exceeds the best one's by ``prune_rms_frac``, or
         ``prune_max_rms_frac``, is dropped, and one whose centre lies within ``same_centre_px`` of an accepted fit is
         not refined again.  On ``benchmarks/irregular_los.py`` frames the coarse residual
         of a correct pose is 0.001-0.04 and of a wrong one 0.09-0.13.
+    sharp_level2_iterations
+        Unblurred iterations on the 2x2-averaged frame before full resolution when the
+        attitude is fitted (:class:`~.register.RegisterOptions`).
     register, phase
         Options of the registration and of the template search.
     """
@@ -85,10 +88,11 @@ class LosOptions:
     ambiguity_px: float = 1.0
     ambiguity_margin: float = 0.01
     search_max_excess_frac: float = 0.06
-    search_floor_px: float = 0.04
+    search_floor_px: float = 0.006
     prune_rms_frac: float = 0.04
     prune_max_rms_frac: float = 0.1
     same_centre_px: float = 0.5
+    sharp_level2_iterations: int = 6
     register: RegisterOptions = field(default_factory=RegisterOptions)
     phase: PhaseSearchOptions = field(default_factory=PhaseSearchOptions)
 
@@ -153,7 +157,11 @@ def locate_los(
     if s_img is None:  # zero phase: the whole silhouette is limb; any direction serves for the extents
         popts, s_img = replace(popts, limb_cos=-2.0), np.array([1.0, 0.0])
     hyps = phase_candidates(seg[0], db, camera, s_img, popts)[: options.n_verify]
-    ropts = replace(options.register, max_excess_frac=min(options.register.max_excess_frac, options.search_max_excess_frac))
+    ropts = replace(
+        options.register,
+        max_excess_frac=min(options.register.max_excess_frac, options.search_max_excess_frac),
+        sharp_level2_iterations=options.sharp_level2_iterations,
+    )
     fits, errors = _register_hypotheses(img, db, camera, sun_dir_camera, seg, hyps, ropts, options)
     return _choose(fits, errors, len(hyps), options)
 

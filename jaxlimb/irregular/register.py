@@ -74,6 +74,10 @@ class RegisterOptions:
         An iteration with blur ``sigma`` runs on the frame box-averaged by
         ``k = floor(sigma / pyramid_blur_px)`` (:mod:`.model_render`), as long as the
         figure stays at least ``pyramid_min_size_px`` across.
+    sharp_level2_iterations
+        At most this many unblurred iterations on the frame box-averaged 2x2 (its optimum is
+        that of the full frame up to the rendering's quantisation) before those at full
+        resolution; 0 when the attitude is known.
     coarse_min_level
         The coarse stage of a template hypothesis (:func:`start_search_registration`)
         stops before the first iteration below this pyramid factor.
@@ -103,6 +107,7 @@ class RegisterOptions:
     attitude_blur_min_px: float = 1.0
     pyramid_blur_px: float = 2.0
     coarse_min_level: int = 4
+    sharp_level2_iterations: int = 0
     pyramid_min_size_px: float = 48.0
     tol_px: float = 0.01
     max_final_step_px: float = 0.05
@@ -394,10 +399,11 @@ def _blur_schedule(mask: np.ndarray, options: RegisterOptions, wide: bool) -> tu
     return tuple(f * size for f in options.attitude_blur_frac if f * size >= options.attitude_blur_min_px)
 
 
-def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude) -> bool:  # type: ignore[no-untyped-def]
-    """One Gauss-Newton iteration at blur ``sigma`` (in place); ``True`` when converged (sharp, small steps)."""
-    size = _figure_size(pyr[1][2])
-    k = _level(sigma, size, options)
+def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude, k=None) -> bool:  # type: ignore[no-untyped-def]
+    """One Gauss-Newton iteration at blur ``sigma`` (in place; pyramid factor ``k``, default from the blur);
+    ``True`` when converged (sharp, small steps)."""
+    if k is None:
+        k = _level(sigma, _figure_size(pyr[1][2]), options)
     beta, A, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude)
     a = float(beta[0])
     if not a > 0:
@@ -443,12 +449,18 @@ def fine_stage(st: GNState, pyr, mesh, camera, sun, options, fit_attitude, wide,
     :class:`~jaxlimb.errors.CheckFailed` to abandon the registration.
     """
     blur = _blur_schedule(pyr[1][2], options, wide)
+    k2 = 2 if _figure_size(pyr[1][2]) >= 2 * options.pyramid_min_size_px else 1
+    n2 = 0
     while st.it < options.max_iterations:
         sigma = blur[st.it] if st.it < len(blur) else 0.0
-        done = _iterate(st, pyr, mesh, camera, sun, sigma, options, fit_attitude)
+        k = k2 if sigma == 0 and n2 < options.sharp_level2_iterations else None
+        n2 += k == 2
+        done = _iterate(st, pyr, mesh, camera, sun, sigma, options, fit_attitude, k)
         if guard is not None:
             guard(st, sigma)
-        if done:
+        if k == 2 and st.step_px < 4.0 * options.tol_px:
+            n2 = options.sharp_level2_iterations  # converged on the half-resolution frame (its own jitter): full resolution
+        elif done:
             break
     if st.step_px > options.max_final_step_px:
         raise ConvergenceError(f"registration did not converge in {options.max_iterations} iterations (last step {st.step_px:.3g} px)")
