@@ -52,10 +52,86 @@ def _one(name: str):
         "radius_px": m.radius_px, "range_km": m.range_km, "spice_range_km": g.range_km,
         "spice_radii_km": list(g.radii_km),
         "observer": observer_from_measurement(g, m.los_camera, m.range_km),
+        "edges_from_measured_limb": _edge_offsets(fr, _shapes(g, m)[0]),
+        "edges_from_predicted_limb": _edge_offsets(fr, _shapes(g, m)[1]),
+        "ck": _ck_probe(fr, g),
+        "with_iau2015_radii": _iau_shape(fr, g),
         "extras": {k: m.extras[k] for k in ("edge_fit", "angular_bins", "sigma_center_pixel_independent_px",
-                                             "sigma_center_cluster_robust_px", "scale_vs_predicted")},
+                                             "sigma_center_cluster_robust_px", "scale_vs_predicted", "polarity_split")},
     }
     return fr, g, m, res
+
+
+def _edge_offsets(fr, shape) -> dict:
+    """Median signed offsets (px, < 0 inside) of the image's own edges from the ellipse ``shape``: the dark
+    limb (disc darker than the sky) and the lit limb, each found along the ellipse's normals
+    (:func:`jaxlimb.imaging.predicted.limb_edges`, +-30 px, masked lines left out).  Small for the measured
+    limb and large for the predicted one: the residual is in the prediction, not in the measurement."""
+    from jaxlimb.imaging.predicted import limb_edges
+
+    pts, step, ok = limb_edges(fr.data, shape, mask=fr.mask_or_none, search_px=30.0)
+    x, y = shape.to_frame(pts)
+    # signed distance along the normal, to first order: (r_ellipse(point) - 1) * local radius
+    rn = np.sqrt((x / shape.a) ** 2 + (y / (shape.rho * shape.a)) ** 2)
+    off = (rn - 1.0) * np.hypot(x, y) / np.where(rn > 0, rn, 1.0)
+    out = {}
+    for name, sel in (("dark", ok & (step < 0)), ("lit", ok & (step > 0))):
+        out[f"{name}_n"] = int(sel.sum())
+        out[f"{name}_median_px"] = float(np.median(off[sel])) if sel.any() else None
+    return out
+
+
+def _shapes(g, m):
+    from jaxlimb.imaging.predicted import LimbShape
+
+    e = m.ellipse
+    meas = LimbShape(tuple(e.center_rc), e.semi_axes_px[0], e.semi_axes_px[1] / e.semi_axes_px[0], e.angle_rad)
+    a, b = g.limb.semi_axes_px
+    pred = LimbShape(tuple(g.limb.center_rc), float(a), float(b / a), float(g.limb.angle_rad))
+    return meas, pred
+
+
+def _ck_probe(fr, g) -> dict:
+    """The CK's pointing about the image time: the camera's angular rate (urad/s, px/s) and the predicted
+    centre at -1, -0.5, +0.5, +1 s minus the one at the image time (px)."""
+    import spiceypy as sp
+
+    from jaxlimb.geometry.spice import camera_from_ik, instrument_from, loaded_kernels
+
+    with loaded_kernels(KERNELS):
+        inst = instrument_from(fr.meta.instrument_id)
+        cam, F = camera_from_ik(inst), np.asarray(inst.flip, float)
+        et = sp.str2et(fr.meta.image_time)
+        X = np.asarray(sp.sxform("J2000", inst.spice_name, et))
+        W = X[3:, :3] @ X[:3, :3].T
+        w = np.array([W[2, 1], W[0, 2], W[1, 0]])
+
+        def centre(t):
+            pos, _ = sp.spkpos(g.target, t, "J2000", "CN+S", inst.observer)
+            return cam.project(F @ np.asarray(sp.pxform("J2000", inst.spice_name, t)) @ np.asarray(pos))
+
+        c0 = centre(et)
+        shifts = {f"{dt:+.1f}s": (centre(et + dt) - c0).tolist() for dt in (-1.0, -0.5, 0.5, 1.0)}
+    return {"rate_urad_s": float(np.linalg.norm(w) * 1e6), "rate_px_s": float(np.linalg.norm(w[:2]) * cam.focal_px),
+            "predicted_center_shift_px": shifts}
+
+
+def _iau_shape(fr, g) -> dict:
+    """The same frame with the held limb shape from the IAU 2015 radii (Archinal et al. 2018, the
+    package's table) instead of the kernels' 2002 PCK: how much of the residual is the shape model."""
+    from dataclasses import replace
+
+    from jaxlimb.geometry.bodies import body_radii_km
+    from jaxlimb.geometry.spice import pointing_residual
+
+    radii = body_radii_km(g.target.lower())
+    m = locate(fr.data, g.camera, replace(g.hints(), body_radii_km=radii), mask=fr.mask_or_none)
+    c = m.covariance
+    cov = [[c["center_r"]["center_r"], c["center_r"]["center_c"]], [c["center_c"]["center_r"], c["center_c"]["center_c"]]]
+    s = m.extras.get("polarity_split") or {}
+    return {"radii_km": list(radii), "measured_center_rc": list(m.center_rc), "center_covariance_px2": cov,
+            "radius_px": m.radius_px, "measured_minus_predicted": pointing_residual(g, m.center_rc, cov),
+            "polarity_split_delta_rc_px": s.get("delta_rc_px"), "polarity_split_chi2": s.get("chi2")}
 
 
 def _registration(fa, fb) -> list[float]:
@@ -119,12 +195,17 @@ def main() -> dict:
     comb = np.hypot(sa, sb)
     reg = _registration(fa, fb)
     motion = (np.array(mb.center_rc) - np.array(ma.center_rc)).tolist()
+    pred_motion = (np.array(rb["predicted_center_rc"]) - np.array(ra["predicted_center_rc"])).tolist()
     out = {
         "frames": {f: r[3] for f, r in runs.items()},
         "residual_change_px": (db - da).tolist(), "combined_sigma_px": comb.tolist(),
         "residual_change_in_sigma": ((db - da) / comb).tolist(),
         "measured_motion_px": motion, "registration_motion_px": reg,
         "measured_minus_registration_px": (np.array(motion) - reg).tolist(),
+        "measured_minus_registration_in_sigma": ((np.array(motion) - reg) / comb).tolist(),
+        "predicted_motion_px": pred_motion,
+        "predicted_minus_registration_px": (np.array(pred_motion) - reg).tolist(),
+        "predicted_minus_registration_urad": float(np.hypot(*(np.array(pred_motion) - reg)) / runs[FRAMES[0]][1].camera.focal_px * 1e6),
         "environment": environment(),
     }
     _figure(runs, RESULTS / "cassini_enceladus.png")
@@ -136,7 +217,24 @@ def main() -> dict:
               f"measured - SPICE {d['delta_rc_px'][0]:+.2f} {d['delta_rc_px'][1]:+.2f} px ({d['angle_urad']:.1f} urad); "
               f"radius {r['radius_px']:.2f} px, range {r['range_km']:.0f} km (SPICE {r['spice_range_km']:.0f})")
     print("residual change", np.round(db - da, 2), "combined sigma", np.round(comb, 3))
-    print("motion measured", np.round(motion, 2), "registration", np.round(reg, 2))
+    print("motion measured", np.round(motion, 2), "registration", np.round(reg, 2), "predicted", np.round(pred_motion, 2))
+    print("measured - registration in sigma", np.round(out["measured_minus_registration_in_sigma"], 2),
+          "; predicted - registration", np.round(out["predicted_minus_registration_px"], 2), "px =",
+          round(out["predicted_minus_registration_urad"], 1), "urad")
+    for f, r in out["frames"].items():
+        w = r["with_iau2015_radii"]
+        d = w["measured_minus_predicted"]["delta_rc_px"]
+        print(f"{f} with the IAU 2015 radii: centre {w['measured_center_rc'][0]:.2f} {w['measured_center_rc'][1]:.2f} px, "
+              f"measured - SPICE {d[0]:+.2f} {d[1]:+.2f} px; lit - dark split "
+              f"{w['polarity_split_delta_rc_px'][0]:+.2f} {w['polarity_split_delta_rc_px'][1]:+.2f} px (chi2 {w['polarity_split_chi2']:.0f})")
+    for f, r in out["frames"].items():
+        ps = r["extras"]["polarity_split"]
+        print(f"{f}: lit - dark split {ps['delta_rc_px'][0]:+.2f} {ps['delta_rc_px'][1]:+.2f} px (chi2 {ps['chi2']:.0f})")
+    for f, r in out["frames"].items():
+        em, ep, ck = r["edges_from_measured_limb"], r["edges_from_predicted_limb"], r["ck"]
+        print(f"{f}: image edges from the measured limb: dark {em['dark_median_px']:+.2f} px ({em['dark_n']}), lit "
+              f"{em['lit_median_px']:+.2f} px ({em['lit_n']}); from the predicted limb: dark {ep['dark_median_px']:+.2f}, "
+              f"lit {ep['lit_median_px']:+.2f} px; CK rate {ck['rate_urad_s']:.1f} urad/s = {ck['rate_px_s']:.2f} px/s")
     print(json.dumps({"figure": str(RESULTS / "cassini_enceladus.png")}))
     return out
 

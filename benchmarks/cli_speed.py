@@ -12,7 +12,8 @@ Same run, interleaved (so that every ratio compares commands under the same mach
   ``(N - 1) / (t_N - t_1)`` from a one-frame and an N-frame call.
 
 Each command runs ``--repeats`` times after one warm-up; medians are reported with the ratio to
-the JAX start-up median and the load average before and after.  The compile cache of the runs is
+the JAX start-up median and the load average before and after, for the wall time and for the
+CPU time of the process (user + system: less sensitive to other jobs on a shared machine).  The compile cache of the runs is
 a fresh directory (``JAXLIMB_CACHE_DIR``), filled by the warm-ups.
 
 Run:  python benchmarks/cli_speed.py [--repeats 5] [--frames 30]
@@ -24,6 +25,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -41,10 +43,21 @@ def _load() -> list[float]:
     return [float(v) for v in Path("/proc/loadavg").read_text().split()[:3]]
 
 
-def _time(cmd: list[str], env: dict[str, str], ok_codes=(0,)) -> float:
-    t0 = time.perf_counter()
+_CPU: dict[str, list[float]] = {}
+
+
+def _children_cpu() -> float:
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def _time(cmd: list[str], env: dict[str, str], ok_codes=(0,), key: str | None = None) -> float:
+    """Wall time of ``cmd`` (its CPU time, user + system, is appended to ``_CPU[key]``)."""
+    c0, t0 = _children_cpu(), time.perf_counter()
     p = subprocess.run(cmd, capture_output=True, text=True, env=env)
     dt = time.perf_counter() - t0
+    if key is not None:
+        _CPU.setdefault(key, []).append(_children_cpu() - c0)
     if p.returncode not in ok_codes:
         raise RuntimeError(f"{' '.join(cmd)} -> {p.returncode}: {p.stdout[-400:]} {p.stderr[-400:]}")
     return dt
@@ -109,7 +122,7 @@ def main(argv: list[str] | None = None) -> dict:
     times: dict[str, list[float]] = {k: [] for k in cmds}
     for _ in range(args.repeats):
         for k, c in cmds.items():
-            times[k].append(_time(c, env, ok_codes=(0, 3)))
+            times[k].append(_time(c, env, ok_codes=(0, 3), key=k))
     many = [*JAXLIMB, "locate", str(d / "frames"), "--camera", str(d / "cam.json"), "--hints", str(d / "hints.json")]
     one = [*JAXLIMB, "locate", "@" + str(d / "one.txt"), "--camera", str(d / "cam.json"), "--hints", str(d / "hints.json")]
     (d / "one.txt").write_text(str(d / "frames" / "moon_000.png") + "\n")
@@ -119,11 +132,13 @@ def main(argv: list[str] | None = None) -> dict:
         t_many.append(_time([*many, "--out", str(d / f"many{i}.jsonl")], env))
     load_after = _load()
     med = {k: float(np.median(v)) for k, v in times.items()}
+    cpu = {k: float(np.median(v)) for k, v in _CPU.items()}
     base = med["jax_start"]
     fps = (args.frames - 1) / (float(np.median(t_many)) - float(np.median(t_one)))
     out = {
         "median_s": med, "all_s": times, "first_call_s": first_call,
         "ratio_to_jax_start": {k: v / base for k, v in med.items()},
+        "median_cpu_s": cpu, "cpu_ratio_to_jax_start": {k: v / cpu["jax_start"] for k, v in cpu.items()},
         "many_frames": {"n": args.frames, "one_frame_call_s": t_one, "n_frame_call_s": t_many,
                         "frames_per_s_after_first": fps, "frame": [1944, 2592]},
         "loadavg_before": load_before, "loadavg_after": load_after, "commands": {k: " ".join(c) for k, c in cmds.items()},
@@ -131,7 +146,8 @@ def main(argv: list[str] | None = None) -> dict:
     }
     print(f"load average before {load_before}, after {load_after}")
     for k in cmds:
-        print(f"{k:12s} median {med[k]:6.2f} s  = {med[k] / base:4.2f}x JAX start-up   (first call {first_call[k]:6.2f} s)")
+        print(f"{k:12s} median {med[k]:6.2f} s  = {med[k] / base:4.2f}x JAX start-up   (first call {first_call[k]:6.2f} s)"
+              f"   CPU {cpu[k]:5.2f} s = {cpu[k] / cpu['jax_start']:4.2f}x")
     print(f"many frames: {args.frames} frames of 1944x2592 -> {fps:.1f} frames/s after the first "
           f"(one-frame call {np.median(t_one):.2f} s, {args.frames}-frame call {np.median(t_many):.2f} s)")
     path = save("cli_speed", out)

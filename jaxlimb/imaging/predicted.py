@@ -32,8 +32,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
-
 from ..conics import fit_circle_taubin
 from ..errors import ConfigError, TooManyOutliersError
 from ..geometry.camera import Camera
@@ -108,6 +106,35 @@ def _profiles(img: np.ndarray, shape: LimbShape, n_bins: int, search_px: float, 
     return pts, t
 
 
+def _window(pts: np.ndarray, shape: tuple[int, int], margin: int) -> tuple[tuple[int, int], tuple[int, int]]:
+    """Rows and columns ``[lo, hi)`` of the frame within ``margin`` px of the sample points ``pts``.
+
+    Filters whose reach is below ``margin`` give the same values at the points on this window as
+    on the whole frame (the limb band of a 1944x2592 frame is a small part of it).
+    """
+    finite = pts[np.isfinite(pts).all(axis=-1)]
+    if finite.size == 0:
+        return (0, shape[0]), (0, shape[1])
+    lo = np.floor(finite.min(axis=0)).astype(int) - margin
+    hi = np.ceil(finite.max(axis=0)).astype(int) + margin + 1
+    return ((int(np.clip(lo[0], 0, shape[0])), int(np.clip(hi[0], 0, shape[0]))),
+            (int(np.clip(lo[1], 0, shape[1])), int(np.clip(hi[1], 0, shape[1]))))
+
+
+def _bilinear(img: np.ndarray, r: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Bilinear samples of ``img`` at ``(r, c)``, coordinates clamped to the image (edge values outside)."""
+    R, C = img.shape
+    r = np.clip(r, 0, R - 1)
+    c = np.clip(c, 0, C - 1)
+    i = np.minimum(np.floor(r).astype(int), max(R - 2, 0))
+    j = np.minimum(np.floor(c).astype(int), max(C - 2, 0))
+    fr, fc = r - i, c - j
+    i1, j1 = np.minimum(i + 1, R - 1), np.minimum(j + 1, C - 1)
+    top = (1 - fc) * img[i, j] + fc * img[i, j1]
+    bottom = (1 - fc) * img[i1, j] + fc * img[i1, j1]
+    return (1 - fr) * top + fr * bottom
+
+
 def _outermost_peak(ad: np.ndarray, frac: float = 0.5) -> np.ndarray:
     """Per row, the index of the outermost local maximum of ``ad`` within ``frac`` of the row's maximum.
 
@@ -131,18 +158,25 @@ def limb_edges(image: np.ndarray, shape: LimbShape, *, mask: np.ndarray | None =
         Points for every bin (NaN where none), the signed derivative (DN/px; > 0 where the
         disc is brighter than the sky), and the bins kept (in frame, valid, strong enough).
     """
+    import cv2
+
     img = np.asarray(image, dtype=np.float64)
-    sm = ndimage.gaussian_filter(img, smooth_px, mode="nearest")
     pts, t = _profiles(img, shape, n_bins, search_px)
     R, C = img.shape
     inside = (pts[..., 0] >= 0) & (pts[..., 0] <= R - 1) & (pts[..., 1] >= 0) & (pts[..., 1] <= C - 1)
-    prof = ndimage.map_coordinates(sm, [pts[..., 0].ravel(), pts[..., 1].ravel()], order=1, mode="nearest")
-    d = np.gradient(prof.reshape(pts.shape[:2]), t, axis=1)
+    erode = int(math.ceil(3 * smooth_px)) + 1
+    (r0, r1), (c0, c1) = _window(pts, img.shape, max(int(math.ceil(4 * smooth_px)) + 2, erode + 2))
+    # Gaussian of reach 4 sigma, replicated border: the same values on the window as on the frame
+    sm = cv2.GaussianBlur(np.ascontiguousarray(img[r0:r1, c0:c1]), (0, 0), smooth_px, borderType=cv2.BORDER_REPLICATE)
+    prof = _bilinear(sm, pts[..., 0] - r0, pts[..., 1] - c0)
+    d = np.gradient(prof, t, axis=1)
     bad = ~inside
-    if mask is not None:
-        invalid = ~ndimage.binary_erosion(mask, iterations=int(math.ceil(3 * smooth_px)) + 1, border_value=1)
-        ir = np.clip(np.rint(pts[..., 0]).astype(int), 0, R - 1)
-        ic = np.clip(np.rint(pts[..., 1]).astype(int), 0, C - 1)
+    if mask is not None:  # valid pixels at least `erode` (4-connected steps) from any invalid one
+        win = np.asarray(mask)[r0:r1, c0:c1].astype(np.uint8)
+        kernel = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
+        invalid = cv2.erode(win, kernel, iterations=erode, borderType=cv2.BORDER_CONSTANT, borderValue=1) == 0
+        ir = np.clip(np.rint(pts[..., 0]).astype(int), r0, r1 - 1) - r0
+        ic = np.clip(np.rint(pts[..., 1]).astype(int), c0, c1 - 1) - c0
         bad |= invalid[ir, ic]
     d_ok = np.where(bad, 0.0, d)
     i = _outermost_peak(np.abs(d_ok))
@@ -241,6 +275,8 @@ def arc_center(image: np.ndarray, expected_radius_px: float, radius_uncertainty_
     from .gradient import strongest_pixels
 
     img = np.asarray(image, dtype=np.float64)
+    from scipy import ndimage
+
     sm = ndimage.gaussian_filter(img, smooth_px, mode="nearest")
     g = np.hypot(ndimage.sobel(sm, 0), ndimage.sobel(sm, 1))
     g[:3], g[-3:], g[:, :3], g[:, -3:] = 0, 0, 0, 0

@@ -30,6 +30,7 @@ fine pixels ``k R .. k R + k - 1``: fine coordinate ``x = k X + (k - 1) / 2``.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -61,6 +62,41 @@ class ModelImage:
     flow: np.ndarray | None = None
     shading: np.ndarray | None = None
     on_body: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class _Facets:
+    vertices: np.ndarray
+    faces: np.ndarray
+
+
+_CLUSTERED: dict = {}
+
+
+def clustered_mesh(mesh: Mesh, cell_km: float) -> Mesh | _Facets:
+    """The mesh simplified by vertex clustering on a grid of ``cell_km`` (kept for the last few cells).
+
+    Vertices in one grid cell merge into their mean; facets that collapse are dropped,
+    the others keep their winding.  Used on the coarse pyramid levels only, with cells
+    of two level pixels: the outline moves by about a pixel there, under a blur of at
+    least two; the full-resolution iterations use the full mesh.  The cell is rounded down to a power of 2**0.5 so that successive
+    iterations reuse the same simplified mesh.
+    """
+    q = 2.0 ** (math.floor(2.0 * math.log2(cell_km)) / 2.0)
+    key = (id(mesh), q)
+    if key not in _CLUSTERED:
+        V = np.asarray(mesh.vertices, dtype=float)
+        F = np.asarray(mesh.faces, dtype=np.int64)
+        _, inv = np.unique(np.floor(V / q).astype(np.int64), axis=0, return_inverse=True)
+        inv = inv.ravel()
+        counts = np.bincount(inv).astype(float)
+        Vn = np.stack([np.bincount(inv, weights=V[:, i]) for i in range(3)], axis=1) / counts[:, None]
+        Fn = inv[F]
+        Fn = Fn[(Fn[:, 0] != Fn[:, 1]) & (Fn[:, 1] != Fn[:, 2]) & (Fn[:, 0] != Fn[:, 2])]
+        if len(_CLUSTERED) > 8:
+            _CLUSTERED.clear()
+        _CLUSTERED[key] = (mesh, _Facets(Vn, Fn) if len(Fn) >= 20 else mesh)
+    return _CLUSTERED[key][1]
 
 
 def window_camera(camera: object, lo: np.ndarray, hi: np.ndarray) -> object:
@@ -136,13 +172,7 @@ def _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, ss, reflectance):  # type: ig
     nf = n[face]
     den = nf[..., 0] * xn + nf[..., 1] * yn + nf[..., 2]
     Z = np.where(on, d[face] / np.where(np.abs(den) > 1e-12, den, 1e-12), 1.0)
-    Q = np.stack([Z * xn - t[0], Z * yn - t[1], Z - t[2]])
-    flow = np.zeros((3, 2) + idx.shape)
-    for i in range(3):
-        dX = np.cross(np.eye(3)[i], Q, axisb=0, axisc=0)
-        flow[i, 0] = f * (dX[1] - yn * dX[2]) / Z
-        flow[i, 1] = f * (dX[0] - xn * dX[2]) / Z
-    flow *= on
+    flow = _rotation_flow(Z * xn - t[0], Z * yn - t[1], Z - t[2], xn, yn, f / Z) * on
     _limb_flow(flow, ras, Xc, F, cam, t, ss)
     cen = (Xc[F[:, 0]] + Xc[F[:, 1]] + Xc[F[:, 2]]) / 3.0
     e = -cen / np.linalg.norm(cen, axis=1, keepdims=True)
@@ -158,6 +188,16 @@ def _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, ss, reflectance):  # type: ig
     return flow, shading, on
 
 
+def _rotation_flow(qx, qy, qz, xn, yn, f_over_z):  # type: ignore[no-untyped-def]
+    """``(3, 2, ...)`` image motion (row, col) of points ``Q = X - t`` seen along ``(xn, yn, 1)`` for a rotation
+    about each camera axis: ``dX = e_i x Q``, ``dr = f (dX_y - yn dX_z) / Z``, ``dc = f (dX_x - xn dX_z) / Z``."""
+    return np.stack([
+        np.stack([(-qz - yn * qy) * f_over_z, -xn * qy * f_over_z]),  # e_x x Q = (0, -qz, qy)
+        np.stack([yn * qx * f_over_z, (qz + xn * qx) * f_over_z]),  # e_y x Q = (qz, 0, -qx)
+        np.stack([qx * f_over_z, -qy * f_over_z]),  # e_z x Q = (-qy, qx, 0)
+    ])  # fmt: skip
+
+
 def _limb_flow(flow, ras, Xc, F, cam, t, ss) -> None:  # type: ignore[no-untyped-def]
     """Within 2 px of the outline, the flow of the nearest limb vertex (in place).
 
@@ -165,8 +205,6 @@ def _limb_flow(flow, ras, Xc, F, cam, t, ss) -> None:  # type: ignore[no-untyped
     generator (vertices shared by a facet turned to the camera and one turned away), whose
     image velocity, not that of the grazing facet behind the pixel, moves the edge.
     """
-    from scipy.spatial import cKDTree
-
     front = ras.mu > 0
     seen, unseen = np.zeros(len(Xc), bool), np.zeros(len(Xc), bool)
     seen[F[front].ravel()] = True
@@ -180,15 +218,18 @@ def _limb_flow(flow, ras, Xc, F, cam, t, ss) -> None:  # type: ignore[no-untyped
     X = Xc[limb]
     f = cam.focal_px  # type: ignore[attr-defined]
     pr, pc = cam.principal_point_rc  # type: ignore[attr-defined]
-    rc = np.stack([pr + f * X[:, 1] / X[:, 2] - ras.r0, pc + f * X[:, 0] / X[:, 2] - ras.c0], axis=1)
+    ri = np.clip(np.rint(pr + f * X[:, 1] / X[:, 2] - ras.r0), 0, ras.h - 1).astype(int)
+    ci = np.clip(np.rint(pc + f * X[:, 0] / X[:, 2] - ras.c0), 0, ras.w - 1).astype(int)
+    # nearest limb vertex of every pixel: Voronoi labels of the distance transform (C speed)
+    seeds = np.ones((ras.h, ras.w), np.uint8)
+    seeds[ri, ci] = 0
+    _, labels = cv2.distanceTransformWithLabels(seeds, cv2.DIST_L2, 5, labelType=cv2.DIST_LABEL_PIXEL)
+    vertex_of_label = np.zeros(int(labels.max()) + 1, dtype=int)
+    vertex_of_label[labels[ri, ci]] = np.arange(limb.size)
     rr, cc = np.nonzero(band)
-    _, j = cKDTree(rc).query(np.stack([rr, cc], axis=1), k=1)
+    j = vertex_of_label[labels[rr, cc]]
     Q, Z = X[j] - t, X[j, 2]
-    xn, yn = X[j, 0] / Z, X[j, 1] / Z
-    for i in range(3):
-        dX = np.cross(np.eye(3)[i], Q)
-        flow[i, 0, rr, cc] = f * (dX[:, 1] - yn * dX[:, 2]) / Z
-        flow[i, 1, rr, cc] = f * (dX[:, 0] - xn * dX[:, 2]) / Z
+    flow[:, :, rr, cc] = _rotation_flow(Q[:, 0], Q[:, 1], Q[:, 2], X[j, 0] / Z, X[j, 1] / Z, f / Z)
 
 
 def attitude_columns(model: ModelImage, ratio: float, blur) -> np.ndarray:  # type: ignore[no-untyped-def]
@@ -202,4 +243,4 @@ def attitude_columns(model: ModelImage, ratio: float, blur) -> np.ndarray:  # ty
     return np.stack(cols, axis=1)
 
 
-__all__ = ["ModelImage", "attitude_columns", "downsample", "level_camera", "render_window", "window_camera"]
+__all__ = ["ModelImage", "attitude_columns", "clustered_mesh", "downsample", "level_camera", "render_window", "window_camera"]

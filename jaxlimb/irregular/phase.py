@@ -59,7 +59,7 @@ class PhaseSearchOptions:
     n_points: int = 32
     limb_cos: float = 0.25
     truncate_frac: float = 0.1
-    n_candidates: int = 4
+    n_candidates: int = 10
     chunk: int = 256
 
 

@@ -37,6 +37,7 @@ no cast shadows) in a window camera around the body.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -45,7 +46,7 @@ import numpy as np
 
 from ..errors import ConvergenceError, MatchError
 from .mesh import Mesh
-from .model_render import attitude_columns, downsample, level_camera, render_window
+from .model_render import attitude_columns, clustered_mesh, downsample, level_camera, render_window
 from .silhouette import figure_centre, mesh_topology, render_silhouette, segment_body
 
 
@@ -73,6 +74,13 @@ class RegisterOptions:
         An iteration with blur ``sigma`` runs on the frame box-averaged by
         ``k = floor(sigma / pyramid_blur_px)`` (:mod:`.model_render`), as long as the
         figure stays at least ``pyramid_min_size_px`` across.
+    sharp_level2_iterations
+        At most this many unblurred iterations on the frame box-averaged 2x2 (its optimum is
+        that of the full frame up to the rendering's quantisation) before those at full
+        resolution; 0 when the attitude is known.
+    coarse_min_level
+        The coarse stage of a template hypothesis (:func:`start_search_registration`)
+        stops before the first iteration below this pyramid factor.
     blur_px
         Gaussian blur (px) of image and model in the first iterations (a wider basin).
     search_px
@@ -98,6 +106,8 @@ class RegisterOptions:
     attitude_blur_frac: tuple[float, ...] = (0.04, 0.025, 0.015, 0.008, 0.004)
     attitude_blur_min_px: float = 1.0
     pyramid_blur_px: float = 2.0
+    coarse_min_level: int = 4
+    sharp_level2_iterations: int = 0
     pyramid_min_size_px: float = 48.0
     tol_px: float = 0.01
     max_final_step_px: float = 0.05
@@ -354,7 +364,8 @@ def _gn_step(pyr, mesh, camera, R, sun, P, D, sigma, k, ratio, options, fit_atti
     s = sigma / k
     Pk = (P - (k - 1) / 2.0) / k
     lo, hi = _window(cam, Pk, D, mesh, mask, options.margin_px)
-    model = render_window(mesh, cam, R, _pose(camera, P, D), sun, lo, hi, options.supersample, options.reflectance, fit_attitude)
+    facets = mesh if k == 1 else clustered_mesh(mesh, 2.0 * k * D / camera.focal_px)
+    model = render_window(facets, cam, R, _pose(camera, P, D), sun, lo, hi, options.supersample, options.reflectance, fit_attitude)
     A = _gn_system(_blur(model.M, s), _blur(model.C, s), ratio, Pk - lo)
     if fit_attitude:
         A = np.concatenate([A, attitude_columns(model, ratio, lambda a: _blur(a, s))], axis=1)
@@ -378,6 +389,7 @@ class GNState:
     step_px: float = math.inf
     rms_frac: float = math.nan
     last: tuple | None = None  # (A, y, beta, lo, hi) of the last solve
+    history: list = dataclasses.field(default_factory=list)  # rms_frac of every iteration
 
 
 def _blur_schedule(mask: np.ndarray, options: RegisterOptions, wide: bool) -> tuple[float, ...]:
@@ -387,10 +399,11 @@ def _blur_schedule(mask: np.ndarray, options: RegisterOptions, wide: bool) -> tu
     return tuple(f * size for f in options.attitude_blur_frac if f * size >= options.attitude_blur_min_px)
 
 
-def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude) -> bool:  # type: ignore[no-untyped-def]
-    """One Gauss-Newton iteration at blur ``sigma`` (in place); ``True`` when converged (sharp, small steps)."""
-    size = _figure_size(pyr[1][2])
-    k = _level(sigma, size, options)
+def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude, k=None) -> bool:  # type: ignore[no-untyped-def]
+    """One Gauss-Newton iteration at blur ``sigma`` (in place; pyramid factor ``k``, default from the blur);
+    ``True`` when converged (sharp, small steps)."""
+    if k is None:
+        k = _level(sigma, _figure_size(pyr[1][2]), options)
     beta, A, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude)
     a = float(beta[0])
     if not a > 0:
@@ -398,6 +411,7 @@ def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude) 
     res = y - A @ beta
     st.it, st.ratio, st.last = st.it + 1, float(beta[1]) / a, (A, y, beta, lo, hi)
     st.rms_frac = math.sqrt(float(res @ res) / res.size) / a
+    st.history.append(st.rms_frac)
     step, ds = beta[2:4] / a * k, float(beta[4] / a)
     n = float(np.linalg.norm(step))
     if n > 2.0 + 2.0 * sigma:
@@ -418,21 +432,35 @@ def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude) 
 
 
 def coarse_stage(st: GNState, pyr, mesh, camera, sun, options, fit_attitude, wide) -> GNState:  # type: ignore[no-untyped-def]
-    """The blurred iterations of :func:`_blur_schedule` whose pyramid factor is above 1 (cheap)."""
+    """The first blurred iteration of :func:`_blur_schedule` and those after it at pyramid factors of at least
+    ``coarse_min_level`` (cheap: a 600 px figure is 75-120 px across there)."""
     size = _figure_size(pyr[1][2])
     for sigma in _blur_schedule(pyr[1][2], options, wide):
-        if st.it and _level(sigma, size, options) == 1:
+        if st.it and _level(sigma, size, options) < options.coarse_min_level:
             break
         _iterate(st, pyr, mesh, camera, sun, sigma, options, fit_attitude)
     return st
 
 
-def fine_stage(st: GNState, pyr, mesh, camera, sun, options, fit_attitude, wide) -> GNState:  # type: ignore[no-untyped-def]
-    """The rest of the blur schedule, then sharp iterations to convergence (``max_iterations`` in all)."""
+def fine_stage(st: GNState, pyr, mesh, camera, sun, options, fit_attitude, wide, guard=None) -> GNState:  # type: ignore[no-untyped-def]
+    """The rest of the blur schedule, then sharp iterations to convergence (``max_iterations`` in all).
+
+    ``guard(state, sigma)``, if given, is called after every iteration and may raise a
+    :class:`~jaxlimb.errors.CheckFailed` to abandon the registration.
+    """
     blur = _blur_schedule(pyr[1][2], options, wide)
+    k2 = 2 if _figure_size(pyr[1][2]) >= 2 * options.pyramid_min_size_px else 1
+    n2 = 0
     while st.it < options.max_iterations:
         sigma = blur[st.it] if st.it < len(blur) else 0.0
-        if _iterate(st, pyr, mesh, camera, sun, sigma, options, fit_attitude):
+        k = k2 if sigma == 0 and n2 < options.sharp_level2_iterations else None
+        n2 += k == 2
+        done = _iterate(st, pyr, mesh, camera, sun, sigma, options, fit_attitude, k)
+        if guard is not None:
+            guard(st, sigma)
+        if k == 2 and st.step_px < 4.0 * options.tol_px:
+            n2 = options.sharp_level2_iterations  # converged on the half-resolution frame (its own jitter): full resolution
+        elif done:
             break
     if st.step_px > options.max_final_step_px:
         raise ConvergenceError(f"registration did not converge in {options.max_iterations} iterations (last step {st.step_px:.3g} px)")
@@ -515,6 +543,21 @@ def _start(img, mesh, camera, R, sun, range_km, options, mask, initial):  # type
     return P + shift, D, ncc
 
 
+def _coarse_ncc(pyr, mesh, camera, R, sun, initial, options):  # type: ignore[no-untyped-def]
+    """Step 2 on the pyramid level of the first blurred iteration (a template's pose is off by pixels, not by less)."""
+    P, D = np.asarray(initial[0], dtype=float), float(initial[1])
+    img, cam, mask = pyr[1]
+    blur = _blur_schedule(mask, options, True)
+    k = _level(blur[0], _figure_size(mask), options) if blur else 1
+    img, cam, mask = pyr[k]
+    Pk = (P - (k - 1) / 2.0) / k
+    lo, hi = _window(cam, Pk, D, mesh, mask, options.margin_px)
+    facets = mesh if k == 1 else clustered_mesh(mesh, 2.0 * k * D / camera.focal_px)
+    M, _ = render_model(facets, cam, R, _pose(camera, P, D), sun, lo, hi, options)  # type: ignore[arg-type]
+    shift, ncc = ncc_shift(img, M, lo, max(2, math.ceil(options.search_px / k)))
+    return P + k * shift, D, ncc
+
+
 @dataclass
 class Registration:
     """A registration with the attitude fitted, stopped after :func:`coarse_stage` (:func:`start_search_registration`)."""
@@ -541,15 +584,15 @@ def start_search_registration(
     """
     img = np.asarray(image, dtype=float)
     R = np.asarray(R, dtype=float)
-    P, D, ncc = _start(img, mesh, camera, R, sun, None, options, segmentation[0], initial)
     pyr = _Pyramid(img, camera, segmentation[0])
+    P, D, ncc = _coarse_ncc(pyr, mesh, camera, R, sun, initial, options)
     st = coarse_stage(GNState(np.asarray(P, dtype=float), float(D), R), pyr, mesh, camera, sun, options, True, True)
     return Registration(img, mesh, camera, sun, segmentation, pyr, st, ncc, options)
 
 
-def complete_search_registration(reg: Registration) -> RegisterResult:
-    """The full-resolution iterations and the checks of a :func:`start_search_registration`."""
-    st = fine_stage(reg.state, reg.pyramid, reg.mesh, reg.camera, reg.sun, reg.options, True, True)
+def complete_search_registration(reg: Registration, guard=None) -> RegisterResult:  # type: ignore[no-untyped-def]
+    """The full-resolution iterations and the checks of a :func:`start_search_registration` (``guard``: :func:`fine_stage`)."""
+    st = fine_stage(reg.state, reg.pyramid, reg.mesh, reg.camera, reg.sun, reg.options, True, True, guard)
     return finish_registration(reg.image, reg.camera, reg.segmentation, st, reg.ncc, reg.options)
 
 

@@ -125,7 +125,7 @@ def signed_distance(params: Any, coords: np.ndarray, padded: np.ndarray) -> np.n
     """Signed distance (px, positive outside) of the pixels to the fitted limb: the profile's own radius in
     each pixel's direction; the ellipse (first order) of an elliptical sigmoid/ramp; the circle's radius."""
     if isinstance(params, LimbProfileParams):
-        return np.asarray(_signed_profile(params, jnp.asarray(padded)))[: coords.shape[0]]
+        return np.asarray(_signed_profile(params, padded))[: coords.shape[0]]
     c = np.asarray(coords, float)
     if hasattr(params, "rho"):
         from .earth import _band_signed
@@ -167,7 +167,8 @@ def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS, mod
     coords = np.asarray(rr.data.coords, float)
     n = coords.shape[0]
     padded = np.concatenate([coords, np.repeat(coords[:1], bucket_size(n) - n, axis=0)])  # no recompiles
-    f, cols = _columns(model)(fit.params, jnp.asarray(padded))
+    padded = jax.device_put(padded)  # host data: no identity program per shape
+    f, cols = _columns(model)(fit.params, padded)
     names = model.param_names
     w = np.ones(n) if rr.data.weights is None else np.asarray(rr.data.weights, float)
     J = np.stack([np.asarray(cols[names.index(k)])[:n] for k in fit.free], axis=1) * w[:, None]
@@ -177,7 +178,7 @@ def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS, mod
     C = widen(C0, cluster_robust_covariance(J, r, groups))
     idx, W = split_witness(rr, J, r, signed_distance(fit.params, coords, padded))
     C[np.ix_(idx, idx)] += W
-    return dataclasses.replace(rr, fit=eqx.tree_at(lambda x: x.covariance, fit, jnp.asarray(C)), noise_covariance=C0)
+    return dataclasses.replace(rr, fit=eqx.tree_at(lambda x: x.covariance, fit, jax.device_put(C)), noise_covariance=C0)
 
 
 def split_witness(rr: RefineResult, J: np.ndarray, r: np.ndarray, s: np.ndarray) -> tuple[list[int], np.ndarray]:

@@ -36,7 +36,9 @@ Steps (:func:`locate_whole_limb`):
    sigmoid's edge bias (0.35-0.5 px on short arcs);
 7. the centre covariance: the larger of the pixel-independent and the cluster-robust one,
    plus an edge-model error (:data:`EDGE_MODEL_SIGMA_PX` through the arc's gains of
-   :func:`jaxlimb.imaging.predicted.edge_bias_gain`).
+   :func:`jaxlimb.imaging.predicted.edge_bias_gain`);
+8. lit and dark limb both measured: the model error of their split (the centre fitted on each
+   polarity alone, :mod:`jaxlimb.pipeline.polarity_split`) is added to the centre covariance.
 
 Bodies larger than the frame (:func:`locate_arc`): the visible arc's circle is found by RANSAC
 with the radius the range predicts and the same stage runs from there; too-big only when no
@@ -312,7 +314,26 @@ def locate_whole_limb(image: np.ndarray, camera: Camera, hints: Hints, options: 
             return _with_edge_model_error(_profile_measurement(prof, shape, camera, hints, extras), gain)
         except ConvergenceError as e:  # the sigmoid's answer stands; say why
             extras["profile_rejected"] = {"model": "lunar-lambert", "reason": str(e)}
-    return _with_edge_model_error(_measurement(res, shape, pred, camera, hints, extras), gain)
+    m = _with_edge_model_error(_measurement(res, shape, pred, camera, hints, extras), gain)
+    return _with_polarity_split(m, img, mask, res, shape, dr, noise, opt)
+
+
+def _with_polarity_split(m: LimbMeasurement, img, mask, res: RefineResult, shape: LimbShape, dr: float, noise: float,
+                         opt: LocateOptions) -> LimbMeasurement:
+    """Step 8: the model error of the lit/dark split (:mod:`jaxlimb.pipeline.polarity_split`) added to the
+    centre covariance whenever both polarities are measured; its numbers in ``extras``."""
+    from .polarity_split import polarity_split
+
+    split = polarity_split(img, mask, res, shape, dr, noise, opt, tuple(res.fixed))
+    m.extras["polarity_split"] = split
+    if split is None:
+        return m
+    cov = {a: dict(row) for a, row in m.covariance.items()}
+    M = np.asarray(split["model_error_cov_px2"])
+    for i, a in enumerate(("center_r", "center_c")):
+        for j, b in enumerate(("center_r", "center_c")):
+            cov[a][b] += float(M[i, j])
+    return replace(m, covariance=cov)
 
 
 def _sunlit_sphere(hints: Hints, counts: dict[str, int]) -> bool:

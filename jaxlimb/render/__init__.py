@@ -24,22 +24,46 @@ measured from ``+col`` toward ``-row`` (counter-clockwise as displayed): directi
 ``jaxlimb.render.mesh`` (imported separately).
 """
 
-from .body import RenderOptions, RenderTruth, render_body
-from .raytrace import RadianceWindow, RayHits, lattice_offsets, pixel_rays, render_radiance, trace_rays
+# numpy only (and ``reflectance`` is both a module and a function: bound here, as before)
 from .reflectance import LUNAR_LAMBERT_MCEWEN, REFLECTANCE_MODELS, lunar_lambert_L, reflectance
-from .scene import (
-    EARTH_RADII_KM,
-    MOON_RADIUS_KM,
-    AlbedoPatches,
-    Atmosphere,
-    Scene,
-    earth_scene,
-    image_direction_camera,
-    moon_scene,
-    sun_direction_for_phase,
-)
-from .sensor import add_point_sources, digitise, gaussian_psf, psf_pad
-from .validate import limb_accuracy, limb_strip_errors
+
+# the rest imported on first use (PEP 562): ``jaxlimb.render.mesh`` (irregular bodies, the CLI's
+# ``los locate``) must not pay for the ellipsoid renderer's SciPy imports
+_WHERE = {
+    "AlbedoPatches": "scene",
+    "Atmosphere": "scene",
+    "EARTH_RADII_KM": "scene",
+    "MOON_RADIUS_KM": "scene",
+    "RadianceWindow": "raytrace",
+    "RayHits": "raytrace",
+    "RenderOptions": "body",
+    "RenderTruth": "body",
+    "Scene": "scene",
+    "add_point_sources": "sensor",
+    "digitise": "sensor",
+    "earth_scene": "scene",
+    "gaussian_psf": "sensor",
+    "image_direction_camera": "scene",
+    "lattice_offsets": "raytrace",
+    "limb_accuracy": "validate",
+    "limb_strip_errors": "validate",
+    "moon_scene": "scene",
+    "pixel_rays": "raytrace",
+    "psf_pad": "sensor",
+    "render_body": "body",
+    "render_radiance": "raytrace",
+    "sun_direction_for_phase": "scene",
+    "trace_rays": "raytrace",
+}
+
+
+def __getattr__(name: str):  # noqa: ANN202
+    if name in _WHERE:
+        import importlib
+
+        return getattr(importlib.import_module(f".{_WHERE[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = [
     "EARTH_RADII_KM",

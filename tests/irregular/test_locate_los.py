@@ -126,3 +126,34 @@ def test_frame_of_another_body_fails_typed(body_db):
     img, _, sun, _ = _scene(other, _rot([0.2, 0.1, 1.0], 50.0), 30.0)
     with pytest.raises((MatchError, AmbiguousMatchError)):
         locate_los(img, body_db, CAM, sun)
+
+
+def test_runner_up_guard_abandons_only_hypotheses_that_cannot_change_the_answer():
+    """Same centre as an accepted fit at full resolution, or a residual 3 margins worse than the accepted fit's
+    at the same iteration: abandoned; otherwise kept."""
+    from types import SimpleNamespace
+
+    from jaxlimb.irregular.locate import LosOptions, _runner_up_guard
+
+    o = LosOptions()
+    accepted = [SimpleNamespace(P=np.array([100.0, 100.0]), history=[0.02, 0.005, 0.01])]
+
+    def cand(rms, P=(110.0, 100.0)):  # noqa: ANN001, ANN202
+        st = SimpleNamespace(P=np.array(P), history=[], rms_frac=None)
+        return st, rms
+
+    g = _runner_up_guard(accepted, o)
+    st, _ = cand(0)
+    for i, (rms, sigma) in enumerate([(0.5, 8.0), (0.005 + 2.5 * o.ambiguity_margin, 4.0), (0.01 + 2.9 * o.ambiguity_margin, 0.0)]):
+        st.history.append(rms)
+        st.rms_frac = rms
+        g(st, sigma)  # the first iteration is never judged; then within 3 margins of the accepted history: kept
+    st.history.append(0.05)
+    st.rms_frac = 0.05
+    with pytest.raises(MatchError):
+        g(st, 0.0)  # 0.04 worse than the accepted fit's last residual
+    g = _runner_up_guard(accepted, o)
+    near = SimpleNamespace(P=np.array([100.2, 100.1]), history=[0.0], rms_frac=0.0)
+    g(near, 8.0)  # blurred (pyramid) iteration: the centre is not judged yet
+    with pytest.raises(MatchError):
+        g(near, 0.0)  # the same answer

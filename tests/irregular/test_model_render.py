@@ -73,3 +73,29 @@ def test_pyramid_level_is_the_box_average_of_the_fine_render(lumpy):
     c_fine = np.array(CAM.principal_point_rc) + CAM.focal_px * t[[1, 0]] / t[2]
     c_k = np.array(cam_k.principal_point_rc) + cam_k.focal_px * t[[1, 0]] / t[2]
     np.testing.assert_allclose(k * c_k + (k - 1) / 2.0, c_fine, atol=1e-9)
+
+
+def test_clustered_mesh_is_coarser_and_keeps_the_outline(lumpy):
+    """Vertex clustering on a coarse level: far fewer facets, coverage within a cell of the full mesh's."""
+    from jaxlimb.irregular.model_render import clustered_mesh
+
+    R, t, sun = _pose(lumpy, size_px=60.0)
+    cell = 3.0 * t[2] / CAM.focal_px  # three pixels at this range
+    coarse = clustered_mesh(lumpy, cell)
+    assert len(coarse.faces) < 0.6 * len(lumpy.faces)
+    q = 2.0 ** (math.floor(2.0 * math.log2(cell)) / 2.0)
+    assert clustered_mesh(lumpy, q * 1.01) is clustered_mesh(lumpy, q * 1.4)  # cells rounded: reused between iterations
+    lo, hi = _window(t, lumpy)
+    full, simp = (render_window(m, CAM, R, t, sun, lo, hi, 4) for m in (lumpy, coarse))
+    assert abs(simp.C.sum() - full.C.sum()) < 0.05 * full.C.sum()
+    blur = lambda a: cv2.GaussianBlur(a, (0, 0), 2.0)  # noqa: E731
+    assert np.abs(blur(simp.C) - blur(full.C)).max() < 0.25
+
+
+def test_mesh_renderer_does_not_import_the_ellipsoid_renderer():
+    import subprocess
+    import sys
+
+    code = "import sys, jaxlimb.irregular.locate; print('jaxlimb.render.body' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+    assert out == "False"

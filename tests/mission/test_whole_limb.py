@@ -99,3 +99,22 @@ def test_too_big_only_when_no_limb_is_visible():
     img = 120.0 + rng.normal(0, 2.0, (512, 512))  # the disc fills the frame: no limb in it
     with pytest.raises(TooBigError, match="no limb arc"):
         locate(img, CAM, Hints(body="moon", range_prior_km=20_000.0))
+
+
+def test_lit_dark_split_puts_the_crescent_bias_in_the_covariance():
+    """A crescent brightening toward the limb moves the lit edge ~0.35 px toward the Sun; the dark limb does not.
+    The lit/dark split (pipeline.polarity_split) puts that model error into the centre covariance."""
+    img, ic = _render((250.3, 262.7), seed=1)
+    m = locate(img, CAM, _hints((244.0, 270.0)))
+    split = m.extras["polarity_split"]
+    assert split["n_lit"] > 500 and split["n_dark"] > 100
+    assert split["delta_rc_px"][0] < -0.2  # lit centre toward -row of the dark one (the crescent is at +row)
+    err = np.subtract(m.center_rc, ic.body_center_rc)
+    sig_r = math.sqrt(m.covariance["center_r"]["center_r"])
+    assert abs(err[0]) > 0.2 and abs(err[0]) < 2.0 * sig_r  # without the split: 0.35 px at sigma 0.05 px
+
+
+def test_no_split_without_a_dark_limb():
+    img, ic = _render((250.3, 262.7), seed=2, crescent_dn=0.0)
+    m = locate(img, CAM, _hints((244.0, 270.0)))
+    assert m.extras["polarity_split"] is None
