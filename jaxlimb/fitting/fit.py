@@ -248,6 +248,11 @@ def _make_fit(problem: LimbProblem, y: Array, n_steps: Array, result: FitResult,
     )
 
 
+def _to_device(a: Any) -> Array:
+    """``jnp.asarray`` for host (NumPy) data without compiling an identity program per shape."""
+    return jax.device_put(a) if isinstance(a, np.ndarray) else jnp.asarray(a)
+
+
 def _traced_core(solver, problem, max_steps):  # type: ignore[no-untyped-def]
     _TRACES["fit"] += 1
     return _core(solver, problem, max_steps)
@@ -370,7 +375,7 @@ def fit(
     solver = NormalLM() if solver is None else solver
     coords_, z_, w_, theta, free_idx = _validate(model, coords, z, init, fixed, weights, batched=False)
     coords_, z_, w_ = pad_pixels(coords_, z_, w_, bucket_size(z_.shape[0]))
-    problem = LimbProblem(model, free_idx, analytic, jnp.asarray(theta), jnp.asarray(coords_), jnp.asarray(z_), jnp.asarray(w_))
+    problem = LimbProblem(model, free_idx, analytic, *(_to_device(a) for a in (theta, coords_, z_, w_)))
     if solver.jittable:
         res = _core_jit(solver, problem, max_steps)
     else:

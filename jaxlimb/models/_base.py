@@ -13,7 +13,9 @@ from dataclasses import fields
 from typing import ClassVar, TypeVar
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
+import numpy as np
 from jaxtyping import Array, Float
 
 P = TypeVar("P", bound="LimbParams")
@@ -30,13 +32,19 @@ class LimbParams(eqx.Module):
 
     def to_vector(self) -> Float[Array, "... p"]:
         """Stack the fields (in Jacobian column order) along a new last axis."""
-        return jnp.stack([jnp.asarray(getattr(self, n), dtype=float) for n in self.field_names()], axis=-1)
+        vals = [getattr(self, n) for n in self.field_names()]
+        if not any(isinstance(v, jax.core.Tracer) for v in vals):  # host values: no program per shape
+            return jax.device_put(np.stack([np.asarray(v, dtype=float) for v in vals], axis=-1))
+        return jnp.stack([jnp.asarray(v, dtype=float) for v in vals], axis=-1)
 
     @classmethod
     def from_vector(cls: type[P], v: Float[Array, "... p"]) -> P:
         """Inverse of :meth:`to_vector`."""
+        n = len(cls.field_names())
+        if isinstance(v, np.ndarray):  # host values: one transfer per field, no program per shape
+            return cls(*[jax.device_put(np.ascontiguousarray(v[..., i])) for i in range(n)])
         v = jnp.asarray(v)
-        return cls(*[v[..., i] for i in range(len(cls.field_names()))])
+        return cls(*[v[..., i] for i in range(n)])
 
     def replace(self: P, **changes: object) -> P:
         """A copy with some fields replaced."""

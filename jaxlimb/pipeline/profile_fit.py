@@ -127,17 +127,18 @@ def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS) -> 
     coords = np.asarray(rr.data.coords, float)
     n = coords.shape[0]
     padded = np.concatenate([coords, np.repeat(coords[:1], bucket_size(n) - n, axis=0)])  # no recompiles
-    f, cols = _VALUE_AND_COLUMNS(fit.params, jnp.asarray(padded))
+    padded = jax.device_put(padded)  # host data: no identity program per shape
+    f, cols = _VALUE_AND_COLUMNS(fit.params, padded)
     names = LimbProfileParams.field_names()
     J = np.stack([np.asarray(cols[names.index(k)])[:n] for k in fit.free], axis=1)
     r = np.asarray(rr.data.z, float) - np.asarray(f)[:n]
     groups = sector_groups(coords, (float(fit.params.r0), float(fit.params.c0)), n_sectors)
     C0 = np.asarray(fit.covariance)
     C = widen(C0, cluster_robust_covariance(J, r, groups))
-    s = np.asarray(_SIGNED(fit.params, jnp.asarray(padded)))[:n]
+    s = np.asarray(_SIGNED(fit.params, padded))[:n]
     idx, W = split_witness(rr, J, r, s)
     C[np.ix_(idx, idx)] += W
-    return dataclasses.replace(rr, fit=eqx.tree_at(lambda x: x.covariance, fit, jnp.asarray(C)), noise_covariance=C0)
+    return dataclasses.replace(rr, fit=eqx.tree_at(lambda x: x.covariance, fit, jax.device_put(C)), noise_covariance=C0)
 
 
 def split_witness(rr: RefineResult, J: np.ndarray, r: np.ndarray, s: np.ndarray) -> tuple[list[int], np.ndarray]:

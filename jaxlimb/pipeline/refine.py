@@ -57,6 +57,7 @@ import math
 from dataclasses import dataclass
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -443,7 +444,7 @@ def predict(model, params, coords: np.ndarray) -> np.ndarray:
     """Model intensities at ``coords`` (jitted on power-of-two padded shapes: no per-image recompiles)."""
     n = coords.shape[0]
     cp, _, _ = _pad_bucket(FitData(coords, np.zeros(n), None, 0.0, 1.0))
-    return np.asarray(_predict_jit(model, params, jnp.asarray(cp)))[:n]
+    return np.asarray(_predict_jit(model, params, jax.device_put(np.asarray(cp))))[:n]
 
 
 def fisher_information(model, params, data: FitData, fixed: tuple[str, ...], sigma: float) -> np.ndarray:
