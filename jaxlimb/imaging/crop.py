@@ -160,6 +160,8 @@ class BodyRegion:
         Block-averaging factor used.
     crop
         :class:`CropInfo`.
+    bright_sky
+        The sky is brighter than the body's darkest parts (``background`` is the border's sky level).
     """
 
     roi: tuple[int, int, int, int]
@@ -178,6 +180,8 @@ class BodyRegion:
     factor: int
     crop: CropInfo
     mask_small: np.ndarray = field(repr=False, compare=False, default=None)  # type: ignore[assignment]
+    #: the sky was measured on the frame's border, above the body's darkest parts (:func:`detect_body`)
+    bright_sky: bool = False
 
 
 def estimate_noise(image: np.ndarray, max_samples: int = 100_000) -> float:
@@ -263,8 +267,15 @@ def nearest_fill(image: np.ndarray, mask: np.ndarray | None) -> np.ndarray:
     return np.asarray(image)[idx[0], idx[1]]
 
 
-def detect_body(image: np.ndarray, options: DetectOptions | None = None) -> BodyRegion:
+def detect_body(image: np.ndarray, options: DetectOptions | None = None, *, sky_dn: float | None = None) -> BodyRegion:
     """Find the lit body: no-body test, threshold (Eq. 10), ROI, Checks 1-2 on the image.
+
+    A sky brighter than the darkest part of the body (a long exposure's bias or scattered light around a
+    disc whose shadowed limb is darker than it: Cassini's Mimas N1644787857) puts Eq. (10)'s threshold,
+    measured from the darkest pixel, below the sky, and the "lit region" is the whole frame.  When the lit
+    region exceeds ``max_fill_fraction`` and the median of the frame's border ring (:func:`border_sky`) is
+    above the threshold but below mid-range, the detection is repeated with the sky at that level (``sky_dn``): threshold
+    ``sky + max(6 sigma, (max - sky) / 4)``, background = sky.
 
     Parameters
     ----------
@@ -272,6 +283,8 @@ def detect_body(image: np.ndarray, options: DetectOptions | None = None) -> Body
         Validated float ``[row, col]`` image.
     options
         :class:`DetectOptions`.
+    sky_dn
+        The sky level (DN), when known; default: Eq. (10) from the darkest pixel.
 
     Raises
     ------
@@ -303,6 +316,9 @@ def detect_body(image: np.ndarray, options: DetectOptions | None = None) -> Body
     # contrast the threshold never cuts into the noise of the background
     sky = float(np.percentile(sm, 2.0))
     gt = max(gmin + 0.25 * contrast, sky + 6.0 * sig_s)
+    if sky_dn is not None:
+        gmin = float(sky_dn)  # the background level of the region (grey tones of the box filter)
+        gt = gmin + max(6.0 * sig_s, 0.25 * (gmax - gmin))
     binary = (sm > gt).astype(np.uint8)
     n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
     if n_lab <= 1:
@@ -362,18 +378,37 @@ def detect_body(image: np.ndarray, options: DetectOptions | None = None) -> Body
         factor=f,
         crop=crop,
         mask_small=full_mask,
+        bright_sky=sky_dn is not None,
     )
     if opt.run_checks:
-        check_region(region, opt)
+        if region.lit_fraction > opt.max_fill_fraction and sky_dn is None:
+            b = border_sky(sm)
+            # the sky itself is above the threshold, and below mid-range (a frame-filling body's border is
+            # the body, near its peak): measure the body above the sky
+            if gt < b < gmin + 0.5 * contrast:
+                try:
+                    return detect_body(image, options, sky_dn=b)
+                except NoBodyError:
+                    pass
+        check_region(region, opt, sky_dn)
     return region
 
 
-def check_region(region: BodyRegion, options: DetectOptions | None = None) -> None:
+def border_sky(sm: np.ndarray, width_frac: float = 0.02) -> float:
+    """Median of the frame's border ring (``width_frac`` of the size, >= 2 px): the sky level of a frame
+    whose border is mostly sky (a body cut by one or two frame edges leaves the rest of the ring)."""
+    w = max(2, int(round(width_frac * min(sm.shape))))
+    ring = np.concatenate([sm[:w].ravel(), sm[-w:].ravel(), sm[w:-w, :w].ravel(), sm[w:-w, -w:].ravel()])
+    return float(np.median(ring))
+
+
+def check_region(region: BodyRegion, options: DetectOptions | None = None, sky_dn: float | None = None) -> None:
     """Checks 1-2 measured on the image (see the module docstring)."""
     opt = options or DetectOptions()
     if region.lit_fraction > opt.max_fill_fraction:
+        above = "" if sky_dn is None else f" (measured above the sky level {sky_dn:.4g} DN of the frame's border)"
         raise TooBigError(
-            f"the lit region covers {100 * region.lit_fraction:.1f} % of the frame, above max_fill_fraction = "
+            f"the lit region covers {100 * region.lit_fraction:.1f} % of the frame{above}, above max_fill_fraction = "
             f"{100 * opt.max_fill_fraction:.0f} %: the body fills the image"
         )
     if region.extent_major_px < opt.min_diameter_px:
@@ -392,6 +427,7 @@ __all__ = [
     "CropInfo",
     "DetectOptions",
     "block_average",
+    "border_sky",
     "check_region",
     "detect_body",
     "detect_cropping",

@@ -314,6 +314,15 @@ def _lit_side_only(pts: np.ndarray, inl: np.ndarray, fit, offset_rc, hints: Hint
     return inl, fit, n0 - int(inl.sum())
 
 
+def _outward_bright_to_dark(cand: np.ndarray, diag: dict, region: BodyRegion, offset_rc) -> np.ndarray:
+    """A sky brighter than the body's darkest parts: only the lit limb's candidates, whose bright-to-dark
+    normal (the box filter's) points away from the lit region's centroid.  The shadowed limb against the
+    sky (the opposite polarity, the sky the brighter side) is a limb too, but not the one the lit-limb
+    sigmoid models."""
+    out = cand.astype(np.float64) + np.asarray(offset_rc, float) - np.asarray(region.centroid_rc, float)
+    return np.einsum("ij,ij->i", out, diag["normal_rc"]) > 0
+
+
 def valid_zone(mask: np.ndarray, reach: int) -> np.ndarray:
     """Pixels farther than ``reach`` px from every invalid pixel of ``mask`` (frame borders are not invalid)."""
     from scipy import ndimage
@@ -396,8 +405,10 @@ def gradient_front_end(
     n_req = int(min(st.n_points, max(10, g.size // 4)))
     cand = strongest_pixels(g, n_req)
     t_grad = time.perf_counter()
-    keep, _diag = box_filter(g, sub_s, cand, st.box_size, background=region.background, options=opt.box,
+    keep, diag = box_filter(g, sub_s, cand, st.box_size, background=region.background, options=opt.box,
                              valid=vsub)
+    if region.bright_sky and keep.any():
+        keep &= _outward_bright_to_dark(cand, diag, region, (r0, c0))
     n_box = int(keep.sum())
     if n_box < opt.min_points_box:
         raise TooManyOutliersError(

@@ -154,13 +154,25 @@ def check_radius_prior(radius: float, band: tuple[float, float], source: str = "
         )
 
 
-def check_size(radius: float, shape: tuple[int, int], min_diameter_px: float = 10.0) -> None:
-    """Check 1 on the measurement: diameter below ``min_diameter_px`` or radius above the half-diagonal."""
+def check_size(radius: float, shape: tuple[int, int], min_diameter_px: float = 10.0, arc_deg: float | None = None) -> None:
+    """Check 1 on the measurement: diameter below ``min_diameter_px`` or radius above the half-diagonal.
+
+    ``arc_deg`` (the fitted arc in the frame) makes the too-big message say what is missing: a limb arc
+    *is* visible, but a free circle larger than the frame through it is not checked by anything; the
+    camera and a range prior fix the circle's size and the arc is then measured
+    (:func:`jaxlimb.pipeline.whole_limb.locate_arc`)."""
     if 2.0 * radius < min_diameter_px:
         raise TooSmallError(
             f"Check 1: measured apparent diameter {2 * radius:.3g} px is below min_diameter_px = {min_diameter_px:g} px"
         )
     half_diag = 0.5 * math.hypot(*shape)
+    if radius > half_diag and arc_deg is not None:
+        raise TooBigError(
+            f"Check 1: measured radius {radius:.4g} px exceeds the frame half-diagonal {half_diag:.4g} px: only a "
+            f"{arc_deg:.0f}-deg arc of the limb is in the frame, and a free circle through it is not checked; give "
+            "the camera and hints range_prior_km and the body (or --kernels) so that the arc is measured with the "
+            "size the range predicts"
+        )
     if radius > half_diag:
         raise TooBigError(
             f"Check 1: measured radius {radius:.4g} px exceeds the frame half-diagonal {half_diag:.4g} px "

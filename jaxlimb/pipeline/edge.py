@@ -146,7 +146,7 @@ def check_edge(frame: Frame, cand: Any, edge: EdgeFit) -> EdgeFit:
     (centre in the field) on the fitted circle; returns ``edge`` with the jump and its limit."""
     thr = jump_threshold(edge.pixels.dr, frame.opt.max_jump_px)
     jump = check_jump(cand.center_rc, cand.radius, edge.center_rc, edge.radius, edge.pixels.sel.angles(), thr)
-    check_size(edge.radius, frame.img.shape, min_diameter_px(frame))
+    check_size(edge.radius, frame.img.shape, min_diameter_px(frame), edge.arc_deg)
     prior = cand.info.get("prior")
     if prior is not None:
         check_radius_prior(edge.radius, prior.radius_range, prior.source)

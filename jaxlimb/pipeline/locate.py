@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import CheckFailed
 from ..geometry.camera import Camera
 from ..imaging import Hints
 from .bodies import body_strategy
@@ -101,6 +102,20 @@ def locate(
         return locate_arc(frame.img, frame.cam, frame.hints, frame.opt, mask=mask)
     frame = body.prepare(frame)
     cand = candidates(frame)
+    try:
+        return _measure(frame, body, cand)
+    except CheckFailed as e:
+        region = cand.info.get("region")
+        if region is None or not getattr(region, "bright_sky", False):
+            raise
+        raise type(e)(  # the same check, with what makes this frame hard
+            f"{e} [the sky ({region.background:.4g} DN at the frame's border) is brighter than the body's shadowed "
+            "limb: only the lit arc is a lit limb, and the lit-limb model alone could not measure this frame]"
+        ) from None
+
+
+def _measure(frame, body, cand) -> LimbMeasurement:
+    """Stages 3-9 of :func:`locate` (module table) on the front end's candidates."""
     pixels = body.limb_pixels(frame, cand)
     edge = body.edge_fit(frame, cand, pixels)
     extras = body.report(frame, cand, edge)
