@@ -19,8 +19,8 @@ refinement, ``--no-refine`` off) on the same frames, reported as "before".
 
 Run::
 
-    .venv/bin/python benchmarks/irregular_los.py --quick      # ~25 min on 2 busy cores
-    .venv/bin/python benchmarks/irregular_los.py              # more views
+    .venv/bin/python benchmarks/irregular_los.py --quick      # ~1 min on 2 busy cores
+    .venv/bin/python benchmarks/irregular_los.py --views 2    # 84 frames, ~5 min at load 5-7
 
 Writes ``benchmarks/results/irregular_los.json`` (or ``--out``).
 """

@@ -16,7 +16,10 @@ and a generated contact binary at phase 30 deg and 3x / 10x the long axis, plus 
 
 Run::
 
-    nice -n 5 .venv/bin/python benchmarks/irregular_speed.py --quick
+    nice -n 5 .venv/bin/python benchmarks/irregular_speed.py
+    # the CLI of an earlier commit on the same frames (in-process columns: this checkout)
+    git archive 40f223a | tar -x -C /tmp/before
+    nice -n 5 .venv/bin/python benchmarks/irregular_speed.py --cli-pythonpath /tmp/before
 
 Writes ``benchmarks/results/irregular_speed.json``.
 """
@@ -26,6 +29,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -42,16 +46,23 @@ JAXLIMB = [sys.executable, "-m", "jaxlimb.cli"]
 CASES = (("thebe", 30, 3.0), ("thebe", 30, 10.0), ("gen:contact-binary", 30, 3.0), ("phobos", 30, 3.0))
 
 
-def _wall(cmd: list[str], env: dict[str, str]) -> tuple[float, dict | None]:
-    t0 = time.perf_counter()
-    p = subprocess.run(cmd, capture_output=True, text=True, env=env)
-    dt = time.perf_counter() - t0
+def _cpu_children() -> float:
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
+
+
+def _wall(cmd: list[str], env: dict[str, str]) -> tuple[float, float, dict | None]:
+    """Wall time, CPU time (user + system: what a quiet machine would take, about) and the JSON answer."""
+    t0, c0 = time.perf_counter(), _cpu_children()
+    # from the temporary directory: `python -m` puts the working directory first on sys.path
+    p = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=tempfile.gettempdir())
+    dt, cpu = time.perf_counter() - t0, _cpu_children() - c0
     if p.returncode not in (0, 3):
         raise RuntimeError(f"{' '.join(cmd)} -> {p.returncode}: {p.stderr[-400:]}")
     try:
-        return dt, json.loads(p.stdout.strip().splitlines()[-1])
+        return dt, cpu, json.loads(p.stdout.strip().splitlines()[-1])
     except (json.JSONDecodeError, IndexError):
-        return dt, None
+        return dt, cpu, None
 
 
 def _stages(img, db, cam, sun, range_km) -> dict[str, float]:
@@ -95,6 +106,11 @@ def _frame(name, ph, df, bodies, cam, d: Path, rng) -> dict:
         save_database(db, dbp)
     rng_km = float(np.linalg.norm(t)) * 1.05
     (d / f"{tag}.hints.json").write_text(json.dumps({"sun_dir_camera": [float(v) for v in sun], "range_prior_km": rng_km}))
+    row = {"case": tag, "truth_rc": [float(v) for v in truth]}
+    row["cmd"] = [*JAXLIMB, "los", "locate", str(d / f"{tag}.png"), "--db", str(dbp), "--camera", str(d / "camera.json"),
+                  "--hints", str(d / f"{tag}.hints.json"), "--json"]  # fmt: skip
+    if not IN_PROCESS:
+        return row
     locate_los(img, db, cam, sun, None, rng_km)  # warm-up
     times, err = [], float("nan")
     for _ in range(REPEATS):
@@ -102,25 +118,26 @@ def _frame(name, ph, df, bodies, cam, d: Path, rng) -> dict:
         res = locate_los(img, db, cam, sun, None, rng_km)
         times.append(time.perf_counter() - t0)
         err = float(np.linalg.norm(res.centre_rc - truth))
-    row = {"case": tag, "in_process_s": statistics.median(times), "error_px": err, **_stages(img, db, cam, sun, rng_km)}
-    row["cmd"] = [*JAXLIMB, "los", "locate", str(d / f"{tag}.png"), "--db", str(dbp), "--camera", str(d / "camera.json"),
-                  "--hints", str(d / f"{tag}.hints.json"), "--json"]  # fmt: skip
-    row["truth_rc"] = [float(v) for v in truth]
+    row.update(in_process_s=statistics.median(times), error_px=err, **_stages(img, db, cam, sun, rng_km))
     return row
 
 
 REPEATS = 3
+IN_PROCESS = True
 
 
 def main(argv: list[str] | None = None) -> dict:
-    global REPEATS
+    global REPEATS, IN_PROCESS
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="Thebe 3x and the contact binary only, no Phobos")
     ap.add_argument("--repeats", type=int, default=3, help="in-process calls and later CLI processes per frame")
+    ap.add_argument("--cli-pythonpath", metavar="DIR", help="run the CLI from this checkout (e.g. `git archive` of an"
+                    " earlier commit: the 'before' column); results saved as irregular_speed_before.json")
     args = ap.parse_args(argv)
-    REPEATS = args.repeats
+    REPEATS, IN_PROCESS = args.repeats, not args.cli_pythonpath
     os.environ.setdefault("JAXLIMB_CACHE", str(Path(__file__).resolve().parent / "results" / ".db-cache"))
     from irregular_los import bodies, camera
+    from jaxlimb._data import shared_data_dir
 
     cam = camera()
     d = Path(tempfile.mkdtemp(prefix="irregular_speed_"))
@@ -129,25 +146,32 @@ def main(argv: list[str] | None = None) -> dict:
     allb = bodies(quick=False)
     rows = [_frame(n, ph, df, allb, cam, d, np.random.default_rng([2026, i])) for i, (n, ph, df) in enumerate(cases)]
     env = {**os.environ, "JAXLIMB_CACHE_DIR": str(d / "jaxcache")}
+    if args.cli_pythonpath:
+        env["PYTHONPATH"] = str(Path(args.cli_pythonpath).resolve())
+        env["JAXLIMB_SHARED_DATA"] = str(shared_data_dir())
     jax_cmd = [sys.executable, "-c", "import jax; jax.numpy.zeros(1)"]
     _wall(jax_cmd, env)
-    jax_s = statistics.median(_wall(jax_cmd, env)[0] for _ in range(args.repeats))
+    jax = [_wall(jax_cmd, env) for _ in range(args.repeats)]
+    jax_s, jax_cpu = statistics.median(j[0] for j in jax), statistics.median(j[1] for j in jax)
     for r in rows:
-        first, out = _wall(r["cmd"], env)
-        later = [_wall(r["cmd"], env)[0] for _ in range(args.repeats)]
-        r.update(cli_first_s=first, cli_s=statistics.median(later), cli_status=(out or {}).get("status", "?"))
+        first, _, out = _wall(r["cmd"], env)
+        later = [_wall(r["cmd"], env) for _ in range(args.repeats)]
+        r.update(cli_first_s=first, cli_s=statistics.median(w[0] for w in later), cli_cpu_s=statistics.median(w[1] for w in later),
+                 cli_status=(out or {}).get("status", "?"))  # fmt: skip
         if out and "center_rc" in out:
             r["cli_error_px"] = float(np.linalg.norm(np.asarray(out["center_rc"]) - np.asarray(r["truth_rc"])))
         r["cli_vs_jax_start"] = r["cli_s"] / jax_s
         r["cmd"] = " ".join(r["cmd"][2:]).replace(str(d), "$TMP")
-    print(f"python -c 'import jax; jax.numpy.zeros(1)': {jax_s:.2f} s (load {os.getloadavg()[0]:.1f})")
-    print("| frame | in process s | search / register s | CLI first / later s | CLI / jax start | error px | CLI status |")
-    print("|---|---|---|---|---|---|---|")
+    print(f"python -c 'import jax; jax.numpy.zeros(1)': {jax_s:.2f} s wall, {jax_cpu:.2f} s CPU (load {os.getloadavg()[0]:.1f})")
+    print("| frame | in process s | search / register s | CLI first / later s | CLI CPU s | CLI / jax start | CLI error px | CLI status |")
+    print("|---|---|---|---|---|---|---|---|")
+    nan = float("nan")
     for r in rows:
-        print(f"| {r['case']} | {r['in_process_s']:.2f} | {r['template_search_s']:.2f} / {r['register_s']:.2f} |"
-              f" {r['cli_first_s']:.2f} / {r['cli_s']:.2f} | {r['cli_vs_jax_start']:.2f} | {r['error_px']:.3f} | {r['cli_status']} |")
-    out = {"environment": environment(), "jax_start_s": jax_s, "load_after": os.getloadavg()[0], "rows": rows}
-    print("wrote", save("irregular_speed", out))
+        print(f"| {r['case']} | {r.get('in_process_s', nan):.2f} | {r.get('template_search_s', nan):.2f} / {r.get('register_s', nan):.2f} |"
+              f" {r['cli_first_s']:.2f} / {r['cli_s']:.2f} | {r['cli_cpu_s']:.2f} | {r['cli_vs_jax_start']:.2f} | {r.get('cli_error_px', nan):.3f} | {r['cli_status']} |")
+    out = {"environment": environment(), "jax_start_s": jax_s, "jax_start_cpu_s": jax_cpu, "load_after": os.getloadavg()[0], "rows": rows,
+           "cli_pythonpath": args.cli_pythonpath}  # fmt: skip
+    print("wrote", save("irregular_speed_before" if args.cli_pythonpath else "irregular_speed", out))
     return out
 
 

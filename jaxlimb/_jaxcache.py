@@ -6,6 +6,8 @@ same camera load them instead of compiling again:
 
 * ``$JAXLIMB_CACHE_DIR`` if set (``off``, ``none``, ``0`` or the empty string disable the
   cache);
+* else ``$JAXLIMB_CACHE/jax`` (``JAXLIMB_CACHE``: the root of all of jaxlimb's caches, the
+  template databases of :mod:`jaxlimb.irregular.database` included);
 * else ``$XDG_CACHE_HOME/jaxlimb/jax``;
 * else ``~/.cache/jaxlimb/jax``.
 
@@ -90,6 +92,9 @@ def cache_dir() -> Path | None:
     env = os.environ.get(ENV_DIR)
     if env is not None:
         return None if env.strip().lower() in _OFF else Path(env).expanduser()
+    root = os.environ.get("JAXLIMB_CACHE")
+    if root:
+        return Path(root).expanduser() / "jax"
     xdg = os.environ.get("XDG_CACHE_HOME")
     base = Path(xdg).expanduser() if xdg else Path.home() / ".cache"
     return base / "jaxlimb" / "jax"

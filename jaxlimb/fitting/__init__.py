@@ -17,11 +17,18 @@ from .solvers import (
     AbstractLimbSolver as AbstractLimbSolver,
     FitResult as FitResult,
     LimbProblem as LimbProblem,
-    MarquardtCholeskyDescent as MarquardtCholeskyDescent,
-    optimistix_normal_lm as optimistix_normal_lm,
     NormalLM as NormalLM,
-    Optimistix as Optimistix,
     PaperGaussNewton as PaperGaussNewton,
     ScipyLeastSquares as ScipyLeastSquares,
     solver_from_name as solver_from_name,
 )
+
+
+def __getattr__(name: str):  # noqa: ANN202
+    """``Optimistix``, ``optimistix_normal_lm``, ``MarquardtCholeskyDescent``: imported on first use
+    (:mod:`jaxlimb.fitting._optx`; the default path never imports optimistix)."""
+    if name in ("Optimistix", "optimistix_normal_lm", "MarquardtCholeskyDescent"):
+        from . import _optx
+
+        return getattr(_optx, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

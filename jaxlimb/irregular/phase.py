@@ -86,8 +86,9 @@ def contour_normals(xy: np.ndarray) -> np.ndarray:
 
 
 def _observed_extents(mask: np.ndarray, axes: np.ndarray) -> np.ndarray:
-    rr, cc = np.nonzero(mask)
-    xy = np.stack([cc, rr], axis=1).astype(float)
+    """``max`` of the figure's pixel centres (x, y) along each direction: attained on its outer contours."""
+    contours, _ = cv2.findContours(np.ascontiguousarray(mask, dtype=np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    xy = np.concatenate([c.reshape(-1, 2) for c in contours]).astype(float)
     return (xy @ axes.T).max(axis=0)
 
 
@@ -99,7 +100,7 @@ def _score_block(conts, nrms, rolls, s_xy, xo, chamfer, opts, size):  # type: ig
     X0, X1 = c * x - s * y, s * x + c * y  # (B, T, n) rotated template contour (x, y)
     e = np.array([-s_xy[1], s_xy[0]])
     pe, ps = X0 * f4(e[0]) + X1 * f4(e[1]), X0 * f4(s_xy[0]) + X1 * f4(s_xy[1])
-    xp = np.stack([pe.max(-1), (-pe).max(-1), ps.max(-1)], axis=-1).astype(float)
+    xp = np.stack([pe.max(-1), -pe.min(-1), ps.max(-1)], axis=-1).astype(float)
     k = (xo[0] + xo[1]) / np.maximum(xp[..., 0] + xp[..., 1], 1e-9)
     d_e = 0.5 * (xo[0] - xo[1]) - k * 0.5 * (xp[..., 0] - xp[..., 1])
     d_s = xo[2] - k * xp[..., 2]
@@ -113,8 +114,8 @@ def _score_block(conts, nrms, rolls, s_xy, xo, chamfer, opts, size):  # type: ig
     n = mx.shape[-1]
     d = cv2.remap(chamfer.dt32, mx.reshape(-1, n), my.reshape(-1, n), interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     d = np.minimum(d.reshape(mx.shape), f4(opts.truncate_frac * size))
-    n_lit = np.maximum(lit.sum(-1), 1)
-    score = np.where(lit, d, f4(0.0)).sum(-1, dtype=np.float64) / n_lit + np.where(n_lit < 3, np.inf, 0.0)
+    n_lit = np.maximum(np.count_nonzero(lit, axis=-1), 1)
+    score = np.einsum("...i,...i->...", d, lit.astype(f4)).astype(float) / n_lit + np.where(n_lit < 3, np.inf, 0.0)
     return score, k, T
 
 

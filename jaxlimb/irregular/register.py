@@ -449,16 +449,19 @@ def fine_stage(st: GNState, pyr, mesh, camera, sun, options, fit_attitude, wide,
     :class:`~jaxlimb.errors.CheckFailed` to abandon the registration.
     """
     blur = _blur_schedule(pyr[1][2], options, wide)
-    k2 = 2 if _figure_size(pyr[1][2]) >= 2 * options.pyramid_min_size_px else 1
+    size = _figure_size(pyr[1][2])
+    k2 = 2 if size >= 2 * options.pyramid_min_size_px and options.sharp_level2_iterations > 0 else 1
     n2 = 0
     while st.it < options.max_iterations:
         sigma = blur[st.it] if st.it < len(blur) else 0.0
-        k = k2 if sigma == 0 and n2 < options.sharp_level2_iterations else None
-        n2 += k == 2
+        k = _level(sigma, size, options)
+        if n2 < options.sharp_level2_iterations:  # no full-resolution iteration before the half-resolution optimum
+            k = max(k, k2)
+            n2 += sigma == 0
         done = _iterate(st, pyr, mesh, camera, sun, sigma, options, fit_attitude, k)
         if guard is not None:
             guard(st, sigma)
-        if k == 2 and st.step_px < 4.0 * options.tol_px:
+        if k > 1 and sigma == 0 and st.step_px < 4.0 * options.tol_px:
             n2 = options.sharp_level2_iterations  # converged on the half-resolution frame (its own jitter): full resolution
         elif done:
             break

@@ -198,7 +198,8 @@ class Ellipsoid:
         return ellipsoid_center(self, frame, final)
 
     def iterations(self, edge: EllipsoidEdge, final: RefineResult) -> int:
-        return edge.n_steps + (int(final.fit.n_steps) if final is not edge.final else 0)
+        # the edge fit with its model-error term is the same fit (same data), the profile a second one
+        return edge.n_steps + (int(final.fit.n_steps) if final.data is not edge.final.data else 0)
 
     def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
         """Distorted camera: ``center_rc`` and its covariance rows mapped to the observed image."""

@@ -12,6 +12,7 @@ lunar-Lambert-like limbs, or it moves the limb by more than half the band from t
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import jax.numpy as jnp
@@ -20,7 +21,7 @@ import numpy as np
 from ..errors import ConfigError, ConvergenceError, GeometryError, LimbInputError
 from ..fitting import NormalLM, fit, solver_from_name
 from ..imaging import sun_direction_image
-from ..models import LIMB_PROFILE, PROFILE_FIXED, EllipseRampParams, LimbProfileParams, limb_profile_intensity
+from ..models import ELLIPSE, ELLIPSE_RAMP, LIMB_PROFILE, PROFILE_FIXED, EllipseRampParams, LimbProfileParams, limb_profile_intensity
 from ..models import lunar_lambert_weight
 from .earth import _band_pixels, _ell_change
 from .frame import Frame
@@ -119,10 +120,32 @@ def _passes(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", pts, z, band
     return res, fixed, hist
 
 
+def edge_with_model_error(edge: "EllipsoidEdge", rejected: Any = None) -> RefineResult:
+    """The edge fit's :class:`RefineResult` with the model-error terms of
+    :func:`~jaxlimb.pipeline.profile_fit.with_model_error` (the answer when the profile is not fitted or is
+    rejected: a limb the profile does not describe, e.g. Hapke's, biased 0.05-0.06 px for a noise-only sigma
+    of 0.002-0.005 px on ``benchmarks/families.py``'s Earth ``hapke`` frames)."""
+    model = ELLIPSE_RAMP if isinstance(edge.final.fit.params, EllipseRampParams) else ELLIPSE
+    out = with_model_error(edge.final, model=model)
+    if rejected is None:
+        return out
+    # a rejected profile fit (its L outside the physical band) is a second model of the same limb: the
+    # difference of the two limbs' geometry is model error too (the edge fit keeps no model of the interior)
+    import equinox as eqx
+
+    free = list(out.fit.free)
+    names = [n for n in ("r0", "c0", "a") if n in free]
+    idx = [free.index(n) for n in names]
+    d = np.array([float(getattr(rejected, n)) - float(getattr(out.fit.params, n)) for n in names])
+    C = np.array(out.fit.covariance)
+    C[np.ix_(idx, idx)] += np.outer(d, d)
+    return replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
+
+
 def fit_profile_ellipsoid(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", extras: dict[str, Any]) -> RefineResult:
     """The stage (module docstring): the profile's :class:`RefineResult`, or the edge fit's."""
     if not profile_wanted(frame, body.eo.interior_ramp):
-        return edge.final
+        return edge_with_model_error(edge)
     band = body.eo.profile_band_px if body.eo.profile_band_px is not None else body.eo.band_px
     pts, z = edge.final.coords, edge.final.data.z
     if band != body.eo.band_px:
@@ -134,16 +157,16 @@ def fit_profile_ellipsoid(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge"
         if frame.opt.profile != "auto":
             raise
         extras["profile_rejected"] = {"model": "lunar-lambert", "reason": f"{type(e).__name__}: {e}"}
-        return edge.final
+        return edge_with_model_error(edge)
     L, band_L = float(res.params.L), l_band(res)
     if frame.opt.profile == "auto" and not band_L[0] <= L <= band_L[1]:
         # the limb is not lunar-Lambert-like (e.g. a flat disc): keep the edge fit, say why
         extras["profile_rejected"] = {"model": "lunar-lambert", "L": L, "allowed_L": list(band_L)}
-        return edge.final
+        return edge_with_model_error(edge, res.params)
     extras["profile_fits"] = hist
     extras["L_estimated"] = frame.opt.lunar_lambert_L is None
     data = FitData(np.asarray(pts, float), np.asarray(z, float), None, 0.0, 1.0)
     return with_model_error(RefineResult(res, data, 0, fixed))
 
 
-__all__ = ["fit_profile_ellipsoid", "profile_wanted"]
+__all__ = ["edge_with_model_error", "fit_profile_ellipsoid", "profile_wanted"]

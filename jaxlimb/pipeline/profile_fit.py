@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 
 import equinox as eqx
 import jax
@@ -16,7 +17,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..fitting import NormalLM
 from ..imaging import sun_direction_image
-from ..models import LIMB_PROFILE, PROFILE_FIXED, LimbProfileParams, lunar_lambert_weight
+from ..models import LIMB_PROFILE, PROFILE_FIXED, LimbModel, LimbProfileParams, lunar_lambert_weight
 from ..models.lunar_lambert import limb_geometry
 from .frame import Frame
 from .profile import sphere_from_circle_fit
@@ -104,15 +105,53 @@ WITNESS_CUT = 2.0
 """The split of :func:`split_witness`: pixels outside ``-WITNESS_CUT`` effective PSF sigmas of the limb (the
 sky side and the edge) and inside ``+WITNESS_CUT`` (the edge and the disc)."""
 _GEOMETRIC = ("r0", "c0", "a", "theta", "rho")
-_VALUE_AND_COLUMNS = jax.jit(LIMB_PROFILE.value_and_columns)
-_SIGNED = jax.jit(lambda p, rc: (lambda g: g[4] - g[6])(limb_geometry(p, rc)))
+_COLUMNS: dict[str, Any] = {}
 
 
-def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS) -> RefineResult:
-    """``rr`` (a profile fit) with its covariance widened by the model-error terms of
-    :mod:`jaxlimb.analysis.model_error`: the cluster-robust term over ``n_sectors`` sectors of the limb about
-    the fitted centre, plus the split witness (:func:`split_witness`) on the limb's geometry.  The
-    noise-only covariance is kept as ``noise_covariance`` (the Cramér--Rao bound's).
+def _columns(model: LimbModel):
+    """``model``'s jitted ``(intensity, columns)`` (one compiled program per model)."""
+    if model.name not in _COLUMNS:
+        _COLUMNS[model.name] = jax.jit(model.intensity_and_jacobian_columns)
+    return _COLUMNS[model.name]
+
+
+@jax.jit
+def _signed_profile(p, rc):
+    g = limb_geometry(p, rc)
+    return g[4] - g[6]
+
+
+def signed_distance(params: Any, coords: np.ndarray, padded: np.ndarray) -> np.ndarray:
+    """Signed distance (px, positive outside) of the pixels to the fitted limb: the profile's own radius in
+    each pixel's direction; the ellipse (first order) of an elliptical sigmoid/ramp; the circle's radius."""
+    if isinstance(params, LimbProfileParams):
+        return np.asarray(_signed_profile(params, padded))[: coords.shape[0]]
+    c = np.asarray(coords, float)
+    if hasattr(params, "rho"):
+        from .earth import _band_signed
+
+        a = float(params.a)
+        ell = ((float(params.r0), float(params.c0)), (a, a * float(params.rho)), float(params.theta))
+        return _band_signed(c, ell)
+    return np.hypot(c[:, 0] - float(params.r0), c[:, 1] - float(params.c0)) - float(params.radius)
+
+
+def edge_sigma(params: Any) -> float:
+    """The effective (pixel box included) Gaussian sigma of the fitted edge: ``sqrt(sigma^2 + 1/12)`` for the
+    profile, ``1/k`` for the ramp's kernel, ``LOGISTIC_TO_GAUSS / k`` for a logistic."""
+    if isinstance(params, LimbProfileParams):
+        return math.sqrt(float(params.sigma) ** 2 + 1.0 / 12.0)
+    k = abs(float(params.k))
+    return (1.0 if hasattr(params, "g2") else LOGISTIC_TO_GAUSS) / max(k, 1e-6)
+
+
+def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS, model: LimbModel | None = None
+                     ) -> RefineResult:
+    """``rr`` (a fit of ``model``, default the profile) with its covariance widened by the model-error terms
+    of :mod:`jaxlimb.analysis.model_error`: the cluster-robust term over ``n_sectors`` sectors of the limb
+    about the fitted centre, plus the split witness (:func:`split_witness`) on the limb's geometry.  The
+    noise-only covariance is kept as ``noise_covariance`` (the Cramér--Rao bound's).  Level-normalised data
+    (weights): the weighted residuals and Jacobian, as the fit minimises them.
 
     Why: an albedo that varies along and across the limb (maria, clouds), another reflectance
     law, a glow or a PSF of another shape bias the centre by more than the noise-only sigma
@@ -123,20 +162,21 @@ def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS) -> 
     from ..analysis.model_error import cluster_robust_covariance, sector_groups, with_model_error as widen
     from ..fitting.fit import bucket_size
 
+    model = LIMB_PROFILE if model is None else model
     fit = rr.fit
     coords = np.asarray(rr.data.coords, float)
     n = coords.shape[0]
     padded = np.concatenate([coords, np.repeat(coords[:1], bucket_size(n) - n, axis=0)])  # no recompiles
     padded = jax.device_put(padded)  # host data: no identity program per shape
-    f, cols = _VALUE_AND_COLUMNS(fit.params, padded)
-    names = LimbProfileParams.field_names()
-    J = np.stack([np.asarray(cols[names.index(k)])[:n] for k in fit.free], axis=1)
-    r = np.asarray(rr.data.z, float) - np.asarray(f)[:n]
+    f, cols = _columns(model)(fit.params, padded)
+    names = model.param_names
+    w = np.ones(n) if rr.data.weights is None else np.asarray(rr.data.weights, float)
+    J = np.stack([np.asarray(cols[names.index(k)])[:n] for k in fit.free], axis=1) * w[:, None]
+    r = (np.asarray(rr.data.z, float) - np.asarray(f)[:n]) * w
     groups = sector_groups(coords, (float(fit.params.r0), float(fit.params.c0)), n_sectors)
     C0 = np.asarray(fit.covariance)
     C = widen(C0, cluster_robust_covariance(J, r, groups))
-    s = np.asarray(_SIGNED(fit.params, padded))[:n]
-    idx, W = split_witness(rr, J, r, s)
+    idx, W = split_witness(rr, J, r, signed_distance(fit.params, coords, padded))
     C[np.ix_(idx, idx)] += W
     return dataclasses.replace(rr, fit=eqx.tree_at(lambda x: x.covariance, fit, jax.device_put(C)), noise_covariance=C0)
 
@@ -159,7 +199,7 @@ def split_witness(rr: RefineResult, J: np.ndarray, r: np.ndarray, s: np.ndarray)
     idx = [free.index(nm) for nm in _GEOMETRIC if nm in free]
     W = np.zeros((len(idx), len(idx)))
     C = np.asarray(fit.covariance)[np.ix_(idx, idx)]
-    se = math.sqrt(float(fit.params.sigma) ** 2 + 1.0 / 12.0)
+    se = edge_sigma(fit.params)
     q = J.shape[1]
     for keep in (s > -WITNESS_CUT * se, s < WITNESS_CUT * se):
         nk = int(np.count_nonzero(keep))
@@ -230,5 +270,5 @@ def _shape_change_px(q: LimbProfileParams, sph) -> float:
     return dab + a * abs(1.0 - float(sph.rho)) * dth
 
 
-__all__ = ["fit_lunar_profile", "gaussian_sigma_of_k", "profile_start", "saturation_level", "split_witness",
-           "with_model_error"]
+__all__ = ["edge_sigma", "fit_lunar_profile", "gaussian_sigma_of_k", "profile_start", "saturation_level",
+           "signed_distance", "split_witness", "with_model_error"]

@@ -36,10 +36,13 @@ def test_cache_dir_override_and_off(tmp_path):
     code = "from jaxlimb._jaxcache import cache_dir; print(cache_dir())"
     assert _run(code, {"JAXLIMB_CACHE_DIR": str(tmp_path / "c")}).strip() == str(tmp_path / "c")
     assert _run(code, {"JAXLIMB_CACHE_DIR": "off"}).strip() == "None"
-    env = {k: v for k, v in os.environ.items() if k != "JAXLIMB_CACHE_DIR"}
+    env = {k: v for k, v in os.environ.items() if k not in ("JAXLIMB_CACHE_DIR", "JAXLIMB_CACHE")}
     env["XDG_CACHE_HOME"] = str(tmp_path / "xdg")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout
     assert out.strip() == str(tmp_path / "xdg" / "jaxlimb" / "jax")
+    env["JAXLIMB_CACHE"] = str(tmp_path / "root")  # one root for every jaxlimb cache
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout
+    assert out.strip() == str(tmp_path / "root" / "jax")
 
 
 def test_command_fills_the_cache_and_reuses_it(tmp_path):

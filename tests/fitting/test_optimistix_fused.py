@@ -69,3 +69,28 @@ def test_tolerance_at_the_rounding_floor_still_converges_to_the_same_answer():
     loose = fit(CIRCLE, coords, z, init, Optimistix(optx.LevenbergMarquardt(rtol=OPTX_RTOL, atol=OPTX_ATOL)))
     assert int(loose.n_steps) <= int(tight.n_steps)
     np.testing.assert_allclose(np.asarray(loose.params.to_vector()), np.asarray(tight.params.to_vector()), atol=1e-6)
+
+
+def test_optimistix_results_keep_their_names_as_fit_results():
+    from jaxlimb.fitting import FitResult
+
+    coords, z, truth = circle_problem(radius=60.0, shape=(160, 160), seed=3)
+    init = truth.replace(r0=truth.r0 + 0.4, k=2.5)
+    res = fit(CIRCLE, coords, z, init, Optimistix(optx.LevenbergMarquardt(rtol=1e-10, atol=1e-10)), max_steps=2,
+              throw=False)
+    assert not bool(res.converged)
+    assert bool(res.result == FitResult.nonlinear_max_steps_reached)
+    assert "maximum number of steps" in res.message
+
+
+def test_the_default_path_does_not_import_optimistix():
+    import subprocess
+    import sys
+
+    code = ("import sys, numpy as np; from jaxlimb.fitting import fit, NormalLM; from jaxlimb.models import CIRCLE, "
+            "CircleParams; rr, cc = np.mgrid[0:80, 0:80]; c = np.stack([rr.ravel(), cc.ravel()], -1).astype(float); "
+            "t = CircleParams(40.2, 39.7, 25.0, 2.0, 200.0, 20.0); z = np.asarray(CIRCLE.intensity(t, c)); "
+            "r = fit(CIRCLE, c, z, t.replace(r0=40.5), NormalLM()); "
+            "print(bool(r.converged), 'optimistix' in sys.modules, 'lineax' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["True", "False", "False"]

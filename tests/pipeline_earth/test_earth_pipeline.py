@@ -180,3 +180,46 @@ def test_edge_model_is_exact_blur_of_profile():
         prof = lambda t: (T - ymin + g * t + g2 * math.sqrt(t)) * norm.pdf(u - t, scale=s)  # noqa: E731
         want = ymin + quad(prof, 0, np.inf, limit=200)[0]
         assert f == pytest.approx(want, rel=1e-6)
+
+
+def test_free_ellipse_offset_bound_covers_every_latitude():
+    """Without the attitude the body centre is the limb ellipse's centre +- gamma_off along the unseen polar
+    axis: the model-error term uses the largest offset over the latitude (isotropic), ~0.3 px at 40 000 km
+    with 8 mm / 2.2 um, so a frame at 44 deg (0.305 px off) is within its covariance."""
+    from jaxlimb.pipeline.earth import earth_gamma_off, max_gamma_off, unsigned_offset_cov
+
+    cam = Camera(focal_length_mm=8.0, pixel_pitch_mm=0.0022, rows=1944, cols=2592)
+    g = max_gamma_off(40000.0, EARTH_EQUATORIAL_KM, EARTH_POLAR_KM, 0.0)
+    for lat in (0.0, 20.0, 44.0, 60.0, 90.0):
+        t = math.radians(lat)
+        pe = 40000.0 * np.array([math.cos(t), 0.0, math.sin(t)])
+        assert abs(earth_gamma_off(pe, 0.0, equatorial_km=EARTH_EQUATORIAL_KM, polar_km=EARTH_POLAR_KM)) <= g * (1 + 1e-9)
+    assert 0.28 < g * cam.focal_px < 0.32
+    P, _ = unsigned_offset_cov(cam, ((900.0, 1200.0), (600.0, 599.0), 0.3), 40000.0, EARTH_EQUATORIAL_KM,
+                               EARTH_POLAR_KM, 0.0, 3)
+    assert np.allclose(P[:2, :2], (g * cam.focal_px) ** 2 / 3 * np.eye(2)) and P[2, 2] == 0.0
+
+
+def test_edge_fit_model_error_is_generic_and_keeps_the_noise_covariance():
+    """``with_model_error`` on an elliptical sigmoid (the Earth's fallback when the profile is rejected): an
+    exact model leaves the covariance near the noise-only one, which is kept for the CRLB."""
+    import jax
+
+    from jaxlimb.fitting import fit
+    from jaxlimb.models import ELLIPSE, EllipseParams
+    from jaxlimb.pipeline.profile_fit import with_model_error
+    from jaxlimb.pipeline.refine import FitData, RefineResult
+
+    jax.config.update("jax_enable_x64", True)
+    truth = EllipseParams(r0=200.3, c0=250.7, a=80.0, theta=0.3, rho=0.97, k=1.5, ymax=200.0, ymin=10.0)
+    rr, cc = np.meshgrid(np.arange(100, 300), np.arange(150, 350), indexing="ij")
+    d = np.hypot(rr - 200.3, cc - 250.7)
+    sel = (np.abs(d - 79.0) < 5) & (np.abs(np.arctan2(rr - 200.3, cc - 250.7) - 0.2) < 1.2)
+    pts = np.column_stack([rr[sel], cc[sel]]).astype(float)
+    rng = np.random.default_rng(0)
+    z = np.asarray(ELLIPSE.intensity(truth, pts)) + 2.0 * rng.standard_normal(pts.shape[0])
+    res = fit(ELLIPSE, pts, z, truth, fixed=("rho", "theta"), throw=True)
+    out = with_model_error(RefineResult(res, FitData(pts, z, None, 0.0, 1.0), 0, ("rho", "theta")), model=ELLIPSE)
+    C0, C = out.covariance_noise, np.asarray(out.fit.covariance)
+    assert np.allclose(C0, np.asarray(res.covariance))
+    assert np.all(np.diag(C) >= np.diag(C0) - 1e-15) and np.all(np.diag(C)[:2] < 4 * np.diag(C0)[:2])

@@ -1,0 +1,185 @@
+"""The optimistix solvers behind :func:`jaxlimb.fitting.fit` (imported on first use).
+
+:class:`Optimistix` runs any optimistix least-squares solver or minimiser on the limb problem
+with what the default solver has (fused analytic Jacobian, normal equations, coarse-to-fine
+start); :func:`optimistix_normal_lm` runs the default's Marquardt-scaled Cholesky descent inside
+optimistix's Gauss--Newton machinery.  Kept apart from :mod:`jaxlimb.fitting.solvers` so that the
+default path does not import optimistix and lineax (~0.06 s of every command's start-up).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import lineax as lx
+import optimistix as optx
+from jaxtyping import Array, Float, PyTree, Scalar
+
+from ._problem import fused_residual_fn
+from .solvers import AbstractLimbSolver, FitResult, _coarse, _finish
+
+OPTX_RTOL = 1e-10
+OPTX_ATOL = 1e-6
+r"""Tolerances of the optimistix solvers registered by name (``--solver optx-lm`` ...).
+
+optimistix's Cauchy test stops on an *accepted* step with
+:math:`|\Delta y_j| < atol + rtol|y_j|` for every parameter **and**
+:math:`|\Delta r_i| < atol + rtol|r_i|` for every pixel residual.  Residuals near zero make
+``atol`` an absolute bound in DN on every pixel: with ``atol = 1e-10`` the last steps' changes
+sit at the rounding level, the loss goes up or down by 1e-9 of itself at random, steps are
+rejected and the trust region shrinks for ~20 extra steps (``benchmarks/optimistix_plumbing.py``
+shows the row).  ``atol = 1e-6`` (px and DN, far below any noise) stops where the estimate
+has converged: the answers agree with :class:`NormalLM` (``rtol = atol = 1e-10`` on the
+step) to ~1e-9 px.
+"""
+
+
+class Optimistix(AbstractLimbSolver):
+    """Any optimistix least-squares solver or minimiser, given what the default solver has.
+
+    With ``fused=True`` (default) and the analytic Jacobian, the residual handed to optimistix
+    is :func:`~jaxlimb.fitting._problem.fused_residual_fn`: a ``jax.custom_jvp`` whose primal
+    pass computes the intensities and the Jacobian columns together, so optimistix's
+    ``jax.linearize`` gets the paper's Jacobian as one ``(n, q)`` matrix instead of tracing the
+    model.  With ``normal=True`` (default) the linear solver of the solver's descent
+    (``LevenbergMarquardt``, ``Dogleg``, ``GaussNewton``: their ``descent.linear_solver``) is
+    replaced by ``lineax.Normal(lineax.Cholesky())``: the ``q x q`` normal equations by
+    Cholesky instead of a QR of the ``n x q`` (or stacked ``(n + q) x q``) operator.  Both
+    change the cost of a step, not the algorithm (its steps, damping and stopping rule).  So
+    ``benchmarks/solvers.py`` compares algorithms, not plumbing (the remaining gap to
+    :class:`NormalLM` is mostly the number of steps: optimistix's trust region starts at radius
+    1 and its stopping rule, and :class:`NormalLM`'s coarse-to-fine phase).
+    ``Optimistix(solver, fused=False, normal=False, coarse_stride=1)`` is optimistix as it
+    comes.  With ``coarse_stride > 1`` (default 4, as :class:`NormalLM`) the solver first runs
+    on every ``coarse_stride``-th pixel to ``coarse_tol_px``, then on all pixels from there
+    (:meth:`_coarse_phase`); ``n_steps`` counts both phases.  Choose ``atol`` with
+    :data:`OPTX_ATOL` in mind: it bounds every pixel's residual change in DN.
+
+    Examples
+    --------
+    >>> import optimistix as optx
+    >>> Optimistix(optx.Dogleg(rtol=OPTX_RTOL, atol=OPTX_ATOL))  # doctest: +SKIP
+    """
+
+    solver: optx.AbstractLeastSquaresSolver | optx.AbstractMinimiser
+    fused: bool = eqx.field(static=True, default=True)
+    normal: bool = eqx.field(static=True, default=True)
+    coarse_stride: int = eqx.field(static=True, default=4)
+    coarse_tol_px: float = eqx.field(static=True, default=1e-2)
+    coarse_min_pixels: int = eqx.field(static=True, default=1024)
+
+    @property
+    def name(self) -> str:
+        return type(self.solver).__name__
+
+    def configured(self) -> optx.AbstractLeastSquaresSolver | optx.AbstractMinimiser:
+        """The optimistix solver as run: with the normal-equations linear solve if ``normal``."""
+        descent = getattr(self.solver, "descent", None)
+        if not self.normal or not isinstance(getattr(descent, "linear_solver", None), lx.AbstractLinearSolver):
+            return self.solver
+        return eqx.tree_at(lambda s: s.descent.linear_solver, self.solver, lx.Normal(lx.Cholesky()))
+
+    def solve(self, problem, y0, max_steps):  # type: ignore[no-untyped-def]
+        residual = (fused_residual_fn(problem.model, problem.free_idx) if self.fused and problem.analytic
+                    else problem.residual)
+        solver = self.configured()
+        y0, steps = self._coarse_phase(residual, solver, problem, y0, max_steps)
+        sol = optx.least_squares(residual, solver, y0, args=problem.args, max_steps=max_steps, throw=False)
+        return sol.value, steps + sol.stats["num_steps"], _finish(problem, sol.value, fit_result(sol.result))
+
+    def _coarse_phase(self, residual, solver, problem, y0, max_steps):  # type: ignore[no-untyped-def]
+        """:class:`NormalLM`'s coarse-to-fine start: the same solver on every ``coarse_stride``-th pixel.
+
+        Runs to ``coarse_tol_px`` (the basin of the full problem's minimum) and hands its answer
+        to the full-data solve, which alone decides convergence: the answer is the full-data
+        minimum either way, only the early, far-from-converged steps get cheaper.  Skipped on
+        fewer than ``coarse_min_pixels`` pixels and for solvers without ``rtol``/``atol``; a
+        failed coarse phase starts the full one afresh.
+        """
+        n_pix = problem.z.shape[-1]
+        if self.coarse_stride <= 1 or n_pix < self.coarse_min_pixels or not hasattr(solver, "atol"):
+            return y0, jnp.asarray(0)
+        loose = eqx.tree_at(lambda s: (s.rtol, s.atol), solver, (1e-6, self.coarse_tol_px))
+        coarse = _coarse(problem, self.coarse_stride)
+        sol = optx.least_squares(residual, loose, y0, args=coarse.args, max_steps=max_steps, throw=False)
+        ok = (sol.result == optx.RESULTS.successful) & coarse.admissible(sol.value)
+        return jnp.where(ok, sol.value, y0), sol.stats["num_steps"]
+
+
+def fit_result(result: Any) -> FitResult:
+    """An optimistix (or lineax) result as a :class:`FitResult` of the same name (jittable).
+
+    A name :class:`FitResult` does not have becomes ``solver_failed``: never ``successful``.
+    """
+    out = FitResult.solver_failed
+    for name in optx.RESULTS._name_to_item:  # every result optimistix can return
+        if hasattr(FitResult, name):
+            out = FitResult.where(result == getattr(optx.RESULTS, name), getattr(FitResult, name), out)
+    return out
+
+
+class _NormalState(eqx.Module):
+    jtj: Float[Array, "q q"]
+    jtr: Float[Array, " q"]
+
+
+class MarquardtCholeskyDescent(optx.AbstractDescent):  # type: ignore[misc]
+    r"""Damped Gauss--Newton step from the normal equations, Marquardt-scaled.
+
+    Solves :math:`(J^\top J + \lambda\,\mathrm{diag}(J^\top J))\,\delta = -J^\top r`
+    by Cholesky, with :math:`\lambda = \lambda_0 / s` for the trust-region step
+    size ``s``.  ``J`` is materialised once per accepted point (``p`` JVPs).
+    """
+
+    lambda0: float = 1e-3
+
+    def init(self, y, f_info_struct):  # type: ignore[no-untyped-def]
+        q = y.shape[0]
+        return _NormalState(jnp.zeros((q, q), y.dtype), jnp.zeros((q,), y.dtype))
+
+    def query(self, y, f_info, state):  # type: ignore[no-untyped-def]
+        del y, state
+        jac = f_info.jac.as_matrix()
+        return _NormalState(jac.T @ jac, jac.T @ f_info.residual)
+
+    def step(self, step_size, state):  # type: ignore[no-untyped-def]
+        tiny = jnp.finfo(state.jtr.dtype).tiny
+        lam = self.lambda0 / jnp.maximum(step_size, tiny)
+        d = jnp.diagonal(state.jtj)
+        scale = jnp.maximum(d, 1e-12 * jnp.max(d) + tiny)
+        a = state.jtj + jnp.diag(lam * scale)
+        chol = jnp.linalg.cholesky(a)
+        delta = -jax.scipy.linalg.cho_solve((chol, True), state.jtr)
+        ok = jnp.all(jnp.isfinite(delta))
+        delta = jnp.where(ok, delta, 0.0)
+        return delta, optx.RESULTS.where(ok, optx.RESULTS.successful, optx.RESULTS.singular)
+
+
+class _NormalLMCore(optx.AbstractGaussNewton):  # type: ignore[misc]
+    rtol: float
+    atol: float
+    norm: Callable[[PyTree], Scalar]
+    descent: MarquardtCholeskyDescent
+    search: optx.ClassicalTrustRegion
+    verbose: Callable[..., None]
+
+
+def optimistix_normal_lm(rtol: float = 1e-10, atol: float = 1e-10, lambda0: float = 1e-3) -> Optimistix:
+    """:class:`MarquardtCholeskyDescent` run by optimistix's ``AbstractGaussNewton`` + ``ClassicalTrustRegion``."""
+    core = _NormalLMCore(
+        rtol=rtol,
+        atol=atol,
+        norm=optx.max_norm,
+        descent=MarquardtCholeskyDescent(lambda0),
+        search=optx.ClassicalTrustRegion(),
+        verbose=_quiet,
+    )
+    return Optimistix(core)
+
+
+def _quiet(**kwargs: Any) -> None:
+    del kwargs
