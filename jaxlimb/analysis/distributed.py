@@ -68,9 +68,37 @@ def make_client(scheduler: str | None = None, workers: int = 2, processes: bool 
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
         raise LimbInputError(f"`workers` must be an integer >= 1, got {workers!r}")
     # dashboard_address ":0": the scheduler's HTTP server (always started) on a free port, never a clash on 8787
+    extra = {"env": worker_environment(workers)} if processes else {}
     cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                           dashboard_address=":0", silence_logs=50)
+                           dashboard_address=":0", silence_logs=50, **extra)
     return Client(cluster)
+
+
+def worker_environment(workers: int, cores: int | None = None) -> dict[str, str]:
+    """Environment of the worker processes of a ``LocalCluster``: their threads share the cores.
+
+    XLA's CPU backend, OpenCV and BLAS each start one thread per core in every process, so
+    ``workers`` processes on ``cores`` cores would run ``workers x cores`` busy threads and
+    spend the difference switching.  With one core or less per worker each worker runs
+    single-threaded (XLA ``--xla_cpu_multi_thread_eigen=false``, ``OPENCV_FOR_THREADS_NUM``,
+    ``OMP``/``OPENBLAS``/``MKL_NUM_THREADS`` = 1); with more cores per worker the libraries keep
+    their defaults.  A variable the user set is kept.
+    """
+    import os
+
+    if cores is None:
+        try:
+            cores = len(os.sched_getaffinity(0))
+        except AttributeError:  # not Linux
+            cores = os.cpu_count() or 1
+    if cores // max(workers, 1) > 1:
+        return {}
+    env = {k: "1" for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OPENCV_FOR_THREADS_NUM")
+           if k not in os.environ}
+    flags = os.environ.get("XLA_FLAGS", "")
+    if "xla_cpu_multi_thread_eigen" not in flags:
+        env["XLA_FLAGS"] = f"{flags} --xla_cpu_multi_thread_eigen=false".strip()
+    return env
 
 
 def close_client(client: Any) -> None:

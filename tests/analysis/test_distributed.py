@@ -76,3 +76,18 @@ def test_killed_pipeline_run_resumed_gives_the_same_result_file(tmp_path):
     assert summary["chunks_resumed"] >= 2 and summary["chunks_run"] + summary["chunks_resumed"] == 6
     assert (out / "result.json").read_bytes() == (ref / "result.json").read_bytes()
     assert summary["n_ok"] == 6 and summary["error_px"]["row"]["rms"] < 0.2
+
+
+def test_worker_environment_shares_the_cores(monkeypatch):
+    from jaxlimb.analysis.distributed import worker_environment
+
+    for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OPENCV_FOR_THREADS_NUM", "XLA_FLAGS"):
+        monkeypatch.delenv(k, raising=False)
+    one_core_each = worker_environment(2, cores=2)
+    assert one_core_each["XLA_FLAGS"] == "--xla_cpu_multi_thread_eigen=false"
+    assert one_core_each["OMP_NUM_THREADS"] == one_core_each["OPENCV_FOR_THREADS_NUM"] == "1"
+    assert worker_environment(1, cores=2) == {} and worker_environment(2, cores=8) == {}  # cores to spare
+    monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=true")
+    monkeypatch.setenv("OMP_NUM_THREADS", "2")
+    kept = worker_environment(2, cores=2)
+    assert "XLA_FLAGS" not in kept and "OMP_NUM_THREADS" not in kept  # the user's choice wins
