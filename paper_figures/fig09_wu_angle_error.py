@@ -13,7 +13,7 @@ Our analogue, on Thebe (5040 faces, pole axis y) rendered with exact truth by
 * the figure centre (FC),
 * the checked line of sight of :func:`jaxlimb.irregular.locate.locate_los` with the Sun
   direction known and the attitude unknown (phase-aware template search + registration;
-  full mode only: about a minute per view on 2 busy cores), failures counted,
+  full mode only; 1-3 s per view: the full run of this figure and Table 1 takes about 2 min), failures counted,
 * the same with the attitude known (render-and-register),
 
 against the angle between the true viewing direction and the nearest template.  The
@@ -131,7 +131,7 @@ def source_text(res: dict[str, Any], quick: bool) -> str:
     return (f"Live run ({'quick mode' if quick else 'full mode'}): Thebe ({res['faces']} faces, pole axis y), "
             f"{res['step_deg']:g} deg step ({res['n_templates']} templates of {res['template_size_px']} px), 512 x 512 camera, "
             f"{res['summary']['n']} random views at phases 0/30/60 deg, apparent size 150-250 px, noise 2 DN"
-            f"{'; the attitude-unknown search is skipped in quick mode (about a minute per view)' if quick else ''}. "
+            f"{'; the attitude-unknown search is skipped in quick mode (1-3 s per view, but a 15 deg database; full mode runs it)' if quick else ''}. "
             f"Statistics over Thebe, Eros, Phobos and generated bodies: `{BENCH_CMD}`.")
 
 

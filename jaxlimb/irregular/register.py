@@ -22,7 +22,10 @@ direction, and registers it to the frame.  Here:
    the 5-parameter linear least squares on the window around the body, and moves the
    pose.  The body centre is placed at ``t = D u(P)`` (Eq. 4 of Wu et al.), so ``P``
    is the estimate itself.  The rendering is exact perspective, so no template
-   approximation remains.
+   approximation remains.  Coarse to fine: the blurred iterations run on a pyramid
+   (frame box-averaged, :mod:`.model_render`); with the attitude fitted (three more
+   columns from the same render), the unblurred ones first on the 2x2-averaged frame,
+   the last ones at full resolution.
 4. **Covariance** ``sigma^2 (A^T A)^{-1}`` of the linear solve at convergence, with
    ``sigma^2`` the residual variance, mapped to ``(row, col)`` by ``1/a``, plus a
    model floor (``model_floor_px``).  Monte Carlo (30 noise draws, Thebe, phase 30):
@@ -31,8 +34,8 @@ direction, and registers it to the frame.  Here:
    over the background noise relative to the body's contrast, the overlap (IoU) of
    the observed and predicted lit figures, and convergence.
 
-Rendering is :func:`jaxlimb.render.mesh.render_mesh` (flat facets, Lommel-Seeliger,
-no cast shadows) in a window camera around the body.
+Rendering is :func:`jaxlimb.render.mesh.rasterise` (flat facets, Lommel-Seeliger,
+no cast shadows) in a window camera around the body (:func:`.model_render.render_window`).
 """
 
 from __future__ import annotations
@@ -511,8 +514,9 @@ def register_known_attitude(
     segmentation
         ``(mask, threshold)`` of :func:`lit_figure`, if already segmented.
     fit_attitude
-        Also fit a small rotation of ``R_body_to_camera`` (finite-difference columns,
-        used when the attitude comes from a template match, not from the hints).
+        Also fit a small rotation of ``R_body_to_camera`` (three columns from the same
+        render, :func:`.model_render.attitude_columns`; used when the attitude comes from a
+        template match, not from the hints).
     initial
         ``(P, D)`` to start from instead of step 1 (e.g. a template match).
 

@@ -73,12 +73,13 @@ from .refine import K_INIT, FitData, RefineResult, _bin_median, _fixed, _run, pr
 from .result import EllipseResult, LimbMeasurement
 
 #: 1-sigma of a limb model's edge position error along the limb (px), per pattern of
-#: :func:`~jaxlimb.imaging.predicted.edge_bias_gain`.  Measured, not tuned to a target: the centre errors of
-#: the limb-arc renders (``benchmarks/limb_arc.py``, lunar-Lambert profile, 20-26 % of the limb) divided by
-#: the arcs' gains are a first-harmonic edge error of -0.018 to -0.058 px (RMS 0.04 px) in all four
-#: geometries -- the physical profile's residual mismatch along a short arc, which the whole-disc
-#: accuracy (~0.01-0.02 px, README) averages away.  It dominates the centre covariance of short arcs.
-EDGE_MODEL_SIGMA_PX = 0.04
+#: :func:`~jaxlimb.imaging.predicted.edge_bias_gain`: the physical profile's accuracy on renders of its own
+#: family (README: ~0.01-0.02 px).  On short arcs the profile's residual mismatch is larger -- the limb-arc
+#: renders' centre errors divided by the arcs' gains are a first-harmonic edge error of -0.018 to -0.058 px
+#: (``benchmarks/limb_arc.py``) -- and is covered there by the profile's own split-witness model error
+#: (:func:`jaxlimb.pipeline.profile_fit.split_witness`); 0.04 px here as well counted it twice (RMS/sigma
+#: 0.47/0.67 against 0.58/1.03).  It dominates the centre covariance of short arcs without that term.
+EDGE_MODEL_SIGMA_PX = 0.02
 
 #: Shape parameters held at the prediction.
 _SHAPE_FIXED = ("theta", "rho")
