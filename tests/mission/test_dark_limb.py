@@ -50,3 +50,21 @@ def test_enceladus_without_kernels_is_a_typed_failure(tmp_path):
     out = json.loads(buf.getvalue())
     assert code == 3, out
     assert out["check"] == "dark_limb_inconsistent"
+
+
+def test_jpeg_blocks_on_a_black_sky_are_not_a_dark_limb():
+    """8-bit JPEG of a crescent on a black sky: blocks and quantisation steps give 'edges' where the
+    disc is darker than the sky, but the sky is no brighter than the disc across them (0.1 sigma)."""
+    import cv2
+
+    pipeline = str(Path(__file__).resolve().parents[1] / "pipeline")
+    sys.path.insert(0, pipeline)
+    from _scenes import scene
+
+    img, truth = scene(60000.0, 140.0, (300.0, 400.0))
+    q = np.clip(np.rint(img / img.max() * 200 + 1), 0, 255).astype(np.uint8)
+    jpeg = cv2.imdecode(cv2.imencode(".jpg", q, [cv2.IMWRITE_JPEG_QUALITY, 78])[1], cv2.IMREAD_GRAYSCALE)
+    r = truth.apparent_radius_px - 2.0  # a lit-limb circle 2 px small: the artefacts lie > 3 px outside it
+    d = check_dark_limb(jpeg.astype(float), truth.center_rc, r)  # no DarkLimbInconsistentError
+    assert d["n_bins"] >= 20 and d["median_offset_px"] > d["limit_px"]  # what the count and offset alone flag
+    assert not d["is_limb"] and abs(d["median_contrast_dn"]) < d["noise_dn"]
