@@ -437,16 +437,8 @@ def scanline_front_end(
         sub_f = cv2.medianBlur(sub, opt.median_ksize)
     else:
         sub_f = sub
-    # Eq. (10), floored at 6 sigma above the sky as in detect_body (the 3x3 median
-    # leaves ~1/2 of the per-pixel noise)
     vsub = None if mask is None else np.asarray(mask, bool)[r0:r1, c0:c1]
-    if vsub is None or not vsub.any():
-        vals = sub_f
-        sky = float(np.percentile(sub_f[:: max(1, sub_f.shape[0] // 200), :: max(1, sub_f.shape[1] // 200)], 2.0))
-    else:
-        vals = sub_f[vsub]
-        sky = float(np.percentile(vals[:: max(1, vals.size // 40_000)], 2.0))
-    gt = max(threshold_eq10(vals), sky + 6.0 * (0.5 if opt.median_ksize > 1 else 1.0) * region.noise_sigma)
+    gt = _binary_threshold(sub_f, vsub, region.noise_sigma, opt)
     binary = _largest_filled(_masked_binary(sub_f > gt, vsub))
     ax = inertia_axes(binary)
     if ax.eigen_ratio < opt.min_eigen_ratio:
@@ -454,12 +446,7 @@ def scanline_front_end(
             f"eigenvalue ratio lambda_min/lambda_max = {ax.eigen_ratio:.3g} of the lit region is below "
             f"min_eigen_ratio = {opt.min_eigen_ratio:g} (too thin to process)"
         )
-    sun_rc = None
-    if hints is not None and hints.sun_dir_camera is not None:
-        c_full = (ax.centroid_rc[0] + r0, ax.centroid_rc[1] + c0)
-        sun_rc = sun_direction_image(hints.sun_dir_camera, camera, c_full if camera is not None else None)
-    elif pri.sun_dir_rc is not None:
-        sun_rc = pri.sun_dir_rc
+    sun_rc = _sun_image_direction(hints, camera, pri, (ax.centroid_rc[0] + r0, ax.centroid_rc[1] + c0))
     axis = np.array(sun_rc) if sun_rc is not None else np.array(ax.axis_rc)
     R_est = pri.expected_radius_px
     spacing = opt.spacing_frac * R_est
@@ -486,25 +473,7 @@ def scanline_front_end(
     step = max(1, int(math.sqrt(sub_f.size / 250_000)))  # subsample large ROIs (speed)
     gy, gx = np.gradient(sub_f[::step, ::step])
     g_ref = float(np.percentile(np.hypot(gy, gx), 99.5)) / step
-    choice_reason = ""
-    if sun_rc is not None:
-        lit, other = "exit", "entry"
-        choice_reason = "Sun direction from hints: the lit limb is where the lines leave the lit region"
-    elif f_in is not None and f_out is not None and max(st_in, st_out) >= opt.hard_edge_ratio * min(st_in, st_out):
-        lit, other = ("exit", "entry") if st_out >= st_in else ("entry", "exit")
-        choice_reason = f"hard edge: median step entry {st_in:.4g}, exit {st_out:.4g} DN/px"
-    else:
-        u = max(pri.radius_uncertainty_frac, 1e-3)
-
-        def score(f: CircleFit | None) -> float:
-            if f is None:
-                return math.inf
-            dr = (f.radius - R_est) / (u * R_est)
-            return (f.rms + 1e-3) * (1.0 + dr * dr)
-
-        s_in, s_out = score(f_in), score(f_out)
-        lit, other = ("exit", "entry") if s_out <= s_in else ("entry", "exit")
-        choice_reason = f"score rms*(1+(dR/(u p_r))^2): entry {s_in:.4g}, exit {s_out:.4g}"
+    lit, other, choice_reason = _choose_lit_set(f_in, f_out, st_in, st_out, sun_rc is not None, pri, opt)
     pts, fit, keep = sets[lit]
     if fit is None:
         raise TooManyOutliersError(
@@ -513,38 +482,11 @@ def scanline_front_end(
         )
     ramp = math.nan
     if sun_rc is None and sets[other][1] is None:
-        # a single set and no Sun direction: a limb is a step (flat on its bright
-        # side), a terminator a ramp (brightness keeps rising into the body)
         bright = axis / np.linalg.norm(axis) * (1.0 if lit == "entry" else -1.0)
-        ramp = _ramp_ratio(sub, pts[keep], bright, far=max(6.0, min(12.0, 0.15 * R_est)))
-        if not ramp <= opt.max_ramp_ratio:
-            raise TooManyOutliersError(
-                f"only one set of scan-line transitions was found and its profile is a ramp, not a limb "
-                f"(brightness ratio far/near inside = {ramp:.3g} > max_ramp_ratio = {opt.max_ramp_ratio:g}): "
-                f"the lit limb is not visible (outside the frame?)"
-            )
-    st_lit = st_out if lit == "exit" else st_in
-    contrast = float(region.peak - region.background)
-    need = max(opt.min_edge_fraction * g_ref, opt.min_edge_contrast * contrast)
-    if not st_lit >= need:
-        raise TooManyOutliersError(
-            f"the chosen scan-line transitions are not a hard edge: median step {st_lit:.4g} DN/px is below "
-            f"{need:.4g} DN/px = max(min_edge_fraction = {opt.min_edge_fraction:g} x the 99.5th-percentile "
-            f"gradient {g_ref:.4g}, min_edge_contrast = {opt.min_edge_contrast:g} x the contrast {contrast:.4g}); "
-            f"the lit limb is not visible (outside the frame?)"
-        )
-    pts = pts[keep]
-    o_pts, o_fit, o_keep = sets[other]
-    merged = False
-    if (
-        o_fit is not None
-        and abs(o_fit.radius - fit.radius) <= opt.merge_tolerance_px
-        and math.hypot(o_fit.center_rc[0] - fit.center_rc[0], o_fit.center_rc[1] - fit.center_rc[1]) <= opt.merge_tolerance_px
-    ):
-        both = np.concatenate([pts, o_pts[o_keep]])
-        f2, k2 = _trimmed_fit(both, opt.min_points)
-        if f2 is not None:
-            pts, fit, merged = both[k2], f2, True
+        ramp = _check_not_a_ramp(sub, pts[keep], bright, R_est, opt)
+    _check_hard_edge(st_out if lit == "exit" else st_in, g_ref, float(region.peak - region.background), opt)
+    o_pts, o_fit, _ = sets[other]
+    pts, fit, merged = _merge_sets(pts[keep], fit, sets[other], opt)
     check_radius(fit.radius, pri, band)
 
     off = np.array([r0, c0], float)
@@ -591,6 +533,96 @@ def scanline_front_end(
         front_end="scanline",
         info=info,
     )
+
+
+def _check_not_a_ramp(sub: np.ndarray, pts: np.ndarray, bright: np.ndarray, R_est: float, opt: ScanlineOptions) -> float:
+    """A single set and no Sun direction: a limb is a step (flat on its bright side), a terminator a ramp
+    (brightness keeps rising into the body).  Returns the far/near brightness ratio.
+
+    Raises
+    ------
+    TooManyOutliersError
+        The ratio exceeds ``max_ramp_ratio``.
+    """
+    ramp = _ramp_ratio(sub, pts, bright, far=max(6.0, min(12.0, 0.15 * R_est)))
+    if not ramp <= opt.max_ramp_ratio:
+        raise TooManyOutliersError(
+            f"only one set of scan-line transitions was found and its profile is a ramp, not a limb "
+            f"(brightness ratio far/near inside = {ramp:.3g} > max_ramp_ratio = {opt.max_ramp_ratio:g}): "
+            f"the lit limb is not visible (outside the frame?)"
+        )
+    return ramp
+
+
+def _check_hard_edge(st_lit: float, g_ref: float, contrast: float, opt: ScanlineOptions) -> None:
+    """The chosen transitions must be a hard edge: median step >= max(``min_edge_fraction`` x the
+    99.5th-percentile gradient, ``min_edge_contrast`` x the body's contrast) (TooManyOutliersError)."""
+    need = max(opt.min_edge_fraction * g_ref, opt.min_edge_contrast * contrast)
+    if not st_lit >= need:
+        raise TooManyOutliersError(
+            f"the chosen scan-line transitions are not a hard edge: median step {st_lit:.4g} DN/px is below "
+            f"{need:.4g} DN/px = max(min_edge_fraction = {opt.min_edge_fraction:g} x the 99.5th-percentile "
+            f"gradient {g_ref:.4g}, min_edge_contrast = {opt.min_edge_contrast:g} x the contrast {contrast:.4g}); "
+            f"the lit limb is not visible (outside the frame?)"
+        )
+
+
+def _binary_threshold(sub_f: np.ndarray, valid: np.ndarray | None, noise_sigma: float, opt: ScanlineOptions) -> float:
+    """Threshold of the lit region: Eq. (10) on the valid pixels, floored at 6 sigma above the sky as in
+    :func:`detect_body` (the 3x3 median leaves ~1/2 of the per-pixel noise)."""
+    if valid is None or not valid.any():
+        vals = sub_f
+        sky = float(np.percentile(sub_f[:: max(1, sub_f.shape[0] // 200), :: max(1, sub_f.shape[1] // 200)], 2.0))
+    else:
+        vals = sub_f[valid]
+        sky = float(np.percentile(vals[:: max(1, vals.size // 40_000)], 2.0))
+    return max(threshold_eq10(vals), sky + 6.0 * (0.5 if opt.median_ksize > 1 else 1.0) * noise_sigma)
+
+
+def _sun_image_direction(hints: Hints | None, camera: Camera | None, pri: Prior, centroid_rc) -> tuple | None:
+    """The Sun's direction in the image (from the hints' camera-frame vector, else the prior's), or None."""
+    if hints is not None and hints.sun_dir_camera is not None:
+        return sun_direction_image(hints.sun_dir_camera, camera, centroid_rc if camera is not None else None)
+    return pri.sun_dir_rc
+
+
+def _choose_lit_set(f_in: CircleFit | None, f_out: CircleFit | None, st_in: float, st_out: float, sun_known: bool,
+                    pri: Prior, opt: ScanlineOptions) -> tuple[str, str, str]:
+    """Which set of transitions (``entry``/``exit`` of the lit region) is the lit limb: the Sun's side when
+    known, else the clearly harder edge, else the circle closer to the expected radius with the smaller
+    residual.  Returns ``(lit, other, reason)``."""
+    if sun_known:
+        return "exit", "entry", "Sun direction from hints: the lit limb is where the lines leave the lit region"
+    if f_in is not None and f_out is not None and max(st_in, st_out) >= opt.hard_edge_ratio * min(st_in, st_out):
+        lit, other = ("exit", "entry") if st_out >= st_in else ("entry", "exit")
+        return lit, other, f"hard edge: median step entry {st_in:.4g}, exit {st_out:.4g} DN/px"
+    R_est, u = pri.expected_radius_px, max(pri.radius_uncertainty_frac, 1e-3)
+
+    def score(f: CircleFit | None) -> float:
+        if f is None:
+            return math.inf
+        dr = (f.radius - R_est) / (u * R_est)
+        return (f.rms + 1e-3) * (1.0 + dr * dr)
+
+    s_in, s_out = score(f_in), score(f_out)
+    lit, other = ("exit", "entry") if s_out <= s_in else ("entry", "exit")
+    return lit, other, f"score rms*(1+(dR/(u p_r))^2): entry {s_in:.4g}, exit {s_out:.4g}"
+
+
+def _merge_sets(pts: np.ndarray, fit: CircleFit, other, opt: ScanlineOptions) -> tuple[np.ndarray, CircleFit, bool]:
+    """Both sets in one trimmed fit when the other set's circle agrees within ``merge_tolerance_px``
+    (a fully lit disc: entry and exit are both limb).  Returns ``(points, fit, merged)``."""
+    o_pts, o_fit, o_keep = other
+    if (
+        o_fit is not None
+        and abs(o_fit.radius - fit.radius) <= opt.merge_tolerance_px
+        and math.hypot(o_fit.center_rc[0] - fit.center_rc[0], o_fit.center_rc[1] - fit.center_rc[1]) <= opt.merge_tolerance_px
+    ):
+        both = np.concatenate([pts, o_pts[o_keep]])
+        f2, k2 = _trimmed_fit(both, opt.min_points)
+        if f2 is not None:
+            return both[k2], f2, True
+    return pts, fit, False
 
 
 __all__ = [
