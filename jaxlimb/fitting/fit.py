@@ -73,8 +73,15 @@ class LimbFit(eqx.Module):
 
     @property
     def converged(self) -> Array:
-        """Boolean (array): the solver reported success."""
-        return self.result == FitResult.successful
+        """Boolean (array): the solver reported success.
+
+        On host values compared in NumPy: an eager ``==`` of two JAX arrays is one more compiled
+        program for every process that asks.
+        """
+        value = self.result._value
+        if isinstance(value, jax.core.Tracer):
+            return self.result == FitResult.successful
+        return np.asarray(value) == np.asarray(FitResult.successful._value)
 
     @property
     def std(self) -> dict[str, Array]:
