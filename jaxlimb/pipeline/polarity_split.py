@@ -38,18 +38,9 @@ def pixel_polarity(img: np.ndarray, mask: np.ndarray | None, shape, dr: float, n
     """+1 (lit: disc brighter than the sky), -1 (dark) or 0 for each of ``coords``, from its angular bin's
     inner and outer levels on the annulus ``|d| <= dr`` about ``shape`` (as
     :func:`jaxlimb.pipeline.whole_limb.select_whole_limb` classifies the bins)."""
-    from .refine import _bin_median
-    from .whole_limb import _annulus, _ellipse_distance
+    from .whole_limb import _ellipse_distance, binned_limb_steps
 
-    c_all, z, d, phi = _annulus(img, mask, shape, dr)
-    bins = np.minimum(((phi + math.pi) / (2 * math.pi) * n_bins).astype(np.int64), n_bins - 1)
-    inner, outer = d <= -0.5 * dr, d >= 0.5 * dr
-    lev_in, n_in = _bin_median(bins[inner], z[inner], n_bins)
-    lev_out, n_out = _bin_median(bins[outer], z[outer], n_bins)
-    c = lev_in - lev_out
-    n_min = np.minimum(n_in, n_out)
-    sig = 1.2533 * noise * np.sqrt(2.0 / np.maximum(n_min, 1))
-    good = (n_min >= 3) & np.isfinite(c) & (np.abs(c) >= min_snr * np.maximum(sig, 1e-12))
+    _, _, _, _, c, good, _ = binned_limb_steps(img, mask, shape, dr, noise, n_bins, min_snr)
     pol = np.where(good, np.sign(np.nan_to_num(c)), 0.0)
     _, phi_p = _ellipse_distance(shape, coords)
     b = np.minimum(((phi_p + math.pi) / (2 * math.pi) * n_bins).astype(np.int64), n_bins - 1)

@@ -115,14 +115,14 @@ def _annulus(img: np.ndarray, mask: np.ndarray | None, shape: LimbShape, dr: flo
     return coords[sel], z[sel], d[sel], phi[sel]
 
 
-def select_whole_limb(img: np.ndarray, mask: np.ndarray | None, shape: LimbShape, dr: float, noise: float,
-                      n_bins: int = 180, min_snr: float = 5.0) -> tuple[FitData, dict[str, int]]:
-    """Level-normalised annulus data of both polarities (module docstring, steps 2-3).
+def binned_limb_steps(img: np.ndarray, mask: np.ndarray | None, shape: LimbShape, dr: float, noise: float,
+                      n_bins: int = 180, min_snr: float = 5.0):  # noqa: ANN201
+    """The annulus ``|d| <= dr`` about ``shape`` in ``n_bins`` angular bins and each bin's limb step.
 
-    Raises
-    ------
-    TooManyOutliersError
-        Fewer than 50 pixels in bins with a significant limb step.
+    Returns ``(coords, z, d, bins, step, significant, sky)``: the annulus pixels, their signed distance
+    to the limb and bin index, the bins' inner-minus-outer median level (> 0 where the disc is brighter
+    than the sky), whether it exceeds ``min_snr`` times its noise (two medians of >= 3 pixels), and the
+    bins' outer (sky-side) median level.
     """
     coords, z, d, phi = _annulus(img, mask, shape, dr)
     bins = np.minimum(((phi + math.pi) / (2 * math.pi) * n_bins).astype(np.int64), n_bins - 1)
@@ -133,6 +133,19 @@ def select_whole_limb(img: np.ndarray, mask: np.ndarray | None, shape: LimbShape
     n_min = np.minimum(n_in, n_out)
     sig = 1.2533 * noise * np.sqrt(2.0 / np.maximum(n_min, 1))  # std of a difference of two medians
     good = (n_min >= 3) & np.isfinite(c) & (np.abs(c) >= min_snr * np.maximum(sig, 1e-12))
+    return coords, z, d, bins, c, good, lev_out
+
+
+def select_whole_limb(img: np.ndarray, mask: np.ndarray | None, shape: LimbShape, dr: float, noise: float,
+                      n_bins: int = 180, min_snr: float = 5.0) -> tuple[FitData, dict[str, int]]:
+    """Level-normalised annulus data of both polarities (module docstring, steps 2-3).
+
+    Raises
+    ------
+    TooManyOutliersError
+        Fewer than 50 pixels in bins with a significant limb step.
+    """
+    coords, z, _, bins, c, good, lev_out = binned_limb_steps(img, mask, shape, dr, noise, n_bins, min_snr)
     keep = good[bins]
     if np.count_nonzero(keep) < 50:
         raise TooManyOutliersError(f"no significant limb step along the predicted limb ({int(good.sum())} of {n_bins} bins)")
