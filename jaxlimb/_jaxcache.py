@@ -47,6 +47,14 @@ _COMPILE_EVENTS = (
 )
 
 
+def usable_cores() -> int:
+    """CPU cores this process may run on (its affinity set on Linux, else ``os.cpu_count()``), at least 1."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not Linux
+        return max(1, os.cpu_count() or 1)
+
+
 def preload_lapack_kernels() -> bool:
     """Load SciPy's ``cython_blas`` / ``cython_lapack`` without the ``scipy.linalg`` package.
 

@@ -87,10 +87,9 @@ def worker_environment(workers: int, cores: int | None = None) -> dict[str, str]
     import os
 
     if cores is None:
-        try:
-            cores = len(os.sched_getaffinity(0))
-        except AttributeError:  # not Linux
-            cores = os.cpu_count() or 1
+        from .._jaxcache import usable_cores
+
+        cores = usable_cores()
     if cores // max(workers, 1) > 1:
         return {}
     env = {k: "1" for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OPENCV_FOR_THREADS_NUM")

@@ -65,16 +65,13 @@ def _host_devices(args: argparse.Namespace) -> int:
     two devices halve the wall time of the fits.  The full-pipeline study (``--pipeline``)
     scales with Dask worker processes instead: one device there.
     """
-    import os
+    from .._jaxcache import usable_cores
 
     if args.pipeline:
         return 1
     if args.devices is not None:
         return int(args.devices)
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # not Linux
-        return max(1, os.cpu_count() or 1)
+    return usable_cores()
 
 
 def _check_out(args: argparse.Namespace) -> None:

@@ -153,15 +153,19 @@ def strongest_pixels(g: np.ndarray, n: int) -> np.ndarray:
     return np.stack(np.unravel_index(idx, g.shape), axis=1).astype(np.int64)
 
 
-def _bilinear(a: np.ndarray, r: np.ndarray, c: np.ndarray) -> np.ndarray:
-    R, C = a.shape
-    r = np.clip(r, 0, R - 1.000001)
-    c = np.clip(c, 0, C - 1.000001)
-    r0 = np.floor(r).astype(np.int64)
-    c0 = np.floor(c).astype(np.int64)
-    fr, fc = r - r0, c - c0
-    return (a[r0, c0] * (1 - fr) * (1 - fc) + a[r0 + 1, c0] * fr * (1 - fc)
-            + a[r0, c0 + 1] * (1 - fr) * fc + a[r0 + 1, c0 + 1] * fr * fc)
+def _bilinear(img: np.ndarray, r: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Bilinear samples of ``img`` at ``(r, c)``, coordinates clamped to the image (edge values outside;
+    ``scipy.ndimage.map_coordinates(order=1, mode="nearest")`` to rounding)."""
+    R, C = img.shape
+    r = np.clip(r, 0, R - 1)
+    c = np.clip(c, 0, C - 1)
+    i = np.minimum(np.floor(r).astype(np.int64), max(R - 2, 0))
+    j = np.minimum(np.floor(c).astype(np.int64), max(C - 2, 0))
+    fr, fc = r - i, c - j
+    i1, j1 = np.minimum(i + 1, R - 1), np.minimum(j + 1, C - 1)
+    top = (1 - fc) * img[i, j] + fc * img[i, j1]
+    bottom = (1 - fc) * img[i1, j] + fc * img[i1, j1]
+    return (1 - fr) * top + fr * bottom
 
 
 def subpixel_refine(g: np.ndarray, gr: np.ndarray, gc: np.ndarray, points_rc: np.ndarray, max_shift: float = 1.0):

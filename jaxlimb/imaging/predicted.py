@@ -36,6 +36,7 @@ from ..conics import fit_circle_taubin
 from ..errors import ConfigError, TooManyOutliersError
 from ..geometry.camera import Camera
 from .crop import estimate_noise
+from .gradient import _bilinear
 from .prior import Hints
 
 
@@ -119,20 +120,6 @@ def _window(pts: np.ndarray, shape: tuple[int, int], margin: int) -> tuple[tuple
     hi = np.ceil(finite.max(axis=0)).astype(int) + margin + 1
     return ((int(np.clip(lo[0], 0, shape[0])), int(np.clip(hi[0], 0, shape[0]))),
             (int(np.clip(lo[1], 0, shape[1])), int(np.clip(hi[1], 0, shape[1]))))
-
-
-def _bilinear(img: np.ndarray, r: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Bilinear samples of ``img`` at ``(r, c)``, coordinates clamped to the image (edge values outside)."""
-    R, C = img.shape
-    r = np.clip(r, 0, R - 1)
-    c = np.clip(c, 0, C - 1)
-    i = np.minimum(np.floor(r).astype(int), max(R - 2, 0))
-    j = np.minimum(np.floor(c).astype(int), max(C - 2, 0))
-    fr, fc = r - i, c - j
-    i1, j1 = np.minimum(i + 1, R - 1), np.minimum(j + 1, C - 1)
-    top = (1 - fc) * img[i, j] + fc * img[i, j1]
-    bottom = (1 - fc) * img[i1, j] + fc * img[i1, j1]
-    return (1 - fr) * top + fr * bottom
 
 
 def _outermost_peak(ad: np.ndarray, frac: float = 0.5) -> np.ndarray:

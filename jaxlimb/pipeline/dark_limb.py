@@ -29,7 +29,8 @@ import numpy as np
 
 from ..errors import DarkLimbInconsistentError
 from ..imaging.crop import estimate_noise
-from ..imaging.predicted import LimbShape, _bilinear, limb_edges
+from ..imaging.gradient import _bilinear
+from ..imaging.predicted import LimbShape, limb_edges
 
 #: Fewest dark-limb bins (of 360) for the check to apply (a disc on a black sky has none).
 MIN_DARK_BINS = 20
