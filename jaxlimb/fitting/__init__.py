@@ -28,7 +28,5 @@ def __getattr__(name: str):  # noqa: ANN202
     """``Optimistix``, ``optimistix_normal_lm``, ``MarquardtCholeskyDescent``: imported on first use
     (:mod:`jaxlimb.fitting._optx`; the default path never imports optimistix)."""
     if name in ("Optimistix", "optimistix_normal_lm", "MarquardtCholeskyDescent"):
-        from . import _optx
-
-        return getattr(_optx, name)
+        return getattr(solvers, name)  # the lazy attributes of jaxlimb.fitting.solvers
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
