@@ -136,8 +136,10 @@ def _outermost_peak(ad: np.ndarray, frac: float = 0.5) -> np.ndarray:
 
 
 def limb_edges(image: np.ndarray, shape: LimbShape, *, mask: np.ndarray | None = None, n_bins: int = 360,
-               search_px: float = 30.0, smooth_px: float = 1.5, min_snr: float = 5.0):
+               search_px: float = 30.0, smooth_px: float = 1.5, min_snr: float = 5.0, noise: float | None = None):
     """Edge points ``(n, 2)`` of largest |gradient| along the normals of ``shape`` and their signed steps.
+
+    ``noise``: the frame's per-pixel noise sigma if the caller has it (default :func:`estimate_noise`).
 
     Returns
     -------
@@ -169,7 +171,7 @@ def limb_edges(image: np.ndarray, shape: LimbShape, *, mask: np.ndarray | None =
     i = _outermost_peak(np.abs(d_ok))
     rows = np.arange(n_bins)
     peak = d_ok[rows, i]
-    noise_d = estimate_noise(img) / (2.0 * math.sqrt(2.0 * math.pi) * smooth_px**2)  # sigma of d/dt of the smoothed noise
+    noise_d = (estimate_noise(img) if noise is None else noise) / (2.0 * math.sqrt(2.0 * math.pi) * smooth_px**2)  # sigma of d/dt of the smoothed noise
     ok = (np.abs(peak) >= min_snr * max(noise_d, 1e-12)) & (i > 0) & (i < len(t) - 1) & ~bad[rows, i]
     ok &= ~(bad[rows, np.clip(i - 1, 0, len(t) - 1)] | bad[rows, np.clip(i + 1, 0, len(t) - 1)])
     # parabolic sub-sample peak of |d|

@@ -51,13 +51,14 @@ def dark_limb_offset(image: np.ndarray, center_rc, radius_px: float, mask: np.nd
     s = float(search_px) if search_px is not None else float(np.clip(0.1 * r, 10.0, 30.0))
     c = (float(center_rc[0]), float(center_rc[1]))
     img = np.asarray(image, dtype=np.float64)
-    pts, step, ok = limb_edges(img, LimbShape(c, r, 1.0, 0.0), mask=mask, search_px=s)
+    noise = estimate_noise(img)
+    pts, step, ok = limb_edges(img, LimbShape(c, r, 1.0, 0.0), mask=mask, search_px=s, noise=noise)
     dark = ok & (step < 0)
     n = int(np.count_nonzero(dark))
     off = np.hypot(pts[dark, 0] - c[0], pts[dark, 1] - c[1]) - r
     return {"n_bins": n, "n_lit_bins": int(np.count_nonzero(ok & (step > 0))), "search_px": s,
             "median_offset_px": float(np.median(off)) if n else None,
-            "median_contrast_dn": _median_contrast(img, pts[dark], c) if n else None, "noise_dn": estimate_noise(img)}
+            "median_contrast_dn": _median_contrast(img, pts[dark], c) if n else None, "noise_dn": noise}
 
 
 def _median_contrast(img: np.ndarray, pts: np.ndarray, center: tuple[float, float]) -> float:
