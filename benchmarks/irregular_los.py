@@ -95,8 +95,10 @@ def run_case(db, cam, img, truth, R, t, sun, mode: str) -> dict:
     row: dict = {}
     try:
         res = locate_los(img, db, cam, sun, R if mode == "known" else None, float(np.linalg.norm(t)) * 1.05)
-        row["err_px"] = float(np.linalg.norm(res.centre_rc - truth))
+        e = res.centre_rc - truth
+        row["err_px"] = float(np.linalg.norm(e))
         row["sd_px"] = float(math.sqrt(np.trace(res.fit.covariance_rc)))
+        row["nees"] = float(e @ np.linalg.solve(res.fit.covariance_rc, e))
         row["excess"] = res.fit.excess_frac
     except JaxlimbError as e:
         row["failure"] = f"{e.check}: {e}"[:200]
@@ -129,20 +131,22 @@ def summarise(rows: list[dict]) -> dict:
             p90_px=float(np.percentile(errs, 90)),
             max_px=float(errs.max()),
             ok_above_3px=int((errs > 3.0).sum()),
+            nees_mean=float(np.mean([r["nees"] for r in rows if "nees" in r])) if any("nees" in r for r in rows) else float("nan"),
             median_seconds=float(np.median([r["seconds"] for r in rows])),
         )
     return out
 
 
 def table(title: str, groups: dict[str, list[dict]]) -> str:
-    lines = [f"\n{title}", "| group | n | typed failures | median / p90 / max px | ok with error > 3 px | median s |", "|---|---|---|---|---|---|"]
+    lines = [f"\n{title}", "| group | n | typed failures | median / p90 / max px | ok with error > 3 px | mean NEES (2) | median s |",
+             "|---|---|---|---|---|---|---|"]
     for g, rows in groups.items():
         s = summarise(rows)
         if "median_px" in s:
             cell = f"{s['median_px']:.3f} / {s['p90_px']:.3f} / {s['max_px']:.3f}"
-            lines.append(f"| {g} | {s['n']} | {s['failures']} | {cell} | {s['ok_above_3px']} | {s['median_seconds']:.1f} |")
+            lines.append(f"| {g} | {s['n']} | {s['failures']} | {cell} | {s['ok_above_3px']} | {s['nees_mean']:.1f} | {s['median_seconds']:.1f} |")
         else:
-            lines.append(f"| {g} | {s['n']} | {s['failures']} | - | 0 | - |")
+            lines.append(f"| {g} | {s['n']} | {s['failures']} | - | 0 | - | - |")
     return "\n".join(lines)
 
 

@@ -55,6 +55,9 @@ class ModelImage:
         ``(3, h, w)``: derivative of the radiance for the same rotations (facet normals).
     on_body
         ``(h, w)`` bool: pixels whose centre sees a facet (where ``flow`` is defined).
+    dM_dmix
+        ``(len(MIX_LAWS), h, w)``: derivatives of ``M`` for the photometric mix
+        (:func:`render_window`); ``None`` unless ``mix`` was given.
     """
 
     M: np.ndarray
@@ -62,6 +65,7 @@ class ModelImage:
     flow: np.ndarray | None = None
     shading: np.ndarray | None = None
     on_body: np.ndarray | None = None
+    dM_dmix: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -131,9 +135,17 @@ def downsample(image: np.ndarray, k: int) -> np.ndarray:
 
 def render_window(
     mesh: Mesh, camera: object, R: np.ndarray, t: np.ndarray, sun: np.ndarray | None, lo, hi, supersample: int,
-    reflectance: str = "lommel-seeliger", jacobian: bool = False,
+    reflectance: str = "lommel-seeliger", jacobian: bool = False, mix: np.ndarray | None = None,
+    shadows: bool = False,
 ) -> ModelImage:  # fmt: skip
-    """The model image in the window ``lo..hi`` of ``camera`` (module docstring); ``sun=None``: zero phase."""
+    """The model image in the window ``lo..hi`` of ``camera`` (module docstring); ``sun=None``: zero phase.
+
+    With ``mix`` ``(m_1, m_2)`` the radiance is ``LS + m_1 (Lambert - LS) + m_2 (Minnaert_1/2 - LS)``
+    (:data:`MIX_LAWS`: Lommel-Seeliger ``2 mu0 / (mu0 + mu)``, Lambert ``mu0``, Minnaert with
+    ``k = 1/2`` ``sqrt(mu0 / mu)``; ``m_1 = 1 - L`` alone is McEwen's lunar-Lambert law), and
+    ``dM_dmix`` ``(3, h, w)`` is returned (the third: smooth minus flat shading).  With ``shadows``
+    every facet's radiance is scaled by its lit fraction (:func:`shadow_fractions`: cast shadows).
+    """
     cam = window_camera(camera, lo, hi)
     h, w = cam.shape  # type: ignore[attr-defined]
     M, C = np.zeros((h, w)), np.zeros((h, w))
@@ -145,20 +157,169 @@ def render_window(
         return ModelImage(M, C, np.zeros((3, 2, h, w)) if jacobian else None, np.zeros((3, h, w)) if jacobian else None)
     s = -t / np.linalg.norm(t) if sun is None else np.asarray(sun, dtype=float)
     mu0 = ras.normals @ s
-    lut = np.concatenate([[0.0], shade(mu0, ras.mu, reflectance)]).astype(np.float32)
+    lit = shadow_fractions(mesh.vertices, mesh.faces, np.asarray(R, dtype=float).T @ s) if shadows else np.ones(F.shape[0])
+    rho = shade(mu0, ras.mu, reflectance) * lit
     win = (slice(ras.r0, ras.r0 + ras.h), slice(ras.c0, ras.c0 + ras.w))
     size = (ras.w, ras.h)
+    D = None
+    if mix is not None:
+        D = np.zeros((len(MIX_LAWS) + 1, h, w))
+        for j, law in enumerate(MIX_LAWS):
+            drho = (_basis(mu0, ras.mu, law) - shade(mu0, ras.mu, reflectance)) * lit
+            rho = rho + mix[j] * drho
+            D[j][win] = cv2.resize(np.concatenate([[0.0], drho]).astype(np.float32)[ras.buf], size, interpolation=cv2.INTER_AREA)
+        D[-1][win] = _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, supersample, lit)
+    lut = np.concatenate([[0.0], rho]).astype(np.float32)
     M[win] = cv2.resize(lut[ras.buf], size, interpolation=cv2.INTER_AREA)
+    if D is not None:
+        M += mix[-1] * D[-1]
     C[win] = cv2.resize((ras.buf > 0).astype(np.float32), size, interpolation=cv2.INTER_AREA)
     if not jacobian:
-        return ModelImage(M, C)
+        return ModelImage(M, C, dM_dmix=D)
     flow, shading, on = np.zeros((3, 2, h, w)), np.zeros((3, h, w)), np.zeros((h, w), dtype=bool)
-    f_sub, f_sh, f_on = _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, supersample, reflectance)
+    f_sub, f_sh, f_on = _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, supersample, reflectance, mix, lit if shadows else None)
     flow[:, :, win[0], win[1]], shading[:, win[0], win[1]], on[win] = f_sub, f_sh, f_on
-    return ModelImage(M, C, flow, shading, on)
+    return ModelImage(M, C, flow, shading, on, D)
 
 
-def _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, ss, reflectance):  # type: ignore[no-untyped-def]
+#: The laws mixed into the model radiance by ``render_window(mix=...)``.
+MIX_LAWS = ("lambert", "minnaert-half")
+_MU_MIN = 0.05  # Minnaert's mu^(k-1) is held finite at grazing emission (flat facets at the outline)
+
+
+def _basis(mu0: np.ndarray, mu: np.ndarray, law: str) -> np.ndarray:
+    """Radiance per unit albedo of a :data:`MIX_LAWS` law (0 where unlit or unseen)."""
+    if law == "lambert":
+        return shade(mu0, mu, "lambert")
+    return np.where((mu0 > 0) & (mu > 0), np.sqrt(np.maximum(mu0, 0.0) / np.maximum(mu, _MU_MIN)), 0.0)
+
+
+def _basis_derivative(mu0, mu, dmu0, dmu, law):  # type: ignore[no-untyped-def]
+    """``(nf, 3)`` derivative of :func:`_basis` for the rotations (``dmu0``, ``dmu``: ``(nf, 3)``)."""
+    if law == "lambert":
+        return dmu0
+    m = np.maximum(mu, _MU_MIN)
+    r = np.sqrt(np.maximum(mu0, 1e-12) / m)
+    return 0.5 * r[:, None] * (dmu0 / np.maximum(mu0, 1e-12)[:, None] - np.where(mu > _MU_MIN, 1.0 / m, 0.0)[:, None] * dmu)
+
+
+@dataclass(frozen=True)
+class _SunView:
+    """A pinhole far along the Sun direction (``rasterise``'s camera interface): nearly orthographic."""
+
+    focal_px: float
+    shape: tuple[int, int]
+    principal_point_rc: tuple[float, float]
+
+
+_SHADOWS: dict = {}
+
+
+def shadow_fractions(vertices: np.ndarray, faces: np.ndarray, sun_body: np.ndarray, n_px: int = 1024) -> np.ndarray:
+    """Lit fraction (0..1) of every facet: the share of its area the Sun sees (cast shadows).
+
+    The mesh is rasterised as seen from the Sun (:func:`jaxlimb.render.mesh.rasterise`, a pinhole
+    1000 body radii away, ``n_px`` across the body); a facet's lit fraction is its sample count
+    over the count its projected area predicts (above 0.8: 1, sampling noise).  Facets the Sun
+    does not face get 0; facets expected to cover fewer than 6 samples keep 1 (unresolved).  Depends only on the Sun
+    direction in the body frame: cached per mesh and 0.1 deg of it.
+    """
+    V = np.asarray(vertices, dtype=float)
+    F = np.asarray(faces, dtype=np.int64)
+    sb = np.asarray(sun_body, dtype=float) / np.linalg.norm(sun_body)
+    key = (id(vertices), tuple(np.round(sb * 1000.0).astype(int)))
+    if key in _SHADOWS:
+        return _SHADOWS[key]
+    rmax = float(np.linalg.norm(V, axis=1).max())
+    L = 1000.0 * rmax
+    z = -sb
+    x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
+    x /= np.linalg.norm(x)
+    Rs = np.stack([x, np.cross(z, x), z])
+    f = L * 0.5 * n_px / (1.05 * rmax)
+    cam = _SunView(f, (n_px, n_px), ((n_px - 1) / 2.0, (n_px - 1) / 2.0))
+    ras = rasterise(V @ Rs.T + [0.0, 0.0, L], F, cam, 1)
+    seen = np.bincount(ras.buf.ravel(), minlength=F.shape[0] + 1)[1:].astype(float) if ras is not None else np.zeros(F.shape[0])
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    expected = 0.5 * np.maximum(n @ sb, 0.0) * (f / L) ** 2
+    frac = np.clip(seen / np.maximum(expected, 1e-300), 0.0, 1.0)
+    # sampling noise (a facet's edge samples go to it or its neighbour): near 1 is lit, and a facet
+    # with fewer than 6 expected samples is unresolved
+    frac = np.where((expected < 6.0) | (frac > 0.8), 1.0, frac)
+    frac = np.where(n @ sb > 0, frac, 0.0)
+    if len(_SHADOWS) > 64:
+        _SHADOWS.clear()
+    _SHADOWS[key] = frac
+    return frac
+
+
+def _safe(x: np.ndarray) -> np.ndarray:
+    return np.where(np.abs(x) > 1e-12, x, 1e-12)
+
+
+def _vertex_normals(Xc: np.ndarray, F: np.ndarray) -> np.ndarray:
+    """Area-weighted unit vertex normals."""
+    n = np.cross(Xc[F[:, 1]] - Xc[F[:, 0]], Xc[F[:, 2]] - Xc[F[:, 0]])
+    vn = np.zeros_like(Xc)
+    for k in range(3):
+        np.add.at(vn, F[:, k], n)
+    return vn / np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
+
+
+def _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, ss, lit):  # type: ignore[no-untyped-def]
+    """``(h, w)``: radiance with normals interpolated across each facet (barycentric weights of
+    the vertex normals, Phong) minus the facet's flat radiance.
+
+    A real body is smooth where its shape model is faceted: the registration fits the mix of
+    the two (one more linear column, :class:`~.register.RegisterOptions`).  Interior pixels are
+    sampled at their centre; pixels the outline crosses at every sub-pixel (area average), where
+    smooth normals graze the line of sight and the two differ most.
+    """
+    buf = ras.buf
+    centre = buf[ss // 2 :: ss, ss // 2 :: ss][: ras.h, : ras.w]
+    cover = cv2.resize((buf > 0).astype(np.float32), (ras.w, ras.h), interpolation=cv2.INTER_AREA)
+    inner = (centre > 0) & (cover > 0.999)
+    out = np.zeros((ras.h, ras.w))
+    rr, cc = np.nonzero(inner)
+    face = centre[rr, cc] - 1
+    out[rr, cc] = _smooth_flat_samples(ras, Xc, F, cam, s, reflectance, rr.astype(float), cc.astype(float), face) * lit[face]
+    er, ec = np.nonzero((cover > 0) & ~inner)
+    if er.size:
+        o = np.arange(ss)
+        sr = (er[:, None, None] * ss + o[None, :, None]) * np.ones((1, 1, ss), int)
+        sc = (ec[:, None, None] * ss + o[None, None, :]) * np.ones((1, ss, 1), int)
+        face = buf[sr, sc]
+        hit = face > 0
+        diff = np.zeros(face.shape)
+        fh = face[hit] - 1
+        diff[hit] = _smooth_flat_samples(ras, Xc, F, cam, s, reflectance, (sr[hit] + 0.5) / ss - 0.5, (sc[hit] + 0.5) / ss - 0.5, fh) * lit[fh]
+        out[er, ec] = diff.reshape(er.size, -1).mean(axis=1)
+    return out
+
+
+def _smooth_flat_samples(ras, Xc, F, cam, s, reflectance, r, c, face):  # type: ignore[no-untyped-def]
+    """Smooth minus flat radiance at raster pixel coordinates ``(r, c)`` seeing ``face``."""
+    f = cam.focal_px  # type: ignore[attr-defined]
+    pr, pc = cam.principal_point_rc  # type: ignore[attr-defined]
+    ray = np.stack([(ras.c0 + c - pc) / f, (ras.r0 + r - pr) / f, np.ones(r.size)], axis=1)
+    v0, v1, v2 = Xc[F[face, 0]], Xc[F[face, 1]], Xc[F[face, 2]]
+    n = ras.normals[face]
+    X = (np.einsum("ij,ij->i", n, v0) / _safe(np.einsum("ij,ij->i", n, ray)))[:, None] * ray
+    e0, e1, q = v1 - v0, v2 - v0, X - v0
+    d00, d01, d11 = (e0 * e0).sum(1), (e0 * e1).sum(1), (e1 * e1).sum(1)
+    d20, d21 = (q * e0).sum(1), (q * e1).sum(1)
+    den = _safe(d00 * d11 - d01**2)
+    b1 = np.clip((d11 * d20 - d01 * d21) / den, 0.0, 1.0)
+    b2 = np.clip((d00 * d21 - d01 * d20) / den, 0.0, 1.0 - b1)
+    vn = _vertex_normals(Xc, F)
+    ns = (1.0 - b1 - b2)[:, None] * vn[F[face, 0]] + b1[:, None] * vn[F[face, 1]] + b2[:, None] * vn[F[face, 2]]
+    ns /= np.maximum(np.linalg.norm(ns, axis=1, keepdims=True), 1e-300)
+    eye = -X / np.linalg.norm(X, axis=1, keepdims=True)
+    smooth = shade(ns @ s, np.maximum(np.einsum("ij,ij->i", ns, eye), 1e-3), reflectance)
+    return smooth - shade(n @ s, ras.mu[face], reflectance)
+
+
+def _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, ss, reflectance, mix=None, shadow=None):  # type: ignore[no-untyped-def]
     """Flow ``(3, 2, h, w)``, shading derivative ``(3, h, w)`` and on-body mask of the raster's pixels."""
     idx = ras.buf[ss // 2 :: ss, ss // 2 :: ss][: ras.h, : ras.w]
     on = idx > 0
@@ -183,7 +344,11 @@ def _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, ss, reflectance):  # type: ig
         drho = 2.0 * (mu[:, None] * dmu0 - mu0[:, None] * dmu) / np.maximum(mu0 + mu, 1e-12)[:, None] ** 2
     else:
         drho = dmu0
-    drho = np.where(lit[:, None], drho, 0.0)
+    if mix is not None:
+        base = drho
+        for j, law in enumerate(MIX_LAWS):  # (the smooth-shading column, mix[-1], is left out here)
+            drho = drho + mix[j] * (_basis_derivative(mu0, mu, dmu0, dmu, law) - base)
+    drho = np.where(lit[:, None], drho, 0.0) * (1.0 if shadow is None else shadow[:, None])
     shading = np.moveaxis(drho[face], -1, 0) * on
     return flow, shading, on
 
@@ -243,4 +408,4 @@ def attitude_columns(model: ModelImage, ratio: float, blur) -> np.ndarray:  # ty
     return np.stack(cols, axis=1)
 
 
-__all__ = ["ModelImage", "attitude_columns", "clustered_mesh", "downsample", "level_camera", "render_window", "window_camera"]
+__all__ = ["MIX_LAWS", "ModelImage", "shadow_fractions", "attitude_columns", "clustered_mesh", "downsample", "level_camera", "render_window", "window_camera"]

@@ -26,16 +26,26 @@ direction, and registers it to the frame.  Here:
    (frame box-averaged, :mod:`.model_render`); with the attitude fitted (three more
    columns from the same render), the unblurred ones first on the 2x2-averaged frame,
    the last ones at full resolution.
+   **What a real surface adds** (each measured on ray-traced frames of
+   :mod:`jaxlimb.render.independent.mesh_rays`, whose bias it removed): the model radiance is a
+   fitted mix of Lommel-Seeliger, Lambert, Minnaert ``k = 1/2`` and smooth (Phong-interpolated)
+   shading (linear columns, :func:`.model_render.render_window`; a Lambert body: 1.5 -> 0.01 px);
+   facets in the body's own cast shadow are darkened (:func:`.model_render.shadow_fractions`);
+   before the sharp iterations the camera's PSF is estimated (:func:`estimate_psf`, a Gaussian
+   blur of the model only; 0.24 -> 0.01 px for a 0.8 px PSF); a sharp step that reverses the
+   last one is halved (the rendering's sub-pixel quantisation otherwise makes a limit cycle).
 4. **Covariance** ``sigma^2 (A^T A)^{-1}`` of the linear solve at convergence, with
-   ``sigma^2`` the residual variance, mapped to ``(row, col)`` by ``1/a``, plus a
-   model floor (``model_floor_px``).  Monte Carlo (30 noise draws, Thebe, phase 30):
-   mean NEES 2.4 at 10 DN noise without the floor (chi^2_2: 2).
+   ``sigma^2`` the residual variance, mapped to ``(row, col)`` by ``1/a``, plus the
+   cluster-robust model-error term of :mod:`jaxlimb.analysis.model_error` over position-angle
+   sectors (an albedo the model does not know biases the centre by ~0.1 px: the term makes the
+   reported sigma say so), plus a model floor (``model_floor_px``).  Monte Carlo (30 noise
+   draws, Thebe, phase 30): mean NEES 2.4 at 10 DN noise without the floor (chi^2_2: 2).
 5. **Checks** (:class:`~jaxlimb.errors.MatchError`, exit 3): the excess of the residual
    over the background noise relative to the body's contrast, the overlap (IoU) of
    the observed and predicted lit figures, and convergence.
 
-Rendering is :func:`jaxlimb.render.mesh.rasterise` (flat facets, Lommel-Seeliger,
-no cast shadows) in a window camera around the body (:func:`.model_render.render_window`).
+Rendering is :func:`jaxlimb.render.mesh.rasterise` (painter's algorithm, facets) in a window
+camera around the body (:func:`.model_render.render_window`).
 """
 
 from __future__ import annotations
@@ -49,7 +59,7 @@ import numpy as np
 
 from ..errors import ConvergenceError, MatchError
 from .mesh import Mesh
-from .model_render import attitude_columns, clustered_mesh, downsample, level_camera, render_window
+from .model_render import MIX_LAWS, attitude_columns, clustered_mesh, downsample, level_camera, render_window
 from .silhouette import figure_centre, mesh_topology, render_silhouette, segment_body
 
 
@@ -95,6 +105,34 @@ class RegisterOptions:
         fitted contrast ``a`` (fraction).
     min_iou
         Smallest accepted overlap of the observed and predicted lit figures.
+    albedo_order
+        Degree of a polynomial albedo field across the body fitted with the model (linear columns
+        ``M x^i y^j``, ``1 <= i + j <= albedo_order``); 0: uniform albedo.
+    albedo_harmonics
+        Harmonics of the albedo along the position angle about the centre (columns
+        ``M cos k theta``, ``M sin k theta``): the outline's contrast varies with the surface's
+        albedo, and an intensity fit that does not know it moves the outline.
+    cast_shadows
+        Scale each facet's radiance by its lit fraction seen from the Sun
+        (:func:`.model_render.shadow_fractions`): a lumpy body's own cast shadows, unmodelled,
+        biased a registration by 0.16 px at 45 deg phase.
+    psf_grid_px
+        Gaussian PSF sigmas (px) among which :func:`estimate_psf` picks the camera's before the
+        sharp iterations (the model is blurred by it; empty: an ideal camera).
+    model_error_sectors
+        The centre covariance carries the cluster-robust model-error term of
+        :mod:`jaxlimb.analysis.model_error` with the window's pixels grouped in this many
+        position-angle sectors about the centre (0: off): a surface whose albedo, shading or
+        shadows differ from the model's leaves residuals that follow the centre's columns
+        from one side of the body to the other, and the white-noise covariance alone then
+        reports 0.006 px for a 0.2 px error (``benchmarks/irregular_independent.py``).
+    fit_photometry
+        Fit the photometric mix ``m`` of the model radiance ``LS + m_1 (Lambert - LS) +
+        m_2 (Minnaert_1/2 - LS)`` (:func:`.model_render.render_window`; McEwen's
+        lunar-Lambert law is ``m_1 = 1 - L``), two more linear columns: the reflectance of
+        a real surface is not known in advance, and a Lambert or Minnaert body registered
+        with a Lommel-Seeliger model is biased by 0.6-1 px
+        (``benchmarks/irregular_independent.py``).  ``m`` is kept in ``mix_bounds``.
     model_floor_px
         Standard deviation (px, per axis) added to the covariance for the rendering's
         own quantisation (sub-pixel coverage steps of 1/16 at ``supersample=4``):
@@ -119,6 +157,13 @@ class RegisterOptions:
     max_excess_frac: float = 0.12
     min_iou: float = 0.9
     model_floor_px: float = 0.004
+    model_error_sectors: int = 16
+    psf_grid_px: tuple[float, ...] = (0.0, 0.4, 0.7, 1.0, 1.4, 2.0, 2.8)
+    cast_shadows: bool = True
+    albedo_order: int = 0
+    albedo_harmonics: int = 0
+    fit_photometry: bool = True
+    mix_bounds: tuple[float, float] = (-1.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -361,19 +406,79 @@ def _figure_size(mask: np.ndarray) -> float:
     return float(max(rr[-1] - rr[0], cc[-1] - cc[0]) + 1)
 
 
-def _gn_step(pyr, mesh, camera, R, sun, P, D, sigma, k, ratio, options, fit_attitude):  # type: ignore[no-untyped-def]
-    """One linearised solve at pyramid factor ``k``: ``(beta, A, y, lo, hi)`` (window in level-``k`` pixels)."""
-    img, cam, mask = pyr[k]
-    s = sigma / k
+def _render_level(pyr, mesh, camera, R, sun, P, D, k, options, fit_attitude, mix):  # type: ignore[no-untyped-def]
+    """The model at pyramid factor ``k``: ``(model, lo, hi, Pk)`` (window in level-``k`` pixels)."""
+    _, cam, mask = pyr[k]
     Pk = (P - (k - 1) / 2.0) / k
     lo, hi = _window(cam, Pk, D, mesh, mask, options.margin_px)
     facets = mesh if k == 1 else clustered_mesh(mesh, 2.0 * k * D / camera.focal_px)
-    model = render_window(facets, cam, R, _pose(camera, P, D), sun, lo, hi, options.supersample, options.reflectance, fit_attitude)
-    A = _gn_system(_blur(model.M, s), _blur(model.C, s), ratio, Pk - lo)
+    model = render_window(facets, cam, R, _pose(camera, P, D), sun, lo, hi, options.supersample, options.reflectance, fit_attitude, mix,
+                          options.cast_shadows and sun is not None)
+    return model, lo, hi, Pk
+
+
+def _albedo_columns(M: np.ndarray, P_win: np.ndarray, order: int, harmonics: int) -> list[np.ndarray]:
+    """``M`` times the monomials of degree 1..``order`` of the offsets from ``P_win`` (units of the
+    window size) and times ``cos k theta``, ``sin k theta`` (``k = 1..harmonics``, ``theta`` the position
+    angle about ``P_win``): an albedo that varies across the body and along its outline
+    (:attr:`RegisterOptions.albedo_order`, :attr:`RegisterOptions.albedo_harmonics`)."""
+    h, w = M.shape
+    y = (np.arange(h)[:, None] - P_win[0]) / max(h, w) * np.ones((1, w))
+    x = (np.arange(w)[None, :] - P_win[1]) / max(h, w) * np.ones((h, 1))
+    cols = [M * y**i * x ** (d - i) for d in range(1, order + 1) for i in range(d + 1)]
+    th = np.arctan2(y, x)
+    cols += [M * f(k * th) for k in range(1, harmonics + 1) for f in (np.cos, np.sin)]
+    return [c.reshape(-1, 1) for c in cols]
+
+
+def n_albedo_columns(options: RegisterOptions) -> int:
+    return (options.albedo_order + 1) * (options.albedo_order + 2) // 2 - 1 + 2 * options.albedo_harmonics
+
+
+def _system(model, img, lo, hi, Pk, s, psf, ratio, fit_attitude, mix, albedo=(0, 0)):  # type: ignore[no-untyped-def]
+    """Design matrix and data of one solve: frame blurred by ``s``, model by ``hypot(s, psf)`` (the
+    camera's PSF, :func:`estimate_psf`).  Columns: :func:`_gn_system`, the attitude (if fitted), the
+    albedo field (:func:`_albedo_columns`), and with ``mix`` last ``dM/dmix``."""
+    sm = math.hypot(s, psf)
+    Mb = _blur(model.M, sm)
+    A = _gn_system(Mb, _blur(model.C, sm), ratio, Pk - lo)
     if fit_attitude:
-        A = np.concatenate([A, attitude_columns(model, ratio, lambda a: _blur(a, s))], axis=1)
+        A = np.concatenate([A, attitude_columns(model, ratio, lambda a: _blur(a, sm))], axis=1)
+    if albedo[0] or albedo[1]:
+        A = np.concatenate([A] + _albedo_columns(Mb, Pk - lo, albedo[0], albedo[1]), axis=1)
+    if mix is not None:
+        A = np.concatenate([A] + [_blur(d, sm).reshape(-1, 1) for d in model.dM_dmix], axis=1)  # type: ignore[union-attr]
     y = _blur(img[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1], s).ravel()
+    return A, y
+
+
+def _gn_step(pyr, mesh, camera, R, sun, P, D, sigma, k, ratio, options, fit_attitude, mix=None, psf=0.0):  # type: ignore[no-untyped-def]
+    """One linearised solve at pyramid factor ``k``: ``(beta, A, y, lo, hi)`` (window in level-``k`` pixels)."""
+    model, lo, hi, Pk = _render_level(pyr, mesh, camera, R, sun, P, D, k, options, fit_attitude, mix)
+    A, y = _system(model, pyr[k][0], lo, hi, Pk, sigma / k, psf / k, ratio, fit_attitude, mix, (options.albedo_order, options.albedo_harmonics))
     return _solve(A, y), A, y, lo, hi
+
+
+def estimate_psf(st: GNState, pyr, mesh, camera, sun, options, fit_attitude) -> float:  # type: ignore[no-untyped-def]
+    """Gaussian sigma (px) of the camera's PSF: the one of ``options.psf_grid_px`` whose blurred model
+    leaves the smallest residual at the current pose (one render), refined by a parabola through the
+    three values around the minimum.  An unmodelled PSF of 0.8 px biased a registration by 0.24 px
+    (ray-traced frames, ``benchmarks/irregular_independent.py``)."""
+    model, lo, hi, Pk = _render_level(pyr, mesh, camera, st.R, sun, st.P, st.D, 1, options, fit_attitude, st.mix)
+    grid = np.asarray(options.psf_grid_px, dtype=float)
+    cost = []
+    for g in grid:
+        A, y = _system(model, pyr[1][0], lo, hi, Pk, 0.0, float(g), st.ratio, fit_attitude, st.mix, (options.albedo_order, options.albedo_harmonics))
+        r = y - A @ _solve(A, y)
+        cost.append(float(r @ r))
+    i = int(np.argmin(cost))
+    if 0 < i < grid.size - 1:
+        c0, c1, c2 = cost[i - 1], cost[i], cost[i + 1]
+        den = c0 - 2.0 * c1 + c2
+        if den > 0:
+            h = 0.5 * (c0 - c2) / den
+            return float(grid[i] + h * (grid[i + 1] - grid[i - 1]) / 2.0)
+    return float(grid[i])
 
 
 @dataclass
@@ -388,6 +493,9 @@ class GNState:
     D: float
     R: np.ndarray
     ratio: float = 0.0
+    mix: np.ndarray | None = None  # photometric mix (RegisterOptions.fit_photometry), None: not fitted
+    psf: float = 0.0  # Gaussian PSF sigma of the model (px, estimate_psf)
+    prev_step: np.ndarray | None = None  # the last sharp centre step (damping of limit cycles)
     it: int = 0
     step_px: float = math.inf
     rms_frac: float = math.nan
@@ -407,10 +515,12 @@ def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude, 
     ``True`` when converged (sharp, small steps)."""
     if k is None:
         k = _level(sigma, _figure_size(pyr[1][2]), options)
-    beta, A, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude)
+    beta, A, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude, st.mix, st.psf)
     a = float(beta[0])
     if not a > 0:
         raise ConvergenceError("registration: the fitted contrast of the model is not positive")
+    if st.mix is not None:
+        st.mix = np.clip(st.mix + beta[-len(st.mix):] / a, *options.mix_bounds)
     res = y - A @ beta
     st.it, st.ratio, st.last = st.it + 1, float(beta[1]) / a, (A, y, beta, lo, hi)
     st.rms_frac = math.sqrt(float(res @ res) / res.size) / a
@@ -420,6 +530,11 @@ def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude, 
     if n > 2.0 + 2.0 * sigma:
         f = (2.0 + 2.0 * sigma) / n
         step, ds, beta = step * f, ds * f, np.concatenate([beta[:5], beta[5:] * f])
+    if sigma == 0 and st.prev_step is not None and float(step @ st.prev_step) < -0.5 * n * float(np.linalg.norm(st.prev_step)):
+        # a sharp step reversing the last one: the rendering's sub-pixel quantisation makes a limit
+        # cycle of growing amplitude; half steps damp it to the mid-point
+        step, n = 0.5 * step, 0.5 * n
+    st.prev_step = step if sigma == 0 else None
     st.P = st.P + step
     st.D = st.D * math.exp(-max(min(ds, 0.05), -0.05))
     dw = 0.0
@@ -454,13 +569,15 @@ def fine_stage(st: GNState, pyr, mesh, camera, sun, options, fit_attitude, wide,
     blur = _blur_schedule(pyr[1][2], options, wide)
     size = _figure_size(pyr[1][2])
     k2 = 2 if size >= 2 * options.pyramid_min_size_px and options.sharp_level2_iterations > 0 else 1
-    n2 = 0
+    n2, psf_done = 0, False
     while st.it < options.max_iterations:
         sigma = blur[st.it] if st.it < len(blur) else 0.0
         k = _level(sigma, size, options)
         if n2 < options.sharp_level2_iterations:  # no full-resolution iteration before the half-resolution optimum
             k = max(k, k2)
             n2 += sigma == 0
+        if sigma == 0 and k == 1 and options.psf_grid_px and not psf_done:
+            st.psf, psf_done = estimate_psf(st, pyr, mesh, camera, sun, options, fit_attitude), True
         done = _iterate(st, pyr, mesh, camera, sun, sigma, options, fit_attitude, k)
         if guard is not None:
             guard(st, sigma)
@@ -473,10 +590,14 @@ def fine_stage(st: GNState, pyr, mesh, camera, sun, options, fit_attitude, wide,
     return st
 
 
+def _mix0(options: RegisterOptions) -> np.ndarray | None:
+    return np.zeros(len(MIX_LAWS) + 1) if options.fit_photometry else None
+
+
 def _gauss_newton(image, mesh, camera, R, sun, P, D, mask, options, fit_attitude=False, wide=False):  # type: ignore[no-untyped-def]
     """Step 3 of the module docstring (coarse to fine: blurred iterations first, on the pyramid)."""
     pyr = _Pyramid(image, camera, mask)
-    st = GNState(np.asarray(P, dtype=float), float(D), np.asarray(R, dtype=float))
+    st = GNState(np.asarray(P, dtype=float), float(D), np.asarray(R, dtype=float), mix=_mix0(options))
     coarse_stage(st, pyr, mesh, camera, sun, options, fit_attitude, fit_attitude or wide)
     return fine_stage(st, pyr, mesh, camera, sun, options, fit_attitude, fit_attitude or wide)
 
@@ -593,7 +714,7 @@ def start_search_registration(
     R = np.asarray(R, dtype=float)
     pyr = _Pyramid(img, camera, segmentation[0])
     P, D, ncc = _coarse_ncc(pyr, mesh, camera, R, sun, initial, options)
-    st = coarse_stage(GNState(np.asarray(P, dtype=float), float(D), R), pyr, mesh, camera, sun, options, True, True)
+    st = coarse_stage(GNState(np.asarray(P, dtype=float), float(D), R, mix=_mix0(options)), pyr, mesh, camera, sun, options, True, True)
     return Registration(img, mesh, camera, sun, segmentation, pyr, st, ncc, options)
 
 
@@ -616,6 +737,22 @@ def _overlap(obs: np.ndarray, model_flat: np.ndarray, thr: float, sigma: float) 
     return float(np.logical_and(pred, o).sum()) / max(float(np.logical_or(pred, o).sum()), 1.0)
 
 
+def _with_sector_model_error(A, res, lo, hi, P, cov, a, n_sectors):  # type: ignore[no-untyped-def]
+    """The centre covariance with the cluster-robust model-error term of :mod:`jaxlimb.analysis.model_error`
+    (pixels grouped in ``n_sectors`` position-angle sectors about ``P``; :attr:`RegisterOptions.model_error_sectors`)."""
+    from ..analysis.model_error import positive_part, sector_groups
+
+    rr, cc = np.mgrid[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1]
+    groups = sector_groups(np.stack([rr.ravel(), cc.ravel()], axis=1).astype(float), P, n_sectors)
+    sc = np.maximum(np.sqrt(np.einsum("ij,ij->j", A, A)), 1e-300)
+    An = A / sc
+    scores = np.zeros((n_sectors, A.shape[1]))
+    np.add.at(scores, groups, An * res[:, None])
+    bread = np.linalg.inv(An.T @ An)
+    C_s = n_sectors / (n_sectors - 1) * bread @ (scores.T @ scores) @ bread / np.outer(sc, sc)
+    return cov + positive_part(C_s[2:4, 2:4] / a**2 - cov)
+
+
 def finish_registration(img, camera, segmentation, st: GNState, ncc: float, options: RegisterOptions) -> RegisterResult:  # type: ignore[no-untyped-def]
     """Covariance and the checks of step 4-5, from the last (sharp, full-resolution) solve of ``st``."""
     P, D, R, iters = st.P, st.D, st.R, st.it
@@ -628,12 +765,19 @@ def finish_registration(img, camera, segmentation, st: GNState, ncc: float, opti
         cov_beta = s2 * np.linalg.inv(A.T @ A)
     except np.linalg.LinAlgError:
         raise ConvergenceError("registration: singular normal matrix") from None
-    cov = cov_beta[2:4, 2:4] / a**2 + options.model_floor_px**2 * np.eye(2)
+    cov = cov_beta[2:4, 2:4] / a**2
+    if options.model_error_sectors:
+        cov = _with_sector_model_error(A, res, lo, hi, P, cov, a, options.model_error_sectors)
+    cov = cov + options.model_floor_px**2 * np.eye(2)
     sigma = _background_sigma(img, segmentation[0], lo, hi)
     rms = math.sqrt(s2)
     excess = math.sqrt(max(s2 - (sigma**2 if math.isfinite(sigma) else 0.0), 0.0)) / a
     mask, thr = segmentation
-    iou = _overlap(mask[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1] > 0, A[:, :2] @ beta[:2], thr, sigma)
+    nm = 0 if st.mix is None else len(st.mix)
+    na = n_albedo_columns(options)
+    tail = A.shape[1] - nm - na
+    fitted = A[:, :2] @ beta[:2] + A[:, tail:] @ beta[tail:]
+    iou = _overlap(mask[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1] > 0, fitted, thr, sigma)
     if not np.all(np.isfinite(P)) or not np.all(np.isfinite(cov)):
         raise ConvergenceError("registration produced a non-finite centre or covariance")
     if excess > options.max_excess_frac:
