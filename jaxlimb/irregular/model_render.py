@@ -232,15 +232,19 @@ def _limb_flow(flow, ras, Xc, F, cam, t, ss) -> None:  # type: ignore[no-untyped
     flow[:, :, rr, cc] = _rotation_flow(Q[:, 0], Q[:, 1], Q[:, 2], X[j, 0] / Z, X[j, 1] / Z, f / Z)
 
 
-def attitude_columns(model: ModelImage, ratio: float, blur) -> np.ndarray:  # type: ignore[no-untyped-def]
-    """``(n, 3)`` derivatives of the blurred ``G = M - ratio C`` for rotations about the camera axes (rad)."""
+def attitude_columns(model: ModelImage, ratio: float, blur, out: np.ndarray | None = None) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """``(n, 3)`` derivatives of the blurred ``G = M - ratio C`` for rotations about the camera axes (rad).
+
+    ``out``: a ``(3, n)`` array to write them in (the rows of a transposed design matrix);
+    the result is then its transposed view.
+    """
     G = model.M - ratio * model.C
     gr, gc = np.gradient(G)
-    cols = []
+    out = np.empty((3, G.size)) if out is None else out
     for i in range(3):
-        d = -(gr * model.flow[i, 0] + gc * model.flow[i, 1]) + model.shading[i]  # type: ignore[index]
-        cols.append(blur(d).ravel())
-    return np.stack(cols, axis=1)
+        d = model.shading[i] - gr * model.flow[i, 0] - gc * model.flow[i, 1]  # type: ignore[index]
+        out[i] = blur(d).ravel()
+    return out.T
 
 
 __all__ = ["ModelImage", "attitude_columns", "clustered_mesh", "downsample", "level_camera", "render_window", "window_camera"]

@@ -292,16 +292,25 @@ def ncc_shift(image: np.ndarray, model: np.ndarray, lo: np.ndarray, search: int)
     return d, float(score[i, j])
 
 
-def _gn_system(M: np.ndarray, C: np.ndarray, ratio: float, P_win: np.ndarray) -> np.ndarray:
-    """Design matrix ``(n, 5)`` of the linearised model ``a M + b (1 - C)`` (the body hides the sky).
+def _gn_system(M: np.ndarray, C: np.ndarray, ratio: float, P_win: np.ndarray, n_rows: int = 5) -> np.ndarray:
+    """Transposed design matrix ``(n_rows, n)`` of the linearised model ``a M + b (1 - C)`` (the body hides the sky).
 
-    Columns: ``M``, ``1 - C``, ``-dG/dr``, ``-dG/dc``, ``-(x - P).grad G`` with
-    ``G = M - ratio C`` (``ratio = b/a`` of the previous solve).
+    Rows: ``M``, ``1 - C``, ``-dG/dr``, ``-dG/dc``, ``-(x - P).grad G`` with
+    ``G = M - ratio C`` (``ratio = b/a`` of the previous solve); rows 5.. are left for
+    the attitude (:func:`.model_render.attitude_columns`).  Rows, not columns: each is
+    written in one contiguous pass and the normal matrix is ``At At^T``.
     """
+    h, w = M.shape
+    At = np.empty((n_rows, h * w))
     gr, gc = np.gradient(M - ratio * C)
-    rr, cc = np.mgrid[0 : M.shape[0], 0 : M.shape[1]]
-    radial = (rr - P_win[0]) * gr + (cc - P_win[1]) * gc
-    return np.stack([M.ravel(), 1.0 - C.ravel(), -gr.ravel(), -gc.ravel(), -radial.ravel()], axis=1)
+    At[0] = M.ravel()
+    np.subtract(1.0, C.ravel(), out=At[1])
+    np.negative(gr.ravel(), out=At[2])
+    np.negative(gc.ravel(), out=At[3])
+    radial = At[4].reshape(h, w)
+    np.multiply(P_win[0] - np.arange(h, dtype=float)[:, None], gr, out=radial)
+    radial -= (np.arange(w, dtype=float) - P_win[1])[None, :] * gc
+    return At
 
 
 def _background_sigma(image: np.ndarray, mask: np.ndarray, lo, hi) -> float:  # type: ignore[no-untyped-def]
@@ -318,14 +327,19 @@ def _blur(a: np.ndarray, sigma: float) -> np.ndarray:
     return a if sigma <= 0 else cv2.GaussianBlur(a, (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
 
 
-def _solve(A: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Linear least squares by the (column-scaled) normal equations: a few columns, many rows."""
-    sc = np.maximum(np.sqrt(np.einsum("ij,ij->j", A, A)), 1e-300)
-    An = A / sc
+def _solve(At: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
+    """Linear least squares ``At^T beta ~ y`` by the (column-scaled) normal equations: a few columns, many rows.
+
+    Returns ``beta`` and the residual sum of squares ``|y|^2 - 2 beta.At y + beta.N beta``
+    (no residual vector: ~1e-12 relative, the residual is >= 1e-6 of ``|y|^2`` here).
+    """
+    N, r = At @ At.T, At @ y
+    sc = np.maximum(np.sqrt(np.diag(N)), 1e-300)
     try:
-        return np.linalg.solve(An.T @ An, An.T @ y) / sc
+        beta = np.linalg.solve(N / np.outer(sc, sc), r / sc) / sc
     except np.linalg.LinAlgError:
         raise ConvergenceError("registration: singular normal matrix (the model has no texture or edge)") from None
+    return beta, max(float(y @ y) - 2.0 * float(beta @ r) + float(beta @ N @ beta), 0.0)
 
 
 def _rotvec_matrix(w: np.ndarray) -> np.ndarray:
@@ -362,18 +376,18 @@ def _figure_size(mask: np.ndarray) -> float:
 
 
 def _gn_step(pyr, mesh, camera, R, sun, P, D, sigma, k, ratio, options, fit_attitude):  # type: ignore[no-untyped-def]
-    """One linearised solve at pyramid factor ``k``: ``(beta, A, y, lo, hi)`` (window in level-``k`` pixels)."""
+    """One linearised solve at pyramid factor ``k``: ``(beta, rss, At, y, lo, hi)`` (window in level-``k`` pixels)."""
     img, cam, mask = pyr[k]
     s = sigma / k
     Pk = (P - (k - 1) / 2.0) / k
     lo, hi = _window(cam, Pk, D, mesh, mask, options.margin_px)
     facets = mesh if k == 1 else clustered_mesh(mesh, 2.0 * k * D / camera.focal_px)
     model = render_window(facets, cam, R, _pose(camera, P, D), sun, lo, hi, options.supersample, options.reflectance, fit_attitude)
-    A = _gn_system(_blur(model.M, s), _blur(model.C, s), ratio, Pk - lo)
+    At = _gn_system(_blur(model.M, s), _blur(model.C, s), ratio, Pk - lo, 8 if fit_attitude else 5)
     if fit_attitude:
-        A = np.concatenate([A, attitude_columns(model, ratio, lambda a: _blur(a, s))], axis=1)
+        attitude_columns(model, ratio, lambda a: _blur(a, s), out=At[5:])
     y = _blur(img[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1], s).ravel()
-    return _solve(A, y), A, y, lo, hi
+    return (*_solve(At, y), At, y, lo, hi)
 
 
 @dataclass
@@ -391,7 +405,7 @@ class GNState:
     it: int = 0
     step_px: float = math.inf
     rms_frac: float = math.nan
-    last: tuple | None = None  # (A, y, beta, lo, hi) of the last solve
+    last: tuple | None = None  # (At, y, beta, lo, hi) of the last solve (At: transposed design matrix)
     history: list = dataclasses.field(default_factory=list)  # rms_frac of every iteration
 
 
@@ -407,13 +421,12 @@ def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude, 
     ``True`` when converged (sharp, small steps)."""
     if k is None:
         k = _level(sigma, _figure_size(pyr[1][2]), options)
-    beta, A, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude)
+    beta, rss, At, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude)
     a = float(beta[0])
     if not a > 0:
         raise ConvergenceError("registration: the fitted contrast of the model is not positive")
-    res = y - A @ beta
-    st.it, st.ratio, st.last = st.it + 1, float(beta[1]) / a, (A, y, beta, lo, hi)
-    st.rms_frac = math.sqrt(float(res @ res) / res.size) / a
+    st.it, st.ratio, st.last = st.it + 1, float(beta[1]) / a, (At, y, beta, lo, hi)
+    st.rms_frac = math.sqrt(rss / y.size) / a
     st.history.append(st.rms_frac)
     step, ds = beta[2:4] / a * k, float(beta[4] / a)
     n = float(np.linalg.norm(step))
@@ -619,13 +632,13 @@ def _overlap(obs: np.ndarray, model_flat: np.ndarray, thr: float, sigma: float) 
 def finish_registration(img, camera, segmentation, st: GNState, ncc: float, options: RegisterOptions) -> RegisterResult:  # type: ignore[no-untyped-def]
     """Covariance and the checks of step 4-5, from the last (sharp, full-resolution) solve of ``st``."""
     P, D, R, iters = st.P, st.D, st.R, st.it
-    A, y, beta, lo, hi = st.last  # type: ignore[misc]
+    At, y, beta, lo, hi = st.last  # type: ignore[misc]
     a, b = float(beta[0]), float(beta[1])
-    res = y - A @ beta
-    dof = max(res.size - A.shape[1], 1)
+    res = y - beta @ At
+    dof = max(res.size - At.shape[0], 1)
     s2 = float(res @ res) / dof
     try:
-        cov_beta = s2 * np.linalg.inv(A.T @ A)
+        cov_beta = s2 * np.linalg.inv(At @ At.T)
     except np.linalg.LinAlgError:
         raise ConvergenceError("registration: singular normal matrix") from None
     cov = cov_beta[2:4, 2:4] / a**2 + options.model_floor_px**2 * np.eye(2)
@@ -633,7 +646,7 @@ def finish_registration(img, camera, segmentation, st: GNState, ncc: float, opti
     rms = math.sqrt(s2)
     excess = math.sqrt(max(s2 - (sigma**2 if math.isfinite(sigma) else 0.0), 0.0)) / a
     mask, thr = segmentation
-    iou = _overlap(mask[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1] > 0, A[:, :2] @ beta[:2], thr, sigma)
+    iou = _overlap(mask[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1] > 0, beta[:2] @ At[:2], thr, sigma)
     if not np.all(np.isfinite(P)) or not np.all(np.isfinite(cov)):
         raise ConvergenceError("registration produced a non-finite centre or covariance")
     if excess > options.max_excess_frac:
