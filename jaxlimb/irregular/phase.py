@@ -33,6 +33,7 @@ import numpy as np
 
 from .database import TemplateDatabase
 from .matching import _Chamfer, _rot_z_to
+from .silhouette import figure_extents
 
 
 @dataclass(frozen=True)
@@ -83,13 +84,6 @@ def contour_normals(xy: np.ndarray) -> np.ndarray:
     area2 = np.sum(xy[..., 0] * np.roll(xy[..., 1], -1, axis=-1) - np.roll(xy[..., 0], -1, axis=-1) * xy[..., 1], axis=-1)
     nrm = nrm * np.sign(area2)[..., None, None]
     return nrm / np.maximum(np.linalg.norm(nrm, axis=-1, keepdims=True), 1e-12)
-
-
-def _observed_extents(mask: np.ndarray, axes: np.ndarray) -> np.ndarray:
-    """``max`` of the figure's pixel centres (x, y) along each direction: attained on its outer contours."""
-    contours, _ = cv2.findContours(np.ascontiguousarray(mask, dtype=np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    xy = np.concatenate([c.reshape(-1, 2) for c in contours]).astype(float)
-    return (xy @ axes.T).max(axis=0)
 
 
 def _score_block(conts, nrms, rolls, s_xy, xo, chamfer, opts, size):  # type: ignore[no-untyped-def]
@@ -155,7 +149,7 @@ def phase_candidates(
     s_xy = np.array([s_img_rc[1], s_img_rc[0]], dtype=float)
     s_xy /= np.linalg.norm(s_xy)
     e = np.array([-s_xy[1], s_xy[0]])
-    xo = _observed_extents(mask, np.stack([e, -e, s_xy]))
+    xo = figure_extents(mask, np.stack([e, -e, s_xy])[:, ::-1])  # axes (x, y) -> (row, col)
     chamfer = _Chamfer(mask)
     rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
     size = float(max(rr[-1] - rr[0], cc[-1] - cc[0]) + 1)

@@ -50,7 +50,7 @@ import numpy as np
 from ..errors import ConvergenceError, MatchError
 from .mesh import Mesh
 from .model_render import attitude_columns, clustered_mesh, downsample, level_camera, render_window
-from .silhouette import figure_centre, mesh_topology, render_silhouette, segment_body
+from .silhouette import figure_centre, figure_extents, mesh_topology, render_silhouette, segment_body
 
 
 @dataclass(frozen=True)
@@ -181,22 +181,17 @@ def render_model(
 
 
 def _lit_figure(topo, camera, R, t, sun):  # type: ignore[no-untyped-def]
-    """Predicted lit figure (full frame, uint8) of the mesh at pose ``(R, t)``."""
-    mask, _ = render_silhouette(topo, R, t, camera.focal_px, camera.principal_point_rc, camera.shape, sun_dir_camera=sun)
-    return mask
+    """Predicted lit figure (full frame, uint8) of the mesh at pose ``(R, t)`` and its outer contours."""
+    return render_silhouette(topo, R, t, camera.focal_px, camera.principal_point_rc, camera.shape, sun_dir_camera=sun)
 
 
 def _pose(camera: object, P: np.ndarray, D: float) -> np.ndarray:
     return D * np.asarray(camera.los(P), dtype=float)  # type: ignore[attr-defined]
 
 
-def _extents(mask: np.ndarray, axes: np.ndarray) -> np.ndarray:
-    """``max`` of the figure's pixel centres along each unit (row, col) direction of ``axes`` ``(k, 2)``."""
-    rr, cc = np.nonzero(mask)
-    return (np.stack([rr, cc], axis=1).astype(float) @ axes.T).max(axis=0)
-
-
-def extent_update(obs: np.ndarray, pred: np.ndarray, P: np.ndarray, s_img: np.ndarray | None) -> tuple[np.ndarray, float]:
+def extent_update(
+    obs: np.ndarray, pred: np.ndarray, P: np.ndarray, s_img: np.ndarray | None, pred_contours: list | None = None
+) -> tuple[np.ndarray, float]:
     """Shift and scale (about ``P``) taking the predicted lit figure onto the observed one.
 
     With a Sun direction ``s_img`` in the image, the lit figure's extents across the
@@ -204,7 +199,8 @@ def extent_update(obs: np.ndarray, pred: np.ndarray, P: np.ndarray, s_img: np.nd
     are those of the silhouette (exact for a convex body), whatever the dim terminator
     does: the scale is the ratio of the cross-Sun widths, the shift matches the
     cross-Sun mid-point and the sunward extreme.  Without one (zero phase): area ratio
-    and centroids.
+    and centroids.  ``pred_contours``: the outer contours of ``pred``, if known
+    (:func:`~.silhouette.figure_extents`).
     """
     if s_img is None:
         k = math.sqrt(float(obs.sum()) / float(pred.sum()))
@@ -212,7 +208,7 @@ def extent_update(obs: np.ndarray, pred: np.ndarray, P: np.ndarray, s_img: np.nd
         return figure_centre(obs) - (P + k * (fp - P)), k
     e = np.array([-s_img[1], s_img[0]])
     axes = np.stack([e, -e, s_img])
-    xo, xp = _extents(obs, axes), _extents(pred, axes)
+    xo, xp = figure_extents(obs, axes), figure_extents(pred, axes, pred_contours)
     pe, ps = float(P @ e), float(P @ s_img)
     k = (xo[0] + xo[1]) / (xp[0] + xp[1])
     mid_o, mid_p = 0.5 * (xo[0] - xo[1]), 0.5 * (xp[0] - xp[1])
@@ -232,11 +228,11 @@ def initial_centre(mesh: Mesh, camera: object, R: np.ndarray, sun, mask: np.ndar
     D = float(range_km) if range_km else 2.0 * mesh.max_radius * camera.focal_px / extent  # type: ignore[attr-defined]
     P = fc.copy()
     for _ in range(3):
-        pred = _lit_figure(topo, camera, R, _pose(camera, P, D), sun)
+        pred, contours = _lit_figure(topo, camera, R, _pose(camera, P, D), sun)
         if float(pred.sum()) < 4:
             raise MatchError("the predicted lit figure is empty at the initial pose (wrong attitude or range?)")
         s = None if sun is None else sun_direction_image(sun, camera, P, min_norm=0.08)
-        shift, k = extent_update(mask, pred, P, None if s is None else np.asarray(s))
+        shift, k = extent_update(mask, pred, P, None if s is None else np.asarray(s), contours)
         P, D = P + shift, D / k
     return P, D
 
@@ -266,9 +262,9 @@ def lit_figure(image: np.ndarray, min_frac: float = 0.02) -> tuple[np.ndarray, f
 def _window(camera: object, P: np.ndarray, D: float, mesh: Mesh, mask: np.ndarray, pad: int):  # type: ignore[no-untyped-def]
     """Pixel window holding the predicted body (bounding sphere) and the observed figure, plus ``pad``."""
     rad = camera.focal_px * mesh.max_radius / max(D - mesh.max_radius, 1e-9 * D)  # type: ignore[attr-defined]
-    rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
-    lo = np.minimum(np.floor(P - rad), [rr[0], cc[0]]) - pad
-    hi = np.maximum(np.ceil(P + rad), [rr[-1], cc[-1]]) + pad
+    box = _bbox(mask)
+    lo = np.minimum(np.floor(P - rad), box[:2]) - pad
+    hi = np.maximum(np.ceil(P + rad), box[2:]) + pad
     shape = np.array(camera.shape)  # type: ignore[attr-defined]
     return np.maximum(lo, 0).astype(int), np.minimum(hi, shape - 1).astype(int)
 
@@ -370,9 +366,23 @@ def _level(sigma: float, size: float, options: RegisterOptions) -> int:
     return max(1, min(k, int(size // options.pyramid_min_size_px)))
 
 
+_BBOX: dict = {}
+
+
+def _bbox(mask: np.ndarray) -> np.ndarray:
+    """``(r0, c0, r1, c1)`` of a figure, remembered for the last few masks (the pyramid's, asked every iteration)."""
+    hit = _BBOX.get(id(mask))
+    if hit is None or hit[0] is not mask:
+        rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
+        if len(_BBOX) > 16:
+            _BBOX.clear()
+        hit = _BBOX[id(mask)] = (mask, np.array([rr[0], cc[0], rr[-1], cc[-1]]))
+    return hit[1]
+
+
 def _figure_size(mask: np.ndarray) -> float:
-    rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
-    return float(max(rr[-1] - rr[0], cc[-1] - cc[0]) + 1)
+    box = _bbox(mask)
+    return float(max(box[2] - box[0], box[3] - box[1]) + 1)
 
 
 def _gn_step(pyr, mesh, camera, R, sun, P, D, sigma, k, ratio, options, fit_attitude):  # type: ignore[no-untyped-def]

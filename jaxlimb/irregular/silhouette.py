@@ -258,6 +258,22 @@ def figure_centre(mask: np.ndarray) -> np.ndarray:
     return np.array([m["m01"] / m["m00"], m["m10"] / m["m00"]])
 
 
+def figure_extents(mask: np.ndarray, axes_rc: np.ndarray, contours: list[np.ndarray] | None = None) -> np.ndarray:
+    """``max`` of a figure's pixel centres along each unit (row, col) direction of ``axes_rc`` ``(k, 2)``.
+
+    The maximum of a linear function over the pixels is attained on the outer contours
+    (at an end of a straight run: ``CHAIN_APPROX_SIMPLE`` keeps those), so only they are
+    visited; ``contours`` (``cv2.findContours`` external contours of ``mask``, e.g. from
+    :func:`fill_outline`) saves tracing them again.
+    """
+    if contours is None:
+        contours, _ = cv2.findContours(np.ascontiguousarray(mask, dtype=np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    if not len(contours):
+        raise NoBodyError("empty figure: no extents")
+    xy = np.concatenate([c.reshape(-1, 2) for c in contours]).astype(float)
+    return (xy[:, ::-1] @ np.asarray(axes_rc, dtype=float).T).max(axis=0)
+
+
 def brightness_centre(image: np.ndarray, mask: np.ndarray | None = None, background: float | None = None) -> np.ndarray:
     """Brightness centre (BC baseline): intensity-weighted centroid ``(row, col)``.
 
@@ -294,6 +310,7 @@ __all__ = [
     "SegmentOptions",
     "brightness_centre",
     "figure_centre",
+    "figure_extents",
     "fill_outline",
     "fill_triangles_exact",
     "mesh_topology",
