@@ -166,10 +166,12 @@ def phase_candidates(
 
 def _hypotheses(db, camera, scores, ks, Ts, rolls, options) -> list[PoseHypothesis]:  # type: ignore[no-untyped-def]
     """The ``n_candidates`` best (template, roll) cells, at least one step apart in view and roll."""
-    order = np.argsort(scores, axis=None)
+    flat_scores = scores.ravel()
+    top = np.argpartition(flat_scores, min(20000, flat_scores.size) - 1)[:20000]  # the 20000 best, then in order
+    order = top[np.lexsort((top, flat_scores[top]))]
     out: list[PoseHypothesis] = []
     taken: list[np.ndarray] = []
-    for flat in order[: 20000]:
+    for flat in order:
         j, r = np.unravel_index(int(flat), scores.shape)
         if not np.isfinite(scores[j, r]):
             break
