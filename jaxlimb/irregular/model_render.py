@@ -153,27 +153,28 @@ def render_window(
     if not jacobian:
         return ModelImage(M, C)
     flow, shading, on = np.zeros((3, 2, h, w)), np.zeros((3, h, w)), np.zeros((h, w), dtype=bool)
-    f_sub, f_sh, f_on = _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, supersample, reflectance)
-    flow[:, :, win[0], win[1]], shading[:, win[0], win[1]], on[win] = f_sub, f_sh, f_on
+    out = (flow[:, :, win[0], win[1]], shading[:, win[0], win[1]], on[win])  # written in place
+    _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, supersample, reflectance, C[win] >= 0.5, out)
     return ModelImage(M, C, flow, shading, on)
 
 
-def _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, ss, reflectance):  # type: ignore[no-untyped-def]
-    """Flow ``(3, 2, h, w)``, shading derivative ``(3, h, w)`` and on-body mask of the raster's pixels."""
+def _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, ss, reflectance, cover, out) -> None:  # type: ignore[no-untyped-def]
+    """Flow ``(3, 2, h, w)``, shading derivative ``(3, h, w)`` and on-body mask of the raster's pixels, written
+    in ``out`` (views of the window's arrays); ``cover``: pixels at least half covered."""
+    flow, shading, on = out
     idx = ras.buf[ss // 2 :: ss, ss // 2 :: ss][: ras.h, : ras.w]
-    on = idx > 0
+    np.greater(idx, 0, out=on)
     face = np.maximum(idx - 1, 0)
     n = ras.normals
     d = np.einsum("ij,ij->i", n, Xc[F[:, 0]])  # facet planes n . X = d
     f = cam.focal_px  # type: ignore[attr-defined]
     pr, pc = cam.principal_point_rc  # type: ignore[attr-defined]
-    yn = ((ras.r0 + np.arange(ras.h)) - pr)[:, None] / f * np.ones((1, ras.w))
-    xn = ((ras.c0 + np.arange(ras.w)) - pc)[None, :] / f * np.ones((ras.h, 1))
-    nf = n[face]
-    den = nf[..., 0] * xn + nf[..., 1] * yn + nf[..., 2]
-    Z = np.where(on, d[face] / np.where(np.abs(den) > 1e-12, den, 1e-12), 1.0)
-    flow = _rotation_flow(Z * xn - t[0], Z * yn - t[1], Z - t[2], xn, yn, f / Z) * on
-    _limb_flow(flow, ras, Xc, F, cam, t, ss)
+    yn = ((ras.r0 + np.arange(ras.h)) - pr)[:, None] / f  # (h, 1), broadcast against (1, w)
+    xn = ((ras.c0 + np.arange(ras.w)) - pc)[None, :] / f
+    den = np.take(n[:, 0], face) * xn + np.take(n[:, 1], face) * yn + np.take(n[:, 2], face)
+    Z = np.where(on, np.take(d, face) / np.where(np.abs(den) > 1e-12, den, 1e-12), 1.0)
+    _rotation_flow(Z * xn - t[0], Z * yn - t[1], Z - t[2], xn, yn, f / Z * on, out=flow)  # zero off the body
+    _limb_flow(flow, ras, Xc, F, cam, t, cover)
     cen = (Xc[F[:, 0]] + Xc[F[:, 1]] + Xc[F[:, 2]]) / 3.0
     e = -cen / np.linalg.norm(cen, axis=1, keepdims=True)
     dmu0, dmu = np.cross(n, s), np.cross(n, e)  # (nf, 3): d mu0 / d omega, d mu / d omega
@@ -183,22 +184,23 @@ def _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, ss, reflectance):  # type: ig
         drho = 2.0 * (mu[:, None] * dmu0 - mu0[:, None] * dmu) / np.maximum(mu0 + mu, 1e-12)[:, None] ** 2
     else:
         drho = dmu0
-    drho = np.where(lit[:, None], drho, 0.0)
-    shading = np.moveaxis(drho[face], -1, 0) * on
-    return flow, shading, on
+    drho = np.concatenate([np.zeros((1, 3)), np.where(lit[:, None], drho, 0.0)])  # row 0: off the body
+    np.take(drho.T, idx, axis=1, out=shading)
 
 
-def _rotation_flow(qx, qy, qz, xn, yn, f_over_z):  # type: ignore[no-untyped-def]
+def _rotation_flow(qx, qy, qz, xn, yn, f_over_z, out=None):  # type: ignore[no-untyped-def]
     """``(3, 2, ...)`` image motion (row, col) of points ``Q = X - t`` seen along ``(xn, yn, 1)`` for a rotation
-    about each camera axis: ``dX = e_i x Q``, ``dr = f (dX_y - yn dX_z) / Z``, ``dc = f (dX_x - xn dX_z) / Z``."""
-    return np.stack([
-        np.stack([(-qz - yn * qy) * f_over_z, -xn * qy * f_over_z]),  # e_x x Q = (0, -qz, qy)
-        np.stack([yn * qx * f_over_z, (qz + xn * qx) * f_over_z]),  # e_y x Q = (qz, 0, -qx)
-        np.stack([qx * f_over_z, -qy * f_over_z]),  # e_z x Q = (-qy, qx, 0)
-    ])  # fmt: skip
+    about each camera axis: ``dX = e_i x Q``, ``dr = f (dX_y - yn dX_z) / Z``, ``dc = f (dX_x - xn dX_z) / Z``
+    (in ``out`` if given)."""
+    if out is None:
+        out = np.empty((3, 2) + np.broadcast_shapes(*(np.shape(a) for a in (qx, qy, qz, xn, yn, f_over_z))))
+    out[0, 0], out[0, 1] = (-qz - yn * qy) * f_over_z, -xn * qy * f_over_z  # e_x x Q = (0, -qz, qy)
+    out[1, 0], out[1, 1] = yn * qx * f_over_z, (qz + xn * qx) * f_over_z  # e_y x Q = (qz, 0, -qx)
+    out[2, 0], out[2, 1] = qx * f_over_z, -qy * f_over_z  # e_z x Q = (-qy, qx, 0)
+    return out
 
 
-def _limb_flow(flow, ras, Xc, F, cam, t, ss) -> None:  # type: ignore[no-untyped-def]
+def _limb_flow(flow, ras, Xc, F, cam, t, cover) -> None:  # type: ignore[no-untyped-def]
     """Within 2 px of the outline, the flow of the nearest limb vertex (in place).
 
     The outline of a smooth body is not a material line: it moves with the contour
@@ -210,7 +212,6 @@ def _limb_flow(flow, ras, Xc, F, cam, t, ss) -> None:  # type: ignore[no-untyped
     seen[F[front].ravel()] = True
     unseen[F[~front].ravel()] = True
     limb = np.nonzero(seen & unseen)[0]
-    cover = cv2.resize((ras.buf > 0).astype(np.uint8) * 255, (ras.w, ras.h), interpolation=cv2.INTER_AREA) > 127
     k5 = np.ones((5, 5), np.uint8)
     band = (cv2.dilate(cover.astype(np.uint8), k5) > 0) & ~(cv2.erode(cover.astype(np.uint8), k5) > 0)
     if limb.size == 0 or not band.any():
