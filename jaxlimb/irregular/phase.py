@@ -89,31 +89,34 @@ def contour_normals(xy: np.ndarray) -> np.ndarray:
 def _score_block(conts, nrms, rolls, s_xy, xo, chamfer, opts, size):  # type: ignore[no-untyped-def]
     """Scores, scales and translations ``(B, T)`` for a block of templates and every roll (float32).
 
-    Every rotated quantity is linear in the template's (x, y): the rotated contour, its
-    projections across and toward the Sun and the normals' ``n . s`` come from two
-    products ``(B, n, 2) x (2, .)`` (``einsum``: one pass each, no BLAS threads) instead of elementwise passes.
+    Every rotated quantity is linear in the template's (x, y): the projections of the
+    rotated contour across the Sun and the normals' ``n . s`` are products
+    ``(B, n, 2) x (2, T)`` (``einsum``, one pass each), the scaled and translated contour
+    one batched product ``(B, n, 3) x (B, 3, T)`` per image axis (``x, y, 1``).
     """
     f4 = np.float32
     c, s = np.cos(rolls), np.sin(rolls)
     e = np.array([-s_xy[1], s_xy[0]])
     q = rolls.size // 4  # rolls a quarter turn apart: extents along -e and s are those along e of other rolls
     quarter = rolls.size % 4 == 0 and np.allclose(rolls, np.arange(rolls.size) * (2.0 * np.pi / rolls.size))
-    # X0 = c x - s y, X1 = s x + c y; a projection u . X = x (c u0 + s u1) + y (c u1 - s u0)
-    dirs = (np.array([1.0, 0.0]), np.array([0.0, 1.0]), e) + (() if quarter else (-e, s_xy))
+    # rolled contour X0 = c x - s y, X1 = s x + c y; a projection u . X = x (c u0 + s u1) + y (c u1 - s u0)
+    dirs = (e,) if quarter else (e, -e, s_xy)
     proj = [np.stack([c * u[0] + s * u[1], c * u[1] - s * u[0]]) for u in dirs]
     B, n = conts.shape[:2]
     Y = np.einsum("bik,kt->bit", conts, np.concatenate(proj, axis=1).astype(f4)).reshape(B, n, len(dirs), rolls.size)
-    X0, X1 = Y[:, :, 0], Y[:, :, 1]  # (B, n, T) rotated template contour (x, y)
-    h = Y[:, :, 2:].max(axis=1).astype(float)  # (B, 1 or 3, T) extents along e (-e, s)
+    h = Y.max(axis=1).astype(float)  # (B, 1 or 3, T) extents along e (-e, s)
     # the contour rolled by theta, along -e / s: rolled by theta + pi / theta + pi/2, along e
     xp = np.stack([h[:, 0], np.roll(h[:, 0], -2 * q, axis=1), np.roll(h[:, 0], -q, axis=1)] if quarter else [h[:, 0], h[:, 1], h[:, 2]], axis=-1)
     k = (xo[0] + xo[1]) / np.maximum(xp[..., 0] + xp[..., 1], 1e-9)
     d_e = 0.5 * (xo[0] - xo[1]) - k * 0.5 * (xp[..., 0] - xp[..., 1])
     d_s = xo[2] - k * xp[..., 2]
     T = d_e[..., None] * e + d_s[..., None] * s_xy  # (B, T, 2) translation (x, y)
-    kf = k.astype(f4)[:, None, :]
-    mx = kf * X0 + (T[..., 0] - chamfer.c0).astype(f4)[:, None, :]
-    my = kf * X1 + (T[..., 1] - chamfer.r0).astype(f4)[:, None, :]
+    # chamfer-map coordinates k X + T - (c0, r0) of every point: [x, y, 1] @ W, W (2, B, 3, T)
+    W = np.empty((2, B, 3, rolls.size), dtype=f4)
+    W[0, :, 0], W[0, :, 1], W[0, :, 2] = k * c, -k * s, T[..., 0] - chamfer.c0
+    W[1, :, 0], W[1, :, 1], W[1, :, 2] = k * s, k * c, T[..., 1] - chamfer.r0
+    xyh = np.concatenate([conts, np.ones((B, n, 1), dtype=f4)], axis=-1)
+    mx, my = np.matmul(xyh[None], W)  # (B, n, T) each
     n_s = np.stack([c * s_xy[0] + s * s_xy[1], c * s_xy[1] - s * s_xy[0]]).astype(f4)
     lit = np.einsum("bik,kt->bit", nrms, n_s) > opts.limb_cos  # n . s of the rotated normals
     d = cv2.remap(chamfer.dt32, mx.reshape(B * n, -1), my.reshape(B * n, -1), interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
