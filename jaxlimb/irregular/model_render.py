@@ -144,7 +144,7 @@ def render_window(
     if ras is None:
         return ModelImage(M, C, np.zeros((3, 2, h, w)) if jacobian else None, np.zeros((3, h, w)) if jacobian else None)
     s = -t / np.linalg.norm(t) if sun is None else np.asarray(sun, dtype=float)
-    mu0 = ras.normals @ s
+    mu0 = np.einsum("ij,j->i", ras.normals, s)  # not BLAS: see register._normal_equations
     lut = np.concatenate([[0.0], shade(mu0, ras.mu, reflectance)]).astype(np.float32)
     win = (slice(ras.r0, ras.r0 + ras.h), slice(ras.c0, ras.c0 + ras.w))
     size = (ras.w, ras.h)

@@ -323,19 +323,35 @@ def _blur(a: np.ndarray, sigma: float) -> np.ndarray:
     return a if sigma <= 0 else cv2.GaussianBlur(a, (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
 
 
+_CHUNK = 4096  # columns per product: 8 x 8 x 4096 stays below OpenBLAS's threading threshold
+
+
+def _normal_equations(At: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(At At^T, At y)`` in column chunks single-threaded BLAS handles (``einsum`` for the vector).
+
+    One product over all the window's pixels wakes OpenBLAS's thread pool, whose threads
+    then spin for every later call: on 2 busy cores that doubled the CPU time of a locate.
+    """
+    N = np.zeros((At.shape[0], At.shape[0]))
+    for j in range(0, At.shape[1], _CHUNK):
+        blk = At[:, j : j + _CHUNK]
+        N += blk @ blk.T
+    return N, np.einsum("ij,j->i", At, y)
+
+
 def _solve(At: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
     """Linear least squares ``At^T beta ~ y`` by the (column-scaled) normal equations: a few columns, many rows.
 
     Returns ``beta`` and the residual sum of squares ``|y|^2 - 2 beta.At y + beta.N beta``
     (no residual vector: ~1e-12 relative, the residual is >= 1e-6 of ``|y|^2`` here).
     """
-    N, r = At @ At.T, At @ y
+    N, r = _normal_equations(At, y)
     sc = np.maximum(np.sqrt(np.diag(N)), 1e-300)
     try:
         beta = np.linalg.solve(N / np.outer(sc, sc), r / sc) / sc
     except np.linalg.LinAlgError:
         raise ConvergenceError("registration: singular normal matrix (the model has no texture or edge)") from None
-    return beta, max(float(y @ y) - 2.0 * float(beta @ r) + float(beta @ N @ beta), 0.0)
+    return beta, max(float(np.einsum("i,i->", y, y)) - 2.0 * float(beta @ r) + float(beta @ N @ beta), 0.0)
 
 
 def _rotvec_matrix(w: np.ndarray) -> np.ndarray:
@@ -644,11 +660,11 @@ def finish_registration(img, camera, segmentation, st: GNState, ncc: float, opti
     P, D, R, iters = st.P, st.D, st.R, st.it
     At, y, beta, lo, hi = st.last  # type: ignore[misc]
     a, b = float(beta[0]), float(beta[1])
-    res = y - beta @ At
+    res = y - np.einsum("i,ij->j", beta, At)
     dof = max(res.size - At.shape[0], 1)
-    s2 = float(res @ res) / dof
+    s2 = float(np.einsum("i,i->", res, res)) / dof
     try:
-        cov_beta = s2 * np.linalg.inv(At @ At.T)
+        cov_beta = s2 * np.linalg.inv(_normal_equations(At, y)[0])
     except np.linalg.LinAlgError:
         raise ConvergenceError("registration: singular normal matrix") from None
     cov = cov_beta[2:4, 2:4] / a**2 + options.model_floor_px**2 * np.eye(2)
@@ -656,7 +672,7 @@ def finish_registration(img, camera, segmentation, st: GNState, ncc: float, opti
     rms = math.sqrt(s2)
     excess = math.sqrt(max(s2 - (sigma**2 if math.isfinite(sigma) else 0.0), 0.0)) / a
     mask, thr = segmentation
-    iou = _overlap(mask[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1] > 0, beta[:2] @ At[:2], thr, sigma)
+    iou = _overlap(mask[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1] > 0, np.einsum("i,ij->j", beta[:2], At[:2]), thr, sigma)
     if not np.all(np.isfinite(P)) or not np.all(np.isfinite(cov)):
         raise ConvergenceError("registration produced a non-finite centre or covariance")
     if excess > options.max_excess_frac:

@@ -81,9 +81,10 @@ def visible_faces(
     Front-facing: ``n . (c - v0) > 0`` (perspective, exact for planar faces).
     Lit: ``n . s > 0`` with ``s`` the unit direction from the body toward the Sun.
     """
-    flag = topo.normals @ np.asarray(camera_pos_body, dtype=float) - topo.offsets > 0.0
+    # einsum, not BLAS: a threaded matrix-vector product leaves OpenBLAS threads spinning (register._normal_equations)
+    flag = np.einsum("ij,j->i", topo.normals, np.asarray(camera_pos_body, dtype=float)) - topo.offsets > 0.0
     if sun_dir_body is not None:
-        flag &= topo.normals @ np.asarray(sun_dir_body, dtype=float) > 0.0
+        flag &= np.einsum("ij,j->i", topo.normals, np.asarray(sun_dir_body, dtype=float)) > 0.0
     return flag
 
 
