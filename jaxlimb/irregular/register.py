@@ -50,7 +50,7 @@ import numpy as np
 from ..errors import ConvergenceError, MatchError
 from .mesh import Mesh
 from .model_render import attitude_columns, clustered_mesh, downsample, level_camera, render_window
-from .silhouette import figure_centre, figure_extents, mesh_topology, render_silhouette, segment_body
+from .silhouette import figure_centre, figure_extents, mesh_topology, render_silhouette, segment_components
 
 
 @dataclass(frozen=True)
@@ -245,9 +245,8 @@ def lit_figure(image: np.ndarray, min_frac: float = 0.02) -> tuple[np.ndarray, f
     ridge beyond a dark valley) can fall apart into several pieces; the largest alone
     is not the figure the model predicts.
     """
-    mask, thr = segment_body(image)
-    binary = (np.asarray(image, dtype=float) > thr).astype(np.uint8)
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
+    mask, thr, labels, stats = segment_components(image)  # the components labelled once
+    n = stats.shape[0]
     if n <= 2:
         return mask, thr
     area = stats[1:, cv2.CC_STAT_AREA]

@@ -228,6 +228,20 @@ def segment_body(image: np.ndarray, options: SegmentOptions = SegmentOptions()) 
     NoBodyError, TooSmallError, TooBigError
         Constant image / figure below ``min_area_px`` / figure touching the border.
     """
+    return segment_components(image, options)[:2]
+
+
+def segment_components(image: np.ndarray, options: SegmentOptions = SegmentOptions()):  # type: ignore[no-untyped-def]
+    """:func:`segment_body`'s ``(mask, threshold)`` and the labels and stats of every component above the
+    threshold (``cv2.connectedComponentsWithStats``, 8-connected), for callers that keep more than the largest.
+
+    Raises
+    ------
+    ImageContentError
+        Not a finite 2-D image.
+    NoBodyError, TooSmallError, TooBigError
+        Constant image / figure below ``min_area_px`` / figure touching the border.
+    """
     img = np.asarray(image, dtype=float)
     if img.ndim != 2 or min(img.shape) < 2:
         raise ImageContentError(f"image must be a 2-D array of at least 2x2, got shape {img.shape}")
@@ -248,7 +262,7 @@ def segment_body(image: np.ndarray, options: SegmentOptions = SegmentOptions()) 
         raise TooSmallError(f"body figure has {area} px, below `min_area_px` = {options.min_area_px}")
     if not options.allow_border and (mask[0].any() or mask[-1].any() or mask[:, 0].any() or mask[:, -1].any()):
         raise TooBigError("the body figure touches the image border; its centre cannot be located reliably")
-    return mask, thr
+    return mask, thr, labels, stats
 
 
 def figure_centre(mask: np.ndarray) -> np.ndarray:
@@ -319,5 +333,6 @@ __all__ = [
     "outline_edges",
     "render_silhouette",
     "segment_body",
+    "segment_components",
     "visible_faces",
 ]
