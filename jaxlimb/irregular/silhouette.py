@@ -221,12 +221,8 @@ def otsu_threshold(image: np.ndarray, bins: int = 256, max_samples: int = 250_00
 def segment_body(image: np.ndarray, options: SegmentOptions = SegmentOptions()) -> tuple[np.ndarray, float]:
     """Binary figure of the body: threshold, largest 8-connected component, holes filled.
 
-    Raises
-    ------
-    ImageContentError
-        Not a finite 2-D image.
-    NoBodyError, TooSmallError, TooBigError
-        Constant image / figure below ``min_area_px`` / figure touching the border.
+    Raises the errors of :func:`segment_components` (not a finite 2-D image; a constant
+    image, a figure below ``min_area_px`` or touching the border).
     """
     return segment_components(image, options)[:2]
 
