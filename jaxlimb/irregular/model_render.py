@@ -156,7 +156,7 @@ def render_window(
     if ras is None:
         return ModelImage(M, C, np.zeros((3, 2, h, w)) if jacobian else None, np.zeros((3, h, w)) if jacobian else None)
     s = -t / np.linalg.norm(t) if sun is None else np.asarray(sun, dtype=float)
-    mu0 = ras.normals @ s
+    mu0 = np.einsum("ij,j->i", ras.normals, s)  # not BLAS: see register._normal_equations
     lit = shadow_fractions(mesh.vertices, mesh.faces, np.asarray(R, dtype=float).T @ s) if shadows else np.ones(F.shape[0])
     rho = shade(mu0, ras.mu, reflectance) * lit
     win = (slice(ras.r0, ras.r0 + ras.h), slice(ras.c0, ras.c0 + ras.w))
@@ -177,8 +177,8 @@ def render_window(
     if not jacobian:
         return ModelImage(M, C, dM_dmix=D)
     flow, shading, on = np.zeros((3, 2, h, w)), np.zeros((3, h, w)), np.zeros((h, w), dtype=bool)
-    f_sub, f_sh, f_on = _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, supersample, reflectance, mix, lit if shadows else None)
-    flow[:, :, win[0], win[1]], shading[:, win[0], win[1]], on[win] = f_sub, f_sh, f_on
+    out = (flow[:, :, win[0], win[1]], shading[:, win[0], win[1]], on[win])  # written in place
+    _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, supersample, reflectance, C[win] >= 0.5, out, mix, lit if shadows else None)
     return ModelImage(M, C, flow, shading, on, D)
 
 
@@ -238,15 +238,16 @@ def shadow_fractions(vertices: np.ndarray, faces: np.ndarray, sun_body: np.ndarr
     Rs = np.stack([x, np.cross(z, x), z])
     f = L * 0.5 * n_px / (1.05 * rmax)
     cam = _SunView(f, (n_px, n_px), ((n_px - 1) / 2.0, (n_px - 1) / 2.0))
-    ras = rasterise(V @ Rs.T + [0.0, 0.0, L], F, cam, 1)
+    ras = rasterise(np.einsum("ij,kj->ik", V, Rs) + [0.0, 0.0, L], F, cam, 1)
     seen = np.bincount(ras.buf.ravel(), minlength=F.shape[0] + 1)[1:].astype(float) if ras is not None else np.zeros(F.shape[0])
     n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    expected = 0.5 * np.maximum(n @ sb, 0.0) * (f / L) ** 2
+    ns_ = np.einsum("ij,j->i", n, sb)  # not BLAS: see register._normal_equations
+    expected = 0.5 * np.maximum(ns_, 0.0) * (f / L) ** 2
     frac = np.clip(seen / np.maximum(expected, 1e-300), 0.0, 1.0)
     # sampling noise (a facet's edge samples go to it or its neighbour): near 1 is lit, and a facet
     # with fewer than 6 expected samples is unresolved
     frac = np.where((expected < 6.0) | (frac > 0.8), 1.0, frac)
-    frac = np.where(n @ sb > 0, frac, 0.0)
+    frac = np.where(ns_ > 0, frac, 0.0)
     if len(_SHADOWS) > 64:
         _SHADOWS.clear()
     _SHADOWS[key] = frac
@@ -315,26 +316,28 @@ def _smooth_flat_samples(ras, Xc, F, cam, s, reflectance, r, c, face):  # type: 
     ns = (1.0 - b1 - b2)[:, None] * vn[F[face, 0]] + b1[:, None] * vn[F[face, 1]] + b2[:, None] * vn[F[face, 2]]
     ns /= np.maximum(np.linalg.norm(ns, axis=1, keepdims=True), 1e-300)
     eye = -X / np.linalg.norm(X, axis=1, keepdims=True)
-    smooth = shade(ns @ s, np.maximum(np.einsum("ij,ij->i", ns, eye), 1e-3), reflectance)
-    return smooth - shade(n @ s, ras.mu[face], reflectance)
+    smooth = shade(np.einsum("ij,j->i", ns, s), np.maximum(np.einsum("ij,ij->i", ns, eye), 1e-3), reflectance)
+    return smooth - shade(np.einsum("ij,j->i", n, s), ras.mu[face], reflectance)
 
 
-def _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, ss, reflectance, mix=None, shadow=None):  # type: ignore[no-untyped-def]
-    """Flow ``(3, 2, h, w)``, shading derivative ``(3, h, w)`` and on-body mask of the raster's pixels."""
+def _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, ss, reflectance, cover, out, mix=None, shadow=None) -> None:  # type: ignore[no-untyped-def]
+    """Flow ``(3, 2, h, w)``, shading derivative ``(3, h, w)`` and on-body mask of the raster's pixels, written
+    in ``out`` (views of the window's arrays); ``cover``: pixels at least half covered; ``mix``, ``shadow``:
+    :func:`render_window`'s photometric mix and lit fractions."""
+    flow, shading, on = out
     idx = ras.buf[ss // 2 :: ss, ss // 2 :: ss][: ras.h, : ras.w]
-    on = idx > 0
+    np.greater(idx, 0, out=on)
     face = np.maximum(idx - 1, 0)
     n = ras.normals
     d = np.einsum("ij,ij->i", n, Xc[F[:, 0]])  # facet planes n . X = d
     f = cam.focal_px  # type: ignore[attr-defined]
     pr, pc = cam.principal_point_rc  # type: ignore[attr-defined]
-    yn = ((ras.r0 + np.arange(ras.h)) - pr)[:, None] / f * np.ones((1, ras.w))
-    xn = ((ras.c0 + np.arange(ras.w)) - pc)[None, :] / f * np.ones((ras.h, 1))
-    nf = n[face]
-    den = nf[..., 0] * xn + nf[..., 1] * yn + nf[..., 2]
-    Z = np.where(on, d[face] / np.where(np.abs(den) > 1e-12, den, 1e-12), 1.0)
-    flow = _rotation_flow(Z * xn - t[0], Z * yn - t[1], Z - t[2], xn, yn, f / Z) * on
-    _limb_flow(flow, ras, Xc, F, cam, t, ss)
+    yn = ((ras.r0 + np.arange(ras.h)) - pr)[:, None] / f  # (h, 1), broadcast against (1, w)
+    xn = ((ras.c0 + np.arange(ras.w)) - pc)[None, :] / f
+    den = np.take(n[:, 0], face) * xn + np.take(n[:, 1], face) * yn + np.take(n[:, 2], face)
+    Z = np.where(on, np.take(d, face) / np.where(np.abs(den) > 1e-12, den, 1e-12), 1.0)
+    _rotation_flow(Z * xn - t[0], Z * yn - t[1], Z - t[2], xn, yn, f / Z * on, out=flow)  # zero off the body
+    _limb_flow(flow, ras, Xc, F, cam, t, cover)
     cen = (Xc[F[:, 0]] + Xc[F[:, 1]] + Xc[F[:, 2]]) / 3.0
     e = -cen / np.linalg.norm(cen, axis=1, keepdims=True)
     dmu0, dmu = np.cross(n, s), np.cross(n, e)  # (nf, 3): d mu0 / d omega, d mu / d omega
@@ -349,21 +352,23 @@ def _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, ss, reflectance, mix=None, sh
         for j, law in enumerate(MIX_LAWS):  # (the smooth-shading column, mix[-1], is left out here)
             drho = drho + mix[j] * (_basis_derivative(mu0, mu, dmu0, dmu, law) - base)
     drho = np.where(lit[:, None], drho, 0.0) * (1.0 if shadow is None else shadow[:, None])
-    shading = np.moveaxis(drho[face], -1, 0) * on
-    return flow, shading, on
+    drho = np.concatenate([np.zeros((1, 3)), drho])  # row 0: off the body
+    np.take(drho.T, idx, axis=1, out=shading)
 
 
-def _rotation_flow(qx, qy, qz, xn, yn, f_over_z):  # type: ignore[no-untyped-def]
+def _rotation_flow(qx, qy, qz, xn, yn, f_over_z, out=None):  # type: ignore[no-untyped-def]
     """``(3, 2, ...)`` image motion (row, col) of points ``Q = X - t`` seen along ``(xn, yn, 1)`` for a rotation
-    about each camera axis: ``dX = e_i x Q``, ``dr = f (dX_y - yn dX_z) / Z``, ``dc = f (dX_x - xn dX_z) / Z``."""
-    return np.stack([
-        np.stack([(-qz - yn * qy) * f_over_z, -xn * qy * f_over_z]),  # e_x x Q = (0, -qz, qy)
-        np.stack([yn * qx * f_over_z, (qz + xn * qx) * f_over_z]),  # e_y x Q = (qz, 0, -qx)
-        np.stack([qx * f_over_z, -qy * f_over_z]),  # e_z x Q = (-qy, qx, 0)
-    ])  # fmt: skip
+    about each camera axis: ``dX = e_i x Q``, ``dr = f (dX_y - yn dX_z) / Z``, ``dc = f (dX_x - xn dX_z) / Z``
+    (in ``out`` if given)."""
+    if out is None:
+        out = np.empty((3, 2) + np.broadcast_shapes(*(np.shape(a) for a in (qx, qy, qz, xn, yn, f_over_z))))
+    out[0, 0], out[0, 1] = (-qz - yn * qy) * f_over_z, -xn * qy * f_over_z  # e_x x Q = (0, -qz, qy)
+    out[1, 0], out[1, 1] = yn * qx * f_over_z, (qz + xn * qx) * f_over_z  # e_y x Q = (qz, 0, -qx)
+    out[2, 0], out[2, 1] = qx * f_over_z, -qy * f_over_z  # e_z x Q = (-qy, qx, 0)
+    return out
 
 
-def _limb_flow(flow, ras, Xc, F, cam, t, ss) -> None:  # type: ignore[no-untyped-def]
+def _limb_flow(flow, ras, Xc, F, cam, t, cover) -> None:  # type: ignore[no-untyped-def]
     """Within 2 px of the outline, the flow of the nearest limb vertex (in place).
 
     The outline of a smooth body is not a material line: it moves with the contour
@@ -375,7 +380,6 @@ def _limb_flow(flow, ras, Xc, F, cam, t, ss) -> None:  # type: ignore[no-untyped
     seen[F[front].ravel()] = True
     unseen[F[~front].ravel()] = True
     limb = np.nonzero(seen & unseen)[0]
-    cover = cv2.resize((ras.buf > 0).astype(np.uint8) * 255, (ras.w, ras.h), interpolation=cv2.INTER_AREA) > 127
     k5 = np.ones((5, 5), np.uint8)
     band = (cv2.dilate(cover.astype(np.uint8), k5) > 0) & ~(cv2.erode(cover.astype(np.uint8), k5) > 0)
     if limb.size == 0 or not band.any():
@@ -397,15 +401,19 @@ def _limb_flow(flow, ras, Xc, F, cam, t, ss) -> None:  # type: ignore[no-untyped
     flow[:, :, rr, cc] = _rotation_flow(Q[:, 0], Q[:, 1], Q[:, 2], X[j, 0] / Z, X[j, 1] / Z, f / Z)
 
 
-def attitude_columns(model: ModelImage, ratio: float, blur) -> np.ndarray:  # type: ignore[no-untyped-def]
-    """``(n, 3)`` derivatives of the blurred ``G = M - ratio C`` for rotations about the camera axes (rad)."""
+def attitude_columns(model: ModelImage, ratio: float, blur, out: np.ndarray | None = None) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """``(n, 3)`` derivatives of the blurred ``G = M - ratio C`` for rotations about the camera axes (rad).
+
+    ``out``: a ``(3, n)`` array to write them in (the rows of a transposed design matrix);
+    the result is then its transposed view.
+    """
     G = model.M - ratio * model.C
     gr, gc = np.gradient(G)
-    cols = []
+    out = np.empty((3, G.size)) if out is None else out
     for i in range(3):
-        d = -(gr * model.flow[i, 0] + gc * model.flow[i, 1]) + model.shading[i]  # type: ignore[index]
-        cols.append(blur(d).ravel())
-    return np.stack(cols, axis=1)
+        d = model.shading[i] - gr * model.flow[i, 0] - gc * model.flow[i, 1]  # type: ignore[index]
+        out[i] = blur(d).ravel()
+    return out.T
 
 
 __all__ = ["MIX_LAWS", "ModelImage", "shadow_fractions", "attitude_columns", "clustered_mesh", "downsample", "level_camera", "render_window", "window_camera"]

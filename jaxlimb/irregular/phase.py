@@ -33,6 +33,7 @@ import numpy as np
 
 from .database import TemplateDatabase
 from .matching import _Chamfer, _rot_z_to
+from .silhouette import figure_extents
 
 
 @dataclass(frozen=True)
@@ -85,37 +86,43 @@ def contour_normals(xy: np.ndarray) -> np.ndarray:
     return nrm / np.maximum(np.linalg.norm(nrm, axis=-1, keepdims=True), 1e-12)
 
 
-def _observed_extents(mask: np.ndarray, axes: np.ndarray) -> np.ndarray:
-    """``max`` of the figure's pixel centres (x, y) along each direction: attained on its outer contours."""
-    contours, _ = cv2.findContours(np.ascontiguousarray(mask, dtype=np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    xy = np.concatenate([c.reshape(-1, 2) for c in contours]).astype(float)
-    return (xy @ axes.T).max(axis=0)
-
-
 def _score_block(conts, nrms, rolls, s_xy, xo, chamfer, opts, size):  # type: ignore[no-untyped-def]
-    """Scores, scales and translations ``(B, T)`` for a block of templates and every roll (float32)."""
+    """Scores, scales and translations ``(B, T)`` for a block of templates and every roll (float32).
+
+    Every rotated quantity is linear in the template's (x, y): the projections of the
+    rotated contour across the Sun and the normals' ``n . s`` are products
+    ``(B, n, 2) x (2, T)`` (``einsum``, one pass each), the scaled and translated contour
+    one batched product ``(B, n, 3) x (B, 3, T)`` per image axis (``x, y, 1``).
+    """
     f4 = np.float32
-    c, s = np.cos(rolls).astype(f4)[None, :, None], np.sin(rolls).astype(f4)[None, :, None]
-    x, y = conts[:, None, :, 0], conts[:, None, :, 1]
-    X0, X1 = c * x - s * y, s * x + c * y  # (B, T, n) rotated template contour (x, y)
+    c, s = np.cos(rolls), np.sin(rolls)
     e = np.array([-s_xy[1], s_xy[0]])
-    pe, ps = X0 * f4(e[0]) + X1 * f4(e[1]), X0 * f4(s_xy[0]) + X1 * f4(s_xy[1])
-    xp = np.stack([pe.max(-1), -pe.min(-1), ps.max(-1)], axis=-1).astype(float)
+    q = rolls.size // 4  # rolls a quarter turn apart: extents along -e and s are those along e of other rolls
+    quarter = rolls.size % 4 == 0 and np.allclose(rolls, np.arange(rolls.size) * (2.0 * np.pi / rolls.size))
+    # rolled contour X0 = c x - s y, X1 = s x + c y; a projection u . X = x (c u0 + s u1) + y (c u1 - s u0)
+    dirs = (e,) if quarter else (e, -e, s_xy)
+    proj = [np.stack([c * u[0] + s * u[1], c * u[1] - s * u[0]]) for u in dirs]
+    B, n = conts.shape[:2]
+    Y = np.einsum("bik,kt->bit", conts, np.concatenate(proj, axis=1).astype(f4)).reshape(B, n, len(dirs), rolls.size)
+    h = Y.max(axis=1).astype(float)  # (B, 1 or 3, T) extents along e (-e, s)
+    # the contour rolled by theta, along -e / s: rolled by theta + pi / theta + pi/2, along e
+    xp = np.stack([h[:, 0], np.roll(h[:, 0], -2 * q, axis=1), np.roll(h[:, 0], -q, axis=1)] if quarter else [h[:, 0], h[:, 1], h[:, 2]], axis=-1)
     k = (xo[0] + xo[1]) / np.maximum(xp[..., 0] + xp[..., 1], 1e-9)
     d_e = 0.5 * (xo[0] - xo[1]) - k * 0.5 * (xp[..., 0] - xp[..., 1])
     d_s = xo[2] - k * xp[..., 2]
     T = d_e[..., None] * e + d_s[..., None] * s_xy  # (B, T, 2) translation (x, y)
-    kf = k.astype(f4)[..., None]
-    mx = kf * X0 + (T[..., 0] - chamfer.c0).astype(f4)[..., None]
-    my = kf * X1 + (T[..., 1] - chamfer.r0).astype(f4)[..., None]
-    # n . s of the rotated normals: nx (c s0 + s s1) + ny (c s1 - s s0)
-    nx, ny = nrms[:, None, :, 0], nrms[:, None, :, 1]
-    lit = nx * (c * f4(s_xy[0]) + s * f4(s_xy[1])) + ny * (c * f4(s_xy[1]) - s * f4(s_xy[0])) > opts.limb_cos
-    n = mx.shape[-1]
-    d = cv2.remap(chamfer.dt32, mx.reshape(-1, n), my.reshape(-1, n), interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    # chamfer-map coordinates k X + T - (c0, r0) of every point: [x, y, 1] @ W, W (2, B, 3, T)
+    W = np.empty((2, B, 3, rolls.size), dtype=f4)
+    W[0, :, 0], W[0, :, 1], W[0, :, 2] = k * c, -k * s, T[..., 0] - chamfer.c0
+    W[1, :, 0], W[1, :, 1], W[1, :, 2] = k * s, k * c, T[..., 1] - chamfer.r0
+    xyh = np.concatenate([conts, np.ones((B, n, 1), dtype=f4)], axis=-1)
+    mx, my = np.matmul(xyh[None], W)  # (B, n, T) each
+    n_s = np.stack([c * s_xy[0] + s * s_xy[1], c * s_xy[1] - s * s_xy[0]]).astype(f4)
+    lit = np.einsum("bik,kt->bit", nrms, n_s) > opts.limb_cos  # n . s of the rotated normals
+    d = cv2.remap(chamfer.dt32, mx.reshape(B * n, -1), my.reshape(B * n, -1), interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     d = np.minimum(d.reshape(mx.shape), f4(opts.truncate_frac * size))
-    n_lit = np.maximum(np.count_nonzero(lit, axis=-1), 1)
-    score = np.einsum("...i,...i->...", d, lit.astype(f4)).astype(float) / n_lit + np.where(n_lit < 3, np.inf, 0.0)
+    n_lit = np.maximum(np.count_nonzero(lit, axis=1), 1)
+    score = np.einsum("bit,bit->bt", d, lit.astype(f4)).astype(float) / n_lit + np.where(n_lit < 3, np.inf, 0.0)
     return score, k, T
 
 
@@ -145,7 +152,7 @@ def phase_candidates(
     s_xy = np.array([s_img_rc[1], s_img_rc[0]], dtype=float)
     s_xy /= np.linalg.norm(s_xy)
     e = np.array([-s_xy[1], s_xy[0]])
-    xo = _observed_extents(mask, np.stack([e, -e, s_xy]))
+    xo = figure_extents(mask, np.stack([e, -e, s_xy])[:, ::-1])  # axes (x, y) -> (row, col)
     chamfer = _Chamfer(mask)
     rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
     size = float(max(rr[-1] - rr[0], cc[-1] - cc[0]) + 1)
@@ -162,10 +169,12 @@ def phase_candidates(
 
 def _hypotheses(db, camera, scores, ks, Ts, rolls, options) -> list[PoseHypothesis]:  # type: ignore[no-untyped-def]
     """The ``n_candidates`` best (template, roll) cells, at least one step apart in view and roll."""
-    order = np.argsort(scores, axis=None)
+    flat_scores = scores.ravel()
+    top = np.argpartition(flat_scores, min(20000, flat_scores.size) - 1)[:20000]  # the 20000 best, then in order
+    order = top[np.lexsort((top, flat_scores[top]))]
     out: list[PoseHypothesis] = []
     taken: list[np.ndarray] = []
-    for flat in order[: 20000]:
+    for flat in order:
         j, r = np.unravel_index(int(flat), scores.shape)
         if not np.isfinite(scores[j, r]):
             break

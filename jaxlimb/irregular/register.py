@@ -60,7 +60,7 @@ import numpy as np
 from ..errors import ConvergenceError, MatchError
 from .mesh import Mesh
 from .model_render import MIX_LAWS, attitude_columns, clustered_mesh, downsample, level_camera, render_window
-from .silhouette import figure_centre, mesh_topology, render_silhouette, segment_body
+from .silhouette import figure_centre, figure_extents, mesh_topology, render_silhouette, segment_components
 
 
 @dataclass(frozen=True)
@@ -226,22 +226,17 @@ def render_model(
 
 
 def _lit_figure(topo, camera, R, t, sun):  # type: ignore[no-untyped-def]
-    """Predicted lit figure (full frame, uint8) of the mesh at pose ``(R, t)``."""
-    mask, _ = render_silhouette(topo, R, t, camera.focal_px, camera.principal_point_rc, camera.shape, sun_dir_camera=sun)
-    return mask
+    """Predicted lit figure (full frame, uint8) of the mesh at pose ``(R, t)`` and its outer contours."""
+    return render_silhouette(topo, R, t, camera.focal_px, camera.principal_point_rc, camera.shape, sun_dir_camera=sun)
 
 
 def _pose(camera: object, P: np.ndarray, D: float) -> np.ndarray:
     return D * np.asarray(camera.los(P), dtype=float)  # type: ignore[attr-defined]
 
 
-def _extents(mask: np.ndarray, axes: np.ndarray) -> np.ndarray:
-    """``max`` of the figure's pixel centres along each unit (row, col) direction of ``axes`` ``(k, 2)``."""
-    rr, cc = np.nonzero(mask)
-    return (np.stack([rr, cc], axis=1).astype(float) @ axes.T).max(axis=0)
-
-
-def extent_update(obs: np.ndarray, pred: np.ndarray, P: np.ndarray, s_img: np.ndarray | None) -> tuple[np.ndarray, float]:
+def extent_update(
+    obs: np.ndarray, pred: np.ndarray, P: np.ndarray, s_img: np.ndarray | None, pred_contours: list | None = None
+) -> tuple[np.ndarray, float]:
     """Shift and scale (about ``P``) taking the predicted lit figure onto the observed one.
 
     With a Sun direction ``s_img`` in the image, the lit figure's extents across the
@@ -249,7 +244,8 @@ def extent_update(obs: np.ndarray, pred: np.ndarray, P: np.ndarray, s_img: np.nd
     are those of the silhouette (exact for a convex body), whatever the dim terminator
     does: the scale is the ratio of the cross-Sun widths, the shift matches the
     cross-Sun mid-point and the sunward extreme.  Without one (zero phase): area ratio
-    and centroids.
+    and centroids.  ``pred_contours``: the outer contours of ``pred``, if known
+    (:func:`~.silhouette.figure_extents`).
     """
     if s_img is None:
         k = math.sqrt(float(obs.sum()) / float(pred.sum()))
@@ -257,7 +253,7 @@ def extent_update(obs: np.ndarray, pred: np.ndarray, P: np.ndarray, s_img: np.nd
         return figure_centre(obs) - (P + k * (fp - P)), k
     e = np.array([-s_img[1], s_img[0]])
     axes = np.stack([e, -e, s_img])
-    xo, xp = _extents(obs, axes), _extents(pred, axes)
+    xo, xp = figure_extents(obs, axes), figure_extents(pred, axes, pred_contours)
     pe, ps = float(P @ e), float(P @ s_img)
     k = (xo[0] + xo[1]) / (xp[0] + xp[1])
     mid_o, mid_p = 0.5 * (xo[0] - xo[1]), 0.5 * (xp[0] - xp[1])
@@ -277,11 +273,11 @@ def initial_centre(mesh: Mesh, camera: object, R: np.ndarray, sun, mask: np.ndar
     D = float(range_km) if range_km else 2.0 * mesh.max_radius * camera.focal_px / extent  # type: ignore[attr-defined]
     P = fc.copy()
     for _ in range(3):
-        pred = _lit_figure(topo, camera, R, _pose(camera, P, D), sun)
+        pred, contours = _lit_figure(topo, camera, R, _pose(camera, P, D), sun)
         if float(pred.sum()) < 4:
             raise MatchError("the predicted lit figure is empty at the initial pose (wrong attitude or range?)")
         s = None if sun is None else sun_direction_image(sun, camera, P, min_norm=0.08)
-        shift, k = extent_update(mask, pred, P, None if s is None else np.asarray(s))
+        shift, k = extent_update(mask, pred, P, None if s is None else np.asarray(s), contours)
         P, D = P + shift, D / k
     return P, D
 
@@ -294,9 +290,8 @@ def lit_figure(image: np.ndarray, min_frac: float = 0.02) -> tuple[np.ndarray, f
     ridge beyond a dark valley) can fall apart into several pieces; the largest alone
     is not the figure the model predicts.
     """
-    mask, thr = segment_body(image)
-    binary = (np.asarray(image, dtype=float) > thr).astype(np.uint8)
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
+    mask, thr, labels, stats = segment_components(image)  # the components labelled once
+    n = stats.shape[0]
     if n <= 2:
         return mask, thr
     area = stats[1:, cv2.CC_STAT_AREA]
@@ -311,9 +306,9 @@ def lit_figure(image: np.ndarray, min_frac: float = 0.02) -> tuple[np.ndarray, f
 def _window(camera: object, P: np.ndarray, D: float, mesh: Mesh, mask: np.ndarray, pad: int):  # type: ignore[no-untyped-def]
     """Pixel window holding the predicted body (bounding sphere) and the observed figure, plus ``pad``."""
     rad = camera.focal_px * mesh.max_radius / max(D - mesh.max_radius, 1e-9 * D)  # type: ignore[attr-defined]
-    rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
-    lo = np.minimum(np.floor(P - rad), [rr[0], cc[0]]) - pad
-    hi = np.maximum(np.ceil(P + rad), [rr[-1], cc[-1]]) + pad
+    box = _bbox(mask)
+    lo = np.minimum(np.floor(P - rad), box[:2]) - pad
+    hi = np.maximum(np.ceil(P + rad), box[2:]) + pad
     shape = np.array(camera.shape)  # type: ignore[attr-defined]
     return np.maximum(lo, 0).astype(int), np.minimum(hi, shape - 1).astype(int)
 
@@ -337,16 +332,25 @@ def ncc_shift(image: np.ndarray, model: np.ndarray, lo: np.ndarray, search: int)
     return d, float(score[i, j])
 
 
-def _gn_system(M: np.ndarray, C: np.ndarray, ratio: float, P_win: np.ndarray) -> np.ndarray:
-    """Design matrix ``(n, 5)`` of the linearised model ``a M + b (1 - C)`` (the body hides the sky).
+def _gn_system(M: np.ndarray, C: np.ndarray, ratio: float, P_win: np.ndarray, n_rows: int = 5) -> np.ndarray:
+    """Transposed design matrix ``(n_rows, n)`` of the linearised model ``a M + b (1 - C)`` (the body hides the sky).
 
-    Columns: ``M``, ``1 - C``, ``-dG/dr``, ``-dG/dc``, ``-(x - P).grad G`` with
-    ``G = M - ratio C`` (``ratio = b/a`` of the previous solve).
+    Rows: ``M``, ``1 - C``, ``-dG/dr``, ``-dG/dc``, ``-(x - P).grad G`` with
+    ``G = M - ratio C`` (``ratio = b/a`` of the previous solve); rows 5.. are left for
+    the attitude (:func:`.model_render.attitude_columns`).  Rows, not columns: each is
+    written in one contiguous pass and the normal matrix is ``At At^T``.
     """
+    h, w = M.shape
+    At = np.empty((n_rows, h * w))
     gr, gc = np.gradient(M - ratio * C)
-    rr, cc = np.mgrid[0 : M.shape[0], 0 : M.shape[1]]
-    radial = (rr - P_win[0]) * gr + (cc - P_win[1]) * gc
-    return np.stack([M.ravel(), 1.0 - C.ravel(), -gr.ravel(), -gc.ravel(), -radial.ravel()], axis=1)
+    At[0] = M.ravel()
+    np.subtract(1.0, C.ravel(), out=At[1])
+    np.negative(gr.ravel(), out=At[2])
+    np.negative(gc.ravel(), out=At[3])
+    radial = At[4].reshape(h, w)
+    np.multiply(P_win[0] - np.arange(h, dtype=float)[:, None], gr, out=radial)
+    radial -= (np.arange(w, dtype=float) - P_win[1])[None, :] * gc
+    return At
 
 
 def _background_sigma(image: np.ndarray, mask: np.ndarray, lo, hi) -> float:  # type: ignore[no-untyped-def]
@@ -363,14 +367,35 @@ def _blur(a: np.ndarray, sigma: float) -> np.ndarray:
     return a if sigma <= 0 else cv2.GaussianBlur(a, (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
 
 
-def _solve(A: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Linear least squares by the (column-scaled) normal equations: a few columns, many rows."""
-    sc = np.maximum(np.sqrt(np.einsum("ij,ij->j", A, A)), 1e-300)
-    An = A / sc
+_CHUNK = 4096  # columns per product: 8 x 8 x 4096 stays below OpenBLAS's threading threshold
+
+
+def _normal_equations(At: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(At At^T, At y)`` in column chunks single-threaded BLAS handles (``einsum`` for the vector).
+
+    One product over all the window's pixels wakes OpenBLAS's thread pool, whose threads
+    then spin for every later call: on 2 busy cores that doubled the CPU time of a locate.
+    """
+    N = np.zeros((At.shape[0], At.shape[0]))
+    for j in range(0, At.shape[1], _CHUNK):
+        blk = At[:, j : j + _CHUNK]
+        N += blk @ blk.T
+    return N, np.einsum("ij,j->i", At, y)
+
+
+def _solve(At: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
+    """Linear least squares ``At^T beta ~ y`` by the (column-scaled) normal equations: a few columns, many rows.
+
+    Returns ``beta`` and the residual sum of squares ``|y|^2 - 2 beta.At y + beta.N beta``
+    (no residual vector: ~1e-12 relative, the residual is >= 1e-6 of ``|y|^2`` here).
+    """
+    N, r = _normal_equations(At, y)
+    sc = np.maximum(np.sqrt(np.diag(N)), 1e-300)
     try:
-        return np.linalg.solve(An.T @ An, An.T @ y) / sc
+        beta = np.linalg.solve(N / np.outer(sc, sc), r / sc) / sc
     except np.linalg.LinAlgError:
         raise ConvergenceError("registration: singular normal matrix (the model has no texture or edge)") from None
+    return beta, max(float(np.einsum("i,i->", y, y)) - 2.0 * float(beta @ r) + float(beta @ N @ beta), 0.0)
 
 
 def _rotvec_matrix(w: np.ndarray) -> np.ndarray:
@@ -401,9 +426,23 @@ def _level(sigma: float, size: float, options: RegisterOptions) -> int:
     return max(1, min(k, int(size // options.pyramid_min_size_px)))
 
 
+_BBOX: dict = {}
+
+
+def _bbox(mask: np.ndarray) -> np.ndarray:
+    """``(r0, c0, r1, c1)`` of a figure, remembered for the last few masks (the pyramid's, asked every iteration)."""
+    hit = _BBOX.get(id(mask))
+    if hit is None or hit[0] is not mask:
+        rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
+        if len(_BBOX) > 16:
+            _BBOX.clear()
+        hit = _BBOX[id(mask)] = (mask, np.array([rr[0], cc[0], rr[-1], cc[-1]]))
+    return hit[1]
+
+
 def _figure_size(mask: np.ndarray) -> float:
-    rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
-    return float(max(rr[-1] - rr[0], cc[-1] - cc[0]) + 1)
+    box = _bbox(mask)
+    return float(max(box[2] - box[0], box[3] - box[1]) + 1)
 
 
 def _render_level(pyr, mesh, camera, R, sun, P, D, k, options, fit_attitude, mix):  # type: ignore[no-untyped-def]
@@ -417,7 +456,7 @@ def _render_level(pyr, mesh, camera, R, sun, P, D, k, options, fit_attitude, mix
     return model, lo, hi, Pk
 
 
-def _albedo_columns(M: np.ndarray, P_win: np.ndarray, order: int, harmonics: int) -> list[np.ndarray]:
+def _albedo_rows(M: np.ndarray, P_win: np.ndarray, order: int, harmonics: int) -> list[np.ndarray]:
     """``M`` times the monomials of degree 1..``order`` of the offsets from ``P_win`` (units of the
     window size) and times ``cos k theta``, ``sin k theta`` (``k = 1..harmonics``, ``theta`` the position
     angle about ``P_win``): an albedo that varies across the body and along its outline
@@ -425,10 +464,10 @@ def _albedo_columns(M: np.ndarray, P_win: np.ndarray, order: int, harmonics: int
     h, w = M.shape
     y = (np.arange(h)[:, None] - P_win[0]) / max(h, w) * np.ones((1, w))
     x = (np.arange(w)[None, :] - P_win[1]) / max(h, w) * np.ones((h, 1))
-    cols = [M * y**i * x ** (d - i) for d in range(1, order + 1) for i in range(d + 1)]
+    rows = [M * y**i * x ** (d - i) for d in range(1, order + 1) for i in range(d + 1)]
     th = np.arctan2(y, x)
-    cols += [M * f(k * th) for k in range(1, harmonics + 1) for f in (np.cos, np.sin)]
-    return [c.reshape(-1, 1) for c in cols]
+    rows += [M * f(k * th) for k in range(1, harmonics + 1) for f in (np.cos, np.sin)]
+    return [r.ravel() for r in rows]
 
 
 def n_albedo_columns(options: RegisterOptions) -> int:
@@ -436,27 +475,28 @@ def n_albedo_columns(options: RegisterOptions) -> int:
 
 
 def _system(model, img, lo, hi, Pk, s, psf, ratio, fit_attitude, mix, albedo=(0, 0)):  # type: ignore[no-untyped-def]
-    """Design matrix and data of one solve: frame blurred by ``s``, model by ``hypot(s, psf)`` (the
-    camera's PSF, :func:`estimate_psf`).  Columns: :func:`_gn_system`, the attitude (if fitted), the
-    albedo field (:func:`_albedo_columns`), and with ``mix`` last ``dM/dmix``."""
+    """Transposed design matrix and data of one solve: frame blurred by ``s``, model by ``hypot(s, psf)``
+    (the camera's PSF, :func:`estimate_psf`).  Rows: :func:`_gn_system`, the attitude (if fitted), the
+    albedo field (:func:`_albedo_rows`), and with ``mix`` last ``dM/dmix``."""
     sm = math.hypot(s, psf)
     Mb = _blur(model.M, sm)
-    A = _gn_system(Mb, _blur(model.C, sm), ratio, Pk - lo)
+    extra = _albedo_rows(Mb, Pk - lo, *albedo) if (albedo[0] or albedo[1]) else []
+    extra += [] if mix is None else [_blur(d, sm).ravel() for d in model.dM_dmix]  # type: ignore[union-attr]
+    n5 = 8 if fit_attitude else 5
+    At = _gn_system(Mb, _blur(model.C, sm), ratio, Pk - lo, n5 + len(extra))
     if fit_attitude:
-        A = np.concatenate([A, attitude_columns(model, ratio, lambda a: _blur(a, sm))], axis=1)
-    if albedo[0] or albedo[1]:
-        A = np.concatenate([A] + _albedo_columns(Mb, Pk - lo, albedo[0], albedo[1]), axis=1)
-    if mix is not None:
-        A = np.concatenate([A] + [_blur(d, sm).reshape(-1, 1) for d in model.dM_dmix], axis=1)  # type: ignore[union-attr]
+        attitude_columns(model, ratio, lambda a: _blur(a, sm), out=At[5:8])
+    for i, row in enumerate(extra):
+        At[n5 + i] = row
     y = _blur(img[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1], s).ravel()
-    return A, y
+    return At, y
 
 
 def _gn_step(pyr, mesh, camera, R, sun, P, D, sigma, k, ratio, options, fit_attitude, mix=None, psf=0.0):  # type: ignore[no-untyped-def]
-    """One linearised solve at pyramid factor ``k``: ``(beta, A, y, lo, hi)`` (window in level-``k`` pixels)."""
+    """One linearised solve at pyramid factor ``k``: ``(beta, rss, At, y, lo, hi)`` (window in level-``k`` pixels)."""
     model, lo, hi, Pk = _render_level(pyr, mesh, camera, R, sun, P, D, k, options, fit_attitude, mix)
-    A, y = _system(model, pyr[k][0], lo, hi, Pk, sigma / k, psf / k, ratio, fit_attitude, mix, (options.albedo_order, options.albedo_harmonics))
-    return _solve(A, y), A, y, lo, hi
+    At, y = _system(model, pyr[k][0], lo, hi, Pk, sigma / k, psf / k, ratio, fit_attitude, mix, (options.albedo_order, options.albedo_harmonics))
+    return (*_solve(At, y), At, y, lo, hi)
 
 
 def estimate_psf(st: GNState, pyr, mesh, camera, sun, options, fit_attitude) -> float:  # type: ignore[no-untyped-def]
@@ -468,9 +508,8 @@ def estimate_psf(st: GNState, pyr, mesh, camera, sun, options, fit_attitude) -> 
     grid = np.asarray(options.psf_grid_px, dtype=float)
     cost = []
     for g in grid:
-        A, y = _system(model, pyr[1][0], lo, hi, Pk, 0.0, float(g), st.ratio, fit_attitude, st.mix, (options.albedo_order, options.albedo_harmonics))
-        r = y - A @ _solve(A, y)
-        cost.append(float(r @ r))
+        At, y = _system(model, pyr[1][0], lo, hi, Pk, 0.0, float(g), st.ratio, fit_attitude, st.mix, (options.albedo_order, options.albedo_harmonics))
+        cost.append(_solve(At, y)[1])
     i = int(np.argmin(cost))
     if 0 < i < grid.size - 1:
         c0, c1, c2 = cost[i - 1], cost[i], cost[i + 1]
@@ -499,7 +538,7 @@ class GNState:
     it: int = 0
     step_px: float = math.inf
     rms_frac: float = math.nan
-    last: tuple | None = None  # (A, y, beta, lo, hi) of the last solve
+    last: tuple | None = None  # (At, y, beta, lo, hi) of the last solve (At: transposed design matrix)
     history: list = dataclasses.field(default_factory=list)  # rms_frac of every iteration
 
 
@@ -515,15 +554,14 @@ def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude, 
     ``True`` when converged (sharp, small steps)."""
     if k is None:
         k = _level(sigma, _figure_size(pyr[1][2]), options)
-    beta, A, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude, st.mix, st.psf)
+    beta, rss, At, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude, st.mix, st.psf)
     a = float(beta[0])
     if not a > 0:
         raise ConvergenceError("registration: the fitted contrast of the model is not positive")
     if st.mix is not None:
         st.mix = np.clip(st.mix + beta[-len(st.mix):] / a, *options.mix_bounds)
-    res = y - A @ beta
-    st.it, st.ratio, st.last = st.it + 1, float(beta[1]) / a, (A, y, beta, lo, hi)
-    st.rms_frac = math.sqrt(float(res @ res) / res.size) / a
+    st.it, st.ratio, st.last = st.it + 1, float(beta[1]) / a, (At, y, beta, lo, hi)
+    st.rms_frac = math.sqrt(rss / y.size) / a
     st.history.append(st.rms_frac)
     step, ds = beta[2:4] / a * k, float(beta[4] / a)
     n = float(np.linalg.norm(step))
@@ -737,18 +775,17 @@ def _overlap(obs: np.ndarray, model_flat: np.ndarray, thr: float, sigma: float) 
     return float(np.logical_and(pred, o).sum()) / max(float(np.logical_or(pred, o).sum()), 1.0)
 
 
-def _with_sector_model_error(A, res, lo, hi, P, cov, a, n_sectors):  # type: ignore[no-untyped-def]
+def _with_sector_model_error(At, res, lo, hi, P, cov, a, n_sectors):  # type: ignore[no-untyped-def]
     """The centre covariance with the cluster-robust model-error term of :mod:`jaxlimb.analysis.model_error`
     (pixels grouped in ``n_sectors`` position-angle sectors about ``P``; :attr:`RegisterOptions.model_error_sectors`)."""
     from ..analysis.model_error import positive_part, sector_groups
 
     rr, cc = np.mgrid[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1]
     groups = sector_groups(np.stack([rr.ravel(), cc.ravel()], axis=1).astype(float), P, n_sectors)
-    sc = np.maximum(np.sqrt(np.einsum("ij,ij->j", A, A)), 1e-300)
-    An = A / sc
-    scores = np.zeros((n_sectors, A.shape[1]))
-    np.add.at(scores, groups, An * res[:, None])
-    bread = np.linalg.inv(An.T @ An)
+    N = _normal_equations(At, res)[0]
+    sc = np.maximum(np.sqrt(np.diag(N)), 1e-300)
+    scores = np.stack([np.bincount(groups, weights=row * res, minlength=n_sectors) for row in At], axis=1) / sc
+    bread = np.linalg.inv(N / np.outer(sc, sc))
     C_s = n_sectors / (n_sectors - 1) * bread @ (scores.T @ scores) @ bread / np.outer(sc, sc)
     return cov + positive_part(C_s[2:4, 2:4] / a**2 - cov)
 
@@ -756,27 +793,26 @@ def _with_sector_model_error(A, res, lo, hi, P, cov, a, n_sectors):  # type: ign
 def finish_registration(img, camera, segmentation, st: GNState, ncc: float, options: RegisterOptions) -> RegisterResult:  # type: ignore[no-untyped-def]
     """Covariance and the checks of step 4-5, from the last (sharp, full-resolution) solve of ``st``."""
     P, D, R, iters = st.P, st.D, st.R, st.it
-    A, y, beta, lo, hi = st.last  # type: ignore[misc]
+    At, y, beta, lo, hi = st.last  # type: ignore[misc]
     a, b = float(beta[0]), float(beta[1])
-    res = y - A @ beta
-    dof = max(res.size - A.shape[1], 1)
-    s2 = float(res @ res) / dof
+    res = y - np.einsum("i,ij->j", beta, At)
+    dof = max(res.size - At.shape[0], 1)
+    s2 = float(np.einsum("i,i->", res, res)) / dof
     try:
-        cov_beta = s2 * np.linalg.inv(A.T @ A)
+        cov_beta = s2 * np.linalg.inv(_normal_equations(At, y)[0])
     except np.linalg.LinAlgError:
         raise ConvergenceError("registration: singular normal matrix") from None
     cov = cov_beta[2:4, 2:4] / a**2
     if options.model_error_sectors:
-        cov = _with_sector_model_error(A, res, lo, hi, P, cov, a, options.model_error_sectors)
+        cov = _with_sector_model_error(At, res, lo, hi, P, cov, a, options.model_error_sectors)
     cov = cov + options.model_floor_px**2 * np.eye(2)
     sigma = _background_sigma(img, segmentation[0], lo, hi)
     rms = math.sqrt(s2)
     excess = math.sqrt(max(s2 - (sigma**2 if math.isfinite(sigma) else 0.0), 0.0)) / a
     mask, thr = segmentation
     nm = 0 if st.mix is None else len(st.mix)
-    na = n_albedo_columns(options)
-    tail = A.shape[1] - nm - na
-    fitted = A[:, :2] @ beta[:2] + A[:, tail:] @ beta[tail:]
+    tail = At.shape[0] - nm - n_albedo_columns(options)
+    fitted = np.einsum("i,ij->j", beta[:2], At[:2]) + np.einsum("i,ij->j", beta[tail:], At[tail:])
     iou = _overlap(mask[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1] > 0, fitted, thr, sigma)
     if not np.all(np.isfinite(P)) or not np.all(np.isfinite(cov)):
         raise ConvergenceError("registration produced a non-finite centre or covariance")

@@ -81,9 +81,10 @@ def visible_faces(
     Front-facing: ``n . (c - v0) > 0`` (perspective, exact for planar faces).
     Lit: ``n . s > 0`` with ``s`` the unit direction from the body toward the Sun.
     """
-    flag = topo.normals @ np.asarray(camera_pos_body, dtype=float) - topo.offsets > 0.0
+    # einsum, not BLAS: a threaded matrix-vector product leaves OpenBLAS threads spinning (register._normal_equations)
+    flag = np.einsum("ij,j->i", topo.normals, np.asarray(camera_pos_body, dtype=float)) - topo.offsets > 0.0
     if sun_dir_body is not None:
-        flag &= topo.normals @ np.asarray(sun_dir_body, dtype=float) > 0.0
+        flag &= np.einsum("ij,j->i", topo.normals, np.asarray(sun_dir_body, dtype=float)) > 0.0
     return flag
 
 
@@ -220,6 +221,16 @@ def otsu_threshold(image: np.ndarray, bins: int = 256, max_samples: int = 250_00
 def segment_body(image: np.ndarray, options: SegmentOptions = SegmentOptions()) -> tuple[np.ndarray, float]:
     """Binary figure of the body: threshold, largest 8-connected component, holes filled.
 
+    Raises the errors of :func:`segment_components` (not a finite 2-D image; a constant
+    image, a figure below ``min_area_px`` or touching the border).
+    """
+    return segment_components(image, options)[:2]
+
+
+def segment_components(image: np.ndarray, options: SegmentOptions = SegmentOptions()):  # type: ignore[no-untyped-def]
+    """:func:`segment_body`'s ``(mask, threshold)`` and the labels and stats of every component above the
+    threshold (``cv2.connectedComponentsWithStats``, 8-connected), for callers that keep more than the largest.
+
     Raises
     ------
     ImageContentError
@@ -247,7 +258,7 @@ def segment_body(image: np.ndarray, options: SegmentOptions = SegmentOptions()) 
         raise TooSmallError(f"body figure has {area} px, below `min_area_px` = {options.min_area_px}")
     if not options.allow_border and (mask[0].any() or mask[-1].any() or mask[:, 0].any() or mask[:, -1].any()):
         raise TooBigError("the body figure touches the image border; its centre cannot be located reliably")
-    return mask, thr
+    return mask, thr, labels, stats
 
 
 def figure_centre(mask: np.ndarray) -> np.ndarray:
@@ -256,6 +267,22 @@ def figure_centre(mask: np.ndarray) -> np.ndarray:
     if m["m00"] <= 0:
         raise NoBodyError("empty figure: no figure centre")
     return np.array([m["m01"] / m["m00"], m["m10"] / m["m00"]])
+
+
+def figure_extents(mask: np.ndarray, axes_rc: np.ndarray, contours: list[np.ndarray] | None = None) -> np.ndarray:
+    """``max`` of a figure's pixel centres along each unit (row, col) direction of ``axes_rc`` ``(k, 2)``.
+
+    The maximum of a linear function over the pixels is attained on the outer contours
+    (at an end of a straight run: ``CHAIN_APPROX_SIMPLE`` keeps those), so only they are
+    visited; ``contours`` (``cv2.findContours`` external contours of ``mask``, e.g. from
+    :func:`fill_outline`) saves tracing them again.
+    """
+    if contours is None:
+        contours, _ = cv2.findContours(np.ascontiguousarray(mask, dtype=np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+    if not len(contours):
+        raise NoBodyError("empty figure: no extents")
+    xy = np.concatenate([c.reshape(-1, 2) for c in contours]).astype(float)
+    return (xy[:, ::-1] @ np.asarray(axes_rc, dtype=float).T).max(axis=0)
 
 
 def brightness_centre(image: np.ndarray, mask: np.ndarray | None = None, background: float | None = None) -> np.ndarray:
@@ -294,6 +321,7 @@ __all__ = [
     "SegmentOptions",
     "brightness_centre",
     "figure_centre",
+    "figure_extents",
     "fill_outline",
     "fill_triangles_exact",
     "mesh_topology",
@@ -301,5 +329,6 @@ __all__ = [
     "outline_edges",
     "render_silhouette",
     "segment_body",
+    "segment_components",
     "visible_faces",
 ]

@@ -18,6 +18,7 @@ from jaxlimb.irregular.features import (
 )
 from jaxlimb.irregular.mesh import validate_mesh
 from jaxlimb.irregular.silhouette import (
+    figure_extents,
     fill_triangles_exact,
     mesh_topology,
     render_silhouette,
@@ -156,3 +157,21 @@ def test_segment_body_and_checks():
     edge[0:20, 10:30] = 1
     with pytest.raises(TooBigError):
         segment_body(edge)
+
+
+def test_figure_extents_are_the_pixel_maxima_of_every_component():
+    """Extents from the outer contours = max over all figure pixels, for blobs, holes and several pieces."""
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        mask = np.zeros((120, 140), np.uint8)
+        for _ in range(int(rng.integers(1, 4))):
+            c = rng.uniform([10, 10], [110, 130])
+            cv2.ellipse(mask, (int(c[1]), int(c[0])), (int(rng.integers(2, 30)), int(rng.integers(2, 20))), float(rng.uniform(0, 180)), 0, 360, 1, -1)
+        mask[rng.random(mask.shape) < 0.02] = 0  # holes and ragged edges
+        ang = rng.uniform(0, 2 * np.pi, 5)
+        axes = np.stack([np.cos(ang), np.sin(ang)], axis=1)
+        rr, cc = np.nonzero(mask)
+        brute = (np.stack([rr, cc], axis=1).astype(float) @ axes.T).max(axis=0)
+        np.testing.assert_allclose(figure_extents(mask, axes), brute, atol=1e-9)
+    with pytest.raises(NoBodyError):
+        figure_extents(np.zeros((10, 10), np.uint8), axes)
