@@ -40,7 +40,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 RESULTS = Path(__file__).resolve().parent / "results" / "irregular_independent.json"
-RENDER_VERSION = 1
+RENDER_VERSION = 2  # 2: own renders cast shadows
 LAWS = ("hapke", "minnaert", "lommel-seeliger-surge", "lunar-lambert")
 PSFS = ("gaussian", "airy", "defocus", "motion")
 

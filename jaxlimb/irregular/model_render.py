@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..render.mesh import rasterise, shade
+from ..render.mesh import rasterise, shade, shadow_fractions
 from .mesh import Mesh
 
 
@@ -203,57 +203,6 @@ def _basis_derivative(mu0, mu, dmu0, dmu, law):  # type: ignore[no-untyped-def]
     return 0.5 * r[:, None] * (dmu0 / np.maximum(mu0, 1e-12)[:, None] - np.where(mu > _MU_MIN, 1.0 / m, 0.0)[:, None] * dmu)
 
 
-@dataclass(frozen=True)
-class _SunView:
-    """A pinhole far along the Sun direction (``rasterise``'s camera interface): nearly orthographic."""
-
-    focal_px: float
-    shape: tuple[int, int]
-    principal_point_rc: tuple[float, float]
-
-
-_SHADOWS: dict = {}
-
-
-def shadow_fractions(vertices: np.ndarray, faces: np.ndarray, sun_body: np.ndarray, n_px: int = 1024) -> np.ndarray:
-    """Lit fraction (0..1) of every facet: the share of its area the Sun sees (cast shadows).
-
-    The mesh is rasterised as seen from the Sun (:func:`jaxlimb.render.mesh.rasterise`, a pinhole
-    1000 body radii away, ``n_px`` across the body); a facet's lit fraction is its sample count
-    over the count its projected area predicts (above 0.8: 1, sampling noise).  Facets the Sun
-    does not face get 0; facets expected to cover fewer than 6 samples keep 1 (unresolved).  Depends only on the Sun
-    direction in the body frame: cached per mesh and 0.1 deg of it.
-    """
-    V = np.asarray(vertices, dtype=float)
-    F = np.asarray(faces, dtype=np.int64)
-    sb = np.asarray(sun_body, dtype=float) / np.linalg.norm(sun_body)
-    key = (id(vertices), tuple(np.round(sb * 1000.0).astype(int)))
-    if key in _SHADOWS:
-        return _SHADOWS[key]
-    rmax = float(np.linalg.norm(V, axis=1).max())
-    L = 1000.0 * rmax
-    z = -sb
-    x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
-    x /= np.linalg.norm(x)
-    Rs = np.stack([x, np.cross(z, x), z])
-    f = L * 0.5 * n_px / (1.05 * rmax)
-    cam = _SunView(f, (n_px, n_px), ((n_px - 1) / 2.0, (n_px - 1) / 2.0))
-    ras = rasterise(np.einsum("ij,kj->ik", V, Rs) + [0.0, 0.0, L], F, cam, 1)
-    seen = np.bincount(ras.buf.ravel(), minlength=F.shape[0] + 1)[1:].astype(float) if ras is not None else np.zeros(F.shape[0])
-    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    ns_ = np.einsum("ij,j->i", n, sb)  # not BLAS: see register._normal_equations
-    expected = 0.5 * np.maximum(ns_, 0.0) * (f / L) ** 2
-    frac = np.clip(seen / np.maximum(expected, 1e-300), 0.0, 1.0)
-    # sampling noise (a facet's edge samples go to it or its neighbour): near 1 is lit, and a facet
-    # with fewer than 6 expected samples is unresolved
-    frac = np.where((expected < 6.0) | (frac > 0.8), 1.0, frac)
-    frac = np.where(ns_ > 0, frac, 0.0)
-    if len(_SHADOWS) > 64:
-        _SHADOWS.clear()
-    _SHADOWS[key] = frac
-    return frac
-
-
 def _safe(x: np.ndarray) -> np.ndarray:
     return np.where(np.abs(x) > 1e-12, x, 1e-12)
 
@@ -416,4 +365,4 @@ def attitude_columns(model: ModelImage, ratio: float, blur, out: np.ndarray | No
     return out.T
 
 
-__all__ = ["MIX_LAWS", "ModelImage", "shadow_fractions", "attitude_columns", "clustered_mesh", "downsample", "level_camera", "render_window", "window_camera"]
+__all__ = ["MIX_LAWS", "ModelImage", "attitude_columns", "clustered_mesh", "downsample", "level_camera", "render_window", "window_camera"]

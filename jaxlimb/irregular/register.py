@@ -126,6 +126,11 @@ class RegisterOptions:
         shadows differ from the model's leaves residuals that follow the centre's columns
         from one side of the body to the other, and the white-noise covariance alone then
         reports 0.006 px for a 0.2 px error (``benchmarks/irregular_independent.py``).
+    model_error_scale
+        The model-error term is multiplied by this squared.  Sixteen sectors of a smooth misfit
+        are not independent, and the sandwich alone under-reports: on the ray-traced frames of
+        ``benchmarks/irregular_independent.py`` (47 located, 2026-11-25) the error over the
+        reported sigma had median 2.0 and 90th percentile 4.2 with the term unscaled.
     fit_photometry
         Fit the photometric mix ``m`` of the model radiance ``LS + m_1 (Lambert - LS) +
         m_2 (Minnaert_1/2 - LS)`` (:func:`.model_render.render_window`; McEwen's
@@ -158,6 +163,7 @@ class RegisterOptions:
     min_iou: float = 0.9
     model_floor_px: float = 0.004
     model_error_sectors: int = 16
+    model_error_scale: float = 2.5
     psf_grid_px: tuple[float, ...] = (0.0, 0.4, 0.7, 1.0, 1.4, 2.0, 2.8)
     cast_shadows: bool = True
     albedo_order: int = 0
@@ -775,7 +781,7 @@ def _overlap(obs: np.ndarray, model_flat: np.ndarray, thr: float, sigma: float) 
     return float(np.logical_and(pred, o).sum()) / max(float(np.logical_or(pred, o).sum()), 1.0)
 
 
-def _with_sector_model_error(At, res, lo, hi, P, cov, a, n_sectors):  # type: ignore[no-untyped-def]
+def _with_sector_model_error(At, res, lo, hi, P, cov, a, n_sectors, scale=1.0):  # type: ignore[no-untyped-def]
     """The centre covariance with the cluster-robust model-error term of :mod:`jaxlimb.analysis.model_error`
     (pixels grouped in ``n_sectors`` position-angle sectors about ``P``; :attr:`RegisterOptions.model_error_sectors`)."""
     from ..analysis.model_error import positive_part, sector_groups
@@ -787,7 +793,7 @@ def _with_sector_model_error(At, res, lo, hi, P, cov, a, n_sectors):  # type: ig
     scores = np.stack([np.bincount(groups, weights=row * res, minlength=n_sectors) for row in At], axis=1) / sc
     bread = np.linalg.inv(N / np.outer(sc, sc))
     C_s = n_sectors / (n_sectors - 1) * bread @ (scores.T @ scores) @ bread / np.outer(sc, sc)
-    return cov + positive_part(C_s[2:4, 2:4] / a**2 - cov)
+    return cov + scale**2 * positive_part(C_s[2:4, 2:4] / a**2 - cov)
 
 
 def finish_registration(img, camera, segmentation, st: GNState, ncc: float, options: RegisterOptions) -> RegisterResult:  # type: ignore[no-untyped-def]
@@ -804,7 +810,7 @@ def finish_registration(img, camera, segmentation, st: GNState, ncc: float, opti
         raise ConvergenceError("registration: singular normal matrix") from None
     cov = cov_beta[2:4, 2:4] / a**2
     if options.model_error_sectors:
-        cov = _with_sector_model_error(At, res, lo, hi, P, cov, a, options.model_error_sectors)
+        cov = _with_sector_model_error(At, res, lo, hi, P, cov, a, options.model_error_sectors, options.model_error_scale)
     cov = cov + options.model_floor_px**2 * np.eye(2)
     sigma = _background_sigma(img, segmentation[0], lo, hi)
     rms = math.sqrt(s2)

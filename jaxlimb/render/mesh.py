@@ -13,8 +13,8 @@ Reflectance (``mu0 = n.s`` toward the Sun, ``mu = n.e`` toward the camera):
   phase, the usual model for dark airless bodies: no limb darkening);
 * ``"lambert"``: ``albedo mu0``.
 
-Faces with ``mu0 <= 0`` are dark.  Cast shadows are **not** modelled (a face
-turned toward the Sun is lit even if another part of the body hides it).
+Faces with ``mu0 <= 0`` are dark; a face turned toward the Sun is darkened by the share of it
+the body itself hides from the Sun (cast shadows, :func:`shadow_fractions`, per face).
 
 Accuracy caveat: OpenCV's polygon fill includes the pixels its edges pass
 through, i.e. the figure is dilated by about half a *sub-pixel*
@@ -55,6 +55,9 @@ class MeshRenderOptions:
         Seed of the noise generator.
     quantize_bits
         Round to integers and clip to ``[0, 2**bits - 1]`` (``None``: keep floats).
+    cast_shadows
+        Darken each face by the share of its area the body itself hides from the Sun
+        (:func:`shadow_fractions`).
     """
 
     supersample: int = 4
@@ -64,6 +67,7 @@ class MeshRenderOptions:
     noise_sigma: float = 0.0
     seed: int = 0
     quantize_bits: int | None = None
+    cast_shadows: bool = True
 
     def __post_init__(self) -> None:
         if not (isinstance(self.supersample, int) and 1 <= self.supersample <= 16):
@@ -174,6 +178,57 @@ def shade(mu0: np.ndarray, mu: np.ndarray, reflectance: str) -> np.ndarray:
     return np.where(mu > 0, rad, 0.0)
 
 
+@dataclass(frozen=True)
+class _SunView:
+    """A pinhole far along the Sun direction (``rasterise``'s camera interface): nearly orthographic."""
+
+    focal_px: float
+    shape: tuple[int, int]
+    principal_point_rc: tuple[float, float]
+
+
+_SHADOWS: dict = {}
+
+
+def shadow_fractions(vertices: np.ndarray, faces: np.ndarray, sun_body: np.ndarray, n_px: int = 1024) -> np.ndarray:
+    """Lit fraction (0..1) of every facet: the share of its area the Sun sees (cast shadows).
+
+    The mesh is rasterised as seen from the Sun (:func:`rasterise`, a pinhole
+    1000 body radii away, ``n_px`` across the body); a facet's lit fraction is its sample count
+    over the count its projected area predicts (above 0.8: 1, sampling noise).  Facets the Sun
+    does not face get 0; facets expected to cover fewer than 6 samples keep 1 (unresolved).  Depends only on the Sun
+    direction in the body frame: cached per mesh and 0.1 deg of it.
+    """
+    V = np.asarray(vertices, dtype=float)
+    F = np.asarray(faces, dtype=np.int64)
+    sb = np.asarray(sun_body, dtype=float) / np.linalg.norm(sun_body)
+    key = (id(vertices), tuple(np.round(sb * 1000.0).astype(int)))
+    if key in _SHADOWS:
+        return _SHADOWS[key]
+    rmax = float(np.linalg.norm(V, axis=1).max())
+    L = 1000.0 * rmax
+    z = -sb
+    x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
+    x /= np.linalg.norm(x)
+    Rs = np.stack([x, np.cross(z, x), z])
+    f = L * 0.5 * n_px / (1.05 * rmax)
+    cam = _SunView(f, (n_px, n_px), ((n_px - 1) / 2.0, (n_px - 1) / 2.0))
+    ras = rasterise(np.einsum("ij,kj->ik", V, Rs) + [0.0, 0.0, L], F, cam, 1)
+    seen = np.bincount(ras.buf.ravel(), minlength=F.shape[0] + 1)[1:].astype(float) if ras is not None else np.zeros(F.shape[0])
+    n = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    ns_ = np.einsum("ij,j->i", n, sb)  # not BLAS: see register._normal_equations
+    expected = 0.5 * np.maximum(ns_, 0.0) * (f / L) ** 2
+    frac = np.clip(seen / np.maximum(expected, 1e-300), 0.0, 1.0)
+    # sampling noise (a facet's edge samples go to it or its neighbour): near 1 is lit, and a facet
+    # with fewer than 6 expected samples is unresolved
+    frac = np.where((expected < 6.0) | (frac > 0.8), 1.0, frac)
+    frac = np.where(ns_ > 0, frac, 0.0)
+    if len(_SHADOWS) > 64:
+        _SHADOWS.clear()
+    _SHADOWS[key] = frac
+    return frac
+
+
 def render_mesh(
     vertices: np.ndarray,
     faces: np.ndarray,
@@ -223,8 +278,10 @@ def render_mesh(
     ras = rasterise(Xc, F, camera, options.supersample)
     if ras is not None:
         n, mu = ras.normals, ras.mu
-        mu0 = mu if headlight else n @ s
+        mu0 = mu if headlight else np.einsum("ij,j->i", n, s)
         rad = shade(mu0, mu, options.reflectance) * options.albedo
+        if options.cast_shadows and not headlight:
+            rad = rad * shadow_fractions(V, F, R.T @ s)
         lut = np.concatenate([[0.0], rad]).astype(np.float32)
         block = _box_down(lut[ras.buf], ras.h, ras.w)
         cblock = _box_down((ras.buf > 0).astype(np.float32), ras.h, ras.w)
@@ -261,4 +318,4 @@ def look_at_rotation(view_dir_body: np.ndarray, up_body: np.ndarray | None = Non
     return Rz @ R
 
 
-__all__ = ["MeshRender", "MeshRenderOptions", "Raster", "look_at_rotation", "rasterise", "render_mesh", "shade"]
+__all__ = ["MeshRender", "MeshRenderOptions", "Raster", "look_at_rotation", "rasterise", "render_mesh", "shade", "shadow_fractions"]
