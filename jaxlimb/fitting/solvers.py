@@ -85,6 +85,11 @@ class LimbProblem(eqx.Module):
     coords : pixel coordinates, ``(n, 2)`` ``(row, col)`` (or ``(n,)`` for the linear model).
     z : observed intensities ``(n,)``.
     w : per-pixel weights ``(n,)``: 1 for data, 0 for padding (or 1/sigma_i).
+    mask : optional 0/1 flags of the free parameters ``(q,)``: a 0 holds that parameter at its
+        start for this problem only (its Jacobian row and step are zero, its diagonal of
+        :math:`J^\top J` is 1: the normal equations of the other parameters are those of the
+        problem without it), so that fits which differ only in what they hold share one compiled
+        program.  ``None``: every free parameter is estimated.
     """
 
     model: LimbModel = eqx.field(static=True)
@@ -94,6 +99,7 @@ class LimbProblem(eqx.Module):
     coords: Array
     z: Float[Array, " n"]
     w: Float[Array, " n"]
+    mask: Float[Array, " q"] | None = None
 
     @property
     def args(self) -> tuple[Array, Array, Array, Array]:
@@ -124,7 +130,20 @@ class LimbProblem(eqx.Module):
         else:
             r = self.w * (self.model.intensity(params, self.coords) - self.z)
             jt = self.jacobian(y).T
-        return jt @ jt.T, jt @ r, r @ r
+        if self.mask is None:
+            return jt @ jt.T, jt @ r, r @ r
+        on = self.mask > 0
+        jt = jnp.where(on[:, None], jt, 0.0)  # a held parameter's row: exactly 0 (even if not finite)
+        return jt @ jt.T + jnp.diag(jnp.where(on, 0.0, 1.0)), jt @ r, r @ r
+
+    @property
+    def n_free(self) -> Any:
+        """Number of estimated parameters (``q``, or the count of the mask's ones)."""
+        return len(self.free_idx) if self.mask is None else jnp.sum(self.mask > 0)
+
+    def estimated(self, y: Array) -> Array:
+        """``y`` with its held entries (``mask`` 0) set to 0: the scale of the convergence test."""
+        return y if self.mask is None else jnp.where(self.mask > 0, y, 0.0)
 
     def admissible(self, y: Array) -> Bool[Array, ""]:
         """Finite, and every scale parameter (radius, a, k, rho) strictly positive."""
@@ -144,6 +163,8 @@ class AbstractLimbSolver(eqx.Module):
     """Base class of the solvers behind :func:`jaxlimb.fitting.fit`."""
 
     jittable: ClassVar[bool] = True
+    masks: ClassVar[bool] = False
+    """Whether :meth:`solve` honours :class:`LimbProblem`'s ``mask`` and takes ``max_steps`` as an array."""
 
     @abc.abstractmethod
     def solve(
@@ -165,7 +186,7 @@ def _finish(problem: LimbProblem, y: Array, result: FitResult) -> FitResult:
 def _coarse(problem: LimbProblem, k: int) -> LimbProblem:
     """Every ``k``-th pixel of ``problem`` (the coarse phase of coarse-to-fine)."""
     return LimbProblem(problem.model, problem.free_idx, problem.analytic, problem.theta0,
-                       problem.coords[::k], problem.z[::k], problem.w[::k])
+                       problem.coords[::k], problem.z[::k], problem.w[::k], problem.mask)
 
 
 class NormalLM(AbstractLimbSolver):
@@ -192,6 +213,7 @@ class NormalLM(AbstractLimbSolver):
     are kept as solvers and compared in ``benchmarks/solvers.py``.
     """
 
+    masks: ClassVar[bool] = True
     rtol: float = 1e-10
     atol: float = 1e-10
     lambda0: float = 1e-3
@@ -246,7 +268,7 @@ class NormalLM(AbstractLimbSolver):
             pred = 0.5 * (h @ (mu_d * h) - h @ jtr)  # L(0) - L(h) of the local model (> 0)
             gain = 0.5 * (rss - rss_t) / jnp.where(pred > 0, pred, 1.0)
             ok = jnp.isfinite(rss_t) & problem.admissible(y_try) & (pred > 0) & (gain > 0)
-            small = jnp.max(jnp.abs(h)) <= atol + rtol * jnp.max(jnp.abs(y))
+            small = jnp.max(jnp.abs(h)) <= atol + rtol * jnp.max(jnp.abs(problem.estimated(y)))
             y = jnp.where(ok, y_try, y)
             jtj = jnp.where(ok, jtj_t, jtj)
             jtr = jnp.where(ok, jtr_t, jtr)
@@ -331,7 +353,7 @@ class PaperGaussNewton(AbstractLimbSolver):
             y_new = y + delta
             bad = ~problem.admissible(y_new)
             y_new = jnp.where(bad, y, y_new)
-            small = jnp.max(jnp.abs(delta)) <= self.atol + self.rtol * jnp.max(jnp.abs(y_new))
+            small = jnp.max(jnp.abs(delta)) <= self.atol + self.rtol * jnp.max(jnp.abs(problem.estimated(y_new)))
             hist = hist.at[n + 1].set(y_new) if keep else hist
             return y_new, n + 1, small, hist, bad
 
