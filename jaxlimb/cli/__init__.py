@@ -200,7 +200,10 @@ def _main(argv: Sequence[str] | None) -> int:
     _STATE["json"] = want_json
     try:
         args = build_parser().parse_args(argv)
-        if getattr(args, "needs_jax", True):  # a sub-command may declare it runs without JAX
+        needs_jax = getattr(args, "needs_jax", True)  # a sub-command may declare it runs without JAX
+        if callable(needs_jax):  # ... or decide from its arguments
+            needs_jax = needs_jax(args)
+        if needs_jax:
             host_devices = getattr(args, "host_devices", None)
             _request_host_devices(host_devices(args) if host_devices else 1)
             _start_jax()

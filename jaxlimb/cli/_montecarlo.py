@@ -54,7 +54,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="XLA CPU devices the batches are split over (default: one per usable core; "
                    "ignored when XLA_FLAGS already sets xla_force_host_platform_device_count)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(func=run, host_devices=_host_devices)
+    p.set_defaults(func=run, host_devices=_host_devices, needs_jax=_needs_jax)
+
+
+def _needs_jax(args: argparse.Namespace) -> bool:
+    """Whether this process computes (and so starts JAX first).  A ``--pipeline`` study on Dask workers
+    (``--workers`` / ``--scheduler``) does not: the workers start JAX themselves
+    (:class:`~jaxlimb.analysis.distributed.LocateTrial`), and this process only starts the cluster, submits
+    the chunks and assembles their files -- so the cluster starts ~1 s sooner."""
+    return not (args.pipeline and (args.workers is not None or args.scheduler is not None))
 
 
 def _host_devices(args: argparse.Namespace) -> int:
