@@ -261,31 +261,36 @@ class NormalLM(AbstractLimbSolver):
             return h, lam * scale
 
         def body(c):  # type: ignore[no-untyped-def]
-            y, jtj, jtr, rss, lam, nu, n, _, _ = c
+            y, jtj, jtr, rss, lam, nu, n, _, _, first = c
             h, mu_d = damped_step(jtj, jtr, lam)
-            y_try = y + h
+            y_try = jnp.where(first, y, y + h)  # the first pass evaluates the start itself
             jtj_t, jtr_t, rss_t = problem.normal_equations(y_try)
             pred = 0.5 * (h @ (mu_d * h) - h @ jtr)  # L(0) - L(h) of the local model (> 0)
             gain = 0.5 * (rss - rss_t) / jnp.where(pred > 0, pred, 1.0)
-            ok = jnp.isfinite(rss_t) & problem.admissible(y_try) & (pred > 0) & (gain > 0)
+            ok = first | (jnp.isfinite(rss_t) & problem.admissible(y_try) & (pred > 0) & (gain > 0))
             small = jnp.max(jnp.abs(h)) <= atol + rtol * jnp.max(jnp.abs(problem.estimated(y)))
             y = jnp.where(ok, y_try, y)
             jtj = jnp.where(ok, jtj_t, jtj)
             jtr = jnp.where(ok, jtr_t, jtr)
             rss = jnp.where(ok, rss_t, rss)
-            lam = jnp.where(ok, lam * jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * gain - 1.0) ** 3), lam * nu)
-            nu = jnp.where(ok, 2.0, 2.0 * nu)
-            stuck = ~ok & (lam > 1e16)
-            return y, jtj, jtr, rss, lam, nu, n + 1, small & jnp.all(jnp.isfinite(h)), stuck
+            lam_new = jnp.where(ok, lam * jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * gain - 1.0) ** 3), lam * nu)
+            nu_new = jnp.where(ok, 2.0, 2.0 * nu)
+            stuck = jnp.where(first, ~jnp.isfinite(rss_t), ~ok & (lam_new > 1e16))
+            done = ~first & small & jnp.all(jnp.isfinite(h))
+            return (y, jtj, jtr, rss, jnp.where(first, lam, lam_new), jnp.where(first, nu, nu_new),
+                    n + jnp.where(first, 0, 1), done, stuck, jnp.asarray(False))
 
         def cond(c):  # type: ignore[no-untyped-def]
-            n, done, stuck = c[6], c[7], c[8]
-            return (n < max_steps) & ~done & ~stuck
+            n, done, stuck, first = c[6], c[7], c[8], c[9]
+            return first | ((n < max_steps) & ~done & ~stuck)
 
-        jtj, jtr, rss = problem.normal_equations(y0)
-        init = (y0, jtj, jtr, rss, jnp.asarray(self.lambda0, dtype), jnp.asarray(2.0, dtype),
-                jnp.asarray(0), jnp.asarray(False), ~jnp.isfinite(rss))
-        y, jtj, jtr, rss, _, _, n, done, stuck = jax.lax.while_loop(cond, body, init)
+        # one model pass in the program (the loop's): the start is evaluated by its first pass, where
+        # the placeholder normal equations (I, 0, inf) give a zero step
+        q = y0.shape[-1]
+        init = (y0, jnp.eye(q, dtype=dtype), jnp.zeros(q, dtype), jnp.asarray(jnp.inf, dtype),
+                jnp.asarray(self.lambda0, dtype), jnp.asarray(2.0, dtype), jnp.asarray(0), jnp.asarray(False),
+                jnp.asarray(False), jnp.asarray(True))
+        y, jtj, jtr, rss, _, _, n, done, stuck, _ = jax.lax.while_loop(cond, body, init)
         return y, n, done, stuck, (jtj, jtr, rss)
 
 
