@@ -224,9 +224,15 @@ class LocateTrial:
                 "radius": m.radius_px - truth.apparent_radius_px, "iterations": float(m.iterations)}
 
 
+TASKS_PER_WORKER = 8
+"""Tasks per worker of :func:`default_chunk`: the workers finish within about one chunk of each other (the
+last chunks are handed out as workers free up), so smaller chunks leave less idle time at the end; a
+task's own cost (scheduling, the chunk file) is ~10-30 ms against ~1.5 s for 13 full-frame trials."""
+
+
 def default_chunk(n: int, workers: int) -> int:
-    """A chunk size giving each worker about four tasks (at least 1, at most 50 trials)."""
-    return max(1, min(50, math.ceil(n / (4 * max(workers, 1)))))
+    """A chunk size giving each worker about :data:`TASKS_PER_WORKER` tasks (at least 1, at most 50 trials)."""
+    return max(1, min(50, math.ceil(n / (TASKS_PER_WORKER * max(workers, 1)))))
 
 
 __all__ = ["LocateTrial", "chunked", "close_client", "default_chunk", "make_client", "map_chunks",
