@@ -236,6 +236,8 @@ def test_held_by_mask_equals_fixed_and_shares_one_program():
     np.testing.assert_allclose(np.asarray(free.params.to_vector()),
                                np.asarray(fit(CIRCLE, coords, z, init, fixed=("ymin",), max_steps=50).params.to_vector()),
                                atol=1e-10)
+    paper = fit(CIRCLE, coords, z, init, PaperGaussNewton(), fixed=("ymin",), held=("k",))  # no mask: held -> fixed
+    assert paper.free == ("r0", "c0", "radius", "ymax") and float(paper.params.k) == float(init.k)
     with pytest.raises(LimbInputError, match="not free"):
         fit(CIRCLE, coords, z, init, fixed=("ymin",), held=("ymin",))
     with pytest.raises(LimbInputError, match="every free"):
