@@ -16,7 +16,7 @@ the JAX start-up median and the load average before and after, for the wall time
 CPU time of the process (user + system: less sensitive to other jobs on a shared machine).  The compile cache of the runs is
 a fresh directory (``JAXLIMB_CACHE_DIR``), filled by the warm-ups.
 
-Run:  python benchmarks/cli_speed.py [--repeats 5] [--frames 30]
+Run:  python benchmarks/cli_speed.py [--repeats 5] [--frames 30] [--only locate_sun]
 Writes benchmarks/results/cli_speed.json.
 """
 
@@ -63,8 +63,16 @@ def _time(cmd: list[str], env: dict[str, str], ok_codes=(0,), key: str | None = 
     return dt
 
 
-def _make_inputs(d: Path, n_frames: int) -> dict[str, list[str]]:
-    """Moon frames + camera + hints, the Thebe database + frame; returns the commands."""
+def _make_inputs(d: Path, n_frames: int, only: set[str] | None = None) -> dict[str, list[str]]:
+    """Moon frames + camera + hints, the Thebe database + frame; returns the commands (those in ``only``)."""
+    if only is not None and not only & {"locate_moon", "los_locate"}:
+        from jaxlimb._data import shared_data_dir
+        from jaxlimb.imaging.sdo import HMI_512_PNG
+
+        sun = [*JAXLIMB, "locate", str(shared_data_dir() / "sun" / HMI_512_PNG), "--body", "sun", "--json"]
+        cmds = {"jax_start": [sys.executable, "-c", "import jax; jax.numpy.zeros(1)"], "help": [*JAXLIMB, "--help"],
+                "locate_sun": sun}
+        return {k: v for k, v in cmds.items() if k in only}
     import jax
 
     jax.config.update("jax_enable_x64", True)
@@ -109,14 +117,38 @@ def _make_inputs(d: Path, n_frames: int) -> dict[str, list[str]]:
     }
 
 
+def _only(cmds: dict[str, list[str]], env: dict[str, str], repeats: int) -> dict:
+    """The start-up rows of ``cmds`` alone (``--only``): medians, ratios to the JAX start, load; printed only."""
+    load_before = _load()
+    for c in cmds.values():
+        _time(c, env, ok_codes=(0, 3))  # warm-up: fills the cache
+    times: dict[str, list[float]] = {k: [] for k in cmds}
+    for _ in range(repeats):
+        for k, c in cmds.items():
+            times[k].append(_time(c, env, ok_codes=(0, 3), key=k))
+    med = {k: float(np.median(v)) for k, v in times.items()}
+    cpu = {k: float(np.median(_CPU[k])) for k in cmds}
+    print(f"load average before {load_before}, after {_load()}")
+    for k in cmds:
+        print(f"{k:12s} median {med[k]:6.2f} s  = {med[k] / med['jax_start']:4.2f}x JAX start-up   "
+              f"CPU {cpu[k]:5.2f} s = {cpu[k] / cpu['jax_start']:4.2f}x")
+    return {"median_s": med, "median_cpu_s": cpu, "all_s": times}
+
+
 def main(argv: list[str] | None = None) -> dict:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--frames", type=int, default=30)
+    ap.add_argument("--only", default=None, help="comma-separated rows (jax_start is always run), e.g. "
+                    "locate_sun: no many-frame part, nothing written to results/")
     args = ap.parse_args(argv)
     d = Path(tempfile.mkdtemp(prefix="cli_speed_"))
     env = {**os.environ, "JAXLIMB_CACHE_DIR": str(d / "jaxcache")}
-    cmds = _make_inputs(d, args.frames)
+    only = None if args.only is None else {"jax_start", *args.only.split(",")}
+    cmds = _make_inputs(d, args.frames, only)
+    if only is not None:
+        cmds = {k: v for k, v in cmds.items() if k in only}
+        return _only(cmds, env, args.repeats)
     load_before = _load()
     first_call = {k: _time(c, env, ok_codes=(0, 3)) for k, c in cmds.items()}  # warm-up: fills the cache
     times: dict[str, list[float]] = {k: [] for k in cmds}

@@ -192,6 +192,27 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _stdout_closed()
 
 
+def entry() -> int:
+    """The ``jaxlimb`` command as a process (the console script and ``python -m jaxlimb.cli``): :func:`main`,
+    with Python's cyclic garbage collector told (``gc.freeze``) that the objects which live until the
+    process ends -- JAX's and the imported modules', frozen once JAX has started -- need no tracing.
+
+    Why: a process that has imported JAX holds ~10^6 objects the collector tracks.  Without the freeze
+    every full collection during the run, and the collections of the interpreter's shutdown, walk them
+    all: measured on a 2-core CPU, ``python -c "import jax; jax.numpy.zeros(1)"`` spends 0.4-0.6 s of its
+    ~1.2 s after its last statement (0.2 s with the freeze), and ``locate --body sun`` 0.2 s in
+    collections during its run.  Frozen objects are still freed by reference counting; only cycles among
+    them are left to the process's end.  :func:`main` called in a Python session (tests, notebooks) does
+    not freeze anything.
+    """
+    import gc
+
+    _STATE["process"] = True
+    code = main()
+    gc.freeze()  # the objects made after JAX started: the shutdown's collections skip them too
+    return code
+
+
 def _main(argv: Sequence[str] | None) -> int:
     from ..errors import JaxlimbError
 
@@ -200,7 +221,10 @@ def _main(argv: Sequence[str] | None) -> int:
     _STATE["json"] = want_json
     try:
         args = build_parser().parse_args(argv)
-        if getattr(args, "needs_jax", True):  # a sub-command may declare it runs without JAX
+        needs_jax = getattr(args, "needs_jax", True)  # a sub-command may declare it runs without JAX
+        if callable(needs_jax):  # ... or decide from its arguments
+            needs_jax = needs_jax(args)
+        if needs_jax:
             host_devices = getattr(args, "host_devices", None)
             _request_host_devices(host_devices(args) if host_devices else 1)
             _start_jax()
@@ -246,6 +270,10 @@ def _start_jax() -> None:
 
     jax.config.update("jax_enable_x64", True)
     enable_compile_cache()
+    if _STATE.get("process"):  # the command's own process (entry): JAX's objects live until its end
+        import gc
+
+        gc.freeze()
 
 
 def _report(want_json: bool, check: str, message: str) -> None:

@@ -238,7 +238,7 @@ def _make_fit(problem: LimbProblem, y: Array, n_steps: Array, result: FitResult,
     """Assemble the :class:`LimbFit`: covariance, residual statistics, full parameters."""
     jtj, _, rss = problem.normal_equations(y) if normal is None else normal
     n = jnp.sum(problem.w > 0)
-    q = len(problem.free_idx)
+    q = problem.n_free
     sigma2 = rss / (n - q)
     theta = problem.theta0.at[jnp.asarray(problem.free_idx)].set(y)
     model = problem.model
@@ -275,7 +275,8 @@ def _core_jit(solver: AbstractLimbSolver, problem: LimbProblem, max_steps: int) 
     Cheaper to call than ``eqx.filter_jit`` (no pytree partitioning of the static
     configuration at every call): the dispatch overhead matters for 3-ms fits.
     """
-    key = (solver, problem.model, problem.free_idx, problem.analytic, max_steps)
+    masked = problem.mask is not None
+    key = (solver, problem.model, problem.free_idx, problem.analytic, "masked" if masked else max_steps)
     try:
         fn = _JITTED.get(key)
     except TypeError:  # a solver holding arrays (e.g. optimistix's trust-region checks): not hashable
@@ -283,11 +284,14 @@ def _core_jit(solver: AbstractLimbSolver, problem: LimbProblem, max_steps: int) 
     if fn is None:
         model, free_idx, analytic = problem.model, problem.free_idx, problem.analytic
 
-        def run(theta0: Array, coords: Array, z: Array, w: Array) -> LimbFit:
-            return _traced_core(solver, LimbProblem(model, free_idx, analytic, theta0, coords, z, w), max_steps)
+        def run(theta0: Array, coords: Array, z: Array, w: Array, *held: Array) -> LimbFit:
+            mask, steps = held if held else (None, max_steps)  # masked: the mask and the step limit are data
+            return _traced_core(solver, LimbProblem(model, free_idx, analytic, theta0, coords, z, w, mask), steps)
 
-        ident = stable_ident(solver, model, free_idx, analytic, max_steps)
+        ident = stable_ident(solver, model, free_idx, analytic, "masked" if masked else max_steps)
         fn = _JITTED[key] = jax.jit(run) if ident is None else ExportedCore(run, ident, _template(model, free_idx, solver.name))
+    if masked:
+        return fn(*problem.args, problem.mask, _to_device(np.asarray(max_steps, dtype=np.int64)))
     return fn(*problem.args)
 
 
@@ -337,6 +341,28 @@ def batch_problem(
     return LimbProblem(model, free_idx, analytic, jnp.asarray(theta), jnp.asarray(coords_), jnp.asarray(z_), jnp.asarray(w_))
 
 
+# ============================================================================ held by a mask
+def _held_mask(model: LimbModel, free_idx: tuple[int, ...], held: Sequence[str]) -> np.ndarray:
+    """The 0/1 mask over ``free_idx`` of :func:`fit`'s ``held`` (validated)."""
+    free = [model.param_names[i] for i in free_idx]
+    unknown = sorted(set(held) - set(free))
+    if unknown:
+        raise LimbInputError(f"`held` names parameters that are not free {unknown}; the free ones are {free}")
+    mask = np.array([0.0 if n in held else 1.0 for n in free])
+    if not mask.any():
+        raise LimbInputError("`held` holds every free parameter: nothing to estimate")
+    return mask
+
+
+def _without_held(res: LimbFit, held: Sequence[str]) -> LimbFit:
+    """A masked fit's :class:`LimbFit` over its estimated parameters only (as the fit with them fixed)."""
+    keep = [i for i, n in enumerate(res.free) if n not in held]
+    cov = np.asarray(res.covariance)[np.ix_(keep, keep)]  # on the host: no gather program
+    return LimbFit(params=res.params, free=tuple(res.free[i] for i in keep), covariance=jax.device_put(cov),
+                   sigma2=res.sigma2, rms=res.rms, n_pixels=res.n_pixels, n_steps=res.n_steps, result=res.result,
+                   solver=res.solver)
+
+
 # ============================================================================ API
 def fit(
     model: LimbModel,
@@ -350,6 +376,7 @@ def fit(
     analytic: bool = True,
     max_steps: int = 256,
     throw: bool = True,
+    held: Sequence[str] | None = None,
 ) -> LimbFit:
     """Fit a sigmoid limb model to pixel intensities.
 
@@ -366,6 +393,12 @@ def fit(
     max_steps : iteration limit.
     throw : raise :class:`~jaxlimb.errors.ConvergenceError` if the fit did not converge;
         with ``throw=False`` inspect ``result`` / ``converged`` instead.
+    held : parameters (not in ``fixed``) held at their ``init`` values by a run-time mask
+        (:class:`~jaxlimb.fitting.solvers.LimbProblem`'s ``mask``): every call with the same
+        ``fixed`` -- whatever it holds and whatever ``max_steps`` -- runs one compiled program
+        (e.g. a fit with the PSF free, then with it held).  The answer is that of
+        ``fixed=(*fixed, *held)``.  ``None`` (default): no mask.  Solvers without
+        :attr:`~jaxlimb.fitting.solvers.AbstractLimbSolver.masks` get ``held`` added to ``fixed``.
 
     Returns
     -------
@@ -380,11 +413,16 @@ def fit(
     """
     _check_precision()
     solver = NormalLM() if solver is None else solver
+    if held is not None and not (solver.masks and solver.jittable):
+        fixed, held = (*fixed, *held), None
     coords_, z_, w_, theta, free_idx = _validate(model, coords, z, init, fixed, weights, batched=False)
+    mask = None if held is None else _to_device(_held_mask(model, free_idx, held))
     coords_, z_, w_ = pad_pixels(coords_, z_, w_, bucket_size(z_.shape[0]))
-    problem = LimbProblem(model, free_idx, analytic, *(_to_device(a) for a in (theta, coords_, z_, w_)))
+    problem = LimbProblem(model, free_idx, analytic, *(_to_device(a) for a in (theta, coords_, z_, w_)), mask)
     if solver.jittable:
         res = _core_jit(solver, problem, max_steps)
+        if held:
+            res = _without_held(res, held)
     else:
         y, n_steps, result = solver.solve(problem, jnp.asarray(theta[list(free_idx)]), max_steps)
         res = _make_fit_jit(problem, y, n_steps, result, solver.name)

@@ -85,6 +85,11 @@ class LimbProblem(eqx.Module):
     coords : pixel coordinates, ``(n, 2)`` ``(row, col)`` (or ``(n,)`` for the linear model).
     z : observed intensities ``(n,)``.
     w : per-pixel weights ``(n,)``: 1 for data, 0 for padding (or 1/sigma_i).
+    mask : optional 0/1 flags of the free parameters ``(q,)``: a 0 holds that parameter at its
+        start for this problem only (its Jacobian row and step are zero, its diagonal of
+        :math:`J^\top J` is 1: the normal equations of the other parameters are those of the
+        problem without it), so that fits which differ only in what they hold share one compiled
+        program.  ``None``: every free parameter is estimated.
     """
 
     model: LimbModel = eqx.field(static=True)
@@ -94,6 +99,7 @@ class LimbProblem(eqx.Module):
     coords: Array
     z: Float[Array, " n"]
     w: Float[Array, " n"]
+    mask: Float[Array, " q"] | None = None
 
     @property
     def args(self) -> tuple[Array, Array, Array, Array]:
@@ -124,7 +130,20 @@ class LimbProblem(eqx.Module):
         else:
             r = self.w * (self.model.intensity(params, self.coords) - self.z)
             jt = self.jacobian(y).T
-        return jt @ jt.T, jt @ r, r @ r
+        if self.mask is None:
+            return jt @ jt.T, jt @ r, r @ r
+        on = self.mask > 0
+        jt = jnp.where(on[:, None], jt, 0.0)  # a held parameter's row: exactly 0 (even if not finite)
+        return jt @ jt.T + jnp.diag(jnp.where(on, 0.0, 1.0)), jt @ r, r @ r
+
+    @property
+    def n_free(self) -> Any:
+        """Number of estimated parameters (``q``, or the count of the mask's ones)."""
+        return len(self.free_idx) if self.mask is None else jnp.sum(self.mask > 0)
+
+    def estimated(self, y: Array) -> Array:
+        """``y`` with its held entries (``mask`` 0) set to 0: the scale of the convergence test."""
+        return y if self.mask is None else jnp.where(self.mask > 0, y, 0.0)
 
     def admissible(self, y: Array) -> Bool[Array, ""]:
         """Finite, and every scale parameter (radius, a, k, rho) strictly positive."""
@@ -144,6 +163,8 @@ class AbstractLimbSolver(eqx.Module):
     """Base class of the solvers behind :func:`jaxlimb.fitting.fit`."""
 
     jittable: ClassVar[bool] = True
+    masks: ClassVar[bool] = False
+    """Whether :meth:`solve` honours :class:`LimbProblem`'s ``mask`` and takes ``max_steps`` as an array."""
 
     @abc.abstractmethod
     def solve(
@@ -165,7 +186,7 @@ def _finish(problem: LimbProblem, y: Array, result: FitResult) -> FitResult:
 def _coarse(problem: LimbProblem, k: int) -> LimbProblem:
     """Every ``k``-th pixel of ``problem`` (the coarse phase of coarse-to-fine)."""
     return LimbProblem(problem.model, problem.free_idx, problem.analytic, problem.theta0,
-                       problem.coords[::k], problem.z[::k], problem.w[::k])
+                       problem.coords[::k], problem.z[::k], problem.w[::k], problem.mask)
 
 
 class NormalLM(AbstractLimbSolver):
@@ -192,6 +213,7 @@ class NormalLM(AbstractLimbSolver):
     are kept as solvers and compared in ``benchmarks/solvers.py``.
     """
 
+    masks: ClassVar[bool] = True
     rtol: float = 1e-10
     atol: float = 1e-10
     lambda0: float = 1e-3
@@ -239,31 +261,36 @@ class NormalLM(AbstractLimbSolver):
             return h, lam * scale
 
         def body(c):  # type: ignore[no-untyped-def]
-            y, jtj, jtr, rss, lam, nu, n, _, _ = c
+            y, jtj, jtr, rss, lam, nu, n, _, _, first = c
             h, mu_d = damped_step(jtj, jtr, lam)
-            y_try = y + h
+            y_try = jnp.where(first, y, y + h)  # the first pass evaluates the start itself
             jtj_t, jtr_t, rss_t = problem.normal_equations(y_try)
             pred = 0.5 * (h @ (mu_d * h) - h @ jtr)  # L(0) - L(h) of the local model (> 0)
             gain = 0.5 * (rss - rss_t) / jnp.where(pred > 0, pred, 1.0)
-            ok = jnp.isfinite(rss_t) & problem.admissible(y_try) & (pred > 0) & (gain > 0)
-            small = jnp.max(jnp.abs(h)) <= atol + rtol * jnp.max(jnp.abs(y))
+            ok = first | (jnp.isfinite(rss_t) & problem.admissible(y_try) & (pred > 0) & (gain > 0))
+            small = jnp.max(jnp.abs(h)) <= atol + rtol * jnp.max(jnp.abs(problem.estimated(y)))
             y = jnp.where(ok, y_try, y)
             jtj = jnp.where(ok, jtj_t, jtj)
             jtr = jnp.where(ok, jtr_t, jtr)
             rss = jnp.where(ok, rss_t, rss)
-            lam = jnp.where(ok, lam * jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * gain - 1.0) ** 3), lam * nu)
-            nu = jnp.where(ok, 2.0, 2.0 * nu)
-            stuck = ~ok & (lam > 1e16)
-            return y, jtj, jtr, rss, lam, nu, n + 1, small & jnp.all(jnp.isfinite(h)), stuck
+            lam_new = jnp.where(ok, lam * jnp.maximum(1.0 / 3.0, 1.0 - (2.0 * gain - 1.0) ** 3), lam * nu)
+            nu_new = jnp.where(ok, 2.0, 2.0 * nu)
+            stuck = jnp.where(first, ~jnp.isfinite(rss_t), ~ok & (lam_new > 1e16))
+            done = ~first & small & jnp.all(jnp.isfinite(h))
+            return (y, jtj, jtr, rss, jnp.where(first, lam, lam_new), jnp.where(first, nu, nu_new),
+                    n + jnp.where(first, 0, 1), done, stuck, jnp.asarray(False))
 
         def cond(c):  # type: ignore[no-untyped-def]
-            n, done, stuck = c[6], c[7], c[8]
-            return (n < max_steps) & ~done & ~stuck
+            n, done, stuck, first = c[6], c[7], c[8], c[9]
+            return first | ((n < max_steps) & ~done & ~stuck)
 
-        jtj, jtr, rss = problem.normal_equations(y0)
-        init = (y0, jtj, jtr, rss, jnp.asarray(self.lambda0, dtype), jnp.asarray(2.0, dtype),
-                jnp.asarray(0), jnp.asarray(False), ~jnp.isfinite(rss))
-        y, jtj, jtr, rss, _, _, n, done, stuck = jax.lax.while_loop(cond, body, init)
+        # one model pass in the program (the loop's): the start is evaluated by its first pass, where
+        # the placeholder normal equations (I, 0, inf) give a zero step
+        q = y0.shape[-1]
+        init = (y0, jnp.eye(q, dtype=dtype), jnp.zeros(q, dtype), jnp.asarray(jnp.inf, dtype),
+                jnp.asarray(self.lambda0, dtype), jnp.asarray(2.0, dtype), jnp.asarray(0), jnp.asarray(False),
+                jnp.asarray(False), jnp.asarray(True))
+        y, jtj, jtr, rss, _, _, n, done, stuck, _ = jax.lax.while_loop(cond, body, init)
         return y, n, done, stuck, (jtj, jtr, rss)
 
 
@@ -331,7 +358,7 @@ class PaperGaussNewton(AbstractLimbSolver):
             y_new = y + delta
             bad = ~problem.admissible(y_new)
             y_new = jnp.where(bad, y, y_new)
-            small = jnp.max(jnp.abs(delta)) <= self.atol + self.rtol * jnp.max(jnp.abs(y_new))
+            small = jnp.max(jnp.abs(delta)) <= self.atol + self.rtol * jnp.max(jnp.abs(problem.estimated(y_new)))
             hist = hist.at[n + 1].set(y_new) if keep else hist
             return y_new, n + 1, small, hist, bad
 

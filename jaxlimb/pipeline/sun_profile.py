@@ -151,23 +151,25 @@ def fit_limb_darkened(img, center_rc, radius_px: float, *, annulus_px: float | N
 
 
 def _fit_free_sigma(coords, z, init, solver, fixed: tuple[str, ...], max_steps: int):  # noqa: ANN202
-    """The fit with the PSF sigma free, run in chunks of :data:`_FIRST_STEPS` steps (one compiled program).
+    """The fit with the PSF sigma free, run in chunks of :data:`_FIRST_STEPS` steps.
 
     When the data are as sharp as (or sharper than) the pixel box, sigma -> 0, where its Jacobian column
     vanishes (sigma enters as sigma^2) and the iteration crawls: below :data:`SIGMA_FLOOR` (or below 0.1
-    px while not converged) the fit is redone with sigma held at 0.
+    px while not converged) the fit is redone with sigma held at 0.  Sigma is held by
+    :func:`~jaxlimb.fitting.fit`'s run-time mask (``held``), so the chunks and the refit are one compiled
+    program: a process loads one limb-darkened fit core from the compilation cache, not two.
     """
     chunk = min(max_steps, _FIRST_STEPS)
-    res = fit(LIMB_DARKENED, coords, z, init, solver, fixed=fixed, max_steps=chunk, throw=False)
+    res = fit(LIMB_DARKENED, coords, z, init, solver, fixed=fixed, max_steps=chunk, throw=False, held=())
     done = int(res.n_steps)
     while True:
         sigma = abs(float(res.params.sigma))
         if sigma < SIGMA_FLOOR or (not bool(res.converged) and sigma < 0.1):
-            return fit(LIMB_DARKENED, coords, z, init.replace(sigma=0.0), solver, fixed=(*fixed, "sigma"),
+            return fit(LIMB_DARKENED, coords, z, init.replace(sigma=0.0), solver, fixed=fixed, held=("sigma",),
                        max_steps=max_steps, throw=False)
         if bool(res.converged) or done >= max_steps:
             return res
-        res = fit(LIMB_DARKENED, coords, z, res.params, solver, fixed=fixed, max_steps=chunk, throw=False)
+        res = fit(LIMB_DARKENED, coords, z, res.params, solver, fixed=fixed, max_steps=chunk, throw=False, held=())
         done += int(res.n_steps)
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 import subprocess
@@ -43,6 +44,12 @@ def test_bad_workers_and_chunks():
     with pytest.raises(LimbInputError, match="workers"):
         make_client(workers=0)
     assert list(chunked([1, 2, 3, 4, 5], 2)) == [[1, 2], [3, 4], [5]]
+    from jaxlimb.analysis.distributed import TASKS_PER_WORKER, default_chunk
+
+    for n, w in ((200, 2), (200, 1), (1000, 3), (5, 4), (10**6, 2)):
+        c = default_chunk(n, w)
+        assert 1 <= c <= 50
+        assert c == 50 or math.ceil(n / c) >= min(n, TASKS_PER_WORKER * w)  # enough tasks to balance the workers
 
 
 SMALL_CAMERA = {"focal_length_mm": 16.0 * 500 / 2592, "pixel_pitch_mm": 0.0022, "rows": 400, "cols": 500,
@@ -91,3 +98,25 @@ def test_worker_environment_shares_the_cores(monkeypatch):
     monkeypatch.setenv("OMP_NUM_THREADS", "2")
     kept = worker_environment(2, cores=2)
     assert "XLA_FLAGS" not in kept and "OMP_NUM_THREADS" not in kept  # the user's choice wins
+
+
+def test_worker_preload_starts_jax_and_freezes_at_teardown():
+    """:mod:`jaxlimb.analysis.dask_worker` in a fresh process: setup starts JAX (float64, the locate
+    pipeline) in a thread; teardown freezes the collector's objects (a quick process exit)."""
+    code = ("import gc, sys\nfrom jaxlimb.analysis import dask_worker as d\n"
+            "print('jax' in sys.modules)\nd.dask_setup(None)\nd.dask_setup(None)\n"
+            "assert len(d._STARTED) == 1\nd._STARTED[0].join()\nimport jax\n"
+            "print(jax.config.jax_enable_x64, 'jaxlimb.pipeline' in sys.modules)\n"
+            "n = gc.get_freeze_count()\nx = [[] for _ in range(1000)]\nd.dask_teardown(None)\n"
+            "print(n > 10_000, gc.get_freeze_count() >= n + 1000)")
+    env = {**os.environ, "JAXLIMB_CACHE_DIR": "off"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout
+    assert out.split() == ["False", "True", "True", "True", "True"]
+
+
+def test_local_cluster_workers_load_the_preload():
+    client = make_client(workers=1)
+    try:
+        assert all(client.run(lambda: "jaxlimb.analysis.dask_worker" in sys.modules).values())
+    finally:
+        close_client(client)

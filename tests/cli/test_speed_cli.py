@@ -25,6 +25,22 @@ def test_help_does_not_import_jax():
     assert out.strip().endswith("NOJAX")
 
 
+def test_process_entry_freezes_the_collector_and_main_does_not():
+    """``entry`` (the command's process) freezes JAX's objects for the garbage collector once JAX has started
+    (and all at the end); :func:`main` in a session (tests, notebooks) freezes nothing."""
+    code = ("import contextlib, gc, io, sys\nfrom jaxlimb import cli\n"
+            "seen = []\norig = cli._start_jax\n"
+            "cli._start_jax = lambda: (orig(), seen.append(gc.get_freeze_count()))\n"
+            "sys.argv = ['jaxlimb', 'montecarlo', '--n', '2', '--radius', '20', '--batch', '2', '--json']\n"
+            "with contextlib.redirect_stdout(io.StringIO()):\n    code = cli.{fn}()\n"
+            "print(code, seen[0] if seen else -1, gc.get_freeze_count())")
+    out = _run(code.format(fn="entry"), {"JAXLIMB_CACHE_DIR": "off"}).split()
+    assert out[0] == "0"
+    started, ended = int(out[1]), int(out[2])
+    assert started > 10_000 and ended >= started  # JAX's module objects, then everything left at the end
+    assert _run(code.format(fn="main"), {"JAXLIMB_CACHE_DIR": "off"}).split()[1:] == ["0", "0"]
+
+
 def test_solver_names_match_the_registry():
     from jaxlimb._solver_names import SOLVER_NAMES
     from jaxlimb.fitting import SOLVERS

@@ -215,6 +215,35 @@ def test_single_fits_in_one_bucket_compile_once():
     assert compile_count() == before
 
 
+def test_held_by_mask_equals_fixed_and_shares_one_program():
+    """``held`` (a run-time mask) gives the fit with those parameters fixed, and every held set and step
+    limit runs one compiled program."""
+    coords, z, truth = circle_problem(radius=60.0, sigma=5.0, shape=(160, 160), seed=7)
+    init = truth.replace(r0=truth.r0 + 0.4, c0=truth.c0 - 0.3, radius=truth.radius + 0.5, k=2.5)
+    free = fit(CIRCLE, coords, z, init, fixed=("ymin",), held=(), max_steps=50)
+    for hold, steps in ((("k",), 64), (("k", "ymax"), 80), ((), 40)):
+        before = compile_count()
+        masked = fit(CIRCLE, coords, z, init, fixed=("ymin",), held=hold, max_steps=steps)
+        assert compile_count() == before, f"held={hold}, max_steps={steps}: a second program"
+        static = fit(CIRCLE, coords, z, init, fixed=("ymin", *hold), max_steps=steps)
+        assert masked.free == static.free and int(masked.n_steps) == int(static.n_steps)
+        np.testing.assert_allclose(np.asarray(masked.params.to_vector()), np.asarray(static.params.to_vector()),
+                                   rtol=0, atol=1e-10)
+        np.testing.assert_allclose(np.asarray(masked.covariance), np.asarray(static.covariance), rtol=1e-9)
+        np.testing.assert_allclose(float(masked.sigma2), float(static.sigma2), rtol=1e-12)
+        for name in hold:
+            assert float(getattr(masked.params, name)) == float(getattr(init, name))
+    np.testing.assert_allclose(np.asarray(free.params.to_vector()),
+                               np.asarray(fit(CIRCLE, coords, z, init, fixed=("ymin",), max_steps=50).params.to_vector()),
+                               atol=1e-10)
+    paper = fit(CIRCLE, coords, z, init, PaperGaussNewton(), fixed=("ymin",), held=("k",))  # no mask: held -> fixed
+    assert paper.free == ("r0", "c0", "radius", "ymax") and float(paper.params.k) == float(init.k)
+    with pytest.raises(LimbInputError, match="not free"):
+        fit(CIRCLE, coords, z, init, fixed=("ymin",), held=("ymin",))
+    with pytest.raises(LimbInputError, match="every free"):
+        fit(CIRCLE, coords, z, init, fixed=("ymin",), held=("r0", "c0", "radius", "k", "ymax"))
+
+
 def test_float32_warns():
     code = (
         "import warnings, numpy as np\n"
