@@ -63,6 +63,13 @@ class EllipsePixels:
     lit_dir: tuple[float, float] | None
     half: float
     ellipse: tuple
+    trace: Any = None
+
+    @property
+    def patchy(self) -> bool:
+        """An albedo-patchy lit limb (:meth:`~jaxlimb.pipeline.limb_trace.TracedLimb.patchy`): the band is then
+        level-normalised per ray and the edge is a plain step (no ramp, no profile refit)."""
+        return self.trace is not None and self.trace.patchy()
 
 
 @dataclass(frozen=True)
@@ -161,8 +168,12 @@ class Ellipsoid:
                     f"{max(0.0, 2 * math.degrees(half)):.3g} deg (at least 10 deg needed): too short for the ellipse")
         rho, th = (0.999, 0.0) if self.R is None else self._predicted_shape(cam, -p0)
         a0 = cand.radius / math.sqrt(rho)
-        return EllipsePixels(p0, float(D0), lit_dir, half if lit_dir is not None else math.pi,
-                             ((float(c_rc[0]), float(c_rc[1])), (a0, a0 * rho), th))
+        half = half if lit_dir is not None else math.pi
+        ell = ((float(c_rc[0]), float(c_rc[1])), (a0, a0 * rho), th)
+        if not eo.trace:
+            return EllipsePixels(p0, float(D0), lit_dir, half, ell)
+        ell, tr = _traced_start(frame.img, ell, lit_dir, half, eo.band_px)
+        return EllipsePixels(p0, float(D0), lit_dir, half, ell, tr)
 
     def _predicted_shape(self, cam: Camera, center_km: np.ndarray) -> tuple[float, float]:
         ic = image_conic(cam, self.radii_limb, center_km, self.R)
@@ -222,6 +233,33 @@ class Ellipsoid:
                        extras=extras)
 
 
+def _traced_start(img: np.ndarray, ell: tuple, lit_dir, half: float, band: float) -> tuple[tuple, Any]:
+    """The initial ellipse from the limb against the sky (:mod:`jaxlimb.pipeline.limb_trace`): a wide trace about
+    the front end's ellipse (it may lie on cloud edges, 5 % of the radius off), a fit, a narrow trace about it and
+    a second fit; returns the ellipse and the narrow trace (its per-ray levels normalise the band)."""
+    from .limb_trace import fit_traced, trace_limb
+
+    try:
+        tr = trace_limb(img, ell, lit_dir, half, max(12.0, 0.05 * ell[1][0]))
+        e1 = fit_traced(tr, ell)
+        tr = trace_limb(img, e1, lit_dir, half, max(6.0, 2.0 * band))
+        e2 = fit_traced(tr, e1)
+    except TooManyOutliersError:  # too few rays with a flat inside (a bright glow's foot): the front end's ellipse
+        return ell, None
+    return e2, tr
+
+
+def _band_data(img: np.ndarray, ell: tuple, band: float, pix: "EllipsePixels") -> FitData:
+    """The band's pixels and values; with a trace, level-normalised per ray (rays without a limb against the
+    sky, or with a cloud edge inside the band, left out: :func:`~jaxlimb.pipeline.limb_trace.normalised_band`)."""
+    pts = _band_pixels(img.shape, ell, band, pix.lit_dir, pix.half)
+    if pix.patchy:
+        from .limb_trace import normalised_band
+
+        return normalised_band(img, pts, pix.trace)[1]
+    return FitData(pts, np.asarray(img[pts[:, 0].astype(int), pts[:, 1].astype(int)], float), None, 0.0, 1.0)
+
+
 def _earth_hints(h: Any = None) -> Any:
     from ..imaging import Hints
 
@@ -263,15 +301,17 @@ def _edge_loop(body: Ellipsoid, frame: Frame, pix: EllipsePixels) -> EllipsoidEd
     eo, cam, img = body.eo, frame.cam, frame.img
     model = ELLIPSE_RAMP if eo.interior_ramp else ELLIPSE
     fixed = (() if body.free else ("rho", "theta")) + (tuple(eo.fix_profile) if eo.interior_ramp else ())
+    if pix.patchy and eo.interior_ramp:  # per-ray levels and a flat interior (limb_trace): a plain step
+        fixed = fixed + tuple(n for n in ("g", "g2", "h1", "h2", "h3", "h4") if n not in fixed)
     ell, p, prev, res, hist = pix.ellipse, pix.p0, None, None, []
     for it in range(eo.max_refits):
-        pts = _band_pixels(img.shape, ell, eo.band_px, pix.lit_dir, pix.half)
+        data = _band_data(img, ell, eo.band_px, pix)
+        pts, z = data.coords, data.z
         if pts.shape[0] < 50:
             raise TooManyOutliersError(f"only {pts.shape[0]} pixels in the lit limb band (need >= 50)")
-        z = np.asarray(img[pts[:, 0].astype(int), pts[:, 1].astype(int)], float)
         init = _edge_start(eo, ell, res.params if res is not None else None,
                            _first_levels(img, pts, z, ell, eo.band_px) if res is None else (0.0, 0.0))
-        res = fit(model, pts, z, init, body._solver(frame), fixed=fixed, throw=True)
+        res = fit(model, pts, z, init, body._solver(frame), fixed=fixed, weights=data.weights, throw=True)
         fitted = _as_ellipse(res.params)
         p, info = position(body, cam, fitted, p)
         hist.append({"fit": it + 1, "range_km": float(np.linalg.norm(p)), "range_iterations": info["iterations"],
@@ -286,7 +326,7 @@ def _edge_loop(body: Ellipsoid, frame: Frame, pix: EllipsePixels) -> EllipsoidEd
         if done:
             break
     frame.mark("refine")
-    final = RefineResult(res, FitData(pts, z, None, 0.0, 1.0), 0, tuple(n for n in model.param_names if n not in res.free))
+    final = RefineResult(res, data, 0, tuple(n for n in model.param_names if n not in res.free))
     return EllipsoidEdge(final, pix, fitted, p, hist, 0.0, 0.0)
 
 
@@ -296,8 +336,19 @@ def _check_jump(frame: Frame, cand: Any, edge: EllipsoidEdge, eo: EllipsoidOptio
     from ..errors import JumpError
 
     pts = edge.final.coords
-    ang = np.arctan2(pts[:, 0] - cand.center_rc[0], pts[:, 1] - cand.center_rc[1])
-    on_circle = np.column_stack([cand.center_rc[0] + cand.radius * np.sin(ang), cand.center_rc[1] + cand.radius * np.cos(ang)])
+    if edge.pixels.trace is not None:  # the initial conic is the traced ellipse, not the front end's circle
+        from ..geometry.ellipsoid import ellipse_points
+
+        e0 = edge.pixels.ellipse
+        ang = np.linspace(0.0, 2.0 * np.pi, 256, endpoint=False)
+        on_circle = ellipse_points(e0[0], e0[1], e0[2], ang)
+        arc = np.abs(np.angle(np.exp(1j * (np.arctan2(on_circle[:, 0] - e0[0][0], on_circle[:, 1] - e0[0][1])
+                                          - np.arctan2(*(edge.pixels.lit_dir or (0.0, 1.0))))))) <= edge.pixels.half
+        on_circle = on_circle[arc]
+    else:
+        ang = np.arctan2(pts[:, 0] - cand.center_rc[0], pts[:, 1] - cand.center_rc[1])
+        on_circle = np.column_stack([cand.center_rc[0] + cand.radius * np.sin(ang),
+                                     cand.center_rc[1] + cand.radius * np.cos(ang)])
     disp = float(np.max(np.abs(_band_signed(on_circle, edge.fitted)))) if pts.size else math.inf
     (_, _), (a, b), _ = edge.fitted
     thr = jump_threshold(eo.band_px, frame.opt.max_jump_px) + (a - b)
