@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from ..analysis.crlb import numerical_jacobian
-from ..errors import ArcTooShortError, ConfigError, ConvergenceError, GeometryError, LimbInputError, TooManyOutliersError
+from ..errors import ArcTooShortError, ConfigError, ConvergenceError, GeometryError, LimbInputError, RadiusInconsistentError, TooManyOutliersError
 from ..fitting import fit, solver_from_name
 from ..geometry.camera import Camera
 from ..geometry.ellipsoid import check_rotation, image_conic
@@ -48,7 +48,7 @@ from .earth import (
     unsigned_offset_cov,
 )
 from .ellipsoid_profile import fit_profile_ellipsoid
-from .frame import Frame, min_diameter_px
+from .frame import Frame, candidates, min_diameter_px
 from .geometry import BodyCenter
 from .refine import FitData, RefineResult
 from .result import EllipseResult, LimbMeasurement
@@ -147,6 +147,18 @@ class Ellipsoid:
 
         return replace(frame, img=undistort_image(frame.img, cam), cam=pinhole_of(cam), observed_cam=cam)
 
+    def candidates(self, frame: Frame) -> Any:
+        """The shared front end; when it fails on the limb's size or outliers (its circle on cloud edges: a 37 px
+        circle for a 124 px Earth) and the trace is on, the disc's outermost lit pixel and the range prior's
+        radius (:func:`_blob_candidates`) start the trace instead."""
+        try:
+            return candidates(frame)
+        except (RadiusInconsistentError, TooManyOutliersError):
+            start = _blob_candidates(self, frame) if self.eo.trace else None
+            if start is None:
+                raise
+            return start
+
     def limb_pixels(self, frame: Frame, cand: Any) -> EllipsePixels:
         """The position prior, the lit window (arc check) and the initial ellipse."""
         cam, h, eo = frame.cam, frame.hints, self.eo
@@ -210,7 +222,7 @@ class Ellipsoid:
 
     def iterations(self, edge: EllipsoidEdge, final: RefineResult) -> int:
         # the edge fit with its model-error term is the same fit (same data), the profile a second one
-        return edge.n_steps + (int(final.fit.n_steps) if final.data is not edge.final.data else 0)
+        return edge.n_steps + (int(final.fit.n_steps) if type(final.fit.params) is not type(edge.final.fit.params) else 0)
 
     def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
         """Distorted camera: ``center_rc`` and its covariance rows mapped to the observed image."""
@@ -233,6 +245,42 @@ class Ellipsoid:
                        extras=extras)
 
 
+def _blob_candidates(body: Ellipsoid, frame: Frame) -> Any:
+    """A start without the front end (:meth:`Ellipsoid.candidates`): the radius ``f tan(asin(Re / D))`` of the range
+    prior ``D`` and the centre ``R`` px behind the brightest-side extreme of the disc (the pixel above the sky
+    by 5 noise sigma farthest toward the Sun's image direction); ``None`` without a camera, range prior or Sun."""
+    from ..imaging import LimbCandidates
+
+    cam, h, img = frame.cam, frame.hints, np.asarray(frame.img, float)
+    if cam is None or h is None or not h.range_prior_km or h.sun_dir_camera is None:
+        return None
+    rl = body.equatorial_km + body.atmosphere_km
+    if not h.range_prior_km > rl:
+        return None
+    R = cam.focal_px * math.tan(math.asin(rl / h.range_prior_km))
+    from scipy.ndimage import label
+
+    dark = img[img <= np.percentile(img, 70)]  # the sky (the disc covers < 30 % of a frame it fits in)
+    sky, noise = float(np.median(dark)), max(float(np.std(dark)), 1e-6 * float(np.ptp(img)), 1e-12)
+    lab, n = label(img > sky + 5.0 * noise)
+    if n == 0:
+        return None
+    sizes = np.bincount(lab.ravel())[1:]
+    rr, cc = np.nonzero(lab == 1 + int(np.argmax(sizes)))  # the disc: the largest bright component
+    if rr.size < 50:
+        return None
+    c_mid = (float(np.median(rr)), float(np.median(cc)))
+    sd = sun_direction_image(h.sun_dir_camera, cam, c_mid)
+    if sd is None:
+        return None
+    proj = rr * sd[0] + cc * sd[1]
+    far = proj >= np.percentile(proj, 99.9)
+    p = np.array([np.median(rr[far]), np.median(cc[far])])
+    c = p - R * np.asarray(sd, float)
+    return LimbCandidates(np.zeros((0, 2)), (float(c[0]), float(c[1])), float(R), math.nan, tuple(sd), math.pi / 2,
+                          "range prior + disc extreme", {"fallback": "front end failed"})
+
+
 def _traced_start(img: np.ndarray, ell: tuple, lit_dir, half: float, band: float) -> tuple[tuple, Any]:
     """The initial ellipse from the limb against the sky (:mod:`jaxlimb.pipeline.limb_trace`): a wide trace about
     the front end's ellipse (it may lie on cloud edges, 5 % of the radius off), a fit, a narrow trace about it and
@@ -246,6 +294,8 @@ def _traced_start(img: np.ndarray, ell: tuple, lit_dir, half: float, band: float
         e2 = fit_traced(tr, e1)
     except TooManyOutliersError:  # too few rays with a flat inside (a bright glow's foot): the front end's ellipse
         return ell, None
+    if not (abs(e2[1][0] / ell[1][0] - 1.0) < 0.1 and math.dist(e2[0], ell[0]) < 0.1 * ell[1][0]):
+        return ell, None  # the robust fit ran off (a few rays on a short arc): the front end's ellipse
     return e2, tr
 
 

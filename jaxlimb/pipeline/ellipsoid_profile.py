@@ -142,13 +142,30 @@ def edge_with_model_error(edge: "EllipsoidEdge", rejected: Any = None) -> Refine
     return replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
 
 
+def _with_trace_error(out: RefineResult, edge: "EllipsoidEdge") -> RefineResult:
+    """The albedo-patchy limb's model error (:func:`~jaxlimb.pipeline.limb_trace.trace_model_cov`) added to the
+    covariance of ``(r0, c0, a)``."""
+    import equinox as eqx
+
+    from .limb_trace import trace_model_cov
+
+    free = list(out.fit.free)
+    names = [n for n in ("r0", "c0", "a") if n in free]
+    if len(names) < 3:
+        return out
+    idx = [free.index(n) for n in names]
+    C = np.array(out.fit.covariance)
+    C[np.ix_(idx, idx)] += trace_model_cov(edge.pixels.trace, edge.fitted)
+    return replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
+
+
 def fit_profile_ellipsoid(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", extras: dict[str, Any]) -> RefineResult:
     """The stage (module docstring): the profile's :class:`RefineResult`, or the edge fit's."""
     if not profile_wanted(frame, body.eo.interior_ramp):
         return edge_with_model_error(edge)
     if edge.pixels.patchy:  # the profile's one albedo is not this limb's (clouds): the per-ray step stays
         extras["profile_rejected"] = {"model": "lunar-lambert", "reason": "albedo varies along the lit limb"}
-        return edge_with_model_error(edge)
+        return _with_trace_error(edge_with_model_error(edge), edge)
     band = body.eo.profile_band_px if body.eo.profile_band_px is not None else body.eo.band_px
     fd = edge.final.data
     if band != body.eo.band_px:
