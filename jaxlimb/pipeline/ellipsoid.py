@@ -6,9 +6,16 @@ Earth offset and range iteration of Mortari, D'Souza & Zanetti 2016 §IV, Fig. 2
 * **prepare**: a camera is required (the range needs it); with lens distortion the frame is resampled
   onto the ideal pixel grid (the limb is a conic only there) and ``finish`` maps the centre and its
   covariance back through the distortion's Jacobian.
+* **candidates**: the shared front end; when it fails on the radius or the outliers (its circle on cloud
+  edges), the range prior's radius behind the disc's sunward extreme (:func:`_blob_candidates`).
 * **limb pixels**: the lit window from the Sun direction (else the front end's arc) less
   ``arc_margin_deg`` at each horn (:class:`~jaxlimb.errors.ArcTooShortError` when nothing is left),
   and the band of half-width ``band_px`` about the current ellipse (:func:`~jaxlimb.pipeline.earth._band_pixels`).
+  The ellipse is the limb traced against the sky (``EllipsoidOptions.trace``, :mod:`jaxlimb.pipeline.limb_trace`:
+  the outermost edge along rays, not the front end's circle, which lies on cloud edges 7-19 px off on cloudy
+  frames); on an albedo-patchy limb (clouds) the band is level-normalised per ray, rays with a cloud edge inside
+  the band are left out, the edge is a plain step, the uniform-albedo profile is not fitted and the traced points'
+  cluster-robust spread is added to the covariance as model error.
 * **edge fit**: the elliptical sigmoid with interior ramp (:data:`jaxlimb.models.ELLIPSE_RAMP`), ``rho,
   theta`` predicted from the limb cone at the current position (``R_body_to_camera`` known; else or with
   ``model="ellipse"`` free), repeated while the prediction moves the ellipse; Checks 1, 3/4 (radius in the
