@@ -291,11 +291,16 @@ def _blob_candidates(body: Ellipsoid, frame: Frame) -> Any:
 def _traced_start(img: np.ndarray, ell: tuple, lit_dir, half: float, band: float) -> tuple[tuple, Any]:
     """The initial ellipse from the limb against the sky (:mod:`jaxlimb.pipeline.limb_trace`): a wide trace about
     the front end's ellipse (it may lie on cloud edges, 5 % of the radius off), a fit, a narrow trace about it and
-    a second fit; returns the ellipse and the narrow trace (its per-ray levels normalise the band)."""
+    a second fit; returns the ellipse and the narrow trace (its per-ray levels normalise the band).  A front-end
+    ellipse within 1 px (median) of the traced points is kept (replacing it by the fit of a few traced rays sent
+    one far ``lambert`` frame's free ellipse to a 1.3 px centre sigma)."""
     from .limb_trace import fit_traced, trace_limb
 
     try:
         tr = trace_limb(img, ell, lit_dir, half, max(12.0, 0.05 * ell[1][0]))
+        if tr.ok.sum() and np.median(np.abs(_band_signed(tr.points[tr.ok], ell))) < 1.0:
+            # the front end's ellipse is on the traced limb: it stays the start (the trace only gives the levels)
+            return ell, trace_limb(img, ell, lit_dir, half, max(6.0, 2.0 * band))
         e1 = fit_traced(tr, ell)
         tr = trace_limb(img, e1, lit_dir, half, max(6.0, 2.0 * band))
         e2 = fit_traced(tr, e1)
