@@ -28,7 +28,7 @@ from typing import Any
 
 from ..errors import ConfigError
 from .edge import EdgeFit, LimbPixels, check_edge, edge_fit, edge_report, limb_pixels
-from .frame import Frame
+from .frame import Frame, candidates
 from .geometry import BodyCenter
 from .options import BodyShape
 from .refine import RefineResult
@@ -45,6 +45,9 @@ class Sphere:
 
     def prepare(self, frame: Frame) -> Frame:
         return frame
+
+    def candidates(self, frame: Frame) -> Any:
+        return candidates(frame)
 
     def limb_pixels(self, frame: Frame, cand: Any) -> LimbPixels:
         return limb_pixels(frame, cand, self.physical)

@@ -191,6 +191,10 @@ class EllipsoidOptions:
     profile_band_px
         Half-width (px) of the pixel band of the profile fit (about the edge fit's ellipse);
         ``None`` = ``band_px``.
+    trace
+        Start from the limb traced against the sky (:mod:`jaxlimb.pipeline.limb_trace`: the outermost edge along
+        rays, per-ray inside levels normalising the band, rays with a cloud edge inside the band left out)
+        instead of the front end's circle and one inside level (``False``; the cloudy Earth fails then).
     """
 
     band_px: float = 4.0
@@ -204,6 +208,7 @@ class EllipsoidOptions:
     interior_ramp: bool = True
     fix_profile: tuple[str, ...] = ()
     profile_band_px: float | None = None
+    trace: bool = True
 
     def __post_init__(self) -> None:
         if self.profile_band_px is not None and not (isinstance(self.profile_band_px, (int, float))

@@ -6,9 +6,16 @@ Earth offset and range iteration of Mortari, D'Souza & Zanetti 2016 §IV, Fig. 2
 * **prepare**: a camera is required (the range needs it); with lens distortion the frame is resampled
   onto the ideal pixel grid (the limb is a conic only there) and ``finish`` maps the centre and its
   covariance back through the distortion's Jacobian.
+* **candidates**: the shared front end; when it fails on the radius or the outliers (its circle on cloud
+  edges), the range prior's radius behind the disc's sunward extreme (:func:`_blob_candidates`).
 * **limb pixels**: the lit window from the Sun direction (else the front end's arc) less
   ``arc_margin_deg`` at each horn (:class:`~jaxlimb.errors.ArcTooShortError` when nothing is left),
   and the band of half-width ``band_px`` about the current ellipse (:func:`~jaxlimb.pipeline.earth._band_pixels`).
+  The ellipse is the limb traced against the sky (``EllipsoidOptions.trace``, :mod:`jaxlimb.pipeline.limb_trace`:
+  the outermost edge along rays, not the front end's circle, which lies on cloud edges 7-19 px off on cloudy
+  frames); on an albedo-patchy limb (clouds) the band is level-normalised per ray, rays with a cloud edge inside
+  the band are left out, the edge is a plain step, the uniform-albedo profile is not fitted and the traced points'
+  cluster-robust spread is added to the covariance as model error.
 * **edge fit**: the elliptical sigmoid with interior ramp (:data:`jaxlimb.models.ELLIPSE_RAMP`), ``rho,
   theta`` predicted from the limb cone at the current position (``R_body_to_camera`` known; else or with
   ``model="ellipse"`` free), repeated while the prediction moves the ellipse; Checks 1, 3/4 (radius in the
@@ -31,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from ..analysis.crlb import numerical_jacobian
-from ..errors import ArcTooShortError, ConfigError, ConvergenceError, GeometryError, LimbInputError, TooManyOutliersError
+from ..errors import ArcTooShortError, ConfigError, ConvergenceError, GeometryError, LimbInputError, RadiusInconsistentError, TooManyOutliersError
 from ..fitting import fit, solver_from_name
 from ..geometry.camera import Camera
 from ..geometry.ellipsoid import check_rotation, image_conic
@@ -48,7 +55,7 @@ from .earth import (
     unsigned_offset_cov,
 )
 from .ellipsoid_profile import fit_profile_ellipsoid
-from .frame import Frame, min_diameter_px
+from .frame import Frame, candidates, min_diameter_px
 from .geometry import BodyCenter
 from .refine import FitData, RefineResult
 from .result import EllipseResult, LimbMeasurement
@@ -63,6 +70,13 @@ class EllipsePixels:
     lit_dir: tuple[float, float] | None
     half: float
     ellipse: tuple
+    trace: Any = None
+
+    @property
+    def patchy(self) -> bool:
+        """An albedo-patchy lit limb (:meth:`~jaxlimb.pipeline.limb_trace.TracedLimb.patchy`): the band is then
+        level-normalised per ray and the edge is a plain step (no ramp, no profile refit)."""
+        return self.trace is not None and self.trace.patchy()
 
 
 @dataclass(frozen=True)
@@ -140,6 +154,18 @@ class Ellipsoid:
 
         return replace(frame, img=undistort_image(frame.img, cam), cam=pinhole_of(cam), observed_cam=cam)
 
+    def candidates(self, frame: Frame) -> Any:
+        """The shared front end; when it fails on the limb's size or outliers (its circle on cloud edges: a 37 px
+        circle for a 124 px Earth) and the trace is on, the disc's outermost lit pixel and the range prior's
+        radius (:func:`_blob_candidates`) start the trace instead."""
+        try:
+            return candidates(frame)
+        except (RadiusInconsistentError, TooManyOutliersError):
+            start = _blob_candidates(self, frame) if self.eo.trace else None
+            if start is None:
+                raise
+            return start
+
     def limb_pixels(self, frame: Frame, cand: Any) -> EllipsePixels:
         """The position prior, the lit window (arc check) and the initial ellipse."""
         cam, h, eo = frame.cam, frame.hints, self.eo
@@ -161,8 +187,12 @@ class Ellipsoid:
                     f"{max(0.0, 2 * math.degrees(half)):.3g} deg (at least 10 deg needed): too short for the ellipse")
         rho, th = (0.999, 0.0) if self.R is None else self._predicted_shape(cam, -p0)
         a0 = cand.radius / math.sqrt(rho)
-        return EllipsePixels(p0, float(D0), lit_dir, half if lit_dir is not None else math.pi,
-                             ((float(c_rc[0]), float(c_rc[1])), (a0, a0 * rho), th))
+        half = half if lit_dir is not None else math.pi
+        ell = ((float(c_rc[0]), float(c_rc[1])), (a0, a0 * rho), th)
+        if not eo.trace:
+            return EllipsePixels(p0, float(D0), lit_dir, half, ell)
+        ell, tr = _traced_start(frame.img, ell, lit_dir, half, eo.band_px)
+        return EllipsePixels(p0, float(D0), lit_dir, half, ell, tr)
 
     def _predicted_shape(self, cam: Camera, center_km: np.ndarray) -> tuple[float, float]:
         ic = image_conic(cam, self.radii_limb, center_km, self.R)
@@ -199,7 +229,7 @@ class Ellipsoid:
 
     def iterations(self, edge: EllipsoidEdge, final: RefineResult) -> int:
         # the edge fit with its model-error term is the same fit (same data), the profile a second one
-        return edge.n_steps + (int(final.fit.n_steps) if final.data is not edge.final.data else 0)
+        return edge.n_steps + (int(final.fit.n_steps) if type(final.fit.params) is not type(edge.final.fit.params) else 0)
 
     def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
         """Distorted camera: ``center_rc`` and its covariance rows mapped to the observed image."""
@@ -220,6 +250,76 @@ class Ellipsoid:
         extras = {**meas.extras, "ellipse_frame": "ideal (undistorted) pixels", "undistorted_image": True}
         return replace(meas, center_rc=(float(c_obs[0]), float(c_obs[1])), covariance=cov, selected_pixels_rc=pix,
                        extras=extras)
+
+
+def _blob_candidates(body: Ellipsoid, frame: Frame) -> Any:
+    """A start without the front end (:meth:`Ellipsoid.candidates`): the radius ``f tan(asin(Re / D))`` of the range
+    prior ``D`` and the centre ``R`` px behind the brightest-side extreme of the disc (the pixel above the sky
+    by 5 noise sigma farthest toward the Sun's image direction); ``None`` without a camera, range prior or Sun."""
+    from ..imaging import LimbCandidates
+
+    cam, h, img = frame.cam, frame.hints, np.asarray(frame.img, float)
+    if cam is None or h is None or not h.range_prior_km or h.sun_dir_camera is None:
+        return None
+    rl = body.equatorial_km + body.atmosphere_km
+    if not h.range_prior_km > rl:
+        return None
+    R = cam.focal_px * math.tan(math.asin(rl / h.range_prior_km))
+    from scipy.ndimage import label
+
+    dark = img[img <= np.percentile(img, 70)]  # the sky (the disc covers < 30 % of a frame it fits in)
+    sky, noise = float(np.median(dark)), max(float(np.std(dark)), 1e-6 * float(np.ptp(img)), 1e-12)
+    lab, n = label(img > sky + 5.0 * noise)
+    if n == 0:
+        return None
+    sizes = np.bincount(lab.ravel())[1:]
+    rr, cc = np.nonzero(lab == 1 + int(np.argmax(sizes)))  # the disc: the largest bright component
+    if rr.size < 50:
+        return None
+    c_mid = (float(np.median(rr)), float(np.median(cc)))
+    sd = sun_direction_image(h.sun_dir_camera, cam, c_mid)
+    if sd is None:
+        return None
+    proj = rr * sd[0] + cc * sd[1]
+    far = proj >= np.percentile(proj, 99.9)
+    p = np.array([np.median(rr[far]), np.median(cc[far])])
+    c = p - R * np.asarray(sd, float)
+    return LimbCandidates(np.zeros((0, 2)), (float(c[0]), float(c[1])), float(R), math.nan, tuple(sd), math.pi / 2,
+                          "range prior + disc extreme", {"fallback": "front end failed"})
+
+
+def _traced_start(img: np.ndarray, ell: tuple, lit_dir, half: float, band: float) -> tuple[tuple, Any]:
+    """The initial ellipse from the limb against the sky (:mod:`jaxlimb.pipeline.limb_trace`): a wide trace about
+    the front end's ellipse (it may lie on cloud edges, 5 % of the radius off), a fit, a narrow trace about it and
+    a second fit; returns the ellipse and the narrow trace (its per-ray levels normalise the band).  A front-end
+    ellipse within 1 px (median) of the traced points is kept (replacing it by the fit of a few traced rays sent
+    one far ``lambert`` frame's free ellipse to a 1.3 px centre sigma)."""
+    from .limb_trace import fit_traced, trace_limb
+
+    try:
+        tr = trace_limb(img, ell, lit_dir, half, max(12.0, 0.05 * ell[1][0]))
+        if tr.ok.sum() and np.median(np.abs(_band_signed(tr.points[tr.ok], ell))) < 1.0:
+            # the front end's ellipse is on the traced limb: it stays the start (the trace only gives the levels)
+            return ell, trace_limb(img, ell, lit_dir, half, max(6.0, 2.0 * band))
+        e1 = fit_traced(tr, ell)
+        tr = trace_limb(img, e1, lit_dir, half, max(6.0, 2.0 * band))
+        e2 = fit_traced(tr, e1)
+    except TooManyOutliersError:  # too few rays with a flat inside (a bright glow's foot): the front end's ellipse
+        return ell, None
+    if not (abs(e2[1][0] / ell[1][0] - 1.0) < 0.1 and math.dist(e2[0], ell[0]) < 0.1 * ell[1][0]):
+        return ell, None  # the robust fit ran off (a few rays on a short arc): the front end's ellipse
+    return e2, tr
+
+
+def _band_data(img: np.ndarray, ell: tuple, band: float, pix: "EllipsePixels") -> FitData:
+    """The band's pixels and values; with a trace, level-normalised per ray (rays without a limb against the
+    sky, or with a cloud edge inside the band, left out: :func:`~jaxlimb.pipeline.limb_trace.normalised_band`)."""
+    pts = _band_pixels(img.shape, ell, band, pix.lit_dir, pix.half)
+    if pix.patchy:
+        from .limb_trace import normalised_band
+
+        return normalised_band(img, pts, pix.trace)[1]
+    return FitData(pts, np.asarray(img[pts[:, 0].astype(int), pts[:, 1].astype(int)], float), None, 0.0, 1.0)
 
 
 def _earth_hints(h: Any = None) -> Any:
@@ -263,15 +363,17 @@ def _edge_loop(body: Ellipsoid, frame: Frame, pix: EllipsePixels) -> EllipsoidEd
     eo, cam, img = body.eo, frame.cam, frame.img
     model = ELLIPSE_RAMP if eo.interior_ramp else ELLIPSE
     fixed = (() if body.free else ("rho", "theta")) + (tuple(eo.fix_profile) if eo.interior_ramp else ())
+    if pix.patchy and eo.interior_ramp:  # per-ray levels and a flat interior (limb_trace): a plain step
+        fixed = fixed + tuple(n for n in ("g", "g2", "h1", "h2", "h3", "h4") if n not in fixed)
     ell, p, prev, res, hist = pix.ellipse, pix.p0, None, None, []
     for it in range(eo.max_refits):
-        pts = _band_pixels(img.shape, ell, eo.band_px, pix.lit_dir, pix.half)
+        data = _band_data(img, ell, eo.band_px, pix)
+        pts, z = data.coords, data.z
         if pts.shape[0] < 50:
             raise TooManyOutliersError(f"only {pts.shape[0]} pixels in the lit limb band (need >= 50)")
-        z = np.asarray(img[pts[:, 0].astype(int), pts[:, 1].astype(int)], float)
         init = _edge_start(eo, ell, res.params if res is not None else None,
                            _first_levels(img, pts, z, ell, eo.band_px) if res is None else (0.0, 0.0))
-        res = fit(model, pts, z, init, body._solver(frame), fixed=fixed, throw=True)
+        res = fit(model, pts, z, init, body._solver(frame), fixed=fixed, weights=data.weights, throw=True)
         fitted = _as_ellipse(res.params)
         p, info = position(body, cam, fitted, p)
         hist.append({"fit": it + 1, "range_km": float(np.linalg.norm(p)), "range_iterations": info["iterations"],
@@ -286,7 +388,7 @@ def _edge_loop(body: Ellipsoid, frame: Frame, pix: EllipsePixels) -> EllipsoidEd
         if done:
             break
     frame.mark("refine")
-    final = RefineResult(res, FitData(pts, z, None, 0.0, 1.0), 0, tuple(n for n in model.param_names if n not in res.free))
+    final = RefineResult(res, data, 0, tuple(n for n in model.param_names if n not in res.free))
     return EllipsoidEdge(final, pix, fitted, p, hist, 0.0, 0.0)
 
 
@@ -296,8 +398,19 @@ def _check_jump(frame: Frame, cand: Any, edge: EllipsoidEdge, eo: EllipsoidOptio
     from ..errors import JumpError
 
     pts = edge.final.coords
-    ang = np.arctan2(pts[:, 0] - cand.center_rc[0], pts[:, 1] - cand.center_rc[1])
-    on_circle = np.column_stack([cand.center_rc[0] + cand.radius * np.sin(ang), cand.center_rc[1] + cand.radius * np.cos(ang)])
+    if edge.pixels.trace is not None:  # the initial conic is the traced ellipse, not the front end's circle
+        from ..geometry.ellipsoid import ellipse_points
+
+        e0 = edge.pixels.ellipse
+        ang = np.linspace(0.0, 2.0 * np.pi, 256, endpoint=False)
+        on_circle = ellipse_points(e0[0], e0[1], e0[2], ang)
+        arc = np.abs(np.angle(np.exp(1j * (np.arctan2(on_circle[:, 0] - e0[0][0], on_circle[:, 1] - e0[0][1])
+                                          - np.arctan2(*(edge.pixels.lit_dir or (0.0, 1.0))))))) <= edge.pixels.half
+        on_circle = on_circle[arc]
+    else:
+        ang = np.arctan2(pts[:, 0] - cand.center_rc[0], pts[:, 1] - cand.center_rc[1])
+        on_circle = np.column_stack([cand.center_rc[0] + cand.radius * np.sin(ang),
+                                     cand.center_rc[1] + cand.radius * np.cos(ang)])
     disp = float(np.max(np.abs(_band_signed(on_circle, edge.fitted)))) if pts.size else math.inf
     (_, _), (a, b), _ = edge.fitted
     thr = jump_threshold(eo.band_px, frame.opt.max_jump_px) + (a - b)

@@ -23,7 +23,7 @@ from ..fitting import NormalLM, fit, solver_from_name
 from ..imaging import sun_direction_image
 from ..models import ELLIPSE, ELLIPSE_RAMP, LIMB_PROFILE, PROFILE_FIXED, EllipseRampParams, LimbProfileParams, limb_profile_intensity
 from ..models import lunar_lambert_weight
-from .earth import _band_pixels, _ell_change
+from .earth import _ell_change
 from .frame import Frame
 from .profile import l_band
 from .profile_fit import gaussian_sigma_of_k, with_model_error
@@ -92,15 +92,15 @@ def _one_fit(frame: Frame, data: tuple, q: LimbProfileParams, fixed: tuple, i: i
     return res, q.replace(sigma=abs(float(q.sigma)))  # the model depends on sigma^2 only (|sigma| reported)
 
 
-def _passes(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", pts, z, band: float):  # noqa: ANN202
+def _passes(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", fd: FitData, band: float):  # noqa: ANN202
     """The profile fits with the shape re-predicted at each new position (module docstring)."""
     from .ellipsoid import _as_ellipse, position
 
     fixed = tuple(n for n in PROFILE_FIXED if not (n == "L" and frame.opt.lunar_lambert_L is None))
     if body.free:
         fixed = tuple(n for n in fixed if n not in ("theta", "rho"))
-    data = _pad_bucket(FitData(np.asarray(pts, float), np.asarray(z, float), None, 0.0, 1.0))
-    q, p, hist, res = _start(body, frame, edge, pts, z), edge.p, [], None
+    data = _pad_bucket(fd)
+    q, p, hist, res = _start(body, frame, edge, fd.coords, fd.z), edge.p, [], None
     for i in range(body.eo.max_refits):
         res, q = _one_fit(frame, data, q, fixed, i)
         pf = _as_ellipse(q)
@@ -142,17 +142,38 @@ def edge_with_model_error(edge: "EllipsoidEdge", rejected: Any = None) -> Refine
     return replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
 
 
+def _with_trace_error(out: RefineResult, edge: "EllipsoidEdge") -> RefineResult:
+    """The albedo-patchy limb's model error (:func:`~jaxlimb.pipeline.limb_trace.trace_model_cov`) added to the
+    covariance of ``(r0, c0, a)``."""
+    import equinox as eqx
+
+    from .limb_trace import trace_model_cov
+
+    free = list(out.fit.free)
+    names = [n for n in ("r0", "c0", "a") if n in free]
+    if len(names) < 3:
+        return out
+    idx = [free.index(n) for n in names]
+    C = np.array(out.fit.covariance)
+    C[np.ix_(idx, idx)] += trace_model_cov(edge.pixels.trace, edge.fitted)
+    return replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
+
+
 def fit_profile_ellipsoid(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", extras: dict[str, Any]) -> RefineResult:
     """The stage (module docstring): the profile's :class:`RefineResult`, or the edge fit's."""
     if not profile_wanted(frame, body.eo.interior_ramp):
         return edge_with_model_error(edge)
+    if edge.pixels.patchy:  # the profile's one albedo is not this limb's (clouds): the per-ray step stays
+        extras["profile_rejected"] = {"model": "lunar-lambert", "reason": "albedo varies along the lit limb"}
+        return _with_trace_error(edge_with_model_error(edge), edge)
     band = body.eo.profile_band_px if body.eo.profile_band_px is not None else body.eo.band_px
-    pts, z = edge.final.coords, edge.final.data.z
+    fd = edge.final.data
     if band != body.eo.band_px:
-        pts = _band_pixels(frame.img.shape, edge.fitted, band, edge.pixels.lit_dir, edge.pixels.half)
-        z = np.asarray(frame.img[pts[:, 0].astype(int), pts[:, 1].astype(int)], float)
+        from .ellipsoid import _band_data
+
+        fd = _band_data(frame.img, edge.fitted, band, edge.pixels)
     try:
-        res, fixed, hist = _passes(body, frame, edge, pts, z, band)
+        res, fixed, hist = _passes(body, frame, edge, fd, band)
     except (ConvergenceError, GeometryError, LimbInputError) as e:
         if frame.opt.profile != "auto":
             raise
@@ -165,8 +186,7 @@ def fit_profile_ellipsoid(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge"
         return edge_with_model_error(edge, res.params)
     extras["profile_fits"] = hist
     extras["L_estimated"] = frame.opt.lunar_lambert_L is None
-    data = FitData(np.asarray(pts, float), np.asarray(z, float), None, 0.0, 1.0)
-    return with_model_error(RefineResult(res, data, 0, fixed))
+    return with_model_error(RefineResult(res, fd, 0, fixed))
 
 
 __all__ = ["edge_with_model_error", "fit_profile_ellipsoid", "profile_wanted"]

@@ -37,7 +37,7 @@ from ..errors import CheckFailed
 from ..geometry.camera import Camera
 from ..imaging import Hints
 from .bodies import body_strategy
-from .frame import arc_only, candidates, limb_predicted, prepare
+from .frame import arc_only, limb_predicted, prepare
 from .options import LocateOptions
 from .report import check_physical, covariance, levels, measurement
 from .result import LimbMeasurement
@@ -101,7 +101,7 @@ def locate(
 
         return locate_arc(frame.img, frame.cam, frame.hints, frame.opt, mask=mask)
     frame = body.prepare(frame)
-    cand = candidates(frame)
+    cand = body.candidates(frame)
     try:
         return _measure(frame, body, cand)
     except CheckFailed as e:

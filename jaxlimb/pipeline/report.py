@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..models import CIRCLE, ELLIPSE, ELLIPSE_RAMP, CircleParams, EllipseRampParams, LimbDarkenedParams, LimbProfileParams
+from ..models import CIRCLE, ELLIPSE, ELLIPSE_RAMP, LIMB_PROFILE, CircleParams, EllipseRampParams, LimbDarkenedParams, LimbProfileParams
 from .checks import check_center_sigma, check_edge_width, check_levels
 from .frame import Frame
 from .geometry import BodyCenter
@@ -71,7 +71,7 @@ def crlb(frame: Frame, final: RefineResult, cov: Covariance) -> dict[str, float]
     C = cov.jacobian @ final.covariance_noise @ cov.jacobian.T
     if final.data.weights is not None:
         fp = final.fit.params
-        model = {CircleParams: CIRCLE, EllipseRampParams: ELLIPSE_RAMP}.get(type(fp), ELLIPSE)
+        model = {CircleParams: CIRCLE, EllipseRampParams: ELLIPSE_RAMP, LimbProfileParams: LIMB_PROFILE}.get(type(fp), ELLIPSE)
         sigma = math.sqrt(max(float(final.fit.sigma2), 1e-300))
         try:
             C = cov.jacobian @ np.linalg.inv(fisher_information(model, fp, final.data, final.fixed, sigma)) @ cov.jacobian.T
