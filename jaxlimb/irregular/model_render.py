@@ -210,9 +210,8 @@ def _safe(x: np.ndarray) -> np.ndarray:
 def _vertex_normals(Xc: np.ndarray, F: np.ndarray) -> np.ndarray:
     """Area-weighted unit vertex normals."""
     n = np.cross(Xc[F[:, 1]] - Xc[F[:, 0]], Xc[F[:, 2]] - Xc[F[:, 0]])
-    vn = np.zeros_like(Xc)
-    for k in range(3):
-        np.add.at(vn, F[:, k], n)
+    idx = F.ravel()  # (face, corner) order: each face's normal once per corner
+    vn = np.stack([np.bincount(idx, weights=np.repeat(n[:, j], 3), minlength=len(Xc)) for j in range(3)], axis=1)
     return vn / np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
 
 
@@ -230,9 +229,10 @@ def _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, ss, lit):  # type: ignor
     cover = cv2.resize((buf > 0).astype(np.float32), (ras.w, ras.h), interpolation=cv2.INTER_AREA)
     inner = (centre > 0) & (cover > 0.999)
     out = np.zeros((ras.h, ras.w))
+    vn = _vertex_normals(Xc, F)
     rr, cc = np.nonzero(inner)
     face = centre[rr, cc] - 1
-    out[rr, cc] = _smooth_flat_samples(ras, Xc, F, cam, s, reflectance, rr.astype(float), cc.astype(float), face) * lit[face]
+    out[rr, cc] = _smooth_flat_samples(ras, Xc, F, vn, cam, s, reflectance, rr.astype(float), cc.astype(float), face) * lit[face]
     er, ec = np.nonzero((cover > 0) & ~inner)
     if er.size:
         o = np.arange(ss)
@@ -242,12 +242,12 @@ def _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, ss, lit):  # type: ignor
         hit = face > 0
         diff = np.zeros(face.shape)
         fh = face[hit] - 1
-        diff[hit] = _smooth_flat_samples(ras, Xc, F, cam, s, reflectance, (sr[hit] + 0.5) / ss - 0.5, (sc[hit] + 0.5) / ss - 0.5, fh) * lit[fh]
+        diff[hit] = _smooth_flat_samples(ras, Xc, F, vn, cam, s, reflectance, (sr[hit] + 0.5) / ss - 0.5, (sc[hit] + 0.5) / ss - 0.5, fh) * lit[fh]
         out[er, ec] = diff.reshape(er.size, -1).mean(axis=1)
     return out
 
 
-def _smooth_flat_samples(ras, Xc, F, cam, s, reflectance, r, c, face):  # type: ignore[no-untyped-def]
+def _smooth_flat_samples(ras, Xc, F, vn, cam, s, reflectance, r, c, face):  # type: ignore[no-untyped-def]
     """Smooth minus flat radiance at raster pixel coordinates ``(r, c)`` seeing ``face``."""
     f = cam.focal_px  # type: ignore[attr-defined]
     pr, pc = cam.principal_point_rc  # type: ignore[attr-defined]
@@ -261,7 +261,6 @@ def _smooth_flat_samples(ras, Xc, F, cam, s, reflectance, r, c, face):  # type: 
     den = _safe(d00 * d11 - d01**2)
     b1 = np.clip((d11 * d20 - d01 * d21) / den, 0.0, 1.0)
     b2 = np.clip((d00 * d21 - d01 * d20) / den, 0.0, 1.0 - b1)
-    vn = _vertex_normals(Xc, F)
     ns = (1.0 - b1 - b2)[:, None] * vn[F[face, 0]] + b1[:, None] * vn[F[face, 1]] + b2[:, None] * vn[F[face, 2]]
     ns /= np.maximum(np.linalg.norm(ns, axis=1, keepdims=True), 1e-300)
     eye = -X / np.linalg.norm(X, axis=1, keepdims=True)

@@ -164,7 +164,7 @@ class RegisterOptions:
     model_floor_px: float = 0.004
     model_error_sectors: int = 16
     model_error_scale: float = 2.5
-    psf_grid_px: tuple[float, ...] = (0.0, 0.4, 0.7, 1.0, 1.4, 2.0, 2.8)
+    psf_grid_px: tuple[float, ...] = (0.0, 0.5, 0.9, 1.4, 2.2)
     cast_shadows: bool = True
     albedo_order: int = 0
     albedo_harmonics: int = 0
@@ -560,11 +560,12 @@ def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude, 
     ``True`` when converged (sharp, small steps)."""
     if k is None:
         k = _level(sigma, _figure_size(pyr[1][2]), options)
-    beta, rss, At, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude, st.mix, st.psf)
+    mix = st.mix if k == 1 else None  # the photometric mix is fitted at full resolution only
+    beta, rss, At, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude, mix, st.psf)
     a = float(beta[0])
     if not a > 0:
         raise ConvergenceError("registration: the fitted contrast of the model is not positive")
-    if st.mix is not None:
+    if mix is not None:
         st.mix = np.clip(st.mix + beta[-len(st.mix):] / a, *options.mix_bounds)
     st.it, st.ratio, st.last = st.it + 1, float(beta[1]) / a, (At, y, beta, lo, hi)
     st.rms_frac = math.sqrt(rss / y.size) / a
