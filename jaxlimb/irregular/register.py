@@ -560,7 +560,7 @@ def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude, 
     ``True`` when converged (sharp, small steps)."""
     if k is None:
         k = _level(sigma, _figure_size(pyr[1][2]), options)
-    mix = st.mix if k == 1 else None  # the photometric mix is fitted at full resolution only
+    mix = st.mix
     beta, rss, At, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude, mix, st.psf)
     a = float(beta[0])
     if not a > 0:
