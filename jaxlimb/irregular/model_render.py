@@ -220,9 +220,11 @@ def _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, ss, lit):  # type: ignor
     the vertex normals, Phong) minus the facet's flat radiance.
 
     A real body is smooth where its shape model is faceted: the registration fits the mix of
-    the two (one more linear column, :class:`~.register.RegisterOptions`).  Interior pixels are
-    sampled at their centre; pixels the outline crosses at every sub-pixel (area average), where
-    smooth normals graze the line of sight and the two differ most.
+    the two (one more linear column, :class:`~.register.RegisterOptions`).  The smooth radiance of
+    interior pixels is computed at every other pixel and interpolated (it varies slowly; the flat
+    radiance it is compared with is each pixel's own); pixels the outline crosses are sampled at
+    every sub-pixel (area average), where smooth normals graze the line of sight and the two
+    differ most.
     """
     buf = ras.buf
     centre = buf[ss // 2 :: ss, ss // 2 :: ss][: ras.h, : ras.w]
@@ -230,9 +232,11 @@ def _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, ss, lit):  # type: ignor
     inner = (centre > 0) & (cover > 0.999)
     out = np.zeros((ras.h, ras.w))
     vn = _vertex_normals(Xc, F)
+    flat = shade(np.einsum("ij,j->i", ras.normals, s), ras.mu, reflectance)
+    smooth = _interior_smooth(ras, Xc, F, vn, cam, s, reflectance, centre, inner)
     rr, cc = np.nonzero(inner)
     face = centre[rr, cc] - 1
-    out[rr, cc] = _smooth_flat_samples(ras, Xc, F, vn, cam, s, reflectance, rr.astype(float), cc.astype(float), face) * lit[face]
+    out[rr, cc] = (smooth[rr, cc] - flat[face]) * lit[face]
     er, ec = np.nonzero((cover > 0) & ~inner)
     if er.size:
         o = np.arange(ss)
@@ -247,8 +251,29 @@ def _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, ss, lit):  # type: ignor
     return out
 
 
-def _smooth_flat_samples(ras, Xc, F, vn, cam, s, reflectance, r, c, face):  # type: ignore[no-untyped-def]
-    """Smooth minus flat radiance at raster pixel coordinates ``(r, c)`` seeing ``face``."""
+def _interior_smooth(ras, Xc, F, vn, cam, s, reflectance, centre, inner):  # type: ignore[no-untyped-def]
+    """``(h, w)`` smooth radiance on the ``inner`` pixels: exact at every other pixel, bilinear (normalised by
+    the sampled weight) in between, exact where fewer than half of the neighbours were sampled."""
+    h, w = inner.shape
+    hr, hc = np.nonzero(inner[::2, ::2])
+    S = np.zeros(((h + 1) // 2, (w + 1) // 2), np.float32)
+    W = np.zeros_like(S)
+    r2, c2 = 2 * hr, 2 * hc
+    S[hr, hc] = _smooth_flat_samples(ras, Xc, F, vn, cam, s, reflectance, r2.astype(float), c2.astype(float), centre[r2, c2] - 1, False)
+    W[hr, hc] = 1.0
+    my, mx = np.meshgrid(np.arange(h, dtype=np.float32) / 2, np.arange(w, dtype=np.float32) / 2, indexing="ij")
+    Si = cv2.remap(S, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    Wi = cv2.remap(W, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    out = np.where(Wi > 0.5, Si / np.maximum(Wi, 1e-6), 0.0).astype(float)
+    er, ec = np.nonzero(inner & (Wi <= 0.5))
+    if er.size:
+        out[er, ec] = _smooth_flat_samples(ras, Xc, F, vn, cam, s, reflectance, er.astype(float), ec.astype(float), centre[er, ec] - 1, False)
+    return out
+
+
+def _smooth_flat_samples(ras, Xc, F, vn, cam, s, reflectance, r, c, face, subtract=True):  # type: ignore[no-untyped-def]
+    """Smooth minus flat radiance at raster pixel coordinates ``(r, c)`` seeing ``face`` (the smooth alone
+    without ``subtract``)."""
     f = cam.focal_px  # type: ignore[attr-defined]
     pr, pc = cam.principal_point_rc  # type: ignore[attr-defined]
     ray = np.stack([(ras.c0 + c - pc) / f, (ras.r0 + r - pr) / f, np.ones(r.size)], axis=1)
@@ -265,7 +290,7 @@ def _smooth_flat_samples(ras, Xc, F, vn, cam, s, reflectance, r, c, face):  # ty
     ns /= np.maximum(np.linalg.norm(ns, axis=1, keepdims=True), 1e-300)
     eye = -X / np.linalg.norm(X, axis=1, keepdims=True)
     smooth = shade(np.einsum("ij,j->i", ns, s), np.maximum(np.einsum("ij,ij->i", ns, eye), 1e-3), reflectance)
-    return smooth - shade(np.einsum("ij,j->i", n, s), ras.mu[face], reflectance)
+    return smooth - shade(np.einsum("ij,j->i", n, s), ras.mu[face], reflectance) if subtract else smooth
 
 
 def _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, ss, reflectance, cover, out, mix=None, shadow=None) -> None:  # type: ignore[no-untyped-def]

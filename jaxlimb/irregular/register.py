@@ -510,11 +510,12 @@ def estimate_psf(st: GNState, pyr, mesh, camera, sun, options, fit_attitude) -> 
     leaves the smallest residual at the current pose (one render), refined by a parabola through the
     three values around the minimum.  An unmodelled PSF of 0.8 px biased a registration by 0.24 px
     (ray-traced frames, ``benchmarks/irregular_independent.py``)."""
-    model, lo, hi, Pk = _render_level(pyr, mesh, camera, st.R, sun, st.P, st.D, 1, options, fit_attitude, st.mix)
+    model, lo, hi, Pk = _render_level(pyr, mesh, camera, st.R, sun, st.P, st.D, 1, options, False, st.mix)
     grid = np.asarray(options.psf_grid_px, dtype=float)
     cost = []
     for g in grid:
-        At, y = _system(model, pyr[1][0], lo, hi, Pk, 0.0, float(g), st.ratio, fit_attitude, st.mix, (options.albedo_order, options.albedo_harmonics))
+        # the pose and photometry columns only: the residual's minimum over the blur is the same, at a third of the cost
+        At, y = _system(model, pyr[1][0], lo, hi, Pk, 0.0, float(g), st.ratio, False, None)
         cost.append(_solve(At, y)[1])
     i = int(np.argmin(cost))
     if 0 < i < grid.size - 1:

@@ -197,12 +197,12 @@ def shadow_fractions(vertices: np.ndarray, faces: np.ndarray, sun_body: np.ndarr
     1000 body radii away, ``n_px`` across the body); a facet's lit fraction is its sample count
     over the count its projected area predicts (above 0.8: 1, sampling noise).  Facets the Sun
     does not face get 0; facets expected to cover fewer than 6 samples keep 1 (unresolved).  Depends only on the Sun
-    direction in the body frame: cached per mesh and 0.1 deg of it.
+    direction in the body frame: cached per mesh and 0.25 deg of it.
     """
     V = np.asarray(vertices, dtype=float)
     F = np.asarray(faces, dtype=np.int64)
     sb = np.asarray(sun_body, dtype=float) / np.linalg.norm(sun_body)
-    key = (id(vertices), tuple(np.round(sb * 1000.0).astype(int)))
+    key = (id(vertices), tuple(np.round(sb * 230.0).astype(int)))  # ~0.25 deg: a fitted attitude moves less per iteration
     if key in _SHADOWS:
         return _SHADOWS[key]
     rmax = float(np.linalg.norm(V, axis=1).max())
