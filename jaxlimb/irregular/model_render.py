@@ -56,7 +56,7 @@ class ModelImage:
     on_body
         ``(h, w)`` bool: pixels whose centre sees a facet (where ``flow`` is defined).
     dM_dmix
-        ``(len(MIX_LAWS), h, w)``: derivatives of ``M`` for the photometric mix
+        ``(len(MIX_LAWS) + 1, h, w)``: derivatives of ``M`` for the photometric mix (the laws, then smooth shading)
         (:func:`render_window`); ``None`` unless ``mix`` was given.
     """
 

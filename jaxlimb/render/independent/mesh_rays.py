@@ -81,7 +81,6 @@ def _window(tm, pin, margin: int) -> tuple[int, int, int, int]:
 def _rays(pin, win, s: int, rng: np.random.Generator) -> np.ndarray:
     """Unit ray directions ``(h, w, s*s, 3)``: stratified, jittered sub-pixel samples."""
     r0, r1, c0, c1 = win
-    h, w = r1 - r0, c1 - c0
     cell = (np.arange(s) + 0.5) / s - 0.5
     jr = cell[:, None] + rng.uniform(-0.5, 0.5, (s, s)) / s
     jc = cell[None, :] + rng.uniform(-0.5, 0.5, (s, s)) / s
