@@ -140,10 +140,10 @@ def render_window(
 ) -> ModelImage:  # fmt: skip
     """The model image in the window ``lo..hi`` of ``camera`` (module docstring); ``sun=None``: zero phase.
 
-    With ``mix`` ``(m_1, m_2)`` the radiance is ``LS + m_1 (Lambert - LS) + m_2 (Minnaert_1/2 - LS)``
-    (:data:`MIX_LAWS`: Lommel-Seeliger ``2 mu0 / (mu0 + mu)``, Lambert ``mu0``, Minnaert with
-    ``k = 1/2`` ``sqrt(mu0 / mu)``; ``m_1 = 1 - L`` alone is McEwen's lunar-Lambert law), and
-    ``dM_dmix`` ``(3, h, w)`` is returned (the third: smooth minus flat shading).  With ``shadows``
+    With ``mix`` ``(m_1, m_2, m_3)`` the radiance is ``LS + m_1 (Lambert - LS) + m_2 (Minnaert_1/2 - LS)
+    + m_3 (smooth - flat)`` (:data:`MIX_LAWS`: Lommel-Seeliger ``2 mu0 / (mu0 + mu)``, Lambert ``mu0``,
+    Minnaert with ``k = 1/2`` ``sqrt(mu0 / mu)``; ``m_1 = 1 - L`` alone is McEwen's lunar-Lambert law;
+    :func:`_smooth_minus_flat`), and ``dM_dmix`` ``(3, h, w)`` is returned.  With ``shadows``
     every facet's radiance is scaled by its lit fraction (:func:`shadow_fractions`: cast shadows).
     """
     cam = window_camera(camera, lo, hi)
@@ -158,17 +158,18 @@ def render_window(
     s = -t / np.linalg.norm(t) if sun is None else np.asarray(sun, dtype=float)
     mu0 = np.einsum("ij,j->i", ras.normals, s)  # not BLAS: see register._normal_equations
     lit = shadow_fractions(mesh.vertices, mesh.faces, np.asarray(R, dtype=float).T @ s) if shadows else np.ones(F.shape[0])
-    rho = shade(mu0, ras.mu, reflectance) * lit
+    flat = shade(mu0, ras.mu, reflectance)  # per facet
+    rho = flat * lit
     win = (slice(ras.r0, ras.r0 + ras.h), slice(ras.c0, ras.c0 + ras.w))
     size = (ras.w, ras.h)
     D = None
     if mix is not None:
         D = np.zeros((len(MIX_LAWS) + 1, h, w))
         for j, law in enumerate(MIX_LAWS):
-            drho = (_basis(mu0, ras.mu, law) - shade(mu0, ras.mu, reflectance)) * lit
+            drho = (_basis(mu0, ras.mu, law) - flat) * lit
             rho = rho + mix[j] * drho
             D[j][win] = cv2.resize(np.concatenate([[0.0], drho]).astype(np.float32)[ras.buf], size, interpolation=cv2.INTER_AREA)
-        D[-1][win] = _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, supersample, lit)
+        D[-1][win] = _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, supersample, flat, lit)
     lut = np.concatenate([[0.0], rho]).astype(np.float32)
     M[win] = cv2.resize(lut[ras.buf], size, interpolation=cv2.INTER_AREA)
     if D is not None:
@@ -215,9 +216,10 @@ def _vertex_normals(Xc: np.ndarray, F: np.ndarray) -> np.ndarray:
     return vn / np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
 
 
-def _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, ss, lit):  # type: ignore[no-untyped-def]
+def _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, ss, flat, lit):  # type: ignore[no-untyped-def]
     """``(h, w)``: radiance with normals interpolated across each facet (barycentric weights of
-    the vertex normals, Phong) minus the facet's flat radiance.
+    the vertex normals, Phong) minus the facet's flat radiance ``flat`` (per facet), times its lit
+    fraction ``lit``.
 
     A real body is smooth where its shape model is faceted: the registration fits the mix of
     the two (one more linear column, :class:`~.register.RegisterOptions`).  The smooth radiance of
@@ -232,7 +234,6 @@ def _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, ss, lit):  # type: ignor
     inner = (centre > 0) & (cover > 0.999)
     out = np.zeros((ras.h, ras.w))
     vn = _vertex_normals(Xc, F)
-    flat = shade(np.einsum("ij,j->i", ras.normals, s), ras.mu, reflectance)
     smooth = _interior_smooth(ras, Xc, F, vn, cam, s, reflectance, centre, inner)
     rr, cc = np.nonzero(inner)
     face = centre[rr, cc] - 1
@@ -246,7 +247,8 @@ def _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, ss, lit):  # type: ignor
         hit = face > 0
         diff = np.zeros(face.shape)
         fh = face[hit] - 1
-        diff[hit] = _smooth_flat_samples(ras, Xc, F, vn, cam, s, reflectance, (sr[hit] + 0.5) / ss - 0.5, (sc[hit] + 0.5) / ss - 0.5, fh) * lit[fh]
+        diff[hit] = (_smooth_samples(ras, Xc, F, vn, cam, s, reflectance, (sr[hit] + 0.5) / ss - 0.5, (sc[hit] + 0.5) / ss - 0.5, fh)
+                     - flat[fh]) * lit[fh]
         out[er, ec] = diff.reshape(er.size, -1).mean(axis=1)
     return out
 
@@ -259,7 +261,7 @@ def _interior_smooth(ras, Xc, F, vn, cam, s, reflectance, centre, inner):  # typ
     S = np.zeros(((h + 1) // 2, (w + 1) // 2), np.float32)
     W = np.zeros_like(S)
     r2, c2 = 2 * hr, 2 * hc
-    S[hr, hc] = _smooth_flat_samples(ras, Xc, F, vn, cam, s, reflectance, r2.astype(float), c2.astype(float), centre[r2, c2] - 1, False)
+    S[hr, hc] = _smooth_samples(ras, Xc, F, vn, cam, s, reflectance, r2.astype(float), c2.astype(float), centre[r2, c2] - 1)
     W[hr, hc] = 1.0
     my, mx = np.meshgrid(np.arange(h, dtype=np.float32) / 2, np.arange(w, dtype=np.float32) / 2, indexing="ij")
     Si = cv2.remap(S, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
@@ -267,13 +269,12 @@ def _interior_smooth(ras, Xc, F, vn, cam, s, reflectance, centre, inner):  # typ
     out = np.where(Wi > 0.5, Si / np.maximum(Wi, 1e-6), 0.0).astype(float)
     er, ec = np.nonzero(inner & (Wi <= 0.5))
     if er.size:
-        out[er, ec] = _smooth_flat_samples(ras, Xc, F, vn, cam, s, reflectance, er.astype(float), ec.astype(float), centre[er, ec] - 1, False)
+        out[er, ec] = _smooth_samples(ras, Xc, F, vn, cam, s, reflectance, er.astype(float), ec.astype(float), centre[er, ec] - 1)
     return out
 
 
-def _smooth_flat_samples(ras, Xc, F, vn, cam, s, reflectance, r, c, face, subtract=True):  # type: ignore[no-untyped-def]
-    """Smooth minus flat radiance at raster pixel coordinates ``(r, c)`` seeing ``face`` (the smooth alone
-    without ``subtract``)."""
+def _smooth_samples(ras, Xc, F, vn, cam, s, reflectance, r, c, face):  # type: ignore[no-untyped-def]
+    """Smooth (vertex-normal interpolated) radiance at raster pixel coordinates ``(r, c)`` seeing ``face``."""
     f = cam.focal_px  # type: ignore[attr-defined]
     pr, pc = cam.principal_point_rc  # type: ignore[attr-defined]
     ray = np.stack([(ras.c0 + c - pc) / f, (ras.r0 + r - pr) / f, np.ones(r.size)], axis=1)
@@ -289,8 +290,7 @@ def _smooth_flat_samples(ras, Xc, F, vn, cam, s, reflectance, r, c, face, subtra
     ns = (1.0 - b1 - b2)[:, None] * vn[F[face, 0]] + b1[:, None] * vn[F[face, 1]] + b2[:, None] * vn[F[face, 2]]
     ns /= np.maximum(np.linalg.norm(ns, axis=1, keepdims=True), 1e-300)
     eye = -X / np.linalg.norm(X, axis=1, keepdims=True)
-    smooth = shade(np.einsum("ij,j->i", ns, s), np.maximum(np.einsum("ij,ij->i", ns, eye), 1e-3), reflectance)
-    return smooth - shade(np.einsum("ij,j->i", n, s), ras.mu[face], reflectance) if subtract else smooth
+    return shade(np.einsum("ij,j->i", ns, s), np.maximum(np.einsum("ij,ij->i", ns, eye), 1e-3), reflectance)
 
 
 def _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, ss, reflectance, cover, out, mix=None, shadow=None) -> None:  # type: ignore[no-untyped-def]

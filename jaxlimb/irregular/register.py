@@ -30,7 +30,7 @@ direction, and registers it to the frame.  Here:
    :mod:`jaxlimb.render.independent.mesh_rays`, whose bias it removed): the model radiance is a
    fitted mix of Lommel-Seeliger, Lambert, Minnaert ``k = 1/2`` and smooth (Phong-interpolated)
    shading (linear columns, :func:`.model_render.render_window`; a Lambert body: 1.5 -> 0.01 px);
-   facets in the body's own cast shadow are darkened (:func:`.model_render.shadow_fractions`);
+   facets in the body's own cast shadow are darkened (:func:`jaxlimb.render.mesh.shadow_fractions`);
    before the sharp iterations the camera's PSF is estimated (:func:`estimate_psf`, a Gaussian
    blur of the model only; 0.24 -> 0.01 px for a 0.8 px PSF); a sharp step that reverses the
    last one is halved (the rendering's sub-pixel quantisation otherwise makes a limit cycle).
@@ -114,7 +114,7 @@ class RegisterOptions:
         albedo, and an intensity fit that does not know it moves the outline.
     cast_shadows
         Scale each facet's radiance by its lit fraction seen from the Sun
-        (:func:`.model_render.shadow_fractions`): a lumpy body's own cast shadows, unmodelled,
+        (:func:`jaxlimb.render.mesh.shadow_fractions`): a lumpy body's own cast shadows, unmodelled,
         biased a registration by 0.16 px at 45 deg phase.
     psf_grid_px
         Gaussian PSF sigmas (px) among which :func:`estimate_psf` picks the camera's before the
@@ -561,12 +561,11 @@ def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude, 
     ``True`` when converged (sharp, small steps)."""
     if k is None:
         k = _level(sigma, _figure_size(pyr[1][2]), options)
-    mix = st.mix
-    beta, rss, At, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude, mix, st.psf)
+    beta, rss, At, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude, st.mix, st.psf)
     a = float(beta[0])
     if not a > 0:
         raise ConvergenceError("registration: the fitted contrast of the model is not positive")
-    if mix is not None:
+    if st.mix is not None:
         st.mix = np.clip(st.mix + beta[-len(st.mix):] / a, *options.mix_bounds)
     st.it, st.ratio, st.last = st.it + 1, float(beta[1]) / a, (At, y, beta, lo, hi)
     st.rms_frac = math.sqrt(rss / y.size) / a
@@ -783,14 +782,14 @@ def _overlap(obs: np.ndarray, model_flat: np.ndarray, thr: float, sigma: float) 
     return float(np.logical_and(pred, o).sum()) / max(float(np.logical_or(pred, o).sum()), 1.0)
 
 
-def _with_sector_model_error(At, res, lo, hi, P, cov, a, n_sectors, scale=1.0):  # type: ignore[no-untyped-def]
+def _with_sector_model_error(At, N, res, lo, hi, P, cov, a, n_sectors, scale=1.0):  # type: ignore[no-untyped-def]
     """The centre covariance with the cluster-robust model-error term of :mod:`jaxlimb.analysis.model_error`
-    (pixels grouped in ``n_sectors`` position-angle sectors about ``P``; :attr:`RegisterOptions.model_error_sectors`)."""
+    (pixels grouped in ``n_sectors`` position-angle sectors about ``P``; :attr:`RegisterOptions.model_error_sectors`;
+    ``N = At At^T``, the normal matrix of the last solve)."""
     from ..analysis.model_error import positive_part, sector_groups
 
     rr, cc = np.mgrid[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1]
     groups = sector_groups(np.stack([rr.ravel(), cc.ravel()], axis=1).astype(float), P, n_sectors)
-    N = _normal_equations(At, res)[0]
     sc = np.maximum(np.sqrt(np.diag(N)), 1e-300)
     scores = np.stack([np.bincount(groups, weights=row * res, minlength=n_sectors) for row in At], axis=1) / sc
     bread = np.linalg.inv(N / np.outer(sc, sc))
@@ -806,13 +805,14 @@ def finish_registration(img, camera, segmentation, st: GNState, ncc: float, opti
     res = y - np.einsum("i,ij->j", beta, At)
     dof = max(res.size - At.shape[0], 1)
     s2 = float(np.einsum("i,i->", res, res)) / dof
+    N = _normal_equations(At, y)[0]
     try:
-        cov_beta = s2 * np.linalg.inv(_normal_equations(At, y)[0])
+        cov_beta = s2 * np.linalg.inv(N)
     except np.linalg.LinAlgError:
         raise ConvergenceError("registration: singular normal matrix") from None
     cov = cov_beta[2:4, 2:4] / a**2
     if options.model_error_sectors:
-        cov = _with_sector_model_error(At, res, lo, hi, P, cov, a, options.model_error_sectors, options.model_error_scale)
+        cov = _with_sector_model_error(At, N, res, lo, hi, P, cov, a, options.model_error_sectors, options.model_error_scale)
     cov = cov + options.model_floor_px**2 * np.eye(2)
     sigma = _background_sigma(img, segmentation[0], lo, hi)
     rms = math.sqrt(s2)
