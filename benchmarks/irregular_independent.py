@@ -28,7 +28,6 @@ Writes ``benchmarks/results/irregular_independent.json`` (or ``--out``).
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import pickle
 import sys
@@ -61,27 +60,14 @@ def bodies(quick: bool) -> dict:
 
 
 def _scene(V, F, max_radius: float, cam, phase_deg: float, dist: float, off: bool, rng):
-    from scipy.spatial.transform import Rotation
+    from irregular_los import view_geometry
 
     from jaxlimb.render.independent.mesh_rays import MeshScene
     from jaxlimb.render.independent.optics import Psf, PsfKind
     from jaxlimb.render.independent.sensor import SensorSpec
     from jaxlimb.render.independent.surface import Photometry, Reflectance
 
-    D = dist * 2.0 * max_radius
-    R = Rotation.random(random_state=int(rng.integers(1 << 31))).as_matrix()
-    u = np.array([0.0, 0.0, 1.0])
-    if off:
-        rad_px = cam.focal_px * max_radius / (D - max_radius)
-        lim = max(cam.rows / 2 - rad_px - 20, 0.0)
-        o = rng.uniform(-lim, lim, 2)
-        u = np.array([o[1] / cam.focal_px, o[0] / cam.focal_px, 1.0])
-        u /= np.linalg.norm(u)
-    a = rng.normal(size=3)
-    a -= (a @ u) * u
-    a /= np.linalg.norm(a)
-    ph = math.radians(phase_deg)
-    sun = -u * math.cos(ph) + a * math.sin(ph)
+    R, t, sun = view_geometry(max_radius, cam, phase_deg, dist, off, rng)
     law, psf_kind = str(rng.choice(LAWS)), str(rng.choice(PSFS))
     bits = 8 if rng.uniform() < 0.4 else 12
     busy = rng.uniform() < 1 / 3
@@ -94,7 +80,7 @@ def _scene(V, F, max_radius: float, cam, phase_deg: float, dist: float, off: boo
     spec = SensorSpec(bits=bits, read_noise_dn=12.0 / gain, background_dn=40.0 / gain, n_stars=30 if busy else 0,
                       star_flux_dn=(20.0 * (2**bits - 1) / 255, 400.0 * (2**bits - 1) / 255), n_hot=20 if busy else 0)
     meta = {"law": law, "psf": psf_kind, "bits": bits, "stars_hot": bool(busy)}
-    scene = MeshScene(V, F, R, D * u, sun, phot, float(rng.uniform(0.15, 0.35)), int(rng.integers(1 << 30)), psf, spec)
+    scene = MeshScene(V, F, R, t, sun, phot, float(rng.uniform(0.15, 0.35)), int(rng.integers(1 << 30)), psf, spec)
     return scene, meta
 
 

@@ -60,17 +60,15 @@ def camera():
     return Camera(focal_length_mm=30.0, pixel_pitch_mm=0.02, rows=1024, cols=1024)
 
 
-def make_view(mesh, cam, phase_deg: float, dist_factor: float, off_centre: bool, noise: float, rng):
-    """A random view: image, truth centre, attitude, Sun direction (camera frame)."""
+def view_geometry(max_radius: float, cam, phase_deg: float, dist_factor: float, off_centre: bool, rng):
+    """A random view: attitude ``R``, body centre ``t`` (camera frame, km) and Sun direction."""
     from scipy.spatial.transform import Rotation
 
-    from jaxlimb.render.mesh import MeshRenderOptions, render_mesh
-
-    D = dist_factor * 2.0 * mesh.max_radius
+    D = dist_factor * 2.0 * max_radius
     R = Rotation.random(random_state=int(rng.integers(1 << 31))).as_matrix()
     u = np.array([0.0, 0.0, 1.0])
     if off_centre:
-        rad_px = cam.focal_px * mesh.max_radius / (D - mesh.max_radius)
+        rad_px = cam.focal_px * max_radius / (D - max_radius)
         lim = max(cam.rows / 2 - rad_px - 20, 0.0)
         off = rng.uniform(-lim, lim, 2)
         u = np.array([off[1] / cam.focal_px, off[0] / cam.focal_px, 1.0])
@@ -81,7 +79,14 @@ def make_view(mesh, cam, phase_deg: float, dist_factor: float, off_centre: bool,
     a -= (a @ tv) * tv
     a /= np.linalg.norm(a)
     ph = math.radians(phase_deg)
-    sun = tv * math.cos(ph) + a * math.sin(ph)
+    return R, t, tv * math.cos(ph) + a * math.sin(ph)
+
+
+def make_view(mesh, cam, phase_deg: float, dist_factor: float, off_centre: bool, noise: float, rng):
+    """A random view (:func:`view_geometry`): image, truth centre, attitude, Sun direction (camera frame)."""
+    from jaxlimb.render.mesh import MeshRenderOptions, render_mesh
+
+    R, t, sun = view_geometry(mesh.max_radius, cam, phase_deg, dist_factor, off_centre, rng)
     opts = MeshRenderOptions(noise_sigma=noise, seed=int(rng.integers(1 << 30)), albedo=200.0, background=10.0)
     out = render_mesh(mesh.vertices, mesh.faces, cam, R, t, sun_dir_camera=sun, options=opts)
     return out.image, out.centre_rc, R, t, sun
