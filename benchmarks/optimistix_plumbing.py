@@ -1,7 +1,8 @@
 """optimistix with and without the fused Jacobian / normal-equations plumbing, against NormalLM.
 
 The nominal problem of ``benchmarks/solvers.py`` (400x400, radius 150, +-6 px band, sigma 10),
-``--n`` realisations from the same start; ms per fit (median, after compilation), steps, and the
+``--n`` realisations from the same start, every solver run on each in turn (round-robin, so that load
+on a shared machine falls on all alike); ms per fit (median wall and CPU, after compilation), steps, and the
 largest difference of the estimates from NormalLM's.  ``package default`` is ``Optimistix(solver)`` (fused
 Jacobian, normal equations, coarse-to-fine start, ``OPTX_ATOL``); ``as it comes`` is
 ``Optimistix(solver, fused=False, normal=False, coarse_stride=1)``; the other rows remove one
@@ -49,24 +50,29 @@ def main(argv: list[str] | None = None) -> dict:
                "Dogleg, no coarse phase": Optimistix(dl_(), coarse_stride=1),
                "Dogleg as it comes": Optimistix(dl_(), **plain)}
     load0 = Path("/proc/loadavg").read_text().split()[:3]
-    rows, ref = [], None
-    for name, s in solvers.items():
-        fit(model, coords, data[0], init, s, throw=False)
-        ts, est, steps = [], [], []
-        for z in data:
-            t0 = time.perf_counter()
+    for s in solvers.values():  # compile every program first
+        jax.block_until_ready(fit(model, coords, data[0], init, s, throw=False).params.r0)
+    rec = {name: {"wall": [], "cpu": [], "est": [], "steps": []} for name in solvers}
+    for z in data:  # round-robin: a burst of load on a shared machine falls on every solver alike
+        for name, s in solvers.items():
+            t0, c0 = time.perf_counter(), time.process_time()
             r = fit(model, coords, z, init, s, throw=False)
             jax.block_until_ready(r.params.r0)
-            ts.append(time.perf_counter() - t0)
-            est.append(np.asarray(r.params.to_vector()))
-            steps.append(int(r.n_steps))
-        est = np.asarray(est)
-        ref = est if ref is None else ref
-        rows.append({"solver": name, "ms_per_fit": 1e3 * float(np.median(ts)), "steps_mean": float(np.mean(steps)),
-                     "max_abs_diff_vs_normal_lm": float(np.abs(est - ref)[:, :3].max())})
+            rec[name]["wall"].append(time.perf_counter() - t0)
+            rec[name]["cpu"].append(time.process_time() - c0)
+            rec[name]["est"].append(np.asarray(r.params.to_vector()))
+            rec[name]["steps"].append(int(r.n_steps))
+    rows, ref = [], np.asarray(rec["NormalLM"]["est"])
+    for name, v in rec.items():
+        rows.append({"solver": name, "ms_per_fit": 1e3 * float(np.median(v["wall"])),
+                     "cpu_ms_per_fit": 1e3 * float(np.median(v["cpu"])), "steps_mean": float(np.mean(v["steps"])),
+                     "max_abs_diff_vs_normal_lm": float(np.abs(np.asarray(v["est"]) - ref)[:, :3].max()),
+                     "median_ratio_per_fit": float(np.median(np.asarray(v["wall"]) / np.asarray(rec["NormalLM"]["wall"])))})
     for r in rows:
         r["over_normal_lm"] = r["ms_per_fit"] / rows[0]["ms_per_fit"]
-        print(f"{r['solver']:38s} {r['ms_per_fit']:8.2f} ms/fit  {r['over_normal_lm']:6.2f}x NormalLM  "
+        r["cpu_over_normal_lm"] = r["cpu_ms_per_fit"] / rows[0]["cpu_ms_per_fit"]
+        print(f"{r['solver']:38s} {r['ms_per_fit']:8.2f} ms/fit  {r['over_normal_lm']:6.2f}x NormalLM "
+              f"(CPU {r['cpu_over_normal_lm']:5.2f}x, per-fit median {r['median_ratio_per_fit']:5.2f}x)  "
               f"steps {r['steps_mean']:5.1f}  max|d| {r['max_abs_diff_vs_normal_lm']:.1e} px")
     out = {"rows": rows, "n": args.n, "loadavg_before": load0, "loadavg_after": Path("/proc/loadavg").read_text().split()[:3],
            "environment": environment()}
