@@ -387,7 +387,80 @@ def gradient_front_end(
     pri = resolve_prior(img, region, prior, hints, camera, opt.prior)
     st = derived_settings(pri, opt.prior)
     band = radius_band(pri, region)
+    win = _gradient_window(img, region, st, opt, mask)
+    t_grad = time.perf_counter()
+    pts, n_box = _box_filtered_points(win, region, st, opt)
+    t_box = time.perf_counter()
+    inl, fit, res, n_dark = _ransac_taubin(pts, n_box, win.offset_rc, pri, st, band, hints, camera, opt)
+    t_fit = time.perf_counter()
+    check_radius(fit.radius, pri, band)
 
+    r0, c0 = win.offset_rc
+    points_full = pts[inl] + np.array([r0, c0], dtype=np.float64)
+    center = (fit.center_rc[0] + r0, fit.center_rc[1] + c0)
+    sun_rc = pri.sun_dir_rc
+    if hints is not None and hints.sun_dir_camera is not None:
+        sun_rc = sun_direction_image(hints.sun_dir_camera, camera, center if camera is not None else None)
+    lit_dir, half = lit_arc(points_full, center, sun_rc) if sun_rc is not None else lit_arc(points_full, center)
+    info = {
+        "prior": pri,
+        "settings": st,
+        "roi": win.roi,
+        "region": region,
+        "n_candidates": int(win.candidates.shape[0]),
+        "n_after_box": n_box,
+        "n_after_ransac": res.n_inliers,
+        "n_final": int(inl.sum()),
+        "n_dark_side_dropped": n_dark,
+        "ransac_tests": res.n_tests,
+        "ransac_dmax": st.ransac_dmax,
+        "presmooth_sigma": win.presmooth_sigma,
+        "residual_max": fit.max_abs,
+        "cropped": region.crop,
+        "center_in_image": bool(0 <= center[0] <= img.shape[0] - 1 and 0 <= center[1] <= img.shape[1] - 1),
+        "timings_s": {
+            "detect": t_detect - t0,
+            "gradient": t_grad - t_detect,
+            "box": t_box - t_grad,
+            "ransac_taubin": t_fit - t_box,
+            "total": time.perf_counter() - t0,
+        },
+    }
+    return LimbCandidates(
+        points_rc=points_full,
+        center_rc=(float(center[0]), float(center[1])),
+        radius=float(fit.radius),
+        residual_rms=float(fit.rms),
+        lit_direction=lit_dir,
+        lit_halfangle=half,
+        front_end="gradient",
+        info=info,
+    )
+
+
+@dataclass(frozen=True)
+class _GradientWindow:
+    """The region of interest of :func:`gradient_front_end` after step 3: its (pre-smoothed) pixels,
+    their gradient, the strongest candidates and the validity of each pixel."""
+
+    roi: tuple[int, int, int, int]
+    smoothed: np.ndarray
+    g: np.ndarray
+    gr: np.ndarray
+    gc: np.ndarray
+    candidates: np.ndarray
+    valid: np.ndarray | None
+    presmooth_sigma: float
+
+    @property
+    def offset_rc(self) -> tuple[int, int]:
+        return self.roi[0], self.roi[2]
+
+
+def _gradient_window(img: np.ndarray, region: BodyRegion, st, opt: GradientOptions,
+                     mask: np.ndarray | None) -> _GradientWindow:
+    """Steps 3-4: the ROI padded for the box filter, pre-smoothed, differentiated (Eq. 18-22), and its
+    ``N`` strongest gradient pixels; the gradient near an invalid pixel is zeroed."""
     r0, r1, c0, c1 = region.roi
     pad = st.box_size // 2 + 6
     r0, c0 = max(0, r0 - pad), max(0, c0 - pad)
@@ -407,12 +480,16 @@ def gradient_front_end(
         vsub = np.asarray(mask, bool)[r0:r1, c0:c1]
         g = np.where(valid_zone(vsub, 4 + int(math.ceil(3 * sigma_pre))), g, 0)
     n_req = int(min(st.n_points, max(10, g.size // 4)))
-    cand = strongest_pixels(g, n_req)
-    t_grad = time.perf_counter()
-    keep, diag = box_filter(g, sub_s, cand, st.box_size, background=region.background, options=opt.box,
-                             valid=vsub)
+    return _GradientWindow((r0, r1, c0, c1), sub_s, g, gr, gc, strongest_pixels(g, n_req), vsub, sigma_pre)
+
+
+def _box_filtered_points(win: _GradientWindow, region: BodyRegion, st, opt: GradientOptions) -> tuple[np.ndarray, int]:
+    """Step 5 and Check 2: the candidates the box filter (§4.2) keeps, at sub-pixel positions (ROI frame)."""
+    cand = win.candidates
+    keep, diag = box_filter(win.g, win.smoothed, cand, st.box_size, background=region.background, options=opt.box,
+                            valid=win.valid)
     if region.bright_sky and keep.any():
-        keep &= _outward_bright_to_dark(cand, diag, region, (r0, c0))
+        keep &= _outward_bright_to_dark(cand, diag, region, win.offset_rc)
     n_box = int(keep.sum())
     if n_box < opt.min_points_box:
         raise TooManyOutliersError(
@@ -420,8 +497,15 @@ def gradient_front_end(
             f"min_points_box = {opt.min_points_box}"
         )
     pts_i = cand[keep]
-    pts = subpixel_refine(g, gr, gc, pts_i) if opt.subpixel else pts_i.astype(np.float64)
-    t_box = time.perf_counter()
+    pts = subpixel_refine(win.g, win.gr, win.gc, pts_i) if opt.subpixel else pts_i.astype(np.float64)
+    return pts, n_box
+
+
+def _ransac_taubin(pts: np.ndarray, n_box: int, offset_rc, pri: Prior, st, band, hints: Hints | None,
+                   camera: Camera | None, opt: GradientOptions):
+    """Steps 6-7 and Check 3: RANSAC (§4.3) in the prior's radius band, a 3-MAD trim and Taubin's fit
+    (Eq. 26-35), then the lit side only when the Sun direction is known.  Returns the inlier mask, the
+    circle, the RANSAC result and the number of dark-side points dropped."""
     ropt = RansacOptions(
         threshold=st.ransac_dmax,
         max_tests=ransac_tests(n_box, opt.prior),
@@ -450,55 +534,9 @@ def gradient_front_end(
         fit = fit_circle_taubin(pts[inl])
     n_dark = 0
     if hints is not None and hints.sun_dir_camera is not None and pri.phase_rad is not None:
-        inl, fit, n_dark = _lit_side_only(pts, inl, fit, (r0, c0), hints, camera, pri.phase_rad,
+        inl, fit, n_dark = _lit_side_only(pts, inl, fit, offset_rc, hints, camera, pri.phase_rad,
                                           max(opt.min_inliers, 3), band)
-    t_fit = time.perf_counter()
-    check_radius(fit.radius, pri, band)
-
-    points_full = pts[inl] + np.array([r0, c0], dtype=np.float64)
-    center = (fit.center_rc[0] + r0, fit.center_rc[1] + c0)
-    sun_rc = pri.sun_dir_rc
-    if hints is not None and hints.sun_dir_camera is not None:
-        sun_rc = sun_direction_image(hints.sun_dir_camera, camera, center if camera is not None else None)
-    if sun_rc is not None:
-        lit_dir, half = lit_arc(points_full, center, sun_rc)
-    else:
-        lit_dir, half = lit_arc(points_full, center)
-    info = {
-        "prior": pri,
-        "settings": st,
-        "roi": (r0, r1, c0, c1),
-        "region": region,
-        "n_candidates": int(cand.shape[0]),
-        "n_after_box": n_box,
-        "n_after_ransac": res.n_inliers,
-        "n_final": int(inl.sum()),
-        "n_dark_side_dropped": n_dark,
-        "ransac_tests": res.n_tests,
-        "ransac_dmax": st.ransac_dmax,
-        "presmooth_sigma": sigma_pre,
-        "residual_max": fit.max_abs,
-        "cropped": region.crop,
-        "center_in_image": bool(0 <= center[0] <= img.shape[0] - 1 and 0 <= center[1] <= img.shape[1] - 1),
-        "timings_s": {
-            "detect": t_detect - t0,
-            "gradient": t_grad - t_detect,
-            "box": t_box - t_grad,
-            "ransac_taubin": t_fit - t_box,
-            "total": time.perf_counter() - t0,
-        },
-    }
-    return LimbCandidates(
-        points_rc=points_full,
-        center_rc=(float(center[0]), float(center[1])),
-        radius=float(fit.radius),
-        residual_rms=float(fit.rms),
-        lit_direction=lit_dir,
-        lit_halfangle=half,
-        front_end="gradient",
-        info=info,
-    )
-
+    return inl, fit, res, n_dark
 
 __all__ = [
     "FOUR_POINT_KERNEL",
