@@ -79,7 +79,7 @@ from ..conics.taubin import CircleFit, DegenerateFitError, circle_residuals, fit
 from ..errors import ConfigError, TooManyOutliersError, TooThinError
 from ..geometry.camera import Camera
 from .candidates import LimbCandidates, lit_arc
-from .crop import DetectOptions, detect_body, nearest_fill
+from .crop import BodyRegion, DetectOptions, detect_body, nearest_fill
 from .gradient import _bilinear, check_radius, radius_band, resolve_prior, valid_zone
 from .io import validate_image
 from .prior import Hints, Prior, PriorOptions, sun_direction_image
@@ -430,13 +430,86 @@ def scanline_front_end(
     region = detect_body(nearest_fill(img, mask), opt.detect)
     pri = resolve_prior(img, region, prior, hints, camera, opt.prior)
     band = radius_band(pri, region)
+    lr = _lit_region(img, region, mask, opt)
+    r0, r1, c0, c1 = region.roi
+    sun_rc = _sun_image_direction(hints, camera, pri, (lr.axes.centroid_rc[0] + r0, lr.axes.centroid_rc[1] + c0))
+    axis = np.array(sun_rc) if sun_rc is not None else np.array(lr.axes.axis_rc)
+    spacing = opt.spacing_frac * pri.expected_radius_px
+    offsets = spacing * np.arange(-opt.n_lines_half, opt.n_lines_half + 1, dtype=float)
+    tr = scan_transitions(
+        lr.binary,
+        lr.sub,
+        lr.axes.centroid_rc,
+        axis,
+        offsets,
+        min_correlation=opt.min_correlation,
+        subpixel=opt.subpixel,
+        valid_shape=img.shape,
+        valid_offset=(r0, c0),
+        valid_mask=None if lr.valid is None else valid_zone(lr.valid, MASK_REACH_PX),
+    )
+    sel = _select_lit_set(tr, lr, region, pri, axis, sun_rc is not None, opt)
+    check_radius(sel.fit.radius, pri, band)
 
+    off = np.array([r0, c0], float)
+    points_full = sel.points + off
+    center = (sel.fit.center_rc[0] + r0, sel.fit.center_rc[1] + c0)
+    if sel.merged and sun_rc is None:
+        lit_dir, half = lit_arc(points_full, center)
+    else:
+        lit_dir, half = lit_arc(points_full, center, sun_rc)
+    o_pts, o_fit, _ = sel.other_set
+    info = {
+        "prior": pri,
+        "roi": (r0, r1, c0, c1),
+        "region": region,
+        "threshold": lr.threshold,
+        "centroid_rc": (lr.axes.centroid_rc[0] + r0, lr.axes.centroid_rc[1] + c0),
+        "axis_rc": tuple(float(x) for x in axis / np.linalg.norm(axis)),
+        "eigen_ratio": lr.axes.eigen_ratio,
+        "line_spacing_px": spacing,
+        "n_lines": int(offsets.size),
+        **sel.info,
+        "other_set": {
+            "points_rc": o_pts + off,
+            "center_rc": None if o_fit is None else (o_fit.center_rc[0] + r0, o_fit.center_rc[1] + c0),
+            "radius": None if o_fit is None else o_fit.radius,
+            "residual_rms": None if o_fit is None else o_fit.rms,
+        },
+        "residual_max": sel.fit.max_abs,
+        "cropped": region.crop,
+        "timings_s": {"total": time.perf_counter() - t0},
+    }
+    return LimbCandidates(
+        points_rc=points_full,
+        center_rc=(float(center[0]), float(center[1])),
+        radius=float(sel.fit.radius),
+        residual_rms=float(sel.fit.rms),
+        lit_direction=lit_dir,
+        lit_halfangle=half,
+        front_end="scanline",
+        info=info,
+    )
+
+
+@dataclass(frozen=True)
+class _LitRegion:
+    """The thresholded lit region of the ROI (§IV-A): raw and median-filtered pixels, the validity of
+    each, the threshold, the binary region and its inertia axes."""
+
+    sub: np.ndarray
+    filtered: np.ndarray
+    valid: np.ndarray | None
+    threshold: float
+    binary: np.ndarray
+    axes: InertiaAxes
+
+
+def _lit_region(img: np.ndarray, region: BodyRegion, mask: np.ndarray | None, opt: ScanlineOptions) -> _LitRegion:
+    """Threshold, largest filled region and its inertia axes; :class:`TooThinError` below ``min_eigen_ratio``."""
     r0, r1, c0, c1 = region.roi
     sub = img[r0:r1, c0:c1].astype(np.float32)  # exact for integer data up to 2^24
-    if opt.median_ksize > 1:
-        sub_f = cv2.medianBlur(sub, opt.median_ksize)
-    else:
-        sub_f = sub
+    sub_f = cv2.medianBlur(sub, opt.median_ksize) if opt.median_ksize > 1 else sub
     vsub = None if mask is None else np.asarray(mask, bool)[r0:r1, c0:c1]
     gt = _binary_threshold(sub_f, vsub, region.noise_sigma, opt)
     binary = _largest_filled(_masked_binary(sub_f > gt, vsub))
@@ -446,34 +519,34 @@ def scanline_front_end(
             f"eigenvalue ratio lambda_min/lambda_max = {ax.eigen_ratio:.3g} of the lit region is below "
             f"min_eigen_ratio = {opt.min_eigen_ratio:g} (too thin to process)"
         )
-    sun_rc = _sun_image_direction(hints, camera, pri, (ax.centroid_rc[0] + r0, ax.centroid_rc[1] + c0))
-    axis = np.array(sun_rc) if sun_rc is not None else np.array(ax.axis_rc)
-    R_est = pri.expected_radius_px
-    spacing = opt.spacing_frac * R_est
-    offsets = spacing * np.arange(-opt.n_lines_half, opt.n_lines_half + 1, dtype=float)
-    tr = scan_transitions(
-        binary,
-        sub,
-        ax.centroid_rc,
-        axis,
-        offsets,
-        min_correlation=opt.min_correlation,
-        subpixel=opt.subpixel,
-        valid_shape=img.shape,
-        valid_offset=(r0, c0),
-        valid_mask=None if vsub is None else valid_zone(vsub, MASK_REACH_PX),
-    )
+    return _LitRegion(sub, sub_f, vsub, gt, binary, ax)
+
+
+@dataclass(frozen=True)
+class _LitSet:
+    """The scan-line transitions taken as the lit limb (merged with the other set where consistent)."""
+
+    points: np.ndarray
+    fit: CircleFit
+    merged: bool
+    other_set: tuple
+    info: dict
+
+
+def _select_lit_set(tr, lr: _LitRegion, region: BodyRegion, pri: Prior, axis: np.ndarray, sun_known: bool,
+                    opt: ScanlineOptions) -> _LitSet:
+    """Entry or exit transitions as the lit limb (§VI): trimmed circle fits of both sets, the choice, the
+    ramp and hard-edge checks, and the merge of a consistent other set."""
     entry, exit_ = tr.entry, tr.exit
     f_in, k_in = _trimmed_fit(entry, opt.min_points)
     f_out, k_out = _trimmed_fit(exit_, opt.min_points)
     sets = {"entry": (entry, f_in, k_in), "exit": (exit_, f_out, k_out)}
-
     st_in = float(np.nanmedian(tr.entry_strength[k_in])) if f_in is not None else 0.0
     st_out = float(np.nanmedian(tr.exit_strength[k_out])) if f_out is not None else 0.0
-    step = max(1, int(math.sqrt(sub_f.size / 250_000)))  # subsample large ROIs (speed)
-    gy, gx = np.gradient(sub_f[::step, ::step])
+    step = max(1, int(math.sqrt(lr.filtered.size / 250_000)))  # subsample large ROIs (speed)
+    gy, gx = np.gradient(lr.filtered[::step, ::step])
     g_ref = float(np.percentile(np.hypot(gy, gx), 99.5)) / step
-    lit, other, choice_reason = _choose_lit_set(f_in, f_out, st_in, st_out, sun_rc is not None, pri, opt)
+    lit, other, choice_reason = _choose_lit_set(f_in, f_out, st_in, st_out, sun_known, pri, opt)
     pts, fit, keep = sets[lit]
     if fit is None:
         raise TooManyOutliersError(
@@ -481,59 +554,14 @@ def scanline_front_end(
             f"usable for a circle fit (is the lit limb outside the frame?)"
         )
     ramp = math.nan
-    if sun_rc is None and sets[other][1] is None:
+    if not sun_known and sets[other][1] is None:
         bright = axis / np.linalg.norm(axis) * (1.0 if lit == "entry" else -1.0)
-        ramp = _check_not_a_ramp(sub, pts[keep], bright, R_est, opt)
+        ramp = _check_not_a_ramp(lr.sub, pts[keep], bright, pri.expected_radius_px, opt)
     _check_hard_edge(st_out if lit == "exit" else st_in, g_ref, float(region.peak - region.background), opt)
-    o_pts, o_fit, _ = sets[other]
     pts, fit, merged = _merge_sets(pts[keep], fit, sets[other], opt)
-    check_radius(fit.radius, pri, band)
-
-    off = np.array([r0, c0], float)
-    points_full = pts + off
-    center = (fit.center_rc[0] + r0, fit.center_rc[1] + c0)
-    if merged and sun_rc is None:
-        lit_dir, half = lit_arc(points_full, center)
-    else:
-        lit_dir, half = lit_arc(points_full, center, sun_rc)
-    info = {
-        "prior": pri,
-        "roi": (r0, r1, c0, c1),
-        "region": region,
-        "threshold": gt,
-        "centroid_rc": (ax.centroid_rc[0] + r0, ax.centroid_rc[1] + c0),
-        "axis_rc": tuple(float(x) for x in axis / np.linalg.norm(axis)),
-        "eigen_ratio": ax.eigen_ratio,
-        "line_spacing_px": spacing,
-        "n_lines": int(offsets.size),
-        "lit_set": lit,
-        "edge_step_entry": st_in,
-        "edge_step_exit": st_out,
-        "edge_step_reference": g_ref,
-        "ramp_ratio": ramp,
-        "merged": merged,
-        "choice": choice_reason,
-        "other_set": {
-            "points_rc": o_pts + off,
-            "center_rc": None if o_fit is None else (o_fit.center_rc[0] + r0, o_fit.center_rc[1] + c0),
-            "radius": None if o_fit is None else o_fit.radius,
-            "residual_rms": None if o_fit is None else o_fit.rms,
-        },
-        "residual_max": fit.max_abs,
-        "cropped": region.crop,
-        "timings_s": {"total": time.perf_counter() - t0},
-    }
-    return LimbCandidates(
-        points_rc=points_full,
-        center_rc=(float(center[0]), float(center[1])),
-        radius=float(fit.radius),
-        residual_rms=float(fit.rms),
-        lit_direction=lit_dir,
-        lit_halfangle=half,
-        front_end="scanline",
-        info=info,
-    )
-
+    info = {"lit_set": lit, "edge_step_entry": st_in, "edge_step_exit": st_out, "edge_step_reference": g_ref,
+            "ramp_ratio": ramp, "merged": merged, "choice": choice_reason}
+    return _LitSet(pts, fit, merged, sets[other], info)
 
 def _check_not_a_ramp(sub: np.ndarray, pts: np.ndarray, bright: np.ndarray, R_est: float, opt: ScanlineOptions) -> float:
     """A single set and no Sun direction: a limb is a step (flat on its bright side), a terminator a ramp
