@@ -120,63 +120,18 @@ def box_filter(
         return np.zeros(0, bool), {}
     G0 = np.asarray(gradient)  # gathered values are converted to float64 below
     I0 = np.asarray(image)
-    R, C = G0.shape
-    # gather with clipped indices instead of padding the whole arrays:
-    # gradient outside the array counts as 0, grey tones repeat the edge
-    pr = P[:, 0]
-    pc = P[:, 1]
-    off = np.arange(-h, h + 1)
-    rows = pr[:, None] + off[None, :]
-    cols = pc[:, None] + off[None, :]
-    vr = (rows >= 0) & (rows < R)
-    vc = (cols >= 0) & (cols < C)
-    rows_c = np.clip(rows, 0, R - 1)
-    cols_c = np.clip(cols, 0, C - 1)
-    inb = vr[:, :, None] & vc[:, None, :]
+    V = None
     if valid is not None:
         V = np.asarray(valid, bool)
         if V.shape != G0.shape:
             raise ConfigError(f"valid mask shape {V.shape} does not match the gradient shape {G0.shape}")
-        inb = inb & V[rows_c[:, :, None], cols_c[:, None, :]]
-    patch = G0[rows_c[:, :, None], cols_c[:, None, :]].astype(np.float64) * inb
+    pr, pc = P[:, 0], P[:, 1]
+    patch = _gather_boxes(G0, pr, pc, h, V)
     g0 = G0[pr, pc].astype(np.float64)
     w = np.maximum(patch - opt.weight_floor * g0[:, None, None], 0.0)
-    o = off.astype(np.float64)
-    wr = w.sum(2)  # (n, s): mass per row offset
-    wc = w.sum(1)  # (n, s): mass per col offset
-    W = wr.sum(1)
-    W = np.where(W > 0, W, 1.0)
-    mr = (wr @ o) / W
-    mc = (wc @ o) / W
-    crr = (wr @ (o * o)) / W - mr * mr
-    ccc = (wc @ (o * o)) / W - mc * mc
-    crc = ((w @ o) @ o) / W - mr * mc
-    # eigen of [[crr, crc], [crc, ccc]] (covariance; the inertia tensor has the same ratio)
-    tr = crr + ccc
-    det = crr * ccc - crc * crc
-    disc = np.sqrt(np.maximum(tr * tr / 4 - det, 0.0))
-    lmax = tr / 2 + disc
-    lmin = np.maximum(tr / 2 - disc, 0.0)
-    ratio = np.where(lmax > 0, lmin / np.where(lmax > 0, lmax, 1.0), 1.0)
-    # edge direction: eigenvector of lmax of the covariance
-    tx = crc
-    ty = lmax - crr
-    alt = np.abs(tx) + np.abs(ty) < 1e-12
-    tx = np.where(alt, lmax - ccc, tx)
-    ty = np.where(alt, crc, ty)
-    alt2 = np.abs(tx) + np.abs(ty) < 1e-12
-    tx = np.where(alt2, 1.0, tx)
-    ty = np.where(alt2, 0.0, ty)
-    nrm = np.hypot(tx, ty)
-    t_r, t_c = tx / nrm, ty / nrm  # (row, col) components of the edge direction
+    ratio, t_r, t_c = _edge_direction(w, h)
     n_r, n_c = -t_c, t_r
-
-    def samp(A, dr_, dc_, outside_zero):
-        rr = np.clip(np.rint(pr + dr_).astype(np.int64), pr - h, pr + h)
-        cc = np.clip(np.rint(pc + dc_).astype(np.int64), pc - h, pc + h)
-        inside = (rr >= 0) & (rr < R) & (cc >= 0) & (cc < C)
-        v = A[np.clip(rr, 0, R - 1), np.clip(cc, 0, C - 1)].astype(np.float64)
-        return np.where(inside, v, 0.0) if outside_zero else v
+    samp = _box_sampler(pr, pc, h, G0.shape)
 
     ge1 = samp(G0, h * t_r, h * t_c, True)
     ge2 = samp(G0, -h * t_r, -h * t_c, True)
@@ -192,7 +147,7 @@ def box_filter(
     if h >= 3:
         keep &= far_grad < opt.far_gradient_max
     keep &= g0 > 0
-    if valid is not None:
+    if V is not None:
         for dr_, dc_ in ((t_r, t_c), (-t_r, -t_c), (n_r, n_c), (-n_r, -n_c)):
             keep &= samp(V, h * dr_, h * dc_, False) > 0.5
         keep &= V[pr, pc]
@@ -207,5 +162,68 @@ def box_filter(
     }
     return keep, diag
 
+
+def _gather_boxes(G0: np.ndarray, pr: np.ndarray, pc: np.ndarray, h: int, V: np.ndarray | None) -> np.ndarray:
+    """The ``(n, s, s)`` gradient boxes around the points (float64), by clipped indices instead of padding
+    the whole array: the gradient outside the array (or at an invalid pixel) counts as 0."""
+    R, C = G0.shape
+    off = np.arange(-h, h + 1)
+    rows = pr[:, None] + off[None, :]
+    cols = pc[:, None] + off[None, :]
+    vr = (rows >= 0) & (rows < R)
+    vc = (cols >= 0) & (cols < C)
+    rows_c = np.clip(rows, 0, R - 1)
+    cols_c = np.clip(cols, 0, C - 1)
+    inb = vr[:, :, None] & vc[:, None, :]
+    if V is not None:
+        inb = inb & V[rows_c[:, :, None], cols_c[:, None, :]]
+    return G0[rows_c[:, :, None], cols_c[:, None, :]].astype(np.float64) * inb
+
+
+def _edge_direction(w: np.ndarray, h: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Eigenvalue ratio ``lambda_min / lambda_max`` of the weighted second moments of each box (§4.2; the
+    inertia tensor has the same ratio) and the edge direction (unit eigenvector of ``lambda_max``,
+    ``(row, col)`` components)."""
+    o = np.arange(-h, h + 1).astype(np.float64)
+    wr = w.sum(2)  # (n, s): mass per row offset
+    wc = w.sum(1)  # (n, s): mass per col offset
+    W = wr.sum(1)
+    W = np.where(W > 0, W, 1.0)
+    mr = (wr @ o) / W
+    mc = (wc @ o) / W
+    crr = (wr @ (o * o)) / W - mr * mr
+    ccc = (wc @ (o * o)) / W - mc * mc
+    crc = ((w @ o) @ o) / W - mr * mc
+    tr = crr + ccc
+    det = crr * ccc - crc * crc
+    disc = np.sqrt(np.maximum(tr * tr / 4 - det, 0.0))
+    lmax = tr / 2 + disc
+    lmin = np.maximum(tr / 2 - disc, 0.0)
+    ratio = np.where(lmax > 0, lmin / np.where(lmax > 0, lmax, 1.0), 1.0)
+    tx = crc
+    ty = lmax - crr
+    alt = np.abs(tx) + np.abs(ty) < 1e-12
+    tx = np.where(alt, lmax - ccc, tx)
+    ty = np.where(alt, crc, ty)
+    alt2 = np.abs(tx) + np.abs(ty) < 1e-12
+    tx = np.where(alt2, 1.0, tx)
+    ty = np.where(alt2, 0.0, ty)
+    nrm = np.hypot(tx, ty)
+    return ratio, tx / nrm, ty / nrm
+
+
+def _box_sampler(pr: np.ndarray, pc: np.ndarray, h: int, shape: tuple[int, int]):
+    """``samp(A, dr, dc, outside_zero)``: ``A`` at the nearest pixel to each point + ``(dr, dc)``, kept
+    within the point's box; outside the array 0 (``outside_zero``) or the edge value."""
+    R, C = shape
+
+    def samp(A, dr_, dc_, outside_zero):
+        rr = np.clip(np.rint(pr + dr_).astype(np.int64), pr - h, pr + h)
+        cc = np.clip(np.rint(pc + dc_).astype(np.int64), pc - h, pc + h)
+        inside = (rr >= 0) & (rr < R) & (cc >= 0) & (cc < C)
+        v = A[np.clip(rr, 0, R - 1), np.clip(cc, 0, C - 1)].astype(np.float64)
+        return np.where(inside, v, 0.0) if outside_zero else v
+
+    return samp
 
 __all__ = ["BoxFilterOptions", "box_filter"]
