@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import cv2
 import numpy as np
@@ -294,17 +295,7 @@ def detect_body(image: np.ndarray, options: DetectOptions | None = None, *, sky_
     a = np.asarray(image)
     R, C = a.shape
     f = max(1, int(math.ceil(max(R, C) / opt.work_size)))
-    small = block_average(a, f)
-    sigma = estimate_noise(a)
-    sig_small = sigma / f
-    if f > 1 and a.dtype in (np.uint8, np.uint16):
-        sig_small = math.sqrt(sig_small**2 + 1.0 / 12.0)  # rounding of the block averages
-    if opt.smooth_sigma > 0:
-        sm = cv2.GaussianBlur(small, (0, 0), opt.smooth_sigma, borderType=cv2.BORDER_REPLICATE)
-        sig_s = sig_small / (2 * math.sqrt(math.pi) * opt.smooth_sigma)
-    else:
-        sm = small
-        sig_s = sig_small
+    sm, sigma, sig_s = _smoothed_small(a, f, opt)
     gmin, gmax = float(sm.min()), float(sm.max())
     contrast = gmax - gmin
     if not contrast > 0 or contrast < opt.snr_min * sig_s:
@@ -320,40 +311,10 @@ def detect_body(image: np.ndarray, options: DetectOptions | None = None, *, sky_
         gmin = float(sky_dn)  # the background level of the region (grey tones of the box filter)
         gt = gmin + max(6.0 * sig_s, 0.25 * (gmax - gmin))
     binary = (sm > gt).astype(np.uint8)
-    n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
-    if n_lab <= 1:
-        raise NoBodyError("no body in the image: nothing above the Eq. (10) threshold")
-    weights = np.bincount(labels.ravel(), weights=(sm - gt).ravel().astype(np.float64), minlength=n_lab)
-    weights[0] = -np.inf
-    lab = int(np.argmax(weights))
-    x, y, w, h, _area = stats[lab]
-    mask = (labels[y : y + h, x : x + w] == lab).astype(np.uint8)
-    # fill holes: external contour filled
-    cnts, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    filled = np.zeros_like(mask)
-    cv2.drawContours(filled, cnts, -1, 1, thickness=cv2.FILLED)
-    mask = filled
+    mask, (x, y, w, h) = _brightest_component(sm, binary, gt)
     full_mask = np.zeros_like(binary)
     full_mask[y : y + h, x : x + w] = mask
-    rr, cc = np.nonzero(mask)
-    # small-pixel (i, j) covers full rows [i f, (i+1) f): centre at i f + (f - 1)/2
-    rows = (rr + y) * f + 0.5 * (f - 1)
-    cols = (cc + x) * f + 0.5 * (f - 1)
-    area = float(rr.size) * f * f
-    rb, cb = float(rows.mean()), float(cols.mean())
-    dr, dc = rows - rb, cols - cb
-    cov = np.array([[np.mean(dr * dr), np.mean(dr * dc)], [np.mean(dr * dc), np.mean(dc * dc)]])
-    evals, evecs = np.linalg.eigh(cov)  # ascending
-    minor = evecs[:, 0]  # axis of symmetry = largest inertia moment = smallest spread
-    major = evecs[:, 1]
-    ratio = float(evals[0] / evals[1]) if evals[1] > 0 else 1.0
-    proj = dr * major[0] + dc * major[1]
-    extent = float(proj.max() - proj.min() + f)
-    dist = cv2.distanceTransform(np.pad(mask, 1), cv2.DIST_L2, 5)
-    # a band W px wide has max distance ~(W + 1)/2; the blur + 25 % threshold widen
-    # an edge by ~0.67 sigma on each side (removed here)
-    inflation = 1.35 * opt.smooth_sigma if opt.smooth_sigma > 0 else 0.0
-    thickness = float(max(0.0, (2.0 * dist.max() - 1.0 - inflation)) * f)
+    shape = _region_shape(mask, x, y, f, opt)
     touches = bool(x == 0 or y == 0 or x + w >= binary.shape[1] or y + h >= binary.shape[0])
     m = opt.margin_px
     r0 = max(0, y * f - m)
@@ -367,13 +328,8 @@ def detect_body(image: np.ndarray, options: DetectOptions | None = None, *, sky_
         background=gmin,
         peak=gmax,
         noise_sigma=float(sigma),
-        centroid_rc=(rb, cb),
-        axis_rc=(float(minor[0]), float(minor[1])),
-        eigen_ratio=ratio,
-        extent_major_px=extent,
-        thickness_px=thickness,
-        area_px=area,
-        lit_fraction=float(area / (R * C)),
+        **shape,
+        lit_fraction=float(shape["area_px"] / (R * C)),
         touches_border=touches,
         factor=f,
         crop=crop,
@@ -392,6 +348,62 @@ def detect_body(image: np.ndarray, options: DetectOptions | None = None, *, sky_
                     pass
         check_region(region, opt, sky_dn)
     return region
+
+
+def _smoothed_small(a: np.ndarray, f: int, opt: DetectOptions) -> tuple[np.ndarray, float, float]:
+    """The image block-averaged by ``f`` and Gaussian-smoothed, the per-pixel noise and the noise left in it."""
+    small = block_average(a, f)
+    sigma = estimate_noise(a)
+    sig_small = sigma / f
+    if f > 1 and a.dtype in (np.uint8, np.uint16):
+        sig_small = math.sqrt(sig_small**2 + 1.0 / 12.0)  # rounding of the block averages
+    if opt.smooth_sigma > 0:
+        sm = cv2.GaussianBlur(small, (0, 0), opt.smooth_sigma, borderType=cv2.BORDER_REPLICATE)
+        return sm, sigma, sig_small / (2 * math.sqrt(math.pi) * opt.smooth_sigma)
+    return small, sigma, sig_small
+
+
+def _brightest_component(sm: np.ndarray, binary: np.ndarray, gt: float) -> tuple[np.ndarray, tuple[int, int, int, int]]:
+    """The connected component above the threshold with the most light above it, holes filled, in its
+    bounding box ``(x, y, w, h)``; :class:`NoBodyError` when there is none."""
+    n_lab, labels, stats, _ = cv2.connectedComponentsWithStats(binary, connectivity=8)
+    if n_lab <= 1:
+        raise NoBodyError("no body in the image: nothing above the Eq. (10) threshold")
+    weights = np.bincount(labels.ravel(), weights=(sm - gt).ravel().astype(np.float64), minlength=n_lab)
+    weights[0] = -np.inf
+    lab = int(np.argmax(weights))
+    x, y, w, h, _area = stats[lab]
+    mask = (labels[y : y + h, x : x + w] == lab).astype(np.uint8)
+    # fill holes: external contour filled
+    cnts, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    filled = np.zeros_like(mask)
+    cv2.drawContours(filled, cnts, -1, 1, thickness=cv2.FILLED)
+    return filled, (int(x), int(y), int(w), int(h))
+
+
+def _region_shape(mask: np.ndarray, x: int, y: int, f: int, opt: DetectOptions) -> dict[str, Any]:
+    """Centroid, symmetry axis, eigenvalue ratio, extent along the major axis, thickness and area of the
+    lit region (full-resolution pixels), as :class:`BodyRegion` fields."""
+    rr, cc = np.nonzero(mask)
+    # small-pixel (i, j) covers full rows [i f, (i+1) f): centre at i f + (f - 1)/2
+    rows = (rr + y) * f + 0.5 * (f - 1)
+    cols = (cc + x) * f + 0.5 * (f - 1)
+    rb, cb = float(rows.mean()), float(cols.mean())
+    dr, dc = rows - rb, cols - cb
+    cov = np.array([[np.mean(dr * dr), np.mean(dr * dc)], [np.mean(dr * dc), np.mean(dc * dc)]])
+    evals, evecs = np.linalg.eigh(cov)  # ascending
+    minor = evecs[:, 0]  # axis of symmetry = largest inertia moment = smallest spread
+    major = evecs[:, 1]
+    proj = dr * major[0] + dc * major[1]
+    dist = cv2.distanceTransform(np.pad(mask, 1), cv2.DIST_L2, 5)
+    # a band W px wide has max distance ~(W + 1)/2; the blur + 25 % threshold widen
+    # an edge by ~0.67 sigma on each side (removed here)
+    inflation = 1.35 * opt.smooth_sigma if opt.smooth_sigma > 0 else 0.0
+    return {"centroid_rc": (rb, cb), "axis_rc": (float(minor[0]), float(minor[1])),
+            "eigen_ratio": float(evals[0] / evals[1]) if evals[1] > 0 else 1.0,
+            "extent_major_px": float(proj.max() - proj.min() + f),
+            "thickness_px": float(max(0.0, (2.0 * dist.max() - 1.0 - inflation)) * f),
+            "area_px": float(rr.size) * f * f}
 
 
 def border_sky(sm: np.ndarray, width_frac: float = 0.02) -> float:
