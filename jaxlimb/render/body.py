@@ -281,6 +281,34 @@ def render_body(
     truth
         :class:`RenderTruth`.
     """
+    cam, opt = _checked_inputs(scene, camera, options, seed)
+    ss = np.random.SeedSequence(seed)
+    rng_stars, rng_hot, rng_noise = (np.random.default_rng(s) for s in ss.spawn(3))
+
+    sigma = float(opt.psf_sigma_px)
+    win = render_radiance(scene, cam, opt.reflectance, opt.n_subsamples, psf_pad(sigma), opt.lunar_lambert_coeffs)
+    frame, exposure = _exposed_frame(win, cam, opt, sigma)
+    stars = _add_stars(frame, scene, cam, opt, rng_stars, sigma)
+    hot_rc, hot_e = _hot_pixels(cam, opt, rng_hot)
+    image = digitise(
+        frame,
+        rng_noise,
+        bit_depth=opt.bit_depth,
+        full_well_e=opt.full_well_e,
+        gain_e_per_dn=opt.gain,
+        read_noise_e=opt.read_noise_e if opt.noise else 0.0,
+        extra_noise_dn=opt.extra_noise_dn if opt.noise else 0.0,
+        photon_noise=opt.photon_noise and opt.noise,
+        hot_pixels=(hot_rc, hot_e) if hot_e.size else None,
+    )
+    truth = _truth(scene, cam, opt, win, stars, (hot_rc, hot_e), exposure,
+                   int(ss.entropy) if seed is None else int(seed))  # type: ignore[arg-type]
+    return image, truth
+
+
+def _checked_inputs(scene: Scene, camera: Camera | None, options: RenderOptions | None,
+                    seed: int | None) -> tuple[Camera, RenderOptions]:
+    """The camera and options of :func:`render_body` (defaults filled in); :class:`ConfigError` on a wrong type."""
     if not isinstance(scene, Scene):
         raise ConfigError(f"`scene` must be a Scene, got {type(scene).__name__}")
     cam = camera or Camera.default()
@@ -291,12 +319,11 @@ def render_body(
         raise ConfigError(f"`options` must be a RenderOptions, got {type(opt).__name__}")
     if seed is not None and not (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool) and seed >= 0):
         raise ConfigError(f"`seed` must be a non-negative integer or None, got {seed!r}")
-    ss = np.random.SeedSequence(seed)
-    rng_stars, rng_hot, rng_noise = (np.random.default_rng(s) for s in ss.spawn(3))
+    return cam, opt
 
-    sigma = float(opt.psf_sigma_px)
-    pad = psf_pad(sigma)
-    win = render_radiance(scene, cam, opt.reflectance, opt.n_subsamples, pad, opt.lunar_lambert_coeffs)
+
+def _exposed_frame(win, cam: Camera, opt: RenderOptions, sigma: float) -> tuple[np.ndarray, float]:
+    """The radiance window blurred by the Gaussian PSF, exposed (electrons) and placed on the sky background."""
     blurred = gaussian_psf(win.image, sigma)
     peak = float(blurred.max()) if blurred.size else 0.0
     if opt.exposure_e is not None:
@@ -311,42 +338,36 @@ def render_body(
         fc0, fc1 = max(c0, 0), min(c0 + w, cam.cols)
         if fr0 < fr1 and fc0 < fc1:
             frame[fr0:fr1, fc0:fc1] += exposure * blurred[fr0 - r0 : fr1 - r0, fc0 - c0 : fc1 - c0]
+    return frame, exposure
 
-    # ---- stars
+
+def _add_stars(frame: np.ndarray, scene: Scene, cam: Camera, opt: RenderOptions, rng: np.random.Generator,
+               sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stars at uniform positions with log-uniform fluxes, added where the body does not hide them;
+    returns their positions, fluxes and visibility."""
     n_st = int(opt.n_stars)
-    st_rc = np.column_stack(
-        [rng_stars.uniform(-0.5, cam.rows - 0.5, n_st), rng_stars.uniform(-0.5, cam.cols - 0.5, n_st)]
-    ) if n_st else np.zeros((0, 2))
+    if not n_st:
+        return np.zeros((0, 2)), np.zeros(0), np.zeros(0, bool)
+    st_rc = np.column_stack([rng.uniform(-0.5, cam.rows - 0.5, n_st), rng.uniform(-0.5, cam.cols - 0.5, n_st)])
     lo, hi = opt.star_flux_e
-    st_f = np.exp(rng_stars.uniform(math.log(lo), math.log(hi), n_st)) if n_st else np.zeros(0)
-    if n_st:
-        vis = ~trace_rays(scene, pixel_rays(cam, st_rc)).hit
-        add_point_sources(frame, st_rc[vis], st_f[vis], sigma)
-    else:
-        vis = np.zeros(0, bool)
+    st_f = np.exp(rng.uniform(math.log(lo), math.log(hi), n_st))
+    vis = ~trace_rays(scene, pixel_rays(cam, st_rc)).hit
+    add_point_sources(frame, st_rc[vis], st_f[vis], sigma)
+    return st_rc, st_f, vis
 
-    # ---- hot pixels
+
+def _hot_pixels(cam: Camera, opt: RenderOptions, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Distinct random hot pixels and their charge (electrons)."""
     n_hot = min(int(opt.n_hot_pixels), cam.rows * cam.cols)
-    if n_hot:
-        flat = rng_hot.choice(cam.rows * cam.cols, size=n_hot, replace=False)
-        hot_rc = np.column_stack(np.unravel_index(flat, cam.shape))
-        hot_e = rng_hot.uniform(opt.hot_pixel_e[0], opt.hot_pixel_e[1], n_hot)
-    else:
-        hot_rc, hot_e = np.zeros((0, 2), int), np.zeros(0)
+    if not n_hot:
+        return np.zeros((0, 2), int), np.zeros(0)
+    flat = rng.choice(cam.rows * cam.cols, size=n_hot, replace=False)
+    hot_rc = np.column_stack(np.unravel_index(flat, cam.shape))
+    return hot_rc, rng.uniform(opt.hot_pixel_e[0], opt.hot_pixel_e[1], n_hot)
 
-    image = digitise(
-        frame,
-        rng_noise,
-        bit_depth=opt.bit_depth,
-        full_well_e=opt.full_well_e,
-        gain_e_per_dn=opt.gain,
-        read_noise_e=opt.read_noise_e if opt.noise else 0.0,
-        extra_noise_dn=opt.extra_noise_dn if opt.noise else 0.0,
-        photon_noise=opt.photon_noise and opt.noise,
-        hot_pixels=(hot_rc, hot_e) if n_hot else None,
-    )
 
-    # ---- truth
+def _truth(scene: Scene, cam: Camera, opt: RenderOptions, win, stars, hot, exposure: float, seed: int) -> RenderTruth:
+    """The :class:`RenderTruth` of a render: limb, cone, terminator, atmosphere limb, stars and hot pixels."""
     q = scene.q
     D = scene.range_km
     Rm = scene.mean_radius_km
@@ -358,7 +379,8 @@ def render_body(
     atm_limb = None
     if scene.atmosphere is not None:
         atm_limb = image_conic(cam, np.asarray(scene.radii) + scene.atmosphere.height_km, q, scene.R_body_to_camera)
-    truth = RenderTruth(
+    st_rc, st_f, vis = stars
+    return RenderTruth(
         center_rc=limb.body_center_rc,
         limb=limb,
         range_km=D,
@@ -374,14 +396,13 @@ def render_body(
         stars_rc=st_rc,
         stars_flux_e=st_f,
         stars_visible=vis,
-        hot_pixels_rc=hot_rc,
-        hot_pixels_e=hot_e,
+        hot_pixels_rc=hot[0],
+        hot_pixels_e=hot[1],
         exposure_e=exposure,
         gain_e_per_dn=opt.gain,
         n_supersampled=win.n_supersampled,
         scene=scene,
         camera=cam,
         options=opt,
-        seed=int(ss.entropy) if seed is None else int(seed),  # type: ignore[arg-type]
+        seed=seed,
     )
-    return image, truth
