@@ -492,21 +492,7 @@ def sample_posterior(lp: LogPosterior, start: np.ndarray | LimbFit, *, covarianc
     opt = options or PosteriorOptions()
     d = len(lp.names)
     if isinstance(start, LimbFit):
-        fit_ = start
-        check_limb_fit(fit_)
-        q = len(lp.free_idx)
-        free_names = lp.names[:q]
-        if tuple(fit_.free) != tuple(free_names):
-            raise LimbInputError(f"the fit's free parameters {list(fit_.free)} differ from the posterior's {list(free_names)}")
-        vec = np.asarray(fit_.params.to_vector())[list(lp.free_idx)]
-        cov = np.asarray(fit_.covariance, dtype=float)
-        if d > q:  # FREE noise: append log(sigma_hat) with sd ~ 1/sqrt(2n)
-            vec = np.append(vec, 0.5 * math.log(float(fit_.sigma2)))
-            c2 = np.zeros((d, d))
-            c2[:q, :q] = cov
-            c2[q, q] = 1.0 / (2.0 * lp.n_pixels)
-            cov = c2
-        start_vec, cov = vec, cov
+        start_vec, cov = _fit_start(lp, start)
     else:
         start_vec, cov = _laplace_start(lp, np.asarray(start, dtype=float), covariance)
     if start_vec.shape != (d,):
@@ -523,34 +509,7 @@ def sample_posterior(lp: LogPosterior, start: np.ndarray | LimbFit, *, covarianc
     sampler = emcee.EnsembleSampler(opt.n_walkers, d, fn, vectorize=opt.vectorize)
     # emcee 3.1 draws from its own RandomState: seed it (reproducible chains)
     sampler.random_state = np.random.RandomState(int(rng.integers(2**31))).get_state()
-    state = p0
-    taus: list[np.ndarray] = []
-    converged = False
-    old_tau = np.full(d, np.inf)
-    from tqdm.auto import tqdm
-
-    bar = tqdm(total=opt.max_steps, desc="emcee", unit="step", disable=not progress)
-    while sampler.iteration < opt.max_steps:
-        n = min(opt.chunk, opt.max_steps - sampler.iteration)
-        try:
-            state = sampler.run_mcmc(state, n)
-        except ValueError as e:  # emcee: "Initial state has a large condition number", ...
-            raise PosteriorImproperError(f"emcee cannot sample this posterior: {e}") from None
-        bar.update(n)
-        with np.errstate(invalid="ignore", divide="ignore"):  # a chain of constant walkers early on
-            tau = sampler.get_autocorr_time(tol=0)
-        taus.append(tau)
-        if np.all(np.isfinite(tau)):
-            bar.set_postfix(tau_max=f"{np.max(tau):.1f}", need=int(opt.tau_factor * np.max(tau)))
-            long_enough = sampler.iteration > opt.tau_factor * np.max(tau)
-            stable = np.all(np.abs(old_tau - tau) / tau < opt.tau_rtol)
-            if long_enough and stable:
-                converged = True
-                break
-        old_tau = tau
-        if time.perf_counter() - t0 > opt.max_time_s:
-            break
-    bar.close()
+    taus, converged = _run_until_converged(sampler, p0, opt, progress, t0)
     wall = time.perf_counter() - t0
     tau = taus[-1]
     tau_ok = np.where(np.isfinite(tau), tau, sampler.iteration / 10.0)
@@ -576,6 +535,61 @@ def sample_posterior(lp: LogPosterior, start: np.ndarray | LimbFit, *, covarianc
     )
     check_posterior(post, start if isinstance(start, LimbFit) else None)
     return post
+
+
+def _fit_start(lp: LogPosterior, fit_: LimbFit) -> tuple[np.ndarray, np.ndarray]:
+    """Start vector and covariance of the walkers' ball from a fit: its estimate and Laplace covariance over
+    the posterior's free parameters (and ``log sigma`` with sd ``1/sqrt(2n)`` when the noise is free)."""
+    check_limb_fit(fit_)
+    d, q = len(lp.names), len(lp.free_idx)
+    free_names = lp.names[:q]
+    if tuple(fit_.free) != tuple(free_names):
+        raise LimbInputError(f"the fit's free parameters {list(fit_.free)} differ from the posterior's {list(free_names)}")
+    vec = np.asarray(fit_.params.to_vector())[list(lp.free_idx)]
+    cov = np.asarray(fit_.covariance, dtype=float)
+    if d > q:  # FREE noise: append log(sigma_hat) with sd ~ 1/sqrt(2n)
+        vec = np.append(vec, 0.5 * math.log(float(fit_.sigma2)))
+        c2 = np.zeros((d, d))
+        c2[:q, :q] = cov
+        c2[q, q] = 1.0 / (2.0 * lp.n_pixels)
+        cov = c2
+    return vec, cov
+
+
+def _run_until_converged(sampler: Any, state: np.ndarray, opt: PosteriorOptions, progress: bool,
+                         t0: float) -> tuple[list[np.ndarray], bool]:
+    """Run ``sampler`` in chunks of ``opt.chunk`` steps until the chain is longer than ``tau_factor``
+    autocorrelation times and tau is stable to ``tau_rtol`` (emcee's criterion), or ``max_steps`` /
+    ``max_time_s``; returns the tau after each chunk and whether the criterion held."""
+    from tqdm.auto import tqdm
+
+    d = state.shape[1]
+    taus: list[np.ndarray] = []
+    converged = False
+    old_tau = np.full(d, np.inf)
+    bar = tqdm(total=opt.max_steps, desc="emcee", unit="step", disable=not progress)
+    while sampler.iteration < opt.max_steps:
+        n = min(opt.chunk, opt.max_steps - sampler.iteration)
+        try:
+            state = sampler.run_mcmc(state, n)
+        except ValueError as e:  # emcee: "Initial state has a large condition number", ...
+            raise PosteriorImproperError(f"emcee cannot sample this posterior: {e}") from None
+        bar.update(n)
+        with np.errstate(invalid="ignore", divide="ignore"):  # a chain of constant walkers early on
+            tau = sampler.get_autocorr_time(tol=0)
+        taus.append(tau)
+        if np.all(np.isfinite(tau)):
+            bar.set_postfix(tau_max=f"{np.max(tau):.1f}", need=int(opt.tau_factor * np.max(tau)))
+            long_enough = sampler.iteration > opt.tau_factor * np.max(tau)
+            stable = np.all(np.abs(old_tau - tau) / tau < opt.tau_rtol)
+            if long_enough and stable:
+                converged = True
+                break
+        old_tau = tau
+        if time.perf_counter() - t0 > opt.max_time_s:
+            break
+    bar.close()
+    return taus, converged
 
 
 def vectorize_speedup(lp: LogPosterior, start: np.ndarray | LimbFit, n_steps: int = 200, n_walkers: int = 32,
