@@ -199,6 +199,30 @@ def ransac_circle(
                     f"min_inlier_fraction={opt.min_inlier_fraction})")
     trip = pyramid_triplets(n, int(opt.max_tests))
     thr = float(opt.threshold)
+    n_tests = int(trip.shape[0])
+    best_t = _best_triplet(p, trip, opt)
+    if best_t is None:
+        return fail("no tested triplet gave a circle within the radius range", n_tests)
+    inliers, fit = _refine_inliers(p, best_t[3], best_t[4], opt)
+    if fit is None:
+        return fail("the Taubin fit of the best RANSAC inliers is degenerate", n_tests)
+    n_in = int(inliers.sum())
+    if n_in < need:
+        return fail(
+            f"best circle has {n_in} inliers of {n} points within {thr:.3g} px; at least {need} needed "
+            f"(min_inliers={opt.min_inliers}, min_inlier_fraction={opt.min_inlier_fraction})",
+            n_tests,
+        )
+    fit = fit_circle_taubin(p[inliers])
+    return RansacResult(True, inliers, fit, n_tests, best_t[:3], "")
+
+
+def _best_triplet(p: np.ndarray, trip: np.ndarray, opt: RansacOptions) -> tuple | None:
+    """The tested circle (through a triplet, within the radius range) with the most inliers, ties broken by
+    the truncated squared residual (MSAC); scored on at most ``max_score_points`` points, in blocks of
+    about 2e6 distances.  Returns ``(i, j, k, centre, radius)`` or ``None``."""
+    thr = float(opt.threshold)
+    n = p.shape[0]
     if opt.max_score_points is not None and n > opt.max_score_points:
         ps = p[np.linspace(0, n - 1, int(opt.max_score_points)).round().astype(np.int64)]
     else:
@@ -216,19 +240,21 @@ def ransac_circle(
             continue
         cv, rv, tv = c[valid], r[valid], t[valid]
         d = np.abs(np.hypot(ps[None, :, 0] - cv[:, 0:1], ps[None, :, 1] - cv[:, 1:2]) - rv[:, None])
-        inl = d <= thr
-        cnt = inl.sum(1)
+        cnt = (d <= thr).sum(1)
         cost = np.minimum(d * d, thr * thr).sum(1)
-        order = np.lexsort((cost, -cnt))
-        k = order[0]
+        k = np.lexsort((cost, -cnt))[0]
         score = (int(cnt[k]), float(cost[k]))
         if score[0] > best_score[0] or (score[0] == best_score[0] and score[1] < best_score[1]):
             best_score = score
             best_t = (int(tv[k, 0]), int(tv[k, 1]), int(tv[k, 2]), cv[k].copy(), float(rv[k]))
-    n_tests = int(trip.shape[0])
-    if best_t is None:
-        return fail("no tested triplet gave a circle within the radius range", n_tests)
-    center, radius = best_t[3], best_t[4]
+    return best_t
+
+
+def _refine_inliers(p: np.ndarray, center: np.ndarray, radius: float,
+                    opt: RansacOptions) -> tuple[np.ndarray, CircleFit | None]:
+    """Taubin fit of the inliers and re-selection, up to ``refine_iterations`` times or until the inlier
+    set is stable; a degenerate fit or one outside the radius range stops it (``fit=None`` if the first)."""
+    thr = float(opt.threshold)
     inliers = np.abs(circle_residuals(p, center, radius)) <= thr
     fit: CircleFit | None = None
     for _ in range(int(opt.refine_iterations) + 1):
@@ -242,22 +268,10 @@ def ransac_circle(
             break
         fit = f
         new = np.abs(circle_residuals(p, f.center_rc, f.radius)) <= thr
-        if np.array_equal(new, inliers):
-            break
-        if new.sum() < 3:
+        if np.array_equal(new, inliers) or new.sum() < 3:
             break
         inliers = new
-    if fit is None:
-        return fail("the Taubin fit of the best RANSAC inliers is degenerate", n_tests)
-    n_in = int(inliers.sum())
-    if n_in < need:
-        return fail(
-            f"best circle has {n_in} inliers of {n} points within {thr:.3g} px; at least {need} needed "
-            f"(min_inliers={opt.min_inliers}, min_inlier_fraction={opt.min_inlier_fraction})",
-            n_tests,
-        )
-    fit = fit_circle_taubin(p[inliers])
-    return RansacResult(True, inliers, fit, n_tests, best_t[:3], "")
+    return inliers, fit
 
 
 __all__ = ["RansacOptions", "RansacResult", "pyramid_triplets", "ransac_circle"]
