@@ -317,19 +317,7 @@ def load_image(
         See :func:`validate_image`.
     """
     p = Path(path)
-    if not p.exists():
-        raise ImageReadError(f"image file {str(p)!r} does not exist")
-    if p.is_dir():
-        raise ImageReadError(f"image path {str(p)!r} is a directory, not a file")
-    try:
-        size = p.stat().st_size
-    except OSError as e:  # pragma: no cover
-        raise ImageReadError(f"cannot stat image file {str(p)!r}: {e}") from None
-    if size == 0:
-        raise ImageReadError(f"image file {str(p)!r} is empty (0 bytes)")
-    if not os.access(p, os.R_OK):
-        raise ImageReadError(f"image file {str(p)!r} is not readable (permission denied)")
-
+    _check_readable_file(p)
     suf = _suffix(p)
     header = None
     hdu_index = None
@@ -337,24 +325,9 @@ def load_image(
     if suf in _FITS_SUFFIXES:
         fmt = "fits"
         raw, header, hdu_index = _read_fits(p)
-        if raw.dtype.byteorder not in ("=", "|"):
-            raw = raw.astype(raw.dtype.newbyteorder("="))
-        a = raw.astype(np.float64)
-        finite = np.isfinite(a)
-        if not finite.any():
-            raise ImageContentError(f"FITS image {str(p)!r} has no finite pixel")
-        n_filled = int(a.size - np.count_nonzero(finite))
-        if n_filled:
-            a[~finite] = a[finite].min()
+        raw, a, n_filled = _fits_as_float(raw, p)
     else:
-        if suf in _JP2_SUFFIXES:
-            fmt = "jp2"
-        elif suf == ".png":
-            fmt = "png"
-        elif suf in (".tif", ".tiff"):
-            fmt = "tiff"
-        else:
-            fmt = "other"
+        fmt = {".png": "png", ".tif": "tiff", ".tiff": "tiff"}.get(suf, "jp2" if suf in _JP2_SUFFIXES else "other")
         raw = _read_cv2(p, fmt)
         if fmt == "jp2":
             header = read_jp2_header(p)
@@ -382,6 +355,37 @@ def load_image(
         n_nonfinite_filled=n_filled,
     )
     return img, info
+
+
+def _check_readable_file(p: Path) -> None:
+    """:class:`ImageReadError` for a missing path, a directory, an empty or unreadable file."""
+    if not p.exists():
+        raise ImageReadError(f"image file {str(p)!r} does not exist")
+    if p.is_dir():
+        raise ImageReadError(f"image path {str(p)!r} is a directory, not a file")
+    try:
+        size = p.stat().st_size
+    except OSError as e:  # pragma: no cover
+        raise ImageReadError(f"cannot stat image file {str(p)!r}: {e}") from None
+    if size == 0:
+        raise ImageReadError(f"image file {str(p)!r} is empty (0 bytes)")
+    if not os.access(p, os.R_OK):
+        raise ImageReadError(f"image file {str(p)!r} is not readable (permission denied)")
+
+
+def _fits_as_float(raw: np.ndarray, p: Path) -> tuple[np.ndarray, np.ndarray, int]:
+    """A FITS array in native byte order, as float64 with its non-finite pixels set to the minimum, and the
+    number of pixels set."""
+    if raw.dtype.byteorder not in ("=", "|"):
+        raw = raw.astype(raw.dtype.newbyteorder("="))
+    a = raw.astype(np.float64)
+    finite = np.isfinite(a)
+    if not finite.any():
+        raise ImageContentError(f"FITS image {str(p)!r} has no finite pixel")
+    n_filled = int(a.size - np.count_nonzero(finite))
+    if n_filled:
+        a[~finite] = a[finite].min()
+    return raw, a, n_filled
 
 
 __all__ = [
