@@ -189,15 +189,8 @@ def horizon_navigation(
     """
     if method not in ("ls", "tls"):
         raise GeometryError(f"`method` must be 'ls' or 'tls', got {method!r}")
-    s = np.asarray(los_camera, dtype=float)
-    if s.ndim != 2 or s.shape[1] != 3:
-        raise GeometryError(f"`los_camera` must have shape (m, 3), got {s.shape}")
+    s = _unit_los(los_camera)
     m = s.shape[0]
-    if m < 3:
-        raise GeometryError(f"horizon navigation needs at least 3 limb points, got {m}")
-    if not np.all(np.isfinite(s)) or np.any(np.linalg.norm(s, axis=1) == 0):
-        raise GeometryError("`los_camera` must be finite, non-zero vectors")
-    s = s / np.linalg.norm(s, axis=1, keepdims=True)
     B = whitening(radii, R_body_to_camera)
     sp = s @ B.T
     nsp = np.linalg.norm(sp, axis=1)
@@ -205,24 +198,11 @@ def horizon_navigation(
     sv = np.linalg.svd(H, compute_uv=False)
     if sv[-1] < 1e-12 * sv[0]:
         raise GeometryError("limb points are degenerate (fewer than 3 independent directions)")
-
-    w = np.ones(m)
-    n = _solve(H, w, method)
+    n = _solve(H, np.ones(m), method)
     Rsb = None
     if los_cov is not None:
-        Rs = np.asarray(los_cov, dtype=float)
-        if Rs.shape == (3, 3):
-            Rs = np.broadcast_to(Rs, (m, 3, 3))
-        if Rs.shape != (m, 3, 3) or not np.all(np.isfinite(Rs)):
-            raise GeometryError(f"`los_cov` must have shape (3, 3) or ({m}, 3, 3), got {np.asarray(los_cov).shape}")
-        Pm = (np.eye(3)[None] - H[:, :, None] * H[:, None, :]) @ B[None] / nsp[:, None, None]
-        Rsb = Pm @ Rs @ np.transpose(Pm, (0, 2, 1))
-        for _ in range(2):  # re-weight with the current n (weights depend on n only weakly)
-            var = np.einsum("i,mij,j->m", n, Rsb, n)
-            if np.any(var <= 0):
-                raise GeometryError("`los_cov` gives a zero variance along a residual; it must be positive definite across the LOS")
-            w = 1.0 / var
-            n = _solve(H, w / w.mean(), method)
+        Rsb = _whitened_los_cov(los_cov, H, B, nsp)
+        n = _reweighted_solve(H, Rsb, n, method)
 
     nn = float(n @ n)
     if not nn > 1.0:
@@ -252,6 +232,42 @@ def horizon_navigation(
         rms_residual=float(np.sqrt(np.mean(res**2))),
         method=method,
     )
+
+
+def _unit_los(los_camera: np.ndarray) -> np.ndarray:
+    """The ``(m, 3)`` lines of sight normalised; :class:`GeometryError` for a wrong shape, fewer than 3,
+    or non-finite / zero vectors."""
+    s = np.asarray(los_camera, dtype=float)
+    if s.ndim != 2 or s.shape[1] != 3:
+        raise GeometryError(f"`los_camera` must have shape (m, 3), got {s.shape}")
+    if s.shape[0] < 3:
+        raise GeometryError(f"horizon navigation needs at least 3 limb points, got {s.shape[0]}")
+    if not np.all(np.isfinite(s)) or np.any(np.linalg.norm(s, axis=1) == 0):
+        raise GeometryError("`los_camera` must be finite, non-zero vectors")
+    return s / np.linalg.norm(s, axis=1, keepdims=True)
+
+
+def _whitened_los_cov(los_cov: np.ndarray, H: np.ndarray, B: np.ndarray, nsp: np.ndarray) -> np.ndarray:
+    """The covariance of each unit LOS carried to the whitened, normalised direction ``h_i`` (``(m, 3, 3)``)."""
+    m = H.shape[0]
+    Rs = np.asarray(los_cov, dtype=float)
+    if Rs.shape == (3, 3):
+        Rs = np.broadcast_to(Rs, (m, 3, 3))
+    if Rs.shape != (m, 3, 3) or not np.all(np.isfinite(Rs)):
+        raise GeometryError(f"`los_cov` must have shape (3, 3) or ({m}, 3, 3), got {np.asarray(los_cov).shape}")
+    Pm = (np.eye(3)[None] - H[:, :, None] * H[:, None, :]) @ B[None] / nsp[:, None, None]
+    return Pm @ Rs @ np.transpose(Pm, (0, 2, 1))
+
+
+def _reweighted_solve(H: np.ndarray, Rsb: np.ndarray, n: np.ndarray, method: str) -> np.ndarray:
+    """Two re-weightings of the solve with the residual variances ``n^T R_i n`` of the current ``n``."""
+    for _ in range(2):  # the weights depend on n only weakly
+        var = np.einsum("i,mij,j->m", n, Rsb, n)
+        if np.any(var <= 0):
+            raise GeometryError("`los_cov` gives a zero variance along a residual; it must be positive definite across the LOS")
+        w = 1.0 / var
+        n = _solve(H, w / w.mean(), method)
+    return n
 
 
 def horizon_from_pixels(
