@@ -125,6 +125,19 @@ def _manifest(opt: MonteCarloOptions) -> dict[str, Any]:
             "chunk_size": int(opt.chunk_size), "batched": bool(opt.batched)}
 
 
+def study_chunk_size(out_dir: str | Path) -> int | None:
+    """The chunk size of the study already in ``out_dir`` (its manifest), or ``None`` when there is none.
+
+    A resumed study must keep its chunks: a default chunk size that depends on the number of
+    workers (:func:`jaxlimb.analysis.distributed.default_chunk`) would otherwise refuse to resume a
+    study started with another number of workers.
+    """
+    try:
+        return int(json.loads((Path(out_dir) / _MANIFEST).read_text())["chunk_size"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
 def _check_manifest(out_dir: Path, opt: MonteCarloOptions) -> None:
     from .._io import sweep_dead_temporaries
 
@@ -529,5 +542,6 @@ __all__ = [
     "plot_rms_vs_crlb",
     "run_monte_carlo",
     "stats_json",
+    "study_chunk_size",
     "trial_seed",
 ]

@@ -22,12 +22,16 @@ _KEYS = ("row", "col", "radius")
 
 def _study(args: argparse.Namespace, camera: Any) -> tuple[Any, Any]:
     from ..analysis.distributed import LocateTrial, default_chunk
-    from ..analysis.montecarlo import MonteCarloOptions
+    from ..analysis.montecarlo import MonteCarloOptions, study_chunk_size
 
     trial = LocateTrial(camera=camera, range_km=args.range_km, phase_deg=args.phase_deg, sigma_dn=args.sigma)
     ident = json.dumps({"camera": camera.to_dict(), "range_km": args.range_km, "phase_deg": args.phase_deg,
                         "sigma_dn": args.sigma, "profile": trial.profile}, sort_keys=True)
-    chunk = args.batch if args.batch is not None else default_chunk(args.n, args.workers or 1)
+    chunk = args.batch
+    if chunk is None and args.resume:  # the study's own chunks, whatever the number of workers now
+        chunk = study_chunk_size(args.out)
+    if chunk is None:
+        chunk = default_chunk(args.n, args.workers or 1)
     opt = MonteCarloOptions(n_trials=args.n, chunk_size=chunk, seed=args.seed, out_dir=args.out,
                             name=f"pipeline-{hashlib.sha1(ident.encode()).hexdigest()[:12]}", progress=not args.json)
     return trial, opt

@@ -120,3 +120,29 @@ def test_local_cluster_workers_load_the_preload():
         assert all(client.run(lambda: "jaxlimb.analysis.dask_worker" in sys.modules).values())
     finally:
         close_client(client)
+
+
+def test_resume_keeps_the_chunks_of_the_study_whatever_the_workers(tmp_path):
+    """The default chunk size depends on the number of workers; ``--resume`` takes the study's own (a study
+    started with 2 workers resumes with 1 or 3 instead of being refused as "another study")."""
+    import argparse
+
+    from jaxlimb.analysis.distributed import default_chunk
+    from jaxlimb.analysis.montecarlo import prepare_study, study_chunk_size
+    from jaxlimb.cli._mc_pipeline import _study
+    from jaxlimb.geometry.camera import Camera
+
+    cam = Camera.from_dict(SMALL_CAMERA)
+    out = tmp_path / "study"
+    args = dict(range_km=30000.0, phase_deg=30.0, sigma=10.0, n=200, seed=4, out=str(out), json=True, batch=None)
+    _, started = _study(argparse.Namespace(**args, workers=2, resume=False), cam)
+    prepare_study(started)  # writes the manifest
+    assert study_chunk_size(out) == started.chunk_size == default_chunk(200, 2)
+    for w in (None, 1, 3):
+        assert default_chunk(200, w or 1) != started.chunk_size
+        _, resumed = _study(argparse.Namespace(**args, workers=w, resume=True), cam)
+        assert resumed.chunk_size == started.chunk_size
+        assert prepare_study(resumed) == list(range(started.n_chunks))  # accepted as the same study
+    _, explicit = _study(argparse.Namespace(**{**args, "batch": 7}, workers=1, resume=True), cam)
+    assert explicit.chunk_size == 7  # --batch still wins (and a mismatch is then refused by the manifest)
+    assert study_chunk_size(tmp_path / "none") is None
