@@ -498,19 +498,22 @@ def _system(model, img, lo, hi, Pk, s, psf, ratio, fit_attitude, mix, albedo=(0,
     return At, y
 
 
-def _gn_step(pyr, mesh, camera, R, sun, P, D, sigma, k, ratio, options, fit_attitude, mix=None, psf=0.0):  # type: ignore[no-untyped-def]
-    """One linearised solve at pyramid factor ``k``: ``(beta, rss, At, y, lo, hi)`` (window in level-``k`` pixels)."""
-    model, lo, hi, Pk = _render_level(pyr, mesh, camera, R, sun, P, D, k, options, fit_attitude, mix)
+def _gn_step(pyr, mesh, camera, R, sun, P, D, sigma, k, ratio, options, fit_attitude, mix=None, psf=0.0, rendered=None):  # type: ignore[no-untyped-def]
+    """One linearised solve at pyramid factor ``k``: ``(beta, rss, At, y, lo, hi)`` (window in level-``k`` pixels).
+
+    ``rendered``: :func:`_render_level`'s answer for this very pose, if already made (:func:`estimate_psf`'s)."""
+    model, lo, hi, Pk = _render_level(pyr, mesh, camera, R, sun, P, D, k, options, fit_attitude, mix) if rendered is None else rendered
     At, y = _system(model, pyr[k][0], lo, hi, Pk, sigma / k, psf / k, ratio, fit_attitude, mix, (options.albedo_order, options.albedo_harmonics))
     return (*_solve(At, y), At, y, lo, hi)
 
 
-def estimate_psf(st: GNState, pyr, mesh, camera, sun, options, fit_attitude) -> float:  # type: ignore[no-untyped-def]
+def estimate_psf(st: GNState, pyr, mesh, camera, sun, options, fit_attitude, rendered=None) -> float:  # type: ignore[no-untyped-def]
     """Gaussian sigma (px) of the camera's PSF: the one of ``options.psf_grid_px`` whose blurred model
     leaves the smallest residual at the current pose (one render), refined by a parabola through the
     three values around the minimum.  An unmodelled PSF of 0.8 px biased a registration by 0.24 px
-    (ray-traced frames, ``benchmarks/irregular_independent.py``)."""
-    model, lo, hi, Pk = _render_level(pyr, mesh, camera, st.R, sun, st.P, st.D, 1, options, False, st.mix)
+    (ray-traced frames, ``benchmarks/irregular_independent.py``).  ``rendered``: the full-resolution
+    :func:`_render_level` of the current pose, if made (the next iteration's: one render for both)."""
+    model, lo, hi, Pk = _render_level(pyr, mesh, camera, st.R, sun, st.P, st.D, 1, options, False, st.mix) if rendered is None else rendered
     grid = np.asarray(options.psf_grid_px, dtype=float)
     cost = []
     for g in grid:
@@ -556,12 +559,13 @@ def _blur_schedule(mask: np.ndarray, options: RegisterOptions, wide: bool) -> tu
     return tuple(f * size for f in options.attitude_blur_frac if f * size >= options.attitude_blur_min_px)
 
 
-def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude, k=None) -> bool:  # type: ignore[no-untyped-def]
+def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude, k=None, rendered=None) -> bool:  # type: ignore[no-untyped-def]
     """One Gauss-Newton iteration at blur ``sigma`` (in place; pyramid factor ``k``, default from the blur);
-    ``True`` when converged (sharp, small steps)."""
+    ``True`` when converged (sharp, small steps).  ``rendered``: :func:`_gn_step`'s."""
     if k is None:
         k = _level(sigma, _figure_size(pyr[1][2]), options)
-    beta, rss, At, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude, st.mix, st.psf)
+    beta, rss, At, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude, st.mix, st.psf,
+                                        rendered)  # fmt: skip
     a = float(beta[0])
     if not a > 0:
         raise ConvergenceError("registration: the fitted contrast of the model is not positive")
@@ -621,9 +625,12 @@ def fine_stage(st: GNState, pyr, mesh, camera, sun, options, fit_attitude, wide,
         if n2 < options.sharp_level2_iterations:  # no full-resolution iteration before the half-resolution optimum
             k = max(k, k2)
             n2 += sigma == 0
+        rendered = None
         if sigma == 0 and k == 1 and options.psf_grid_px and not psf_done:
-            st.psf, psf_done = estimate_psf(st, pyr, mesh, camera, sun, options, fit_attitude), True
-        done = _iterate(st, pyr, mesh, camera, sun, sigma, options, fit_attitude, k)
+            # one render for the PSF estimate and this iteration (the same pose)
+            rendered = _render_level(pyr, mesh, camera, st.R, sun, st.P, st.D, 1, options, fit_attitude, st.mix)
+            st.psf, psf_done = estimate_psf(st, pyr, mesh, camera, sun, options, fit_attitude, rendered), True
+        done = _iterate(st, pyr, mesh, camera, sun, sigma, options, fit_attitude, k, rendered)
         if guard is not None:
             guard(st, sigma)
         if k > 1 and sigma == 0 and st.step_px < 4.0 * options.tol_px:
