@@ -91,7 +91,11 @@ def clustered_mesh(mesh: Mesh, cell_km: float) -> Mesh | _Facets:
     if key not in _CLUSTERED:
         V = np.asarray(mesh.vertices, dtype=float)
         F = np.asarray(mesh.faces, dtype=np.int64)
-        _, inv = np.unique(np.floor(V / q).astype(np.int64), axis=0, return_inverse=True)
+        cell = np.floor(V / q).astype(np.int64)
+        cell -= cell.min(axis=0)
+        span = cell.max(axis=0) + 1
+        # one int64 key per cell, ordered like the rows (x, y, z): np.unique's labels of axis=0, without its row sort
+        _, inv = np.unique((cell[:, 0] * span[1] + cell[:, 1]) * span[2] + cell[:, 2], return_inverse=True)
         inv = inv.ravel()
         counts = np.bincount(inv).astype(float)
         Vn = np.stack([np.bincount(inv, weights=V[:, i]) for i in range(3)], axis=1) / counts[:, None]
