@@ -389,11 +389,12 @@ def _normal_equations(At: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.nda
     return N, np.einsum("ij,j->i", At, y)
 
 
-def _solve(At: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
+def _solve(At: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
     """Linear least squares ``At^T beta ~ y`` by the (column-scaled) normal equations: a few columns, many rows.
 
-    Returns ``beta`` and the residual sum of squares ``|y|^2 - 2 beta.At y + beta.N beta``
-    (no residual vector: ~1e-12 relative, the residual is >= 1e-6 of ``|y|^2`` here).
+    Returns ``beta``, the residual sum of squares ``|y|^2 - 2 beta.At y + beta.N beta``
+    (no residual vector: ~1e-12 relative, the residual is >= 1e-6 of ``|y|^2`` here) and the normal
+    matrix ``N = At At^T`` (for the covariance of the last solve, :func:`finish_registration`).
     """
     N, r = _normal_equations(At, y)
     sc = np.maximum(np.sqrt(np.diag(N)), 1e-300)
@@ -401,7 +402,7 @@ def _solve(At: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
         beta = np.linalg.solve(N / np.outer(sc, sc), r / sc) / sc
     except np.linalg.LinAlgError:
         raise ConvergenceError("registration: singular normal matrix (the model has no texture or edge)") from None
-    return beta, max(float(np.einsum("i,i->", y, y)) - 2.0 * float(beta @ r) + float(beta @ N @ beta), 0.0)
+    return beta, max(float(np.einsum("i,i->", y, y)) - 2.0 * float(beta @ r) + float(beta @ N @ beta), 0.0), N
 
 
 def _rotvec_matrix(w: np.ndarray) -> np.ndarray:
@@ -499,7 +500,7 @@ def _system(model, img, lo, hi, Pk, s, psf, ratio, fit_attitude, mix, albedo=(0,
 
 
 def _gn_step(pyr, mesh, camera, R, sun, P, D, sigma, k, ratio, options, fit_attitude, mix=None, psf=0.0, rendered=None):  # type: ignore[no-untyped-def]
-    """One linearised solve at pyramid factor ``k``: ``(beta, rss, At, y, lo, hi)`` (window in level-``k`` pixels).
+    """One linearised solve at pyramid factor ``k``: ``(beta, rss, N, At, y, lo, hi)`` (window in level-``k`` pixels).
 
     ``rendered``: :func:`_render_level`'s answer for this very pose, if already made (:func:`estimate_psf`'s)."""
     model, lo, hi, Pk = _render_level(pyr, mesh, camera, R, sun, P, D, k, options, fit_attitude, mix) if rendered is None else rendered
@@ -548,7 +549,7 @@ class GNState:
     it: int = 0
     step_px: float = math.inf
     rms_frac: float = math.nan
-    last: tuple | None = None  # (At, y, beta, lo, hi) of the last solve (At: transposed design matrix)
+    last: tuple | None = None  # (At, y, beta, lo, hi, N) of the last solve (At: transposed design matrix, N = At At^T)
     history: list = dataclasses.field(default_factory=list)  # rms_frac of every iteration
 
 
@@ -564,14 +565,14 @@ def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude, 
     ``True`` when converged (sharp, small steps).  ``rendered``: :func:`_gn_step`'s."""
     if k is None:
         k = _level(sigma, _figure_size(pyr[1][2]), options)
-    beta, rss, At, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude, st.mix, st.psf,
+    beta, rss, N, At, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude, st.mix, st.psf,
                                         rendered)  # fmt: skip
     a = float(beta[0])
     if not a > 0:
         raise ConvergenceError("registration: the fitted contrast of the model is not positive")
     if st.mix is not None:
         st.mix = np.clip(st.mix + beta[-len(st.mix):] / a, *options.mix_bounds)
-    st.it, st.ratio, st.last = st.it + 1, float(beta[1]) / a, (At, y, beta, lo, hi)
+    st.it, st.ratio, st.last = st.it + 1, float(beta[1]) / a, (At, y, beta, lo, hi, N)
     st.rms_frac = math.sqrt(rss / y.size) / a
     st.history.append(st.rms_frac)
     step, ds = beta[2:4] / a * k, float(beta[4] / a)
@@ -807,12 +808,11 @@ def _with_sector_model_error(At, N, res, lo, hi, P, cov, a, n_sectors, scale=1.0
 def finish_registration(img, camera, segmentation, st: GNState, ncc: float, options: RegisterOptions) -> RegisterResult:  # type: ignore[no-untyped-def]
     """Covariance and the checks of step 4-5, from the last (sharp, full-resolution) solve of ``st``."""
     P, D, R, iters = st.P, st.D, st.R, st.it
-    At, y, beta, lo, hi = st.last  # type: ignore[misc]
+    At, y, beta, lo, hi, N = st.last  # type: ignore[misc]
     a, b = float(beta[0]), float(beta[1])
     res = y - np.einsum("i,ij->j", beta, At)
     dof = max(res.size - At.shape[0], 1)
     s2 = float(np.einsum("i,i->", res, res)) / dof
-    N = _normal_equations(At, y)[0]
     try:
         cov_beta = s2 * np.linalg.inv(N)
     except np.linalg.LinAlgError:
