@@ -91,7 +91,11 @@ def clustered_mesh(mesh: Mesh, cell_km: float) -> Mesh | _Facets:
     if key not in _CLUSTERED:
         V = np.asarray(mesh.vertices, dtype=float)
         F = np.asarray(mesh.faces, dtype=np.int64)
-        _, inv = np.unique(np.floor(V / q).astype(np.int64), axis=0, return_inverse=True)
+        cell = np.floor(V / q).astype(np.int64)
+        cell -= cell.min(axis=0)
+        span = cell.max(axis=0) + 1
+        # one int64 key per cell, ordered like the rows (x, y, z): np.unique's labels of axis=0, without its row sort
+        _, inv = np.unique((cell[:, 0] * span[1] + cell[:, 1]) * span[2] + cell[:, 2], return_inverse=True)
         inv = inv.ravel()
         counts = np.bincount(inv).astype(float)
         Vn = np.stack([np.bincount(inv, weights=V[:, i]) for i in range(3)], axis=1) / counts[:, None]
@@ -159,28 +163,42 @@ def render_window(
     mu0 = np.einsum("ij,j->i", ras.normals, s)  # not BLAS: see register._normal_equations
     lit = shadow_fractions(mesh.vertices, mesh.faces, np.asarray(R, dtype=float).T @ s) if shadows else np.ones(F.shape[0])
     flat = shade(mu0, ras.mu, reflectance)  # per facet
-    rho = flat * lit
     win = (slice(ras.r0, ras.r0 + ras.h), slice(ras.c0, ras.c0 + ras.w))
-    size = (ras.w, ras.h)
+    drho = [(_basis(mu0, ras.mu, law) - flat) * lit for law in MIX_LAWS] if mix is not None else []
+    rho = flat * lit
+    for j, d in enumerate(drho):
+        rho = rho + mix[j] * d  # type: ignore[index]
+    pix = _facet_means(ras, [rho, *drho, np.ones(F.shape[0])])  # radiance, mix columns, coverage
+    M[win], C[win] = pix[0], pix[-1]
     D = None
     if mix is not None:
         D = np.zeros((len(MIX_LAWS) + 1, h, w))
-        for j, law in enumerate(MIX_LAWS):
-            drho = (_basis(mu0, ras.mu, law) - flat) * lit
-            rho = rho + mix[j] * drho
-            D[j][win] = cv2.resize(np.concatenate([[0.0], drho]).astype(np.float32)[ras.buf], size, interpolation=cv2.INTER_AREA)
-        D[-1][win] = _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, supersample, flat, lit)
-    lut = np.concatenate([[0.0], rho]).astype(np.float32)
-    M[win] = cv2.resize(lut[ras.buf], size, interpolation=cv2.INTER_AREA)
-    if D is not None:
+        for j in range(len(MIX_LAWS)):
+            D[j][win] = pix[1 + j]
+        D[-1][win] = _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, supersample, flat, lit, pix[-1])
         M += mix[-1] * D[-1]
-    C[win] = cv2.resize((ras.buf > 0).astype(np.float32), size, interpolation=cv2.INTER_AREA)
     if not jacobian:
         return ModelImage(M, C, dM_dmix=D)
     flow, shading, on = np.zeros((3, 2, h, w)), np.zeros((3, h, w)), np.zeros((h, w), dtype=bool)
     out = (flow[:, :, win[0], win[1]], shading[:, win[0], win[1]], on[win])  # written in place
     _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, supersample, reflectance, C[win] >= 0.5, out, mix, lit if shadows else None)
     return ModelImage(M, C, flow, shading, on, D)
+
+
+def _facet_means(ras, values: list) -> list:  # type: ignore[no-untyped-def]
+    """Pixel means (box filter over the sub-pixels) of per-facet ``values`` (0 on the sky): ``(h, w)`` float32 each.
+
+    One gather of a ``(facets + 1, channels)`` table by the face-index buffer and one area resize of all
+    channels (up to four per resize): the sub-pixel buffer is read once, not once per quantity."""
+    out = []
+    for j in range(0, len(values), 4):
+        tab = np.zeros((len(values[0]) + 1, len(values[j : j + 4])), np.float32)
+        for i, v in enumerate(values[j : j + 4]):
+            tab[1:, i] = v
+        sub = np.take(tab, ras.buf, axis=0)
+        res = cv2.resize(sub if tab.shape[1] > 1 else sub[..., 0], (ras.w, ras.h), interpolation=cv2.INTER_AREA)
+        out += [res] if tab.shape[1] == 1 else [res[..., i] for i in range(tab.shape[1])]
+    return out
 
 
 #: The laws mixed into the model radiance by ``render_window(mix=...)``.
@@ -216,10 +234,10 @@ def _vertex_normals(Xc: np.ndarray, F: np.ndarray) -> np.ndarray:
     return vn / np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
 
 
-def _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, ss, flat, lit):  # type: ignore[no-untyped-def]
+def _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, ss, flat, lit, cover):  # type: ignore[no-untyped-def]
     """``(h, w)``: radiance with normals interpolated across each facet (barycentric weights of
     the vertex normals, Phong) minus the facet's flat radiance ``flat`` (per facet), times its lit
-    fraction ``lit``.
+    fraction ``lit`` (``cover``: the raster's pixel coverage).
 
     A real body is smooth where its shape model is faceted: the registration fits the mix of
     the two (one more linear column, :class:`~.register.RegisterOptions`).  The smooth radiance of
@@ -230,7 +248,6 @@ def _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, ss, flat, lit):  # type:
     """
     buf = ras.buf
     centre = buf[ss // 2 :: ss, ss // 2 :: ss][: ras.h, : ras.w]
-    cover = cv2.resize((buf > 0).astype(np.float32), (ras.w, ras.h), interpolation=cv2.INTER_AREA)
     inner = (centre > 0) & (cover > 0.999)
     out = np.zeros((ras.h, ras.w))
     vn = _vertex_normals(Xc, F)

@@ -77,9 +77,15 @@ class PoseHypothesis:
     range_km: float
 
 
-def contour_normals(xy: np.ndarray) -> np.ndarray:
-    """Outward unit normals ``(..., n, 2)`` of closed contours ``(..., n, 2)`` (x, y)."""
-    d = np.roll(xy, -1, axis=-2) - np.roll(xy, 1, axis=-2)
+def contour_normals(xy: np.ndarray, at: np.ndarray | None = None) -> np.ndarray:
+    """Outward unit normals ``(..., n, 2)`` of closed contours ``(..., n, 2)`` (x, y); with ``at`` (indices), only
+    at those points ``(..., len(at), 2)`` (the same values: central difference of the neighbours)."""
+    n = xy.shape[-2]
+    if at is None:
+        d = np.roll(xy, -1, axis=-2) - np.roll(xy, 1, axis=-2)
+    else:
+        at = np.asarray(at)
+        d = xy[..., (at + 1) % n, :] - xy[..., (at - 1) % n, :]
     nrm = np.stack([d[..., 1], -d[..., 0]], axis=-1)
     area2 = np.sum(xy[..., 0] * np.roll(xy[..., 1], -1, axis=-1) - np.roll(xy[..., 0], -1, axis=-1) * xy[..., 1], axis=-1)
     nrm = nrm * np.sign(area2)[..., None, None]
@@ -136,7 +142,7 @@ def _template_contours(db: TemplateDatabase, n_points: int) -> tuple[np.ndarray,
         n_all = db.contour_xy.shape[1]
         sub = np.linspace(0, n_all, n_points, endpoint=False).astype(int)
         conts_all = np.asarray(db.contour_xy, dtype=float)
-        nrms = contour_normals(conts_all)[:, sub].astype(np.float32)
+        nrms = contour_normals(conts_all, sub).astype(np.float32)
         _CONTOURS.clear()
         _CONTOURS[key] = (db, np.ascontiguousarray(conts_all[:, sub], dtype=np.float32), nrms)
     return _CONTOURS[key][1], _CONTOURS[key][2]

@@ -116,6 +116,13 @@ class RegisterOptions:
         Scale each facet's radiance by its lit fraction seen from the Sun
         (:func:`jaxlimb.render.mesh.shadow_fractions`): a lumpy body's own cast shadows, unmodelled,
         biased a registration by 0.16 px at 45 deg phase.
+    coarse_cast_shadows
+        Cast shadows on pyramid levels of factor ``coarse_min_level`` and more too (blurs of 8 px and
+        more, where a template hypothesis is ranked and brought near).  Off, a cold locate skips the
+        Sun's view of each hypothesis's attitude (two thirds of its shadow maps; ``jaxlimb los locate``
+        on the Phobos 3x frame of ``benchmarks/irregular_speed.py``: 0.84x the CPU time); the answers
+        move within the noise (``benchmarks/irregular_independent.py --views 1``, attitude unknown:
+        median / p90 / max 0.141 / 0.424 / 0.524 px against 0.141 / 0.421 / 0.533 with it, 2026-11-25).
     psf_grid_px
         Gaussian PSF sigmas (px) among which :func:`estimate_psf` picks the camera's before the
         sharp iterations (the model is blurred by it; empty: an ideal camera).
@@ -166,6 +173,7 @@ class RegisterOptions:
     model_error_scale: float = 2.5
     psf_grid_px: tuple[float, ...] = (0.0, 0.5, 0.9, 1.4, 2.2)
     cast_shadows: bool = True
+    coarse_cast_shadows: bool = True
     albedo_order: int = 0
     albedo_harmonics: int = 0
     fit_photometry: bool = True
@@ -389,11 +397,12 @@ def _normal_equations(At: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.nda
     return N, np.einsum("ij,j->i", At, y)
 
 
-def _solve(At: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
+def _solve(At: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
     """Linear least squares ``At^T beta ~ y`` by the (column-scaled) normal equations: a few columns, many rows.
 
-    Returns ``beta`` and the residual sum of squares ``|y|^2 - 2 beta.At y + beta.N beta``
-    (no residual vector: ~1e-12 relative, the residual is >= 1e-6 of ``|y|^2`` here).
+    Returns ``beta``, the residual sum of squares ``|y|^2 - 2 beta.At y + beta.N beta``
+    (no residual vector: ~1e-12 relative, the residual is >= 1e-6 of ``|y|^2`` here) and the normal
+    matrix ``N = At At^T`` (for the covariance of the last solve, :func:`finish_registration`).
     """
     N, r = _normal_equations(At, y)
     sc = np.maximum(np.sqrt(np.diag(N)), 1e-300)
@@ -401,7 +410,7 @@ def _solve(At: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
         beta = np.linalg.solve(N / np.outer(sc, sc), r / sc) / sc
     except np.linalg.LinAlgError:
         raise ConvergenceError("registration: singular normal matrix (the model has no texture or edge)") from None
-    return beta, max(float(np.einsum("i,i->", y, y)) - 2.0 * float(beta @ r) + float(beta @ N @ beta), 0.0)
+    return beta, max(float(np.einsum("i,i->", y, y)) - 2.0 * float(beta @ r) + float(beta @ N @ beta), 0.0), N
 
 
 def _rotvec_matrix(w: np.ndarray) -> np.ndarray:
@@ -458,7 +467,7 @@ def _render_level(pyr, mesh, camera, R, sun, P, D, k, options, fit_attitude, mix
     lo, hi = _window(cam, Pk, D, mesh, mask, options.margin_px)
     facets = mesh if k == 1 else clustered_mesh(mesh, 2.0 * k * D / camera.focal_px)
     model = render_window(facets, cam, R, _pose(camera, P, D), sun, lo, hi, options.supersample, options.reflectance, fit_attitude, mix,
-                          options.cast_shadows and sun is not None)
+                          options.cast_shadows and sun is not None and (options.coarse_cast_shadows or k < options.coarse_min_level))
     return model, lo, hi, Pk
 
 
@@ -498,19 +507,22 @@ def _system(model, img, lo, hi, Pk, s, psf, ratio, fit_attitude, mix, albedo=(0,
     return At, y
 
 
-def _gn_step(pyr, mesh, camera, R, sun, P, D, sigma, k, ratio, options, fit_attitude, mix=None, psf=0.0):  # type: ignore[no-untyped-def]
-    """One linearised solve at pyramid factor ``k``: ``(beta, rss, At, y, lo, hi)`` (window in level-``k`` pixels)."""
-    model, lo, hi, Pk = _render_level(pyr, mesh, camera, R, sun, P, D, k, options, fit_attitude, mix)
+def _gn_step(pyr, mesh, camera, R, sun, P, D, sigma, k, ratio, options, fit_attitude, mix=None, psf=0.0, rendered=None):  # type: ignore[no-untyped-def]
+    """One linearised solve at pyramid factor ``k``: ``(beta, rss, N, At, y, lo, hi)`` (window in level-``k`` pixels).
+
+    ``rendered``: :func:`_render_level`'s answer for this very pose, if already made (:func:`estimate_psf`'s)."""
+    model, lo, hi, Pk = _render_level(pyr, mesh, camera, R, sun, P, D, k, options, fit_attitude, mix) if rendered is None else rendered
     At, y = _system(model, pyr[k][0], lo, hi, Pk, sigma / k, psf / k, ratio, fit_attitude, mix, (options.albedo_order, options.albedo_harmonics))
     return (*_solve(At, y), At, y, lo, hi)
 
 
-def estimate_psf(st: GNState, pyr, mesh, camera, sun, options, fit_attitude) -> float:  # type: ignore[no-untyped-def]
+def estimate_psf(st: GNState, pyr, mesh, camera, sun, options, fit_attitude, rendered=None) -> float:  # type: ignore[no-untyped-def]
     """Gaussian sigma (px) of the camera's PSF: the one of ``options.psf_grid_px`` whose blurred model
     leaves the smallest residual at the current pose (one render), refined by a parabola through the
     three values around the minimum.  An unmodelled PSF of 0.8 px biased a registration by 0.24 px
-    (ray-traced frames, ``benchmarks/irregular_independent.py``)."""
-    model, lo, hi, Pk = _render_level(pyr, mesh, camera, st.R, sun, st.P, st.D, 1, options, False, st.mix)
+    (ray-traced frames, ``benchmarks/irregular_independent.py``).  ``rendered``: the full-resolution
+    :func:`_render_level` of the current pose, if made (the next iteration's: one render for both)."""
+    model, lo, hi, Pk = _render_level(pyr, mesh, camera, st.R, sun, st.P, st.D, 1, options, False, st.mix) if rendered is None else rendered
     grid = np.asarray(options.psf_grid_px, dtype=float)
     cost = []
     for g in grid:
@@ -545,7 +557,7 @@ class GNState:
     it: int = 0
     step_px: float = math.inf
     rms_frac: float = math.nan
-    last: tuple | None = None  # (At, y, beta, lo, hi) of the last solve (At: transposed design matrix)
+    last: tuple | None = None  # (At, y, beta, lo, hi, N) of the last solve (At: transposed design matrix, N = At At^T)
     history: list = dataclasses.field(default_factory=list)  # rms_frac of every iteration
 
 
@@ -556,18 +568,19 @@ def _blur_schedule(mask: np.ndarray, options: RegisterOptions, wide: bool) -> tu
     return tuple(f * size for f in options.attitude_blur_frac if f * size >= options.attitude_blur_min_px)
 
 
-def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude, k=None) -> bool:  # type: ignore[no-untyped-def]
+def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude, k=None, rendered=None) -> bool:  # type: ignore[no-untyped-def]
     """One Gauss-Newton iteration at blur ``sigma`` (in place; pyramid factor ``k``, default from the blur);
-    ``True`` when converged (sharp, small steps)."""
+    ``True`` when converged (sharp, small steps).  ``rendered``: :func:`_gn_step`'s."""
     if k is None:
         k = _level(sigma, _figure_size(pyr[1][2]), options)
-    beta, rss, At, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude, st.mix, st.psf)
+    beta, rss, N, At, y, lo, hi = _gn_step(pyr, mesh, camera, st.R, sun, st.P, st.D, sigma, k, st.ratio, options, fit_attitude, st.mix, st.psf,
+                                        rendered)  # fmt: skip
     a = float(beta[0])
     if not a > 0:
         raise ConvergenceError("registration: the fitted contrast of the model is not positive")
     if st.mix is not None:
         st.mix = np.clip(st.mix + beta[-len(st.mix):] / a, *options.mix_bounds)
-    st.it, st.ratio, st.last = st.it + 1, float(beta[1]) / a, (At, y, beta, lo, hi)
+    st.it, st.ratio, st.last = st.it + 1, float(beta[1]) / a, (At, y, beta, lo, hi, N)
     st.rms_frac = math.sqrt(rss / y.size) / a
     st.history.append(st.rms_frac)
     step, ds = beta[2:4] / a * k, float(beta[4] / a)
@@ -621,9 +634,12 @@ def fine_stage(st: GNState, pyr, mesh, camera, sun, options, fit_attitude, wide,
         if n2 < options.sharp_level2_iterations:  # no full-resolution iteration before the half-resolution optimum
             k = max(k, k2)
             n2 += sigma == 0
+        rendered = None
         if sigma == 0 and k == 1 and options.psf_grid_px and not psf_done:
-            st.psf, psf_done = estimate_psf(st, pyr, mesh, camera, sun, options, fit_attitude), True
-        done = _iterate(st, pyr, mesh, camera, sun, sigma, options, fit_attitude, k)
+            # one render for the PSF estimate and this iteration (the same pose)
+            rendered = _render_level(pyr, mesh, camera, st.R, sun, st.P, st.D, 1, options, fit_attitude, st.mix)
+            st.psf, psf_done = estimate_psf(st, pyr, mesh, camera, sun, options, fit_attitude, rendered), True
+        done = _iterate(st, pyr, mesh, camera, sun, sigma, options, fit_attitude, k, rendered)
         if guard is not None:
             guard(st, sigma)
         if k > 1 and sigma == 0 and st.step_px < 4.0 * options.tol_px:
@@ -800,12 +816,11 @@ def _with_sector_model_error(At, N, res, lo, hi, P, cov, a, n_sectors, scale=1.0
 def finish_registration(img, camera, segmentation, st: GNState, ncc: float, options: RegisterOptions) -> RegisterResult:  # type: ignore[no-untyped-def]
     """Covariance and the checks of step 4-5, from the last (sharp, full-resolution) solve of ``st``."""
     P, D, R, iters = st.P, st.D, st.R, st.it
-    At, y, beta, lo, hi = st.last  # type: ignore[misc]
+    At, y, beta, lo, hi, N = st.last  # type: ignore[misc]
     a, b = float(beta[0]), float(beta[1])
     res = y - np.einsum("i,ij->j", beta, At)
     dof = max(res.size - At.shape[0], 1)
     s2 = float(np.einsum("i,i->", res, res)) / dof
-    N = _normal_equations(At, y)[0]
     try:
         cov_beta = s2 * np.linalg.inv(N)
     except np.linalg.LinAlgError:

@@ -59,6 +59,15 @@ def test_contour_normals_point_outward():
         assert np.all(np.sum(contour_normals(xy) * xy, axis=1) > 0.99)
 
 
+def test_contour_normals_at_points_are_those_of_the_whole_contour():
+    rng = np.random.default_rng(3)
+    th = np.linspace(0, 2 * np.pi, 50, endpoint=False)
+    r = 1.0 + 0.2 * rng.random((4, 50))  # lumpy contours, both windings
+    xy = np.stack([r * np.cos(th) * [[1], [-1], [1], [-1]], 2.0 * r * np.sin(th)], axis=-1)
+    at = np.array([0, 7, 23, 49])  # the first and last points: neighbours across the seam
+    np.testing.assert_array_equal(contour_normals(xy, at), contour_normals(xy)[:, at])
+
+
 @pytest.mark.parametrize("phase", [0.0, 60.0, 90.0])
 def test_known_attitude_registration_sub_tenth_pixel(body, phase):
     R = _rot([0.3, 1.0, 0.2], 70.0)

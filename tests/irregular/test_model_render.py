@@ -75,6 +75,23 @@ def test_pyramid_level_is_the_box_average_of_the_fine_render(lumpy):
     np.testing.assert_allclose(k * c_k + (k - 1) / 2.0, c_fine, atol=1e-9)
 
 
+def test_coarse_cast_shadows_switch_only_the_coarse_levels(lumpy):
+    """``RegisterOptions.coarse_cast_shadows=False``: no cast shadows from pyramid factor ``coarse_min_level`` on."""
+    from jaxlimb.irregular.register import RegisterOptions, _Pyramid, _render_level
+
+    R, t, _ = _pose(lumpy, size_px=360.0)
+    sun = np.array([0.95, 0.0, 0.3]) / np.linalg.norm([0.95, 0.0, 0.3])  # ~107 deg phase: long cast shadows
+    pyr = _Pyramid(np.zeros(CAM.shape), CAM, np.ones(CAM.shape, bool))
+    P = np.array(CAM.principal_point_rc) + CAM.focal_px * t[[1, 0]] / t[2]
+    base = RegisterOptions()
+    for k in (1, base.coarse_min_level):
+        M = {name: _render_level(pyr, lumpy, CAM, R, sun, P, float(np.linalg.norm(t)), k, o, False, None)[0].M
+             for name, o in (("on", base), ("off", RegisterOptions(cast_shadows=False)),
+                             ("coarse_off", RegisterOptions(coarse_cast_shadows=False)))}  # fmt: skip
+        assert not np.array_equal(M["on"], M["off"])  # the pose has cast shadows
+        np.testing.assert_array_equal(M["coarse_off"], M["on"] if k < base.coarse_min_level else M["off"])
+
+
 def test_clustered_mesh_is_coarser_and_keeps_the_outline(lumpy):
     """Vertex clustering on a coarse level: far fewer facets, coverage within a cell of the full mesh's."""
     from jaxlimb.irregular.model_render import clustered_mesh
