@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["cluster_robust_covariance", "hausman_term", "positive_part", "sector_groups", "with_model_error"]
+__all__ = ["cluster_robust_covariance", "cluster_robust_from_normal", "hausman_term", "positive_part", "sector_groups", "with_model_error"]
 
 
 def sector_groups(coords: np.ndarray, center_rc, n_groups: int) -> np.ndarray:
@@ -52,17 +52,22 @@ def sector_groups(coords: np.ndarray, center_rc, n_groups: int) -> np.ndarray:
 
 def cluster_robust_covariance(J: np.ndarray, r: np.ndarray, groups: np.ndarray) -> np.ndarray:
     """:math:`C_s` of the module docstring for the Jacobian ``J`` ``(n, q)``, residuals ``r`` ``(n,)``
-    and group labels ``groups`` ``(n,)``."""
+    and group labels ``groups`` ``(n,)`` (any labels; ``G`` = the number present)."""
     J = np.asarray(J, float)
-    r = np.asarray(r, float)
-    g = np.asarray(groups)
-    labels, inv = np.unique(g, return_inverse=True)
-    G = labels.size
-    scores = np.zeros((G, J.shape[1]))
-    np.add.at(scores, inv, J * r[:, None])
-    bread = np.linalg.pinv(J.T @ J)
-    meat = scores.T @ scores
-    return G / max(G - 1, 1) * bread @ meat @ bread
+    labels, inv = np.unique(np.asarray(groups), return_inverse=True)
+    return cluster_robust_from_normal(J.T, J.T @ J, np.asarray(r, float), inv.reshape(-1), labels.size)
+
+
+def cluster_robust_from_normal(At: np.ndarray, N: np.ndarray, r: np.ndarray, groups: np.ndarray,
+                               n_groups: int) -> np.ndarray:
+    """:math:`C_s` from the transposed Jacobian ``At`` ``(q, n)`` and its normal matrix ``N = At At^T``
+    (already formed by the solver), residuals ``r`` and labels ``groups`` in ``0 .. n_groups - 1``
+    (an empty group scores 0).  The bread is inverted with Jacobi scaling: columns of very different
+    scales (photometric and albedo columns beside the position) stay well conditioned."""
+    sc = np.maximum(np.sqrt(np.diag(N)), 1e-300)
+    scores = np.stack([np.bincount(groups, weights=row * r, minlength=n_groups) for row in At], axis=1) / sc
+    bread = np.linalg.inv(N / np.outer(sc, sc))
+    return n_groups / max(n_groups - 1, 1) * bread @ (scores.T @ scores) @ bread / np.outer(sc, sc)
 
 
 def positive_part(D: np.ndarray) -> np.ndarray:

@@ -802,14 +802,11 @@ def _with_sector_model_error(At, N, res, lo, hi, P, cov, a, n_sectors, scale=1.0
     """The centre covariance with the cluster-robust model-error term of :mod:`jaxlimb.analysis.model_error`
     (pixels grouped in ``n_sectors`` position-angle sectors about ``P``; :attr:`RegisterOptions.model_error_sectors`;
     ``N = At At^T``, the normal matrix of the last solve)."""
-    from ..analysis.model_error import positive_part, sector_groups
+    from ..analysis.model_error import cluster_robust_from_normal, positive_part, sector_groups
 
     rr, cc = np.mgrid[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1]
     groups = sector_groups(np.stack([rr.ravel(), cc.ravel()], axis=1).astype(float), P, n_sectors)
-    sc = np.maximum(np.sqrt(np.diag(N)), 1e-300)
-    scores = np.stack([np.bincount(groups, weights=row * res, minlength=n_sectors) for row in At], axis=1) / sc
-    bread = np.linalg.inv(N / np.outer(sc, sc))
-    C_s = n_sectors / (n_sectors - 1) * bread @ (scores.T @ scores) @ bread / np.outer(sc, sc)
+    C_s = cluster_robust_from_normal(At, N, res, groups, n_sectors)
     return cov + scale**2 * positive_part(C_s[2:4, 2:4] / a**2 - cov)
 
 
