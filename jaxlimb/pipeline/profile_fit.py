@@ -107,36 +107,54 @@ KAPPA_GATE = 0.04
 profile is refitted with ``kappa`` free.  Measured (``benchmarks/families.py``, Moon, 6 frames each, the fit with
 ``kappa`` always free): Minnaert limbs (``kappa = 1 - k`` = 0.05-0.45) gave 0.056-0.39; lunar-Lambert, Hapke,
 Lommel-Seeliger with surge, maria and ``combined`` gave -0.15 to 0.021."""
+KAPPA_DISC_CUT = 1.0
+"""The disc side of :func:`brightening_step`: pixels more than this many effective PSF sigmas inside the limb."""
+KAPPA_DISC_RATIO = 0.5
+"""The disc side's step must be at least this fraction of the step on all pixels.  A Minnaert rim brightens the
+disc for pixels inward (``mu^-kappa``, ``mu = sqrt(2 depth / R)``); a glow above the limb or a PSF's wings only
+the edge and the sky.  Measured (``benchmarks/families.py``, Moon, 6 frames each; disc-side / all-pixel step):
+Minnaert 0.76-1.06; glow -0.06-0.27 (all-pixel steps up to 0.33: the widened fit moved the centre 0.2 px
+*away* from the truth there); Airy -2.0 (one frame with an all-pixel step of 0.17)."""
 KAPPA_MAX = 0.6
 """The largest ``kappa`` accepted (Minnaert ``k >= 0.4``); a refit beyond it keeps the lunar-Lambert fit."""
 
 
-def brightening_step(rr: RefineResult) -> tuple[float, float]:
+def brightening_step(rr: RefineResult) -> tuple[tuple[float, float], tuple[float, float]]:
     """One Gauss--Newton step of the profile's limb-brightening exponent ``kappa`` (held at 0 in ``rr``) with
-    all the free parameters of ``rr`` refitted beside it, and its z-score (step / its noise sigma).
+    all the free parameters of ``rr`` refitted beside it, and its z-score (step / its noise sigma): on all the
+    pixels, and on the disc side (signed distance below ``-KAPPA_DISC_CUT`` effective PSF sigmas).
 
     The score (Lagrange-multiplier) test of Rao (1948) read as an estimate: the residuals and Jacobian of the
     fit already made, no new fit."""
     J, r, padded, w = _weighted_system(rr, LIMB_PROFILE)
     col = np.asarray(brightening_column(rr.fit.params, padded))[: r.size] * w
     X = np.concatenate([J, col[:, None]], axis=1)
+    s = signed_distance(rr.fit.params, np.asarray(rr.data.coords, float), padded)
+    disc = s < -KAPPA_DISC_CUT * edge_sigma(rr.fit.params)
+    return _last_step(X, r), _last_step(X[disc], r[disc])
+
+
+def _last_step(X: np.ndarray, r: np.ndarray) -> tuple[float, float]:
+    """The last component of the least-squares step ``X^+ r`` and its z-score (0, 0 with too few rows)."""
+    if X.shape[0] < max(50, 2 * X.shape[1]):
+        return 0.0, 0.0
     A_inv = np.linalg.pinv(X.T @ X)
     step = A_inv @ (X.T @ r)
-    dof = max(X.shape[0] - X.shape[1], 1)
-    s2 = float(np.sum((r - X @ step) ** 2)) / dof
+    s2 = float(np.sum((r - X @ step) ** 2)) / (X.shape[0] - X.shape[1])
     return float(step[-1]), float(step[-1] / math.sqrt(max(s2 * A_inv[-1, -1], 1e-300)))
 
 
 def widen_brightening(frame: Frame, rr: RefineResult, solver) -> RefineResult:
     """``rr`` refitted with the limb-brightening exponent ``kappa`` free (the radiance times ``(mu0 mu)^-kappa``:
     Minnaert's law ``mu0^k mu^(k-1)`` at ``L = 0``, Minnaert 1941) when :func:`brightening_step` is above
-    :data:`KAPPA_GATE` at more than 3 sigma; else, or when the refit leaves ``(0, KAPPA_MAX]``, ``rr`` itself.
+    :data:`KAPPA_GATE` at more than 3 sigma on all pixels and on the disc side, the latter at least
+    :data:`KAPPA_DISC_RATIO` of the former; else, or when the refit leaves ``(0, KAPPA_MAX]``, ``rr`` itself.
 
     Why: a Minnaert rim (``k < 1``) is brighter than any lunar-Lambert rim; the profile held to lunar-Lambert
     put the centre 0.24-0.41 px off on Minnaert Moons (``benchmarks/families.py``), the widened one 0.006-0.016
     px.  Always free, it cost the lunar-Lambert and Hapke Moons 0.004-0.006 px of median accuracy."""
-    step, z = brightening_step(rr)
-    if not (step > KAPPA_GATE and z > 3.0):
+    (step, z), (step_disc, z_disc) = brightening_step(rr)
+    if not (step > KAPPA_GATE and z > 3.0 and step_disc > max(KAPPA_GATE, KAPPA_DISC_RATIO * step) and z_disc > 3.0):
         return rr
     p = rr.fit.params
     start = MinnaertProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()], min(step, 0.5 * KAPPA_MAX))

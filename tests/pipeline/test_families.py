@@ -90,9 +90,11 @@ def test_lunar_lambert_profile_is_biased_on_minnaert_and_the_witness_carries_it(
     assert m.to_json()["crlb"]["center_r"] == pytest.approx(m.crlb["center_r"])
 
 
-@pytest.mark.parametrize("family, idx", [("own", 3), ("hapke", 1), ("ls_surge", 1)])
+@pytest.mark.parametrize("family, idx", [("own", 3), ("hapke", 1), ("ls_surge", 1), ("glow", 5), ("airy", 1)])
 def test_brightening_gate_stays_shut_on_lunar_lambert_like_limbs(family, idx):
-    """Lunar-Lambert, Hapke and surge limbs keep ``kappa = 0`` (always free, it cost them accuracy)."""
+    """Lunar-Lambert, Hapke and surge limbs keep ``kappa = 0`` (always free, it cost them accuracy); so do a
+    glow above the limb and an Airy PSF's wings, which brighten the edge but not the disc side (widened, the
+    glow frame's centre moved from 0.82 to 1.02 px off, the Airy frame's from 0.06 to 0.13 px)."""
     case = _moon(family, idx)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert m.extras["profile"]["kappa"] == 0.0
