@@ -357,6 +357,11 @@ LIMB_PROFILE_MINNAERT = LimbModel("lunar_limb_minnaert", MinnaertProfileParams, 
 """The profile widened by a limb-brightening exponent ``kappa`` (:class:`MinnaertProfileParams`)."""
 
 
+def profile_model(p: LimbProfileParams) -> LimbModel:
+    """The profile model of the parameters ``p``: :data:`LIMB_PROFILE_MINNAERT` or :data:`LIMB_PROFILE`."""
+    return LIMB_PROFILE_MINNAERT if isinstance(p, MinnaertProfileParams) else LIMB_PROFILE
+
+
 PHYSICAL_L = (-0.1, 1.1)
 """Lunar-Lambert weights ``L`` a fitted profile may take under ``profile="auto"``: ``[0, 1]`` with a
 margin, widened by 3 of the fit's own sigma of ``L`` (a 33 px Moon with 10 DN of noise fits a
@@ -380,5 +385,6 @@ __all__ = [
     "PROFILE_FIXED",
     "limb_profile_intensity",
     "lunar_lambert_weight",
+    "profile_model",
     "quadrature_nodes",
 ]

@@ -19,7 +19,7 @@ from ..fitting import NormalLM
 from ..imaging import sun_direction_image
 from ..models import (LIMB_PROFILE, LIMB_PROFILE_MINNAERT, PROFILE_FIXED, LimbModel, LimbProfileParams,
                       MinnaertProfileParams, lunar_lambert_weight)
-from ..models.lunar_lambert import brightening_column, limb_geometry
+from ..models.lunar_lambert import brightening_column, limb_geometry, profile_model
 from .frame import Frame
 from .profile import sphere_from_circle_fit
 from .refine import LOGISTIC_TO_GAUSS, FitData, RefineResult, _run, predict
@@ -231,8 +231,7 @@ def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS, mod
     it (the sky-side fit moves 0.2-0.25 px of the 0.3-0.4 px)."""
     from ..analysis.model_error import cluster_robust_covariance, sector_groups, with_model_error as widen
 
-    if model is None:
-        model = LIMB_PROFILE_MINNAERT if isinstance(rr.fit.params, MinnaertProfileParams) else LIMB_PROFILE
+    model = profile_model(rr.fit.params) if model is None else model
     fit = rr.fit
     coords = np.asarray(rr.data.coords, float)
     J, r, padded, _ = _weighted_system(rr, model)
