@@ -2,7 +2,8 @@
 
 * the sigmoid models (LSF, CSF, ESF) of Sec. V of Mortari et al. 2016 (:mod:`.sigmoid`);
 * the elliptical edge with an interior ramp and a varying limb level (:mod:`.ellipse_ramp`);
-* the physical limb profile of a sunlit lunar-Lambert sphere blurred by a PSF (:mod:`.lunar_lambert`);
+* the physical limb profile of a sunlit lunar-Lambert sphere blurred by a PSF, and the same widened by a
+  Minnaert-like limb-brightening exponent (:mod:`.lunar_lambert`);
 * the limb-darkened disc of a self-luminous star (:mod:`.limb_darkened`).
 
 Every model carries its Jacobian beside its intensity and is checked by ``jaxlimb gradcheck``
@@ -24,6 +25,8 @@ from .limb_darkened import (
 )
 from .lunar_lambert import (
     LIMB_PROFILE as LIMB_PROFILE,
+    LIMB_PROFILE_MINNAERT as LIMB_PROFILE_MINNAERT,
+    MinnaertProfileParams as MinnaertProfileParams,
     PROFILE_FIXED as PROFILE_FIXED,
     LimbProfileParams as LimbProfileParams,
     limb_profile_intensity as limb_profile_intensity,
@@ -49,4 +52,4 @@ from .sigmoid import (
 
 #: Every limb model, by name (the sigmoids, the ramp, the physical profiles).
 ALL_MODELS: dict[str, LimbModel] = {m.name: m for m in (LINEAR, CIRCLE, ELLIPSE, ELLIPSE_RAMP, LIMB_PROFILE,
-                                                        LIMB_DARKENED)}
+                                                        LIMB_PROFILE_MINNAERT, LIMB_DARKENED)}

@@ -26,8 +26,9 @@ lunar-Lambert profile's columns are the integrals of the *differentiated integra
 of the exact integral), while ``jax.jacfwd`` and central differences differentiate the quadrature
 rule: they agree to the rule's error on the derivative (~5e-4 of the column scale with the 20 nodes
 the fits use), so the profile is checked with a 64-node rule (:func:`quadrature_nodes`; the
-formulas do not depend on the rule), to 1e-6 of the column scale, on pixels of the lit limb (the
-radiance has a kink at the terminator).  The limb-darkened disc's central differences are taken of
+formulas do not depend on the rule; 96 for the Minnaert-widened profile, whose rim
+``(mu0 mu)^-kappa`` is singular at the limb: 64 left 1.6e-6 on ``sigma`` at ``kappa`` up to 0.45),
+to 1e-6 of the column scale, on pixels of the lit limb (the radiance has a kink at the terminator).  The limb-darkened disc's central differences are taken of
 its quadrature at every pixel (its tabulated intensity moves its grid with ``a``), to 1e-5.
 """
 
@@ -47,7 +48,8 @@ import numpy as np
 from ._base import LimbModel
 from .ellipse_ramp import ELLIPSE_RAMP, EllipseRampParams
 from .limb_darkened import LIMB_DARKENED, LimbDarkenedParams, limb_darkened_intensity_direct
-from .lunar_lambert import LIMB_PROFILE, LimbProfileParams, quadrature_nodes
+from .lunar_lambert import (LIMB_PROFILE, LIMB_PROFILE_MINNAERT, LimbProfileParams, MinnaertProfileParams,
+                            quadrature_nodes)
 from .sigmoid import CIRCLE, ELLIPSE, LINEAR, CircleParams, EllipseParams, LinearParams
 
 @dataclass(frozen=True)
@@ -67,6 +69,7 @@ class _Spec:
 SPECS: dict[str, _Spec] = {
     "ellipse_ramp": _Spec(tol=1e-8),
     "lunar_limb": _Spec(tol=1e-6, fd_tol=1e-6, floor=1.0, context=lambda: quadrature_nodes(64)),
+    "lunar_limb_minnaert": _Spec(tol=1e-6, fd_tol=1e-6, floor=1.0, context=lambda: quadrature_nodes(96)),
     "limb_darkened": _Spec(fd_tol=1e-5, fd_intensity=limb_darkened_intensity_direct),
 }
 
@@ -169,7 +172,14 @@ def _limb_darkened_case(rng: np.random.Generator, n_pix: int):  # noqa: ANN202
     return p, jnp.asarray(rc)
 
 
-_PHYSICAL_CASES = {"lunar_limb": _profile_case, "limb_darkened": _limb_darkened_case}
+def _minnaert_profile_case(rng: np.random.Generator, n_pix: int):  # noqa: ANN202
+    """The profile widened by the limb-brightening exponent ``kappa`` (0-0.45: Minnaert ``k`` 0.55-1)."""
+    p, rc = _profile_case(rng, n_pix)
+    return MinnaertProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()], rng.uniform(0.0, 0.45)), rc
+
+
+_PHYSICAL_CASES = {"lunar_limb": _profile_case, "lunar_limb_minnaert": _minnaert_profile_case,
+                   "limb_darkened": _limb_darkened_case}
 
 
 def _intensity_range(p: Any) -> float:
@@ -218,7 +228,8 @@ def _check_model(model: LimbModel, n_points: int, n_pix: int, seed: int) -> list
 def run_gradcheck(n_points: int = 100, seed: int = 0) -> list[GradCheck]:
     """Every limb model; see :func:`check_model`."""
     out: list[GradCheck] = []
-    for i, model in enumerate((LINEAR, CIRCLE, ELLIPSE, ELLIPSE_RAMP, LIMB_PROFILE, LIMB_DARKENED)):
+    models = (LINEAR, CIRCLE, ELLIPSE, ELLIPSE_RAMP, LIMB_PROFILE, LIMB_DARKENED, LIMB_PROFILE_MINNAERT)
+    for i, model in enumerate(models):
         out.extend(check_model(model, n_points=n_points, seed=seed + i))
     return out
 

@@ -44,6 +44,12 @@ the same pass as the intensity, by differentiating under the integral (13 column
 three times the cost of the intensity; ``jax.jacfwd`` took 13 times) and is checked against
 ``jax.jacfwd``.
 
+Widened (:data:`LIMB_PROFILE_MINNAERT`, :class:`MinnaertProfileParams`): the radiance times
+:math:`(\mu_0\mu)^{-\kappa}`, at ``L = 0`` Minnaert's law :math:`\mu_0^k\mu^{k-1}` with :math:`k = 1 - \kappa`
+(Minnaert 1941); its rim diverges as :math:`\mu^{-\kappa}`, brighter than any lunar-Lambert rim.  The
+derivative in :math:`\kappa` is :math:`-\ln(\mu_0\mu) I`; the pipeline frees :math:`\kappa` only when a score
+test asks for it (:func:`jaxlimb.pipeline.profile_fit.widen_brightening`).
+
 Off the optical axis the limb is an ellipse (``a - b`` reaches ~5 px at the corner of the
 default imager for the Moon at 60 000 km): the model carries the ellipse ``(r0, c0, a, theta,
 rho)``; with a camera, ``theta`` and ``rho`` are held at the values of the image of a sphere
@@ -113,6 +119,14 @@ class LimbProfileParams(LimbParams):
     L: ArrayLike
 
 
+class MinnaertProfileParams(LimbProfileParams):
+    """:class:`LimbProfileParams` and ``kappa``, the limb-brightening exponent of
+    :data:`LIMB_PROFILE_MINNAERT`: the lunar-Lambert radiance times ``(mu0 mu)^-kappa`` (at ``L = 0``
+    Minnaert's law ``mu0^k mu^(k-1)``, Minnaert 1941, with ``k = 1 - kappa``)."""
+
+    kappa: ArrayLike
+
+
 def _cos_sin_small(x, small):
     """``(cos x, sin x)``; by Taylor series (to 1e-16 for ``|x| <= 0.2``) when ``small`` (a
     scalar: the body's angular radius, which bounds ``|x|``, is below 0.2 rad), else
@@ -127,12 +141,16 @@ def _cos_sin_small(x, small):
     return jax.lax.cond(small, series, lambda x: (jnp.cos(x), jnp.sin(x)), x)
 
 
-def _radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0):
+def _radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = True):
     """Radiance and its partial derivatives at depth ``v**2`` below the limb (module docstring).
 
     With ``q = 1 - v^2/R`` the emission cosine is computed as ``mu = v sqrt((1 + q)/R)``
     (no cancellation in ``1 - q^2`` at the limb).  Returns ``I`` and, at fixed ``v``,
-    ``dI/dR``, ``dI/dcpsi``, ``dI/dalpha0``, ``dI/dphase``, ``dI/dL``.
+    ``dI/dR``, ``dI/dcpsi``, ``dI/dalpha0``, ``dI/dphase``, ``dI/dL``, ``dI/dkappa``.
+    ``brightened``: with the limb brightening ``(mu0 mu)^-p.kappa`` (:class:`MinnaertProfileParams`);
+    ``dI/dkappa`` is returned in either case (at ``kappa = 0`` without it).  A separate model and not a
+    parameter held at 0: on CPU the brightening's terms cost the one-pass Jacobian 2.5-3x (XLA repeats
+    them in every column's reduction; a ``lax.cond`` on ``kappa = 0`` did not help).
     """
     v2 = v * v
     inv_R = 1.0 / R
@@ -153,20 +171,29 @@ def _radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0):
     inv_den = 1.0 / jnp.where(lit, m0 + mu, 1.0)
     two_L = 2.0 * p.L
     ratio = m0 * inv_den  # mu0 / (mu0 + mu)
-    I = two_L * ratio + (1.0 - p.L) * m0
-    I_mu0 = jnp.where(lit, two_L * mu * inv_den * inv_den + (1.0 - p.L), 0.0)
-    I_mu = -two_L * ratio * inv_den
+    # (mu0 mu)^-kappa: Minnaert's limb brightening (L = 0: mu0^k mu^(k-1) with k = 1 - kappa); 1 at kappa = 0
+    log_mm = jnp.log(jnp.where(lit & (mu > 0), m0 * mu, 1.0))
+    kappa = p.kappa if brightened else 0.0
+    brighten = jnp.exp(-kappa * log_mm) if brightened else 1.0
+    I = (two_L * ratio + (1.0 - p.L) * m0) * brighten
+    # d/dmu0 of the brightened law: its lunar-Lambert part minus kappa I / mu0 (ratio / mu0 = inv_den)
+    I_mu0 = jnp.where(lit, (two_L * (mu * inv_den - kappa) * inv_den + (1.0 - p.L) * (1.0 - kappa)) * brighten, 0.0)
+    I_mu = -two_L * ratio * inv_den * brighten
     # d mu0 / d beta, / d R (fixed v), / d cpsi, / d phase
     mu0_beta = -c_em * a_s + s_em * cph
     s_R = q_R * cb - mu_R * sb
     c_R = mu_R * cb + q_R * sb
     mu0_R = s_R * a_s + c_R * cph + mu0_beta * q_R * alpha0
+    # the mu part of d(mu^-kappa)/dR at fixed v: -kappa I (mu_R / mu), mu_R / mu = -q / (R (1 + q)) (finite at the limb)
     I_R = I_mu0 * mu0_R + I_mu * mu_R
+    if brightened:
+        I_R = I_R + kappa * I * q / (R * (1.0 + q))
     I_cpsi = I_mu0 * s_em * sph
     I_a0 = I_mu0 * mu0_beta * q
     I_ph = I_mu0 * (s_em * cph * cpsi - c_em * sph)
-    I_L = 2.0 * ratio - m0
-    return I, I_R, I_cpsi, I_a0, I_ph, I_L
+    I_L = (2.0 * ratio - m0) * brighten
+    I_k = -log_mm * I
+    return I, I_R, I_cpsi, I_a0, I_ph, I_L, I_k
 
 
 def limb_geometry(p: LimbProfileParams, rc):
@@ -186,7 +213,7 @@ def limb_geometry(p: LimbProfileParams, rc):
     return dr, dc, x, y, d, beta, R, cpsi
 
 
-def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool):
+def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brightened: bool = True):
     """The blurred profile ``F`` (module docstring) and, if asked, its partials.
 
     ``F = F1 + sigma_e^2 / (2 d) dF1/dd``: the 1-D radial blur ``F1`` plus the first-order
@@ -195,6 +222,7 @@ def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool):
     ``sigma = 1.2 px``).  Partials ``F_d, F_R`` (at fixed ``d``/``R``), ``F_cpsi, F_se, F_a0,
     F_ph, F_L``: the integrands differentiated under the integral; the limits sit 6 sigma out
     in the Gaussian, so their own derivative terms are below 1e-8 of ``F``'s and are dropped.
+    ``brightened``: as :func:`_radiance_parts`.
     """
     alpha0 = jnp.arctan(p.rho * p.a * p.inv_f)
     se = jnp.sqrt(p.sigma * p.sigma + 1.0 / 12.0)
@@ -206,7 +234,7 @@ def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool):
     v = half[..., None] * (xg + 1.0) + v0[..., None]  # (n, nodes)
     t = (d[..., None] - R[..., None] + v * v) / se  # (d - d') / se
     g = jnp.exp(-0.5 * t * t) * (v * w / (se * math.sqrt(2 * math.pi)))  # Gaussian x 2v dv / 2 ... x weights
-    I, I_R, I_cpsi, I_a0, I_ph, I_L = _radiance_parts(p, v, R[..., None], cpsi[..., None], alpha0)
+    I, I_R, I_cpsi, I_a0, I_ph, I_L, I_k = _radiance_parts(p, v, R[..., None], cpsi[..., None], alpha0, brightened)
     tg = t * g / se  # -dg/dd
     F1 = jnp.sum(I * g, axis=-1)
     F1_d = -jnp.sum(I * tg, axis=-1)
@@ -225,6 +253,7 @@ def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool):
     F1_a0, F1_da0 = pair(I_a0)
     F1_ph, F1_dph = pair(I_ph)
     F1_L, F1_dL = pair(I_L)
+    F1_k, F1_dk = pair(I_k)
     F1_se = F1_dd * se
     F1_dse = -jnp.sum(I * t * (t * t - 3.0) * g, axis=-1) / (se * se)
     parts = {
@@ -235,6 +264,7 @@ def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool):
         "F_a0": F1_a0 + s2d * F1_da0,
         "F_ph": F1_ph + s2d * F1_dph,
         "F_L": F1_L + s2d * F1_dL,
+        "F_k": F1_k + s2d * F1_dk,
         "alpha0": alpha0,
         "se": se,
     }
@@ -249,8 +279,18 @@ def limb_profile_intensity(p: LimbProfileParams, rc):
     :func:`jaxlimb.models.ellipse_coords`); the circle formulas apply with that ``R``.
     """
     _, _, _, _, d, _, R, cpsi = limb_geometry(p, rc)
-    F, _ = _profile_integrals(p, d, R, cpsi, derivatives=False)
+    F, _ = _profile_integrals(p, d, R, cpsi, False, isinstance(p, MinnaertProfileParams))
     return p.ymin + p.amp * F
+
+
+@jax.jit
+def brightening_column(p: LimbProfileParams, rc):
+    """The column of ``kappa`` (:class:`MinnaertProfileParams`) at ``kappa = 0``: the derivative of the
+    profile ``p`` toward Minnaert-like limb brightening, for a score test (the whole brightened Jacobian
+    costs 2.5x the profile's; this column alone, about one intensity)."""
+    _, _, _, _, d, _, R, cpsi = limb_geometry(p, rc)
+    _, P = _profile_integrals(p, d, R, cpsi, True, False)
+    return p.amp * P["F_k"]
 
 
 def _profile_value_and_columns(p: LimbProfileParams, rc):
@@ -261,7 +301,8 @@ def _profile_value_and_columns(p: LimbProfileParams, rc):
     in ``tests/pipeline/test_profile.py``.
     """
     dr, dc, x, y, d, beta, R, cpsi = limb_geometry(p, rc)
-    F, P = _profile_integrals(p, d, R, cpsi, derivatives=True)
+    brightened = isinstance(p, MinnaertProfileParams)
+    F, P = _profile_integrals(p, d, R, cpsi, True, brightened)
     A = p.amp
     ct, st = jnp.cos(p.theta), jnp.sin(p.theta)
     # d/dr0, d/dc0 of d, beta, R, cpsi
@@ -295,8 +336,9 @@ def _profile_value_and_columns(p: LimbProfileParams, rc):
         "phase": A * P["F_ph"],
         "inv_f": A * F_a0 * a0_common * p.rho * p.a,
         "L": A * P["F_L"],
+        "kappa": A * P["F_k"],
     }
-    return p.ymin + A * F, tuple(cols[n] for n in LimbProfileParams.field_names())
+    return p.ymin + A * F, tuple(cols[n] for n in type(p).field_names())
 
 
 def _profile_cols(p: LimbProfileParams, rc):
@@ -310,6 +352,14 @@ def _profile_jac(p: LimbProfileParams, rc):
 LIMB_PROFILE = LimbModel("lunar_limb", LimbProfileParams, limb_profile_intensity, _profile_jac, _profile_cols,
                          _profile_value_and_columns)
 """The physical lunar-Lambert limb profile model (circle geometry)."""
+LIMB_PROFILE_MINNAERT = LimbModel("lunar_limb_minnaert", MinnaertProfileParams, limb_profile_intensity, _profile_jac,
+                                  _profile_cols, _profile_value_and_columns)
+"""The profile widened by a limb-brightening exponent ``kappa`` (:class:`MinnaertProfileParams`)."""
+
+
+def profile_model(p: LimbProfileParams) -> LimbModel:
+    """The profile model of the parameters ``p``: :data:`LIMB_PROFILE_MINNAERT` or :data:`LIMB_PROFILE`."""
+    return LIMB_PROFILE_MINNAERT if isinstance(p, MinnaertProfileParams) else LIMB_PROFILE
 
 
 PHYSICAL_L = (-0.1, 1.1)
@@ -327,10 +377,14 @@ def lunar_lambert_weight(phase_rad: float, coeffs=(-0.019, 2.42e-4, -1.46e-6)) -
 
 __all__ = [
     "LIMB_PROFILE",
+    "LIMB_PROFILE_MINNAERT",
     "LimbProfileParams",
+    "MinnaertProfileParams",
+    "brightening_column",
     "PHYSICAL_L",
     "PROFILE_FIXED",
     "limb_profile_intensity",
     "lunar_lambert_weight",
+    "profile_model",
     "quadrature_nodes",
 ]

@@ -18,7 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from ..models import CIRCLE, ELLIPSE, ELLIPSE_RAMP, LIMB_PROFILE, CircleParams, EllipseRampParams, LimbDarkenedParams, LimbProfileParams
+from ..models import (CIRCLE, ELLIPSE, ELLIPSE_RAMP, LIMB_PROFILE, LIMB_PROFILE_MINNAERT, CircleParams, EllipseRampParams,
+                      LimbDarkenedParams, LimbProfileParams, MinnaertProfileParams)
 from .checks import check_center_sigma, check_edge_width, check_levels
 from .frame import Frame
 from .geometry import BodyCenter
@@ -71,7 +72,8 @@ def crlb(frame: Frame, final: RefineResult, cov: Covariance) -> dict[str, float]
     C = cov.jacobian @ final.covariance_noise @ cov.jacobian.T
     if final.data.weights is not None:
         fp = final.fit.params
-        model = {CircleParams: CIRCLE, EllipseRampParams: ELLIPSE_RAMP, LimbProfileParams: LIMB_PROFILE}.get(type(fp), ELLIPSE)
+        model = {CircleParams: CIRCLE, EllipseRampParams: ELLIPSE_RAMP, LimbProfileParams: LIMB_PROFILE,
+                 MinnaertProfileParams: LIMB_PROFILE_MINNAERT}.get(type(fp), ELLIPSE)
         sigma = math.sqrt(max(float(final.fit.sigma2), 1e-300))
         try:
             C = cov.jacobian @ np.linalg.inv(fisher_information(model, fp, final.data, final.fixed, sigma)) @ cov.jacobian.T
@@ -101,7 +103,8 @@ def levels(final: RefineResult) -> Levels:
         s_e = math.sqrt(sig * sig + 1.0 / 12.0)
         if isinstance(fp, LimbProfileParams):
             prof = {"model": "lunar-lambert", "psf_sigma_px": sig, "amp": float(fp.amp),
-                    "phase_deg": math.degrees(float(fp.phase)), "L": float(fp.L)}
+                    "phase_deg": math.degrees(float(fp.phase)), "L": float(fp.L),
+                    "kappa": float(getattr(fp, "kappa", 0.0))}
         else:
             prof = {"model": "limb-darkened", "psf_sigma_px": sig, "amp": float(fp.amp), "u1": float(fp.u1),
                     "u2": float(fp.u2)}

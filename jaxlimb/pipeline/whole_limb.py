@@ -415,10 +415,10 @@ def _profile_measurement(prof: RefineResult, shape: LimbShape, camera: Camera, h
         return np.array([s_.body_center_rc[0], s_.body_center_rc[1], s_.radius_equivalent_px])
 
     x0 = np.array([float(p.r0), float(p.c0), float(p.a)])
-    from ..models import LIMB_PROFILE
+    from ..models.lunar_lambert import profile_model
 
     cov_pix = np.asarray(prof.fit.covariance)
-    cov_cl = cluster_covariance(prof, shape, model=LIMB_PROFILE)
+    cov_cl = cluster_covariance(prof, shape, model=profile_model(p))
     cov_fit = cov_cl if np.trace(cov_cl[:2, :2]) > np.trace(cov_pix[:2, :2]) else cov_pix
     extras["sigma_center_pixel_independent_px"] = [float(math.sqrt(cov_pix[i, i])) for i in (0, 1)]
     extras["sigma_center_cluster_robust_px"] = [float(math.sqrt(cov_cl[i, i])) for i in (0, 1)]
@@ -429,7 +429,8 @@ def _profile_measurement(prof: RefineResult, shape: LimbShape, camera: Camera, h
     sph = sphere_from_ellipse_center(f, pp, (x0[0], x0[1]), x0[2])
     names = ["center_r", "center_c", "radius"]
     rkm = hints.radius_km()
-    extras["profile"] = {"model": "lunar-lambert", "psf_sigma_px": float(p.sigma), "L": float(p.L)}
+    extras["profile"] = {"model": "lunar-lambert", "psf_sigma_px": float(p.sigma), "L": float(p.L),
+                         "kappa": float(getattr(p, "kappa", 0.0))}
     return LimbMeasurement(
         center_rc=tuple(float(v) for v in sph.body_center_rc), radius_px=float(sph.radius_equivalent_px), ellipse=None,
         k=1.7 / math.sqrt(float(p.sigma) ** 2 + 1.0 / 12.0), ymax=float(p.ymin) + float(p.amp), ymin=float(p.ymin),

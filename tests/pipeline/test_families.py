@@ -58,18 +58,46 @@ def test_earth_far_own_family_with_attitude():
     assert math.isfinite(m.covariance["center_r"]["center_r"])
 
 
-def test_minnaert_bias_is_carried_and_the_crlb_stays_noise_only():
-    """A Minnaert rim (k < 1: brighter at the limb than any lunar-Lambert ``L``) biases the centre by
-    ~0.3 px (benchmark row ``minnaert`` 2), the same all along the limb: the sector term cannot see it,
-    the split witness does (without it NEES ~ 225).  The Cramér--Rao bound stays the noise-only one."""
+def test_minnaert_limb_is_fitted_by_the_widened_profile():
+    """A Minnaert rim (k < 1: brighter at the limb than any lunar-Lambert ``L``; benchmark row ``minnaert`` 2):
+    the profile widened by the limb-brightening exponent ``kappa = 1 - k`` puts the centre within 0.05 px,
+    fits ``L ~ 0`` and ``kappa`` near ``1 - k``, and its covariance covers the error."""
+    case = _moon("minnaert", 2)
+    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
+    err, nees = _errors(case, m)
+    assert err < 0.05
+    assert nees < 13.8
+    assert abs(m.range_km - case.truth.range_km) / case.truth.range_km < 5e-4
+    prof = m.extras["profile"]
+    assert prof["kappa"] > 0.1 and abs(prof["L"]) < 0.1
+
+
+def test_lunar_lambert_profile_is_biased_on_minnaert_and_the_witness_carries_it(monkeypatch):
+    """The same frame with the profile held to lunar-Lambert (the gate of the widening shut): the centre is
+    ~0.3 px off, the same all along the limb; the sector term cannot see it, the split witness does (without
+    it NEES ~ 225).  The Cramér--Rao bound stays the noise-only one."""
+    from jaxlimb.pipeline import profile_fit
+
+    monkeypatch.setattr(profile_fit, "KAPPA_GATE", math.inf)
     case = _moon("minnaert", 2)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     err, nees = _errors(case, m)
     assert 0.2 < err < 0.5
     assert nees < 13.8
+    assert m.extras["profile"]["kappa"] == 0.0
     sig = math.sqrt(m.covariance["center_r"]["center_r"])
     assert m.crlb["center_r"] < 0.25 * sig
     assert m.to_json()["crlb"]["center_r"] == pytest.approx(m.crlb["center_r"])
+
+
+@pytest.mark.parametrize("family, idx", [("own", 3), ("hapke", 1), ("ls_surge", 1), ("glow", 5), ("airy", 1)])
+def test_brightening_gate_stays_shut_on_lunar_lambert_like_limbs(family, idx):
+    """Lunar-Lambert, Hapke and surge limbs keep ``kappa = 0`` (always free, it cost them accuracy); so do a
+    glow above the limb and an Airy PSF's wings, which brighten the edge but not the disc side (widened, the
+    glow frame's centre moved from 0.82 to 1.02 px off, the Airy frame's from 0.06 to 0.13 px)."""
+    case = _moon(family, idx)
+    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
+    assert m.extras["profile"]["kappa"] == 0.0
 
 
 def _earth(family: str, idx: int):

@@ -10,14 +10,22 @@ import numpy as np
 import pytest
 
 import jaxlimb.models.lunar_lambert as prof
-from jaxlimb.models import LIMB_PROFILE, LimbProfileParams, limb_profile_intensity
+from jaxlimb.models import (LIMB_PROFILE, LIMB_PROFILE_MINNAERT, LimbProfileParams, MinnaertProfileParams,
+                            limb_profile_intensity)
 
 jax.config.update("jax_enable_x64", True)
 
 
-def _params(phase: float, rho: float = 0.995, sigma: float = 0.9) -> LimbProfileParams:
-    return LimbProfileParams(r0=500.0, c0=600.0, a=200.0, theta=0.3, rho=rho, sigma=sigma, amp=150.0, ymin=3.0,
-                             sun_r=0.6, sun_c=0.8, phase=phase, inv_f=1 / 7272.7, L=0.5)
+def _params(phase: float, rho: float = 0.995, sigma: float = 0.9, kappa: float | None = None) -> LimbProfileParams:
+    """The lunar-Lambert profile; with ``kappa``, the Minnaert-widened one (MinnaertProfileParams)."""
+    p = LimbProfileParams(r0=500.0, c0=600.0, a=200.0, theta=0.3, rho=rho, sigma=sigma, amp=150.0, ymin=3.0,
+                          sun_r=0.6, sun_c=0.8, phase=phase, inv_f=1 / 7272.7, L=0.5)
+    fields = [getattr(p, n) for n in LimbProfileParams.field_names()]
+    return p if kappa is None else MinnaertProfileParams(*fields, kappa)
+
+
+def _model(p):
+    return LIMB_PROFILE_MINNAERT if isinstance(p, MinnaertProfileParams) else LIMB_PROFILE
 
 
 def _ring(seed: int, n: int = 2048, half_width: float = 6.0) -> tuple[np.ndarray, np.ndarray]:
@@ -29,24 +37,27 @@ def _ring(seed: int, n: int = 2048, half_width: float = 6.0) -> tuple[np.ndarray
     return rc, cpsi
 
 
+@pytest.mark.parametrize("kappa", [None, 0.0, 0.3])
 @pytest.mark.parametrize("phase_deg", [0.0, 40.0, 90.0, 120.0])
-def test_one_pass_jacobian_matches_autodiff_on_the_lit_limb(phase_deg):
+def test_one_pass_jacobian_matches_autodiff_on_the_lit_limb(phase_deg, kappa):
     # the columns are the integrals of the differentiated integrand; jax.jacfwd differentiates the
     # quadrature rule itself: they agree to the quadrature error on the lit side (the fitted
-    # pixels), checked here with 48 nodes (at 20 nodes the rule's own derivative is off by ~5e-4)
-    p = _params(math.radians(phase_deg))
+    # pixels), checked here with 48 nodes (at 20 nodes the rule's own derivative is off by ~5e-4);
+    # kappa > 0: the Minnaert-like brightening (mu0 mu)^-kappa and its column
+    p = _params(math.radians(phase_deg), kappa=kappa)
     rc, cpsi = _ring(1)
     lit = cpsi > 0.3
     old = prof._GL_X, prof._GL_W
     try:
         prof._GL_X, prof._GL_W = np.polynomial.legendre.leggauss(48)
-        f, cols = LIMB_PROFILE.value_and_columns(p, jnp.asarray(rc))
+        f, cols = _model(p).value_and_columns(p, jnp.asarray(rc))
         vec = p.to_vector()
-        J = np.asarray(jax.jacfwd(lambda t: limb_profile_intensity(LimbProfileParams.from_vector(t), rc))(vec))
+        J = np.asarray(jax.jacfwd(lambda t: limb_profile_intensity(type(p).from_vector(t), rc))(vec))
     finally:
         prof._GL_X, prof._GL_W = old
     assert np.all(np.isfinite(np.asarray(f)))
-    for i, name in enumerate(LimbProfileParams.field_names()):
+    assert len(cols) == len(type(p).field_names())
+    for i, name in enumerate(type(p).field_names()):
         col = np.asarray(cols[i])[lit]
         scale = np.abs(J[lit, i]).max()
         if scale == 0.0:
@@ -56,29 +67,35 @@ def test_one_pass_jacobian_matches_autodiff_on_the_lit_limb(phase_deg):
         assert np.abs(col - J[lit, i]).max() <= tol * scale, name
 
 
-def test_columns_match_central_differences_of_the_exact_integral():
+@pytest.mark.parametrize("kappa", [None, 0.3])
+def test_columns_match_central_differences_of_the_exact_integral(kappa):
     # against the model itself at 96 quadrature nodes (the exact integral to ~1e-9)
-    p = _params(math.radians(60.0))
+    p = _params(math.radians(60.0), kappa=kappa)
     rc, cpsi = _ring(2, n=512)
     lit = cpsi > 0.3
     old = prof._GL_X, prof._GL_W
     try:
         prof._GL_X, prof._GL_W = np.polynomial.legendre.leggauss(96)
-        _, cols = LIMB_PROFILE.value_and_columns(p, jnp.asarray(rc))
-        for name, h in (("r0", 1e-5), ("a", 1e-5), ("sigma", 1e-6), ("phase", 1e-6), ("L", 1e-6)):
+        _, cols = _model(p).value_and_columns(p, jnp.asarray(rc))
+        names = type(p).field_names()
+        for name, h in (("r0", 1e-5), ("a", 1e-5), ("sigma", 1e-6), ("phase", 1e-6), ("L", 1e-6), ("kappa", 1e-6)):
+            if name not in names:
+                continue
             up = limb_profile_intensity(p.replace(**{name: float(getattr(p, name)) + h}), rc)
             dn = limb_profile_intensity(p.replace(**{name: float(getattr(p, name)) - h}), rc)
             fd = np.asarray(up - dn) / (2 * h)
-            col = np.asarray(cols[LimbProfileParams.field_names().index(name)])
+            col = np.asarray(cols[names.index(name)])
             assert np.abs(col - fd)[lit].max() <= 1e-5 * np.abs(fd[lit]).max(), name
     finally:
         prof._GL_X, prof._GL_W = old
 
 
-@pytest.mark.parametrize("phase_deg, sigma", [(0.0, 0.3), (0.0, 1.2), (90.0, 0.6)])
-def test_quadrature_is_converged(phase_deg, sigma):
-    # 20 nodes vs 96: below 0.02 DN on a 150 DN limb (2 DN is the benchmarks' read noise)
-    p = _params(math.radians(phase_deg), sigma=sigma)
+@pytest.mark.parametrize("phase_deg, sigma, kappa", [(0.0, 0.3, None), (0.0, 1.2, None), (90.0, 0.6, None),
+                                                     (90.0, 0.6, 0.45), (30.0, 0.3, 0.45)])
+def test_quadrature_is_converged(phase_deg, sigma, kappa):
+    # 20 nodes vs 96: below 0.02 DN on a 150 DN limb (2 DN is the benchmarks' read noise); kappa = 0.45 is
+    # Minnaert k = 0.55, the sharpest rim of benchmarks/families.py
+    p = _params(math.radians(phase_deg), sigma=sigma, kappa=kappa)
     rc, cpsi = _ring(3)
     lit = cpsi > 0.3
     f20 = np.asarray(limb_profile_intensity(p, rc))
@@ -88,7 +105,8 @@ def test_quadrature_is_converged(phase_deg, sigma):
         f96 = np.asarray(limb_profile_intensity(p, rc))
     finally:
         prof._GL_X, prof._GL_W = old
-    assert np.abs(f20 - f96)[lit].max() < 0.02
+    # (a Minnaert rim is 2-3x brighter than a lunar-Lambert one: the bound scales with the peak past 300 DN)
+    assert np.abs(f20 - f96)[lit].max() < 0.02 * max(1.0, float(f96[lit].max()) / 300.0)
 
 
 def test_small_angle_series():
@@ -110,3 +128,18 @@ def test_l_band_widens_with_the_fits_own_uncertainty():
     lo, hi = l_band(SimpleNamespace(free=free, covariance=cov))
     assert (lo, hi) == pytest.approx((PHYSICAL_L[0] - 0.15, PHYSICAL_L[1] + 0.15))
     assert l_band(SimpleNamespace(free=free[:-1], covariance=cov[:-1, :-1])) == (-math.inf, math.inf)  # L held
+
+
+def test_brightening_column_is_the_kappa_column_at_zero():
+    """The score test's column (lunar-Lambert params) equals the widened model's ``kappa`` column at 0, and
+    the widened model at ``kappa = 0`` is the lunar-Lambert profile."""
+    from jaxlimb.models.lunar_lambert import brightening_column
+
+    p, q = _params(math.radians(70.0)), _params(math.radians(70.0), kappa=0.0)
+    rc, _ = _ring(4, n=256)
+    _, cols = LIMB_PROFILE_MINNAERT.value_and_columns(q, jnp.asarray(rc))
+    np.testing.assert_allclose(np.asarray(brightening_column(p, jnp.asarray(rc))), np.asarray(cols[-1]), rtol=1e-12,
+                               atol=1e-9)
+    np.testing.assert_allclose(np.asarray(limb_profile_intensity(q, rc)), np.asarray(limb_profile_intensity(p, rc)),
+                               rtol=1e-14, atol=1e-12)
+    assert np.abs(np.asarray(cols[-1])).max() > 1.0  # the brightening moves a 150 DN limb by DN per unit kappa
