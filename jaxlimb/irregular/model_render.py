@@ -165,11 +165,13 @@ def render_window(
     D = None
     if mix is not None:
         D = np.zeros((len(MIX_LAWS) + 1, h, w))
+        flat_mix = flat
         for j, law in enumerate(MIX_LAWS):
-            drho = (_basis(mu0, ras.mu, law) - flat) * lit
-            rho = rho + mix[j] * drho
-            D[j][win] = cv2.resize(np.concatenate([[0.0], drho]).astype(np.float32)[ras.buf], size, interpolation=cv2.INTER_AREA)
-        D[-1][win] = _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, supersample, flat, lit)
+            dflat = _basis(mu0, ras.mu, law) - flat
+            rho = rho + mix[j] * dflat * lit
+            flat_mix = flat_mix + mix[j] * dflat
+            D[j][win] = cv2.resize(np.concatenate([[0.0], dflat * lit]).astype(np.float32)[ras.buf], size, interpolation=cv2.INTER_AREA)
+        D[-1][win] = _smooth_minus_flat(ras, Xc, F, cam, s, MixedLaw(reflectance, tuple(mix[:-1])), supersample, flat_mix, lit)
     lut = np.concatenate([[0.0], rho]).astype(np.float32)
     M[win] = cv2.resize(lut[ras.buf], size, interpolation=cv2.INTER_AREA)
     if D is not None:
@@ -186,6 +188,27 @@ def render_window(
 #: The laws mixed into the model radiance by ``render_window(mix=...)``.
 MIX_LAWS = ("lambert", "minnaert-half")
 _MU_MIN = 0.05  # Minnaert's mu^(k-1) is held finite at grazing emission (flat facets at the outline)
+
+
+@dataclass(frozen=True)
+class MixedLaw:
+    """The model's reflectance ``base + sum_j weights_j (MIX_LAWS_j - base)`` as a function of ``(mu0, mu)``.
+
+    The smooth-shading column (:func:`_smooth_minus_flat`) is the smooth minus the flat radiance *of the
+    fitted mix*: with the base law's (Lommel-Seeliger) instead, a ray-traced Lambert Thebe at 60 deg
+    phase was registered 0.51 px off (smooth-shading weight fitted 0.49, PSF 1.6 px for 0.8); with the
+    mix's, 0.11 px (weight 0.98).
+    """
+
+    base: str
+    weights: tuple = ()
+
+    def __call__(self, mu0: np.ndarray, mu: np.ndarray) -> np.ndarray:
+        flat = shade(mu0, mu, self.base)
+        out = flat
+        for w, law in zip(self.weights, MIX_LAWS):
+            out = out + float(w) * (_basis(mu0, mu, law) - flat)
+        return out
 
 
 def _basis(mu0: np.ndarray, mu: np.ndarray, law: str) -> np.ndarray:
@@ -274,7 +297,8 @@ def _interior_smooth(ras, Xc, F, vn, cam, s, reflectance, centre, inner):  # typ
 
 
 def _smooth_samples(ras, Xc, F, vn, cam, s, reflectance, r, c, face):  # type: ignore[no-untyped-def]
-    """Smooth (vertex-normal interpolated) radiance at raster pixel coordinates ``(r, c)`` seeing ``face``."""
+    """Smooth (vertex-normal interpolated) radiance at raster pixel coordinates ``(r, c)`` seeing ``face``
+    (``reflectance``: a law name of :func:`~jaxlimb.render.mesh.shade` or a :class:`MixedLaw`)."""
     f = cam.focal_px  # type: ignore[attr-defined]
     pr, pc = cam.principal_point_rc  # type: ignore[attr-defined]
     ray = np.stack([(ras.c0 + c - pc) / f, (ras.r0 + r - pr) / f, np.ones(r.size)], axis=1)
@@ -290,7 +314,8 @@ def _smooth_samples(ras, Xc, F, vn, cam, s, reflectance, r, c, face):  # type: i
     ns = (1.0 - b1 - b2)[:, None] * vn[F[face, 0]] + b1[:, None] * vn[F[face, 1]] + b2[:, None] * vn[F[face, 2]]
     ns /= np.maximum(np.linalg.norm(ns, axis=1, keepdims=True), 1e-300)
     eye = -X / np.linalg.norm(X, axis=1, keepdims=True)
-    return shade(np.einsum("ij,j->i", ns, s), np.maximum(np.einsum("ij,ij->i", ns, eye), 1e-3), reflectance)
+    mu0, mu = np.einsum("ij,j->i", ns, s), np.maximum(np.einsum("ij,ij->i", ns, eye), 1e-3)
+    return reflectance(mu0, mu) if callable(reflectance) else shade(mu0, mu, reflectance)
 
 
 def _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, ss, reflectance, cover, out, mix=None, shadow=None) -> None:  # type: ignore[no-untyped-def]

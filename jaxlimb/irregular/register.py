@@ -168,6 +168,7 @@ class RegisterOptions:
     cast_shadows: bool = True
     albedo_order: int = 0
     albedo_harmonics: int = 0
+    surge_widths: tuple[float, ...] = (0.03, 0.1)
     fit_photometry: bool = True
     mix_bounds: tuple[float, float] = (-1.0, 1.0)
 
@@ -477,16 +478,44 @@ def _albedo_rows(M: np.ndarray, P_win: np.ndarray, order: int, harmonics: int) -
 
 
 def n_albedo_columns(options: RegisterOptions) -> int:
-    return (options.albedo_order + 1) * (options.albedo_order + 2) // 2 - 1 + 2 * options.albedo_harmonics
+    """Rows of the albedo field (:func:`_albedo_rows`) and of the opposition surge (:func:`surge_fields`)."""
+    return (options.albedo_order + 1) * (options.albedo_order + 2) // 2 - 1 + 2 * options.albedo_harmonics + len(options.surge_widths)
 
 
-def _system(model, img, lo, hi, Pk, s, psf, ratio, fit_attitude, mix, albedo=(0, 0)):  # type: ignore[no-untyped-def]
+def surge_fields(cam, lo, hi, Pk, sun, widths) -> list[np.ndarray]:  # type: ignore[no-untyped-def]
+    """``1 / (1 + tan(g/2) / h)`` over the window ``lo..hi`` of ``cam`` for each width ``h`` of ``widths``, with
+    ``g`` the phase angle (Sun -- surface -- camera) of each pixel's ray (``sun=None``: the Sun behind the
+    camera, along the ray through ``Pk``).
+
+    The shadow-hiding opposition surge (Hapke 1986, Eq. 11: ``B(g) = B_0 / (1 + tan(g/2) / h)``) brightens
+    the part of the body nearest zero phase; at 3x the long axis the phase angle varies by ~10 deg across
+    the body, and an unmodelled surge (Lommel-Seeliger with surge, Hapke) moved a registration at zero
+    phase by 0.2 px (ray-traced Eros, ``benchmarks/irregular_independent.py``).  ``M`` times these fields
+    are linear columns (:attr:`RegisterOptions.surge_widths`); each field is zero at ``Pk`` (the body
+    centre), so that the coefficient of ``M`` stays the contrast there.
+    """
+    f = cam.focal_px  # type: ignore[attr-defined]
+    pr, pc = cam.principal_point_rc  # type: ignore[attr-defined]
+    yn = ((lo[0] + np.arange(hi[0] - lo[0] + 1)) - pr)[:, None] / f
+    xn = ((lo[1] + np.arange(hi[1] - lo[1] + 1)) - pc)[None, :] / f
+    ray = np.array([(Pk[1] - pc) / f, (Pk[0] - pr) / f, 1.0])
+    s = -ray if sun is None else np.asarray(sun, dtype=float)
+    s = s / np.linalg.norm(s)
+    cos_g = -(s[0] * xn + s[1] * yn + s[2]) / np.sqrt(xn * xn + yn * yn + 1.0)
+    t = np.tan(0.5 * np.arccos(np.clip(cos_g, -1.0, 1.0)))
+    t0 = math.tan(0.5 * math.acos(max(-1.0, min(1.0, -float(s @ ray) / float(np.linalg.norm(ray))))))
+    return [1.0 / (1.0 + t / h) - 1.0 / (1.0 + t0 / h) for h in widths]
+
+
+def _system(model, img, lo, hi, Pk, s, psf, ratio, fit_attitude, mix, albedo=(0, 0), fields=()):  # type: ignore[no-untyped-def]
     """Transposed design matrix and data of one solve: frame blurred by ``s``, model by ``hypot(s, psf)``
     (the camera's PSF, :func:`estimate_psf`).  Rows: :func:`_gn_system`, the attitude (if fitted), the
-    albedo field (:func:`_albedo_rows`), and with ``mix`` last ``dM/dmix``."""
+    albedo field (:func:`_albedo_rows`), ``M`` times each of ``fields`` (:func:`surge_fields`), and with
+    ``mix`` last ``dM/dmix``."""
     sm = math.hypot(s, psf)
     Mb = _blur(model.M, sm)
     extra = _albedo_rows(Mb, Pk - lo, *albedo) if (albedo[0] or albedo[1]) else []
+    extra += [_blur(model.M * fld, sm).ravel() for fld in fields]
     extra += [] if mix is None else [_blur(d, sm).ravel() for d in model.dM_dmix]  # type: ignore[union-attr]
     n5 = 8 if fit_attitude else 5
     At = _gn_system(Mb, _blur(model.C, sm), ratio, Pk - lo, n5 + len(extra))
@@ -501,7 +530,8 @@ def _system(model, img, lo, hi, Pk, s, psf, ratio, fit_attitude, mix, albedo=(0,
 def _gn_step(pyr, mesh, camera, R, sun, P, D, sigma, k, ratio, options, fit_attitude, mix=None, psf=0.0):  # type: ignore[no-untyped-def]
     """One linearised solve at pyramid factor ``k``: ``(beta, rss, At, y, lo, hi)`` (window in level-``k`` pixels)."""
     model, lo, hi, Pk = _render_level(pyr, mesh, camera, R, sun, P, D, k, options, fit_attitude, mix)
-    At, y = _system(model, pyr[k][0], lo, hi, Pk, sigma / k, psf / k, ratio, fit_attitude, mix, (options.albedo_order, options.albedo_harmonics))
+    fields = surge_fields(pyr[k][1], lo, hi, Pk, sun, options.surge_widths) if options.surge_widths else ()
+    At, y = _system(model, pyr[k][0], lo, hi, Pk, sigma / k, psf / k, ratio, fit_attitude, mix, (options.albedo_order, options.albedo_harmonics), fields)
     return (*_solve(At, y), At, y, lo, hi)
 
 
