@@ -50,6 +50,10 @@ class LosOptions:
         coarse pyramid iterations; only the best go on at full resolution.  With 3, the
         right pose was missing on Phobos and the contact binary at 60 deg and 3x
         (``benchmarks/irregular_los.py``); with 10 both are found.
+    n_retry
+        When none of the ``n_verify`` hypotheses explains the frame, this many further ones (the next in the
+        template search's order) are registered the same way.  On a ray-traced cratered body at 60 deg phase
+        the best hypothesis within 12 deg of the attitude was the 22nd (``benchmarks/irregular_independent.py``).
     min_phase_deg
         Below this phase the lit figure is treated as the silhouette.
     ambiguity_px, ambiguity_margin
@@ -79,11 +83,21 @@ class LosOptions:
     sharp_level2_iterations
         Unblurred iterations on the 2x2-averaged frame before full resolution when the
         attitude is fitted (:class:`~.register.RegisterOptions`).
+    search_surge_widths
+        :attr:`~.register.RegisterOptions.surge_widths` when the attitude is fitted: none.  The surge columns
+        take 0.33 -> 0.11 px off a ray-traced zero-phase Eros of known attitude, but with three rotation
+        columns they made the search worse (``benchmarks/irregular_independent.py``, 24 views: median
+        0.111 -> 0.090 px, but a contact binary at 30 deg then took a pose 132 deg off, 13.8 px).
+    search_max_iterations
+        Gauss-Newton iterations of a hypothesis (at least ``register.max_iterations``): a template
+        20-40 deg off turns by at most 3 deg per iteration, and on a ray-traced Eros at 60 deg phase
+        the one right hypothesis needed more than 16 (``benchmarks/irregular_independent.py``).
     register, phase
         Options of the registration and of the template search.
     """
 
     n_verify: int = 10
+    n_retry: int = 20
     min_phase_deg: float = 5.0
     ambiguity_px: float = 1.0
     ambiguity_margin: float = 0.01
@@ -93,6 +107,8 @@ class LosOptions:
     prune_max_rms_frac: float = 0.1
     same_centre_px: float = 0.5
     sharp_level2_iterations: int = 6
+    search_surge_widths: tuple[float, ...] = ()
+    search_max_iterations: int = 24
     register: RegisterOptions = field(default_factory=RegisterOptions)
     phase: PhaseSearchOptions = field(default_factory=PhaseSearchOptions)
 
@@ -156,14 +172,21 @@ def locate_los(
     popts = options.phase
     if s_img is None:  # zero phase: the whole silhouette is limb; any direction serves for the extents
         popts, s_img = replace(popts, limb_cos=-2.0), np.array([1.0, 0.0])
-    hyps = phase_candidates(seg[0], db, camera, s_img, popts)[: options.n_verify]
+    n_all = options.n_verify + options.n_retry
+    hyps = phase_candidates(seg[0], db, camera, s_img, replace(popts, n_candidates=max(popts.n_candidates, n_all)))[:n_all]
     ropts = replace(
         options.register,
         max_excess_frac=min(options.register.max_excess_frac, options.search_max_excess_frac),
         sharp_level2_iterations=options.sharp_level2_iterations,
+        surge_widths=options.search_surge_widths,
+        max_iterations=max(options.register.max_iterations, options.search_max_iterations),
     )
-    fits, errors = _register_hypotheses(img, db, camera, sun_dir_camera, seg, hyps, ropts, options)
-    return _choose(fits, errors, len(hyps), options)
+    n_tried = min(len(hyps), options.n_verify)
+    fits, errors = _register_hypotheses(img, db, camera, sun_dir_camera, seg, hyps[:n_tried], ropts, options)
+    if not fits and len(hyps) > n_tried:  # none explains the frame: the next best templates
+        fits, more = _register_hypotheses(img, db, camera, sun_dir_camera, seg, hyps[n_tried:], ropts, options)
+        errors, n_tried = errors + more, len(hyps)
+    return _choose(fits, errors, n_tried, options)
 
 
 def _register_hypotheses(img, db, camera, sun, seg, hyps, ropts, options):  # type: ignore[no-untyped-def]

@@ -164,7 +164,8 @@ def render_window(
     lit = shadow_fractions(mesh.vertices, mesh.faces, np.asarray(R, dtype=float).T @ s) if shadows else np.ones(F.shape[0])
     flat = shade(mu0, ras.mu, reflectance)  # per facet
     win = (slice(ras.r0, ras.r0 + ras.h), slice(ras.c0, ras.c0 + ras.w))
-    drho = [(_basis(mu0, ras.mu, law) - flat) * lit for law in MIX_LAWS] if mix is not None else []
+    dflat = [_basis(mu0, ras.mu, law) - flat for law in MIX_LAWS] if mix is not None else []
+    drho = [d * lit for d in dflat]
     rho = flat * lit
     for j, d in enumerate(drho):
         rho = rho + mix[j] * d  # type: ignore[index]
@@ -175,7 +176,9 @@ def render_window(
         D = np.zeros((len(MIX_LAWS) + 1, h, w))
         for j in range(len(MIX_LAWS)):
             D[j][win] = pix[1 + j]
-        D[-1][win] = _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, supersample, flat, lit, pix[-1])
+        flat_mix = flat + sum(mix[j] * d for j, d in enumerate(dflat))  # the fitted mix's flat radiance
+        D[-1][win] = _smooth_minus_flat(ras, Xc, F, cam, s, MixedLaw(reflectance, tuple(mix[:-1])), supersample,
+                                        flat_mix, lit, pix[-1])
         M += mix[-1] * D[-1]
     if not jacobian:
         return ModelImage(M, C, dM_dmix=D)
@@ -204,6 +207,27 @@ def _facet_means(ras, values: list) -> list:  # type: ignore[no-untyped-def]
 #: The laws mixed into the model radiance by ``render_window(mix=...)``.
 MIX_LAWS = ("lambert", "minnaert-half")
 _MU_MIN = 0.05  # Minnaert's mu^(k-1) is held finite at grazing emission (flat facets at the outline)
+
+
+@dataclass(frozen=True)
+class MixedLaw:
+    """The model's reflectance ``base + sum_j weights_j (MIX_LAWS_j - base)`` as a function of ``(mu0, mu)``.
+
+    The smooth-shading column (:func:`_smooth_minus_flat`) is the smooth minus the flat radiance *of the
+    fitted mix*: with the base law's (Lommel-Seeliger) instead, a ray-traced Lambert Thebe at 60 deg
+    phase was registered 0.51 px off (smooth-shading weight fitted 0.49, PSF 1.6 px for 0.8); with the
+    mix's, 0.11 px (weight 0.98).
+    """
+
+    base: str
+    weights: tuple = ()
+
+    def __call__(self, mu0: np.ndarray, mu: np.ndarray) -> np.ndarray:
+        flat = shade(mu0, mu, self.base)
+        out = flat
+        for w, law in zip(self.weights, MIX_LAWS):
+            out = out + float(w) * (_basis(mu0, mu, law) - flat)
+        return out
 
 
 def _basis(mu0: np.ndarray, mu: np.ndarray, law: str) -> np.ndarray:
@@ -291,7 +315,8 @@ def _interior_smooth(ras, Xc, F, vn, cam, s, reflectance, centre, inner):  # typ
 
 
 def _smooth_samples(ras, Xc, F, vn, cam, s, reflectance, r, c, face):  # type: ignore[no-untyped-def]
-    """Smooth (vertex-normal interpolated) radiance at raster pixel coordinates ``(r, c)`` seeing ``face``."""
+    """Smooth (vertex-normal interpolated) radiance at raster pixel coordinates ``(r, c)`` seeing ``face``
+    (``reflectance``: a law name of :func:`~jaxlimb.render.mesh.shade` or a :class:`MixedLaw`)."""
     f = cam.focal_px  # type: ignore[attr-defined]
     pr, pc = cam.principal_point_rc  # type: ignore[attr-defined]
     ray = np.stack([(ras.c0 + c - pc) / f, (ras.r0 + r - pr) / f, np.ones(r.size)], axis=1)
@@ -307,7 +332,8 @@ def _smooth_samples(ras, Xc, F, vn, cam, s, reflectance, r, c, face):  # type: i
     ns = (1.0 - b1 - b2)[:, None] * vn[F[face, 0]] + b1[:, None] * vn[F[face, 1]] + b2[:, None] * vn[F[face, 2]]
     ns /= np.maximum(np.linalg.norm(ns, axis=1, keepdims=True), 1e-300)
     eye = -X / np.linalg.norm(X, axis=1, keepdims=True)
-    return shade(np.einsum("ij,j->i", ns, s), np.maximum(np.einsum("ij,ij->i", ns, eye), 1e-3), reflectance)
+    mu0, mu = np.einsum("ij,j->i", ns, s), np.maximum(np.einsum("ij,ij->i", ns, eye), 1e-3)
+    return reflectance(mu0, mu) if callable(reflectance) else shade(mu0, mu, reflectance)
 
 
 def _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, ss, reflectance, cover, out, mix=None, shadow=None) -> None:  # type: ignore[no-untyped-def]
