@@ -7,8 +7,11 @@ cluster started by hand pass it to each worker::
 
 * ``dask_setup``: a background thread imports JAX and the locate pipeline, switches on float64 and
   the persistent compilation cache (:mod:`jaxlimb._jaxcache`) while the worker connects to the
-  scheduler and waits for its first task (~1 s of imports no longer on the first task's path; a
-  task that needs them first simply waits for the import lock).
+  scheduler and waits for its first task (~1 s of imports no longer on the first task's path).
+  A task must call :func:`wait_started` before it imports the package: two threads importing
+  interdependent modules at once can see a partially initialised module (measured: ``ImportError:
+  cannot import name 'ImageConic' from partially initialized module`` in 2 of 3 workers whose first
+  task began while this thread imported ``jaxlimb.pipeline``).
 * ``dask_teardown``: ``gc.freeze()`` before the worker process ends, so the interpreter's shutdown
   does not walk JAX's ~10^6 objects (0.4-0.6 s per process measured on a 2-core CPU, paid by the
   client's ``close`` as it waits for its workers; see :func:`jaxlimb.cli.entry`).
@@ -53,10 +56,18 @@ def dask_setup(worker: Any) -> None:
         _STARTED.append(t)
 
 
+def wait_started(timeout: float | None = None) -> None:
+    """Wait until :func:`dask_setup`'s start thread has finished its imports (at once where none was started,
+    e.g. outside a worker, or from that thread itself)."""
+    for t in _STARTED:
+        if t is not threading.current_thread():
+            t.join(timeout)
+
+
 def dask_teardown(worker: Any) -> None:
     """Freeze the collector's objects: the worker process then exits without walking them."""
     del worker
     gc.freeze()
 
 
-__all__ = ["dask_setup", "dask_teardown", "start_jax"]
+__all__ = ["dask_setup", "dask_teardown", "start_jax", "wait_started"]

@@ -193,6 +193,9 @@ class LocateTrial:
 
     def _base(self) -> tuple[np.ndarray, Any, Any, Any]:
         if self not in _BASE:
+            from .dask_worker import wait_started
+
+            wait_started()  # a worker's preload thread may still be importing the package
             from .._jaxcache import enable_compile_cache
             import jax
 

@@ -193,8 +193,10 @@ def _one_frame(path: str, read: Callable[[str], Any], measure: Callable[[str, An
 def _frame_chunk(paths: list[str], read: Callable[[str], Any],
                  measure: Callable[[str, Any], dict[str, Any]]) -> list[tuple[dict[str, Any], int]]:
     """A Dask task: the records of a chunk of frames (the worker sets up JAX as the command does)."""
+    from ..analysis.dask_worker import wait_started
     from . import _start_jax
 
+    wait_started()  # a worker's preload thread may still be importing the package
     _start_jax()
     return [_one_frame(p, read, measure) for p in paths]
 
