@@ -34,8 +34,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"random seed, integer {SEED_RANGE} (default 0)")
     p.add_argument("--tol", type=arg_number(TOL_RANGE), default=None,
                    help=f"fail (exit 3) if any max_rel_err exceeds this, {TOL_RANGE} (default: each model's own "
-                   "tolerance, jaxlimb.models.gradcheck.SPECS: 1e-9; 1e-8 the ramp; 1e-6 the quadrature of the lunar-Lambert "
-                   "profile)")
+                   "tolerance, jaxlimb.models.gradcheck.SPECS: 1e-9; 1e-8 the ramp; 1e-7 the tabulated limb-darkened disc; "
+                   "1e-6 the quadrature of the lunar-Lambert profile)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
