@@ -88,12 +88,17 @@ def test_killed_pipeline_run_resumed_gives_the_same_result_file(tmp_path):
 def test_worker_environment_shares_the_cores(monkeypatch):
     from jaxlimb.analysis.distributed import worker_environment
 
-    for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OPENCV_FOR_THREADS_NUM", "XLA_FLAGS"):
+    for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OPENCV_FOR_THREADS_NUM", "XLA_FLAGS",
+              "MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_"):
         monkeypatch.delenv(k, raising=False)
     one_core_each = worker_environment(2, cores=2)
     assert one_core_each["XLA_FLAGS"] == "--xla_cpu_multi_thread_eigen=false"
     assert one_core_each["OMP_NUM_THREADS"] == one_core_each["OPENCV_FOR_THREADS_NUM"] == "1"
-    assert worker_environment(1, cores=2) == {} and worker_environment(2, cores=8) == {}  # cores to spare
+    malloc = {"MALLOC_MMAP_THRESHOLD_": str(64 << 20), "MALLOC_TRIM_THRESHOLD_": str(128 << 20)}
+    assert worker_environment(1, cores=2) == malloc and worker_environment(2, cores=8) == malloc  # cores to spare
+    assert one_core_each["MALLOC_MMAP_THRESHOLD_"] == malloc["MALLOC_MMAP_THRESHOLD_"]  # not Dask's 128 KiB
+    monkeypatch.setenv("MALLOC_TRIM_THRESHOLD_", "65536")
+    assert worker_environment(1, cores=2)["MALLOC_TRIM_THRESHOLD_"] == "65536"  # the user's, passed on
     monkeypatch.setenv("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=true")
     monkeypatch.setenv("OMP_NUM_THREADS", "2")
     kept = worker_environment(2, cores=2)
