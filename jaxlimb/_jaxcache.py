@@ -140,6 +140,17 @@ def enable_compile_cache(path: str | os.PathLike[str] | None = None) -> Path | N
     return target
 
 
+def start_jax() -> None:
+    """JAX as jaxlimb runs it (the command line, Dask workers, pipeline trials): SciPy's LAPACK kernels
+    preloaded before JAX is imported (:func:`preload_lapack_kernels`), float64, and the persistent
+    compilation cache (:func:`enable_compile_cache`); idempotent."""
+    preload_lapack_kernels()
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    enable_compile_cache()
+
+
 class CompileTimer:
     """Context manager: seconds spent compiling (trace + lower + XLA compile or cache load) in the block.
 
@@ -190,4 +201,4 @@ class CompileTimer:
         return total
 
 
-__all__ = ["ENV_DIR", "MAX_BYTES", "CompileTimer", "cache_dir", "enable_compile_cache"]
+__all__ = ["ENV_DIR", "MAX_BYTES", "CompileTimer", "cache_dir", "enable_compile_cache", "start_jax"]

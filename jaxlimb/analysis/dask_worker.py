@@ -28,13 +28,9 @@ _STARTED: list[threading.Thread] = []
 
 def start_jax() -> None:
     """JAX in float64 with the persistent compilation cache, and the locate pipeline imported; idempotent."""
-    from .._jaxcache import enable_compile_cache, preload_lapack_kernels
+    from .._jaxcache import start_jax as start
 
-    preload_lapack_kernels()
-    import jax
-
-    jax.config.update("jax_enable_x64", True)
-    enable_compile_cache()
+    start()
     import jaxlimb.pipeline  # noqa: F401  (the modules every LocateTrial imports)
 
     gc.freeze()  # long-lived from here on: later collections skip them

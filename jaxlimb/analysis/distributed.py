@@ -207,11 +207,9 @@ class LocateTrial:
             from .dask_worker import wait_started
 
             wait_started()  # a worker's preload thread may still be importing the package
-            from .._jaxcache import enable_compile_cache
-            import jax
+            from .._jaxcache import start_jax
 
-            jax.config.update("jax_enable_x64", True)
-            enable_compile_cache()
+            start_jax()
             from ..geometry.camera import Camera
             from ..imaging import Hints
             from ..render import RenderOptions, moon_scene, render_body

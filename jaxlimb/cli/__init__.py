@@ -263,13 +263,9 @@ def _request_host_devices(n: int) -> None:
 
 
 def _start_jax() -> None:
-    from .._jaxcache import enable_compile_cache, preload_lapack_kernels
+    from .._jaxcache import start_jax
 
-    preload_lapack_kernels()  # before JAX: its LAPACK lookup then skips scipy.linalg's package import
-    import jax
-
-    jax.config.update("jax_enable_x64", True)
-    enable_compile_cache()
+    start_jax()  # LAPACK kernels before JAX (no scipy.linalg package import), float64, compilation cache
     if _STATE.get("process"):  # the command's own process (entry): JAX's objects live until its end
         import gc
 
