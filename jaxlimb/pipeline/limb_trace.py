@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..analysis.model_error import cluster_robust_covariance
 from ..errors import TooManyOutliersError
 from .earth import _band_signed
 from .refine import FitData
@@ -205,12 +206,7 @@ def trace_model_cov(tr: TracedLimb, ell: tuple, bin_deg: float = 10.0) -> np.nda
     x0 = np.array([r0, c0, a], float)
     r = d(x0)
     J = np.column_stack([(d(x0 + h) - d(x0 - h)) / 2e-3 for h in 1e-3 * np.eye(3)])
-    cl = np.floor((t - t.min()) / math.radians(bin_deg)).astype(int)
-    G = np.zeros((cl.max() + 1, 3))
-    np.add.at(G, cl, J * r[:, None])
-    nb = int(np.count_nonzero(np.bincount(cl)))
-    Hi = np.linalg.pinv(J.T @ J)
-    return Hi @ (G.T @ G) @ Hi * (nb / max(nb - 1, 1))
+    return cluster_robust_covariance(J, r, np.floor((t - t.min()) / math.radians(bin_deg)).astype(int))
 
 
 def normalised_band(img: np.ndarray, pts: np.ndarray, tr: TracedLimb) -> tuple[np.ndarray, FitData]:
