@@ -494,10 +494,6 @@ def _albedo_rows(M: np.ndarray, P_win: np.ndarray, order: int, harmonics: int) -
     return [r.ravel() for r in rows]
 
 
-def n_albedo_columns(options: RegisterOptions) -> int:
-    return (options.albedo_order + 1) * (options.albedo_order + 2) // 2 - 1 + 2 * options.albedo_harmonics
-
-
 def surge_fields(cam, lo, hi, Pk, sun, widths, min_range: float = 0.0) -> list[np.ndarray]:  # type: ignore[no-untyped-def]
     """``1 / (1 + tan(g/2) / h)`` over the window ``lo..hi`` of ``cam`` for each width ``h`` of ``widths``, with
     ``g`` the phase angle (Sun -- surface -- camera) of each pixel's ray (``sun=None``: the Sun behind the
@@ -599,7 +595,7 @@ class GNState:
     step_px: float = math.inf
     rms_frac: float = math.nan
     last: tuple | None = None  # (At, y, beta, lo, hi, N) of the last solve (At: transposed design matrix, N = At At^T)
-    n_extra: int = 0  # rows of the last solve between the pose (and attitude) rows and the mix rows
+    n_pose: int = 5  # rows of the last solve up to the radiance terms: contrast, background, centre, scale (attitude)
     history: list = dataclasses.field(default_factory=list)  # rms_frac of every iteration
 
 
@@ -623,7 +619,7 @@ def _iterate(st: GNState, pyr, mesh, camera, sun, sigma, options, fit_attitude, 
     if st.mix is not None:
         st.mix = np.clip(st.mix + beta[-len(st.mix):] / a, *options.mix_bounds)
     st.it, st.ratio, st.last = st.it + 1, float(beta[1]) / a, (At, y, beta, lo, hi, N)
-    st.n_extra = At.shape[0] - (8 if fit_attitude else 5) - (0 if st.mix is None else len(st.mix))
+    st.n_pose = 8 if fit_attitude else 5
     st.rms_frac = math.sqrt(rss / y.size) / a
     st.history.append(st.rms_frac)
     step, ds = beta[2:4] / a * k, float(beta[4] / a)
@@ -881,9 +877,9 @@ def finish_registration(img, camera, segmentation, st: GNState, ncc: float, opti
     rms = math.sqrt(s2)
     excess = math.sqrt(max(s2 - (sigma**2 if math.isfinite(sigma) else 0.0), 0.0)) / a
     mask, thr = segmentation
-    nm = 0 if st.mix is None else len(st.mix)
-    tail = At.shape[0] - nm - st.n_extra
-    fitted = np.einsum("i,ij->j", beta[:2], At[:2]) + np.einsum("i,ij->j", beta[tail:], At[tail:])
+    # the fitted image: contrast and background, and the radiance terms after the pose rows (albedo, surge, mix)
+    n = st.n_pose
+    fitted = np.einsum("i,ij->j", beta[:2], At[:2]) + np.einsum("i,ij->j", beta[n:], At[n:])
     iou = _overlap(mask[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1] > 0, fitted, thr, sigma, _IOU_MISFIT * excess * a)
     if not np.all(np.isfinite(P)) or not np.all(np.isfinite(cov)):
         raise ConvergenceError("registration produced a non-finite centre or covariance")
