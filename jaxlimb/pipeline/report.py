@@ -18,8 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from ..models import (CIRCLE, ELLIPSE, ELLIPSE_RAMP, LIMB_PROFILE, LIMB_PROFILE_MINNAERT, CircleParams, EllipseRampParams,
-                      LimbDarkenedParams, LimbProfileParams, MinnaertProfileParams)
+from ..models import CIRCLE, ELLIPSE, ELLIPSE_RAMP, CircleParams, EllipseRampParams, LimbDarkenedParams, LimbProfileParams
+from ..models.lunar_lambert import profile_model
 from .checks import check_center_sigma, check_edge_width, check_levels
 from .frame import Frame
 from .geometry import BodyCenter
@@ -72,8 +72,10 @@ def crlb(frame: Frame, final: RefineResult, cov: Covariance) -> dict[str, float]
     C = cov.jacobian @ final.covariance_noise @ cov.jacobian.T
     if final.data.weights is not None:
         fp = final.fit.params
-        model = {CircleParams: CIRCLE, EllipseRampParams: ELLIPSE_RAMP, LimbProfileParams: LIMB_PROFILE,
-                 MinnaertProfileParams: LIMB_PROFILE_MINNAERT}.get(type(fp), ELLIPSE)
+        if isinstance(fp, LimbProfileParams):  # the lunar-Lambert profile or its Minnaert-widened variant
+            model = profile_model(fp)
+        else:
+            model = {CircleParams: CIRCLE, EllipseRampParams: ELLIPSE_RAMP}.get(type(fp), ELLIPSE)
         sigma = math.sqrt(max(float(final.fit.sigma2), 1e-300))
         try:
             C = cov.jacobian @ np.linalg.inv(fisher_information(model, fp, final.data, final.fixed, sigma)) @ cov.jacobian.T
