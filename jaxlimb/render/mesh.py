@@ -202,9 +202,11 @@ def shadow_fractions(vertices: np.ndarray, faces: np.ndarray, sun_body: np.ndarr
     V = np.asarray(vertices, dtype=float)
     F = np.asarray(faces, dtype=np.int64)
     sb = np.asarray(sun_body, dtype=float) / np.linalg.norm(sun_body)
-    key = (id(vertices), tuple(np.round(sb * 230.0).astype(int)))  # ~0.25 deg: a fitted attitude moves less per iteration
+    # ~0.25 deg of Sun direction: a fitted attitude moves less per iteration.  The entry holds the mesh's arrays,
+    # so their ids cannot be reused by other arrays while it is cached
+    key = (id(vertices), id(faces), tuple(np.round(sb * 230.0).astype(int)))
     if key in _SHADOWS:
-        return _SHADOWS[key]
+        return _SHADOWS[key][2]
     rmax = float(np.linalg.norm(V, axis=1).max())
     L = 1000.0 * rmax
     z = -sb
@@ -225,7 +227,7 @@ def shadow_fractions(vertices: np.ndarray, faces: np.ndarray, sun_body: np.ndarr
     frac = np.where(ns_ > 0, frac, 0.0)
     if len(_SHADOWS) > 64:
         _SHADOWS.clear()
-    _SHADOWS[key] = frac
+    _SHADOWS[key] = (vertices, faces, frac)
     return frac
 
 
