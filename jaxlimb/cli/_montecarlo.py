@@ -38,7 +38,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--annulus", type=_num("annulus"), default=6.0, help="half-width of the pixel band, px (default 6)")
     p.add_argument("--fix", default="", help="comma-separated parameters held at truth, e.g. k,ymax,ymin")
     p.add_argument("--batch", type=_num("batch", True), default=None,
-                   help="realisations per compiled batch / per task (default 250; --pipeline: about 8 tasks per worker)")
+                   help="realisations per compiled batch / per task (default 250; --pipeline: about 16 tasks per worker; --resume: the study's own)")
     p.add_argument("--out", metavar="DIR", help="write every finished batch to DIR (chunk files + manifest)")
     p.add_argument("--resume", action="store_true", help="continue the study already in --out DIR")
     g = p.add_argument_group("full pipeline (--pipeline): rendered Moon frames through `locate`, on Dask workers")
