@@ -32,7 +32,8 @@ direction (1-D: ``R >> sigma``): with the depth :math:`u' = R - d' = v^2`,
 .. math:: f(d) = y_{\min} + A \int_{v_0}^{v_1} I(R - v^2)\, N(d - R + v^2; \sigma_e)\, 2v\,dv
 
 by 20-point Gauss-Legendre quadrature, :math:`v_{0,1} = \sqrt{\max(0, R - d \mp 6\sigma_e)}`
-(the substitution removes the square-root behaviour of :math:`\mu` at the limb), and
+(the substitution removes the square-root behaviour of :math:`\mu` at the limb; the window is cut to
+its lit side of the terminator, :func:`_lit_limits`), and
 :math:`\sigma_e^2 = \sigma^2 + 1/12` (pixel integration as a box), plus the first-order
 curvature term of the 2-D blur, :math:`\sigma_e^2/(2d)\,\partial f/\partial d` (without it the
 radius of a 33 px Moon came out 0.01-0.024 px short; with it |bias| <= 0.008 px from 33 to 210 px,
@@ -196,6 +197,46 @@ def _radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool =
     return I, I_R, I_cpsi, I_a0, I_ph, I_L, I_k
 
 
+def _mu0_along_ray(p: LimbProfileParams, v, R, cpsi, alpha0):
+    """``mu0`` at depth ``v**2`` below the limb (the geometry of :func:`_radiance_parts`, no derivatives)."""
+    q = jnp.clip(1.0 - v * v / R, 0.0, 1.0)
+    mu = v * jnp.sqrt((1.0 + q) / R)
+    cb, sb = jnp.cos(q * alpha0), jnp.sin(q * alpha0)
+    return (q * cb - mu * sb) * jnp.sin(p.phase) * cpsi + (mu * cb + q * sb) * jnp.cos(p.phase)
+
+
+def _terminator_depth(p: LimbProfileParams, R, cpsi, alpha0):
+    """``v_t``, the root of the depth where the ray meets the terminator (``mu0 = 0``).
+
+    ``mu0 = sin(g) sin(phase) cpsi + cos(g) cos(phase)`` with ``g = e - beta = e - alpha0 sin e`` (module
+    docstring) vanishes at ``g_t = atan(-cos(phase) / (sin(phase) cpsi))`` in ``(-pi/2, pi/2]``; ``e_t`` from
+    three Newton steps on ``e - alpha0 sin e = g_t`` (``alpha0 <= 0.3``), then ``v_t^2 = R (1 - sin e_t)``.
+    Rays that never meet it get a ``v_t`` that the caller's sign test ignores.
+    """
+    g = jnp.arctan2(-jnp.cos(p.phase), jnp.sin(p.phase) * cpsi)
+    g = jnp.where(g > 0.5 * math.pi, g - math.pi, jnp.where(g <= -0.5 * math.pi, g + math.pi, g))
+    e = g + alpha0 * jnp.sin(g)
+    for _ in range(3):
+        e = e - (e - alpha0 * jnp.sin(e) - g) / (1.0 - alpha0 * jnp.cos(e))
+    return jnp.sqrt(R * jnp.maximum(1.0 - jnp.sin(jnp.clip(e, 0.0, 0.5 * math.pi)), 0.0))
+
+
+def _lit_limits(p: LimbProfileParams, v0, v1, R, cpsi, alpha0):
+    """The blur integral's limits cut to the lit part of ``[v0, v1]``.
+
+    The radiance is 0 beyond the terminator and its slope jumps there; a Gauss-Legendre rule across that
+    kink converges slowly (at a 117 deg crescent's horn, 20 nodes put the intensity 0.17 DN of 217 off and
+    the columns of the rule, which ``jax.jacfwd`` differentiates, several % off at 64 nodes), while on the lit
+    segment alone the integrand is smooth.  The cut's own derivative term is the integrand at the terminator,
+    which is 0, so the columns of :func:`_profile_integrals` need no boundary term.  A ray meets the
+    terminator at most once (``mu0`` is a sinusoid in ``e - beta``, which spans less than pi).
+    """
+    lit0 = _mu0_along_ray(p, v0, R, cpsi, alpha0) > 0
+    lit1 = _mu0_along_ray(p, v1, R, cpsi, alpha0) > 0
+    vt = jnp.clip(_terminator_depth(p, R, cpsi, alpha0), v0, v1)
+    return jnp.where(~lit0 & lit1, vt, v0), jnp.where(lit0 & ~lit1, vt, v1)
+
+
 def limb_geometry(p: LimbProfileParams, rc):
     """``(dr, dc, x, y, d, beta, R, cpsi)`` of the pixels ``rc``: offsets from the centre, ellipse-frame
     coordinates, distance ``d`` from the centre, the limb's radius ``R`` in the pixel's direction and the
@@ -228,6 +269,7 @@ def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brig
     se = jnp.sqrt(p.sigma * p.sigma + 1.0 / 12.0)
     v0 = jnp.sqrt(jnp.maximum(R - d - 6.0 * se, 1e-12))
     v1 = jnp.sqrt(jnp.maximum(R - d + 6.0 * se, 1e-12))
+    v0, v1 = _lit_limits(p, v0, v1, R, cpsi, alpha0)
     xg = jnp.asarray(_GL_X)
     half = 0.5 * (v1 - v0)
     w = jnp.asarray(_GL_W) * (2.0 * half)[..., None]
