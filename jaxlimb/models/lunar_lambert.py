@@ -51,6 +51,14 @@ Widened (:data:`LIMB_PROFILE_MINNAERT`, :class:`MinnaertProfileParams`): the rad
 derivative in :math:`\kappa` is :math:`-\ln(\mu_0\mu) I`; the pipeline frees :math:`\kappa` only when a score
 test asks for it (:func:`jaxlimb.pipeline.profile_fit.widen_brightening`).
 
+Widened (:data:`LIMB_PROFILE_GLOW`, :class:`GlowProfileParams`): plus a glow above the limb, an optically thin
+shell whose emission falls as :math:`e^{-h/H}` with the altitude (a horizon glow of dust or an exosphere; the
+``glow`` family of :mod:`jaxlimb.render.independent`): ``glow`` times :math:`e^{-s/H}` at a distance ``s`` above the
+limb, and times half the grazing column, :math:`\tfrac12\mathrm{erfcx}(\sqrt{u/H})`, at a depth ``u`` on the disc
+(:func:`_glow_inside`, :func:`_glow_outside`); ``H = exp(log_h)`` px.  The disc side is integrated with the
+radiance; the sky side blurred in closed form.  The pipeline adds the glow only when a score test asks for it
+(:func:`jaxlimb.pipeline.profile_fit.widen_glow`).
+
 Off the optical axis the limb is an ellipse (``a - b`` reaches ~5 px at the corner of the
 default imager for the Moon at 60 000 km): the model carries the ellipse ``(r0, c0, a, theta,
 rho)``; with a camera, ``theta`` and ``rho`` are held at the values of the image of a sphere
@@ -126,6 +134,15 @@ class MinnaertProfileParams(LimbProfileParams):
     Minnaert's law ``mu0^k mu^(k-1)``, Minnaert 1941, with ``k = 1 - kappa``)."""
 
     kappa: ArrayLike
+
+
+class GlowProfileParams(LimbProfileParams):
+    """:class:`LimbProfileParams` and an exponential glow above the limb (:data:`LIMB_PROFILE_GLOW`):
+    ``glow``, its radiance just above the limb in units of ``amp``, and ``log_h``, the log of its scale
+    height (px)."""
+
+    glow: ArrayLike
+    log_h: ArrayLike
 
 
 def _cos_sin_small(x, small):
@@ -254,7 +271,96 @@ def limb_geometry(p: LimbProfileParams, rc):
     return dr, dc, x, y, d, beta, R, cpsi
 
 
-def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brightened: bool = True):
+_INV_SQRT_PI = 1.0 / math.sqrt(math.pi)
+
+
+def _erfcx(x):
+    """``exp(x^2) erfc(x)`` (``jax.scipy.special.erfcx``), finite for any real ``x``."""
+    return jax.scipy.special.erfcx(x)
+
+
+def _glow_inside(p: GlowProfileParams, v):
+    r"""The glow's radiance (units of ``amp``) at depth ``u = v^2`` inside the limb and its ``log_h`` derivative.
+
+    An optically thin shell whose emission falls as :math:`e^{-h/H}` with the altitude ``h`` (the glow of
+    :mod:`jaxlimb.render.independent.optics`, a dust or exosphere horizon glow): seen on the disc at depth ``u``
+    below the limb the ray leaves the surface at the emission cosine :math:`\mu = \sqrt{2u/R}` and climbs
+    :math:`h \approx \mu t + t^2/2R` along its length ``t``; its column over the grazing column
+    :math:`\sqrt{2\pi R H}` (which sets ``glow``) is, with :math:`x = \sqrt{u/H}` (Chapman 1931's grazing
+    integral, the half of a ray in front of the surface),
+
+    .. math:: \frac{1}{\sqrt{2\pi RH}}\int_0^\infty e^{-(\mu t + t^2/2R)/H}\,dt = \tfrac12\,\mathrm{erfcx}(x),
+
+    1/2 at the limb, :math:`\sqrt{H/4\pi u}` deep inside.  ``d erfcx(x)/dx = 2x erfcx(x) - 2/sqrt(pi)``,
+    ``dx/dlog_h = -x/2``."""
+    x = v * jnp.exp(-0.5 * p.log_h)
+    ex = _erfcx(x)
+    G = 0.5 * ex
+    G_lh = -0.5 * x * (x * ex - _INV_SQRT_PI)
+    return G, G_lh
+
+
+def _glow_outside(p: GlowProfileParams, s, se, d, derivatives: bool):
+    r"""The blurred glow above the limb (units of ``amp`` per unit ``glow``) at signed distance ``s = d - R``
+    (px, positive outside) and, if asked, its partials in ``d``, ``R``, ``se`` and ``log_h``.
+
+    The radiance :math:`e^{-s'/H}` for :math:`s' > 0` (the miss column of the shell,
+    :math:`2p K_1(p/H) e^{p/H} e^{-(p-R)/H}`, over the grazing one, to :math:`O(s/R)`) convolved with the
+    Gaussian :math:`N(\cdot;\sigma_e)`: completing the square,
+
+    .. math:: E(s) = \int_0^\infty e^{-t/H} N(s - t)\,dt = e^{\sigma_e^2/2H^2 - s/H}\,
+              \Phi\big(s/\sigma_e - \sigma_e/H\big),
+
+    evaluated as ``exp(a - s/H + log Phi(w))`` (no overflow for ``H << se``).  Derivatives in closed form:
+    :math:`E' = N - E/H`, :math:`E'' = N' - E'/H` (``N' = -s N / se^2``), :math:`\partial_{\sigma_e} E = \sigma_e E''`
+    (the heat equation), :math:`H\,\partial_H E = (s E + \sigma_e^2 E')/H`.  As the profile
+    (:func:`_profile_integrals`), the 2-D blur adds the curvature term :math:`\sigma_e^2/(2d)\,E'`.
+    """
+    H = jnp.exp(p.log_h)
+    inv_H = 1.0 / H
+    w = s / se - se * inv_H
+    E = jnp.exp(0.5 * (se * inv_H) ** 2 - s * inv_H + jax.scipy.special.log_ndtr(w))
+    N = jnp.exp(-0.5 * (s / se) ** 2) / (se * math.sqrt(2.0 * math.pi))
+    E1 = N - E * inv_H
+    k = se * se / (2.0 * d)
+    G = E + k * E1
+    if not derivatives:
+        return G, None
+    N1 = -s / (se * se) * N
+    N2 = (s * s / se**4 - 1.0 / (se * se)) * N
+    E2 = N1 - E1 * inv_H
+    E3 = N2 - E2 * inv_H
+    E_lh = (s * E + se * se * E1) * inv_H
+    E1_lh = (E + s * E1 + se * se * E2) * inv_H  # d/ds of E_lh
+    parts = {
+        "G_d": E1 + k * (E2 - E1 / d),
+        "G_R": -(E1 + k * E2),
+        "G_se": se * E2 + k * se * E3 + se / d * E1,
+        "G_lh": E_lh + k * E1_lh,
+    }
+    return G, parts
+
+
+def _blur_nodes(d, R, se, lit=None):
+    """The quadrature of the radial blur (module docstring): nodes ``v`` (depth ``v^2``) ``(n, nodes)``, the
+    Gaussian's argument ``t = (d - R + v^2) / se`` and the weights ``g`` (Gaussian x ``2v dv`` x rule weights).
+    ``lit = (p, cpsi, alpha0)``: the window cut to its lit side of the terminator (:func:`_lit_limits`), for
+    the radiance; ``None`` for the glow, which the terminator does not bound."""
+    v0 = jnp.sqrt(jnp.maximum(R - d - 6.0 * se, 1e-12))
+    v1 = jnp.sqrt(jnp.maximum(R - d + 6.0 * se, 1e-12))
+    if lit is not None:
+        v0, v1 = _lit_limits(lit[0], v0, v1, R, lit[1], lit[2])
+    xg = jnp.asarray(_GL_X)
+    half = 0.5 * (v1 - v0)
+    w = jnp.asarray(_GL_W) * (2.0 * half)[..., None]
+    v = half[..., None] * (xg + 1.0) + v0[..., None]  # (n, nodes)
+    t = (d[..., None] - R[..., None] + v * v) / se  # (d - d') / se
+    g = jnp.exp(-0.5 * t * t) * (v * w / (se * math.sqrt(2 * math.pi)))  # Gaussian x 2v dv / 2 ... x weights
+    return v, t, g
+
+
+def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brightened: bool = True,
+                       glowing: bool = False):
     """The blurred profile ``F`` (module docstring) and, if asked, its partials.
 
     ``F = F1 + sigma_e^2 / (2 d) dF1/dd``: the 1-D radial blur ``F1`` plus the first-order
@@ -263,31 +369,37 @@ def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brig
     ``sigma = 1.2 px``).  Partials ``F_d, F_R`` (at fixed ``d``/``R``), ``F_cpsi, F_se, F_a0,
     F_ph, F_L``: the integrands differentiated under the integral; the limits sit 6 sigma out
     in the Gaussian, so their own derivative terms are below 1e-8 of ``F``'s and are dropped.
-    ``brightened``: as :func:`_radiance_parts`.
+    ``brightened``: as :func:`_radiance_parts`.  ``glowing`` (:class:`GlowProfileParams`): plus ``p.glow``
+    times the glow on the disc side (:func:`_glow_inside`, in the integrand) and above the limb
+    (:func:`_glow_outside`, closed form); partials ``F_glow``, ``F_lh``.
     """
     alpha0 = jnp.arctan(p.rho * p.a * p.inv_f)
     se = jnp.sqrt(p.sigma * p.sigma + 1.0 / 12.0)
-    v0 = jnp.sqrt(jnp.maximum(R - d - 6.0 * se, 1e-12))
-    v1 = jnp.sqrt(jnp.maximum(R - d + 6.0 * se, 1e-12))
-    v0, v1 = _lit_limits(p, v0, v1, R, cpsi, alpha0)
-    xg = jnp.asarray(_GL_X)
-    half = 0.5 * (v1 - v0)
-    w = jnp.asarray(_GL_W) * (2.0 * half)[..., None]
-    v = half[..., None] * (xg + 1.0) + v0[..., None]  # (n, nodes)
-    t = (d[..., None] - R[..., None] + v * v) / se  # (d - d') / se
-    g = jnp.exp(-0.5 * t * t) * (v * w / (se * math.sqrt(2 * math.pi)))  # Gaussian x 2v dv / 2 ... x weights
+    v, t, g = _blur_nodes(d, R, se, (p, cpsi, alpha0))
     I, I_R, I_cpsi, I_a0, I_ph, I_L, I_k = _radiance_parts(p, v, R[..., None], cpsi[..., None], alpha0, brightened)
     tg = t * g / se  # -dg/dd
-    F1 = jnp.sum(I * g, axis=-1)
-    F1_d = -jnp.sum(I * tg, axis=-1)
+    F1, F1_d = jnp.sum(I * g, axis=-1), -jnp.sum(I * tg, axis=-1)
+    if glowing:  # the glow seen on the disc, on its own (uncut) nodes: independent of R, cpsi, alpha0, phase, L
+        vg, t_gl, g_gl = _blur_nodes(d, R, se)
+        tg_gl = t_gl * g_gl / se
+        I_gl, I_lh = _glow_inside(p, vg)
+        I_lh = p.glow * I_lh
+        F1 = F1 + p.glow * jnp.sum(I_gl * g_gl, axis=-1)
+        F1_d = F1_d - p.glow * jnp.sum(I_gl * tg_gl, axis=-1)
     s2d = se * se / (2.0 * d)
     F = F1 + s2d * F1_d
+    if glowing:
+        Go, Po = _glow_outside(p, d - R, se, d, derivatives)
+        F = F + p.glow * Go
     if not derivatives:
         return F, None
-    t2m1 = t * t - 1.0
-    F1_dd = jnp.sum(I * t2m1 * g, axis=-1) / (se * se)
+    F1_dd = jnp.sum(I * (t * t - 1.0) * g, axis=-1) / (se * se)
+    F1_dse = -jnp.sum(I * t * (t * t - 3.0) * g, axis=-1) / (se * se)
+    if glowing:
+        F1_dd = F1_dd + p.glow * jnp.sum(I_gl * (t_gl * t_gl - 1.0) * g_gl, axis=-1) / (se * se)
+        F1_dse = F1_dse - p.glow * jnp.sum(I_gl * t_gl * (t_gl * t_gl - 3.0) * g_gl, axis=-1) / (se * se)
 
-    def pair(J):  # (integral of J g, of -J tg): a partial of F1 and the matching partial of F1_d
+    def pair(J, g=g, tg=tg):  # (integral of J g, of -J tg): a partial of F1 and the matching partial of F1_d
         return jnp.sum(J * g, axis=-1), -jnp.sum(J * tg, axis=-1)
 
     F1_R, F1_dR = pair(I_R)
@@ -297,7 +409,6 @@ def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brig
     F1_L, F1_dL = pair(I_L)
     F1_k, F1_dk = pair(I_k)
     F1_se = F1_dd * se
-    F1_dse = -jnp.sum(I * t * (t * t - 3.0) * g, axis=-1) / (se * se)
     parts = {
         "F_d": F1_d + s2d * (F1_dd - F1_d / d),
         "F_R": (-F1_d + F1_R) + s2d * (-F1_dd + F1_dR),
@@ -310,6 +421,14 @@ def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brig
         "alpha0": alpha0,
         "se": se,
     }
+    if glowing:
+        F1_g, F1_dg = pair(I_gl, g_gl, tg_gl)
+        F1_lh, F1_dlh = pair(I_lh, g_gl, tg_gl)
+        parts["F_glow"] = F1_g + s2d * F1_dg + Go
+        parts["F_lh"] = F1_lh + s2d * F1_dlh + p.glow * Po["G_lh"]
+        parts["F_d"] = parts["F_d"] + p.glow * Po["G_d"]
+        parts["F_R"] = parts["F_R"] + p.glow * Po["G_R"]
+        parts["F_se"] = parts["F_se"] + p.glow * Po["G_se"]
     return F, parts
 
 
@@ -321,7 +440,8 @@ def limb_profile_intensity(p: LimbProfileParams, rc):
     :func:`jaxlimb.models.ellipse_coords`); the circle formulas apply with that ``R``.
     """
     _, _, _, _, d, _, R, cpsi = limb_geometry(p, rc)
-    F, _ = _profile_integrals(p, d, R, cpsi, False, isinstance(p, MinnaertProfileParams))
+    F, _ = _profile_integrals(p, d, R, cpsi, False, isinstance(p, MinnaertProfileParams),
+                              isinstance(p, GlowProfileParams))
     return p.ymin + p.amp * F
 
 
@@ -344,7 +464,8 @@ def _profile_value_and_columns(p: LimbProfileParams, rc):
     """
     dr, dc, x, y, d, beta, R, cpsi = limb_geometry(p, rc)
     brightened = isinstance(p, MinnaertProfileParams)
-    F, P = _profile_integrals(p, d, R, cpsi, True, brightened)
+    glowing = isinstance(p, GlowProfileParams)
+    F, P = _profile_integrals(p, d, R, cpsi, True, brightened, glowing)
     A = p.amp
     ct, st = jnp.cos(p.theta), jnp.sin(p.theta)
     # d/dr0, d/dc0 of d, beta, R, cpsi
@@ -380,6 +501,8 @@ def _profile_value_and_columns(p: LimbProfileParams, rc):
         "L": A * P["F_L"],
         "kappa": A * P["F_k"],
     }
+    if glowing:
+        cols.update(glow=A * P["F_glow"], log_h=A * P["F_lh"])
     return p.ymin + A * F, tuple(cols[n] for n in type(p).field_names())
 
 
@@ -397,11 +520,43 @@ LIMB_PROFILE = LimbModel("lunar_limb", LimbProfileParams, limb_profile_intensity
 LIMB_PROFILE_MINNAERT = LimbModel("lunar_limb_minnaert", MinnaertProfileParams, limb_profile_intensity, _profile_jac,
                                   _profile_cols, _profile_value_and_columns)
 """The profile widened by a limb-brightening exponent ``kappa`` (:class:`MinnaertProfileParams`)."""
+LIMB_PROFILE_GLOW = LimbModel("lunar_limb_glow", GlowProfileParams, limb_profile_intensity, _profile_jac,
+                              _profile_cols, _profile_value_and_columns)
+"""The profile widened by an exponential glow above the limb (:class:`GlowProfileParams`)."""
 
 
 def profile_model(p: LimbProfileParams) -> LimbModel:
-    """The profile model of the parameters ``p``: :data:`LIMB_PROFILE_MINNAERT` or :data:`LIMB_PROFILE`."""
-    return LIMB_PROFILE_MINNAERT if isinstance(p, MinnaertProfileParams) else LIMB_PROFILE
+    """The profile model of the parameters ``p``: :data:`LIMB_PROFILE_MINNAERT`, :data:`LIMB_PROFILE_GLOW` or
+    :data:`LIMB_PROFILE`."""
+    if isinstance(p, MinnaertProfileParams):
+        return LIMB_PROFILE_MINNAERT
+    return LIMB_PROFILE_GLOW if isinstance(p, GlowProfileParams) else LIMB_PROFILE
+
+
+@jax.jit
+def glow_column(p: LimbProfileParams, rc, log_h):
+    """The column of ``glow`` (:class:`GlowProfileParams`) at ``glow = 0`` and scale height ``exp(log_h)`` px:
+    the derivative of the profile ``p`` toward a glow, for a score test (the intensity's cost)."""
+    q = GlowProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()], 0.0, log_h)
+    _, _, _, _, d, _, R, cpsi = limb_geometry(q, rc)
+    return q.amp * _glow_unit(q, d, R, jnp.sqrt(q.sigma * q.sigma + 1.0 / 12.0))
+
+
+def _glow_unit(p: GlowProfileParams, d, R, se):
+    """The blurred glow of unit ``glow`` (both sides of the limb, curvature term included)."""
+    v, t, g = _blur_nodes(d, R, se)
+    G_in, _ = _glow_inside(p, v)
+    F1 = jnp.sum(G_in * g, axis=-1)
+    F1_d = -jnp.sum(G_in * t * g / se, axis=-1)
+    return F1 + se * se / (2.0 * d) * F1_d + _glow_outside(p, d - R, se, d, False)[0]
+
+
+def glow_fields(p: LimbProfileParams) -> dict[str, float]:
+    """The glow of a :class:`GlowProfileParams` fit for a report: ``glow`` (units of ``amp``) and
+    ``glow_scale_px`` (its scale height); ``glow = 0`` for the other profiles."""
+    if not isinstance(p, GlowProfileParams):
+        return {"glow": 0.0}
+    return {"glow": float(p.glow), "glow_scale_px": math.exp(float(p.log_h))}
 
 
 PHYSICAL_L = (-0.1, 1.1)
@@ -419,10 +574,14 @@ def lunar_lambert_weight(phase_rad: float, coeffs=(-0.019, 2.42e-4, -1.46e-6)) -
 
 __all__ = [
     "LIMB_PROFILE",
+    "LIMB_PROFILE_GLOW",
     "LIMB_PROFILE_MINNAERT",
+    "GlowProfileParams",
     "LimbProfileParams",
     "MinnaertProfileParams",
     "brightening_column",
+    "glow_column",
+    "glow_fields",
     "PHYSICAL_L",
     "PROFILE_FIXED",
     "limb_profile_intensity",

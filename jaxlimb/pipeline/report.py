@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..models import CIRCLE, ELLIPSE, ELLIPSE_RAMP, CircleParams, EllipseRampParams, LimbDarkenedParams, LimbProfileParams
-from ..models.lunar_lambert import profile_model
+from ..models.lunar_lambert import glow_fields, profile_model
 from .checks import check_center_sigma, check_edge_width, check_levels
 from .frame import Frame
 from .geometry import BodyCenter
@@ -72,7 +72,7 @@ def crlb(frame: Frame, final: RefineResult, cov: Covariance) -> dict[str, float]
     C = cov.jacobian @ final.covariance_noise @ cov.jacobian.T
     if final.data.weights is not None:
         fp = final.fit.params
-        if isinstance(fp, LimbProfileParams):  # the lunar-Lambert profile or its Minnaert-widened variant
+        if isinstance(fp, LimbProfileParams):  # the lunar-Lambert profile or a widened variant
             model = profile_model(fp)
         else:
             model = {CircleParams: CIRCLE, EllipseRampParams: ELLIPSE_RAMP}.get(type(fp), ELLIPSE)
@@ -106,7 +106,7 @@ def levels(final: RefineResult) -> Levels:
         if isinstance(fp, LimbProfileParams):
             prof = {"model": "lunar-lambert", "psf_sigma_px": sig, "amp": float(fp.amp),
                     "phase_deg": math.degrees(float(fp.phase)), "L": float(fp.L),
-                    "kappa": float(getattr(fp, "kappa", 0.0))}
+                    "kappa": float(getattr(fp, "kappa", 0.0)), **glow_fields(fp)}
         else:
             prof = {"model": "limb-darkened", "psf_sigma_px": sig, "amp": float(fp.amp), "u1": float(fp.u1),
                     "u2": float(fp.u2)}

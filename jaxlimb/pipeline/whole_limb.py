@@ -415,7 +415,7 @@ def _profile_measurement(prof: RefineResult, shape: LimbShape, camera: Camera, h
         return np.array([s_.body_center_rc[0], s_.body_center_rc[1], s_.radius_equivalent_px])
 
     x0 = np.array([float(p.r0), float(p.c0), float(p.a)])
-    from ..models.lunar_lambert import profile_model
+    from ..models.lunar_lambert import glow_fields, profile_model
 
     cov_pix = np.asarray(prof.fit.covariance)
     cov_cl = cluster_covariance(prof, shape, model=profile_model(p))
@@ -430,7 +430,7 @@ def _profile_measurement(prof: RefineResult, shape: LimbShape, camera: Camera, h
     names = ["center_r", "center_c", "radius"]
     rkm = hints.radius_km()
     extras["profile"] = {"model": "lunar-lambert", "psf_sigma_px": float(p.sigma), "L": float(p.L),
-                         "kappa": float(getattr(p, "kappa", 0.0))}
+                         "kappa": float(getattr(p, "kappa", 0.0)), **glow_fields(p)}
     return LimbMeasurement(
         center_rc=tuple(float(v) for v in sph.body_center_rc), radius_px=float(sph.radius_equivalent_px), ellipse=None,
         k=1.7 / math.sqrt(float(p.sigma) ** 2 + 1.0 / 12.0), ymax=float(p.ymin) + float(p.amp), ymin=float(p.ymin),

@@ -11,6 +11,7 @@ from jaxlimb.models import (
     ELLIPSE_RAMP,
     LIMB_DARKENED,
     LIMB_PROFILE,
+    LIMB_PROFILE_GLOW,
     LIMB_PROFILE_MINNAERT,
     EllipseRampParams,
     LimbModel,
@@ -24,7 +25,7 @@ jax.config.update("jax_enable_x64", True)
 
 
 @pytest.mark.parametrize("model, n_points", [(ELLIPSE_RAMP, 30), (LIMB_PROFILE, 12), (LIMB_PROFILE_MINNAERT, 12),
-                                             (LIMB_DARKENED, 8)],
+                                             (LIMB_PROFILE_GLOW, 12), (LIMB_DARKENED, 8)],
                          ids=lambda m: getattr(m, "name", ""))
 def test_analytic_jacobian_matches_autodiff_and_fd(model, n_points):
     checks = check_model(model, n_points=n_points, seed=11)
@@ -36,7 +37,7 @@ def test_analytic_jacobian_matches_autodiff_and_fd(model, n_points):
 
 def test_every_model_is_in_the_registry_with_its_jacobian():
     assert set(ALL_MODELS) == {"linear", "circle", "ellipse", "ellipse_ramp", "lunar_limb", "lunar_limb_minnaert",
-                               "limb_darkened"}
+                               "lunar_limb_glow", "limb_darkened"}
     for m in ALL_MODELS.values():
         assert m.value_and_columns is not None, m.name  # the fits' one-pass path, not autodiff
 

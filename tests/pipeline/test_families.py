@@ -79,6 +79,7 @@ def test_lunar_lambert_profile_is_biased_on_minnaert_and_the_witness_carries_it(
     from jaxlimb.pipeline import profile_fit
 
     monkeypatch.setattr(profile_fit, "KAPPA_GATE", math.inf)
+    monkeypatch.setattr(profile_fit, "GLOW_Z", math.inf)  # (the glow gate opens here: 0.60 px off)
     case = _moon("minnaert", 2)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     err, nees = _errors(case, m)
@@ -98,6 +99,34 @@ def test_brightening_gate_stays_shut_on_lunar_lambert_like_limbs(family, idx):
     case = _moon(family, idx)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert m.extras["profile"]["kappa"] == 0.0
+
+
+def test_glow_limb_is_fitted_by_the_widened_profile(monkeypatch):
+    """An exponential glow above the limb (benchmark row ``glow`` 3: 0.16 of a Lambert disc, 11 km scale height):
+    the score test opens the widened profile (lunar-Lambert plus glow), which puts the centre within 0.03 px (0.006
+    measured) with a fitted glow in bounds and a covariance that covers the error; the gate held shut, the
+    lunar-Lambert profile is 0.26 px off."""
+    from jaxlimb.pipeline import profile_fit
+
+    case = _moon("glow", 3)
+    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
+    err, nees = _errors(case, m)
+    prof = m.extras["profile"]
+    assert err < 0.03 and nees < 13.8
+    assert 0.05 < prof["glow"] < 0.5 and 0.1 < prof["glow_scale_px"] < 5.0
+    monkeypatch.setattr(profile_fit, "GLOW_Z", math.inf)
+    m0 = locate(case.image, case.camera, Hints.from_dict(case.hints))
+    assert m0.extras["profile"]["glow"] == 0.0
+    assert _errors(case, m0)[0] > 5 * err + 0.1
+
+
+@pytest.mark.parametrize("family, idx", [("own", 2), ("hapke", 1), ("maria", 4), ("airy", 4)])
+def test_glow_gate_stays_shut_without_a_glow(family, idx):
+    """No glow on lunar-Lambert and Hapke limbs; nor on a maria frame (forced, the glow fit moved its centre from
+    0.05 to 0.25 px off) or an Airy frame whose edge loses light (from 0.007 to 0.043 px)."""
+    case = _moon(family, idx)
+    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
+    assert m.extras["profile"]["glow"] == 0.0
 
 
 def _earth(family: str, idx: int):

@@ -143,3 +143,54 @@ def test_brightening_column_is_the_kappa_column_at_zero():
     np.testing.assert_allclose(np.asarray(limb_profile_intensity(q, rc)), np.asarray(limb_profile_intensity(p, rc)),
                                rtol=1e-14, atol=1e-12)
     assert np.abs(np.asarray(cols[-1])).max() > 1.0  # the brightening moves a 150 DN limb by DN per unit kappa
+
+
+def _glow_params(glow: float, h: float, sigma: float = 0.9):
+    from jaxlimb.models import GlowProfileParams
+
+    p = _params(math.radians(70.0), sigma=sigma)
+    return GlowProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()], glow, math.log(h))
+
+
+@pytest.mark.parametrize("h, se", [(0.05, 1.0), (0.3, 1.0), (0.7, 0.6), (3.0, 1.2)])
+def test_glow_above_the_limb_is_the_blurred_exponential(h, se):
+    """The closed form of the sky side (exp(-s/H), s > 0, convolved with N(0, se)) against numerical convolution,
+    from 4 se inside to 6 se outside; a scale height 20x below se does not overflow; the curvature term is 0 at
+    d -> inf."""
+    from scipy import integrate
+
+    p = _glow_params(1.0, h)
+    for s in (-4.0 * se, -1.0, 0.0, 0.4, 2.0, 6.0 * se):
+        num = integrate.quad(lambda t: math.exp(-t / h - 0.5 * ((s - t) / se) ** 2) / (se * math.sqrt(2 * math.pi)),
+                             0.0, 60.0 * h + 20.0 * se, points=[max(s, 0.0)], limit=200)[0]
+        got = float(prof._glow_outside(p, jnp.asarray(s), se, 1e15, False)[0])
+        assert got == pytest.approx(num, rel=1e-8, abs=1e-13)
+
+
+@pytest.mark.parametrize("h, radius, depth", [(0.2, 200.0, 0.05), (0.5, 200.0, 3.0), (2.0, 80.0, 0.7)])
+def test_glow_on_the_disc_is_half_the_grazing_column(h, radius, depth):
+    """The disc side: the shell's column along a ray that leaves the surface ``depth`` px inside the limb
+    (altitude mu t + t^2 / 2R), over the grazing column sqrt(2 pi R H), by quadrature."""
+    from scipy import integrate
+
+    mu = math.sqrt(2.0 * depth / radius)
+    num = integrate.quad(lambda t: math.exp(-(mu * t + t * t / (2 * radius)) / h), 0.0, np.inf)[0]
+    got = float(prof._glow_inside(_glow_params(1.0, h), jnp.asarray(math.sqrt(depth)))[0])
+    assert got == pytest.approx(num / math.sqrt(2 * math.pi * radius * h), rel=1e-10)
+
+
+def test_glow_column_is_the_glow_column_at_zero():
+    """The score test's column equals the widened model's ``glow`` column at ``glow = 0``, and the widened model at
+    ``glow = 0`` is the lunar-Lambert profile (its columns against autodiff and central differences:
+    tests/models/test_physical_models.py)."""
+    from jaxlimb.models import LIMB_PROFILE_GLOW, GlowProfileParams
+    from jaxlimb.models.lunar_lambert import glow_column
+
+    p, q = _params(math.radians(70.0)), _glow_params(0.0, 0.8)
+    rc, _ = _ring(4, n=256)
+    _, cols = jax.jit(LIMB_PROFILE_GLOW.value_and_columns)(q, jnp.asarray(rc))
+    names = GlowProfileParams.field_names()
+    np.testing.assert_allclose(np.asarray(glow_column(p, jnp.asarray(rc), math.log(0.8))),
+                               np.asarray(cols[names.index("glow")]), rtol=1e-12, atol=1e-9)
+    f = jax.jit(limb_profile_intensity)
+    np.testing.assert_allclose(np.asarray(f(q, rc)), np.asarray(f(p, rc)), rtol=1e-14, atol=1e-12)
