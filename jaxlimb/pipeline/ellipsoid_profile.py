@@ -168,18 +168,20 @@ def _with_trace_error(out: RefineResult, edge: "EllipsoidEdge", replace_block: b
 
 def _with_witness(out: RefineResult, edge: "EllipsoidEdge") -> RefineResult:
     """``d d^T`` added to the covariance of ``(r0, c0, a)``, ``d`` the difference between the answer and the other
-    estimate of the same patchy limb (``edge.witness``, :func:`~jaxlimb.pipeline.ellipsoid._patchy_geometry`)."""
+    estimate of the same patchy limb (``edge.witness``, :func:`~jaxlimb.pipeline.ellipsoid._patchy_geometry`), and
+    the traced step's asymmetry likewise (``edge.asymmetry``, :func:`~jaxlimb.pipeline.ellipsoid._asymmetry`)."""
     import equinox as eqx
 
-    if edge.witness is None:
-        return out
     free = list(out.fit.free)
     if not all(n in free for n in ("r0", "c0", "a")):
         return out
     idx = [free.index(n) for n in ("r0", "c0", "a")]
-    d = np.asarray(edge.witness, float) - np.array([float(getattr(out.fit.params, n)) for n in ("r0", "c0", "a")])
     C = np.array(out.fit.covariance)
-    C[np.ix_(idx, idx)] += np.outer(d, d)
+    if edge.witness is not None:
+        d = np.asarray(edge.witness, float) - np.array([float(getattr(out.fit.params, n)) for n in ("r0", "c0", "a")])
+        C[np.ix_(idx, idx)] += np.outer(d, d)
+    if edge.asymmetry is not None:  # the traced step's asymmetry (ellipsoid._asymmetry)
+        C[np.ix_(idx, idx)] += np.outer(edge.asymmetry, edge.asymmetry)
     return replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
 
 
