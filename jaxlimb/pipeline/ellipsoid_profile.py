@@ -142,9 +142,12 @@ def edge_with_model_error(edge: "EllipsoidEdge", rejected: Any = None) -> Refine
     return replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
 
 
-def _with_trace_error(out: RefineResult, edge: "EllipsoidEdge") -> RefineResult:
+def _with_trace_error(out: RefineResult, edge: "EllipsoidEdge", replace_block: bool = False) -> RefineResult:
     """The albedo-patchy limb's model error (:func:`~jaxlimb.pipeline.limb_trace.trace_model_cov`) added to the
-    covariance of ``(r0, c0, a)``."""
+    covariance of ``(r0, c0, a)``; ``replace_block``: the geometry is the rays' own fit
+    (:func:`~jaxlimb.pipeline.ellipsoid._ray_geometry`), so its ``(r0, c0, a)`` covariance *is* the rays'
+    cluster-robust one (residual noise and albedo bias of whole stretches of rays alike), uncorrelated with
+    the band fit's other parameters."""
     import equinox as eqx
 
     from .limb_trace import trace_model_cov
@@ -155,7 +158,30 @@ def _with_trace_error(out: RefineResult, edge: "EllipsoidEdge") -> RefineResult:
         return out
     idx = [free.index(n) for n in names]
     C = np.array(out.fit.covariance)
-    C[np.ix_(idx, idx)] += trace_model_cov(edge.pixels.trace, edge.fitted)
+    if replace_block:
+        C[idx, :], C[:, idx] = 0.0, 0.0
+        C[np.ix_(idx, idx)] = trace_model_cov(edge.pixels.trace, edge.fitted)
+    else:
+        C[np.ix_(idx, idx)] += trace_model_cov(edge.pixels.trace, edge.fitted)
+    return replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
+
+
+def _with_witness(out: RefineResult, edge: "EllipsoidEdge") -> RefineResult:
+    """``d d^T`` added to the covariance of ``(r0, c0, a)``, ``d`` the difference between the answer and the other
+    estimate of the same patchy limb (``edge.witness``, :func:`~jaxlimb.pipeline.ellipsoid._patchy_geometry`), and
+    the traced step's asymmetry likewise (``edge.asymmetry``, :func:`~jaxlimb.pipeline.ellipsoid._asymmetry`)."""
+    import equinox as eqx
+
+    free = list(out.fit.free)
+    if not all(n in free for n in ("r0", "c0", "a")):
+        return out
+    idx = [free.index(n) for n in ("r0", "c0", "a")]
+    C = np.array(out.fit.covariance)
+    if edge.witness is not None:
+        d = np.asarray(edge.witness, float) - np.array([float(getattr(out.fit.params, n)) for n in ("r0", "c0", "a")])
+        C[np.ix_(idx, idx)] += np.outer(d, d)
+    if edge.asymmetry is not None:  # the traced step's asymmetry (ellipsoid._asymmetry)
+        C[np.ix_(idx, idx)] += np.outer(edge.asymmetry, edge.asymmetry)
     return replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
 
 
@@ -165,7 +191,9 @@ def fit_profile_ellipsoid(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge"
         return edge_with_model_error(edge)
     if edge.pixels.patchy:  # the profile's one albedo is not this limb's (clouds): the per-ray step stays
         extras["profile_rejected"] = {"model": "lunar-lambert", "reason": "albedo varies along the lit limb"}
-        return _with_trace_error(edge_with_model_error(edge), edge)
+        if edge.pixels.ray_fit:  # the geometry is the rays' (ellipsoid._ray_geometry): their covariance
+            return _with_witness(_with_trace_error(edge.final, edge, replace_block=True), edge)
+        return _with_witness(_with_trace_error(edge_with_model_error(edge), edge), edge)
     band = body.eo.profile_band_px if body.eo.profile_band_px is not None else body.eo.band_px
     fd = edge.final.data
     if band != body.eo.band_px:

@@ -139,7 +139,8 @@ def _window_stats(vv: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.nd
     return med, rng
 
 
-def _ray_edges(v: np.ndarray, rad: np.ndarray, sky: float, noise: float, step: float, flat_frac: float):
+def _ray_edges(v: np.ndarray, rad: np.ndarray, sky: float, noise: float, step: float, flat_frac: float,
+               level: float = 0.5):
     """Steps 2-4 of the module docstring on every ray: the limb's radius along the ray and the inside level.
     (Tried: the level 2-5 px inside the half crossing, iterated from the foot, so that a bright glow's foot
     does not set it: on the ``clouds`` frames it climbed onto cloud edges inside the ocean limb, centres
@@ -152,7 +153,7 @@ def _ray_edges(v: np.ndarray, rad: np.ndarray, sky: float, noise: float, step: f
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # empty windows (rays off the frame): NaN, rejected below
         P, spread = _window_stats(vv, foot - i1, foot - i0)
-        r_edge, jo = _crossing(vv, rad, sky + 0.5 * (P - sky), foot)
+        r_edge, jo = _crossing(vv, rad, sky + level * (P - sky), foot)
     amp = P - sky
     ok = (foot - i1 >= 0) & (foot < m - 1) & (amp >= 8.0 * noise) & (spread <= flat_frac * amp)
     ok &= (jo >= 1) & (jo < m - 1)
@@ -160,12 +161,14 @@ def _ray_edges(v: np.ndarray, rad: np.ndarray, sky: float, noise: float, step: f
 
 
 def trace_limb(img: np.ndarray, ell: tuple, lit_dir, half: float, search: float, *, step: float = 0.5,
-               flat_frac: float = 0.35) -> TracedLimb:
-    """Trace the limb along rays across the lit window about ellipse ``ell`` (module docstring)."""
+               flat_frac: float = 0.35, level: float = 0.5) -> TracedLimb:
+    """Trace the limb along rays across the lit window about ellipse ``ell`` (module docstring); ``level``: the
+    crossing's fraction of the step (0.5, the edge; others measure the step's asymmetry, see
+    :func:`jaxlimb.pipeline.ellipsoid._asymmetry`)."""
     angles = _ray_angles(ell, lit_dir, half)
     v, rad, u = _sample_rays(img, ell, angles, search, step)
     sky, noise = _sky(v)
-    r_edge, P = _ray_edges(v, rad, sky, noise, step, flat_frac)
+    r_edge, P = _ray_edges(v, rad, sky, noise, step, flat_frac, level)
     c = np.asarray(ell[0], float)
     pts = c[None, :] + r_edge[:, None] * u
     return TracedLimb((float(c[0]), float(c[1])), angles, pts, P, sky, noise)

@@ -12,6 +12,7 @@ import pytest
 
 from jaxlimb.imaging import Hints
 from jaxlimb.pipeline import locate
+from jaxlimb.pipeline.options import LocateOptions
 from jaxlimb.render.independent import EARTH_FAMILIES, MOON_FAMILIES, earth_case, moon_case
 
 jax.config.update("jax_enable_x64", True)
@@ -168,3 +169,36 @@ def test_cloudy_earth_limb_traced_against_the_sky():
     assert np.median(np.abs(d)) < 0.5
     e = fit_traced(tr, start)
     assert np.hypot(e[0][0] - true_ell[0][0], e[0][1] - true_ell[0][1]) < 1.0
+
+
+def test_cloudy_earth_front_end_circle_on_clouds_is_not_the_start():
+    """Benchmark row ``combined`` 3 (380 000 km, 124 px, clouds + glow + JPEG/PSF mix): the gradient front end's
+    circle lies on cloud edges, 69 px too small and 70 px off, inside RANSAC's 3-sigma radius band, and the band
+    fit started from it did not converge (typed failure before).  A circle outside the range prior's 1-sigma
+    radius band is replaced by the disc-and-prior start, the trace reaches the limb, and the answer is within
+    0.5 px with a covariance that covers it."""
+    case = _earth("combined", 3)
+    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
+    err, nees = _errors(case, m)
+    assert err < 0.5
+    assert nees < 13.8
+    assert m.extras["profile_rejected"]["reason"] == "albedo varies along the lit limb"
+
+
+def test_patchy_limb_rays_answer_when_the_band_fit_runs_after_clouds(monkeypatch):
+    """Benchmark row ``clouds`` 1 (380 000 km, 127 px): the band fit of the level-normalised pixels runs 4 px
+    after cloud edges, outside the traced rays' 95 % region; the rays' known-shape ellipse is the answer
+    (``ellipsoid._patchy_geometry``) and the band fit's distance to it enters the covariance.  Forcing the band
+    fit (a chi-square threshold nobody reaches) must give the old, worse answer."""
+    from jaxlimb.pipeline import ellipsoid as E
+
+    case = _earth("clouds", 1)
+    opts = LocateOptions(max_center_sigma_px=None)
+    m = locate(case.image, case.camera, Hints.from_dict(case.hints), opts)
+    err, nees = _errors(case, m)
+    orig = E._patchy_geometry
+    monkeypatch.setattr(E, "_patchy_geometry", lambda b, f, e: orig(b, f, e, chi2=math.inf))
+    m_band = locate(case.image, case.camera, Hints.from_dict(case.hints), opts)
+    err_band, _ = _errors(case, m_band)
+    assert err < 0.5 * err_band
+    assert nees < 13.8

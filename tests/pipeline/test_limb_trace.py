@@ -54,3 +54,22 @@ def test_patchy_disc_outermost_edge_not_the_inner_ring():
     pts = tr.points[tr.ok] - 3.0 * (tr.points[tr.ok] - np.array(tr.center_rc)) / 150.0  # 3 px inside the limb
     keep, fd = normalised_band(img, np.round(pts), tr)
     assert keep.mean() > 0.9 and abs(np.median(fd.z) - 1.0) < 0.1
+
+
+def test_step_asymmetry_witness_sees_a_one_sided_glow():
+    """``ellipsoid._asymmetry``: on a uniform blurred disc the ellipses through the 30 % and 70 % crossings share
+    their centre (only the radius moves, by the step's width); a glow above one half of the lit arc raises the
+    30 % crossings there and not the 70 % ones, and the centres part."""
+    from jaxlimb.pipeline.ellipsoid import _asymmetry
+
+    img, truth = _disc(False)
+    lit, half = (0.0, 1.0), np.radians(60.0)
+    d0 = _asymmetry(img, truth, lit, half)
+    r0, c0 = truth[0]
+    y, x = np.mgrid[0:400, 0:420].astype(float)
+    rr = np.hypot(y - r0, x - c0)
+    glow = np.where((rr > 150.0) & (y < r0) & (x > c0), 30.0 * np.exp(-(rr - 150.0) / 1.5), 0.0)
+    d1 = _asymmetry(img + gaussian_filter(glow, 0.8), truth, lit, half)
+    assert d0 is not None and d1 is not None
+    assert np.hypot(d0[0], d0[1]) < 0.03 and d0[2] == 0.0
+    assert np.hypot(d1[0], d1[1]) > 0.1
