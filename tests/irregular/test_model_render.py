@@ -116,3 +116,26 @@ def test_mesh_renderer_does_not_import_the_ellipsoid_renderer():
     code = "import sys, jaxlimb.irregular.locate; print('jaxlimb.render.body' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
     assert out == "False"
+
+
+@pytest.mark.parametrize("ss", [4, 8])
+def test_raster_outline_is_not_dilated(ss):
+    """A convex mesh's coverage is the area of its outline (the hull of the projected vertices), not the
+    outline dilated by half a sub-pixel (``cv2.fillConvexPoly`` fills pixels its edges only touch:
+    +0.5/ss px along the whole outline before the trim)."""
+    import trimesh
+    from scipy.spatial import ConvexHull
+
+    from jaxlimb.render.mesh import rasterise
+
+    V = trimesh.creation.icosphere(subdivisions=3).vertices * 1.0
+    t = np.array([0.7, -0.4, 30.0])  # ~60 px radius at f = 1500 px
+    Xc = V + t
+    F = np.asarray(trimesh.creation.icosphere(subdivisions=3).faces)
+    ras = rasterise(Xc, F, CAM, ss)
+    area = float((ras.buf > 0).sum()) / ss**2
+    rc = np.stack([CAM.principal_point_rc[0] + CAM.focal_px * Xc[:, 1] / Xc[:, 2],
+                   CAM.principal_point_rc[1] + CAM.focal_px * Xc[:, 0] / Xc[:, 2]], axis=1)  # fmt: skip
+    hull = ConvexHull(rc)
+    mean_offset_px = (area - hull.volume) / hull.area  # (2-D hull: volume = area, area = perimeter)
+    assert abs(mean_offset_px) < 0.02, mean_offset_px  # 0.13 and 0.063 px untrimmed
