@@ -16,13 +16,10 @@ Reflectance (``mu0 = n.s`` toward the Sun, ``mu = n.e`` toward the camera):
 Faces with ``mu0 <= 0`` are dark; a face turned toward the Sun is darkened by the share of it
 the body itself hides from the Sun (cast shadows, :func:`shadow_fractions`, per face).
 
-OpenCV's polygon fill includes the pixels its edges pass through, i.e. every
-facet is dilated by about half a *sub-pixel* (``0.5 / supersample`` px, 0.125 px
-at the default 4x); on the outline (against the sky) the sub-pixels whose centre
-no facet contains are trimmed back (:func:`_trim_outline`), so the figure is the
-set of sub-pixel centres inside it.  Between facets (and where a near part of
-the body hides a far one) the nearer facet still overlaps its neighbour by up
-to half a sub-pixel.
+Accuracy caveat: OpenCV's polygon fill includes the pixels its edges pass
+through, i.e. the figure is dilated by about half a *sub-pixel*
+(``0.5 / supersample`` px, 0.125 px at the default 4x).  A uniform dilation
+hardly moves a figure's centre; it is the limit of this renderer's exactness.
 
 Truth: the image of the body centre (mesh origin) is ``camera.project(t)``.
 """
@@ -169,47 +166,7 @@ def rasterise(Xc: np.ndarray, F: np.ndarray, camera: object, ss: int) -> Raster 
     fill = cv2.fillConvexPoly
     for k, tri in zip((order + 1).tolist(), pts):
         fill(buf, tri, k, cv2.LINE_8, 8)
-    _trim_outline(buf, sub, F, cen[:, 2])
     return Raster(buf, int(rmin), int(cmin), int(h), int(w), n, mu)
-
-
-def _inside(tri: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """Whether points ``p`` ``(..., 2)`` lie in the triangles ``tri`` ``(..., 3, 2)`` (either winding, edges included)."""
-    e = [(tri[..., (i + 1) % 3, 0] - tri[..., i, 0]) * (p[..., 1] - tri[..., i, 1])
-         - (tri[..., (i + 1) % 3, 1] - tri[..., i, 1]) * (p[..., 0] - tri[..., i, 0]) for i in range(3)]  # fmt: skip
-    return ((e[0] >= 0) & (e[1] >= 0) & (e[2] >= 0)) | ((e[0] <= 0) & (e[1] <= 0) & (e[2] <= 0))
-
-
-_NB = (0, -1, 1, -2, 2)  # neighbourhood offsets of the candidate facets, the sub-pixel's own first
-_CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
-
-
-def _trim_outline(buf: np.ndarray, sub: np.ndarray, F: np.ndarray, depth: np.ndarray) -> None:
-    """Sub-pixels of the outline (filled, with a sky 4-neighbour) whose centre no facet drawn in their 5 x 5
-    neighbourhood contains become sky; the others take the nearest facet that contains them (in place).
-
-    ``cv2.fillConvexPoly`` also fills the pixels within about half a pixel outside a polygon's edges,
-    so the painter's buffer dilates the figure by half a sub-pixel; a uniform dilation hardly
-    moves a fully lit figure's centre, but at 90 deg phase only the lit limb is outline (the
-    terminator is not): a ray-traced Eros, Lommel-Seeliger, no PSF, 10x the long axis, was registered
-    0.12 px off at 4x supersampling, 0.07 px with this trim.  ``sub``: vertex sub-pixel coordinates
-    (row, col), the centre of sub-pixel ``(i, j)`` being ``(i, j)``."""
-    filled = (buf > 0).view(np.uint8)
-    nz = cv2.findNonZero(cv2.subtract(filled, cv2.erode(filled, _CROSS, borderType=cv2.BORDER_CONSTANT, borderValue=0)))
-    if nz is None:
-        return
-    cc, rr = nz.reshape(-1, 2).T
-    own = buf[rr, cc]
-    out = ~_inside(sub[F[own - 1]], np.stack([rr, cc], axis=1).astype(float))
-    rr, cc = rr[out], cc[out]  # (most outline sub-pixels lie in their own facet)
-    h, w = buf.shape
-    cand = np.stack([buf[np.clip(rr + dr, 0, h - 1), np.clip(cc + dc, 0, w - 1)] for dr in _NB for dc in _NB], axis=1)
-    face = np.maximum(cand - 1, 0)
-    ok = (cand > 0) & _inside(sub[F[face]], np.stack([rr, cc], axis=1).astype(float)[:, None, :])
-    key = np.where(ok, depth[face], np.inf)
-    best = np.argmin(key, axis=1)
-    keep = np.isfinite(key[np.arange(rr.size), best])
-    buf[rr, cc] = np.where(keep, cand[np.arange(rr.size), best], 0)
 
 
 def shade(mu0: np.ndarray, mu: np.ndarray, reflectance: str) -> np.ndarray:

@@ -118,29 +118,6 @@ def test_mesh_renderer_does_not_import_the_ellipsoid_renderer():
     assert out == "False"
 
 
-@pytest.mark.parametrize("ss", [4, 8])
-def test_raster_outline_is_not_dilated(ss):
-    """A convex mesh's coverage is the area of its outline (the hull of the projected vertices), not the
-    outline dilated by half a sub-pixel (``cv2.fillConvexPoly`` fills pixels its edges only touch:
-    +0.5/ss px along the whole outline before the trim)."""
-    import trimesh
-    from scipy.spatial import ConvexHull
-
-    from jaxlimb.render.mesh import rasterise
-
-    V = trimesh.creation.icosphere(subdivisions=3).vertices * 1.0
-    t = np.array([0.7, -0.4, 30.0])  # ~60 px radius at f = 1500 px
-    Xc = V + t
-    F = np.asarray(trimesh.creation.icosphere(subdivisions=3).faces)
-    ras = rasterise(Xc, F, CAM, ss)
-    area = float((ras.buf > 0).sum()) / ss**2
-    rc = np.stack([CAM.principal_point_rc[0] + CAM.focal_px * Xc[:, 1] / Xc[:, 2],
-                   CAM.principal_point_rc[1] + CAM.focal_px * Xc[:, 0] / Xc[:, 2]], axis=1)  # fmt: skip
-    hull = ConvexHull(rc)
-    mean_offset_px = (area - hull.volume) / hull.area  # (2-D hull: volume = area, area = perimeter)
-    assert abs(mean_offset_px) < 0.02, mean_offset_px  # 0.13 and 0.063 px untrimmed
-
-
 @pytest.mark.parametrize("n_split", [1, 3])
 def test_vertex_normal_does_not_depend_on_the_triangulation(n_split):
     """Two planar wedges of 90 deg meet at a vertex; however the first is cut into triangles and however
