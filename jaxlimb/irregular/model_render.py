@@ -251,10 +251,23 @@ def _safe(x: np.ndarray) -> np.ndarray:
 
 
 def _vertex_normals(Xc: np.ndarray, F: np.ndarray) -> np.ndarray:
-    """Area-weighted unit vertex normals."""
-    n = np.cross(Xc[F[:, 1]] - Xc[F[:, 0]], Xc[F[:, 2]] - Xc[F[:, 0]])
-    idx = F.ravel()  # (face, corner) order: each face's normal once per corner
-    vn = np.stack([np.bincount(idx, weights=np.repeat(n[:, j], 3), minlength=len(Xc)) for j in range(3)], axis=1)
+    """Unit vertex normals: the facets' unit normals weighted by their angle at the vertex (Thurmer & Wuthrich
+    1998, "Computing vertex normals from polygonal facets", J. Graphics Tools 3(1), Eq. 1).
+
+    Angle weights do not depend on how the surface round the vertex is cut into triangles; area weights
+    lean toward the large facets.  On a ray-traced elongated body at 90 deg phase (smooth shading,
+    lunar-Lambert, uniform albedo; ``benchmarks/irregular_independent.py``'s view) the registration
+    moved 0.131 -> 0.089 px with them (the independent renderer's normals are these, from ``trimesh``)."""
+    P = [Xc[F[:, i]] for i in range(3)]
+    n = np.cross(P[1] - P[0], P[2] - P[0])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    w = np.empty((len(F), 3))
+    for i in range(3):
+        a, b = P[(i + 1) % 3] - P[i], P[(i + 2) % 3] - P[i]
+        cos = np.einsum("ij,ij->i", a, b) / np.maximum(np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1), 1e-300)
+        w[:, i] = np.arccos(np.clip(cos, -1.0, 1.0))
+    idx = F.ravel()  # (face, corner) order
+    vn = np.stack([np.bincount(idx, weights=(w * n[:, j : j + 1]).ravel(), minlength=len(Xc)) for j in range(3)], axis=1)
     return vn / np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
 
 

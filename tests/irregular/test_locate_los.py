@@ -13,7 +13,7 @@ from jaxlimb.geometry.camera import Camera
 from jaxlimb.irregular.database import DatabaseOptions, build_database
 from jaxlimb.irregular.locate import LosMode, locate_los, phase_angle_deg
 from jaxlimb.irregular.phase import contour_normals
-from jaxlimb.irregular.register import register_known_attitude
+from jaxlimb.irregular.register import RegisterOptions, register_known_attitude
 from jaxlimb.irregular.shapes import ShapeFamily, generate_shape
 from jaxlimb.render.mesh import MeshRenderOptions, render_mesh
 
@@ -79,6 +79,19 @@ def test_known_attitude_registration_sub_tenth_pixel(body, phase):
     sd = np.sqrt(np.linalg.eigvalsh(res.fit.covariance_rc))
     assert np.all(sd > 0) and np.all(sd < 0.05)
     assert res.fit.iou > 0.95 and res.fit.excess_frac < 0.03
+
+
+@pytest.mark.parametrize("phase", [60.0, 90.0])
+def test_pedestal_under_the_whole_frame_does_not_move_the_centre(body, phase):
+    """A level under the whole frame (bias, dark current) lifts the unlit side of the body too; fitted
+    as sky alone (``1 - C``) it made the dark side an edge: 0.22 px at 60 deg (0.01 with the column)."""
+    R = _rot([0.3, 1.0, 0.2], 70.0)
+    img, truth, sun, t = _scene(body, R, phase)
+    for frame in (img, img + 30.0):
+        res = register_known_attitude(frame, body, CAM, R, sun, 1.1 * np.linalg.norm(t))
+        assert np.linalg.norm(res.centre_rc - truth) < 0.03
+    off = register_known_attitude(img + 30.0, body, CAM, R, sun, 1.1 * np.linalg.norm(t), RegisterOptions(pedestal_min_dark_frac=0.0))
+    assert np.linalg.norm(off.centre_rc - truth) > np.linalg.norm(res.centre_rc - truth)
 
 
 def None_db(mesh):

@@ -116,3 +116,19 @@ def test_mesh_renderer_does_not_import_the_ellipsoid_renderer():
     code = "import sys, jaxlimb.irregular.locate; print('jaxlimb.render.body' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
     assert out == "False"
+
+
+@pytest.mark.parametrize("n_split", [1, 3])
+def test_vertex_normal_does_not_depend_on_the_triangulation(n_split):
+    """Two planar wedges of 90 deg meet at a vertex; however the first is cut into triangles and however
+    large they are, the vertex normal is the bisector of the two planes' normals (angle weights)."""
+    from jaxlimb.irregular.model_render import _vertex_normals
+
+    th = np.linspace(0.0, 0.5 * math.pi, n_split + 1)
+    arc = 3.0 * np.stack([np.cos(th), np.sin(th), np.zeros_like(th)], axis=1)  # plane z = 0, large triangles
+    d2 = np.array([0.0, -1.0, 1.0]) / math.sqrt(2.0)  # plane through x and d2, one small triangle
+    V = np.vstack([np.zeros(3), arc, d2, [1.0, 0.0, 0.0]])
+    k = len(arc)
+    F = np.array([[0, 1 + i, 2 + i] for i in range(n_split)] + [[0, k + 1, k + 2]])
+    want = np.array([0.0, 0.0, 1.0]) + np.array([0.0, 1.0, 1.0]) / math.sqrt(2.0)
+    np.testing.assert_allclose(_vertex_normals(V, F)[0], want / np.linalg.norm(want), atol=1e-9)

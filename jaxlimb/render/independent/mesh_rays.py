@@ -7,8 +7,9 @@ the model the registration fits (:mod:`jaxlimb.irregular.model_render`).  Here:
 * **geometry**: every pixel of the body's window is sampled by ``s x s`` jittered rays from the
   pinhole, intersected with the mesh by Embree (``trimesh`` with ``embreex``); a pixel is the mean
   of its rays (area coverage of the silhouette and of the shadows);
-* **shading**: normals interpolated across each facet from area-weighted vertex normals (smooth
-  shading, no facet edges), and the facet must face the Sun as well;
+* **shading**: normals interpolated across each facet from the vertex normals of ``trimesh``
+  (facet normals weighted by their angle at the vertex; smooth shading, no facet edges), and the
+  facet must face the Sun as well;
 * **cast shadows**: a ray toward the Sun from every lit hit; a hit on the body is a shadow
   (concavities, the neck of a contact binary, crater walls);
 * **reflectance**: the independent laws of :class:`~.surface.Photometry` (Hapke, Minnaert,
