@@ -60,6 +60,7 @@ import cv2
 import numpy as np
 
 from ..errors import ConvergenceError, MatchError
+from ..pipeline.checks import check_center_sigma
 from .mesh import Mesh
 from .model_render import MIX_LAWS, attitude_columns, clustered_mesh, downsample, level_camera, render_window
 from .silhouette import figure_centre, figure_extents, mesh_topology, render_silhouette, segment_components
@@ -107,6 +108,11 @@ class RegisterOptions:
         fitted contrast ``a`` (fraction).
     min_iou
         Smallest accepted overlap of the observed and predicted lit figures.
+    max_center_sigma_px
+        Largest accepted 1-sigma of the centre (px, the larger axis), as ``LocateOptions.max_center_sigma_px`` for
+        round bodies: a registration that does not measure the centre better is a typed failure
+        (``center_too_uncertain``), not ``ok`` with a wide covariance (an Eros at 90 deg phase and 10x its long
+        axis finished 1.84 px off with sigma 2.2 px); ``None``: no limit.
     albedo_order
         Degree of a polynomial albedo field across the body fitted with the model (linear columns
         ``M x^i y^j``, ``1 <= i + j <= albedo_order``); 0: uniform albedo.
@@ -183,6 +189,7 @@ class RegisterOptions:
     margin_px: int = 4
     max_excess_frac: float = 0.12
     min_iou: float = 0.9
+    max_center_sigma_px: float | None = 1.0
     model_floor_px: float = 0.004
     model_error_sectors: int = 16
     model_error_scale: float = 2.5
@@ -910,6 +917,7 @@ def finish_registration(img, camera, segmentation, st: GNState, ncc: float, opti
         )
     if iou < options.min_iou:
         raise MatchError(f"the predicted and observed lit figures overlap by IoU {iou:.3f} (limit {options.min_iou})")
+    check_center_sigma(cov, options.max_center_sigma_px)
     t = _pose(camera, P, D)
     return RegisterResult(
         centre_rc=np.asarray(P, dtype=float),
