@@ -214,28 +214,24 @@ def _radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool =
     return I, I_R, I_cpsi, I_a0, I_ph, I_L, I_k
 
 
-def _mu0_along_ray(p: LimbProfileParams, v, R, cpsi, alpha0):
-    """``mu0`` at depth ``v**2`` below the limb (the geometry of :func:`_radiance_parts`, no derivatives)."""
-    q = jnp.clip(1.0 - v * v / R, 0.0, 1.0)
-    mu = v * jnp.sqrt((1.0 + q) / R)
-    cb, sb = jnp.cos(q * alpha0), jnp.sin(q * alpha0)
-    return (q * cb - mu * sb) * jnp.sin(p.phase) * cpsi + (mu * cb + q * sb) * jnp.cos(p.phase)
-
-
 def _terminator_depth(p: LimbProfileParams, R, cpsi, alpha0):
-    """``v_t``, the root of the depth where the ray meets the terminator (``mu0 = 0``).
+    """``v_t``, the root of the depth where the ray meets the terminator (``mu0 = 0``), and which side is lit.
 
     ``mu0 = sin(g) sin(phase) cpsi + cos(g) cos(phase)`` with ``g = e - beta = e - alpha0 sin e`` (module
     docstring) vanishes at ``g_t = atan(-cos(phase) / (sin(phase) cpsi))`` in ``(-pi/2, pi/2]``; ``e_t`` from
-    three Newton steps on ``e - alpha0 sin e = g_t`` (``alpha0 <= 0.3``), then ``v_t^2 = R (1 - sin e_t)``.
-    Rays that never meet it get a ``v_t`` that the caller's sign test ignores.
+    one Newton step on ``e - alpha0 sin e = g_t`` from ``g_t + alpha0 sin g_t`` (an error in
+``v_t`` adds or drops a sliver where the radiance is near 0: second order), then ``v_t^2 = R (1 - sin e_t)``.
+    Also returns whether the shallow side (``g > g_t``) is the lit one: ``d mu0 / dg`` at the unwrapped root
+    ``atan2(-cos(phase), sin(phase) cpsi)`` is ``sqrt(a_s^2 + cos^2 phase) > 0``, and it changes sign when the
+    root is shifted by pi into ``(-pi/2, pi/2]``.  A root beyond the centre (``g_t < 0``) gives ``v_t`` at the
+    centre, one beyond the limb ``v_t = 0``: the caller's clip to the window then keeps all or none of it.
     """
-    g = jnp.arctan2(-jnp.cos(p.phase), jnp.sin(p.phase) * cpsi)
-    g = jnp.where(g > 0.5 * math.pi, g - math.pi, jnp.where(g <= -0.5 * math.pi, g + math.pi, g))
+    theta = jnp.arctan2(-jnp.cos(p.phase), jnp.sin(p.phase) * cpsi)
+    wrapped = (theta > 0.5 * math.pi) | (theta <= -0.5 * math.pi)
+    g = jnp.where(theta > 0.5 * math.pi, theta - math.pi, jnp.where(theta <= -0.5 * math.pi, theta + math.pi, theta))
     e = g + alpha0 * jnp.sin(g)
-    for _ in range(3):
-        e = e - (e - alpha0 * jnp.sin(e) - g) / (1.0 - alpha0 * jnp.cos(e))
-    return jnp.sqrt(R * jnp.maximum(1.0 - jnp.sin(jnp.clip(e, 0.0, 0.5 * math.pi)), 0.0))
+    e = e - (e - alpha0 * jnp.sin(e) - g) / (1.0 - alpha0 * jnp.cos(e))  # one Newton step: error O(alpha0^4) rad
+    return jnp.sqrt(R * jnp.maximum(1.0 - jnp.sin(jnp.clip(e, 0.0, 0.5 * math.pi)), 0.0)), ~wrapped
 
 
 def _lit_limits(p: LimbProfileParams, v0, v1, R, cpsi, alpha0):
@@ -248,10 +244,11 @@ def _lit_limits(p: LimbProfileParams, v0, v1, R, cpsi, alpha0):
     which is 0, so the columns of :func:`_profile_integrals` need no boundary term.  A ray meets the
     terminator at most once (``mu0`` is a sinusoid in ``e - beta``, which spans less than pi).
     """
-    lit0 = _mu0_along_ray(p, v0, R, cpsi, alpha0) > 0
-    lit1 = _mu0_along_ray(p, v1, R, cpsi, alpha0) > 0
-    vt = jnp.clip(_terminator_depth(p, R, cpsi, alpha0), v0, v1)
-    return jnp.where(~lit0 & lit1, vt, v0), jnp.where(lit0 & ~lit1, vt, v1)
+    # g = e - beta falls monotonically with depth (dg/de = 1 - alpha0 cos e > 0): the shallow side of v_t is
+    # [v0, v_t], the deep side [v_t, v1]
+    vt, shallow_lit = _terminator_depth(p, R, cpsi, alpha0)
+    vt = jnp.clip(vt, v0, v1)
+    return jnp.where(shallow_lit, v0, vt), jnp.where(shallow_lit, vt, v1)
 
 
 def limb_geometry(p: LimbProfileParams, rc):
