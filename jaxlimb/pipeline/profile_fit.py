@@ -142,8 +142,8 @@ def downweight_patchy_sectors(frame: Frame, rr: RefineResult, solver, r: np.ndar
     *radial* shape within a pixel or two of the edge (5 deg of surface from the limb is 0.4 px in the image),
     which an amplitude along the limb cannot follow (measured: it did not help), and pulls the centre by up
     to 0.11 px.  The sectors it crosses misfit far above the noise.  Measured on the independent maria frames
-    (``benchmarks/families.py``): centre median / max 0.048 / 0.115 -> 0.019 / 0.043 px, ``combined`` (Hapke,
-    maria, any PSF, JPEG) 0.078 / 0.100 -> 0.016 / 0.076 px.  ``r``: ``rr``'s unweighted residuals, if known.
+    (``benchmarks/families.py``): centre median / max 0.048 / 0.115 -> 0.023 / 0.043 px, ``combined`` (Hapke,
+    maria, any PSF, JPEG) 0.078 / 0.100 -> 0.015 / 0.093 px.  ``r``: ``rr``'s unweighted residuals, if known.
     """
     model = profile_model(rr.fit.params)
     coords = np.asarray(rr.data.coords, float)
