@@ -219,8 +219,8 @@ def _terminator_depth(p: LimbProfileParams, R, cpsi, alpha0):
 
     ``mu0 = sin(g) sin(phase) cpsi + cos(g) cos(phase)`` with ``g = e - beta = e - alpha0 sin e`` (module
     docstring) vanishes at ``g_t = atan(-cos(phase) / (sin(phase) cpsi))`` in ``(-pi/2, pi/2]``; ``e_t`` from
-    two Newton steps on ``e - alpha0 sin e = g_t`` from ``g_t + alpha0 sin g_t`` (one left
-``v_t`` off by O(alpha0^4) rad, and the columns 3e-4 from autodiff at a 0.21 rad body's horn), then ``v_t^2 = R (1 - sin e_t)``.
+    two Newton steps on ``e - alpha0 sin e = g_t`` from ``g_t + alpha0 sin g_t`` (one left ``v_t`` off by
+    O(alpha0^4) rad, and the columns 3e-4 from autodiff at a 0.21 rad body's horn), then ``v_t^2 = R (1 - sin e_t)``.
     Also returns whether the shallow side (``g > g_t``) is the lit one: ``d mu0 / dg`` at the unwrapped root
     ``atan2(-cos(phase), sin(phase) cpsi)`` is ``sqrt(a_s^2 + cos^2 phase) > 0``, and it changes sign when the
     root is shifted by pi into ``(-pi/2, pi/2]``.  A root beyond the centre (``g_t < 0``) gives ``v_t`` at the
