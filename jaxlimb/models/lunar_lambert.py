@@ -357,6 +357,17 @@ def _blur_nodes(d, R, se, lit=None):
     return v, t, g
 
 
+def _blur_moments(J, t, g, se, second: bool):
+    """The blur of ``J`` on the nodes ``(t, g)`` of :func:`_blur_nodes`: ``F1 = int J g`` and ``dF1/dd``; with
+    ``second`` also ``d^2F1/dd^2`` and ``-int J t (t^2 - 3) g / se^2`` (the ``se`` partial of ``dF1/dd``, up to the
+    chain factor); ``None`` for those otherwise."""
+    m0, m1 = jnp.sum(J * g, axis=-1), -jnp.sum(J * t * g / se, axis=-1)
+    if not second:
+        return m0, m1, None, None
+    return (m0, m1, jnp.sum(J * (t * t - 1.0) * g, axis=-1) / (se * se),
+            -jnp.sum(J * t * (t * t - 3.0) * g, axis=-1) / (se * se))
+
+
 def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brightened: bool = True,
                        glowing: bool = False):
     """The blurred profile ``F`` (module docstring) and, if asked, its partials.
@@ -376,14 +387,14 @@ def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brig
     v, t, g = _blur_nodes(d, R, se, (p, cpsi, alpha0))
     I, I_R, I_cpsi, I_a0, I_ph, I_L, I_k = _radiance_parts(p, v, R[..., None], cpsi[..., None], alpha0, brightened)
     tg = t * g / se  # -dg/dd
-    F1, F1_d = jnp.sum(I * g, axis=-1), -jnp.sum(I * tg, axis=-1)
+    F1, F1_d, F1_dd, F1_dse = _blur_moments(I, t, g, se, derivatives)
     if glowing:  # the glow seen on the disc, on its own (uncut) nodes: independent of R, cpsi, alpha0, phase, L
         vg, t_gl, g_gl = _blur_nodes(d, R, se)
         tg_gl = t_gl * g_gl / se
         I_gl, I_lh = _glow_inside(p, vg)
         I_lh = p.glow * I_lh
-        F1 = F1 + p.glow * jnp.sum(I_gl * g_gl, axis=-1)
-        F1_d = F1_d - p.glow * jnp.sum(I_gl * tg_gl, axis=-1)
+        G1, G1_d, G1_dd, G1_dse = _blur_moments(I_gl, t_gl, g_gl, se, derivatives)
+        F1, F1_d = F1 + p.glow * G1, F1_d + p.glow * G1_d
     s2d = se * se / (2.0 * d)
     F = F1 + s2d * F1_d
     if glowing:
@@ -391,11 +402,8 @@ def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brig
         F = F + p.glow * Go
     if not derivatives:
         return F, None
-    F1_dd = jnp.sum(I * (t * t - 1.0) * g, axis=-1) / (se * se)
-    F1_dse = -jnp.sum(I * t * (t * t - 3.0) * g, axis=-1) / (se * se)
     if glowing:
-        F1_dd = F1_dd + p.glow * jnp.sum(I_gl * (t_gl * t_gl - 1.0) * g_gl, axis=-1) / (se * se)
-        F1_dse = F1_dse - p.glow * jnp.sum(I_gl * t_gl * (t_gl * t_gl - 3.0) * g_gl, axis=-1) / (se * se)
+        F1_dd, F1_dse = F1_dd + p.glow * G1_dd, F1_dse + p.glow * G1_dse
 
     def pair(J, g=g, tg=tg):  # (integral of J g, of -J tg): a partial of F1 and the matching partial of F1_d
         return jnp.sum(J * g, axis=-1), -jnp.sum(J * tg, axis=-1)
@@ -544,8 +552,7 @@ def _glow_unit(p: GlowProfileParams, d, R, se):
     """The blurred glow of unit ``glow`` (both sides of the limb, curvature term included)."""
     v, t, g = _blur_nodes(d, R, se)
     G_in, _ = _glow_inside(p, v)
-    F1 = jnp.sum(G_in * g, axis=-1)
-    F1_d = -jnp.sum(G_in * t * g / se, axis=-1)
+    F1, F1_d, _, _ = _blur_moments(G_in, t, g, se, False)
     return F1 + se * se / (2.0 * d) * F1_d + _glow_outside(p, d - R, se, d, False)[0]
 
 
