@@ -106,12 +106,12 @@ def _ck_probe(fr, g) -> dict:
         W = X[3:, :3] @ X[:3, :3].T
         w = np.array([W[2, 1], W[0, 2], W[1, 0]])
 
-        def centre(t):
+        def center(t):
             pos, _ = sp.spkpos(g.target, t, "J2000", "CN+S", inst.observer)
             return cam.project(F @ np.asarray(sp.pxform("J2000", inst.spice_name, t)) @ np.asarray(pos))
 
-        c0 = centre(et)
-        shifts = {f"{dt:+.1f}s": (centre(et + dt) - c0).tolist() for dt in (-1.0, -0.5, 0.5, 1.0)}
+        c0 = center(et)
+        shifts = {f"{dt:+.1f}s": (center(et + dt) - c0).tolist() for dt in (-1.0, -0.5, 0.5, 1.0)}
     return {"rate_urad_s": float(np.linalg.norm(w) * 1e6), "rate_px_s": float(np.linalg.norm(w[:2]) * cam.focal_px),
             "predicted_center_shift_px": shifts}
 

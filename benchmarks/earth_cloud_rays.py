@@ -89,7 +89,7 @@ def _step_edges(v, s, sky, e0, sig, w_in, sqrt_term, w_out=3.0):
     return be, bA, best
 
 
-def _centre_error(ell, u, r_true, e, ok) -> float:
+def _center_error(ell, u, r_true, e, ok) -> float:
     """Ellipse-centre error (px) of the known-shape fit to the points ``r_true + e`` of the rays ``ok``."""
     from jaxlimb.pipeline.limb_trace import TracedLimb, fit_traced
 
@@ -114,7 +114,7 @@ def measure(case) -> dict:
     kept, e_cur = np.isfinite(r_e), np.nan_to_num(r_e - r_true)
     sector = np.floor(np.degrees(ang - ang.min()) / 10.0).astype(int)
     out = {"R_px": float(t.semi_axes_px[0]), "psf": case.meta["psf"], "n_rays": int(len(ang)), "n_kept": int(kept.sum()),
-           "current": {"centre_err_px": _centre_error(ell, u, r_true, e_cur, kept),
+           "current": {"center_err_px": _center_error(ell, u, r_true, e_cur, kept),
                        "sector_median_px": [float(np.median(e_cur[kept & (sector == k)])) if (kept & (sector == k)).any()
                                             else None for k in range(sector.max() + 1)]}}
     for name, w_in, sq in (("step_w1", 1.0, False), ("step_w3", 3.0, False), ("sqrt_w4", 4.0, True)):
@@ -122,8 +122,8 @@ def measure(case) -> dict:
         sig = min(rss, key=rss.get)
         e, A, _ = _step_edges(v, s, sky, e_cur, sig, w_in, sq)
         good = np.isfinite(e) & (A > 8 * noise)
-        out[name] = {"sigma": sig, "centre_err_kept_px": _centre_error(ell, u, r_true, e, good & kept),
-                     "centre_err_all_px": _centre_error(ell, u, r_true, e, good), "n_all": int(good.sum())}
+        out[name] = {"sigma": sig, "center_err_kept_px": _center_error(ell, u, r_true, e, good & kept),
+                     "center_err_all_px": _center_error(ell, u, r_true, e, good), "n_all": int(good.sum())}
     return out
 
 
@@ -143,8 +143,8 @@ def main(argv=None) -> int:
     for fr in a.frames.split(","):
         fam, i = fr.split(":")
         r = res[fr] = measure(_case("earth", fam, int(i), 2026, a.cache))
-        print(f"{fr:11s} R {r['R_px']:5.0f} rays {r['n_rays']:4d} kept {r['n_kept']:4d}  current {r['current']['centre_err_px']:.3f}  "
-              + "  ".join(f"{k} {r[k]['centre_err_kept_px']:.3f}/{r[k]['centre_err_all_px']:.3f}" for k in ("step_w1", "step_w3", "sqrt_w4")),
+        print(f"{fr:11s} R {r['R_px']:5.0f} rays {r['n_rays']:4d} kept {r['n_kept']:4d}  current {r['current']['center_err_px']:.3f}  "
+              + "  ".join(f"{k} {r[k]['center_err_kept_px']:.3f}/{r[k]['center_err_all_px']:.3f}" for k in ("step_w1", "step_w3", "sqrt_w4")),
               flush=True)
     print(f"saved {save(a.out, {'frames': res, 'environment': environment()})}")
     return 0

@@ -139,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
         for iv, (mode, ph, dist, off) in enumerate(_views(args)):
             key = f"{name.replace(':', '_')}_{iv}_s{args.seed}"
             img, own, truth, R, t, sun, meta = _frames(name, model, VF, cam, pin, ph, dist, off, rng, args.cache, key)
-            base = {"body": name, "mode": mode, "phase": ph, "distance_x_long_axis": dist, "off_centre": off, **meta}
+            base = {"body": name, "mode": mode, "phase": ph, "distance_x_long_axis": dist, "off_center": off, **meta}
             for fam, im in (("independent", img), ("own", own)):
                 row = {**base, "family": fam, **run_case(db, cam, im, truth, R, t, sun, mode)}
                 rows.append(row)

@@ -60,14 +60,14 @@ def camera():
     return Camera(focal_length_mm=30.0, pixel_pitch_mm=0.02, rows=1024, cols=1024)
 
 
-def view_geometry(max_radius: float, cam, phase_deg: float, dist_factor: float, off_centre: bool, rng):
+def view_geometry(max_radius: float, cam, phase_deg: float, dist_factor: float, off_center: bool, rng):
     """A random view: attitude ``R``, body centre ``t`` (camera frame, km) and Sun direction."""
     from scipy.spatial.transform import Rotation
 
     D = dist_factor * 2.0 * max_radius
     R = Rotation.random(random_state=int(rng.integers(1 << 31))).as_matrix()
     u = np.array([0.0, 0.0, 1.0])
-    if off_centre:
+    if off_center:
         rad_px = cam.focal_px * max_radius / (D - max_radius)
         lim = max(cam.rows / 2 - rad_px - 20, 0.0)
         off = rng.uniform(-lim, lim, 2)
@@ -82,14 +82,14 @@ def view_geometry(max_radius: float, cam, phase_deg: float, dist_factor: float, 
     return R, t, tv * math.cos(ph) + a * math.sin(ph)
 
 
-def make_view(mesh, cam, phase_deg: float, dist_factor: float, off_centre: bool, noise: float, rng):
+def make_view(mesh, cam, phase_deg: float, dist_factor: float, off_center: bool, noise: float, rng):
     """A random view (:func:`view_geometry`): image, truth centre, attitude, Sun direction (camera frame)."""
     from jaxlimb.render.mesh import MeshRenderOptions, render_mesh
 
-    R, t, sun = view_geometry(mesh.max_radius, cam, phase_deg, dist_factor, off_centre, rng)
+    R, t, sun = view_geometry(mesh.max_radius, cam, phase_deg, dist_factor, off_center, rng)
     opts = MeshRenderOptions(noise_sigma=noise, seed=int(rng.integers(1 << 30)), albedo=200.0, background=10.0)
     out = render_mesh(mesh.vertices, mesh.faces, cam, R, t, sun_dir_camera=sun, options=opts)
-    return out.image, out.centre_rc, R, t, sun
+    return out.image, out.center_rc, R, t, sun
 
 
 def run_case(db, cam, img, truth, R, t, sun, mode: str) -> dict:
@@ -100,7 +100,7 @@ def run_case(db, cam, img, truth, R, t, sun, mode: str) -> dict:
     row: dict = {}
     try:
         res = locate_los(img, db, cam, sun, R if mode == "known" else None, float(np.linalg.norm(t)) * 1.05)
-        e = res.centre_rc - truth
+        e = res.center_rc - truth
         row["err_px"] = float(np.linalg.norm(e))
         row["sd_px"] = float(math.sqrt(np.trace(res.fit.covariance_rc)))
         row["nees"] = float(e @ np.linalg.solve(res.fit.covariance_rc, e))
@@ -114,14 +114,14 @@ def run_case(db, cam, img, truth, R, t, sun, mode: str) -> dict:
 def run_baseline(db, cam, img, truth, sun) -> dict:
     """The previous pipeline: template match (Wu et al.) + soft-silhouette refinement, unchecked."""
     from jaxlimb.errors import JaxlimbError
-    from jaxlimb.irregular.matching import locate_centre
-    from jaxlimb.irregular.refine import refine_centre
+    from jaxlimb.irregular.matching import locate_center
+    from jaxlimb.irregular.refine import refine_center
 
     t0 = time.perf_counter()
     try:
-        m = locate_centre(img, db, cam)
-        r = refine_centre(img, db, cam, m, sun_dir_camera=sun)
-        return {"err_px": float(np.linalg.norm(r.centre_rc - truth)), "seconds": time.perf_counter() - t0}
+        m = locate_center(img, db, cam)
+        r = refine_center(img, db, cam, m, sun_dir_camera=sun)
+        return {"err_px": float(np.linalg.norm(r.center_rc - truth)), "seconds": time.perf_counter() - t0}
     except JaxlimbError as e:
         return {"failure": f"{e.check}: {e}"[:200], "seconds": time.perf_counter() - t0}
 
@@ -199,7 +199,7 @@ def main(argv: list[str] | None = None) -> int:
                     df = dists[(k + ph // 30) % 2] if args.quick else dists[k % 2]
                     off = bool((k + ph // 30) % 2)
                     img, truth, R, t, sun = make_view(mesh, cam, ph, df, off, args.noise, rng)
-                    row = {"body": name, "mode": mode, "phase": ph, "distance_x_long_axis": df, "off_centre": off}
+                    row = {"body": name, "mode": mode, "phase": ph, "distance_x_long_axis": df, "off_center": off}
                     row.update(run_case(db, cam, img, truth, R, t, sun, mode))
                     if args.baseline and mode == "unknown":
                         row["before"] = run_baseline(db, cam, img, truth, sun)

@@ -85,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
         row = []
         for img in imgs:
             res = locate_los(np.asarray(img, float), db, cam, sun, R, float(np.linalg.norm(t)) * 1.05)
-            e = res.centre_rc - truth
+            e = res.center_rc - truth
             row.append(float(np.linalg.norm(e)))
             nees.append(float(e @ np.linalg.solve(res.fit.covariance_rc, e)))
         errs += row

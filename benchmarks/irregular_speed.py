@@ -72,12 +72,12 @@ def _stages(img, db, cam, sun, range_km) -> dict[str, float]:
     from jaxlimb.irregular.locate import LosOptions, _register_hypotheses, _sun_image_direction
     from jaxlimb.irregular.phase import phase_candidates
     from jaxlimb.irregular.register import lit_figure
-    from jaxlimb.irregular.silhouette import figure_centre
+    from jaxlimb.irregular.silhouette import figure_center
 
     o = LosOptions()
     t0 = time.perf_counter()
     seg = lit_figure(img)
-    s = _sun_image_direction(sun, cam, figure_centre(seg[0]), o)
+    s = _sun_image_direction(sun, cam, figure_center(seg[0]), o)
     t1 = time.perf_counter()
     hyps = phase_candidates(seg[0], db, cam, s, o.phase)[: o.n_verify]
     t2 = time.perf_counter()
@@ -117,7 +117,7 @@ def _frame(name, ph, df, bodies, cam, d: Path, rng) -> dict:
         t0 = time.perf_counter()
         res = locate_los(img, db, cam, sun, None, rng_km)
         times.append(time.perf_counter() - t0)
-        err = float(np.linalg.norm(res.centre_rc - truth))
+        err = float(np.linalg.norm(res.center_rc - truth))
     row.update(in_process_s=statistics.median(times), error_px=err, **_stages(img, db, cam, sun, rng_km))
     return row
 

@@ -8,7 +8,7 @@ Our analogue, on Thebe (5040 faces, pole axis y) rendered with exact truth by
 :func:`jaxlimb.render.mesh.render_mesh` (Lommel-Seeliger, noise 2 DN on 200 DN) at phases 0,
 30 and 60 deg, random attitudes: the error of
 
-* template matching alone (:func:`jaxlimb.irregular.locate_centre`, Wu et al. + guards;
+* template matching alone (:func:`jaxlimb.irregular.locate_center`, Wu et al. + guards;
   it matches whole silhouettes, so at phase > 0 it is off by the unlit part),
 * the figure centre (FC),
 * the checked line of sight of :func:`jaxlimb.irregular.locate.locate_los` with the Sun
@@ -39,7 +39,7 @@ BENCH_CMD = "python benchmarks/irregular_los.py"
 # Wu et al.: the only printed numbers of the experiment (Table 1; Fig. 9 has none in the text).
 PAPER = {
     "body": "Amalthea", "facets": 20160, "step_deg": 3.0, "n_templates": 6962, "database_build_min": 118.0,
-    "image_size_px": [512, 512], "true_centre_rc": [256.0, 256.0], "estimated_centre_rc": [255.5, 256.5],
+    "image_size_px": [512, 512], "true_center_rc": [256.0, 256.0], "estimated_center_rc": [255.5, 256.5],
     "error_rc_px": [-0.5, 0.5], "error_modulus_px": math.hypot(0.5, 0.5), "time_ms": 121.0,
     "fig9_test_views": "around the equator, every 0.5 deg", "fig9_claim": "proposed method more precise than FC",
 }
@@ -69,7 +69,7 @@ def _one_view(mesh, db, cam, dirs, rng, phase: float, checked: bool) -> dict[str
     from scipy.spatial.transform import Rotation
 
     from jaxlimb.errors import JaxlimbError
-    from jaxlimb.irregular import locate_centre
+    from jaxlimb.irregular import locate_center
     from jaxlimb.irregular.locate import locate_los
     from jaxlimb.render.mesh import MeshRenderOptions, render_mesh
 
@@ -87,14 +87,14 @@ def _one_view(mesh, db, cam, dirs, rng, phase: float, checked: bool) -> dict[str
     view = -R.T @ t / np.linalg.norm(t)
     row: dict[str, Any] = {"size_px": float(size), "phase_deg": phase,
                            "angle_to_template_deg": float(np.degrees(np.arccos(np.clip(dirs @ view, -1, 1)).min()))}
-    calls = {"err_match": lambda: locate_centre(out.image, db, cam).centre_rc,
-             "err_fc": lambda: locate_centre(out.image, db, cam).figure_centre_rc,
-             "err_known": lambda: locate_los(out.image, db, cam, sun, R).centre_rc}
+    calls = {"err_match": lambda: locate_center(out.image, db, cam).center_rc,
+             "err_fc": lambda: locate_center(out.image, db, cam).figure_center_rc,
+             "err_known": lambda: locate_los(out.image, db, cam, sun, R).center_rc}
     if checked:
-        calls["err_checked"] = lambda: locate_los(out.image, db, cam, sun).centre_rc
+        calls["err_checked"] = lambda: locate_los(out.image, db, cam, sun).center_rc
     for k, call in calls.items():
         try:
-            row[k] = float(np.linalg.norm(call() - out.centre_rc))
+            row[k] = float(np.linalg.norm(call() - out.center_rc))
         except JaxlimbError as e:
             row[k + "_failure"] = f"{e.check}: {e}"[:160]
     return row

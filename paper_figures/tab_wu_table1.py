@@ -4,7 +4,7 @@ The paper (Amalthea, 3 deg templates, zero phase) places the body-centre image a
 finds (255.5, 256.5) -- error (-0.5, 0.5) px -- in 121 ms (MATLAB, 3.1 GHz PC).  Our analogue:
 Thebe rendered by :func:`jaxlimb.render.mesh.render_mesh` into a 512 x 512 image of the
 default 16 mm / 2.2 um camera with the body centre at (256, 256), an off-grid view, lit at
-phase 0, 30 and 60 deg, located by :func:`jaxlimb.irregular.locate_centre` (Wu et al. +
+phase 0, 30 and 60 deg, located by :func:`jaxlimb.irregular.locate_center` (Wu et al. +
 guards; time = segmentation + matching + transform, median of repeated calls), by the figure
 centre (FC), and by the checked :func:`jaxlimb.irregular.locate.locate_los` with the attitude
 known (render-and-register) and, in full mode, unknown (phase-aware template search).  Below
@@ -45,7 +45,7 @@ def _err(call: Any, truth: np.ndarray) -> list[float] | str:
 def single_image(quick: bool) -> dict[str, Any]:
     """Table 1 setting: one 512 x 512 image with the body centre at (256, 256), at each phase."""
     from jaxlimb.geometry.camera import Camera
-    from jaxlimb.irregular import DatabaseOptions, build_database, load_mesh, locate_centre
+    from jaxlimb.irregular import DatabaseOptions, build_database, load_mesh, locate_center
     from jaxlimb.irregular.locate import locate_los
     from jaxlimb.irregular.views import viewpoint_directions
     from jaxlimb.render.mesh import look_at_rotation, render_mesh
@@ -68,19 +68,19 @@ def single_image(quick: bool) -> dict[str, Any]:
     for ph in PHASES:
         sun = _sun(t, ph)
         out = render_mesh(mesh.vertices, mesh.faces, cam, R, t, sun_dir_camera=sun)
-        m = locate_centre(out.image, db, cam)
+        m = locate_center(out.image, db, cam)
         times = []
         for _ in range(3 if quick else 10):
             t1 = time.perf_counter()
-            locate_centre(out.image, db, cam)
+            locate_center(out.image, db, cam)
             times.append(1e3 * (time.perf_counter() - t1))
-        row = {"true_centre_rc": out.centre_rc.tolist(), "match_centre_rc": m.centre_rc.tolist(),
-               "match_error_rc": (m.centre_rc - out.centre_rc).tolist(), "fc_error_rc": (m.figure_centre_rc - out.centre_rc).tolist(),
+        row = {"true_center_rc": out.center_rc.tolist(), "match_center_rc": m.center_rc.tolist(),
+               "match_error_rc": (m.center_rc - out.center_rc).tolist(), "fc_error_rc": (m.figure_center_rc - out.center_rc).tolist(),
                "locate_ms_median": float(np.median(times)),
-               "known_error_rc": _err(lambda: locate_los(out.image, db, cam, sun, R).centre_rc, out.centre_rc)}
+               "known_error_rc": _err(lambda: locate_los(out.image, db, cam, sun, R).center_rc, out.center_rc)}
         if not quick:
             t1 = time.perf_counter()
-            row["checked_error_rc"] = _err(lambda: locate_los(out.image, db, cam, sun).centre_rc, out.centre_rc)
+            row["checked_error_rc"] = _err(lambda: locate_los(out.image, db, cam, sun).center_rc, out.center_rc)
             row["checked_s"] = time.perf_counter() - t1
         per_phase[f"{ph:g}"] = row
     return {"step_deg": step, "n_templates": len(db), "template_size_px": tsize, "build_s": build_s,
@@ -109,7 +109,7 @@ def main(out_dir: Path | str = _common.DEFAULT_OUT, quick: bool = False) -> list
     rows += [
         f"| Image size / template step | (512, 512) / 3 deg, 6962 | (512, 512) / {one['step_deg']:g} deg, {one['n_templates']} |"
         + " |" * (len(ph) - 1),
-        "| Real value of imaging point of CTCB (pixel) | (256, 256) | " + " | ".join(f"({v['true_centre_rc'][0]:.1f}, {v['true_centre_rc'][1]:.1f})" for v in ph.values()) + " |",
+        "| Real value of imaging point of CTCB (pixel) | (256, 256) | " + " | ".join(f"({v['true_center_rc'][0]:.1f}, {v['true_center_rc'][1]:.1f})" for v in ph.values()) + " |",
         line("Error, matching (pixel)", "(-0.5, 0.5), modulus 0.71", "match_error_rc"),
         line("Error, figure centre FC (pixel)", "not given", "fc_error_rc"),
         line("Error, checked, attitude known (pixel)", "-", "known_error_rc"),

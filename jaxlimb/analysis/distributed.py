@@ -215,8 +215,8 @@ class LocateTrial:
             from ..render import RenderOptions, moon_scene, render_body
 
             cam = self.camera if self.camera is not None else Camera.default()
-            centre = (cam.rows * 0.46, cam.cols * 0.54)
-            scene = moon_scene(self.range_km, self.phase_deg, center_rc=centre, camera=cam, sun_angle_deg=30.0)
+            center = (cam.rows * 0.46, cam.cols * 0.54)
+            scene = moon_scene(self.range_km, self.phase_deg, center_rc=center, camera=cam, sun_angle_deg=30.0)
             clean, truth = render_body(scene, cam, RenderOptions(reflectance="lunar-lambert", psf_sigma_px=1.0,
                                                                  bit_depth=None, noise=False), seed=0)
             base = np.asarray(clean) * (255.0 * 0.8 / float(np.max(clean)))

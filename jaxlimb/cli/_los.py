@@ -138,12 +138,12 @@ def _read_hints(path: str | None) -> Any:
 
 def _locate_unchecked(image: np.ndarray, db: Any, camera: Any) -> dict[str, Any]:
     """``--no-refine``: the template match of Wu et al. alone (Eq. 15-25), without the checks."""
-    from ..irregular.matching import MatchOptions, locate_centre
+    from ..irregular.matching import MatchOptions, locate_center
 
-    res = locate_centre(image, db, camera, MatchOptions())
+    res = locate_center(image, db, camera, MatchOptions())
     j = res.template_index
     return {
-        "center_rc": [float(v) for v in res.centre_rc],
+        "center_rc": [float(v) for v in res.center_rc],
         "checked": False,
         "template": {
             "index": int(j),
@@ -153,8 +153,8 @@ def _locate_unchecked(image: np.ndarray, db: Any, camera: Any) -> dict[str, Any]
             "scale": res.scale,
         },
         "match_distance": res.match_distance,
-        "figure_center_rc": [float(v) for v in res.figure_centre_rc],
-        "brightness_center_rc": [float(v) for v in res.brightness_centre_rc],
+        "figure_center_rc": [float(v) for v in res.figure_center_rc],
+        "brightness_center_rc": [float(v) for v in res.brightness_center_rc],
     }
 
 
@@ -167,7 +167,7 @@ def _locate_checked(image: np.ndarray, db: Any, camera: Any, hints: Any) -> dict
     res = locate_los(image, db, camera, sun, R, hints.range_prior_km)
     fit = res.fit
     out: dict[str, Any] = {
-        "center_rc": [float(v) for v in fit.centre_rc],
+        "center_rc": [float(v) for v in fit.center_rc],
         "checked": True,
         "mode": res.mode.value,
         "covariance": {"center_rc": fit.covariance_rc.tolist()},
@@ -243,8 +243,8 @@ def _locate_one(args: argparse.Namespace, path: str, image: np.ndarray, memo: di
     db = memo["db"]
     t0 = time.perf_counter()
     body = _locate_unchecked(image, db, camera) if args.no_refine else _locate_checked(image, db, camera, hints)
-    centre = np.asarray(body["center_rc"], dtype=float)
-    los = camera.los(centre)
+    center = np.asarray(body["center_rc"], dtype=float)
+    los = camera.los(center)
     return {
         "status": "ok",
         **body,

@@ -125,7 +125,7 @@ def circle_residuals(points_rc: np.ndarray, center_rc, radius: float) -> np.ndar
     return np.hypot(p[..., 0] - c[0], p[..., 1] - c[1]) - float(radius)
 
 
-def _taubin_centred_svd(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float, float, np.ndarray, float]:
+def _taubin_centered_svd(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, float, float, np.ndarray, float]:
     """The Taubin problem (Eq. 28-29) in centred coordinates, solved by SVD.
 
     Returns ``(x, y, xm, ym, zm, v, s)``: columns/rows of the points, their means,
@@ -153,7 +153,7 @@ def taubin_circle_coefficients(points_rc: np.ndarray) -> np.ndarray:
     the same circle).  The returned vector satisfies :math:`A^T N A = 1` (Eq. 32-33).
     """
     p = _as_points(points_rc, 3, "Taubin circle fit")
-    x, y, xm, ym, zm, v, s = _taubin_centred_svd(p)
+    x, y, xm, ym, zm, v, s = _taubin_centered_svd(p)
     a = v[0] / s
     b, c = v[1], v[2]
     d = -a * zm
@@ -187,7 +187,7 @@ def fit_circle_taubin(points_rc: np.ndarray) -> CircleFit:
         :class:`~jaxlimb.errors.LimbInputError`).
     """
     p = _as_points(points_rc, 3, "Taubin circle fit")
-    x, y, xm, ym, zm, v, s = _taubin_centred_svd(p)
+    x, y, xm, ym, zm, v, s = _taubin_centered_svd(p)
     a = v[0] / s
     if abs(a) < 1e-300 or abs(a) * math.sqrt(zm) < 1e-14 * math.hypot(v[1], v[2]):
         raise DegenerateFitError("Taubin circle fit: points are collinear (infinite radius)")

@@ -31,19 +31,19 @@ from .locate import locate_los as locate_los
 from .matching import LocateResult as LocateResult
 from .matching import MatchOptions as MatchOptions
 from .matching import line_of_sight as line_of_sight
-from .matching import locate_centre as locate_centre
+from .matching import locate_center as locate_center
 from .matching import match_weights as match_weights
 from .matching import rotation_from_attitude as rotation_from_attitude
 from .matching import shape_distance as shape_distance
-from .matching import similarity_centre as similarity_centre
+from .matching import similarity_center as similarity_center
 from .mesh import Mesh as Mesh
 from .mesh import MeshOptions as MeshOptions
 from .mesh import load_mesh as load_mesh
 from .mesh import mesh_hash as mesh_hash
 from .mesh import validate_mesh as validate_mesh
 from .silhouette import SegmentOptions as SegmentOptions
-from .silhouette import brightness_centre as brightness_centre
-from .silhouette import figure_centre as figure_centre
+from .silhouette import brightness_center as brightness_center
+from .silhouette import figure_center as figure_center
 from .silhouette import mesh_topology as mesh_topology
 from .silhouette import render_silhouette as render_silhouette
 from .silhouette import segment_body as segment_body
@@ -56,7 +56,7 @@ from .views import view_count as view_count
 
 # The refinement imports JAX and optimistix (seconds): loaded on first use only, so that
 # ``jaxlimb los locate`` (numpy + OpenCV) does not pay for them.
-_LAZY = {"DensifyResult", "RefineOptions", "RefineResult", "densify_match", "refine_centre"}
+_LAZY = {"DensifyResult", "RefineOptions", "RefineResult", "densify_match", "refine_center"}
 
 
 def __getattr__(name: str):  # type: ignore[no-untyped-def]

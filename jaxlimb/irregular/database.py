@@ -54,7 +54,9 @@ from .mesh import Mesh, MeshOptions, mesh_hash, validate_mesh
 from .silhouette import mesh_topology, render_silhouette
 from .views import ViewSphereOptions, template_rotations, view_count
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+#: Readable older versions and the array names they spelled differently (version 1: ``centre_rc``).
+_OLD_NAMES = {1: {"centre_rc": "center_rc"}}
 _MAGIC = "jaxlimb-template-db"
 
 _PER_TEMPLATE = (
@@ -62,7 +64,7 @@ _PER_TEMPLATE = (
     "beta",
     "R_body_to_camera",
     "area",
-    "centre_rc",
+    "center_rc",
     "hu",
     "orientation",
     "elongation",
@@ -127,7 +129,7 @@ class TemplateDatabase:
     """Template features for every viewpoint, with the mesh and settings they came from.
 
     Per-template arrays (``N`` templates): ``alpha``, ``beta`` (rad, Eq. 5);
-    ``R_body_to_camera`` ``(N,3,3)``; ``area`` ``S_B`` (px^2); ``centre_rc``
+    ``R_body_to_camera`` ``(N,3,3)``; ``area`` ``S_B`` (px^2); ``center_rc``
     ``C_B``; ``hu`` ``(N,7)``; ``orientation`` (rad); ``elongation``;
     ``attitude_xy`` ``C_B F_B`` (x=col, y=row); ``contour_xy`` ``(N,n,2)``
     relative to ``C_B``.  Template camera: ``focal_px``, ``principal_rc``
@@ -144,7 +146,7 @@ class TemplateDatabase:
     beta: np.ndarray
     R_body_to_camera: np.ndarray
     area: np.ndarray
-    centre_rc: np.ndarray
+    center_rc: np.ndarray
     hu: np.ndarray
     orientation: np.ndarray
     elongation: np.ndarray
@@ -155,7 +157,7 @@ class TemplateDatabase:
         return int(self.alpha.shape[0])
 
     @property
-    def centre_image_rc(self) -> np.ndarray:
+    def center_image_rc(self) -> np.ndarray:
         """``P_B``: the image of the body centre in every template (the principal point)."""
         return np.asarray(self.principal_rc, dtype=float)
 
@@ -202,7 +204,7 @@ def build_database(mesh: Mesh, options: DatabaseOptions = DatabaseOptions(), pro
     n = alpha.shape[0]
     nc = options.n_contour
     area = np.empty(n)
-    centre = np.empty((n, 2))
+    center = np.empty((n, 2))
     hu = np.empty((n, 7))
     orient = np.empty(n)
     elong = np.empty(n)
@@ -214,9 +216,9 @@ def build_database(mesh: Mesh, options: DatabaseOptions = DatabaseOptions(), pro
         if not contours:
             raise DatabaseError(f"template {i} (alpha={alpha[i]:.4f}, beta={beta[i]:.4f}) has an empty figure")
         f = features_from_contours(contours, nc)
-        area[i], centre[i], hu[i], orient[i], elong[i], att[i] = (
+        area[i], center[i], hu[i], orient[i], elong[i], att[i] = (
             f.area,
-            f.centre_rc,
+            f.center_rc,
             f.hu,
             f.orientation,
             f.elongation,
@@ -234,7 +236,7 @@ def build_database(mesh: Mesh, options: DatabaseOptions = DatabaseOptions(), pro
         beta=beta,
         R_body_to_camera=R,
         area=area,
-        centre_rc=centre,
+        center_rc=center,
         hu=hu,
         orientation=orient,
         elongation=elong,
@@ -305,20 +307,11 @@ def load_database(
         raise DatabaseError(f"template database {str(p)!r} is corrupt or truncated: {type(e).__name__}: {e}") from None
     except Exception as e:  # zlib.error and friends
         raise DatabaseError(f"template database {str(p)!r} cannot be read: {type(e).__name__}: {e}") from None
+    arrays = _upgrade(arrays, p)
     need = {"magic", "format_version", "settings_json", "mesh_hash", "mesh_vertices", "mesh_faces", "camera", "checksum"}
     missing = sorted((need | set(_PER_TEMPLATE)) - set(arrays))
     if missing:
         raise DatabaseError(f"template database {str(p)!r} lacks arrays {missing}: not a jaxlimb database or corrupt")
-    if str(arrays["magic"]) != _MAGIC:
-        raise DatabaseError(f"{str(p)!r} is not a jaxlimb template database")
-    version = int(arrays["format_version"])
-    if version != FORMAT_VERSION:
-        raise DatabaseError(
-            f"template database {str(p)!r} has format version {version}; this jaxlimb reads version {FORMAT_VERSION}"
-            " (rebuild it with `jaxlimb los build-db`)"
-        )
-    if str(arrays["checksum"]) != _checksum(arrays):
-        raise DatabaseError(f"template database {str(p)!r} fails its checksum: corrupt")
     try:
         options = DatabaseOptions.from_json(str(arrays["settings_json"]))
     except (ValueError, TypeError, ConfigError) as e:
@@ -346,7 +339,7 @@ def load_database(
         "beta": (n,),
         "R_body_to_camera": (n, 3, 3),
         "area": (n,),
-        "centre_rc": (n, 2),
+        "center_rc": (n, 2),
         "hu": (n, 7),
         "orientation": (n,),
         "elongation": (n,),
@@ -368,6 +361,25 @@ def load_database(
         distance_km=float(cam[3]),
         **{k: arrays[k] for k in _PER_TEMPLATE},
     )
+
+
+def _upgrade(arrays: dict, p: Path) -> dict:
+    """Check magic, version and checksum as stored; rename an older version's arrays to today's names."""
+    for k in ("magic", "format_version", "checksum"):
+        if k not in arrays:
+            raise DatabaseError(f"template database {str(p)!r} lacks arrays [{k!r}]: not a jaxlimb database or corrupt")
+    if str(arrays["magic"]) != _MAGIC:
+        raise DatabaseError(f"{str(p)!r} is not a jaxlimb template database")
+    version = int(arrays["format_version"])
+    if version != FORMAT_VERSION and version not in _OLD_NAMES:
+        raise DatabaseError(
+            f"template database {str(p)!r} has format version {version}; this jaxlimb reads versions"
+            f" {sorted({FORMAT_VERSION, *_OLD_NAMES})} (rebuild it with `jaxlimb los build-db`)"
+        )
+    if str(arrays["checksum"]) != _checksum(arrays):
+        raise DatabaseError(f"template database {str(p)!r} fails its checksum: corrupt")
+    renames = _OLD_NAMES.get(version, {})
+    return {renames.get(k, k): v for k, v in arrays.items()}
 
 
 def cache_dir() -> Path:

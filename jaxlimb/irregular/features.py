@@ -155,14 +155,14 @@ def resample_closed(xy: np.ndarray, n: int) -> np.ndarray:
 
 
 def far_point_candidates(
-    contour_xy: np.ndarray, centre_xy: np.ndarray, n: int = 3, min_sep_rad: float = math.radians(20.0)
+    contour_xy: np.ndarray, center_xy: np.ndarray, n: int = 3, min_sep_rad: float = math.radians(20.0)
 ) -> np.ndarray:
     """Up to ``n`` contour points farthest from the centre, at least ``min_sep_rad`` apart in angle.
 
     The first one is the paper's attitude point ``F`` (Eq. 18); the others are
     alternatives for near-symmetric figures.  Returns ``(k, 2)`` vectors ``F - C``.
     """
-    d = np.asarray(contour_xy, dtype=float) - centre_xy
+    d = np.asarray(contour_xy, dtype=float) - center_xy
     r = np.hypot(d[:, 0], d[:, 1])
     ang = np.arctan2(d[:, 1], d[:, 0])
     alive = np.ones(r.shape, dtype=bool)
@@ -185,7 +185,7 @@ class FigureFeatures:
     ----------
     area
         ``S`` (px^2), Eq. (14).
-    centre_rc
+    center_rc
         Centre point ``C`` (row, col).
     hu
         Hu moments ``h1..h7``, Eq. (10)-(13).
@@ -198,7 +198,7 @@ class FigureFeatures:
     """
 
     area: float
-    centre_rc: np.ndarray
+    center_rc: np.ndarray
     hu: np.ndarray
     orientation: float
     elongation: float
@@ -214,7 +214,7 @@ def features_from_raw(raw: np.ndarray, contour_xy: np.ndarray, n_contour: int = 
     far = far_point_candidates(np.asarray(contour_xy, float).reshape(-1, 2), c, n=1)[0]
     return FigureFeatures(
         area=area,
-        centre_rc=np.array([yb, xb]),
+        center_rc=np.array([yb, xb]),
         hu=hu_from_central(area, mu),
         orientation=orientation(mu),
         elongation=elongation(mu),

@@ -29,7 +29,7 @@ from ..errors import AmbiguousMatchError, CheckFailed, MatchError
 from .database import TemplateDatabase
 from .phase import PhaseSearchOptions, phase_candidates
 from .register import RegisterOptions, RegisterResult, lit_figure, register_known_attitude
-from .silhouette import figure_centre
+from .silhouette import figure_center
 
 
 class LosMode(str, Enum):
@@ -74,10 +74,10 @@ class LosOptions:
         the mean of ``error^2 / trace(cov)`` (1 expected) is 0.89 with it, about 0.03 with
         the 0.04 px of the slower pipeline before, and 6 % of the views fall beyond the
         95 % bound (in-sample calibration; the errors are heavy-tailed).
-    prune_rms_frac, prune_max_rms_frac, same_centre_px
+    prune_rms_frac, prune_max_rms_frac, same_center_px
         After the coarse (pyramid) iterations of every hypothesis, one whose RMS residual
         (fraction of the contrast) exceeds the best one's by ``prune_rms_frac``, or
-        ``prune_max_rms_frac``, is dropped, and one whose centre lies within ``same_centre_px`` of an accepted fit is
+        ``prune_max_rms_frac``, is dropped, and one whose centre lies within ``same_center_px`` of an accepted fit is
         not refined again.  On ``benchmarks/irregular_los.py`` frames the coarse residual
         of a correct pose is 0.001-0.04 and of a wrong one 0.09-0.13.
     sharp_level2_iterations
@@ -105,7 +105,7 @@ class LosOptions:
     search_floor_px: float = 0.008
     prune_rms_frac: float = 0.04
     prune_max_rms_frac: float = 0.1
-    same_centre_px: float = 0.5
+    same_center_px: float = 0.5
     sharp_level2_iterations: int = 6
     search_surge_widths: tuple[float, ...] = ()
     search_max_iterations: int = 24
@@ -125,13 +125,13 @@ class LosResult:
     runner_up_excess: float | None
 
     @property
-    def centre_rc(self) -> np.ndarray:
-        return self.fit.centre_rc
+    def center_rc(self) -> np.ndarray:
+        return self.fit.center_rc
 
 
-def phase_angle_deg(sun_dir_camera: np.ndarray, camera: object, centre_rc: np.ndarray) -> float:
-    """Sun-body-camera angle at the body seen at ``centre_rc``."""
-    u = np.asarray(camera.los(centre_rc), dtype=float)  # type: ignore[attr-defined]
+def phase_angle_deg(sun_dir_camera: np.ndarray, camera: object, center_rc: np.ndarray) -> float:
+    """Sun-body-camera angle at the body seen at ``center_rc``."""
+    u = np.asarray(camera.los(center_rc), dtype=float)  # type: ignore[attr-defined]
     return math.degrees(math.acos(max(-1.0, min(1.0, float(-u @ np.asarray(sun_dir_camera, dtype=float))))))
 
 
@@ -167,7 +167,7 @@ def locate_los(
     if R_body_to_camera is not None:
         fit = register_known_attitude(img, db.mesh, camera, R_body_to_camera, sun_dir_camera, range_km, options.register, seg)
         return LosResult(LosMode.KNOWN_ATTITUDE, fit, None, 1, 1, None)
-    fc = figure_centre(seg[0])
+    fc = figure_center(seg[0])
     s_img = _sun_image_direction(sun_dir_camera, camera, fc, options)
     popts = options.phase
     if s_img is None:  # zero phase: the whole silhouette is limb; any direction serves for the extents
@@ -194,7 +194,7 @@ def _register_hypotheses(img, db, camera, sun, seg, hyps, ropts, options):  # ty
 
     A hypothesis is not refined further when its coarse residual exceeds the best one's
     by ``prune_rms_frac`` (it could pass neither the residual check nor the ambiguity
-    test), or when its centre is already within ``same_centre_px`` of an accepted fit
+    test), or when its centre is already within ``same_center_px`` of an accepted fit
     (the same answer: it cannot make the match ambiguous).
     """
     from .register import complete_search_registration, start_search_registration
@@ -202,7 +202,7 @@ def _register_hypotheses(img, db, camera, sun, seg, hyps, ropts, options):  # ty
     regs, errors = [], []
     for h in hyps:
         try:
-            regs.append((start_search_registration(img, db.mesh, camera, h.R_body_to_camera, sun, (h.centre_rc, h.range_km), seg, ropts), h))
+            regs.append((start_search_registration(img, db.mesh, camera, h.R_body_to_camera, sun, (h.center_rc, h.range_km), seg, ropts), h))
         except CheckFailed as e:
             errors.append(e)
     regs.sort(key=lambda r: r[0].state.rms_frac if math.isfinite(r[0].state.rms_frac) else math.inf)
@@ -213,7 +213,7 @@ def _register_hypotheses(img, db, camera, sun, seg, hyps, ropts, options):  # ty
         if st.rms_frac > min(regs[0][0].state.rms_frac + options.prune_rms_frac, options.prune_max_rms_frac):
             errors.append(MatchError(f"coarse residual {st.rms_frac:.3f} of the contrast, the best hypothesis {regs[0][0].state.rms_frac:.3f}"))
             continue
-        if any(float(np.linalg.norm(st.P - f.centre_rc)) < options.same_centre_px for f, _ in fits):
+        if any(float(np.linalg.norm(st.P - f.center_rc)) < options.same_center_px for f, _ in fits):
             continue
         try:
             fit = complete_search_registration(reg, _runner_up_guard(accepted, options) if accepted else None)
@@ -232,7 +232,7 @@ def _runner_up_guard(accepted, options):  # type: ignore[no-untyped-def]
     iteration of the candidate:
 
     * at full resolution (blur below ``2 pyramid_blur_px``), its centre within
-      ``same_centre_px`` of an accepted fit: the same answer;
+      ``same_center_px`` of an accepted fit: the same answer;
     * from its second iteration on, an RMS residual (fraction of the contrast) above that
       of every accepted fit at the same iteration (same blur; the last one for later
       sharp iterations) by ``3 ambiguity_margin``.  On sharp iterations its residual excess
@@ -244,7 +244,7 @@ def _runner_up_guard(accepted, options):  # type: ignore[no-untyped-def]
 
     def guard(st, sigma) -> None:  # type: ignore[no-untyped-def]
         count[0] += 1
-        if sigma < full_res and any(float(np.linalg.norm(st.P - a.P)) < options.same_centre_px for a in accepted):
+        if sigma < full_res and any(float(np.linalg.norm(st.P - a.P)) < options.same_center_px for a in accepted):
             raise MatchError("the hypothesis converges to an accepted fit")
         i = len(st.history) - 1
         ref = min(a.history[min(i, len(a.history) - 1)] for a in accepted)
@@ -263,13 +263,13 @@ def _choose(fits, errors, n_tried, options) -> LosResult:  # type: ignore[no-unt
     best, j = fits[0]
     runner = None
     for other, _ in fits[1:]:
-        if np.linalg.norm(other.centre_rc - best.centre_rc) > options.ambiguity_px:
+        if np.linalg.norm(other.center_rc - best.center_rc) > options.ambiguity_px:
             runner = other.excess_frac if runner is None else runner
             if other.excess_frac < best.excess_frac + options.ambiguity_margin:
                 raise AmbiguousMatchError(
                     f"two poses of the shape model explain the frame about equally well (residual excess"
                     f" {best.excess_frac:.3f} and {other.excess_frac:.3f}) with body centres"
-                    f" {np.linalg.norm(other.centre_rc - best.centre_rc):.1f} px apart"
+                    f" {np.linalg.norm(other.center_rc - best.center_rc):.1f} px apart"
                 )
     best = replace(best, covariance_rc=best.covariance_rc + options.search_floor_px**2 * np.eye(2))
     return LosResult(LosMode.TEMPLATE_SEARCH, best, j, n_tried, len(fits), runner)

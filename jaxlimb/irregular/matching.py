@@ -1,6 +1,6 @@
 """Template matching and the similarity transform (Eq. 15-25 of Wu et al.), line of sight (Eq. 1-4).
 
-Pipeline of :func:`locate_centre`:
+Pipeline of :func:`locate_center`:
 
 1. segment the body (:func:`~jaxlimb.irregular.silhouette.segment_body`);
 2. *rectify* the figure to a virtual camera whose boresight passes through the
@@ -63,12 +63,12 @@ from .features import (
     raw_moments_mask,
     resample_closed,
 )
-from .silhouette import SegmentOptions, brightness_centre, figure_centre, segment_body
+from .silhouette import SegmentOptions, brightness_center, figure_center, segment_body
 
 
 @dataclass(frozen=True)
 class MatchOptions:
-    """Options of :func:`locate_centre`.
+    """Options of :func:`locate_center`.
 
     Parameters
     ----------
@@ -112,11 +112,11 @@ class MatchOptions:
 
 @dataclass(frozen=True)
 class LocateResult:
-    """Result of :func:`locate_centre`.
+    """Result of :func:`locate_center`.
 
     Attributes
     ----------
-    centre_rc
+    center_rc
         Estimated image of the body centre ``P_G`` (row, col), Eq. (25).
     los_camera
         Unit line of sight to the body centre (camera frame), Eq. (4).
@@ -131,21 +131,21 @@ class LocateResult:
         Shape distance ``SE(F_B, F_G)``, Eq. (15).
     contour_mean_px
         Mean distance (px) of the aligned template contour to the observed contour.
-    figure_centre_rc, brightness_centre_rc
+    figure_center_rc, brightness_center_rc
         The FC and BC baselines (row, col).
     R_virtual
         Rotation of the rectification (camera -> virtual camera is ``R_virtual.T``).
     """
 
-    centre_rc: np.ndarray
+    center_rc: np.ndarray
     los_camera: np.ndarray
     template_index: int
     theta: float
     scale: float
     match_distance: float
     contour_mean_px: float
-    figure_centre_rc: np.ndarray
-    brightness_centre_rc: np.ndarray
+    figure_center_rc: np.ndarray
+    brightness_center_rc: np.ndarray
     R_virtual: np.ndarray
     mask: np.ndarray = field(repr=False)
     candidates: tuple[int, ...] = ()
@@ -185,10 +185,10 @@ def rotation_from_attitude(cf_template_xy: np.ndarray, cf_observed_xy: np.ndarra
     return math.atan2(xb * yg - yb * xg, xb * xg + yb * yg)
 
 
-def similarity_centre(
-    centre_obs_rc: np.ndarray,
+def similarity_center(
+    center_obs_rc: np.ndarray,
     area_obs: float,
-    centre_tpl_rc: np.ndarray,
+    center_tpl_rc: np.ndarray,
     area_tpl: float,
     point_tpl_rc: np.ndarray,
     theta: float,
@@ -199,15 +199,15 @@ def similarity_centre(
     the (x=col, y=row) plane; inputs and output are (row, col).
     """
     k = math.sqrt(area_obs / area_tpl)
-    d = np.asarray(point_tpl_rc, dtype=float) - np.asarray(centre_tpl_rc, dtype=float)
+    d = np.asarray(point_tpl_rc, dtype=float) - np.asarray(center_tpl_rc, dtype=float)
     dx, dy = d[1], d[0]
     c, s = math.cos(theta), math.sin(theta)
-    return np.asarray(centre_obs_rc, dtype=float) + k * np.array([s * dx + c * dy, c * dx - s * dy])
+    return np.asarray(center_obs_rc, dtype=float) + k * np.array([s * dx + c * dy, c * dx - s * dy])
 
 
-def line_of_sight(camera: object, centre_rc: np.ndarray) -> np.ndarray:
+def line_of_sight(camera: object, center_rc: np.ndarray) -> np.ndarray:
     """Unit line of sight to an image point, Eq. (4) of Wu et al. (``k_x = k_y = f/pitch``)."""
-    return np.asarray(camera.los(np.asarray(centre_rc, dtype=float)))  # type: ignore[attr-defined]
+    return np.asarray(camera.los(np.asarray(center_rc, dtype=float)))  # type: ignore[attr-defined]
 
 
 # --------------------------------------------------------------------------- rectification
@@ -285,7 +285,7 @@ def _rectified_features(mask: np.ndarray, H: np.ndarray, n_contour: int) -> tupl
     cxy = crc[:, ::-1]
     feats = FigureFeatures(
         area=area,
-        centre_rc=c[::-1].copy(),
+        center_rc=c[::-1].copy(),
         hu=hu_from_central(area, mu),
         orientation=orientation(mu),
         elongation=elongation(mu),
@@ -388,9 +388,9 @@ class _Observed:
             s_all = sg[idx, i_best]
         return th, s_all
 
-    def centre(self, area_B: float, centre_B_rc: np.ndarray, P_B_rc: np.ndarray, theta: float) -> np.ndarray:
+    def center(self, area_B: float, center_B_rc: np.ndarray, P_B_rc: np.ndarray, theta: float) -> np.ndarray:
         """Eq. (24)-(25) in the rectified frame, mapped back to image pixels."""
-        P_v = similarity_centre(self.obs.centre_rc, self.obs.area, centre_B_rc, area_B, P_B_rc, theta)
+        P_v = similarity_center(self.obs.center_rc, self.obs.area, center_B_rc, area_B, P_B_rc, theta)
         P, _ = _apply_h(self.Hinv, P_v)
         return P + self.off
 
@@ -408,7 +408,7 @@ def observe(mask: np.ndarray, camera: object, n_contour: int, rectify: bool = Tr
     c1 = min(bx + bw - 1 + pad, m_full.shape[1] - 1)
     crop = np.ascontiguousarray(m_full[r0 : r1 + 1, c0 : c1 + 1], dtype=np.uint8)  # work in the crop
     off = np.array([r0, c0], dtype=float)
-    fc = figure_centre(crop) + off
+    fc = figure_center(crop) + off
     Rv = _rot_z_to(camera.los(fc)) if rectify else np.eye(3)  # type: ignore[attr-defined]
     K = np.array(camera.K, dtype=float)  # type: ignore[attr-defined]
     K[0, 2] -= c0
@@ -423,7 +423,7 @@ def observe(mask: np.ndarray, camera: object, n_contour: int, rectify: bool = Tr
         obs=obs,
         obs_cxy=obs_cxy,
         chamfer=_Chamfer(crop),
-        cG=np.array([obs.centre_rc[1], obs.centre_rc[0]]),
+        cG=np.array([obs.center_rc[1], obs.center_rc[0]]),
     )
 
 
@@ -463,7 +463,7 @@ def locate_in_mask(
         th, s_all = ob.align(conts, db.area[top], db.orientation[top], options.n_far)
         i = int(np.argmin(s_all))
         s_best, j, theta = float(s_all[i]), js[i], float(th[i])
-    P = ob.centre(db.area[j], db.centre_rc[j], db.centre_image_rc, theta)
+    P = ob.center(db.area[j], db.center_rc[j], db.center_image_rc, theta)
     k_c = math.sqrt(obs.area / db.area[j])
     info = {
         "template_index": j,
@@ -473,13 +473,13 @@ def locate_in_mask(
         "contour_mean_px": s_best,
         "R_virtual": Rv,
         "candidates": tuple(int(t) for t in top),
-        "figure_centre_rc": fc,
+        "figure_center_rc": fc,
         "observed": obs,
     }
     return np.asarray(P, dtype=float), info
 
 
-def locate_centre(
+def locate_center(
     image: np.ndarray,
     db: TemplateDatabase,
     camera: object,
@@ -511,15 +511,15 @@ def locate_centre(
     if not np.all(np.isfinite(P)):
         raise NoBodyError("template matching produced a non-finite centre")
     return LocateResult(
-        centre_rc=P,
+        center_rc=P,
         los_camera=line_of_sight(camera, P),
         template_index=info["template_index"],
         theta=info["theta"],
         scale=info["scale"],
         match_distance=info["match_distance"],
         contour_mean_px=info["contour_mean_px"],
-        figure_centre_rc=info["figure_centre_rc"],
-        brightness_centre_rc=brightness_centre(img, mask),
+        figure_center_rc=info["figure_center_rc"],
+        brightness_center_rc=brightness_center(img, mask),
         R_virtual=info["R_virtual"],
         mask=mask,
         candidates=info["candidates"],
@@ -531,10 +531,10 @@ __all__ = [
     "MatchOptions",
     "database_features",
     "line_of_sight",
-    "locate_centre",
+    "locate_center",
     "locate_in_mask",
     "match_weights",
     "rotation_from_attitude",
     "shape_distance",
-    "similarity_centre",
+    "similarity_center",
 ]

@@ -284,13 +284,13 @@ def _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, ss, flat, lit, cover):  
     differ most.
     """
     buf = ras.buf
-    centre = buf[ss // 2 :: ss, ss // 2 :: ss][: ras.h, : ras.w]
-    inner = (centre > 0) & (cover > 0.999)
+    center = buf[ss // 2 :: ss, ss // 2 :: ss][: ras.h, : ras.w]
+    inner = (center > 0) & (cover > 0.999)
     out = np.zeros((ras.h, ras.w))
     vn = _vertex_normals(Xc, F)
-    smooth = _interior_smooth(ras, Xc, F, vn, cam, s, reflectance, centre, inner)
+    smooth = _interior_smooth(ras, Xc, F, vn, cam, s, reflectance, center, inner)
     rr, cc = np.nonzero(inner)
-    face = centre[rr, cc] - 1
+    face = center[rr, cc] - 1
     out[rr, cc] = (smooth[rr, cc] - flat[face]) * lit[face]
     er, ec = np.nonzero((cover > 0) & ~inner)
     if er.size:
@@ -307,7 +307,7 @@ def _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, ss, flat, lit, cover):  
     return out
 
 
-def _interior_smooth(ras, Xc, F, vn, cam, s, reflectance, centre, inner):  # type: ignore[no-untyped-def]
+def _interior_smooth(ras, Xc, F, vn, cam, s, reflectance, center, inner):  # type: ignore[no-untyped-def]
     """``(h, w)`` smooth radiance on the ``inner`` pixels: exact at every other pixel, bilinear (normalised by
     the sampled weight) in between, exact where fewer than half of the neighbours were sampled."""
     h, w = inner.shape
@@ -315,7 +315,7 @@ def _interior_smooth(ras, Xc, F, vn, cam, s, reflectance, centre, inner):  # typ
     S = np.zeros(((h + 1) // 2, (w + 1) // 2), np.float32)
     W = np.zeros_like(S)
     r2, c2 = 2 * hr, 2 * hc
-    S[hr, hc] = _smooth_samples(ras, Xc, F, vn, cam, s, reflectance, r2.astype(float), c2.astype(float), centre[r2, c2] - 1)
+    S[hr, hc] = _smooth_samples(ras, Xc, F, vn, cam, s, reflectance, r2.astype(float), c2.astype(float), center[r2, c2] - 1)
     W[hr, hc] = 1.0
     my, mx = np.meshgrid(np.arange(h, dtype=np.float32) / 2, np.arange(w, dtype=np.float32) / 2, indexing="ij")
     Si = cv2.remap(S, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
@@ -323,7 +323,7 @@ def _interior_smooth(ras, Xc, F, vn, cam, s, reflectance, centre, inner):  # typ
     out = np.where(Wi > 0.5, Si / np.maximum(Wi, 1e-6), 0.0).astype(float)
     er, ec = np.nonzero(inner & (Wi <= 0.5))
     if er.size:
-        out[er, ec] = _smooth_samples(ras, Xc, F, vn, cam, s, reflectance, er.astype(float), ec.astype(float), centre[er, ec] - 1)
+        out[er, ec] = _smooth_samples(ras, Xc, F, vn, cam, s, reflectance, er.astype(float), ec.astype(float), center[er, ec] - 1)
     return out
 
 

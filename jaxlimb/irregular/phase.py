@@ -72,7 +72,7 @@ class PoseHypothesis:
     theta: float
     scale: float
     score_px: float
-    centre_rc: np.ndarray
+    center_rc: np.ndarray
     R_body_to_camera: np.ndarray
     range_km: float
 
@@ -200,7 +200,7 @@ def _angle(Ra: np.ndarray, Rb: np.ndarray) -> float:
 
 def _pose_of(db, camera, j, theta, k, T_xy, score) -> PoseHypothesis:  # type: ignore[no-untyped-def]
     """Pose implied by template ``j`` rolled by ``theta``, scaled by ``k``, translated by ``T`` (Eq. 24-25)."""
-    d = np.asarray(db.centre_image_rc, dtype=float) - np.asarray(db.centre_rc[j], dtype=float)
+    d = np.asarray(db.center_image_rc, dtype=float) - np.asarray(db.center_rc[j], dtype=float)
     dx, dy = d[1], d[0]
     c, s = math.cos(theta), math.sin(theta)
     P = np.array([T_xy[1] + k * (s * dx + c * dy), T_xy[0] + k * (c * dx - s * dy)])

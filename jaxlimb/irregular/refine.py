@@ -7,7 +7,7 @@ true viewpoint is up to ~half a sampling step away.  Two steps remove it.
    matched template (3x3 grids of tilts, step/3, step/9, step/27), each
    rendered and aligned exactly like a database template.
 
-2. :func:`refine_centre` -- the sigmoid limb model of the ellipsoid papers
+2. :func:`refine_center` -- the sigmoid limb model of the ellipsoid papers
    carried over to an irregular body.  Near its outline the image is modelled as
 
    .. math::  I(p) = y_{min} + (y_{max} - y_{min})\,\sigma\big(k\, d(p; \theta)\big)\,(1 + g\,\max(d, 0))
@@ -84,7 +84,7 @@ from .silhouette import mesh_topology, outline_edges, render_silhouette, visible
 
 @dataclass(frozen=True)
 class RefineOptions:
-    """Options of :func:`refine_centre`.
+    """Options of :func:`refine_center`.
 
     Parameters
     ----------
@@ -142,11 +142,11 @@ class RefineOptions:
 
 @dataclass(frozen=True)
 class RefineResult:
-    """Result of :func:`refine_centre`.
+    """Result of :func:`refine_center`.
 
     Attributes
     ----------
-    centre_rc
+    center_rc
         Refined image of the body centre (row, col).
     los_camera
         Unit line of sight (Eq. 4).
@@ -163,7 +163,7 @@ class RefineResult:
         Pixels in the final fit.
     """
 
-    centre_rc: np.ndarray
+    center_rc: np.ndarray
     los_camera: np.ndarray
     R_body_to_camera: np.ndarray
     t_camera: np.ndarray
@@ -191,7 +191,7 @@ class DensifyResult:
 
     Attributes
     ----------
-    centre_rc
+    center_rc
         Body-centre image by Eq. (25) with the best densified template.
     R_template
         Body->template-camera rotation of the best densified template.
@@ -199,7 +199,7 @@ class DensifyResult:
         In-plane rotation (Eq. 23), scale (Eq. 20) and contour agreement.
     """
 
-    centre_rc: np.ndarray
+    center_rc: np.ndarray
     R_template: np.ndarray
     theta: float
     scale: float
@@ -258,9 +258,9 @@ def densify_match(
         best = (feats[i], float(th[i]), float(sc[i]))
         step /= 3.0
     f, theta, score = best  # type: ignore[misc]
-    P = ob.centre(f.area, f.centre_rc, db.centre_image_rc, theta)
+    P = ob.center(f.area, f.center_rc, db.center_image_rc, theta)
     return DensifyResult(
-        centre_rc=np.asarray(P, dtype=float),
+        center_rc=np.asarray(P, dtype=float),
         R_template=best_R,
         theta=theta,
         scale=math.sqrt(ob.obs.area / f.area),
@@ -282,7 +282,7 @@ def initial_pose(
     j = result.template_index
     c, s = math.cos(result.theta), math.sin(result.theta)
     Rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    u = np.asarray(camera.los(result.centre_rc))  # type: ignore[attr-defined]
+    u = np.asarray(camera.los(result.center_rc))  # type: ignore[attr-defined]
     RT = db.R_body_to_camera[j] if R_template is None else R_template
     R = _rot_z_to(u) @ Rz @ RT
     D = camera.focal_px * db.distance_km / (db.focal_px * result.scale)  # type: ignore[attr-defined]
@@ -362,7 +362,7 @@ def _bucket(n: int) -> int:
     return int(2 ** math.ceil(math.log2(max(n, 16))))
 
 
-def refine_centre(
+def refine_center(
     image: np.ndarray,
     db: TemplateDatabase,
     camera: object,
@@ -382,7 +382,7 @@ def refine_centre(
     camera
         The image's :class:`~jaxlimb.geometry.camera.Camera`.
     match
-        Result of :func:`~jaxlimb.irregular.matching.locate_centre`.
+        Result of :func:`~jaxlimb.irregular.matching.locate_center`.
     sun_dir_camera
         Unit vector from the body toward the Sun in the camera frame (``None``:
         zero phase, the whole visible figure is lit).
@@ -408,16 +408,16 @@ def _refine(image, db, camera, match, sun_dir_camera, options, override=None):  
     pp = tuple(float(v) for v in camera.principal_point_rc)
     if override is not None:
         R, t = (np.asarray(v, dtype=float) for v in override)
-        match = dataclasses.replace(match, centre_rc=np.asarray(camera.project(t), dtype=float))
+        match = dataclasses.replace(match, center_rc=np.asarray(camera.project(t), dtype=float))
     elif options.densify_levels > 0:
         dens = densify_match(match.mask, db, camera, match, levels=options.densify_levels)
         match = dataclasses.replace(
-            match, centre_rc=dens.centre_rc, theta=dens.theta, scale=dens.scale, contour_mean_px=dens.contour_mean_px
+            match, center_rc=dens.center_rc, theta=dens.theta, scale=dens.scale, contour_mean_px=dens.contour_mean_px
         )
         R, t = initial_pose(db, match, camera, R_template=dens.R_template)
     else:
         R, t = initial_pose(db, match, camera)
-    P = np.asarray(match.centre_rc, dtype=float).copy()
+    P = np.asarray(match.center_rc, dtype=float).copy()
     P_match = P.copy()
     D = float(np.linalg.norm(t))
     rows, cols = image.shape
@@ -510,7 +510,7 @@ def _refine(image, db, camera, match, sun_dir_camera, options, override=None):  
         if at_final and step < options.tol_px:
             break
     return RefineResult(
-        centre_rc=P,
+        center_rc=P,
         los_camera=np.asarray(camera.los(P)),
         R_body_to_camera=R,
         t_camera=t,
@@ -656,4 +656,4 @@ def _outline_data(topo, R, t, f, pp, shape, image, sun, options, band, min_sizes
     return padv(PA), padv(PB), padv(PC), pix_p, val_p, nbr_p, weight
 
 
-__all__ = ["DensifyResult", "RefineOptions", "RefineResult", "densify_match", "initial_pose", "refine_centre"]
+__all__ = ["DensifyResult", "RefineOptions", "RefineResult", "densify_match", "initial_pose", "refine_center"]

@@ -63,7 +63,7 @@ from ..errors import ConvergenceError, MatchError
 from ..pipeline.checks import check_center_sigma
 from .mesh import Mesh
 from .model_render import MIX_LAWS, attitude_columns, clustered_mesh, downsample, level_camera, render_window
-from .silhouette import figure_centre, figure_extents, mesh_topology, render_silhouette, segment_components
+from .silhouette import figure_center, figure_extents, mesh_topology, render_silhouette, segment_components
 
 
 @dataclass(frozen=True)
@@ -121,7 +121,7 @@ class RegisterOptions:
         ``M cos k theta``, ``M sin k theta``): the outline's contrast varies with the surface's
         albedo, and an intensity fit that does not know it moves the outline.
     surge_widths, surge_min_range
-        Opposition-surge widths ``h`` (rad) of the columns ``M (B_h(g) - B_h(g_centre))`` fitted with the model
+        Opposition-surge widths ``h`` (rad) of the columns ``M (B_h(g) - B_h(g_center))`` fitted with the model
         (:func:`surge_fields`; Hapke 1986, Eq. 11), each only where it varies by at least ``surge_min_range``
         across the window (empty: none).  A ray-traced Eros with a surge (Lommel-Seeliger, ``B_0 = 1.4``,
         ``h = 0.067``) at zero phase and 3x the long axis: 0.33 -> 0.11 px.
@@ -211,12 +211,12 @@ class RegisterResult:
 
     Attributes
     ----------
-    centre_rc, los_camera
+    center_rc, los_camera
         Body-centre image (row, col) and its unit line of sight.
     range_km, t_camera
         Fitted range and body centre in the camera frame (km).
     covariance_rc
-        2x2 covariance of ``centre_rc`` (px^2).
+        2x2 covariance of ``center_rc`` (px^2).
     gain, offset
         Fitted ``a`` (DN per unit albedo) and ``b`` (background DN).
     rms_residual, noise_sigma
@@ -229,7 +229,7 @@ class RegisterResult:
         The attitude used (fitted when ``fit_attitude``).
     """
 
-    centre_rc: np.ndarray
+    center_rc: np.ndarray
     los_camera: np.ndarray
     range_km: float
     t_camera: np.ndarray
@@ -288,8 +288,8 @@ def extent_update(
     """
     if s_img is None:
         k = math.sqrt(float(obs.sum()) / float(pred.sum()))
-        fp = figure_centre(pred)
-        return figure_centre(obs) - (P + k * (fp - P)), k
+        fp = figure_center(pred)
+        return figure_center(obs) - (P + k * (fp - P)), k
     e = np.array([-s_img[1], s_img[0]])
     axes = np.stack([e, -e, s_img])
     xo, xp = figure_extents(obs, axes), figure_extents(pred, axes, pred_contours)
@@ -301,12 +301,12 @@ def extent_update(
     return d_e * e + d_s * s_img, float(k)
 
 
-def initial_centre(mesh: Mesh, camera: object, R: np.ndarray, sun, mask: np.ndarray, range_km: float | None):  # type: ignore[no-untyped-def]
+def initial_center(mesh: Mesh, camera: object, R: np.ndarray, sun, mask: np.ndarray, range_km: float | None):  # type: ignore[no-untyped-def]
     """Step 1 of the module docstring: ``(P, D)`` from the observed lit figure ``mask``."""
     from ..imaging.prior import sun_direction_image
 
     topo = _topology(mesh)
-    fc = figure_centre(mask)
+    fc = figure_center(mask)
     rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
     extent = float(max(rr[-1] - rr[0], cc[-1] - cc[0]) + 1)
     D = float(range_km) if range_km else 2.0 * mesh.max_radius * camera.focal_px / extent  # type: ignore[attr-defined]
@@ -791,7 +791,7 @@ def register_known_attitude(
 
 def _start(img, mesh, camera, R, sun, range_km, options, mask, initial):  # type: ignore[no-untyped-def]
     """Steps 1-2: initial pose (or ``initial``) moved by the NCC peak; ``(P, D, ncc)``."""
-    P, D = initial_centre(mesh, camera, R, sun, mask, range_km) if initial is None else initial
+    P, D = initial_center(mesh, camera, R, sun, mask, range_km) if initial is None else initial
     lo, hi = _window(camera, P, D, mesh, mask, options.margin_px)
     M, _ = render_model(mesh, camera, R, _pose(camera, P, D), sun, lo, hi, options)
     shift, ncc = ncc_shift(img, M, lo, options.search_px)
@@ -920,7 +920,7 @@ def finish_registration(img, camera, segmentation, st: GNState, ncc: float, opti
     check_center_sigma(cov, options.max_center_sigma_px)
     t = _pose(camera, P, D)
     return RegisterResult(
-        centre_rc=np.asarray(P, dtype=float),
+        center_rc=np.asarray(P, dtype=float),
         los_camera=np.asarray(camera.los(P), dtype=float),
         range_km=float(D),
         t_camera=t,
@@ -937,4 +937,4 @@ def finish_registration(img, camera, segmentation, st: GNState, ncc: float, opti
     )
 
 
-__all__ = ["RegisterOptions", "RegisterResult", "initial_centre", "lit_figure", "complete_search_registration", "ncc_shift", "register_known_attitude", "start_search_registration", "render_model"]
+__all__ = ["RegisterOptions", "RegisterResult", "initial_center", "lit_figure", "complete_search_registration", "ncc_shift", "register_known_attitude", "start_search_registration", "render_model"]

@@ -67,11 +67,11 @@ def gaussian_sphere(seed: int = 0, radius_km: float = 10.0, beta: float = 0.2, s
     return validate_mesh(u * r[:, None], f, source=f"gaussian-sphere-{seed}")
 
 
-def _ray_exit(u: np.ndarray, centre: np.ndarray, radii: np.ndarray) -> np.ndarray:
+def _ray_exit(u: np.ndarray, center: np.ndarray, radii: np.ndarray) -> np.ndarray:
     """Distance from the origin along ``u`` to where the ray leaves an axis-aligned ellipsoid (origin inside)."""
     a = np.sum((u / radii) ** 2, axis=1)
-    b = -2.0 * np.sum(u * centre / radii**2, axis=1)
-    c = float(np.sum((centre / radii) ** 2)) - 1.0
+    b = -2.0 * np.sum(u * center / radii**2, axis=1)
+    c = float(np.sum((center / radii) ** 2)) - 1.0
     return (-b + np.sqrt(b * b - 4.0 * a * c)) / (2.0 * a)
 
 

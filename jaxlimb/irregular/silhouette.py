@@ -207,10 +207,10 @@ def otsu_threshold(image: np.ndarray, bins: int = 256, max_samples: int = 250_00
     q = np.minimum(((x - lo) * (bins / (hi - lo))).astype(np.int64), bins - 1)
     hist = np.bincount(q, minlength=bins).astype(float)
     edges = lo + (hi - lo) * np.arange(bins + 1) / bins
-    centres = 0.5 * (edges[:-1] + edges[1:])
+    centers = 0.5 * (edges[:-1] + edges[1:])
     w0 = np.cumsum(hist)
     w1 = w0[-1] - w0
-    s0 = np.cumsum(hist * centres)
+    s0 = np.cumsum(hist * centers)
     m0 = s0 / np.maximum(w0, 1)
     m1 = (s0[-1] - s0) / np.maximum(w1, 1)
     between = w0 * w1 * (m0 - m1) ** 2
@@ -261,7 +261,7 @@ def segment_components(image: np.ndarray, options: SegmentOptions = SegmentOptio
     return mask, thr, labels, stats
 
 
-def figure_centre(mask: np.ndarray) -> np.ndarray:
+def figure_center(mask: np.ndarray) -> np.ndarray:
     """Figure centre (FC baseline): centroid ``(row, col)`` of a binary figure."""
     m = cv2.moments(np.ascontiguousarray(mask, dtype=np.uint8), binaryImage=True)
     if m["m00"] <= 0:
@@ -285,7 +285,7 @@ def figure_extents(mask: np.ndarray, axes_rc: np.ndarray, contours: list[np.ndar
     return (xy[:, ::-1] @ np.asarray(axes_rc, dtype=float).T).max(axis=0)
 
 
-def brightness_centre(image: np.ndarray, mask: np.ndarray | None = None, background: float | None = None) -> np.ndarray:
+def brightness_center(image: np.ndarray, mask: np.ndarray | None = None, background: float | None = None) -> np.ndarray:
     """Brightness centre (BC baseline): intensity-weighted centroid ``(row, col)``.
 
     Weights are ``max(I - background, 0)`` over ``mask`` (all pixels if ``None``);
@@ -319,8 +319,8 @@ def brightness_centre(image: np.ndarray, mask: np.ndarray | None = None, backgro
 __all__ = [
     "MeshTopology",
     "SegmentOptions",
-    "brightness_centre",
-    "figure_centre",
+    "brightness_center",
+    "figure_center",
     "figure_extents",
     "fill_outline",
     "fill_triangles_exact",

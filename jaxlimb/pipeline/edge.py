@@ -64,7 +64,7 @@ class EdgeFit:
     circ: RefineResult
     pixels: LimbPixels
     widened: bool
-    recentred: bool
+    recentered: bool
     arc_deg: float
     jump_px: float = 0.0
     jump_limit_px: float = 0.0
@@ -123,7 +123,7 @@ def edge_fit(frame: Frame, pix: LimbPixels) -> EdgeFit:
     half a pixel (the annulus was built on the front end's circle); the lit-arc check on the fitted pixels."""
     opt = frame.opt
     circ = fit_circle_annulus(pix.sel, opt)
-    widened = recentred = False
+    widened = recentered = False
     if opt.estimate_k and opt.annulus_px is None:
         need = EDGE_SIGMAS * LOGISTIC_TO_GAUSS / max(float(circ.fit.params.k), 1e-6)
         cap = max(opt.annulus_min_px, 0.5 * pix.sel.radius)
@@ -134,11 +134,11 @@ def edge_fit(frame: Frame, pix: LimbPixels) -> EdgeFit:
     if max_limb_displacement(pix.sel.center_rc, pix.sel.radius, (float(p.r0), float(p.c0)), float(p.radius),
                              pix.sel.angles()) > 0.5:
         pix, circ = _reselect(frame, pix, circ, pix.dr)
-        recentred = True
+        recentered = True
     p = circ.fit.params
     arc = check_lit_arc(arc_angles(circ.coords, (p.r0, p.c0)), pix.min_arc_deg, pix.half)
     frame.mark("refine")
-    return EdgeFit(circ, pix, widened, recentred, arc)
+    return EdgeFit(circ, pix, widened, recentered, arc)
 
 
 def check_edge(frame: Frame, cand: Any, edge: EdgeFit) -> EdgeFit:
@@ -151,7 +151,7 @@ def check_edge(frame: Frame, cand: Any, edge: EdgeFit) -> EdgeFit:
     if prior is not None:
         check_radius_prior(edge.radius, prior.radius_range, prior.source)
     check_center_in_field(edge.center_rc, edge.radius, frame.img.shape)
-    return EdgeFit(edge.circ, edge.pixels, edge.widened, edge.recentred, edge.arc_deg, jump, thr)
+    return EdgeFit(edge.circ, edge.pixels, edge.widened, edge.recentered, edge.arc_deg, jump, thr)
 
 
 def edge_report(frame: Frame, cand: Any, edge: EdgeFit) -> dict[str, Any]:
@@ -161,7 +161,7 @@ def edge_report(frame: Frame, cand: Any, edge: EdgeFit) -> dict[str, Any]:
     return {
         "initial_circle": {"center_rc": list(cand.center_rc), "radius_px": cand.radius, "rms_px": cand.residual_rms},
         "circle_fit": {"center_rc": list(edge.center_rc), "radius_px": edge.radius},
-        "annulus_px": pix.dr, "annulus_widened": edge.widened, "annulus_recentred": edge.recentred,
+        "annulus_px": pix.dr, "annulus_widened": edge.widened, "annulus_recentered": edge.recentered,
         "lit_arc_deg": edge.arc_deg,
         "lit_direction_rc": list(pix.direction) if pix.direction is not None else None,
         "lit_halfangle_deg": math.degrees(pix.half), "sun_direction_known": frame.sun_known,

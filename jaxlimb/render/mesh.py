@@ -88,14 +88,14 @@ class MeshRender:
     ----------
     image
         float64 ``(rows, cols)``.
-    centre_rc
+    center_rc
         Exact image of the body centre (mesh origin), ``(row, col)``.
     coverage
         Fraction of each pixel covered by the body (lit or not), ``(rows, cols)``.
     """
 
     image: np.ndarray
-    centre_rc: np.ndarray
+    center_rc: np.ndarray
     coverage: np.ndarray
 
 
@@ -273,7 +273,7 @@ def render_mesh(
     rows, cols = camera.shape  # type: ignore[attr-defined]
     f = camera.focal_px  # type: ignore[attr-defined]
     r0, c0 = camera.principal_point_rc  # type: ignore[attr-defined]
-    centre = np.array([r0 + f * t[1] / t[2], c0 + f * t[0] / t[2]])
+    center = np.array([r0 + f * t[1] / t[2], c0 + f * t[0] / t[2]])
 
     image = np.full((rows, cols), float(options.background))
     coverage = np.zeros((rows, cols))
@@ -294,7 +294,7 @@ def render_mesh(
         image = image + np.random.default_rng(options.seed).normal(0.0, options.noise_sigma, image.shape)
     if options.quantize_bits is not None:
         image = np.clip(np.round(image), 0, 2**options.quantize_bits - 1)
-    return MeshRender(image=image, centre_rc=centre, coverage=coverage)
+    return MeshRender(image=image, center_rc=center, coverage=coverage)
 
 
 def look_at_rotation(view_dir_body: np.ndarray, up_body: np.ndarray | None = None, roll_rad: float = 0.0) -> np.ndarray:

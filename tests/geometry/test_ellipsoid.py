@@ -66,7 +66,7 @@ def test_limb_cone_sign_structure_and_determinant(radii, d, k):
     assert cone.axis @ (-p) > 0
 
 
-def test_sphere_cone_is_circular_and_centred():
+def test_sphere_cone_is_circular_and_centered():
     p = np.array([3000.0, -40000.0, 12000.0])
     cone = limb_cone(MOON, p)
     D = np.linalg.norm(p)
@@ -119,8 +119,8 @@ def test_earth_minor_axis_and_gamma_off_vs_meridian_tangents(lat_deg, dist):
     dtheta = math.acos(float(t1 @ t2))
     assert cone.semi_axes[1] == pytest.approx(math.sin(dtheta / 2), rel=1e-9)
     bis = (t1 + t2) / np.linalg.norm(t1 + t2)
-    to_centre = -np.array([rho_p, z_p]) / dist
-    g_ref = math.atan2(abs(bis[0] * to_centre[1] - bis[1] * to_centre[0]), float(bis @ to_centre))
+    to_center = -np.array([rho_p, z_p]) / dist
+    g_ref = math.atan2(abs(bis[0] * to_center[1] - bis[1] * to_center[0]), float(bis @ to_center))
     assert cone.gamma_off == pytest.approx(g_ref, abs=1e-12)
     assert gamma_off(EARTH, p) == pytest.approx(g_ref, abs=1e-12)
     assert np.sign(gamma_off_signed(EARTH, p)) == np.sign(lat_deg) or lat_deg == 0
@@ -201,8 +201,8 @@ def test_image_conic_sphere_off_axis_exact():
     r_in, r_out = f * math.tan(t - a), f * math.tan(t + a)
     pp = np.array(cam.principal_point_rc)
     radial = (np.array(ic.body_center_rc) - pp) / np.linalg.norm(np.array(ic.body_center_rc) - pp)
-    centre_dist = float((np.array(ic.center_rc) - pp) @ radial)
-    assert centre_dist == pytest.approx(0.5 * (r_in + r_out), abs=1e-6)
+    center_dist = float((np.array(ic.center_rc) - pp) @ radial)
+    assert center_dist == pytest.approx(0.5 * (r_in + r_out), abs=1e-6)
     assert ic.semi_axes_px[0] == pytest.approx(0.5 * (r_out - r_in), abs=1e-6)
     # the ellipse centre is displaced outward from the projected centre (perspective), ~1 px here
     off = np.array(ic.center_rc) - np.array(ic.body_center_rc)

@@ -36,7 +36,7 @@ def scene(tmp_path_factory):
     (d / "camera.json").write_text(json.dumps(cam.to_dict()))
     out = render_view(mesh, cam, [0.3, -0.5, 0.8], 150.0, roll=0.4, offset_px=(5.0, -12.0), quantize_bits=8)
     cv2.imwrite(str(d / "img.png"), out.image.astype(np.uint8))
-    return d, out.centre_rc
+    return d, out.center_rc
 
 
 def _run(capsys, argv):
@@ -171,7 +171,7 @@ def test_locate_checked_modes_and_wrong_body(scene, capsys, tmp_path):
     assert rc == 0, o + err
     res = json.loads(o)
     assert res["mode"] == "known-attitude" and res["checked"] is True
-    assert np.linalg.norm(np.array(res["center_rc"]) - out.centre_rc) < 0.05  # 8-bit quantised frame, not saturated
+    assert np.linalg.norm(np.array(res["center_rc"]) - out.center_rc) < 0.05  # 8-bit quantised frame, not saturated
     assert np.all(np.linalg.eigvalsh(np.array(res["covariance"]["center_rc"])) > 0)
     # a frame of another body against this body's model: exit 3, never ok
     other = generate_shape(ShapeFamily.CONTACT_BINARY, 3)

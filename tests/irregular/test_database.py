@@ -28,7 +28,7 @@ def test_content(lumpy_db, lumpy):
     assert db.mesh_hash == mesh_hash(lumpy)
     assert np.all(db.area > 0)
     # P_B is the principal point; the lumpy mesh's origin is off its centroid so C_B != P_B
-    off = np.linalg.norm(db.centre_rc - db.centre_image_rc, axis=1)
+    off = np.linalg.norm(db.center_rc - db.center_image_rc, axis=1)
     assert off.max() > 1.0
     assert np.all(np.isfinite(db.hu))
     # antipodal views give mirror-image figures: opposite sign of h7 (exactly so in the orthographic limit)
@@ -40,7 +40,7 @@ def test_content(lumpy_db, lumpy):
 def test_roundtrip(tmp_path, lumpy_db):
     p = save_database(lumpy_db, tmp_path / "db.npz")
     db2 = load_database(p, expected_mesh_hash=lumpy_db.mesh_hash, expected_options=lumpy_db.options)
-    for k in ("alpha", "area", "centre_rc", "hu", "contour_xy", "R_body_to_camera"):
+    for k in ("alpha", "area", "center_rc", "hu", "contour_xy", "R_body_to_camera"):
         assert np.array_equal(getattr(db2, k), getattr(lumpy_db, k))
     assert db2.options == lumpy_db.options
     assert np.array_equal(db2.mesh.vertices, lumpy_db.mesh.vertices)
@@ -102,6 +102,25 @@ def test_other_version_settings_mesh_refused(tmp_path, lumpy_db):
         z.writestr("x.npy", b"")
     with pytest.raises(DatabaseError):
         load_database(tmp_path / "foreign.npz")
+
+
+def test_version_1_file_still_reads(tmp_path, lumpy_db):
+    """Version 1 spelled the template centres ``centre_rc``; such a file loads with the same values."""
+    p = save_database(lumpy_db, tmp_path / "db.npz")
+    with np.load(p) as z:
+        arrays = {("centre_rc" if k == "center_rc" else k): z[k] for k in z.files}
+    arrays["format_version"] = np.array(1)
+    arrays["checksum"] = np.array(dbm._checksum(arrays))
+    with open(tmp_path / "v1.npz", "wb") as fh:
+        np.savez(fh, **arrays)
+    db1 = load_database(tmp_path / "v1.npz", expected_mesh_hash=lumpy_db.mesh_hash)
+    assert np.array_equal(db1.center_rc, lumpy_db.center_rc)
+    arrays["format_version"] = np.array(2)  # the old name under the new version is not accepted
+    arrays["checksum"] = np.array(dbm._checksum(arrays))
+    with open(tmp_path / "v2old.npz", "wb") as fh:
+        np.savez(fh, **arrays)
+    with pytest.raises(DatabaseError, match="lacks arrays"):
+        load_database(tmp_path / "v2old.npz")
 
 
 def test_failed_write_leaves_old_file(tmp_path, lumpy_db, monkeypatch):

@@ -34,7 +34,7 @@ def _scene(mesh, R, phase_deg, size_px=130.0, offset_px=(10.0, -15.0), noise=2.0
     a /= np.linalg.norm(a)
     sun = u * math.cos(math.radians(phase_deg)) + a * math.sin(math.radians(phase_deg))
     out = render_mesh(mesh.vertices, mesh.faces, CAM, R, t, sun, MeshRenderOptions(noise_sigma=noise, seed=seed))
-    return out.image, out.centre_rc, sun, t
+    return out.image, out.center_rc, sun, t
 
 
 @pytest.fixture(scope="module")
@@ -74,7 +74,7 @@ def test_known_attitude_registration_sub_tenth_pixel(body, phase):
     img, truth, sun, t = _scene(body, R, phase)
     res = locate_los(img, None_db(body), CAM, sun, R, range_km=1.1 * np.linalg.norm(t))
     assert res.mode is LosMode.KNOWN_ATTITUDE
-    assert np.linalg.norm(res.centre_rc - truth) < 0.05
+    assert np.linalg.norm(res.center_rc - truth) < 0.05
     assert abs(res.fit.range_km / np.linalg.norm(t) - 1) < 2e-3
     sd = np.sqrt(np.linalg.eigvalsh(res.fit.covariance_rc))
     assert np.all(sd > 0) and np.all(sd < 0.05)
@@ -82,16 +82,16 @@ def test_known_attitude_registration_sub_tenth_pixel(body, phase):
 
 
 @pytest.mark.parametrize("phase", [60.0, 90.0])
-def test_pedestal_under_the_whole_frame_does_not_move_the_centre(body, phase):
+def test_pedestal_under_the_whole_frame_does_not_move_the_center(body, phase):
     """A level under the whole frame (bias, dark current) lifts the unlit side of the body too; fitted
     as sky alone (``1 - C``) it made the dark side an edge: 0.22 px at 60 deg (0.01 with the column)."""
     R = _rot([0.3, 1.0, 0.2], 70.0)
     img, truth, sun, t = _scene(body, R, phase)
     for frame in (img, img + 30.0):
         res = register_known_attitude(frame, body, CAM, R, sun, 1.1 * np.linalg.norm(t))
-        assert np.linalg.norm(res.centre_rc - truth) < 0.03
+        assert np.linalg.norm(res.center_rc - truth) < 0.03
     off = register_known_attitude(img + 30.0, body, CAM, R, sun, 1.1 * np.linalg.norm(t), RegisterOptions(pedestal_min_dark_frac=0.0))
-    assert np.linalg.norm(off.centre_rc - truth) > np.linalg.norm(res.centre_rc - truth)
+    assert np.linalg.norm(off.center_rc - truth) > np.linalg.norm(res.center_rc - truth)
 
 
 def None_db(mesh):
@@ -121,7 +121,7 @@ def test_covariance_matches_monte_carlo(body):
     for seed in range(6):
         img, truth, sun, t = _scene(body, R, 30.0, size_px=90.0, noise=8.0, seed=seed)
         res = register_known_attitude(img, body, CAM, R, sun)
-        errs.append(res.centre_rc - truth)
+        errs.append(res.center_rc - truth)
         covs.append(res.covariance_rc)
     e = np.array(errs)
     nees = np.mean([x @ np.linalg.solve(c, x) for x, c in zip(e, covs)])
@@ -139,7 +139,7 @@ def test_unknown_attitude_phase_aware_search(body, body_db, phase):
     img, truth, sun, t = _scene(body, R, phase)
     res = locate_los(img, body_db, CAM, sun)
     assert res.mode is LosMode.TEMPLATE_SEARCH
-    assert np.linalg.norm(res.centre_rc - truth) < 0.3
+    assert np.linalg.norm(res.center_rc - truth) < 0.3
     assert abs(phase_angle_deg(sun, CAM, truth) - phase) < 1e-6
 
 
@@ -198,10 +198,10 @@ def test_photometric_mix_registers_a_lambert_body(body, phase):
     sun = u * math.cos(math.radians(phase)) + a * math.sin(math.radians(phase))
     out = render_mesh(body.vertices, body.faces, CAM, R, t, sun, MeshRenderOptions(noise_sigma=2.0, seed=0, reflectance="lambert"))
     mixed = register_known_attitude(out.image, body, CAM, R, sun)
-    assert np.linalg.norm(mixed.centre_rc - out.centre_rc) < 0.05 and mixed.excess_frac < 0.02
+    assert np.linalg.norm(mixed.center_rc - out.center_rc) < 0.05 and mixed.excess_frac < 0.02
     try:
         ls_only = register_known_attitude(out.image, body, CAM, R, sun, options=replace(RegisterOptions(), fit_photometry=False))
-        assert np.linalg.norm(ls_only.centre_rc - out.centre_rc) > 0.2
+        assert np.linalg.norm(ls_only.center_rc - out.center_rc) > 0.2
     except CheckFailed:
         pass  # or refused: either way the mix is what makes the frame usable
 
@@ -226,7 +226,7 @@ def test_covariance_carries_model_error_on_a_ray_traced_body(body):
                        albedo_seed=seed, psf=Psf(sigma=0.8))
         img, truth = render_mesh_frame(sc, Pinhole.from_camera(CAM), np.random.default_rng(seed))
         res = register_known_attitude(img, body, CAM, R, sun)
-        e = res.centre_rc - truth
+        e = res.center_rc - truth
         errs.append(np.linalg.norm(e))
         nees.append(float(e @ np.linalg.solve(res.covariance_rc, e)))
     assert max(errs) < 0.5

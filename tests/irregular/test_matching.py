@@ -13,15 +13,15 @@ from jaxlimb.errors import ConfigError, NoBodyError
 from jaxlimb.irregular.matching import (
     MatchOptions,
     line_of_sight,
-    locate_centre,
+    locate_center,
     locate_in_mask,
     match_weights,
     rotation_from_attitude,
     shape_distance,
-    similarity_centre,
+    similarity_center,
 )
 from jaxlimb.irregular.features import log_hu
-from jaxlimb.irregular.silhouette import brightness_centre, figure_centre, segment_body
+from jaxlimb.irregular.silhouette import brightness_center, figure_center, segment_body
 from jaxlimb.irregular.views import viewpoint_directions
 
 
@@ -48,7 +48,7 @@ def test_eq23_rotation_and_eq25_transform():
     k, CG = 1.7, np.array([100.0, 300.0])
     d = (PB - CB)[::-1]  # (x, y)
     expect_xy = CG[::-1] + k * rot @ d
-    P = similarity_centre(CG, k**2 * 50.0, CB, 50.0, PB, ang)
+    P = similarity_center(CG, k**2 * 50.0, CB, 50.0, PB, ang)
     assert np.allclose(P, expect_xy[::-1])
 
 
@@ -69,12 +69,12 @@ def _views(db, n, seed):
     return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
-def test_on_grid_view_recovers_centre(lumpy_db, lumpy, small_camera):
+def test_on_grid_view_recovers_center(lumpy_db, lumpy, small_camera):
     dirs = viewpoint_directions(lumpy_db.alpha, lumpy_db.beta)
     for j in (5, 40, 200):
         out = render_view(lumpy, small_camera, dirs[j], 220.0, roll=0.3 + j, offset_px=(10.0, -20.0))
-        res = locate_centre(out.image, lumpy_db, small_camera)
-        assert np.linalg.norm(res.centre_rc - out.centre_rc) < 0.35
+        res = locate_center(out.image, lumpy_db, small_camera)
+        assert np.linalg.norm(res.center_rc - out.center_rc) < 0.35
         assert res.scale == pytest.approx(220.0 / (2 * lumpy.max_radius) / (lumpy_db.focal_px / lumpy_db.distance_km), rel=0.02)
 
 
@@ -82,11 +82,11 @@ def test_off_grid_better_than_fc_and_bc(thebe_db, thebe, small_camera):
     errs, fcs, bcs = [], [], []
     for i, d in enumerate(_views(thebe_db, 8, seed=11)):
         out = render_view(thebe, small_camera, d, 250.0, roll=0.7 * i, offset_px=(15.0 * (i % 3 - 1), 25.0))
-        res = locate_centre(out.image, thebe_db, small_camera)
-        errs.append(np.linalg.norm(res.centre_rc - out.centre_rc))
-        fcs.append(np.linalg.norm(res.figure_centre_rc - out.centre_rc))
-        bcs.append(np.linalg.norm(res.brightness_centre_rc - out.centre_rc))
-        assert np.allclose(res.los_camera, small_camera.los(res.centre_rc))
+        res = locate_center(out.image, thebe_db, small_camera)
+        errs.append(np.linalg.norm(res.center_rc - out.center_rc))
+        fcs.append(np.linalg.norm(res.figure_center_rc - out.center_rc))
+        bcs.append(np.linalg.norm(res.brightness_center_rc - out.center_rc))
+        assert np.allclose(res.los_camera, small_camera.los(res.center_rc))
     # 6-degree database here (the benchmark uses 3 degrees)
     assert np.median(errs) < 0.8
     assert np.median(errs) < 0.5 * np.median(fcs)
@@ -103,7 +103,7 @@ def test_off_axis_rectification(lumpy_db, lumpy):
     d = _views(lumpy_db, 1, seed=5)[0]
     out = render_view(lumpy, cam, d, 250.0, offset_px=(700.0, 1050.0))
     mask, _ = segment_body(out.image)
-    fc = figure_centre(mask)
+    fc = figure_center(mask)
     Rv = _rot_z_to(cam.los(fc))
     H = cam.K @ Rv.T @ np.linalg.inv(cam.K)
     rect, _ = _rectified_features(mask, H, 64)
@@ -116,13 +116,13 @@ def test_off_axis_rectification(lumpy_db, lumpy):
     ref, _ = _rectified_features(segment_body(on.image)[0], np.eye(3), 64)
     assert abs(rect.area / ref.area - 1) < 0.3 * abs(flat.area / ref.area - 1)
     assert abs(rect.area / ref.area - 1) < 0.003
-    e_rect = np.linalg.norm(locate_centre(out.image, lumpy_db, cam).centre_rc - out.centre_rc)
+    e_rect = np.linalg.norm(locate_center(out.image, lumpy_db, cam).center_rc - out.center_rc)
     assert e_rect < 0.6
 
 
 def _subset(db, idx):
     idx = np.asarray(idx)
-    kw = {k: getattr(db, k)[idx] for k in ("alpha", "beta", "R_body_to_camera", "area", "centre_rc", "hu", "orientation", "elongation", "attitude_xy", "contour_xy")}
+    kw = {k: getattr(db, k)[idx] for k in ("alpha", "beta", "R_body_to_camera", "area", "center_rc", "hu", "orientation", "elongation", "attitude_xy", "contour_xy")}
     return dataclasses.replace(db, **kw)
 
 
@@ -138,7 +138,7 @@ def test_guard_mirror_image_rejected(lumpy_db, lumpy, small_camera):
     opts = MatchOptions(top_k=2)
     P, info = locate_in_mask(mask, sub, small_camera, opts)
     assert info["template_index"] == 0
-    assert np.linalg.norm(P - out.centre_rc) < 0.35
+    assert np.linalg.norm(P - out.center_rc) < 0.35
     # forced onto the mirror template, the contour agreement is much worse
     _, info_m = locate_in_mask(mask, _subset(lumpy_db, [anti, anti]), small_camera, MatchOptions(top_k=1))
     assert info_m["contour_mean_px"] > 2 * info["contour_mean_px"]
@@ -177,10 +177,10 @@ def test_guard_attitude_vector_near_symmetric(small_camera):
     errs_g, errs_p = [], []
     for roll in np.linspace(0.0, 2.0 * math.pi, 6, endpoint=False):
         out = render_view(m, small_camera, [0.0, 0.0, 1.0], 220.0, roll=roll + 0.1)
-        g = locate_centre(out.image, db, small_camera)
-        p = locate_centre(out.image, db, small_camera, MatchOptions(rotation="paper", top_k=1))
-        errs_g.append(np.linalg.norm(g.centre_rc - out.centre_rc))
-        errs_p.append(np.linalg.norm(p.centre_rc - out.centre_rc))
+        g = locate_center(out.image, db, small_camera)
+        p = locate_center(out.image, db, small_camera, MatchOptions(rotation="paper", top_k=1))
+        errs_g.append(np.linalg.norm(g.center_rc - out.center_rc))
+        errs_p.append(np.linalg.norm(p.center_rc - out.center_rc))
     assert max(errs_g) < 1.0
     assert max(errs_p) > 5.0  # the farthest point jumps to another corner at least once
 
@@ -190,14 +190,14 @@ def test_baselines():
     img[10:30, 20:60] = 10.0
     img[10:30, 20:25] = 14.0  # a brighter strip pulls the brightness centre
     mask, _ = segment_body(img)
-    assert np.allclose(figure_centre(mask), [19.5, 39.5])
-    bc = brightness_centre(img, mask)
+    assert np.allclose(figure_center(mask), [19.5, 39.5])
+    bc = brightness_center(img, mask)
     assert bc[1] < 39.5 and bc[0] == pytest.approx(19.5)
 
 
 def test_no_body(lumpy_db, small_camera):
     with pytest.raises(NoBodyError):
-        locate_centre(np.zeros(small_camera.shape), lumpy_db, small_camera)
+        locate_center(np.zeros(small_camera.shape), lumpy_db, small_camera)
 
 
 def test_options_validated():

@@ -9,14 +9,14 @@ import pytest
 from irregular_helpers import render_view
 
 from jaxlimb.errors import ConfigError, GeometryError
-from jaxlimb.irregular.matching import locate_centre
-from jaxlimb.irregular.refine import RefineOptions, densify_match, refine_centre
+from jaxlimb.irregular.matching import locate_center
+from jaxlimb.irregular.refine import RefineOptions, densify_match, refine_center
 from jaxlimb.render.mesh import MeshRenderOptions, look_at_rotation, render_mesh
 
 
 def test_renderer_truth_and_coverage(lumpy, small_camera):
     out = render_view(lumpy, small_camera, [0.2, 0.4, 0.9], 200.0, offset_px=(12.0, -30.0))
-    assert np.allclose(out.centre_rc, np.array(small_camera.principal_point_rc) + [12.0, -30.0])
+    assert np.allclose(out.center_rc, np.array(small_camera.principal_point_rc) + [12.0, -30.0])
     assert out.image.shape == small_camera.shape
     cov = out.coverage
     assert cov.max() == 1.0 and 0 < cov[(cov > 0) & (cov < 1)].size < 0.2 * (cov > 0).sum()  # anti-aliased edge
@@ -54,11 +54,11 @@ def test_refinement_beats_matching(thebe_db, thebe, small_camera):
     for i in range(2):
         d = rng.normal(size=3)
         out = render_view(thebe, small_camera, d, 260.0, roll=rng.uniform(0, 6.3), offset_px=(10.0, -15.0))
-        m = locate_centre(out.image, thebe_db, small_camera)
-        r = refine_centre(out.image, thebe_db, small_camera, m)
-        errs_m.append(np.linalg.norm(m.centre_rc - out.centre_rc))
-        errs_r.append(np.linalg.norm(r.centre_rc - out.centre_rc))
-        assert np.allclose(r.los_camera, small_camera.los(r.centre_rc))
+        m = locate_center(out.image, thebe_db, small_camera)
+        r = refine_center(out.image, thebe_db, small_camera, m)
+        errs_m.append(np.linalg.norm(m.center_rc - out.center_rc))
+        errs_r.append(np.linalg.norm(r.center_rc - out.center_rc))
+        assert np.allclose(r.los_camera, small_camera.los(r.center_rc))
         assert r.k > 1.0 and r.n_pixels > 100
     assert np.median(errs_r) < 0.1
     assert np.median(errs_r) < np.median(errs_m)
@@ -69,10 +69,10 @@ def test_densify_improves_match(thebe_db, thebe, small_camera):
     e_m, e_d = [], []
     for _ in range(3):
         out = render_view(thebe, small_camera, rng.normal(size=3), 260.0, roll=rng.uniform(0, 6.3))
-        m = locate_centre(out.image, thebe_db, small_camera)
+        m = locate_center(out.image, thebe_db, small_camera)
         dn = densify_match(m.mask, thebe_db, small_camera, m)
-        e_m.append(np.linalg.norm(m.centre_rc - out.centre_rc))
-        e_d.append(np.linalg.norm(dn.centre_rc - out.centre_rc))
+        e_m.append(np.linalg.norm(m.center_rc - out.center_rc))
+        e_d.append(np.linalg.norm(dn.center_rc - out.center_rc))
     assert np.mean(e_d) < np.mean(e_m)
 
 
@@ -86,15 +86,15 @@ def test_refinement_lit_silhouette_at_phase(thebe_db, thebe, small_camera):
     ph = math.radians(45.0)
     sun = np.array([math.sin(ph), 0.0, -math.cos(ph)])
     out = render_mesh(thebe.vertices, thebe.faces, small_camera, R, t, sun_dir_camera=sun)
-    m = locate_centre(out.image, thebe_db, small_camera)  # only for the mask
+    m = locate_center(out.image, thebe_db, small_camera)  # only for the mask
     # start 0.8 deg and 2 px away from the truth (a filter prediction)
     w = np.radians(0.8) * np.array([0.6, -0.8, 0.0])
     K = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
     R0 = (np.eye(3) + K + K @ K / 2) @ R
     t0 = t + np.array([2.0 * D / small_camera.focal_px, -1.0 * D / small_camera.focal_px, 0.0])
-    lit = refine_centre(out.image, thebe_db, small_camera, m, sun_dir_camera=sun, initial_pose_override=(R0, t0))
-    e_init = np.linalg.norm(small_camera.project(t0) - out.centre_rc)
-    e_lit = np.linalg.norm(lit.centre_rc - out.centre_rc)
+    lit = refine_center(out.image, thebe_db, small_camera, m, sun_dir_camera=sun, initial_pose_override=(R0, t0))
+    e_init = np.linalg.norm(small_camera.project(t0) - out.center_rc)
+    e_lit = np.linalg.norm(lit.center_rc - out.center_rc)
     # measured: init 2.24 px -> 0.49 px; the same fit ignoring the phase (terminator fitted
     # as a limb, sun_dir_camera=None) ends 10.8 px off (not repeated here to save a compilation)
     assert e_lit < 0.4 * e_init

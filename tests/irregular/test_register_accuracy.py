@@ -58,7 +58,7 @@ def test_smooth_column_is_that_of_the_fitted_mix(lumpy):
     assert np.abs(ls - own).max() > 0.05 * np.abs(own).max()  # the two laws' columns differ
 
 
-def test_surge_fields_zero_at_the_centre_and_falling_with_phase():
+def test_surge_fields_zero_at_the_center_and_falling_with_phase():
     cam = Camera(focal_length_mm=16.0, pixel_pitch_mm=0.02, rows=200, cols=200)
     Pk = np.array([90.0, 110.0])
     ray = np.array([(Pk[1] - cam.principal_point_rc[1]) / cam.focal_px, (Pk[0] - cam.principal_point_rc[0]) / cam.focal_px, 1.0])
@@ -97,7 +97,7 @@ def test_next_hypotheses_are_tried_only_when_none_explains_the_frame(monkeypatch
     calls = []
     monkeypatch.setattr(locate_mod, "phase_candidates", lambda *a, **k: hyps)
     monkeypatch.setattr(locate_mod, "lit_figure", lambda img: (np.ones((4, 4), np.uint8), 0.5))
-    monkeypatch.setattr(locate_mod, "figure_centre", lambda m: np.zeros(2))
+    monkeypatch.setattr(locate_mod, "figure_center", lambda m: np.zeros(2))
     monkeypatch.setattr(locate_mod, "_sun_image_direction", lambda *a: None)
 
     def register(img, db, camera, sun, seg, hs, ropts, options):

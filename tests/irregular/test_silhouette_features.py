@@ -50,12 +50,12 @@ def test_polygon_moments_match_opencv_contour_moments():
     assert np.allclose(raw_moments_polygon(poly[::-1]), mine)  # orientation-independent
 
 
-def test_eq14_area_and_centre_of_rectangle():
+def test_eq14_area_and_center_of_rectangle():
     m = np.zeros((50, 60), np.uint8)
     m[10:20, 5:35] = 1
     f = features_from_mask(m)
     assert f.area == 300
-    assert np.allclose(f.centre_rc, [14.5, 19.5])
+    assert np.allclose(f.center_rc, [14.5, 19.5])
     assert f.orientation == pytest.approx(0.0, abs=1e-12)  # long axis along x = col
 
 
@@ -110,7 +110,7 @@ def test_silhouette_equals_union_of_triangles(thebe):
         perimeter = cv2.arcLength(contours[0], True)
         assert diff < 0.25 * perimeter
         fm, fr = features_from_mask(mask), features_from_mask(ref)
-        assert np.allclose(fm.centre_rc, fr.centre_rc, atol=0.1)
+        assert np.allclose(fm.center_rc, fr.center_rc, atol=0.1)
 
 
 def test_template_features_subpixel_accurate_on_sphere():
@@ -125,7 +125,7 @@ def test_template_features_subpixel_accurate_on_sphere():
         _, contours = render_silhouette(topo, np.eye(3), np.array([0, 0, D]), f, pp, (S, S))
         ft = features_from_contours(contours)
         assert ft.area == pytest.approx(math.pi * r_true**2, rel=5e-3)
-        assert np.allclose(ft.centre_rc, pp, atol=0.1)
+        assert np.allclose(ft.center_rc, pp, atol=0.1)
 
 
 def test_lit_silhouette_is_part_of_full(thebe):

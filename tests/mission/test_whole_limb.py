@@ -41,7 +41,7 @@ def _hints(pred_rc, range_km=300_000.0):
                  sun_dir_camera=(0.0, 0.3, 0.95))
 
 
-def test_whole_limb_recovers_the_centre_from_a_wrong_pointing():
+def test_whole_limb_recovers_the_center_from_a_wrong_pointing():
     truth = (250.3, 262.7)
     img, ic = _render(truth)
     m = locate(img, CAM, _hints((244.0, 270.0)))  # prediction 10 px off

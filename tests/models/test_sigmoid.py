@@ -73,7 +73,7 @@ def test_levels_and_midpoint():
     np.testing.assert_allclose(linear_intensity(lp, jnp.array([50.0])), [85.0])
 
 
-def test_no_nan_for_steep_sigmoid_or_pixel_at_centre():
+def test_no_nan_for_steep_sigmoid_or_pixel_at_center():
     p = CircleParams(10.0, 20.0, 5.0, 500.0, 200.0, 20.0)
     rc = jnp.array([[10.0, 20.0], [10.0, 1000.0], [10.0, 25.0]])
     assert np.all(np.isfinite(CIRCLE.jacobian(p, rc)))

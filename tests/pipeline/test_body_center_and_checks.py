@@ -60,7 +60,7 @@ def test_body_center_correction_with_the_physical_profile():
         locate(img, cam, Hints(body="moon"), LocateOptions(profile="lunar-lambert"))
 
 
-def test_no_camera_reports_the_circle_centre():
+def test_no_camera_reports_the_circle_center():
     img, tr = scene(30000.0, 0.0, (200.0, 250.0), 30.0, "uniform")
     m = locate(img)
     assert m.center_rc == tuple(m.extras["circle_fit"]["center_rc"])

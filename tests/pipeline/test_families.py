@@ -31,7 +31,7 @@ def _errors(case, m):
 
 
 @pytest.mark.parametrize("family, idx, bound", [("own", 2, 0.03), ("hapke", 0, 0.03), ("maria", 2, 0.05)])
-def test_moon_centre_on_independent_scenes(family, idx, bound):
+def test_moon_center_on_independent_scenes(family, idx, bound):
     case = _moon(family, idx)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     err, nees = _errors(case, m)

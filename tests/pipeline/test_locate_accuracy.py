@@ -50,16 +50,16 @@ def test_method_accuracy_uniform_disk(phase):
     assert np.percentile(np.abs(e[:, 1]), 90) <= 0.05, e
 
 
-def test_realistic_limb_phase0_centre_and_measured_radius_bias():
+def test_realistic_limb_phase0_center_and_measured_radius_bias():
     e = _run(0.0, "lunar-lambert")
     assert np.percentile(e[:, 0], 90) <= 0.05, e  # centre: the limb bias is symmetric at full phase
     assert np.all((e[:, 1] > 0.05) & (e[:, 1] < 0.2)), e  # radius biased outward by the bright rim
 
 
-@pytest.mark.parametrize("phase, centre_max, radius_max", [(45.0, 0.1, 0.2), (90.0, 0.25, 0.35)])
-def test_realistic_limb_gibbous(phase, centre_max, radius_max):
+@pytest.mark.parametrize("phase, center_max, radius_max", [(45.0, 0.1, 0.2), (90.0, 0.25, 0.35)])
+def test_realistic_limb_gibbous(phase, center_max, radius_max):
     e = _run(phase, "lunar-lambert")
-    assert np.max(e[:, 0]) <= centre_max, e
+    assert np.max(e[:, 0]) <= center_max, e
     assert np.max(np.abs(e[:, 1])) <= radius_max, e
 
 

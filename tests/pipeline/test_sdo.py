@@ -27,7 +27,7 @@ HMI_PNG = shared_data_dir() / "sun/2023_01_31__03_39_23_200__SDO_HMI_HMI_continu
 
 
 @pytest.mark.skipif(not HMI_PNG.exists(), reason="SDO data not available")
-def test_sdo_hmi_centre_and_radius():
+def test_sdo_hmi_center_and_radius():
     img, _ = load_image(HMI_PNG)
     tr = hmi_512_truth()
     m = locate(img, None, None, LocateOptions(profile="sigmoid"))

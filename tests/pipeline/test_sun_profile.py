@@ -37,7 +37,7 @@ def _render_disc(shape, center_rc, radius, u1, u2, sigma, amp, ymin, ss=6):
     return ymin + amp * sub.reshape(n_r, ss, n_c, ss).mean(axis=(1, 3))
 
 
-def test_synthetic_disc_recovers_centre_and_radius():
+def test_synthetic_disc_recovers_center_and_radius():
     truth_rc, truth_r = (240.37, 239.81), 196.43
     img = _render_disc((480, 480), truth_rc, truth_r, u1=0.50, u2=0.20, sigma=0.6, amp=200.0, ymin=5.0)
     img = img + np.random.default_rng(3).normal(0.0, 1.0, img.shape)

@@ -81,7 +81,7 @@ def test_lambert_sphere_matches_the_projects_renderer():
 
 @pytest.mark.parametrize("psf", [Psf(PsfKind.GAUSSIAN, 0.8), Psf(PsfKind.AIRY, r_zero=1.5), Psf(PsfKind.DEFOCUS, r_disc=1.2),
                                  Psf(PsfKind.MOTION, sigma=0.6, length=3.0, angle_deg=30.0)])
-def test_psf_kernels_are_normalised_and_centred(psf):
+def test_psf_kernels_are_normalised_and_centered(psf):
     K = psf.kernel(4)
     n = K.shape[0]
     c = (np.arange(n) - (n - 1) / 2) / 4

@@ -27,7 +27,7 @@ def _sphere_scene(sun, offset_px=(12.3, -20.6), law=Reflectance.LAMBERT, **kw):
                      Photometry(law=law), psf=Psf(sigma=0.7), **kw)
 
 
-def test_sphere_area_and_centre_at_zero_phase():
+def test_sphere_area_and_center_at_zero_phase():
     sc = _sphere_scene([0.0, 0.0, -1.0])
     sc = dataclasses.replace(sc, sun_dir_camera=-sc.t_camera_km / np.linalg.norm(sc.t_camera_km))  # zero phase
     rad, _ = render_radiance(sc, PIN, supersample=4)

@@ -169,7 +169,7 @@ def test_flux_conservation_supersampling_and_psf():
     assert b.max() < a.max()
 
 
-def test_lattice_is_n_rooks_and_centred():
+def test_lattice_is_n_rooks_and_centered():
     for n in (1, 13, 21, 64, 89):
         o = lattice_offsets(n)
         assert o.shape == (n, 2)
@@ -290,7 +290,7 @@ def test_reflectance_models():
         reflectance("phong", mu0, mu, 0.0)
 
 
-def test_shading_matches_the_formula_at_pixel_centres():
+def test_shading_matches_the_formula_at_pixel_centers():
     """Non-supersampled pixels hold exactly the reflectance at the pixel-centre ray."""
     sc = moon_scene(MOON * 300.0, 70.0, camera=CAM_SMALL, sun_angle_deg=200.0)
     for model in ("lommel-seeliger", "lunar-lambert", "lambert"):

@@ -117,9 +117,9 @@ def _shade(scene: MeshScene, tm, loc, tri, d) -> np.ndarray:
         import trimesh
 
         t = np.asarray(scene.t_camera_km, float)
-        centred = trimesh.Trimesh(tm.vertices - t, tm.faces, process=False)
+        centered = trimesh.Trimesh(tm.vertices - t, tm.faces, process=False)
         eps = 1e-5 * float(np.linalg.norm(tm.extents))
-        blocked = centred.ray.intersects_any(loc[idx] - t + eps * ng[idx], np.ascontiguousarray(np.broadcast_to(s, (idx.size, 3))))
+        blocked = centered.ray.intersects_any(loc[idx] - t + eps * ng[idx], np.ascontiguousarray(np.broadcast_to(s, (idx.size, 3))))
         lit[idx[blocked]] = False
     rad = scene.photometry.radiance(np.where(lit, mu0, 0.0), mu, -(d @ s))
     if scene.albedo_depth:
