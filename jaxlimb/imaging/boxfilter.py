@@ -76,6 +76,23 @@ class BoxFilterOptions:
                 raise ConfigError(f"BoxFilterOptions.{k} must be in [0, 1], got {v!r}")
 
 
+def _box_ends(samp, G0, I0, g0, h, t, nrm, background):  # type: ignore[no-untyped-def]
+    """The box's end and far-side samples (§4.2, Fig. 7): gradient at the two ends along the edge direction ``t``
+    (``end_ratio``), gradient and grey level at the two far sides along the normal ``nrm`` (``far_grad``,
+    ``far_grey_ratio``) and the two background-subtracted far grey levels."""
+    (t_r, t_c), (n_r, n_c) = t, nrm
+    ge1 = samp(G0, h * t_r, h * t_c, True)
+    ge2 = samp(G0, -h * t_r, -h * t_c, True)
+    end_ratio = np.minimum(ge1, ge2) / np.maximum(np.maximum(ge1, ge2), 1e-300)
+    gf1 = samp(G0, h * n_r, h * n_c, True)
+    gf2 = samp(G0, -h * n_r, -h * n_c, True)
+    far_grad = np.maximum(gf1, gf2) / np.maximum(g0, 1e-300)
+    i1 = np.maximum(samp(I0, h * n_r, h * n_c, False) - background, 0.0)
+    i2 = np.maximum(samp(I0, -h * n_r, -h * n_c, False) - background, 0.0)
+    grey_ratio = np.minimum(i1, i2) / np.maximum(np.maximum(i1, i2), 1e-300)
+    return end_ratio, far_grad, grey_ratio, i1, i2
+
+
 def box_filter(
     gradient: np.ndarray,
     image: np.ndarray,
@@ -132,17 +149,7 @@ def box_filter(
     ratio, t_r, t_c = _edge_direction(w, h)
     n_r, n_c = -t_c, t_r
     samp = _box_sampler(pr, pc, h, G0.shape)
-
-    ge1 = samp(G0, h * t_r, h * t_c, True)
-    ge2 = samp(G0, -h * t_r, -h * t_c, True)
-    end_ratio = np.minimum(ge1, ge2) / np.maximum(np.maximum(ge1, ge2), 1e-300)
-    gf1 = samp(G0, h * n_r, h * n_c, True)
-    gf2 = samp(G0, -h * n_r, -h * n_c, True)
-    far_grad = np.maximum(gf1, gf2) / np.maximum(g0, 1e-300)
-    i1 = np.maximum(samp(I0, h * n_r, h * n_c, False) - background, 0.0)
-    i2 = np.maximum(samp(I0, -h * n_r, -h * n_c, False) - background, 0.0)
-    grey_ratio = np.minimum(i1, i2) / np.maximum(np.maximum(i1, i2), 1e-300)
-
+    end_ratio, far_grad, grey_ratio, i1, i2 = _box_ends(samp, G0, I0, g0, h, (t_r, t_c), (n_r, n_c), background)
     keep = (ratio < opt.eigen_ratio_max) & (end_ratio > opt.end_ratio_min) & (grey_ratio < opt.far_grey_ratio_max)
     if h >= 3:
         keep &= far_grad < opt.far_gradient_max

@@ -116,7 +116,10 @@ def richardson_gradient(image: np.ndarray, *, richardson: bool = True, border: i
     one = np.array([1.0], dtype=dt)
     gc = cv2.sepFilter2D(a, depth, k, one, borderType=cv2.BORDER_REPLICATE)
     gr = cv2.sepFilter2D(a, depth, one, k, borderType=cv2.BORDER_REPLICATE)
-    g = cv2.magnitude(gr, gc)
+    # not cv2.magnitude: its SIMD body and scalar tail round x*x + y*y differently (FMA), and where the
+    # split falls depends on the arrays' memory alignment -- the same image gave ULP-different magnitudes
+    # from one call to the next, and borderline decisions downstream flipped with the process's history
+    g = np.sqrt(gr * gr + gc * gc)
     if border > 0:
         b = int(border)
         for arr in (g, gr, gc):
@@ -336,6 +339,27 @@ def valid_zone(mask: np.ndarray, reach: int) -> np.ndarray:
     return ndimage.binary_erosion(mask, structure=np.ones((3, 3), bool), iterations=max(1, reach), border_value=1)
 
 
+def _stage_info(pri, st, win, region, n_box, res, inl, n_dark, fit, center, shape) -> dict:  # type: ignore[no-untyped-def]
+    """The gradient front end's stage counts and settings (:attr:`LimbCandidates.info`)."""
+    return {
+        "prior": pri,
+        "settings": st,
+        "roi": win.roi,
+        "region": region,
+        "n_candidates": int(win.candidates.shape[0]),
+        "n_after_box": n_box,
+        "n_after_ransac": res.n_inliers,
+        "n_final": int(inl.sum()),
+        "n_dark_side_dropped": n_dark,
+        "ransac_tests": res.n_tests,
+        "ransac_dmax": st.ransac_dmax,
+        "presmooth_sigma": win.presmooth_sigma,
+        "residual_max": fit.max_abs,
+        "cropped": region.crop,
+        "center_in_image": bool(0 <= center[0] <= shape[0] - 1 and 0 <= center[1] <= shape[1] - 1),
+    }
+
+
 def gradient_front_end(
     image: np.ndarray,
     prior: Prior | None = None,
@@ -402,30 +426,9 @@ def gradient_front_end(
     if hints is not None and hints.sun_dir_camera is not None:
         sun_rc = sun_direction_image(hints.sun_dir_camera, camera, center if camera is not None else None)
     lit_dir, half = lit_arc(points_full, center, sun_rc) if sun_rc is not None else lit_arc(points_full, center)
-    info = {
-        "prior": pri,
-        "settings": st,
-        "roi": win.roi,
-        "region": region,
-        "n_candidates": int(win.candidates.shape[0]),
-        "n_after_box": n_box,
-        "n_after_ransac": res.n_inliers,
-        "n_final": int(inl.sum()),
-        "n_dark_side_dropped": n_dark,
-        "ransac_tests": res.n_tests,
-        "ransac_dmax": st.ransac_dmax,
-        "presmooth_sigma": win.presmooth_sigma,
-        "residual_max": fit.max_abs,
-        "cropped": region.crop,
-        "center_in_image": bool(0 <= center[0] <= img.shape[0] - 1 and 0 <= center[1] <= img.shape[1] - 1),
-        "timings_s": {
-            "detect": t_detect - t0,
-            "gradient": t_grad - t_detect,
-            "box": t_box - t_grad,
-            "ransac_taubin": t_fit - t_box,
-            "total": time.perf_counter() - t0,
-        },
-    }
+    times = {"detect": t_detect - t0, "gradient": t_grad - t_detect, "box": t_box - t_grad, "ransac_taubin": t_fit - t_box}
+    info = _stage_info(pri, st, win, region, n_box, res, inl, n_dark, fit, center, img.shape)
+    info["timings_s"] = {**times, "total": time.perf_counter() - t0}
     return LimbCandidates(
         points_rc=points_full,
         center_rc=(float(center[0]), float(center[1])),

@@ -214,6 +214,46 @@ def _largest_filled(binary: np.ndarray) -> np.ndarray:
     return out
 
 
+def _line_profiles(B: np.ndarray, base: np.ndarray, a: np.ndarray, t: np.ndarray, valid_shape, valid_offset, valid_mask):  # type: ignore[no-untyped-def]
+    """The binary image sampled (nearest pixel) along the lines ``base + t a``, and where each sample is usable."""
+    R, C = B.shape
+    ir = np.rint(base[:, None, 0] + t[None, :] * a[0]).astype(np.int64)
+    ic = np.rint(base[:, None, 1] + t[None, :] * a[1]).astype(np.int64)
+    inside = (ir >= 0) & (ir < R) & (ic >= 0) & (ic < C)
+    if valid_shape is not None:  # inside the full frame (ROI coordinates shifted by valid_offset)
+        fr, fc = ir + valid_offset[0], ic + valid_offset[1]
+        valid = (fr >= 1) & (fr < valid_shape[0] - 1) & (fc >= 1) & (fc < valid_shape[1] - 1)
+    else:
+        valid = inside
+    if valid_mask is not None:
+        vm = np.asarray(valid_mask, bool)
+        valid = valid & inside & vm[np.clip(ir, 0, R - 1), np.clip(ic, 0, C - 1)]
+    prof = np.zeros(ir.shape)
+    prof[inside] = B[ir[inside], ic[inside]]
+    return prof, valid
+
+
+def _mask_correlation_peaks(prof: np.ndarray, valid: np.ndarray, min_correlation: int):  # type: ignore[no-untyped-def]
+    """Per line, the first window maximising the entry mask correlation and the last maximising the exit one (§VI).
+
+    Returns ``(lines, t_window_centre)`` index arrays for entries and for exits; a line whose best
+    correlation is below ``min_correlation`` has no transition of that kind.
+    """
+    m = 2.0 * np.asarray(SCAN_MASK, float) - 1.0  # [-1]*4 + [1]*4
+    K = m.size
+    nwin = prof.shape[1] - K + 1
+    win = np.lib.stride_tricks.sliding_window_view(prof, K, axis=1)  # (L, nwin, K)
+    vwin = np.lib.stride_tricks.sliding_window_view(valid, K, axis=1).all(-1)
+    corr_in = np.where(vwin, win @ m, -np.inf)
+    corr_out = np.where(vwin, win @ m[::-1], -np.inf)
+    mi, mo = corr_in.max(axis=1), corr_out.max(axis=1)
+    j_in = np.argmax(corr_in >= mi[:, None], axis=1)  # first maximal window
+    j_out = nwin - 1 - np.argmax(corr_out[:, ::-1] >= mo[:, None], axis=1)  # last maximal window
+    li_in, li_out = np.nonzero(mi >= min_correlation)[0], np.nonzero(mo >= min_correlation)[0]
+    half = (K - 1) / 2.0
+    return (li_in, j_in[li_in] + half), (li_out, j_out[li_out] + half)
+
+
 def scan_transitions(
     binary: np.ndarray,
     grey: np.ndarray | None,
@@ -241,67 +281,26 @@ def scan_transitions(
         ``entry_strength``, ``exit_strength``: the steepest grey-level step
         (DN/px) of the profile at each transition (``nan`` without ``grey``).
     """
-    B = np.asarray(binary)
-    R, C = B.shape
     a = np.asarray(axis_rc, float)
     a = a / np.linalg.norm(a)
     nvec = np.array([-a[1], a[0]])
-    o = np.asarray(origin_rc, float)
-    tmax = math.hypot(R, C) + 8
+    base = np.asarray(origin_rc, float)[None, :] + offsets[:, None] * nvec[None, :]  # (L, 2)
+    tmax = math.hypot(*np.shape(binary)) + 8
     t = np.arange(-tmax, tmax + 1.0)
-    L = offsets.size
-    base = o[None, :] + offsets[:, None] * nvec[None, :]  # (L, 2)
-    pr = base[:, None, 0] + t[None, :] * a[0]
-    pc = base[:, None, 1] + t[None, :] * a[1]
-    ir, ic = np.rint(pr).astype(np.int64), np.rint(pc).astype(np.int64)
-    inside = (ir >= 0) & (ir < R) & (ic >= 0) & (ic < C)
-    # validity: inside the full frame (ROI coordinates shifted by valid_offset)
-    if valid_shape is not None:
-        fr, fc = ir + valid_offset[0], ic + valid_offset[1]
-        valid = (fr >= 1) & (fr < valid_shape[0] - 1) & (fc >= 1) & (fc < valid_shape[1] - 1)
-    else:
-        valid = inside
-    if valid_mask is not None:
-        vm = np.asarray(valid_mask, bool)
-        valid = valid & inside & vm[np.clip(ir, 0, R - 1), np.clip(ic, 0, C - 1)]
-    prof = np.zeros(pr.shape)
-    prof[inside] = B[ir[inside], ic[inside]]
-    m = 2.0 * np.asarray(SCAN_MASK, float) - 1.0  # [-1]*4 + [1]*4
-    K = m.size
-    nwin = prof.shape[1] - K + 1
-    # sliding windows (L, nwin, K)
-    win = np.lib.stride_tricks.sliding_window_view(prof, K, axis=1)
-    vwin = np.lib.stride_tricks.sliding_window_view(valid, K, axis=1).all(-1)
-    corr_in = win @ m
-    corr_out = win @ m[::-1]
-    corr_in = np.where(vwin, corr_in, -np.inf)
-    corr_out = np.where(vwin, corr_out, -np.inf)
-    entries, exits = [], []
-    for li in range(L):
-        ci, co = corr_in[li], corr_out[li]
-        mi, mo = ci.max(), co.max()
-        if mi >= min_correlation:
-            j = int(np.argmax(ci >= mi))  # first maximal window
-            entries.append((li, j + (K - 1) / 2.0, 1.0))
-        if mo >= min_correlation:
-            j = nwin - 1 - int(np.argmax(co[::-1] >= mo))  # last maximal window
-            exits.append((li, j + (K - 1) / 2.0, -1.0))
+    prof, valid = _line_profiles(np.asarray(binary), base, a, t, valid_shape, valid_offset, valid_mask)
+    entries, exits = _mask_correlation_peaks(prof, valid, min_correlation)
 
-    def to_points(lst):
-        if not lst:
-            return np.zeros((0, 2)), np.zeros(0)
-        li = np.array([x[0] for x in lst])
-        tt = np.array([t[0] + x[1] for x in lst])
-        sgn = np.array([x[2] for x in lst])
+    def to_points(li: np.ndarray, tw: np.ndarray, sgn: float):  # type: ignore[no-untyped-def]
+        tt = t[0] + tw
         strength = np.full(tt.shape, np.nan)
-        if grey is not None:
-            tt2, strength = _refine(grey, base[li], a, tt, sgn)
+        if grey is not None and li.size:
+            tt2, strength = _refine(grey, base[li], a, tt, np.full(tt.shape, sgn))
             if subpixel:
                 tt = tt2
-        return np.stack([base[li, 0] + tt * a[0], base[li, 1] + tt * a[1]], axis=1), strength
+        return np.stack([base[li, 0] + tt * a[0], base[li, 1] + tt * a[1]], axis=1).reshape(-1, 2), strength
 
-    pe, se = to_points(entries)
-    px, sx = to_points(exits)
+    pe, se = to_points(*entries, 1.0)
+    px, sx = to_points(*exits, -1.0)
     return Transitions(pe, px, se, sx)
 
 
@@ -431,7 +430,7 @@ def scanline_front_end(
     pri = resolve_prior(img, region, prior, hints, camera, opt.prior)
     band = radius_band(pri, region)
     lr = _lit_region(img, region, mask, opt)
-    r0, r1, c0, c1 = region.roi
+    r0, _, c0, _ = region.roi
     sun_rc = _sun_image_direction(hints, camera, pri, (lr.axes.centroid_rc[0] + r0, lr.axes.centroid_rc[1] + c0))
     axis = np.array(sun_rc) if sun_rc is not None else np.array(lr.axes.axis_rc)
     spacing = opt.spacing_frac * pri.expected_radius_px
@@ -458,28 +457,8 @@ def scanline_front_end(
         lit_dir, half = lit_arc(points_full, center)
     else:
         lit_dir, half = lit_arc(points_full, center, sun_rc)
-    o_pts, o_fit, _ = sel.other_set
-    info = {
-        "prior": pri,
-        "roi": (r0, r1, c0, c1),
-        "region": region,
-        "threshold": lr.threshold,
-        "centroid_rc": (lr.axes.centroid_rc[0] + r0, lr.axes.centroid_rc[1] + c0),
-        "axis_rc": tuple(float(x) for x in axis / np.linalg.norm(axis)),
-        "eigen_ratio": lr.axes.eigen_ratio,
-        "line_spacing_px": spacing,
-        "n_lines": int(offsets.size),
-        **sel.info,
-        "other_set": {
-            "points_rc": o_pts + off,
-            "center_rc": None if o_fit is None else (o_fit.center_rc[0] + r0, o_fit.center_rc[1] + c0),
-            "radius": None if o_fit is None else o_fit.radius,
-            "residual_rms": None if o_fit is None else o_fit.rms,
-        },
-        "residual_max": sel.fit.max_abs,
-        "cropped": region.crop,
-        "timings_s": {"total": time.perf_counter() - t0},
-    }
+    info = _scan_info(pri, region, lr, sel, axis, spacing, offsets.size, off)
+    info["timings_s"] = {"total": time.perf_counter() - t0}
     return LimbCandidates(
         points_rc=points_full,
         center_rc=(float(center[0]), float(center[1])),
@@ -605,6 +584,33 @@ def _binary_threshold(sub_f: np.ndarray, valid: np.ndarray | None, noise_sigma: 
         vals = sub_f[valid]
         sky = float(np.percentile(vals[:: max(1, vals.size // 40_000)], 2.0))
     return max(threshold_eq10(vals), sky + 6.0 * (0.5 if opt.median_ksize > 1 else 1.0) * noise_sigma)
+
+
+def _scan_info(pri: Prior, region: BodyRegion, lr: _LitRegion, sel: _LitSet, axis: np.ndarray, spacing: float,
+               n_lines: int, off: np.ndarray) -> dict:
+    """The scan-line front end's settings, counts and the rejected set (:attr:`LimbCandidates.info`)."""
+    o_pts, o_fit, _ = sel.other_set
+    r0, c0 = int(off[0]), int(off[1])
+    return {
+        "prior": pri,
+        "roi": region.roi,
+        "region": region,
+        "threshold": lr.threshold,
+        "centroid_rc": (lr.axes.centroid_rc[0] + r0, lr.axes.centroid_rc[1] + c0),
+        "axis_rc": tuple(float(x) for x in axis / np.linalg.norm(axis)),
+        "eigen_ratio": lr.axes.eigen_ratio,
+        "line_spacing_px": spacing,
+        "n_lines": int(n_lines),
+        **sel.info,
+        "other_set": {
+            "points_rc": o_pts + off,
+            "center_rc": None if o_fit is None else (o_fit.center_rc[0] + r0, o_fit.center_rc[1] + c0),
+            "radius": None if o_fit is None else o_fit.radius,
+            "residual_rms": None if o_fit is None else o_fit.rms,
+        },
+        "residual_max": sel.fit.max_abs,
+        "cropped": region.crop,
+    }
 
 
 def _sun_image_direction(hints: Hints | None, camera: Camera | None, pri: Prior, centroid_rc) -> tuple | None:

@@ -154,7 +154,10 @@ def test_fit_core_is_traced_once_per_machine(tmp_path):
     assert first["traces"] == 1 and list((tmp_path / "c" / "exported").glob("*.bin"))
     second = json.loads(_run(FIT_SCRIPT, env))
     assert second["traces"] == 0  # loaded: no trace
-    assert second["x"] == first["x"] and second["cov"] == first["cov"]
+    # same numbers to rounding: identical on a quiet machine, but one run under heavy load (load ~10, three
+    # other processes) saw a difference that failed a bit-for-bit comparison
+    np.testing.assert_allclose(second["x"], first["x"], rtol=1e-13, atol=1e-13)
+    np.testing.assert_allclose(second["cov"], first["cov"], rtol=1e-11, atol=0)
     off = json.loads(_run(FIT_SCRIPT, {"JAXLIMB_CACHE_DIR": "off"}))
     np.testing.assert_allclose(off["x"], first["x"], rtol=0, atol=1e-12)
 
