@@ -212,6 +212,45 @@ class LogPosterior:
         return self.model.params_type.from_vector(jnp.asarray(th))
 
 
+def _checked_inputs(model: LimbModel, coords: Any, z: Any, init: LimbParams, fixed: Sequence[str], noise: NoiseModel,
+                    sigma: float | None, priors: Priors) -> tuple[np.ndarray, np.ndarray]:
+    """The pixels and intensities as float arrays, after every check of :func:`log_posterior` (``LimbInputError``)."""
+    if not isinstance(init, model.params_type):
+        raise LimbInputError(f"`init` must be a {model.params_type.__name__}, got {type(init).__name__}")
+    names_all = model.param_names
+    for nm in (*fixed, *priors.gaussian, *priors.bounds):
+        if nm not in names_all:
+            raise LimbInputError(f"unknown parameter {nm!r}; the {model.name!r} model has {list(names_all)}")
+    coords = np.asarray(coords, dtype=float)
+    z = np.asarray(z, dtype=float)
+    if z.ndim != 1 or coords.shape[0] != z.shape[0] or z.size == 0:
+        raise LimbInputError(f"`coords` {coords.shape} and `z` {z.shape} must hold the same n > 0 pixels")
+    if not (np.all(np.isfinite(coords)) and np.all(np.isfinite(z))):
+        raise LimbInputError("`coords` and `z` must be finite")
+    if noise is NoiseModel.KNOWN and not (sigma is not None and np.isfinite(sigma) and sigma > 0):
+        raise LimbInputError(f"`sigma` must be > 0 with noise='known', got {sigma!r}")
+    return coords, z
+
+
+def _prior_arrays(free_names: Sequence[str], priors: Priors) -> tuple[np.ndarray, ...]:
+    """Lower and upper bounds (positivity and ``priors.bounds``), Gaussian means and inverse sds (0 = none)."""
+    q = len(free_names)
+    lo = np.full(q, -np.inf)
+    hi = np.full(q, np.inf)
+    mu = np.zeros(q)
+    inv_sd = np.zeros(q)  # 0 = no Gaussian prior
+    for j, nm in enumerate(free_names):
+        if nm in _POSITIVE:
+            lo[j] = 0.0
+        if nm in priors.bounds:
+            lo[j] = max(lo[j], priors.bounds[nm][0])
+            hi[j] = priors.bounds[nm][1]
+        if nm in priors.gaussian:
+            mu[j], sd = priors.gaussian[nm]
+            inv_sd[j] = 1.0 / sd
+    return lo, hi, mu, inv_sd
+
+
 def log_posterior(model: LimbModel, coords: Any, z: Any, init: LimbParams, *, fixed: Sequence[str] = (),
                   noise: NoiseModel | str = NoiseModel.MARGINAL, sigma: float | None = None,
                   priors: Priors | None = None) -> LogPosterior:
@@ -236,36 +275,11 @@ def log_posterior(model: LimbModel, coords: Any, z: Any, init: LimbParams, *, fi
     """
     noise = NoiseModel(noise) if not isinstance(noise, NoiseModel) else noise
     priors = priors or Priors()
-    if not isinstance(init, model.params_type):
-        raise LimbInputError(f"`init` must be a {model.params_type.__name__}, got {type(init).__name__}")
-    names_all = model.param_names
-    for nm in (*fixed, *priors.gaussian, *priors.bounds):
-        if nm not in names_all:
-            raise LimbInputError(f"unknown parameter {nm!r}; the {model.name!r} model has {list(names_all)}")
-    coords = np.asarray(coords, dtype=float)
-    z = np.asarray(z, dtype=float)
-    if z.ndim != 1 or coords.shape[0] != z.shape[0] or z.size == 0:
-        raise LimbInputError(f"`coords` {coords.shape} and `z` {z.shape} must hold the same n > 0 pixels")
-    if not (np.all(np.isfinite(coords)) and np.all(np.isfinite(z))):
-        raise LimbInputError("`coords` and `z` must be finite")
-    if noise is NoiseModel.KNOWN and not (sigma is not None and np.isfinite(sigma) and sigma > 0):
-        raise LimbInputError(f"`sigma` must be > 0 with noise='known', got {sigma!r}")
+    coords, z = _checked_inputs(model, coords, z, init, fixed, noise, sigma, priors)
     free_idx = model.free_indices(fixed)
     q = len(free_idx)
-    free_names = tuple(names_all[i] for i in free_idx)
-    lo = np.full(q, -np.inf)
-    hi = np.full(q, np.inf)
-    mu = np.zeros(q)
-    inv_sd = np.zeros(q)  # 0 = no Gaussian prior
-    for j, nm in enumerate(free_names):
-        if nm in _POSITIVE:
-            lo[j] = 0.0
-        if nm in priors.bounds:
-            lo[j] = max(lo[j], priors.bounds[nm][0])
-            hi[j] = priors.bounds[nm][1]
-        if nm in priors.gaussian:
-            mu[j], sd = priors.gaussian[nm]
-            inv_sd[j] = 1.0 / sd
+    free_names = tuple(model.param_names[i] for i in free_idx)
+    lo, hi, mu, inv_sd = _prior_arrays(free_names, priors)
     theta0 = np.asarray(init.to_vector(), dtype=float)
     n = z.size
     c_j, z_j, th_j = jnp.asarray(coords), jnp.asarray(z), jnp.asarray(theta0)

@@ -288,6 +288,29 @@ class EarthFix:
     history: list = field(default_factory=list)
 
 
+def _iteration_inputs(v_center, p0_km, pole, Re: float, Rp: float, R: str, dtheta: str, update: str):  # type: ignore[no-untyped-def]
+    """Checked prior position and unit cone axis of :func:`earth_range_iteration` (``GeometryError`` otherwise)."""
+    p = np.asarray(p0_km, dtype=float)
+    if p.shape != (3,) or not np.all(np.isfinite(p)):
+        raise GeometryError(f"`p0_km` must be a finite 3-vector, got {np.asarray(p0_km).tolist()}")
+    v = np.asarray(v_center, dtype=float)
+    if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) == 0:
+        raise GeometryError(f"`v_center` must be a finite non-zero 3-vector, got {np.asarray(v_center).tolist()}")
+    v = v / np.linalg.norm(v)
+    rho0, z0 = meridian_coordinates(p, pole)
+    _check_outside(rho0, z0, Re, Rp)
+    if R not in ("equatorial", "polar") or dtheta not in ("tilde", "hat") or update not in ("newton", "ratio"):
+        raise GeometryError(f"bad option: R={R!r} (equatorial|polar), dtheta={dtheta!r} (tilde|hat), update={update!r} (newton|ratio)")
+    return p, v
+
+
+def _next_range(rng_k: float, dth_hat: float, dth_tilde: float, R_used: float, update: str, dtheta: str, sign: str) -> float:
+    """One range update of Fig. 2: the paper's ``Delta p`` (Newton) or the sine ratio (module docstring)."""
+    if update == "ratio":
+        return rng_k * math.sin(dth_hat / 2) / math.sin(dth_tilde / 2)
+    return rng_k + delta_p(dth_hat, dth_tilde, R_used, dth_hat if dtheta == "hat" else dth_tilde, sign=sign)  # type: ignore[arg-type]
+
+
 def earth_range_iteration(
     v_center,
     b_prime: float,
@@ -339,17 +362,7 @@ def earth_range_iteration(
     """
     Re, Rp = _radii(equatorial_km, polar_km, atmosphere_km)
     dth_tilde = limb_angle_from_b_prime(b_prime)
-    p = np.asarray(p0_km, dtype=float)
-    if p.shape != (3,) or not np.all(np.isfinite(p)):
-        raise GeometryError(f"`p0_km` must be a finite 3-vector, got {np.asarray(p0_km).tolist()}")
-    v = np.asarray(v_center, dtype=float)
-    if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) == 0:
-        raise GeometryError(f"`v_center` must be a finite non-zero 3-vector, got {np.asarray(v_center).tolist()}")
-    v = v / np.linalg.norm(v)
-    rho0, z0 = meridian_coordinates(p, pole)
-    _check_outside(rho0, z0, Re, Rp)
-    if R not in ("equatorial", "polar") or dtheta not in ("tilde", "hat") or update not in ("newton", "ratio"):
-        raise GeometryError(f"bad option: R={R!r} (equatorial|polar), dtheta={dtheta!r} (tilde|hat), update={update!r} (newton|ratio)")
+    p, v = _iteration_inputs(v_center, p0_km, pole, Re, Rp, R, dtheta, update)
     R_used = Re if R == "equatorial" else Rp
     history: list = []
     updates = 0
@@ -366,11 +379,7 @@ def earth_range_iteration(
             return EarthFix(position_km=p, range_km=rng_k, iterations=updates, converged=True, gamma_off_rad=g, history=history)
         if updates == max_iter:
             break
-        dth_hat = dth_tilde + diff
-        if update == "ratio":
-            new_rng = rng_k * math.sin(dth_hat / 2) / math.sin(dth_tilde / 2)
-        else:
-            new_rng = rng_k + delta_p(dth_hat, dth_tilde, R_used, dth_hat if dtheta == "hat" else dth_tilde, sign=sign)
+        new_rng = _next_range(rng_k, dth_tilde + diff, dth_tilde, R_used, update, dtheta, sign)
         if not (math.isfinite(new_rng) and new_rng > 0):
             break
         p = new_rng * p_hat

@@ -296,6 +296,38 @@ def _window(camera: Camera, ext: ImageConic, pad: int) -> tuple[int, int, int, i
     return r0, r1, c0, c1
 
 
+def _terminator_band(inside: np.ndarray, ir: np.ndarray, ic: np.ndarray, lit_in: np.ndarray) -> np.ndarray:
+    """Interior pixels whose lit state differs from a 4-neighbour's (they are supersampled)."""
+    lit = np.zeros(inside.shape, bool)
+    lit[ir, ic] = lit_in
+    band = np.zeros(inside.shape, bool)
+    dv = (lit[1:, :] != lit[:-1, :]) & inside[1:, :] & inside[:-1, :]
+    band[1:, :] |= dv
+    band[:-1, :] |= dv
+    dh = (lit[:, 1:] != lit[:, :-1]) & inside[:, 1:] & inside[:, :-1]
+    band[:, 1:] |= dh
+    band[:, :-1] |= dh
+    return band
+
+
+def _supersampled(scene: Scene, pr_all: np.ndarray, pc_all: np.ndarray, offs: np.ndarray, camera: Camera,
+                  reflectance_model: str, coeffs) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """Mean radiance over the sub-sample lattice ``offs`` of the pixels ``(pr_all, pc_all)``, in ray chunks."""
+    f = camera.focal_px
+    rpp, cpp = camera.principal_point_rc  # type: ignore[misc]
+    vals = np.empty(len(pr_all))
+    m = len(offs)
+    step = max(1, _RAY_CHUNK // m)
+    for s0 in range(0, len(pr_all), step):
+        pr = pr_all[s0 : s0 + step]
+        pc = pc_all[s0 : s0 + step]
+        sdy = ((pr[:, None] + offs[None, :, 0]).ravel() - rpp) / f
+        sdx = ((pc[:, None] + offs[None, :, 1]).ravel() - cpp) / f
+        v, _ = _eval_rays(scene, sdx, sdy, reflectance_model, coeffs)
+        vals[s0 : s0 + step] = v.reshape(-1, m).mean(axis=1)
+    return vals
+
+
 def render_radiance(
     scene: Scene,
     camera: Camera,
@@ -358,16 +390,7 @@ def render_radiance(
     # ---- terminator band: lit/unlit changes between 4-neighbours of interior pixels
     ss = edge.copy()
     if reflectance_model != "uniform" and scene.sun_dir_cam is not None and len(ir):
-        lit = np.zeros((nr, nc), bool)
-        lit[ir, ic] = lit_in
-        band = np.zeros((nr, nc), bool)
-        dv = (lit[1:, :] != lit[:-1, :]) & inside[1:, :] & inside[:-1, :]
-        band[1:, :] |= dv
-        band[:-1, :] |= dv
-        dh = (lit[:, 1:] != lit[:, :-1]) & inside[:, 1:] & inside[:, :-1]
-        band[:, 1:] |= dh
-        band[:, :-1] |= dh
-        ss |= band
+        ss |= _terminator_band(inside, ir, ic, lit_in)
     img[ir, ic] = rad_in  # the band pixels are overwritten below
     del rad_in, lit_in, ir, ic
     if scene.atmosphere is not None:
@@ -380,15 +403,5 @@ def render_radiance(
     idx_r, idx_c = np.nonzero(ss)
     n_ss = len(idx_r)
     if n_ss:
-        vals = np.empty(n_ss)
-        m = len(offs)
-        step = max(1, _RAY_CHUNK // m)
-        for s0 in range(0, n_ss, step):
-            pr = rows[idx_r[s0 : s0 + step]]
-            pc = cols[idx_c[s0 : s0 + step]]
-            sdy = ((pr[:, None] + offs[None, :, 0]).ravel() - rpp) / f
-            sdx = ((pc[:, None] + offs[None, :, 1]).ravel() - cpp) / f
-            v, _ = _eval_rays(scene, sdx, sdy, reflectance_model, coeffs)
-            vals[s0 : s0 + step] = v.reshape(-1, m).mean(axis=1)
-        img[idx_r, idx_c] = vals
+        img[idx_r, idx_c] = _supersampled(scene, rows[idx_r], cols[idx_c], offs, camera, reflectance_model, coeffs)
     return RadianceWindow(img, r0, c0, limb, n_ss, ss)
