@@ -401,27 +401,24 @@ def refine_center(
         return _refine(np.asarray(image, dtype=float), db, camera, match, sun_dir_camera, options, initial_pose_override)
 
 
-def _refine(image, db, camera, match, sun_dir_camera, options, override=None):  # type: ignore[no-untyped-def]
-    """Outer loop: extract the outline at the current pose, linearise, solve, update."""
-    topo = _topology(db)
-    f = float(camera.focal_px)
-    pp = tuple(float(v) for v in camera.principal_point_rc)
+def _start_pose(image, db, camera, match, options, override):  # type: ignore[no-untyped-def]
+    """The starting attitude, position and (densified) match: the override, the densified match or the match."""
     if override is not None:
         R, t = (np.asarray(v, dtype=float) for v in override)
-        match = dataclasses.replace(match, center_rc=np.asarray(camera.project(t), dtype=float))
-    elif options.densify_levels > 0:
+        return R, t, dataclasses.replace(match, center_rc=np.asarray(camera.project(t), dtype=float))
+    if options.densify_levels > 0:
         dens = densify_match(match.mask, db, camera, match, levels=options.densify_levels)
         match = dataclasses.replace(
             match, center_rc=dens.center_rc, theta=dens.theta, scale=dens.scale, contour_mean_px=dens.contour_mean_px
         )
         R, t = initial_pose(db, match, camera, R_template=dens.R_template)
-    else:
-        R, t = initial_pose(db, match, camera)
-    P = np.asarray(match.center_rc, dtype=float).copy()
-    P_match = P.copy()
-    D = float(np.linalg.norm(t))
-    rows, cols = image.shape
-    mask = match.mask
+        return R, t, match
+    R, t = initial_pose(db, match, camera)
+    return R, t, match
+
+
+def _figure_levels(image: np.ndarray, mask: np.ndarray) -> tuple[float, float, float]:
+    """The figure's size (px) and the background and body levels around it (``ConvergenceError`` if not brighter)."""
     rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
     size = float(max(rr[-1] - rr[0], cc[-1] - cc[0]) + 1)
     inside_med = float(np.median(image[mask > 0]))
@@ -431,56 +428,76 @@ def _refine(image, db, camera, match, sun_dir_camera, options, override=None):  
     lev1 = inside_med if inside_med > lev0 else float(image.max())
     if not lev1 > lev0:
         raise ConvergenceError("refinement: the body is not brighter than the background")
-    sun = None if sun_dir_camera is None else np.asarray(sun_dir_camera, dtype=float)
-    k, a_max, a_min, slope = options.k_init, 1.0, 0.0, 0.0
-    sd_fn = _sd_factory(f, pp)
+    return size, lev0, lev1
+
+
+def _compiled(f: float, pp: tuple, max_steps: int):  # type: ignore[no-untyped-def]
+    """The jitted signed distances, their Jacobian and the solver, kept per camera and step budget."""
     key = (f, pp)
     if key not in _SOLVERS:
         if len(_SOLVERS) > 8:
             _SOLVERS.clear()
+        sd_fn = _sd_factory(f, pp)
         _SOLVERS[key] = (jax.jit(sd_fn), jax.jit(jax.jacfwd(sd_fn)))
     sd_jit, jac_jit = _SOLVERS[key]
-    if options.max_steps not in _SOLVERS:
-        _SOLVERS[options.max_steps] = _make_solver(options.max_steps)
-    solve = _SOLVERS[options.max_steps]
-    iterations = 0
-    rms = math.nan
-    npix = 0
+    if max_steps not in _SOLVERS:
+        _SOLVERS[max_steps] = _make_solver(max_steps)
+    return sd_jit, jac_jit, _SOLVERS[max_steps]
+
+
+def _solve_robust(solve, y0, sd0, G, val, weight, lev0, lev1, options):  # type: ignore[no-untyped-def]
+    """Solve, drop the photometric outliers (> ``outlier_sigma`` MADs, if fewer than 20 %) and solve again."""
+    args = (sd0, G, jnp.asarray(val), jnp.asarray(weight), lev0, lev1)
+    y_sol, n_steps = solve(y0, args)
+    iterations = int(n_steps)
+    r1 = np.asarray(_photometric_residual(y_sol, args))
+    live = weight > 0
+    mad = 1.4826 * float(np.median(np.abs(r1[live])))
+    bad = live & (np.abs(r1) > max(options.outlier_sigma * mad, 0.15))
+    if 0 < bad.sum() < 0.2 * live.sum():
+        weight = np.where(bad, 0.0, weight)
+        args = (sd0, G, jnp.asarray(val), jnp.asarray(weight), lev0, lev1)
+        y_sol, n_steps = solve(y_sol, args)
+        iterations += int(n_steps)
+    return y_sol, args, weight, iterations
+
+
+def _small_rotation(w: np.ndarray) -> np.ndarray:
+    """Rodrigues' rotation matrix of the rotation vector ``w``."""
+    th = float(np.linalg.norm(w))
+    Kx = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    return np.eye(3) + (math.sin(th) / th if th > 1e-12 else 1.0) * Kx + ((1 - math.cos(th)) / th**2 if th > 1e-12 else 0.5) * Kx @ Kx
+
+
+def _refine(image, db, camera, match, sun_dir_camera, options, override=None):  # type: ignore[no-untyped-def]
+    """Outer loop: extract the outline at the current pose, linearise, solve, update."""
+    topo = _topology(db)
+    f = float(camera.focal_px)
+    pp = tuple(float(v) for v in camera.principal_point_rc)
+    R, t, match = _start_pose(image, db, camera, match, options, override)
+    P = np.asarray(match.center_rc, dtype=float).copy()
+    P_match = P.copy()
+    D = float(np.linalg.norm(t))
+    size, lev0, lev1 = _figure_levels(image, match.mask)
+    sun = None if sun_dir_camera is None else np.asarray(sun_dir_camera, dtype=float)
+    k, a_max, a_min, slope = options.k_init, 1.0, 0.0, 0.0
+    sd_jit, jac_jit, solve = _compiled(f, pp, options.max_steps)
+    iterations, rms, npix = 0, math.nan, 0
     band = max(options.band_start_px, options.band_px)
     zero6 = jnp.zeros(6)
     sizes = (0, 0)
     for _outer in range(options.outer_iterations):
-        data = _outline_data(topo, R, t, f, pp, (rows, cols), image, sun, options, band, sizes)
+        data = _outline_data(topo, R, t, f, pp, image.shape, image, sun, options, band, sizes)
         if data is None:
             raise ConvergenceError("refinement: fewer than 20 limb pixels around the outline")
         A, B, C, pix, val, nbr, weight = data
         sizes = (pix.shape[0], A.shape[0])  # keep the padded shapes: one compilation per image
-        geo = (
-            jnp.asarray(A),
-            jnp.asarray(B),
-            jnp.asarray(C),
-            jnp.asarray(pix),
-            jnp.asarray(nbr),
-            jnp.asarray(R),
-            jnp.asarray(P),
-            D,
-            size,
-        )
+        geo = tuple(jnp.asarray(x) for x in (A, B, C, pix, nbr, R, P)) + (D, size)
         sd0 = sd_jit(zero6, geo)
         G = jac_jit(zero6, geo)
-        args = (sd0, G, jnp.asarray(val), jnp.asarray(weight), lev0, lev1)
         y0 = jnp.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, k, a_max, a_min, slope])
-        y_sol, n_steps = solve(y0, args)
-        iterations += int(n_steps)
-        r1 = np.asarray(_photometric_residual(y_sol, args))
-        live = weight > 0
-        mad = 1.4826 * float(np.median(np.abs(r1[live])))
-        bad = live & (np.abs(r1) > max(options.outlier_sigma * mad, 0.15))
-        if 0 < bad.sum() < 0.2 * live.sum():
-            weight = np.where(bad, 0.0, weight)
-            args = (sd0, G, jnp.asarray(val), jnp.asarray(weight), lev0, lev1)
-            y_sol, n_steps = solve(y_sol, args)
-            iterations += int(n_steps)
+        y_sol, args, weight, n_it = _solve_robust(solve, y0, sd0, G, val, weight, lev0, lev1, options)
+        iterations += n_it
         npix = int(weight.sum())
         y = np.asarray(y_sol)
         if not np.all(np.isfinite(y)) or not y[6] > 0:
@@ -490,11 +507,7 @@ def _refine(image, db, camera, match, sun_dir_camera, options, override=None):  
         g = y[0:6] * scale_step
         res = np.asarray(_photometric_residual(jnp.asarray(y), args))
         rms = float(np.sqrt(np.sum(res**2) / max(npix, 1))) * (lev1 - lev0)
-        w = g[0:3] / size
-        th = float(np.linalg.norm(w))
-        Kx = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-        Rw = np.eye(3) + (math.sin(th) / th if th > 1e-12 else 1.0) * Kx + ((1 - math.cos(th)) / th**2 if th > 1e-12 else 0.5) * Kx @ Kx
-        R = Rw @ R
+        R = _small_rotation(g[0:3] / size) @ R
         P_new = P + g[3:5]
         D = D * math.exp(-g[5] / size)
         k, a_max, a_min, slope = float(y[6]), float(y[7]), float(y[8]), float(y[9])
@@ -533,6 +546,101 @@ def _topology(db: TemplateDatabase):  # type: ignore[no-untyped-def]
     return _TOPO[db.mesh_hash]
 
 
+def _outline_pieces(rc, V, edges, third, limb, fig, lo, ss, options):  # type: ignore[no-untyped-def]
+    """Every outline edge split into pieces of <= ``piece_px`` (3-D interpolation projects onto the same
+    straight line); only the pieces on the outer boundary of the figure ``fig`` are kept.  Returns the
+    3-D end points and third vertex ``PA, PB, PC``, the image end points ``pa, pb`` and the limb flag."""
+    a2, b2 = rc[edges[:, 0]], rc[edges[:, 1]]
+    L = np.linalg.norm(b2 - a2, axis=1)
+    npieces = np.maximum(np.ceil(L / options.piece_px).astype(int), 1)
+    parent = np.repeat(np.arange(edges.shape[0]), npieces)
+    start = np.concatenate([np.arange(n) / n for n in npieces])
+    stop = np.concatenate([np.arange(1, n + 1) / n for n in npieces])
+    VA, VB = V[edges[parent, 0]], V[edges[parent, 1]]
+    PA = VA + start[:, None] * (VB - VA)
+    PB = VA + stop[:, None] * (VB - VA)
+    PC = V[third[parent]]
+    limb = limb[parent]
+    pa = a2[parent] + start[:, None] * (b2 - a2)[parent]
+    pb = a2[parent] + stop[:, None] * (b2 - a2)[parent]
+    pc = rc[third[parent]]
+    e = pb - pa
+    nrm = np.stack([-e[:, 1], e[:, 0]], axis=1)
+    side = np.sign(np.sum(nrm * (pc - pa), axis=1))
+    nrm = -side[:, None] * nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-30)
+    mid = (0.5 * (pa + pb) + options.test_offset_px * nrm - lo + 0.5) * ss - 0.5
+    ir = np.clip(np.round(mid[:, 0]).astype(int), 0, fig.shape[0] - 1)
+    ic = np.clip(np.round(mid[:, 1]).astype(int), 0, fig.shape[1] - 1)
+    outer = fig[ir, ic] == 0
+    return PA[outer], PB[outer], PC[outer], pa[outer], pb[outer], limb[outer]
+
+
+def _band_pixels(PA, PB, pa, pb, limb, lo, hi, band):  # type: ignore[no-untyped-def]
+    """Pixels within ``band`` of a limb piece, away from dangling piece ends (T-junctions, hidden cuts: no
+    sign is reliable there); with the KD tree of points sampled along the pieces (<= 0.5 px apart) and
+    each point's piece index."""
+    L = np.linalg.norm(pb - pa, axis=1)
+    ns = np.maximum(np.ceil(L / 0.5).astype(int), 1)
+    seg_id = np.repeat(np.arange(pa.shape[0]), ns + 1)
+    frac = np.concatenate([np.linspace(0.0, 1.0, n + 1) for n in ns])
+    pts = pa[seg_id] + frac[:, None] * (pb - pa)[seg_id]
+    tree = cKDTree(pts)
+    r_idx, c_idx = np.mgrid[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1]
+    pix_all = np.stack([r_idx.ravel(), c_idx.ravel()], axis=1).astype(float)
+    d1, i1 = tree.query(pix_all, k=1, distance_upper_bound=band)
+    keep = np.isfinite(d1)
+    keep[keep] &= limb[seg_id[i1[keep]]]
+    ends = np.concatenate([PA, PB], axis=0)
+    _, inv, cnt = np.unique(np.round(ends, 9), axis=0, return_inverse=True, return_counts=True)
+    dangling = cnt[inv.ravel()] == 1
+    if np.any(dangling):
+        end2d = np.concatenate([pa, pb], axis=0)[dangling]
+        dd, _ = cKDTree(end2d).query(pix_all[keep], k=1)
+        kidx = np.nonzero(keep)[0]
+        keep[kidx[dd <= band]] = False
+    return pix_all[keep], tree, seg_id
+
+
+def _nearest_pieces(pix, tree, seg_id, kn: int) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """The ``kn`` distinct pieces nearest each pixel, in order of proximity (the nearest repeated when fewer)."""
+    _, ik = tree.query(pix, k=min(6 * kn, tree.n))
+    segs = seg_id[np.atleast_2d(ik)]
+    first = np.ones_like(segs, dtype=bool)  # first occurrence of each piece id per row
+    for j in range(1, segs.shape[1]):
+        first[:, j] = np.all(segs[:, :j] != segs[:, j : j + 1], axis=1)
+    order = np.argsort(~first, axis=1, kind="stable")
+    ranked = np.take_along_axis(segs, order, axis=1)
+    nfirst = first.sum(axis=1)
+    nbr = ranked[:, :kn].copy()
+    short = nfirst < kn
+    if np.any(short):
+        for j in range(kn):
+            m = short & (nfirst <= j)
+            nbr[m, j] = ranked[m, 0]
+    return nbr
+
+
+def _padded(pieces, pix, val, nbr, min_sizes):  # type: ignore[no-untyped-def]
+    """Pieces and pixels padded to size buckets (fewer recompilations); padded pixels get weight 0."""
+    npx, ne = pix.shape[0], pieces[0].shape[0]
+    bp, be = max(_bucket(npx), min_sizes[0]), max(_bucket(ne), min_sizes[1])
+    pix_p = np.repeat(pix[:1], bp, axis=0)
+    pix_p[:npx] = pix
+    val_p = np.zeros(bp)
+    val_p[:npx] = val
+    nbr_p = np.zeros((bp, nbr.shape[1]), dtype=np.int64)
+    nbr_p[:npx] = nbr
+    weight = np.zeros(bp)
+    weight[:npx] = 1.0
+
+    def padv(X: np.ndarray) -> np.ndarray:
+        out = np.repeat(X[:1], be, axis=0)
+        out[:ne] = X
+        return out
+
+    return (*(padv(X) for X in pieces), pix_p, val_p, nbr_p, weight)
+
+
 def _outline_data(topo, R, t, f, pp, shape, image, sun, options, band, min_sizes=(0, 0)):  # type: ignore[no-untyped-def]
     """Frozen outline (3-D end points), band pixels, their values and neighbour segments."""
     cam_body = -R.T @ t
@@ -568,92 +676,15 @@ def _outline_data(topo, R, t, f, pp, shape, image, sun, options, band, min_sizes
         (win[0] * ss, win[1] * ss),
         sun_dir_camera=None if sun is None else sun,
     )
-    # split every outline edge into pieces of <= piece_px (3-D interpolation projects onto the
-    # same straight line), keep the pieces on the outer boundary of the figure
-    a2, b2 = rc[edges[:, 0]], rc[edges[:, 1]]
-    L = np.linalg.norm(b2 - a2, axis=1)
-    npieces = np.maximum(np.ceil(L / options.piece_px).astype(int), 1)
-    parent = np.repeat(np.arange(edges.shape[0]), npieces)
-    start = np.concatenate([np.arange(n) / n for n in npieces])
-    stop = np.concatenate([np.arange(1, n + 1) / n for n in npieces])
-    VA, VB = V[edges[parent, 0]], V[edges[parent, 1]]
-    PA = VA + start[:, None] * (VB - VA)
-    PB = VA + stop[:, None] * (VB - VA)
-    PC = V[third[parent]]
-    limb = limb[parent]
-    pa = a2[parent] + start[:, None] * (b2 - a2)[parent]
-    pb = a2[parent] + stop[:, None] * (b2 - a2)[parent]
-    pc = rc[third[parent]]
-    e = pb - pa
-    nrm = np.stack([-e[:, 1], e[:, 0]], axis=1)
-    side = np.sign(np.sum(nrm * (pc - pa), axis=1))
-    nrm = -side[:, None] * nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-30)
-    mid = (0.5 * (pa + pb) + options.test_offset_px * nrm - lo + 0.5) * ss - 0.5
-    ir = np.clip(np.round(mid[:, 0]).astype(int), 0, fig.shape[0] - 1)
-    ic = np.clip(np.round(mid[:, 1]).astype(int), 0, fig.shape[1] - 1)
-    outer = fig[ir, ic] == 0
-    if not np.any(outer & limb):
+    PA, PB, PC, pa, pb, limb = _outline_pieces(rc, V, edges, third, limb, fig, lo, ss, options)
+    if not np.any(limb):
         return None
-    PA, PB, PC, pa, pb, limb = PA[outer], PB[outer], PC[outer], pa[outer], pb[outer], limb[outer]
-    # sample points along pieces (<= 0.5 px apart) to find each pixel's nearest pieces
-    L = np.linalg.norm(pb - pa, axis=1)
-    ns = np.maximum(np.ceil(L / 0.5).astype(int), 1)
-    seg_id = np.repeat(np.arange(pa.shape[0]), ns + 1)
-    frac = np.concatenate([np.linspace(0.0, 1.0, n + 1) for n in ns])
-    pts = pa[seg_id] + frac[:, None] * (pb - pa)[seg_id]
-    tree = cKDTree(pts)
-    r_idx, c_idx = np.mgrid[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1]
-    pix_all = np.stack([r_idx.ravel(), c_idx.ravel()], axis=1).astype(float)
-    d1, i1 = tree.query(pix_all, k=1, distance_upper_bound=band)
-    keep = np.isfinite(d1)
-    keep[keep] &= limb[seg_id[i1[keep]]]
-    # drop pixels near dangling piece ends (T-junctions, hidden cuts): no sign is reliable there
-    ends = np.concatenate([PA, PB], axis=0)
-    _, inv, cnt = np.unique(np.round(ends, 9), axis=0, return_inverse=True, return_counts=True)
-    dangling = cnt[inv.ravel()] == 1
-    if np.any(dangling):
-        end2d = np.concatenate([pa, pb], axis=0)[dangling]
-        dd, _ = cKDTree(end2d).query(pix_all[keep], k=1)
-        kidx = np.nonzero(keep)[0]
-        keep[kidx[dd <= band]] = False
-    pix = pix_all[keep]
+    pix, tree, seg_id = _band_pixels(PA, PB, pa, pb, limb, lo, hi, band)
     if pix.shape[0] < 20:
         return None
-    kn = options.n_neighbours
-    _, ik = tree.query(pix, k=min(6 * kn, pts.shape[0]))
-    segs = seg_id[np.atleast_2d(ik)]
-    # distinct pieces in order of proximity (first occurrence of each id per row)
-    first = np.ones_like(segs, dtype=bool)
-    for j in range(1, segs.shape[1]):
-        first[:, j] = np.all(segs[:, :j] != segs[:, j : j + 1], axis=1)
-    order = np.argsort(~first, axis=1, kind="stable")
-    ranked = np.take_along_axis(segs, order, axis=1)
-    nfirst = first.sum(axis=1)
-    nbr = ranked[:, :kn].copy()
-    short = nfirst < kn
-    if np.any(short):
-        for j in range(kn):
-            m = short & (nfirst <= j)
-            nbr[m, j] = ranked[m, 0]
+    nbr = _nearest_pieces(pix, tree, seg_id, options.n_neighbours)
     val = image[pix[:, 0].astype(int), pix[:, 1].astype(int)]
-    # pad to buckets to limit recompilation
-    npx, ne = pix.shape[0], pa.shape[0]
-    bp, be = max(_bucket(npx), min_sizes[0]), max(_bucket(ne), min_sizes[1])
-    pix_p = np.repeat(pix[:1], bp, axis=0)
-    pix_p[:npx] = pix
-    val_p = np.zeros(bp)
-    val_p[:npx] = val
-    nbr_p = np.zeros((bp, kn), dtype=np.int64)
-    nbr_p[:npx] = nbr
-    weight = np.zeros(bp)
-    weight[:npx] = 1.0
-
-    def padv(X: np.ndarray) -> np.ndarray:
-        out = np.repeat(X[:1], be, axis=0)
-        out[:ne] = X
-        return out
-
-    return padv(PA), padv(PB), padv(PC), pix_p, val_p, nbr_p, weight
+    return _padded((PA, PB, PC), pix, val, nbr, min_sizes)
 
 
 __all__ = ["DensifyResult", "RefineOptions", "RefineResult", "densify_match", "initial_pose", "refine_center"]
