@@ -70,19 +70,11 @@ def _case(body: str, family: str, idx: int, seed: int, cache: Path | None):
 
 
 def _locate(case, hints: dict):
-    """The public entry point for the body (``locate``; the Earth through ``locate_earth`` while it exists)."""
+    """The public entry point, the same for every body (``jaxlimb.pipeline.locate``)."""
     from jaxlimb.imaging import Hints
     from jaxlimb.pipeline import locate
 
-    h = Hints.from_dict(hints)
-    if hints.get("body") == "earth":
-        try:
-            from jaxlimb.pipeline.earth import locate_earth
-        except ImportError:
-            locate_earth = None
-        if locate_earth is not None:
-            return locate_earth(case.image, case.camera, h)
-    return locate(case.image, case.camera, h)
+    return locate(case.image, case.camera, Hints.from_dict(hints))
 
 
 def nonphysical(m) -> list[str]:
