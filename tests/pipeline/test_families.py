@@ -58,6 +58,24 @@ def test_maria_sectors_are_down_weighted(monkeypatch):
     assert nees < 13.8
 
 
+def test_profile_keeps_the_sun_side_of_a_nearly_full_moon():
+    """Benchmark row ``motion`` 2: a 34 px Moon at phase 0.71 deg.  The profile's limb is asymmetric even
+    there (the blurred 50 % level +0.03 px toward the Sun, -0.04 px away); its Sun direction was held along
+    ``+row`` below a projected length of 0.02 (``sun_direction_image``'s threshold), which put the centre
+    0.042 px off for a sigma of 0.008 px (NEES 26).  The motion smear was not the cause."""
+    from jaxlimb.pipeline.profile_fit import profile_sun_direction
+
+    case = _moon("motion", 2)
+    s = np.asarray(case.hints["sun_dir_camera"])
+    d = profile_sun_direction(s, case.camera, case.truth.body_center_rc)
+    a = math.radians(case.meta["sun_angle_deg"])
+    assert np.allclose(d, (-math.sin(a), math.cos(a)), atol=0.01)  # the Sun's position angle, not (1, 0)
+    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
+    err, nees = _errors(case, m)
+    assert err < 0.015
+    assert nees < 13.8
+
+
 def test_earth_far_own_family_with_attitude():
     case = earth_case("own", np.random.default_rng([SEED, 1, EARTH_FAMILIES.index("own"), 1]), far=True)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
