@@ -76,6 +76,29 @@ def test_profile_keeps_the_sun_side_of_a_nearly_full_moon():
     assert nees < 13.8
 
 
+def test_patchy_reweighting_by_gauss_newton_steps_matches_the_lm_refits(monkeypatch):
+    """The reweighted passes of ``downweight_patchy_sectors`` are Gauss--Newton steps of the weighted problem (no
+    LM refit: the fallback is not taken on benchmark row ``maria`` 0); the answer and covariance are those of
+    the LM refits (``_downweight_by_refits``) to 2e-4 px and 2 % in sigma."""
+    import jaxlimb.pipeline.profile_fit as pf
+
+    case = _moon("maria", 0)
+    lm = pf._downweight_by_refits
+
+    def no_refit(*a, **k):
+        raise AssertionError("fell back to the LM refits")
+
+    monkeypatch.setattr(pf, "_downweight_by_refits", no_refit)
+    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
+    monkeypatch.setattr(pf, "downweight_patchy_sectors", lambda frame, rr, solver, system=None: lm(frame, rr, solver))
+    m_lm = locate(case.image, case.camera, Hints.from_dict(case.hints))
+    assert np.hypot(*(np.array(m.center_rc) - np.array(m_lm.center_rc))) < 2e-4
+    for k in ("center_r", "center_c"):
+        assert abs(math.sqrt(m.covariance[k][k] / m_lm.covariance[k][k]) - 1.0) < 0.02
+    err, nees = _errors(case, m)
+    assert err < 0.04 and nees < 13.8
+
+
 def test_earth_far_own_family_with_attitude():
     case = earth_case("own", np.random.default_rng([SEED, 1, EARTH_FAMILIES.index("own"), 1]), far=True)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
