@@ -31,7 +31,7 @@ variant, frame_set, cache, bench = sys.argv[1:5]
 sys.path.insert(0, bench)
 import jaxlimb.pipeline.profile_fit as pf
 if variant == "no_patchy_refit":
-    pf.downweight_patchy_sectors = lambda frame, rr, solver, r=None: rr
+    pf.downweight_patchy_sectors = lambda frame, rr, solver, system=None: rr
 from jaxlimb.imaging import Hints
 from jaxlimb.pipeline import locate
 frames = []

@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
 
 from .checks import (
     MIN_LIT_ARC_DEG,
@@ -98,15 +99,35 @@ def lit_window(frame: Frame, cand: Any, dr: float) -> tuple[tuple[float, float] 
 
 def limb_pixels(frame: Frame, cand: Any, physical_profile: bool) -> LimbPixels:
     """Stage 3: the annulus ``r_hat +- dr`` on the lit side (:func:`~jaxlimb.pipeline.refine.select_annulus`),
-    and the lit-arc check before any fit (cropped body, Sun-facing side out of the frame)."""
+    and the lit-arc check before any fit (cropped body, Sun-facing side out of the frame): on the front end's
+    limb points (:func:`check_front_end_arc`), then on the annulus."""
     opt = frame.opt
     dr = annulus_halfwidth(cand.radius, cand.residual_rms, opt)
     direction, half, phase = lit_window(frame, cand, dr)
-    sel = select_annulus(frame.img, cand.center_rc, cand.radius, dr, direction, half, opt, frame_mask(frame))
     min_arc = float(opt.min_lit_arc_deg) if opt.min_lit_arc_deg is not None else (
         MIN_LIT_ARC_PROFILE_DEG if physical_profile else MIN_LIT_ARC_DEG)
+    check_front_end_arc(cand, min_arc, half)
+    sel = select_annulus(frame.img, cand.center_rc, cand.radius, dr, direction, half, opt, frame_mask(frame))
     check_lit_arc(sel.angles(), min_arc, half)
     return LimbPixels(sel, dr, direction, half, phase, min_arc)
+
+
+def check_front_end_arc(cand: Any, min_arc_deg: float, half: float) -> float | None:
+    """The lit-arc check (:func:`~jaxlimb.pipeline.checks.check_lit_arc`) on the front end's limb points, seen
+    from its circle's centre, before any iterative fit; ``None`` (no check) without points.
+
+    Why: the annulus check that follows sees the pixels of the annulus about the front end's circle, and a
+    circle through a short arc is itself poorly determined.  Benchmark row ``cropped`` 2
+    (``benchmarks/families.py``; a 54 px Moon 23 px beyond the bottom edge, Sun toward the bottom edge): the
+    front end's 32 points lie on 17 deg of lit limb (24-34 deg of it are in the frame), its Taubin circle has a
+    radius of 77 px for 54, and the annulus about that circle spans 120 deg (3 of 33 bins with an edge) and
+    passed; the circle sigmoid then wandered (no convergence in 100-150 steps, an 86 px jump at 400), so the
+    frame failed as ``no_convergence`` instead of ``arc_too_short``.  On every other Moon frame of the benchmark
+    the front end's points span 66 deg or more (118 deg or more outside the ``cropped`` family)."""
+    pts = getattr(cand, "points_rc", None)
+    if pts is None or len(pts) < 2:
+        return None
+    return check_lit_arc(arc_angles(np.asarray(pts, float), cand.center_rc), min_arc_deg, half)
 
 
 def _reselect(frame: Frame, pix: LimbPixels, circ: RefineResult, dr: float) -> tuple[LimbPixels, RefineResult]:
@@ -173,4 +194,4 @@ def edge_report(frame: Frame, cand: Any, edge: EdgeFit) -> dict[str, Any]:
     }
 
 
-__all__ = ["EDGE_SIGMAS", "edge_report", "EdgeFit", "LimbPixels", "check_edge", "edge_fit", "limb_pixels", "lit_window"]
+__all__ = ["EDGE_SIGMAS", "check_front_end_arc", "edge_report", "EdgeFit", "LimbPixels", "check_edge", "edge_fit", "limb_pixels", "lit_window"]

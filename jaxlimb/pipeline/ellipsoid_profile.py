@@ -20,13 +20,12 @@ import numpy as np
 
 from ..errors import ConfigError, ConvergenceError, GeometryError, LimbInputError
 from ..fitting import NormalLM, fit, solver_from_name
-from ..imaging import sun_direction_image
 from ..models import ELLIPSE, ELLIPSE_RAMP, LIMB_PROFILE, PROFILE_FIXED, EllipseRampParams, LimbProfileParams, limb_profile_intensity
 from ..models import lunar_lambert_weight
 from .earth import _ell_change
 from .frame import Frame
 from .profile import l_band
-from .profile_fit import gaussian_sigma_of_k, with_model_error
+from .profile_fit import gaussian_sigma_of_k, profile_sun_direction, with_model_error
 from .refine import FitData, RefineResult, _pad_bucket
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -54,9 +53,7 @@ def _start(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", pts: np.ndarr
     cam, h, e = frame.cam, frame.hints, edge.final.fit.params
     (r0, c0), (a, b), th = edge.fitted
     phase = frame.phase((r0, c0))
-    sun_rc = sun_direction_image(h.sun_dir_camera, cam, (r0, c0))
-    if sun_rc is None:
-        sun_rc = (1.0, 0.0)  # full or new: the direction does not matter (sin(phase) ~ 0)
+    sun_rc = profile_sun_direction(h.sun_dir_camera, cam, (r0, c0))  # (no threshold: phase ~ 0 keeps its side)
     rho0, th0 = body._predicted_shape(cam, -edge.p) if not body.free and body.R is not None else (b / a, th)
     k = float(e.k)
     sigma0 = (math.sqrt(max(1.0 / max(k, 1e-6) ** 2 - 1.0 / 12.0, 0.09)) if isinstance(e, EllipseRampParams)

@@ -67,3 +67,17 @@ def test_arc_span_and_check():
     assert check_lit_arc(np.radians(np.linspace(-40.0, 40.0, 50))) == pytest.approx(80.0)
     # a lit-side window narrower than the limit (thin crescent, whole lit limb in the frame): 90 % of it
     assert check_lit_arc(a, halfangle=math.radians(21.0)) == pytest.approx(40.0)
+
+
+def test_short_lit_arc_is_decided_before_the_circle_fit():
+    """Benchmark row ``cropped`` 2 (independent renderer): 24-34 deg of lit limb in the frame, the front end's
+    points on 17 deg of it and its circle 77 px for 54.  The annulus about that circle passed the lit-arc check
+    and the circle sigmoid did not converge (``no_convergence``); the check on the front end's points decides it
+    before any fit (``edge.check_front_end_arc``)."""
+    from jaxlimb.imaging import Hints
+    from jaxlimb.render.independent import MOON_FAMILIES, moon_case
+
+    case = moon_case("cropped", np.random.default_rng([2026, 0, MOON_FAMILIES.index("cropped"), 2]))
+    with pytest.raises(ArcTooShortError) as ei:
+        locate(case.image, case.camera, Hints.from_dict(case.hints))
+    assert "spans 11.9 deg" in str(ei.value)
