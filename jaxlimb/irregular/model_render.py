@@ -150,7 +150,7 @@ def render_window(
     :func:`_smooth_minus_flat`), and ``dM_dmix`` ``(3, h, w)`` is returned.  With ``shadows``
     every facet's radiance is scaled by its lit fraction (:func:`shadow_fractions`: cast shadows).
     ``exact``: every sub-pixel shows the facet containing its centre (:func:`~jaxlimb.render.mesh.rasterise`);
-    off on the blurred pyramid levels (factor 3 and more), where the fill's dilation is far below the blur.
+    off on the pyramid levels (``register`` renders exactly at full resolution only: the answer is made there).
     """
     cam = window_camera(camera, lo, hi)
     h, w = cam.shape  # type: ignore[attr-defined]

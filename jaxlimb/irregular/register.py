@@ -492,7 +492,7 @@ def _render_level(pyr, mesh, camera, R, sun, P, D, k, options, fit_attitude, mix
     lo, hi = _window(cam, Pk, D, mesh, mask, options.margin_px)
     facets = mesh if k == 1 else clustered_mesh(mesh, 2.0 * k * D / camera.focal_px)
     model = render_window(facets, cam, R, _pose(camera, P, D), sun, lo, hi, options.supersample, options.reflectance, fit_attitude, mix,
-                          options.cast_shadows and sun is not None and (options.coarse_cast_shadows or k < options.coarse_min_level), k <= 2)
+                          options.cast_shadows and sun is not None and (options.coarse_cast_shadows or k < options.coarse_min_level), k == 1)
     return model, lo, hi, Pk
 
 

@@ -193,10 +193,13 @@ def _edge_coefficients(sub: np.ndarray, F: np.ndarray) -> np.ndarray:
     return out
 
 
+_ROW9 = np.dtype((np.void, 36))  # one row of 9 float32 edge coefficients, gathered as one item
+
+
 def _contains(coef: np.ndarray, label: np.ndarray, r: np.ndarray, c: np.ndarray) -> np.ndarray:
     """Whether facet ``label - 1`` (``label`` 0: sky, never) contains the sub-pixel centres ``(r, c)`` (edges included,
     to 1e-3 sub-pixel: float32 distances of coordinates up to a few thousand are good to ~3e-4)."""
-    k = np.take(coef, label, axis=0)  # (..., 9)
+    k = np.take(coef.view(_ROW9).ravel(), label).view(np.float32).reshape(*np.shape(label), 9)  # rows as 36-byte items
     ok = None
     for i in range(3):
         e = k[..., 3 * i] * r + k[..., 3 * i + 1] * c + k[..., 3 * i + 2] >= -1e-3
@@ -208,14 +211,17 @@ _RING1 = [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc]
 _RING2 = [(dr, dc) for dr in (-2, -1, 0, 1, 2) for dc in (-2, -1, 0, 1, 2) if max(abs(dr), abs(dc)) == 2]
 
 
-def _nearest_containing(buf, coef, depth, rr, cc, ring):  # type: ignore[no-untyped-def]
-    """Label of the nearest facet (``depth``) drawn at offsets ``ring`` of each sub-pixel ``(rr, cc)`` that
-    contains its centre; -1 where none does."""
+def _nearest_containing(buf, coef, depth, rr, cc, own, ring):  # type: ignore[no-untyped-def]
+    """Label of the nearest facet (``depth``, per label) drawn at offsets ``ring`` of each sub-pixel ``(rr, cc)``
+    that contains its centre; -1 where none does.  Only the neighbours' labels other than ``own`` (the
+    sub-pixel's, known not to contain it) and the sky are tested: about a third of them."""
     h, w = buf.shape
     cand = np.stack([buf[np.clip(rr + dr, 0, h - 1), np.clip(cc + dc, 0, w - 1)] for dr, dc in ring], axis=1)
-    r32, c32 = rr.astype(np.float32)[:, None], cc.astype(np.float32)[:, None]
-    ok = _contains(coef, cand, r32, c32)
-    key = np.where(ok, depth[cand], np.inf)
+    ii, jj = np.nonzero((cand > 0) & (cand != own[:, None]))
+    lab = cand[ii, jj]
+    ok = _contains(coef, lab, rr[ii].astype(np.float32), cc[ii].astype(np.float32))
+    key = np.full(cand.shape, np.inf)
+    key[ii[ok], jj[ok]] = depth[lab[ok]]
     best = np.argmin(key, axis=1)
     i = np.arange(rr.size)
     return np.where(np.isfinite(key[i, best]), cand[i, best], -1)
@@ -242,15 +248,15 @@ def _exact_edges(buf: np.ndarray, sub: np.ndarray, F: np.ndarray, depth: np.ndar
     rr, cc = np.nonzero(edge & (buf > 0))
     if rr.size == 0:
         return
-    coef = _edge_coefficients(sub, F).reshape(-1, 9)
+    coef = np.ascontiguousarray(_edge_coefficients(sub, F).reshape(-1, 9))
     own = buf[rr, cc]
     out = ~_contains(coef, own, rr.astype(np.float32), cc.astype(np.float32))
     rr, cc, own = rr[out], cc[out], own[out]
     dep = np.concatenate([[np.inf], depth])
-    new = _nearest_containing(buf, coef, dep, rr, cc, _RING1)
+    new = _nearest_containing(buf, coef, dep, rr, cc, own, _RING1)
     far = np.nonzero(new < 0)[0]
     if far.size:
-        new[far] = _nearest_containing(buf, coef, dep, rr[far], cc[far], _RING2)
+        new[far] = _nearest_containing(buf, coef, dep, rr[far], cc[far], own[far], _RING2)
     h, w = buf.shape
     sky = np.zeros(rr.size, bool)
     for dr, dc in ((1, 0), (-1, 0), (0, 1), (0, -1)):
