@@ -92,6 +92,11 @@ class LosOptions:
         Gauss-Newton iterations of a hypothesis (at least ``register.max_iterations``): a template
         20-40 deg off turns by at most 3 deg per iteration, and on a ray-traced Eros at 60 deg phase
         the one right hypothesis needed more than 16 (``benchmarks/irregular_independent.py``).
+    search_exact_coverage
+        :attr:`~.register.RegisterOptions.exact_coverage` when the attitude is fitted: off.  The exact facet
+        coverage did not change this mode's answers on ray-traced frames (``benchmarks/irregular_independent.py
+        --views 1``, 24 views: median / p90 / max 0.138 / 0.371 / 0.445 -> 0.141 / 0.340 / 0.495 px) and costs
+        ~0.2 s CPU per full-resolution render of Phobos at 3x its long axis (the issue's 3 s per call).
     register, phase
         Options of the registration and of the template search.
     """
@@ -109,6 +114,7 @@ class LosOptions:
     sharp_level2_iterations: int = 6
     search_surge_widths: tuple[float, ...] = ()
     search_max_iterations: int = 24
+    search_exact_coverage: bool = False
     register: RegisterOptions = field(default_factory=RegisterOptions)
     phase: PhaseSearchOptions = field(default_factory=PhaseSearchOptions)
 
@@ -178,6 +184,7 @@ def locate_los(
         options.register,
         max_excess_frac=min(options.register.max_excess_frac, options.search_max_excess_frac),
         sharp_level2_iterations=options.sharp_level2_iterations,
+        exact_coverage=options.search_exact_coverage,
         surge_widths=options.search_surge_widths,
         max_iterations=max(options.register.max_iterations, options.search_max_iterations),
     )
