@@ -93,10 +93,12 @@ class LosOptions:
         20-40 deg off turns by at most 3 deg per iteration, and on a ray-traced Eros at 60 deg phase
         the one right hypothesis needed more than 16 (``benchmarks/irregular_independent.py``).
     search_exact_coverage
-        :attr:`~.register.RegisterOptions.exact_coverage` when the attitude is fitted: off.  The exact facet
-        coverage did not change this mode's answers on ray-traced frames (``benchmarks/irregular_independent.py
-        --views 1``, 24 views: median / p90 / max 0.138 / 0.371 / 0.445 -> 0.141 / 0.340 / 0.495 px) and costs
-        ~0.2 s CPU per full-resolution render of Phobos at 3x its long axis (the issue's 3 s per call).
+        :attr:`~.register.RegisterOptions.exact_coverage` when the attitude is fitted.  On the ray-traced frames
+        of ``benchmarks/irregular_independent.py --views 1`` it hardly moves this mode's answers (24 views,
+        median / p90 / max 0.138 / 0.371 / 0.445 -> 0.141 / 0.340 / 0.495 px), but on frames rendered with exact
+        coverage (``benchmarks/irregular_los.py --views 1``, 18 views) the painter's fill is 0.026 / 0.074 /
+        0.081 px off against 0.004 / 0.012 / 0.015 with it.  Cost: ~0.8 s CPU per call on Phobos at 3x its
+        long axis (2.5 -> 3.3 s in-process); off trades that accuracy for the issue's 3 s per call.
     register, phase
         Options of the registration and of the template search.
     """
@@ -114,7 +116,7 @@ class LosOptions:
     sharp_level2_iterations: int = 6
     search_surge_widths: tuple[float, ...] = ()
     search_max_iterations: int = 24
-    search_exact_coverage: bool = False
+    search_exact_coverage: bool = True
     register: RegisterOptions = field(default_factory=RegisterOptions)
     phase: PhaseSearchOptions = field(default_factory=PhaseSearchOptions)
 
