@@ -95,10 +95,11 @@ class LosOptions:
     search_exact_coverage
         :attr:`~.register.RegisterOptions.exact_coverage` when the attitude is fitted.  On the ray-traced frames
         of ``benchmarks/irregular_independent.py --views 1`` it hardly moves this mode's answers (24 views,
-        median / p90 / max 0.138 / 0.371 / 0.445 -> 0.141 / 0.340 / 0.495 px), but on frames rendered with exact
-        coverage (``benchmarks/irregular_los.py --views 1``, 18 views) the painter's fill is 0.026 / 0.074 /
-        0.081 px off against 0.004 / 0.012 / 0.015 with it.  Cost: ~0.8 s CPU per call on Phobos at 3x its
-        long axis (2.5 -> 3.3 s in-process); off trades that accuracy for the issue's 3 s per call.
+        median / p90 / max 0.138 / 0.371 / 0.445 -> 0.148 / 0.348 / 0.503 px; the same code without it gave
+        0.138 / 0.371 / 0.502 in another run), but on frames rendered with exact coverage
+        (``benchmarks/irregular_los.py --views 1``, 18 views) the painter's fill is 0.026 / 0.074 / 0.081 px
+        off against 0.004 / 0.010 / 0.022 with it.  Cost: Phobos at 3x its long axis, 60 deg, 2.5 -> 3.3 s CPU
+        per call in-process (2026-11-26); off trades that accuracy for the issue's 3 s per call.
     register, phase
         Options of the registration and of the template search.
     """
