@@ -140,7 +140,7 @@ def downsample(image: np.ndarray, k: int) -> np.ndarray:
 def render_window(
     mesh: Mesh, camera: object, R: np.ndarray, t: np.ndarray, sun: np.ndarray | None, lo, hi, supersample: int,
     reflectance: str = "lommel-seeliger", jacobian: bool = False, mix: np.ndarray | None = None,
-    shadows: bool = False,
+    shadows: bool = False, exact: bool = True,
 ) -> ModelImage:  # fmt: skip
     """The model image in the window ``lo..hi`` of ``camera`` (module docstring); ``sun=None``: zero phase.
 
@@ -149,6 +149,8 @@ def render_window(
     Minnaert with ``k = 1/2`` ``sqrt(mu0 / mu)``; ``m_1 = 1 - L`` alone is McEwen's lunar-Lambert law;
     :func:`_smooth_minus_flat`), and ``dM_dmix`` ``(3, h, w)`` is returned.  With ``shadows``
     every facet's radiance is scaled by its lit fraction (:func:`shadow_fractions`: cast shadows).
+    ``exact``: every sub-pixel shows the facet containing its centre (:func:`~jaxlimb.render.mesh.rasterise`);
+    off on the pyramid levels (``register`` renders exactly at full resolution only: the answer is made there).
     """
     cam = window_camera(camera, lo, hi)
     h, w = cam.shape  # type: ignore[attr-defined]
@@ -156,7 +158,7 @@ def render_window(
     t = np.asarray(t, dtype=float)
     Xc = np.asarray(mesh.vertices, dtype=float) @ np.asarray(R, dtype=float).T + t
     F = np.asarray(mesh.faces, dtype=np.int64)
-    ras = rasterise(Xc, F, cam, supersample)
+    ras = rasterise(Xc, F, cam, supersample, exact)
     if ras is None:
         return ModelImage(M, C, np.zeros((3, 2, h, w)) if jacobian else None, np.zeros((3, h, w)) if jacobian else None)
     s = -t / np.linalg.norm(t) if sun is None else np.asarray(sun, dtype=float)
