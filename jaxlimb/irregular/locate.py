@@ -93,13 +93,14 @@ class LosOptions:
         20-40 deg off turns by at most 3 deg per iteration, and on a ray-traced Eros at 60 deg phase
         the one right hypothesis needed more than 16 (``benchmarks/irregular_independent.py``).
     search_exact_coverage
-        :attr:`~.register.RegisterOptions.exact_coverage` when the attitude is fitted.  On the ray-traced frames
-        of ``benchmarks/irregular_independent.py --views 1`` it hardly moves this mode's answers (24 views,
-        median / p90 / max 0.138 / 0.371 / 0.445 -> 0.148 / 0.348 / 0.503 px; the same code without it gave
-        0.138 / 0.371 / 0.502 in another run), but on frames rendered with exact coverage
-        (``benchmarks/irregular_los.py --views 1``, 18 views) the painter's fill is 0.026 / 0.074 / 0.081 px
-        off against 0.004 / 0.010 / 0.022 with it.  Cost: Phobos at 3x its long axis, 60 deg, 2.5 -> 3.3 s CPU
-        per call in-process (2026-11-26); off trades that accuracy for the issue's 3 s per call.
+        :attr:`~.register.RegisterOptions.exact_coverage` when the attitude is fitted: off by default.  On the
+        ray-traced frames of ``benchmarks/irregular_independent.py --views 1`` it hardly moves this mode's answers
+        (24 views, median / p90 / max 0.138 / 0.371 / 0.445 -> 0.148 / 0.348 / 0.503 px; the same code without it
+        gave 0.138 / 0.371 / 0.502 in another run); on frames rendered with exact coverage
+        (``benchmarks/irregular_los.py --views 1``, 18 views) the painter's fill is 0.026 / 0.074 / 0.081 px off
+        against 0.004 / 0.010 / 0.022 with it.  Cost: Phobos at 3x its long axis, 60 deg, 2.5 -> 3.3 s CPU per
+        call in-process (2026-11-26), which would break the 3 s per ``los locate`` call; both errors are far
+        inside this mode's 0.3 px, so the speed wins.
     register, phase
         Options of the registration and of the template search.
     """
@@ -117,7 +118,7 @@ class LosOptions:
     sharp_level2_iterations: int = 6
     search_surge_widths: tuple[float, ...] = ()
     search_max_iterations: int = 24
-    search_exact_coverage: bool = True
+    search_exact_coverage: bool = False
     register: RegisterOptions = field(default_factory=RegisterOptions)
     phase: PhaseSearchOptions = field(default_factory=PhaseSearchOptions)
 
