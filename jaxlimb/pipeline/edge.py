@@ -139,8 +139,8 @@ def limb_pixels(frame: Frame, cand: Any, physical_profile: bool) -> LimbPixels:
     direction, half, phase = lit_window(frame, cand, dr_in)
     min_arc = float(opt.min_lit_arc_deg) if opt.min_lit_arc_deg is not None else (
         MIN_LIT_ARC_PROFILE_DEG if physical_profile else MIN_LIT_ARC_DEG)
-    if direction is not None and half <= 0.0:
-        raise ArcTooShortError(thin_crescent_message(phase, cand.radius, dr_in))
+    if direction is not None and (half <= 0.0 or (dr_in < dr and 2.0 * math.degrees(half) < min_arc)):
+        raise ArcTooShortError(thin_crescent_message(phase, cand.radius, dr_in, half, min_arc))
     check_front_end_arc(cand, min_arc, half)
     # a thin crescent: the band [r - dr_in, r + dr] (inside: the lit band; outside: the sky, always there),
     # i.e. half-width (dr_in + dr)/2 about r + (dr - dr_in)/2, never widened (the terminator would enter it)
@@ -150,14 +150,20 @@ def limb_pixels(frame: Frame, cand: Any, physical_profile: bool) -> LimbPixels:
     return LimbPixels(sel, h, direction, half, phase, min_arc, h if dr_in < dr else math.inf, shift)
 
 
-def thin_crescent_message(phase: float | None, radius: float, dr: float) -> str:
-    """The failure when no direction of the lit limb is usable: the crescent is thinner than the annulus
-    everywhere (:func:`~jaxlimb.pipeline.refine.lit_halfangle` returns 0), the limb is in the frame."""
+def thin_crescent_message(phase: float | None, radius: float, dr: float, half: float = 0.0,
+                          min_arc_deg: float | None = None) -> str:
+    """The failure when too little of the lit limb is usable: the crescent is thinner than the annulus (even the
+    narrowed one of :func:`crescent_halfwidth`) over all but ``2 half`` (rad) of it; the limb is in the frame.
+    E.g. 150 deg at 40 px (``tests/pipeline/test_crescent.py``): a 37 deg window, on which the circle sigmoid
+    wandered to a 250 px radius and stopped as ``no_convergence``."""
     ph = math.degrees(phase) if phase is not None else float("nan")
     thick = radius * (1.0 - abs(math.cos(phase))) if phase is not None else float("nan")
+    arc = f", a {2.0 * math.degrees(half):.0f} deg arc below min_lit_arc_deg = {min_arc_deg:.0f} deg" if (
+        half > 0.0 and min_arc_deg is not None) else ""
     return (f"the crescent is too thin to measure: at phase {ph:.1f} deg the lit band is {thick:.1f} px thick at the "
-            f"Sun direction (radius {radius:.1f} px), under the {dr + 2.0:.1f} px the annulus needs inside the limb "
-            f"(half-width {dr:.1f} px + 2), so the usable half-angle of the lit limb comes out 0 deg")
+            f"Sun direction (radius {radius:.1f} px) and thins toward the horns; where it is under the "
+            f"{dr + 2.0:.1f} px the annulus needs inside the limb (half-width {dr:.1f} px + 2) the limb is not used, so "
+            f"the usable half-angle of the lit limb comes out {math.degrees(half):.0f} deg{arc}")
 
 
 def _short_annulus_cause(sel: AnnulusSelection, opt: Any, min_arc_deg: float, half: float) -> str | None:
