@@ -40,7 +40,9 @@ Pixel selection (:func:`select_annulus`)
    unit step across the annulus); bins whose edge lies more than ``max_edge_offset_px``
    inside the 75th percentile of the bins' edges are dropped: there the edge is the
    terminator or the dark limb beyond a horn (e.g. the unlit sliver of a gibbous Moon, 1-2 px
-   thick at 20-30 deg phase), which would pull a circle fitted to the lit limb inward.
+   thick at 20-30 deg phase), which would pull a circle fitted to the lit limb inward.  When more than a third
+   of the bins fall inward of that percentile the initial circle is off (a crescent's or a cropped limb's Taubin
+   circle) and the edges are measured from their own first-order circle trend instead (:func:`_edge_offsets`).
 
 Fit (:func:`fit_circle_annulus`, :func:`fit_sphere_annulus`, :func:`fit_ellipse_annulus`)
 -----------------------------------------------------------------------------------------
