@@ -123,12 +123,14 @@ def arc_span_deg(angles: np.ndarray) -> float:
     return float(math.degrees(2.0 * math.pi - float(gaps.max())))
 
 
-def check_lit_arc(angles: np.ndarray, min_arc_deg: float = MIN_LIT_ARC_DEG, halfangle: float | None = None) -> float:
+def check_lit_arc(angles: np.ndarray, min_arc_deg: float = MIN_LIT_ARC_DEG, halfangle: float | None = None,
+                  cause: str | None = None) -> float:
     """Raise :class:`~jaxlimb.errors.ArcTooShortError` if the fitted pixels span less than ``min_arc_deg``.
 
     ``angles``: polar angles (rad) of the fitted pixels about the circle centre.  ``halfangle``
     (rad, optional): the half-angle of the lit-side window; the limit is never more than 90 % of
     the window (``2 halfangle``), so that a body whose whole lit limb is in the frame always passes.
+    ``cause``: why the arc is short, for the message (default: a cropped body facing the Sun out of the frame).
     Returns the span (deg).
     """
     span = arc_span_deg(angles)
@@ -138,8 +140,8 @@ def check_lit_arc(angles: np.ndarray, min_arc_deg: float = MIN_LIT_ARC_DEG, half
     if not span >= limit:
         raise ArcTooShortError(
             f"the lit limb in the frame spans {span:.3g} deg, below min_lit_arc_deg = {limit:.3g} deg: a circle "
-            "through so short an arc does not fix the centre and radius to a fraction of a pixel (cropped "
-            "body whose Sun-facing side is outside the frame)"
+            "through so short an arc does not fix the centre and radius to a fraction of a pixel ("
+            + (cause or "cropped body whose Sun-facing side is outside the frame") + ")"
         )
     return span
 

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import ArcTooShortError
 from .checks import (
     MIN_LIT_ARC_DEG,
     MIN_LIT_ARC_PROFILE_DEG,
@@ -47,7 +48,9 @@ class LimbPixels:
 
     ``direction`` (unit ``(d_row, d_col)`` toward the lit side, ``None``: all round) and ``half``
     (rad) the window; ``phase`` (rad) the phase angle used (``None``: unknown); ``dr`` the annulus
-    half-width (px); ``min_arc_deg`` the shortest lit arc accepted.
+    half-width (px); ``min_arc_deg`` the shortest lit arc accepted; ``dr_max`` the widest half-width the
+    edge fit may widen it to; ``shift`` (px) how far the annulus' middle lies outside the circle (a thin
+    crescent's band: :func:`crescent_halfwidth`, :func:`limb_pixels`).
     """
 
     sel: AnnulusSelection
@@ -56,6 +59,8 @@ class LimbPixels:
     half: float
     phase: float | None
     min_arc_deg: float
+    dr_max: float = math.inf
+    shift: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -80,6 +85,33 @@ class EdgeFit:
         return float(self.circ.fit.params.radius)
 
 
+#: Narrowest annulus half-width (px) for a thin crescent: +-3 px cover +-2.5 sigma of a 1.2 px Gaussian PSF.
+CRESCENT_MIN_DR = 3.0
+#: Half-angle (deg) of lit limb about the Sun direction a thin crescent's annulus is narrowed to reach.
+CRESCENT_HALF_DEG = 40.0
+
+
+def crescent_halfwidth(phase: float | None, radius: float, dr: float, horn_margin_deg: float,
+                       min_arc_deg: float) -> float:
+    """The annulus half-width (px) for a thin crescent: ``dr`` unless the lit band is too thin for it.
+
+    :func:`~jaxlimb.pipeline.refine.lit_halfangle` keeps the directions where the terminator lies at least
+    ``dr + 2`` px inside the limb.  A thin crescent (``R (1 - |cos phase|) < dr + 2`` at the Sun direction; e.g.
+    benchmark row ``jpeg`` 5, 145 deg phase, R ~ 40 px: a 7 px thick band for a 6 px annulus) then has no
+    usable direction at all although its whole lit limb is in the frame.  When the usable arc is below
+    ``min_arc_deg`` the inner band is narrowed to the PSF's width: the half-width is lowered (never below ``CRESCENT_MIN_DR``) to the one for which the lit limb is
+    usable over ``CRESCENT_HALF_DEG`` about the Sun direction (terminator at ``R/sqrt(cos^2 psi/cos^2 phase +
+    sin^2 psi)`` along the ray at ``psi``, :mod:`jaxlimb.pipeline.refine` rule 2)."""
+    if phase is None or phase <= math.pi / 2 or dr <= CRESCENT_MIN_DR:
+        return dr
+    if 2.0 * math.degrees(lit_halfangle(phase, radius, dr, horn_margin_deg)) >= min_arc_deg:
+        return dr  # usable as it is (narrowing further moved benchmark row airy 1 from 0.017 to 0.069 px)
+    psi = math.radians(CRESCENT_HALF_DEG)
+    c2 = max(math.cos(phase) ** 2, 1e-300)
+    thick = radius * (1.0 - 1.0 / math.sqrt(math.cos(psi) ** 2 / c2 + math.sin(psi) ** 2))
+    return float(min(dr, max(CRESCENT_MIN_DR, thick - 2.0)))
+
+
 def lit_window(frame: Frame, cand: Any, dr: float) -> tuple[tuple[float, float] | None, float, float | None]:
     """The lit side: ``(direction, half-angle, phase)`` from the Sun direction, else from the image."""
     prior = cand.info.get("prior")
@@ -102,14 +134,50 @@ def limb_pixels(frame: Frame, cand: Any, physical_profile: bool) -> LimbPixels:
     and the lit-arc check before any fit (cropped body, Sun-facing side out of the frame): on the front end's
     limb points (:func:`check_front_end_arc`), then on the annulus."""
     opt = frame.opt
-    dr = annulus_halfwidth(cand.radius, cand.residual_rms, opt)
-    direction, half, phase = lit_window(frame, cand, dr)
+    dr = dr_in = annulus_halfwidth(cand.radius, cand.residual_rms, opt)
     min_arc = float(opt.min_lit_arc_deg) if opt.min_lit_arc_deg is not None else (
         MIN_LIT_ARC_PROFILE_DEG if physical_profile else MIN_LIT_ARC_DEG)
+    if frame.sun_known and opt.annulus_px is None:
+        dr_in = crescent_halfwidth(frame.phase(cand.center_rc), cand.radius, dr, opt.horn_margin_deg, min_arc)
+    direction, half, phase = lit_window(frame, cand, dr_in)
+    if direction is not None and (half <= 0.0 or (dr_in < dr and 2.0 * math.degrees(half) < min_arc)):
+        raise ArcTooShortError(thin_crescent_message(phase, cand.radius, dr_in, half, min_arc))
     check_front_end_arc(cand, min_arc, half)
-    sel = select_annulus(frame.img, cand.center_rc, cand.radius, dr, direction, half, opt, frame_mask(frame))
-    check_lit_arc(sel.angles(), min_arc, half)
-    return LimbPixels(sel, dr, direction, half, phase, min_arc)
+    # a thin crescent: the band [r - dr_in, r + dr] (inside: the lit band; outside: the sky, always there),
+    # i.e. half-width (dr_in + dr)/2 about r + (dr - dr_in)/2, never widened (the terminator would enter it)
+    shift, h = 0.5 * (dr - dr_in), 0.5 * (dr + dr_in)
+    sel = select_annulus(frame.img, cand.center_rc, cand.radius + shift, h, direction, half, opt, frame_mask(frame))
+    check_lit_arc(sel.angles(), min_arc, half, _short_annulus_cause(sel, opt, min_arc, half))
+    return LimbPixels(sel, h, direction, half, phase, min_arc, h if dr_in < dr else math.inf, shift)
+
+
+def thin_crescent_message(phase: float | None, radius: float, dr: float, half: float = 0.0,
+                          min_arc_deg: float | None = None) -> str:
+    """The failure when too little of the lit limb is usable: the crescent is thinner than the annulus (even the
+    narrowed one of :func:`crescent_halfwidth`) over all but ``2 half`` (rad) of it; the limb is in the frame.
+    E.g. 150 deg at 40 px (``tests/pipeline/test_crescent.py``): a 37 deg window, on which the circle sigmoid
+    wandered to a 250 px radius and stopped as ``no_convergence``."""
+    ph = math.degrees(phase) if phase is not None else float("nan")
+    thick = radius * (1.0 - abs(math.cos(phase))) if phase is not None else float("nan")
+    arc = f", a {2.0 * math.degrees(half):.0f} deg arc below min_lit_arc_deg = {min_arc_deg:.0f} deg" if (
+        half > 0.0 and min_arc_deg is not None) else ""
+    return (f"the crescent is too thin to measure: at phase {ph:.1f} deg the lit band is {thick:.1f} px thick at the "
+            f"Sun direction (radius {radius:.1f} px) and thins toward the horns; where it is under the "
+            f"{dr + 2.0:.1f} px the annulus needs inside the limb (half-width {dr:.1f} px + 2) the limb is not used, so "
+            f"the usable half-angle of the lit limb comes out {math.degrees(half):.0f} deg{arc}")
+
+
+def _short_annulus_cause(sel: AnnulusSelection, opt: Any, min_arc_deg: float, half: float) -> str | None:
+    """Why the annulus' lit arc may be short, for :func:`~jaxlimb.pipeline.checks.check_lit_arc`: ``None`` (the
+    default, a cropped body) unless the angular bins with pixels in the frame span the arc needed, in which case
+    the bins were dropped for want of a lit edge at the limb (rules 3-4 of :mod:`jaxlimb.pipeline.refine`)."""
+    width = max(float(opt.angular_bin_deg), math.degrees(4.0 / max(sel.radius, 1e-9)))
+    in_frame = min(sel.n_bins * width, 2.0 * math.degrees(half))
+    if in_frame < min(min_arc_deg, 0.9 * 2.0 * math.degrees(half)):
+        return None
+    return (f"about {in_frame:.0f} deg of the lit-side annulus are in the frame, but only {sel.n_bins_kept} of its "
+            f"{sel.n_bins} angular bins show a lit edge at the limb: a crescent thinner than the annulus, or an "
+            "initial circle too far from the limb")
 
 
 def check_front_end_arc(cand: Any, min_arc_deg: float, half: float) -> float | None:
@@ -132,9 +200,9 @@ def check_front_end_arc(cand: Any, min_arc_deg: float, half: float) -> float | N
 
 def _reselect(frame: Frame, pix: LimbPixels, circ: RefineResult, dr: float) -> tuple[LimbPixels, RefineResult]:
     p = circ.fit.params
-    sel = select_annulus(frame.img, (float(p.r0), float(p.c0)), float(p.radius), dr, pix.direction, pix.half,
-                         frame.opt, frame_mask(frame))
-    pix = LimbPixels(sel, dr, pix.direction, pix.half, pix.phase, pix.min_arc_deg)
+    sel = select_annulus(frame.img, (float(p.r0), float(p.c0)), float(p.radius) + pix.shift, dr, pix.direction,
+                         pix.half, frame.opt, frame_mask(frame))
+    pix = LimbPixels(sel, dr, pix.direction, pix.half, pix.phase, pix.min_arc_deg, pix.dr_max, pix.shift)
     return pix, fit_circle_annulus(sel, frame.opt)
 
 
@@ -147,12 +215,12 @@ def edge_fit(frame: Frame, pix: LimbPixels) -> EdgeFit:
     widened = recentered = False
     if opt.estimate_k and opt.annulus_px is None:
         need = EDGE_SIGMAS * LOGISTIC_TO_GAUSS / max(float(circ.fit.params.k), 1e-6)
-        cap = max(opt.annulus_min_px, 0.5 * pix.sel.radius)
+        cap = min(max(opt.annulus_min_px, 0.5 * pix.sel.radius), pix.dr_max)
         if need > 1.05 * pix.dr and pix.dr < cap:
             pix, circ = _reselect(frame, pix, circ, min(cap, need))
             widened = True
     p = circ.fit.params
-    if max_limb_displacement(pix.sel.center_rc, pix.sel.radius, (float(p.r0), float(p.c0)), float(p.radius),
+    if max_limb_displacement(pix.sel.center_rc, pix.sel.radius - pix.shift, (float(p.r0), float(p.c0)), float(p.radius),
                              pix.sel.angles()) > 0.5:
         pix, circ = _reselect(frame, pix, circ, pix.dr)
         recentered = True
@@ -166,7 +234,8 @@ def check_edge(frame: Frame, cand: Any, edge: EdgeFit) -> EdgeFit:
     """Checks 5 (jump from the front end's circle), 1 (size), 3/4 (radius in the prior's band) and 4
     (centre in the field) on the fitted circle; returns ``edge`` with the jump and its limit."""
     thr = jump_threshold(edge.pixels.dr, frame.opt.max_jump_px)
-    jump = check_jump(cand.center_rc, cand.radius, edge.center_rc, edge.radius, edge.pixels.sel.angles(), thr)
+    # a thin crescent's band lies ``shift`` outside the front end's circle: the jump is from the band's middle
+    jump = check_jump(cand.center_rc, cand.radius + edge.pixels.shift, edge.center_rc, edge.radius, edge.pixels.sel.angles(), thr)
     check_size(edge.radius, frame.img.shape, min_diameter_px(frame), edge.arc_deg)
     prior = cand.info.get("prior")
     if prior is not None:
