@@ -230,7 +230,7 @@ def _gauss_newton_step(evaluate, p, free, r, J, w):
 
 
 def _reweighted_result(frame: Frame, rr: RefineResult, p, r, J, w, padded) -> RefineResult | None:
-    """The :class:`~jaxlimb.pipeline.refine.RefineResult` of the weighted answer ``p`` (residuals ``r``, Jacobian
+    r"""The :class:`~jaxlimb.pipeline.refine.RefineResult` of the weighted answer ``p`` (residuals ``r``, Jacobian
     ``J``, weights ``w``): covariance :math:`\hat\sigma^2 (J_w^\top J_w)^{-1}` as the fit's
     (:func:`jaxlimb.fitting.fit._make_fit`), the sphere at ``p``; ``None`` when that sphere's shape differs
     from the one held by 1e-3 px (the LM refits iterate it, :func:`_profile_passes`)."""
