@@ -480,7 +480,7 @@ def _patchy_geometry(body: Ellipsoid, frame: Frame, edge: EllipsoidEdge, chi2: f
         return np.array([e.fitted[0][0], e.fitted[0][1], e.fitted[1][0]])
 
     d = geo(edge) - geo(rays)
-    C = trace_model_cov(rays.pixels.trace, rays.fitted)[:2, :2]
+    C = trace_model_cov(rays.pixels.trace, rays.fitted, bias_reduced=False)[:2, :2]
     try:
         m2 = float(d[:2] @ np.linalg.solve(C, d[:2]))
     except np.linalg.LinAlgError:
