@@ -214,3 +214,23 @@ def test_patchy_limb_with_few_rays_is_not_overconfident():
     err, nees = _errors(case, m)
     assert 0.2 < err < 0.35  # the estimate of before (0.290 px): only the covariance changed
     assert nees < 6.0
+
+
+def test_earth_glow_limb_is_fitted_by_the_widened_profile():
+    """Benchmark row Earth ``glow`` 0 (40 000 km, a glow 0.18 of the surface, 23 km scale height): the lunar-Lambert
+    profile put the limb 0.2 px high (range 0.018 % short) and the centre 0.021 px off for a 0.003 px sigma across
+    the lit direction; the glow-widened profile (``ellipsoid_profile.widen_glow_ellipsoid``) takes the glow: centre
+    within 0.012 px, range within 0.005 %, NEES < 4."""
+    case = _earth("glow", 0)
+    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
+    err, nees = _errors(case, m)
+    assert m.extras["model"] == "lunar_limb_glow" and 0.0 < m.extras["profile"]["glow"] <= 1.0
+    assert err < 0.012 and nees < 4.0
+    assert abs(m.range_km - case.truth.range_km) / case.truth.range_km < 5e-5
+
+
+@pytest.mark.parametrize("family, idx", [("own", 0), ("lambert", 0)])
+def test_earth_glow_gate_stays_shut_without_a_glow(family, idx):
+    case = _earth(family, idx)
+    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
+    assert m.extras["model"] != "lunar_limb_glow"
