@@ -23,7 +23,8 @@ Earth offset and range iteration of Mortari, D'Souza & Zanetti 2016 §IV, Fig. 2
   theta`` predicted from the limb cone at the current position (``R_body_to_camera`` known; else or with
   ``model="ellipse"`` free), repeated while the prediction moves the ellipse; Checks 1, 3/4 (radius in the
   prior's band), 4 and 5 (jump from the front end's circle) as for a sphere.
-* **profile refit**: the lunar-Lambert profile on the same pixels (Sun direction known).
+* **profile refit**: the lunar-Lambert profile on the same pixels (Sun direction known), widened by a glow above
+  the limb when the score test of the Moon's glow gate asks for it (:func:`~jaxlimb.pipeline.ellipsoid_profile.widen_glow_ellipsoid`).
 * **body-centre mapping**: the range iteration; the covariance of ``(center_r, center_c, range_km)`` through
   its central-difference Jacobian; with a free ellipse the unsigned centre offset as a model error.
 

@@ -6,7 +6,8 @@ Known attitude: ``theta, rho`` held at the image of the limb spheroid at the cur
 re-predicted after the fit and the fit repeated (once is typical) while they move the ellipse by more
 than ``refit_tol_px``; free ellipse: ``theta, rho`` estimated.  ``profile="auto"`` keeps the edge fit
 (``extras["profile_rejected"]`` says why) when the fit fails, its ``L`` is outside the band of
-lunar-Lambert-like limbs, or it moves the limb by more than half the band from the edge fit.
+lunar-Lambert-like limbs, or it moves the limb by more than half the band from the edge fit.  An accepted fit is
+refitted once with a glow above the limb when a score test finds one (:func:`widen_glow_ellipsoid`).
 """
 
 from __future__ import annotations
