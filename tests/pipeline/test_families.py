@@ -234,3 +234,16 @@ def test_earth_glow_gate_stays_shut_without_a_glow(family, idx):
     case = _earth(family, idx)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert m.extras["model"] != "lunar_limb_glow"
+
+
+def test_uniform_earth_with_few_traced_rays_is_not_a_patchy_limb():
+    """Benchmark row ``earth_noR`` ``lambert`` 4 (40 000 km, uniform albedo, attitude unknown): traced about a front-end
+    circle 4 px off, 46 of 1211 rays kept a flat inside, all at one level (RMS of log level 0.014).  Fewer than one ray
+    in ten used to make the limb 'patchy' whatever the levels, and the per-ray step put the centre 1.4 px off (NEES
+    7); a uniform disc's levels keep it on the profile path."""
+    case = _earth("lambert", 4)
+    h = {k: v for k, v in case.hints.items() if k != "R_body_to_camera"}
+    m = locate(case.image, case.camera, Hints.from_dict(h))
+    err, nees = _errors(case, m)
+    assert "profile_rejected" not in m.extras or m.extras["profile_rejected"].get("reason") != "albedo varies along the lit limb"
+    assert err < 0.5 and nees < 6.0
