@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["cluster_robust_covariance", "cluster_robust_from_normal", "hausman_term", "positive_part", "sector_groups", "with_model_error"]
+__all__ = ["cluster_robust_bias_reduced", "cluster_robust_covariance", "cluster_robust_from_normal", "hausman_term", "positive_part", "sector_groups", "with_model_error"]
 
 
 def sector_groups(coords: np.ndarray, center_rc, n_groups: int) -> np.ndarray:
@@ -88,3 +88,35 @@ def hausman_term(d: np.ndarray, C_sub: np.ndarray, C_full: np.ndarray) -> np.nda
     full fit that the noise does not explain (module docstring, Hausman 1978)."""
     d = np.asarray(d, float).reshape(-1)
     return positive_part(np.outer(d, d) - (np.asarray(C_sub, float) - np.asarray(C_full, float)))
+
+
+def cluster_robust_bias_reduced(J: np.ndarray, r: np.ndarray, groups: np.ndarray, max_leverage: float = 0.99) -> np.ndarray:
+    r"""The bias-reduced cluster-robust covariance ("CR2", Bell & McCaffrey 2002, *Survey Methodology* 28, 169,
+    Eq. 8; Cameron & Miller 2015, *J. Human Resources* 50, 317, Sec. VI.B) of the least-squares parameters for the
+    Jacobian ``J`` ``(n, q)``, residuals ``r`` and cluster labels ``groups``:
+
+    .. math:: C_2 = N^{-1} \Big(\sum_g J_g^\top A_g r_g r_g^\top A_g J_g\Big) N^{-1},\quad
+              A_g = (I - H_{gg})^{-1/2},\quad H_{gg} = J_g N^{-1} J_g^\top,\quad N = J^\top J.
+
+    Why: the residuals of a cluster that weighs heavily in the fit (high leverage ``H_gg``) are shrunk by the fit
+    itself, so the plain sandwich :func:`cluster_robust_covariance` (CR1) is biased low when the clusters are few or
+    unbalanced -- the traced rays of a cloudy Earth with a glow: 42 rays kept in 6 sectors of 10 deg, the end
+    sectors' leverage 0.9, CR1's centre sigma 0.04 px for a 0.19 px error.  ``A_g`` undoes the shrinkage; with an
+    exact model and independent clusters ``C_2`` is unbiased (CR1 only as ``G`` grows).  ``H_gg`` has rank
+    ``<= q``: with ``J_g N^{-1/2} = U S V^\top``, ``A_g = I + U [(1 - S^2)^{-1/2} - 1] U^\top``; leverages are
+    capped at ``max_leverage`` (a cluster that alone fixes a parameter would otherwise make ``A_g`` infinite)."""
+    J, r = np.asarray(J, float), np.asarray(r, float)
+    labels, inv = np.unique(np.asarray(groups), return_inverse=True)
+    inv = inv.reshape(-1)
+    N = J.T @ J
+    lam, V = np.linalg.eigh(N)
+    Nmh = (V / np.sqrt(np.maximum(lam, 1e-300))) @ V.T
+    meat = np.zeros_like(N)
+    for g in range(labels.size):
+        m = inv == g
+        U, S, _ = np.linalg.svd(J[m] @ Nmh, full_matrices=False)
+        fac = 1.0 / np.sqrt(1.0 - np.minimum(S * S, max_leverage)) - 1.0
+        s_g = J[m].T @ (r[m] + U @ (fac * (U.T @ r[m])))
+        meat += np.outer(s_g, s_g)
+    Ni = Nmh @ Nmh
+    return Ni @ meat @ Ni

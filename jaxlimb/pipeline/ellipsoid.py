@@ -23,7 +23,8 @@ Earth offset and range iteration of Mortari, D'Souza & Zanetti 2016 §IV, Fig. 2
   theta`` predicted from the limb cone at the current position (``R_body_to_camera`` known; else or with
   ``model="ellipse"`` free), repeated while the prediction moves the ellipse; Checks 1, 3/4 (radius in the
   prior's band), 4 and 5 (jump from the front end's circle) as for a sphere.
-* **profile refit**: the lunar-Lambert profile on the same pixels (Sun direction known).
+* **profile refit**: the lunar-Lambert profile on the same pixels (Sun direction known), widened by a glow above
+  the limb when the score test of the Moon's glow gate asks for it (:func:`~jaxlimb.pipeline.ellipsoid_profile.widen_glow_ellipsoid`).
 * **body-centre mapping**: the range iteration; the covariance of ``(center_r, center_c, range_km)`` through
   its central-difference Jacobian; with a free ellipse the unsigned centre offset as a model error.
 
@@ -480,7 +481,7 @@ def _patchy_geometry(body: Ellipsoid, frame: Frame, edge: EllipsoidEdge, chi2: f
         return np.array([e.fitted[0][0], e.fitted[0][1], e.fitted[1][0]])
 
     d = geo(edge) - geo(rays)
-    C = trace_model_cov(rays.pixels.trace, rays.fitted)[:2, :2]
+    C = trace_model_cov(rays.pixels.trace, rays.fitted, bias_reduced=False)[:2, :2]
     try:
         m2 = float(d[:2] @ np.linalg.solve(C, d[:2]))
     except np.linalg.LinAlgError:
@@ -575,7 +576,7 @@ def ellipsoid_center(body: Ellipsoid, frame: Frame, final: RefineResult) -> Body
         model_cov, goff = unsigned_offset_cov(cam, fitted, rng, body.equatorial_km, body.polar_km, body.atmosphere_km,
                                               len(outputs))
     (c, (a, b), th) = fitted
-    model = {"LimbProfileParams": "lunar_limb", "EllipseRampParams": "ellipse_ramp"}.get(type(P).__name__, "ellipse")
+    model = {"LimbProfileParams": "lunar_limb", "GlowProfileParams": "lunar_limb_glow", "EllipseRampParams": "ellipse_ramp"}.get(type(P).__name__, "ellipse")
     extras = {"model": model, "ellipse_center_rc": list(c), "rho": b / a, "theta_rad": th, "gamma_off_rad": float(info["gamma_off_rad"]),
               "gamma_off_unsigned_model_rad": goff, "a_prime": info["a_prime"], "b_prime": info["b_prime"]}
     return BodyCenter(tuple(float(v) for v in cam.project(-p)), None,

@@ -6,7 +6,8 @@ Known attitude: ``theta, rho`` held at the image of the limb spheroid at the cur
 re-predicted after the fit and the fit repeated (once is typical) while they move the ellipse by more
 than ``refit_tol_px``; free ellipse: ``theta, rho`` estimated.  ``profile="auto"`` keeps the edge fit
 (``extras["profile_rejected"]`` says why) when the fit fails, its ``L`` is outside the band of
-lunar-Lambert-like limbs, or it moves the limb by more than half the band from the edge fit.
+lunar-Lambert-like limbs, or it moves the limb by more than half the band from the edge fit.  An accepted fit is
+refitted once with a glow above the limb when a score test finds one (:func:`widen_glow_ellipsoid`).
 """
 
 from __future__ import annotations
@@ -211,7 +212,42 @@ def fit_profile_ellipsoid(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge"
         return edge_with_model_error(edge, res.params)
     extras["profile_fits"] = hist
     extras["L_estimated"] = frame.opt.lunar_lambert_L is None
-    return with_model_error(RefineResult(res, fd, 0, fixed))
+    return with_model_error(widen_glow_ellipsoid(frame, RefineResult(res, fd, 0, fixed)))
 
 
-__all__ = ["edge_with_model_error", "fit_profile_ellipsoid", "profile_wanted"]
+def widen_glow_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
+    """The ellipsoid's profile ``rr`` refitted with a glow above the limb (:data:`~jaxlimb.models.LIMB_PROFILE_GLOW`,
+    the shape ``theta, rho`` held as in ``rr``) when the score test of the sphere's
+    :func:`~jaxlimb.pipeline.profile_fit.widen_glow` asks for it (the one-step glow at a 1 px scale height positive at
+    z > :data:`~jaxlimb.pipeline.profile_fit.GLOW_Z`, the one at 0.3 px positive); a refit that does not converge,
+    or whose glow or scale height leaves the plausible range, keeps ``rr`` (its model-error terms carry the misfit).
+
+    Why: an exponential glow above the Earth's limb (``benchmarks/families.py`` Earth ``glow``, 6-25 km scale height,
+    0.03-0.4 of the surface) lifts the lunar-Lambert profile's limb by 0.2-1 km; the part of it that varies along the
+    arc left the centre 0.02-0.05 px off for a 0.003-0.008 px sigma (NEES 4.5, frames up to 9.7).  The glow's
+    columns are the Moon's (Sec. "Glows above the limb" of the README); the profile's geometry is the sphere's
+    along each ray, as for :data:`~jaxlimb.models.LIMB_PROFILE` on the Earth (module docstring of
+    :mod:`jaxlimb.pipeline.earth`)."""
+    from ..models.lunar_lambert import LIMB_PROFILE_GLOW, GlowProfileParams
+    from .profile_fit import GLOW_H0, GLOW_H_RANGE, GLOW_MAX, GLOW_Z, glow_step
+
+    (step, z), (step_edge, _) = glow_step(rr)
+    if not (step > 0.0 and z > GLOW_Z and step_edge > 0.0):
+        return rr
+    p = rr.fit.params
+    q = GlowProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()], min(step, 0.5 * GLOW_MAX),
+                          math.log(GLOW_H0[0]))
+    solver = None if frame.opt.solver == "lm" else solver_from_name(frame.opt.solver)
+    solver = NormalLM(rtol=0.0, atol=1e-7) if solver is None else solver
+    coords, zz, w = _pad_bucket(rr.data)
+    res = fit(LIMB_PROFILE_GLOW, coords, zz, q, solver, fixed=rr.fixed, weights=w, throw=False)
+    if not bool(res.converged):
+        return rr
+    g, lh = float(res.params.glow), float(res.params.log_h)
+    if not (0.0 < g <= GLOW_MAX and math.log(GLOW_H_RANGE[0]) <= lh <= math.log(GLOW_H_RANGE[1])
+            and float(res.params.amp) > 0 and float(res.params.a) > 0):
+        return rr
+    return RefineResult(res, rr.data, 0, rr.fixed)  # the model depends on sigma^2 only (|sigma| reported)
+
+
+__all__ = ["edge_with_model_error", "fit_profile_ellipsoid", "profile_wanted", "widen_glow_ellipsoid"]

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from jaxlimb.analysis.model_error import cluster_robust_covariance, sector_groups, with_model_error
+from jaxlimb.analysis.model_error import cluster_robust_bias_reduced, cluster_robust_covariance, sector_groups, with_model_error
 
 
 def _line_fit(r_extra, seed=0, n=4000, G=40):
@@ -27,6 +27,28 @@ def test_correlated_misfit_widens_it_and_the_floor_holds():
     Cn = with_model_error(C, Cs)
     assert np.all(np.linalg.eigvalsh(Cn - C) >= -1e-18)
     assert np.allclose(Cn, Cs, rtol=1e-9)  # Cs >= C here: the sum is Cs itself
+
+
+def test_bias_reduced_sandwich_covers_few_unbalanced_clusters():
+    """Six clusters of 4-11 points (the traced rays of a cloudy Earth with a glow: 42 rays in 6 sectors), a cluster
+    effect 6x the pixel noise: the plain sandwich (CR1) under-covers by 30-50 %, the bias-reduced one (CR2, Bell &
+    McCaffrey 2002) is within 30 % of the Monte-Carlo variance of the estimates."""
+    sizes = [4, 11, 6, 6, 9, 6]
+    g = np.repeat(np.arange(6), sizes)
+    x = np.concatenate([np.linspace(-1 + 2 * k / 6, -1 + 2 * (k + 1) / 6, s, endpoint=False) for k, s in enumerate(sizes)])
+    J = np.column_stack([np.ones_like(x), x, x * x])
+    rng = np.random.default_rng(1)
+    est, c1, c2 = [], [], []
+    for _ in range(2000):
+        y = 0.3 * rng.standard_normal(6)[g] + 0.05 * rng.standard_normal(g.size)
+        b = np.linalg.lstsq(J, y, rcond=None)[0]
+        r = y - J @ b
+        est.append(b)
+        c1.append(np.diag(cluster_robust_covariance(J, r, g)))
+        c2.append(np.diag(cluster_robust_bias_reduced(J, r, g)))
+    true = np.var(est, axis=0)
+    assert np.all(np.mean(c1, axis=0) / true < 0.75)
+    assert np.all(np.abs(np.mean(c2, axis=0) / true - 1.0) < 0.35)
 
 
 def test_sectors_follow_the_arc_across_the_cut():

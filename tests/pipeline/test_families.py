@@ -243,3 +243,48 @@ def test_patchy_limb_rays_answer_when_the_band_fit_runs_after_clouds(monkeypatch
     err_band, _ = _errors(case, m_band)
     assert err < 0.5 * err_band
     assert nees < 13.8
+
+
+def test_patchy_limb_with_few_rays_is_not_overconfident():
+    """Benchmark row ``combined`` 2 (40 000 km, clouds + a glow 0.33 of the surface + motion smear): 42 of 1208 rays
+    keep a limb against the sky, in 6 sectors whose end ones have leverage 0.9.  The plain sandwich gave the
+    centre a 0.05 px sigma across the lit direction for a 0.29 px error (NEES 14.7); the bias-reduced one
+    (``limb_trace.trace_model_cov``, CR2) covers it, and the centre estimate does not move."""
+    case = _earth("combined", 2)
+    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
+    err, nees = _errors(case, m)
+    assert 0.2 < err < 0.35  # the estimate of before (0.290 px): only the covariance changed
+    assert nees < 6.0
+
+
+def test_earth_glow_limb_is_fitted_by_the_widened_profile():
+    """Benchmark row Earth ``glow`` 0 (40 000 km, a glow 0.18 of the surface, 23 km scale height): the lunar-Lambert
+    profile put the limb 0.2 px high (range 0.018 % short) and the centre 0.021 px off for a 0.003 px sigma across
+    the lit direction; the glow-widened profile (``ellipsoid_profile.widen_glow_ellipsoid``) takes the glow: centre
+    within 0.012 px, range within 0.005 %, NEES < 4."""
+    case = _earth("glow", 0)
+    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
+    err, nees = _errors(case, m)
+    assert m.extras["model"] == "lunar_limb_glow" and 0.0 < m.extras["profile"]["glow"] <= 1.0
+    assert err < 0.012 and nees < 4.0
+    assert abs(m.range_km - case.truth.range_km) / case.truth.range_km < 5e-5
+
+
+@pytest.mark.parametrize("family, idx", [("own", 0), ("lambert", 0)])
+def test_earth_glow_gate_stays_shut_without_a_glow(family, idx):
+    case = _earth(family, idx)
+    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
+    assert m.extras["model"] != "lunar_limb_glow"
+
+
+def test_uniform_earth_with_few_traced_rays_is_not_a_patchy_limb():
+    """Benchmark row ``earth_noR`` ``lambert`` 4 (40 000 km, uniform albedo, attitude unknown): traced about a front-end
+    circle 4 px off, 46 of 1211 rays kept a flat inside, all at one level (RMS of log level 0.014).  Fewer than one ray
+    in ten used to make the limb 'patchy' whatever the levels, and the per-ray step put the centre 1.4 px off (NEES
+    7); a uniform disc's levels keep it on the profile path."""
+    case = _earth("lambert", 4)
+    h = {k: v for k, v in case.hints.items() if k != "R_body_to_camera"}
+    m = locate(case.image, case.camera, Hints.from_dict(h))
+    err, nees = _errors(case, m)
+    assert "profile_rejected" not in m.extras or m.extras["profile_rejected"].get("reason") != "albedo varies along the lit limb"
+    assert err < 0.5 and nees < 6.0
