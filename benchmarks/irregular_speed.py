@@ -81,7 +81,8 @@ def _stages(img, db, cam, sun, range_km) -> dict[str, float]:
     t1 = time.perf_counter()
     hyps = phase_candidates(seg[0], db, cam, s, o.phase)[: o.n_verify]
     t2 = time.perf_counter()
-    ropts = replace(o.register, max_excess_frac=min(o.register.max_excess_frac, o.search_max_excess_frac))
+    ropts = replace(o.register, max_excess_frac=min(o.register.max_excess_frac, o.search_max_excess_frac),
+                    exact_coverage=o.search_exact_coverage)  # as locate_los's search
     _register_hypotheses(img, db, cam, sun, seg, hyps, ropts, o)
     t3 = time.perf_counter()
     return {"segment_s": t1 - t0, "template_search_s": t2 - t1, "register_s": t3 - t2}
