@@ -228,24 +228,19 @@ def widen_glow_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
     columns are the Moon's (Sec. "Glows above the limb" of the README); the profile's geometry is the sphere's
     along each ray, as for :data:`~jaxlimb.models.LIMB_PROFILE` on the Earth (module docstring of
     :mod:`jaxlimb.pipeline.earth`)."""
-    from ..models.lunar_lambert import LIMB_PROFILE_GLOW, GlowProfileParams
-    from .profile_fit import GLOW_H0, GLOW_H_RANGE, GLOW_MAX, GLOW_Z, glow_step
+    from ..models.lunar_lambert import LIMB_PROFILE_GLOW
+    from .profile_fit import glow_plausible, glow_start
 
-    (step, z), (step_edge, _) = glow_step(rr)
-    if not (step > 0.0 and z > GLOW_Z and step_edge > 0.0):
+    q = glow_start(rr)
+    if q is None:
         return rr
-    p = rr.fit.params
-    q = GlowProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()], min(step, 0.5 * GLOW_MAX),
-                          math.log(GLOW_H0[0]))
     solver = None if frame.opt.solver == "lm" else solver_from_name(frame.opt.solver)
     solver = NormalLM(rtol=0.0, atol=1e-7) if solver is None else solver
     coords, zz, w = _pad_bucket(rr.data)
     res = fit(LIMB_PROFILE_GLOW, coords, zz, q, solver, fixed=rr.fixed, weights=w, throw=False)
     if not bool(res.converged):
         return rr
-    g, lh = float(res.params.glow), float(res.params.log_h)
-    if not (0.0 < g <= GLOW_MAX and math.log(GLOW_H_RANGE[0]) <= lh <= math.log(GLOW_H_RANGE[1])
-            and float(res.params.amp) > 0 and float(res.params.a) > 0):
+    if not (glow_plausible(res.params) and float(res.params.amp) > 0 and float(res.params.a) > 0):
         return rr
     return RefineResult(res, rr.data, 0, rr.fixed)  # the model depends on sigma^2 only (|sigma| reported)
 

@@ -174,11 +174,10 @@ def downweight_patchy_sectors(frame: Frame, rr: RefineResult, solver, system=Non
     r, J = (system[1] / system[3], system[0] / system[3][:, None]) if system is not None else evaluate(p)
     w = None
     for _ in range(PATCHY_PASSES):
-        groups = sector_groups(coords, (float(p.r0), float(p.c0)), PATCHY_SECTORS)
-        ratio = sector_misfit(r, groups, PATCHY_SECTORS)
-        if not np.any(ratio > PATCHY_RATIO):
+        w_pass = patchy_weights(coords, p, r)
+        if w_pass is None:
             break
-        w = np.where(ratio > PATCHY_RATIO, 1.0 / np.sqrt(np.maximum(ratio, 1.0)), 1.0)[groups]
+        w = w_pass
         for _ in range(PATCHY_GN_STEPS):
             stepped = _gauss_newton_step(evaluate, p, free, r, J, w)
             if stepped is None:
@@ -187,6 +186,16 @@ def downweight_patchy_sectors(frame: Frame, rr: RefineResult, solver, system=Non
     if w is None:
         return rr
     return _reweighted_result(frame, rr, p, r, J, w, evaluate.padded) or _downweight_by_refits(frame, rr, solver)
+
+
+def patchy_weights(coords: np.ndarray, p, r: np.ndarray) -> np.ndarray | None:
+    """Per-pixel weights of one pass of :func:`downweight_patchy_sectors`: ``1/sqrt(ratio)`` in the sectors about
+    ``p``'s centre whose :func:`sector_misfit` ratio exceeds :data:`PATCHY_RATIO`, 1 elsewhere; ``None`` when none does."""
+    groups = sector_groups(coords, (float(p.r0), float(p.c0)), PATCHY_SECTORS)
+    ratio = sector_misfit(r, groups, PATCHY_SECTORS)
+    if not np.any(ratio > PATCHY_RATIO):
+        return None
+    return np.where(ratio > PATCHY_RATIO, 1.0 / np.sqrt(np.maximum(ratio, 1.0)), 1.0)[groups]
 
 
 PATCHY_GN_STEPS = 2
@@ -258,12 +267,9 @@ def _downweight_by_refits(frame: Frame, rr: RefineResult, solver) -> RefineResul
     z = np.asarray(rr.data.z, float)
     p, data, out = rr.fit.params, rr.data, rr
     for _ in range(PATCHY_PASSES):
-        r = z - np.asarray(predict(model, p, coords))
-        groups = sector_groups(coords, (float(p.r0), float(p.c0)), PATCHY_SECTORS)
-        ratio = sector_misfit(r, groups, PATCHY_SECTORS)
-        if not np.any(ratio > PATCHY_RATIO):
+        w = patchy_weights(coords, p, z - np.asarray(predict(model, p, coords)))
+        if w is None:
             break
-        w = np.where(ratio > PATCHY_RATIO, 1.0 / np.sqrt(np.maximum(ratio, 1.0)), 1.0)[groups]
         data = FitData(data.coords, data.z, w, data.offset, data.scale)
         res, sph = _profile_passes(frame, data, p, None, None, rr.fixed, solver, model)
         p, out = res.params, RefineResult(res, data, 0, rr.fixed, sphere=sph)
@@ -374,20 +380,34 @@ def widen_glow(frame: Frame, rr: RefineResult, solver, system=None) -> RefineRes
     few tenths of a pixel, where a glow adds light: one Airy frame with a negative step at 0.3 px was put 0.04 px off
     (0.007 without).  Rejected refits keep ``rr``, not a typed failure: its covariance carries the misfit as model
     error (split witness) and the answer stays usable; a glow outside the bounds is not the glow it is meant for."""
-    (step, z), (step_edge, _) = glow_step(rr, system)
-    if not (step > 0.0 and z > GLOW_Z and step_edge > 0.0):
+    start = glow_start(rr, system)
+    if start is None:
         return rr
-    p = rr.fit.params
-    start = GlowProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()], min(step, 0.5 * GLOW_MAX),
-                              math.log(GLOW_H0[0]))
     try:
         res, sph = _profile_passes(frame, rr.data, start, None, None, rr.fixed, solver, LIMB_PROFILE_GLOW)
     except ConvergenceError:
         return rr
-    lh, lo, hi = float(res.params.log_h), math.log(GLOW_H_RANGE[0]), math.log(GLOW_H_RANGE[1])
-    if not (0.0 < float(res.params.glow) <= GLOW_MAX and lo <= lh <= hi):  # (NaN fails both)
+    if not glow_plausible(res.params):
         return rr
     return RefineResult(res, rr.data, 0, rr.fixed, sphere=sph)
+
+
+def glow_start(rr: RefineResult, system=None) -> GlowProfileParams | None:
+    """The glow gate of :func:`widen_glow` (sphere and ellipsoid alike): the widened profile's start from ``rr`` when
+    :func:`glow_step` at ``GLOW_H0[0]`` is positive at more than :data:`GLOW_Z` sigma and positive at
+    ``GLOW_H0[1]``, else ``None``."""
+    (step, z), (step_edge, _) = glow_step(rr, system)
+    if not (step > 0.0 and z > GLOW_Z and step_edge > 0.0):
+        return None
+    p = rr.fit.params
+    return GlowProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()], min(step, 0.5 * GLOW_MAX),
+                             math.log(GLOW_H0[0]))
+
+
+def glow_plausible(q: GlowProfileParams) -> bool:
+    """A widened fit's glow in ``(0, GLOW_MAX]`` and its scale height in :data:`GLOW_H_RANGE` (NaN fails both)."""
+    lh, lo, hi = float(q.log_h), math.log(GLOW_H_RANGE[0]), math.log(GLOW_H_RANGE[1])
+    return 0.0 < float(q.glow) <= GLOW_MAX and lo <= lh <= hi
 
 
 MODEL_ERROR_SECTORS = 24
@@ -576,6 +596,6 @@ def _shape_change_px(q: LimbProfileParams, sph) -> float:
 
 
 __all__ = ["brightening_step", "edge_sigma", "fit_lunar_profile", "gaussian_sigma_of_k", "profile_start",
-           "profile_sun_direction",
+           "profile_sun_direction", "glow_start", "glow_plausible", "patchy_weights",
            "saturation_level",
            "signed_distance", "split_witness", "downweight_patchy_sectors", "sector_misfit", "glow_step", "widen_brightening", "widen_glow", "with_model_error"]
