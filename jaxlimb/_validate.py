@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ConfigError, LimbInputError
+from .errors import CenterTooUncertainError, ConfigError, LimbInputError
 
 
 # ----------------------------------------------------------------------------- numbers
@@ -291,6 +291,18 @@ def check_memory(nbytes: float, what: str, *, fraction: float = 0.5,
                     f"({fraction:.0%} of the {_gib(avail)} available) may be used")
 
 
+def check_center_sigma(cov_rc: np.ndarray, tol_px: float | None) -> float:
+    """The centre's 1-sigma (px, the larger axis of its 2x2 covariance) must be finite and <= ``tol_px``."""
+    c = np.asarray(cov_rc, float)
+    s = float(math.sqrt(max(float(np.max(np.linalg.eigvalsh(0.5 * (c + c.T)))), 0.0))) if np.all(np.isfinite(c)) \
+        else math.inf
+    if not math.isfinite(s) or (tol_px is not None and s > tol_px):
+        raise CenterTooUncertainError(
+            f"the centre's 1-sigma is {s:.4g} px, above max_center_sigma_px = {tol_px} px: the frame does not measure "
+            "the centre to the stated tolerance (raise the tolerance to accept it with its covariance)")
+    return s
+
+
 __all__ = [
     "ANY",
     "FIGURE_SUFFIXES",
@@ -299,6 +311,7 @@ __all__ = [
     "Range",
     "arg_number",
     "available_memory",
+    "check_center_sigma",
     "check_memory",
     "input_file",
     "is_real",

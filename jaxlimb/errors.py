@@ -151,6 +151,12 @@ class RadiusInconsistentError(CheckFailed):
     check = "radius_inconsistent"
 
 
+class CenterTooUncertainError(CheckFailed):
+    """The fit's own 1-sigma of the centre exceeds the stated tolerance (``LocateOptions.max_center_sigma_px``)."""
+
+    check = "center_too_uncertain"
+
+
 class DarkLimbInconsistentError(CheckFailed):
     """The dark limb visible against a brighter sky lies off the circle fitted to the lit limb."""
 
@@ -215,6 +221,7 @@ class SaturationWarning(UserWarning):
 __all__ = [
     "AmbiguousMatchError",
     "ArcTooShortError",
+    "CenterTooUncertainError",
     "DarkLimbInconsistentError",
     "UsageError",
     "AttitudeError",

@@ -179,7 +179,8 @@ def render_window(
         for j in range(len(MIX_LAWS)):
             D[j][win] = pix[1 + j]
         flat_mix = flat + sum(mix[j] * d for j, d in enumerate(dflat))  # the fitted mix's flat radiance
-        D[-1][win] = _smooth_minus_flat(ras, Xc, F, cam, s, MixedLaw(reflectance, tuple(mix[:-1])), supersample,
+        vn = body_vertex_normals(mesh) @ np.asarray(R, dtype=float).T  # the camera frame's: rotation-equivariant
+        D[-1][win] = _smooth_minus_flat(ras, Xc, F, vn, cam, s, MixedLaw(reflectance, tuple(mix[:-1])), supersample,
                                         flat_mix, lit, pix[-1])
         M += mix[-1] * D[-1]
     if not jacobian:
@@ -273,13 +274,30 @@ def _vertex_normals(Xc: np.ndarray, F: np.ndarray) -> np.ndarray:
     return vn / np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
 
 
-def _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, ss, flat, lit, cover):  # type: ignore[no-untyped-def]
+_NORMALS: dict = {}
+
+
+def body_vertex_normals(mesh: Mesh) -> np.ndarray:
+    """:func:`_vertex_normals` of the mesh in its body frame, computed once per mesh (rotating the vertices rotates
+    the normals: ``R`` applied to these equals them recomputed from the rotated vertices to ~1e-16)."""
+    key = (id(mesh.vertices), id(mesh.faces))
+    if key not in _NORMALS:
+        if len(_NORMALS) > 8:
+            _NORMALS.clear()
+        # the entry holds the mesh's arrays, so their ids cannot be reused by other arrays while it is cached
+        _NORMALS[key] = (mesh.vertices, mesh.faces, _vertex_normals(np.asarray(mesh.vertices, float),
+                                                                      np.asarray(mesh.faces, np.int64)))
+    return _NORMALS[key][2]
+
+
+def _smooth_minus_flat(ras, Xc, F, vn, cam, s, reflectance, ss, flat, lit, cover):  # type: ignore[no-untyped-def]
     """``(h, w)``: radiance with normals interpolated across each facet (barycentric weights of
     the vertex normals, Phong) minus the facet's flat radiance ``flat`` (per facet), times its lit
     fraction ``lit`` (``cover``: the raster's pixel coverage).
 
     A real body is smooth where its shape model is faceted: the registration fits the mix of
-    the two (one more linear column, :class:`~.register.RegisterOptions`).  The smooth radiance of
+    the two (one more linear column, :class:`~.register.RegisterOptions`); ``vn``: the unit vertex normals
+    (camera frame, :func:`body_vertex_normals` rotated).  The smooth radiance of
     interior pixels is computed at every other pixel and interpolated (it varies slowly; the flat
     radiance it is compared with is each pixel's own); pixels the outline crosses are sampled at
     every sub-pixel (area average), where smooth normals graze the line of sight and the two
@@ -289,7 +307,6 @@ def _smooth_minus_flat(ras, Xc, F, cam, s, reflectance, ss, flat, lit, cover):  
     center = buf[ss // 2 :: ss, ss // 2 :: ss][: ras.h, : ras.w]
     inner = (center > 0) & (cover > 0.999)
     out = np.zeros((ras.h, ras.w))
-    vn = _vertex_normals(Xc, F)
     smooth = _interior_smooth(ras, Xc, F, vn, cam, s, reflectance, center, inner)
     rr, cc = np.nonzero(inner)
     face = center[rr, cc] - 1

@@ -60,7 +60,7 @@ import cv2
 import numpy as np
 
 from ..errors import ConvergenceError, MatchError
-from ..pipeline.checks import check_center_sigma
+from .._validate import check_center_sigma
 from .mesh import Mesh
 from .model_render import MIX_LAWS, attitude_columns, clustered_mesh, downsample, level_camera, render_window
 from .silhouette import figure_center, figure_extents, mesh_topology, render_silhouette, segment_components

@@ -70,7 +70,9 @@ import math
 
 import numpy as np
 
-from ..errors import ArcTooShortError, CheckFailed, JumpError, RadiusInconsistentError, TooBigError, TooSmallError
+from .._validate import check_center_sigma
+from ..errors import (ArcTooShortError, CenterTooUncertainError, CheckFailed, JumpError, RadiusInconsistentError,
+                      TooBigError, TooSmallError)
 
 #: Shortest lit limb arc (deg) measured with the sigmoid (module docstring, lit-arc check).
 MIN_LIT_ARC_DEG = 60.0
@@ -221,12 +223,6 @@ class NonPhysicalFitError(CheckFailed):
     check = "non_physical_fit"
 
 
-class CenterTooUncertainError(CheckFailed):
-    """The fit's own 1-sigma of the centre exceeds the stated tolerance (``LocateOptions.max_center_sigma_px``)."""
-
-    check = "center_too_uncertain"
-
-
 def check_levels(ymax: float, ymin: float, what: str) -> None:
     """The lit body must be brighter than the sky: ``ymax > ymin`` (DN), both finite."""
     if not (math.isfinite(ymax) and math.isfinite(ymin) and ymax > ymin):
@@ -241,18 +237,6 @@ def check_edge_width(psf_sigma_px: float, max_sigma_px: float, what: str) -> Non
         raise NonPhysicalFitError(
             f"the {what} fit's edge blur (Gaussian PSF sigma {psf_sigma_px:.4g} px) is outside the plausible range "
             f"[0, {max_sigma_px:g}] px (LocateOptions.max_psf_sigma_px): the fit followed something else than a limb")
-
-
-def check_center_sigma(cov_rc: np.ndarray, tol_px: float | None) -> float:
-    """The centre's 1-sigma (px, the larger axis of its 2x2 covariance) must be finite and <= ``tol_px``."""
-    c = np.asarray(cov_rc, float)
-    s = float(math.sqrt(max(float(np.max(np.linalg.eigvalsh(0.5 * (c + c.T)))), 0.0))) if np.all(np.isfinite(c)) \
-        else math.inf
-    if not math.isfinite(s) or (tol_px is not None and s > tol_px):
-        raise CenterTooUncertainError(
-            f"the centre's 1-sigma is {s:.4g} px, above max_center_sigma_px = {tol_px} px: the frame does not measure "
-            "the centre to the stated tolerance (raise the tolerance to accept it with its covariance)")
-    return s
 
 
 __all__ += ["CenterTooUncertainError", "NonPhysicalFitError", "check_center_sigma", "check_edge_width",

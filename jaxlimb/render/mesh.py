@@ -292,16 +292,14 @@ def shadow_fractions(vertices: np.ndarray, faces: np.ndarray, sun_body: np.ndarr
     1000 body radii away, ``n_px`` across the body); a facet's lit fraction is its sample count
     over the count its projected area predicts (above 0.8: 1, sampling noise).  Facets the Sun
     does not face get 0; facets expected to cover fewer than 6 samples keep 1 (unresolved).  Depends only on the Sun
-    direction in the body frame: cached per mesh and 0.25 deg of it.
+    direction in the body frame: cached per mesh, reused within 0.2 deg of it (:func:`_cached_shadows`).
     """
     V = np.asarray(vertices, dtype=float)
     F = np.asarray(faces, dtype=np.int64)
     sb = np.asarray(sun_body, dtype=float) / np.linalg.norm(sun_body)
-    # ~0.25 deg of Sun direction: a fitted attitude moves less per iteration.  The entry holds the mesh's arrays,
-    # so their ids cannot be reused by other arrays while it is cached
-    key = (id(vertices), id(faces), tuple(np.round(sb * 230.0).astype(int)))
-    if key in _SHADOWS:
-        return _SHADOWS[key][2]
+    hit = _cached_shadows(vertices, faces, sb)
+    if hit is not None:
+        return hit
     rmax = float(np.linalg.norm(V, axis=1).max())
     L = 1000.0 * rmax
     z = -sb
@@ -322,10 +320,29 @@ def shadow_fractions(vertices: np.ndarray, faces: np.ndarray, sun_body: np.ndarr
     # with fewer than 6 expected samples is unresolved
     frac = np.where((expected < 6.0) | (frac > 0.8), 1.0, frac)
     frac = np.where(ns_ > 0, frac, 0.0)
-    if len(_SHADOWS) > 64:
-        _SHADOWS.clear()
-    _SHADOWS[key] = (vertices, faces, frac)
+    entries = _SHADOWS.setdefault((id(vertices), id(faces)), (vertices, faces, []))[2]
+    if len(entries) >= _SHADOWS_PER_MESH:
+        del entries[0]
+    entries.append((sb, frac))
     return frac
+
+
+_SHADOWS_PER_MESH = 64
+_SHADOW_REUSE_RAD = math.radians(0.2)
+
+
+def _cached_shadows(vertices: np.ndarray, faces: np.ndarray, sb: np.ndarray) -> np.ndarray | None:
+    """The lit fractions of the cached Sun direction nearest ``sb`` if within 0.2 deg (a fitted attitude moves less
+    per iteration; a grid of cells would miss a 0.002 deg step across a cell boundary), else ``None``.  An entry
+    holds the mesh's arrays, so their ids cannot be reused by other arrays while it is cached."""
+    entry = _SHADOWS.get((id(vertices), id(faces)))
+    if entry is None or not entry[2]:
+        if len(_SHADOWS) > 8:
+            _SHADOWS.clear()
+        return None
+    dirs = np.array([d for d, _ in entry[2]])
+    j = int(np.argmax(dirs @ sb))
+    return entry[2][j][1] if float(dirs[j] @ sb) >= math.cos(_SHADOW_REUSE_RAD) else None
 
 
 def render_mesh(

@@ -182,3 +182,26 @@ def test_locate_checked_modes_and_wrong_body(scene, capsys, tmp_path):
         rc, o, err = _run(capsys, ["los", "locate", str(tmp_path / "other.png"), *base, *extra])
         assert rc == 3, o + err
         assert json.loads(o)["check"] in ("poor_match", "ambiguous_match", "no_convergence")
+
+
+def test_locate_process_never_starts_jax(scene, capsys, tmp_path):
+    """``los locate`` is numpy + OpenCV only (issue 12: <= 3 s per call): a whole checked call in a fresh
+    process imports neither JAX nor the limb pipeline (which pulls JAX in: 0.8 s of a 3 s call)."""
+    import os
+    import subprocess
+    import sys
+
+    d, truth = scene
+    db = tmp_path / "db.npz"
+    assert cli.main(["los", "build-db", str(d / "lumpy.obj"), "--step-deg", "30", "--template-size", "128", "--out", str(db), "--no-progress"]) == 0
+    capsys.readouterr()
+    argv = ["los", "locate", str(d / "img.png"), "--db", str(db), "--camera", str(d / "camera.json"), "--json"]
+    code = ("import contextlib, io, json, sys\nfrom jaxlimb.cli import main\n"
+            f"with contextlib.redirect_stdout(io.StringIO()) as out:\n    rc = main({argv!r})\n"
+            "print(json.dumps([rc, out.getvalue(), sorted(m for m in sys.modules if m == 'jax' or m.startswith(('jax.', 'jaxlimb.pipeline')))]))")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                       env={**os.environ, "JAXLIMB_CACHE": str(tmp_path / "cache")})
+    rc, out, jax_modules = json.loads(p.stdout.strip().splitlines()[-1])
+    assert rc == 0, out + p.stderr
+    assert np.linalg.norm(np.array(json.loads(out)["center_rc"]) - truth) < 0.5
+    assert jax_modules == []

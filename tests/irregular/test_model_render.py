@@ -134,6 +134,34 @@ def test_vertex_normal_does_not_depend_on_the_triangulation(n_split):
     np.testing.assert_allclose(_vertex_normals(V, F)[0], want / np.linalg.norm(want), atol=1e-9)
 
 
+def test_body_vertex_normals_rotate_with_the_body(lumpy):
+    """The cached body-frame vertex normals, rotated, are the normals of the rotated (and moved) vertices."""
+    from jaxlimb.irregular.model_render import _vertex_normals, body_vertex_normals
+
+    R, t, _ = _pose(lumpy)
+    want = _vertex_normals(lumpy.vertices @ R.T + t, lumpy.faces)
+    np.testing.assert_allclose(body_vertex_normals(lumpy) @ R.T, want, atol=1e-12)
+    assert body_vertex_normals(lumpy) is body_vertex_normals(lumpy)
+
+
+def test_shadow_maps_are_reused_for_any_tiny_step(lumpy):
+    """A cached lit-fraction map serves every Sun direction within 0.2 deg of its own, wherever the step falls
+    (a grid of cells recomputed the map for a 0.002 deg step across a cell boundary); 1 deg away: a new map."""
+    from scipy.spatial.transform import Rotation
+
+    import jaxlimb.render.mesh as rm
+
+    rm._SHADOWS.clear()
+    sun = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    first = rm.shadow_fractions(lumpy.vertices, lumpy.faces, sun)
+    for deg in (0.002, 0.05, 0.15):
+        step = Rotation.from_rotvec(np.radians(deg) * np.array([1.0, 0.0, 0.0])).apply(sun)
+        assert rm.shadow_fractions(lumpy.vertices, lumpy.faces, step) is first
+    far = Rotation.from_rotvec(np.radians(1.0) * np.array([1.0, 0.0, 0.0])).apply(sun)
+    assert rm.shadow_fractions(lumpy.vertices, lumpy.faces, far) is not first
+    assert len(rm._SHADOWS[(id(lumpy.vertices), id(lumpy.faces))][2]) == 2
+
+
 @pytest.mark.parametrize("ss", [4, 8])
 def test_raster_outline_is_not_dilated(ss):
     """A convex mesh's coverage is the area of its outline (the hull of the projected vertices), not the
