@@ -67,23 +67,17 @@ def _wall(cmd: list[str], env: dict[str, str]) -> tuple[float, float, dict | Non
 
 def _stages(img, db, cam, sun, range_km) -> dict[str, float]:
     """Wall time of each stage of the template search (same code path as ``locate_los``)."""
-    from dataclasses import replace
-
-    from jaxlimb.irregular.locate import LosOptions, _register_hypotheses, _sun_image_direction
-    from jaxlimb.irregular.phase import phase_candidates
+    from jaxlimb.irregular.locate import LosOptions, _register_hypotheses, search_hypotheses, search_register_options
     from jaxlimb.irregular.register import lit_figure
-    from jaxlimb.irregular.silhouette import figure_center
 
     o = LosOptions()
     t0 = time.perf_counter()
     seg = lit_figure(img)
-    s = _sun_image_direction(sun, cam, figure_center(seg[0]), o)
     t1 = time.perf_counter()
-    hyps = phase_candidates(seg[0], db, cam, s, o.phase)[: o.n_verify]
+    hyps = search_hypotheses(seg, db, cam, sun, o)
     t2 = time.perf_counter()
-    ropts = replace(o.register, max_excess_frac=min(o.register.max_excess_frac, o.search_max_excess_frac),
-                    exact_coverage=o.search_exact_coverage)  # as locate_los's search
-    _register_hypotheses(img, db, cam, sun, seg, hyps, ropts, o)
+    n = min(len(hyps), o.n_verify)  # the retry set is registered only when none of these explains the frame
+    _register_hypotheses(img, db, cam, sun, seg, hyps[:n], search_register_options(o), o)
     t3 = time.perf_counter()
     return {"segment_s": t1 - t0, "template_search_s": t2 - t1, "register_s": t3 - t2}
 

@@ -177,14 +177,31 @@ def locate_los(
     if R_body_to_camera is not None:
         fit = register_known_attitude(img, db.mesh, camera, R_body_to_camera, sun_dir_camera, range_km, options.register, seg)
         return LosResult(LosMode.KNOWN_ATTITUDE, fit, None, 1, 1, None)
-    fc = figure_center(seg[0])
-    s_img = _sun_image_direction(sun_dir_camera, camera, fc, options)
+    hyps = search_hypotheses(seg, db, camera, sun_dir_camera, options)
+    ropts = search_register_options(options)
+    n_tried = min(len(hyps), options.n_verify)
+    fits, errors = _register_hypotheses(img, db, camera, sun_dir_camera, seg, hyps[:n_tried], ropts, options)
+    if not fits and len(hyps) > n_tried:  # none explains the frame: the next best templates
+        fits, more = _register_hypotheses(img, db, camera, sun_dir_camera, seg, hyps[n_tried:], ropts, options)
+        errors, n_tried = errors + more, len(hyps)
+    return _choose(fits, errors, n_tried, options)
+
+
+def search_hypotheses(seg, db: TemplateDatabase, camera: object, sun_dir_camera, options: LosOptions) -> list:  # type: ignore[no-untyped-def]
+    """The template hypotheses of the attitude-unknown search, best first (``n_verify + n_retry`` of them):
+    :func:`~.phase.phase_candidates` on the lit figure ``seg`` (:func:`~.register.lit_figure`) with the Sun's
+    image direction; at zero phase the whole silhouette is limb."""
+    s_img = _sun_image_direction(sun_dir_camera, camera, figure_center(seg[0]), options)
     popts = options.phase
     if s_img is None:  # zero phase: the whole silhouette is limb; any direction serves for the extents
         popts, s_img = replace(popts, limb_cos=-2.0), np.array([1.0, 0.0])
     n_all = options.n_verify + options.n_retry
-    hyps = phase_candidates(seg[0], db, camera, s_img, replace(popts, n_candidates=max(popts.n_candidates, n_all)))[:n_all]
-    ropts = replace(
+    return phase_candidates(seg[0], db, camera, s_img, replace(popts, n_candidates=max(popts.n_candidates, n_all)))[:n_all]
+
+
+def search_register_options(options: LosOptions) -> RegisterOptions:
+    """The registration options of the attitude-unknown search (:class:`LosOptions`' ``search_*`` fields)."""
+    return replace(
         options.register,
         max_excess_frac=min(options.register.max_excess_frac, options.search_max_excess_frac),
         sharp_level2_iterations=options.sharp_level2_iterations,
@@ -192,12 +209,6 @@ def locate_los(
         surge_widths=options.search_surge_widths,
         max_iterations=max(options.register.max_iterations, options.search_max_iterations),
     )
-    n_tried = min(len(hyps), options.n_verify)
-    fits, errors = _register_hypotheses(img, db, camera, sun_dir_camera, seg, hyps[:n_tried], ropts, options)
-    if not fits and len(hyps) > n_tried:  # none explains the frame: the next best templates
-        fits, more = _register_hypotheses(img, db, camera, sun_dir_camera, seg, hyps[n_tried:], ropts, options)
-        errors, n_tried = errors + more, len(hyps)
-    return _choose(fits, errors, n_tried, options)
 
 
 def _register_hypotheses(img, db, camera, sun, seg, hyps, ropts, options):  # type: ignore[no-untyped-def]

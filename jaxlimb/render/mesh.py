@@ -36,6 +36,7 @@ import cv2
 import numpy as np
 
 from ..errors import ConfigError, GeometryError
+from ._masks import boundary_mask
 
 
 @dataclass(frozen=True)
@@ -238,14 +239,7 @@ def _exact_edges(buf: np.ndarray, sub: np.ndarray, F: np.ndarray, depth: np.ndar
     overlap its farther neighbour by half a sub-pixel, which shifts the shading pattern of a body seen
     at high phase toward the Sun (the nearer facets, toward the disc centre, are the darker ones of
     the lit side)."""
-    edge = np.zeros(buf.shape, bool)
-    d = buf[1:] != buf[:-1]
-    edge[1:] |= d
-    edge[:-1] |= d
-    d = buf[:, 1:] != buf[:, :-1]
-    edge[:, 1:] |= d
-    edge[:, :-1] |= d
-    rr, cc = np.nonzero(edge & (buf > 0))
+    rr, cc = np.nonzero(boundary_mask(buf) & (buf > 0))
     if rr.size == 0:
         return
     coef = np.ascontiguousarray(_edge_coefficients(sub, F).reshape(-1, 9))

@@ -36,6 +36,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..geometry.camera import Camera
 from ..geometry.ellipsoid import ImageConic, image_conic
+from ._masks import boundary_mask
 from .reflectance import LUNAR_LAMBERT_MCEWEN, REFLECTANCE_MODELS, reflectance
 from .scene import Scene
 
@@ -300,14 +301,7 @@ def _terminator_band(inside: np.ndarray, ir: np.ndarray, ic: np.ndarray, lit_in:
     """Interior pixels whose lit state differs from a 4-neighbour's (they are supersampled)."""
     lit = np.zeros(inside.shape, bool)
     lit[ir, ic] = lit_in
-    band = np.zeros(inside.shape, bool)
-    dv = (lit[1:, :] != lit[:-1, :]) & inside[1:, :] & inside[:-1, :]
-    band[1:, :] |= dv
-    band[:-1, :] |= dv
-    dh = (lit[:, 1:] != lit[:, :-1]) & inside[:, 1:] & inside[:, :-1]
-    band[:, 1:] |= dh
-    band[:, :-1] |= dh
-    return band
+    return boundary_mask(lit, inside)
 
 
 def _supersampled(scene: Scene, pr_all: np.ndarray, pc_all: np.ndarray, offs: np.ndarray, camera: Camera,
