@@ -486,6 +486,22 @@ def _gradient_window(img: np.ndarray, region: BodyRegion, st, opt: GradientOptio
     return _GradientWindow((r0, r1, c0, c1), sub_s, g, gr, gc, strongest_pixels(g, n_req), vsub, sigma_pre)
 
 
+def _masked_limb_note(win: _GradientWindow, region: BodyRegion) -> str:
+    """Why Check 2 failed when the lit body reaches the band next to the invalid pixels (NaN / fill) that no
+    front end uses (``reach`` px, :func:`valid_zone`): the limb lies there (e.g. a solar product whose off-disc
+    pixels are blanked 1-2 px outside the limb); else ``""``."""
+    if win.valid is None or win.valid.all():
+        return ""
+    reach = 4 + int(math.ceil(3 * win.presmooth_sigma))
+    band = win.valid & ~valid_zone(win.valid, reach)
+    n = int(np.count_nonzero(band & (win.smoothed > region.background + 0.25 * (region.peak - region.background))))
+    if n < 20:
+        return ""
+    return (f"; the lit body reaches within {reach} px of the invalid (NaN or fill) pixels on {n} pixels: the limb "
+            "lies too close to the mask for the front end (a product with its off-body pixels blanked: use the "
+            "frame as taken)")
+
+
 def _box_filtered_points(win: _GradientWindow, region: BodyRegion, st, opt: GradientOptions) -> tuple[np.ndarray, int]:
     """Step 5 and Check 2: the candidates the box filter (§4.2) keeps, at sub-pixel positions (ROI frame)."""
     cand = win.candidates
@@ -497,7 +513,7 @@ def _box_filtered_points(win: _GradientWindow, region: BodyRegion, st, opt: Grad
     if n_box < opt.min_points_box:
         raise TooManyOutliersError(
             f"Check 2: the box-based filter kept {n_box} of {cand.shape[0]} candidate pixels, fewer than "
-            f"min_points_box = {opt.min_points_box}"
+            f"min_points_box = {opt.min_points_box}{_masked_limb_note(win, region)}"
         )
     pts_i = cand[keep]
     pts = subpixel_refine(win.g, win.gr, win.gc, pts_i) if opt.subpixel else pts_i.astype(np.float64)

@@ -202,3 +202,21 @@ def test_same_image_same_answer_bit_for_bit():
         assert np.array_equal(again.points_rc, first.points_rc)
     g, gr, gc = richardson_gradient(img.astype(np.float32), dtype=np.float32)
     assert np.array_equal(g, np.sqrt(gr * gr + gc * gc))
+
+
+def test_limb_next_to_blanked_pixels_is_a_failure_that_says_why():
+    """The 100 px HMI product blanks (NaN) its off-disc pixels 1-2 px outside the limb: the front end uses no
+    pixel within 4 px of an invalid one, so Check 2 fails, and the message says the limb lies next to the mask.
+    A frame whose mask leaves the limb alone says nothing of the kind."""
+    from jaxlimb.errors import TooManyOutliersError
+    from jaxlimb.imaging.formats import read_frame
+
+    fr = read_frame(SUN / "resampled_hmi.fits")
+    assert fr.mask_or_none is not None
+    with pytest.raises(TooManyOutliersError, match="too close to the mask"):
+        gradient_front_end(fr.data, mask=fr.mask)
+    img = render_disk((200, 200), (100.3, 99.6), 50.0, phase_deg=0.0, blur_sigma=1.0, noise_sigma=1.0, seed=2)
+    mask = np.ones(img.shape, bool)
+    mask[:, :40] = False  # far from the limb: measured
+    lc = gradient_front_end(img, mask=mask)
+    assert math.hypot(lc.center_rc[0] - 100.3, lc.center_rc[1] - 99.6) < 0.5
