@@ -32,7 +32,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--instrument", metavar="NAME", default=None,
                    help="SPICE instrument (e.g. CASSINI_ISS_NAC); default: the label's INSTRUMENT_ID")
     p.add_argument("--front-end", choices=("gradient", "scanline"), default="gradient", dest="front_end",
-                   help="candidate-limb front end (default gradient)")
+                   help="candidate-limb front end (default gradient; when it finds no limb the other one is tried and "
+                   "the answer's front_end says which answered)")
+    p.add_argument("--no-front-end-fallback", action="store_false", dest="front_end_fallback",
+                   help="only the chosen front end: its failure is the answer")
     p.add_argument("--model", choices=("circle", "ellipse"), default="circle", help="limb model (default circle)")
     p.add_argument("--solver", choices=sorted(SOLVER_NAMES), default="lm", help="least-squares solver (default lm)")
     p.add_argument("--fixed-k", action="store_true",
@@ -187,8 +190,8 @@ def _measure_frame(args: argparse.Namespace, frame):
     camera = Camera.from_json(args.camera) if args.camera is not None else (geom.camera if geom else None)
     hints = _read_hints(args.hints, args.body.lower() if args.body else (geom.target.lower() if geom else None),
                         base=geom.hints() if geom else None)
-    options = LocateOptions(front_end=args.front_end, model=args.model, solver=args.solver,
-                            estimate_k=not args.fixed_k, profile=args.profile)
+    options = LocateOptions(front_end=args.front_end, front_end_fallback=args.front_end_fallback, model=args.model,
+                            solver=args.solver, estimate_k=not args.fixed_k, profile=args.profile)
     with warnings_to_stderr(SaturationWarning):
         meas = locate(image, camera, hints, options, mask=frame.mask_or_none)
     return meas, (_spice_report(geom, meas) if geom is not None else None), image

@@ -78,6 +78,10 @@ class DetectOptions:
         Margin added around the region (full-resolution px) for the ROI.
     run_checks
         Run the size/thickness checks (the no-body test always runs).
+    dark_surface, dark_surface_frac, dark_surface_area_ratio, dark_surface_max_ratio
+        A variegated body (off with ``dark_surface = False``) (:func:`dark_surface_region`): the region above the sky by
+        ``max(6 sigma, dark_surface_frac x range)`` replaces Eq. (10)'s when it is
+        ``dark_surface_area_ratio`` to ``dark_surface_max_ratio`` times larger.
     """
 
     work_size: int = 512
@@ -88,6 +92,10 @@ class DetectOptions:
     min_thickness_px: float = 4.0
     margin_px: int = 16
     run_checks: bool = True
+    dark_surface: bool = True
+    dark_surface_frac: float = 0.03
+    dark_surface_area_ratio: float = 1.6
+    dark_surface_max_ratio: float = 8.0
 
     def __post_init__(self) -> None:
         if self.work_size < 32:
@@ -100,6 +108,10 @@ class DetectOptions:
             raise ConfigError(f"DetectOptions.max_fill_fraction must be in (0, 1], got {self.max_fill_fraction!r}")
         if self.margin_px < 0:
             raise ConfigError(f"DetectOptions.margin_px must be >= 0, got {self.margin_px!r}")
+        if not (0 <= self.dark_surface_frac < 0.25 and 1 <= self.dark_surface_area_ratio <= self.dark_surface_max_ratio):
+            raise ConfigError("DetectOptions.dark_surface_frac must be in [0, 0.25) and 1 <= dark_surface_area_ratio <= "
+                              f"dark_surface_max_ratio, got {self.dark_surface_frac!r}, {self.dark_surface_area_ratio!r}, "
+                              f"{self.dark_surface_max_ratio!r}")
 
 
 @dataclass(frozen=True)
@@ -183,6 +195,8 @@ class BodyRegion:
     mask_small: np.ndarray = field(repr=False, compare=False, default=None)  # type: ignore[assignment]
     #: the sky was measured on the frame's border, above the body's darkest parts (:func:`detect_body`)
     bright_sky: bool = False
+    #: the region is a variegated body's, found above a low threshold (:func:`dark_surface_region`)
+    dark_surface: bool = False
 
 
 def estimate_noise(image: np.ndarray, max_samples: int = 100_000) -> float:
@@ -312,6 +326,11 @@ def detect_body(image: np.ndarray, options: DetectOptions | None = None, *, sky_
         gt = gmin + max(6.0 * sig_s, 0.25 * (gmax - gmin))
     binary = (sm > gt).astype(np.uint8)
     mask, (x, y, w, h) = _brightest_component(sm, binary, gt)
+    gt_eq10 = gt
+    if sky_dn is None and opt.dark_surface:
+        gt, mask, (x, y, w, h) = dark_surface_region(sm, gt, sky + max(6.0 * sig_s, opt.dark_surface_frac * contrast),
+                                                     mask, (x, y, w, h), opt.dark_surface_area_ratio,
+                                                     opt.dark_surface_max_ratio)
     full_mask = np.zeros_like(binary)
     full_mask[y : y + h, x : x + w] = mask
     shape = _region_shape(mask, x, y, f, opt)
@@ -335,6 +354,7 @@ def detect_body(image: np.ndarray, options: DetectOptions | None = None, *, sky_
         crop=crop,
         mask_small=full_mask,
         bright_sky=sky_dn is not None,
+        dark_surface=gt < gt_eq10,
     )
     if opt.run_checks:
         if region.lit_fraction > opt.max_fill_fraction and sky_dn is None:
@@ -361,6 +381,35 @@ def _smoothed_small(a: np.ndarray, f: int, opt: DetectOptions) -> tuple[np.ndarr
         sm = cv2.GaussianBlur(small, (0, 0), opt.smooth_sigma, borderType=cv2.BORDER_REPLICATE)
         return sm, sigma, sig_small / (2 * math.sqrt(math.pi) * opt.smooth_sigma)
     return small, sigma, sig_small
+
+
+def dark_surface_region(sm: np.ndarray, gt: float, low: float, mask: np.ndarray, box: tuple, area_ratio: float,  # type: ignore[no-untyped-def]
+                        max_ratio: float = math.inf, min_patches: int = 3):
+    """The lit region of a variegated body: Eq. (10)'s threshold cuts at a quarter of the range between the sky
+    and the brightest pixel, which on a body of one albedo is the lit disc, but on the Earth at low phase (bright
+    clouds, dark oceans, Lambert limb darkening to zero at the limb) is the clouds alone: the "disc" is a cloud
+    bank, its outline cloud edges (independent EPIC-like renders, benchmarks/earth_full_disc.py).  When the
+    region above ``low`` (a few sigma, or a few percent of the range, above the sky) is ``area_ratio`` to
+    ``max_ratio`` times larger and holds at least ``min_patches`` separate regions above ``gt`` (cloud banks), it
+    is the body: ``(low, its mask, its box)``; else ``(gt, mask, box)`` unchanged (full-disc Earths: 1.9-4.0
+    times, 22-30 patches; a region many times larger is a halo, e.g. the EUV corona of
+    ``aia_171_level1.fits``, 11.7 times; a thin crescent's faint horns enlarge its one patch).  A Moon's maria
+    (15-35 % below the highlands) or the glow of a limb never double the region; the earthshine of a crescent's
+    night side (~0.1 % of the lit side) stays below ``low``."""
+    if not low < gt:
+        return gt, mask, box
+    try:
+        low_mask, low_box = _brightest_component(sm, (sm > low).astype(np.uint8), low)
+    except NoBodyError:
+        return gt, mask, box
+    if not area_ratio * np.count_nonzero(mask) <= np.count_nonzero(low_mask) <= max_ratio * np.count_nonzero(mask):
+        return gt, mask, box
+    x, y, w, h = low_box
+    inside = (sm[y : y + h, x : x + w] > gt) & (low_mask > 0)
+    n_bright = cv2.connectedComponents(inside.astype(np.uint8), connectivity=8)[0] - 1
+    if n_bright < min_patches:  # one bright region (a crescent whose faint horns the low threshold adds): not variegated
+        return gt, mask, box
+    return low, low_mask, low_box
 
 
 def _brightest_component(sm: np.ndarray, binary: np.ndarray, gt: float) -> tuple[np.ndarray, tuple[int, int, int, int]]:

@@ -218,6 +218,9 @@ class GradientOptions:
         Check 3: fewest RANSAC inliers as a fraction of the box-filter survivors.
     trim_min_px
         Floor of the final 3-sigma trim (px).
+    max_region_outside_frac
+        Check 3 of a variegated body (:attr:`~jaxlimb.imaging.crop.BodyRegion.dark_surface`): largest fraction
+        of the detected region outside the fitted circle (:func:`check_region_inside`; 1: off).
     detect
         :class:`~jaxlimb.imaging.crop.DetectOptions`.
     prior
@@ -234,6 +237,7 @@ class GradientOptions:
     min_inliers: int = 10
     min_inlier_fraction: float = 0.15
     trim_min_px: float = 1.0
+    max_region_outside_frac: float = 0.05
     detect: DetectOptions = field(default_factory=DetectOptions)
     prior: PriorOptions = field(default_factory=PriorOptions)
     box: BoxFilterOptions = field(default_factory=BoxFilterOptions)
@@ -245,8 +249,9 @@ class GradientOptions:
             raise ConfigError(
                 f"GradientOptions.min_points_box and min_inliers must be >= 3, got {self.min_points_box}, {self.min_inliers}"
             )
-        if not 0 <= self.min_inlier_fraction <= 1:
-            raise ConfigError(f"GradientOptions.min_inlier_fraction must be in [0, 1], got {self.min_inlier_fraction!r}")
+        for k in ("min_inlier_fraction", "max_region_outside_frac"):
+            if not 0 <= getattr(self, k) <= 1:
+                raise ConfigError(f"GradientOptions.{k} must be in [0, 1], got {getattr(self, k)!r}")
 
 
 def resolve_prior(
@@ -267,6 +272,25 @@ def resolve_prior(
     if prior is None:
         prior = prior_from_image(img, popt, region=region)
     return prior
+
+
+def check_region_inside(center_rc, radius: float, region: BodyRegion, max_outside_frac: float) -> None:
+    """Check 3: the lit region of :func:`~.crop.detect_body` lies inside the limb circle (a margin of a few pixels
+    and one working-image block for a glow and the block averaging), else :class:`TooManyOutliersError`.
+
+    The strongest gradients of a variegated body (the Earth's cloud edges, dark oceans, Lambert limb darkening at
+    low phase) can be edges inside the disc; a circle through them leaves much of the body outside, which no
+    limb can do."""
+    f = region.factor
+    rr, cc = np.nonzero(region.mask_small)
+    if rr.size == 0:
+        return
+    d = np.hypot(rr * f + 0.5 * (f - 1) - center_rc[0], cc * f + 0.5 * (f - 1) - center_rc[1])
+    out = float(np.mean(d > radius + max(3.0, 0.03 * radius) + f))
+    if out > max_outside_frac:
+        raise TooManyOutliersError(
+            f"Check 3: the circle through the strongest edges (radius {radius:.1f} px) leaves {100 * out:.0f} % of the "
+            "lit region outside it: those edges lie inside the body (albedo or cloud edges), not on its limb")
 
 
 def radius_band(prior: Prior, region: BodyRegion) -> tuple[float, float]:
@@ -422,6 +446,8 @@ def gradient_front_end(
     r0, c0 = win.offset_rc
     points_full = pts[inl] + np.array([r0, c0], dtype=np.float64)
     center = (fit.center_rc[0] + r0, fit.center_rc[1] + c0)
+    if region.dark_surface:  # a crescent's first circle may be poor yet refined well: only a variegated body's is checked
+        check_region_inside(center, float(fit.radius), region, opt.max_region_outside_frac)
     sun_rc = pri.sun_dir_rc
     if hints is not None and hints.sun_dir_camera is not None:
         sun_rc = sun_direction_image(hints.sun_dir_camera, camera, center if camera is not None else None)
@@ -460,6 +486,23 @@ class _GradientWindow:
         return self.roi[0], self.roi[2]
 
 
+def outline_band(region: BodyRegion, window: tuple[int, int, int, int], frac: float = 0.06, min_px: float = 8.0) -> np.ndarray:
+    """Pixels of ``window`` (``r0, r1, c0, c1``) within ``max(min_px, frac R)`` of the outline of the detected region
+    (``R`` its equivalent radius): where a variegated body's limb can be (:func:`~.crop.dark_surface_region`).  Its
+    strongest gradients are otherwise cloud or coast edges inside the disc; near the outline they are the limb
+    where something bright stands on it, and RANSAC keeps the circle of those arcs."""
+    f = region.factor
+    w = max(min_px, frac * math.sqrt(region.area_px / math.pi))
+    k = max(1, int(math.ceil(w / f)))
+    m = np.ascontiguousarray(region.mask_small, dtype=np.uint8)
+    ker = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1, 2 * k + 1))
+    band_small = (cv2.dilate(m, ker) > 0) & ~(cv2.erode(m, ker) > 0)
+    r0, r1, c0, c1 = window
+    rows = np.clip((np.arange(r0, r1) // f), 0, band_small.shape[0] - 1)
+    cols = np.clip((np.arange(c0, c1) // f), 0, band_small.shape[1] - 1)
+    return band_small[np.ix_(rows, cols)]
+
+
 def _gradient_window(img: np.ndarray, region: BodyRegion, st, opt: GradientOptions,
                      mask: np.ndarray | None) -> _GradientWindow:
     """Steps 3-4: the ROI padded for the box filter, pre-smoothed, differentiated (Eq. 18-22), and its
@@ -482,6 +525,8 @@ def _gradient_window(img: np.ndarray, region: BodyRegion, st, opt: GradientOptio
     if mask is not None:
         vsub = np.asarray(mask, bool)[r0:r1, c0:c1]
         g = np.where(valid_zone(vsub, 4 + int(math.ceil(3 * sigma_pre))), g, 0)
+    if region.dark_surface:
+        g = np.where(outline_band(region, (r0, r1, c0, c1)), g, 0)
     n_req = int(min(st.n_points, max(10, g.size // 4)))
     return _GradientWindow((r0, r1, c0, c1), sub_s, g, gr, gc, strongest_pixels(g, n_req), vsub, sigma_pre)
 

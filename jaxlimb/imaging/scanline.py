@@ -482,6 +482,7 @@ class _LitRegion:
     threshold: float
     binary: np.ndarray
     axes: InertiaAxes
+    dark_surface: bool = False
 
 
 def _lit_region(img: np.ndarray, region: BodyRegion, mask: np.ndarray | None, opt: ScanlineOptions) -> _LitRegion:
@@ -490,15 +491,21 @@ def _lit_region(img: np.ndarray, region: BodyRegion, mask: np.ndarray | None, op
     sub = img[r0:r1, c0:c1].astype(np.float32)  # exact for integer data up to 2^24
     sub_f = cv2.medianBlur(sub, opt.median_ksize) if opt.median_ksize > 1 else sub
     vsub = None if mask is None else np.asarray(mask, bool)[r0:r1, c0:c1]
-    gt = _binary_threshold(sub_f, vsub, region.noise_sigma, opt)
+    gt, low = _binary_threshold(sub_f, vsub, region.noise_sigma, opt)
+    low = low if low < gt and opt.detect.dark_surface else -math.inf
     binary = _largest_filled(_masked_binary(sub_f > gt, vsub))
+    if low > -math.inf:  # a variegated body (crop.dark_surface_region): the region above a low threshold, if much larger
+        b_low = _largest_filled(_masked_binary(sub_f > low, vsub))
+        n, n_low = np.count_nonzero(binary), np.count_nonzero(b_low)
+        dark = opt.detect.dark_surface_area_ratio * n <= n_low <= opt.detect.dark_surface_max_ratio * n
+        gt, binary = (low, b_low) if dark else (gt, binary)
     ax = inertia_axes(binary)
     if ax.eigen_ratio < opt.min_eigen_ratio:
         raise TooThinError(
             f"eigenvalue ratio lambda_min/lambda_max = {ax.eigen_ratio:.3g} of the lit region is below "
             f"min_eigen_ratio = {opt.min_eigen_ratio:g} (too thin to process)"
         )
-    return _LitRegion(sub, sub_f, vsub, gt, binary, ax)
+    return _LitRegion(sub, sub_f, vsub, gt, binary, ax, gt == low)
 
 
 @dataclass(frozen=True)
@@ -522,9 +529,7 @@ def _select_lit_set(tr, lr: _LitRegion, region: BodyRegion, pri: Prior, axis: np
     sets = {"entry": (entry, f_in, k_in), "exit": (exit_, f_out, k_out)}
     st_in = float(np.nanmedian(tr.entry_strength[k_in])) if f_in is not None else 0.0
     st_out = float(np.nanmedian(tr.exit_strength[k_out])) if f_out is not None else 0.0
-    step = max(1, int(math.sqrt(lr.filtered.size / 250_000)))  # subsample large ROIs (speed)
-    gy, gx = np.gradient(lr.filtered[::step, ::step])
-    g_ref = float(np.percentile(np.hypot(gy, gx), 99.5)) / step
+    g_ref, contrast = _edge_references(lr, region)
     lit, other, choice_reason = _choose_lit_set(f_in, f_out, st_in, st_out, sun_known, pri, opt)
     pts, fit, keep = sets[lit]
     if fit is None:
@@ -536,7 +541,7 @@ def _select_lit_set(tr, lr: _LitRegion, region: BodyRegion, pri: Prior, axis: np
     if not sun_known and sets[other][1] is None:
         bright = axis / np.linalg.norm(axis) * (1.0 if lit == "entry" else -1.0)
         ramp = _check_not_a_ramp(lr.sub, pts[keep], bright, pri.expected_radius_px, opt)
-    _check_hard_edge(st_out if lit == "exit" else st_in, g_ref, float(region.peak - region.background), opt)
+    _check_hard_edge(st_out if lit == "exit" else st_in, g_ref, contrast, opt)
     pts, fit, merged = _merge_sets(pts[keep], fit, sets[other], opt)
     info = {"lit_set": lit, "edge_step_entry": st_in, "edge_step_exit": st_out, "edge_step_reference": g_ref,
             "ramp_ratio": ramp, "merged": merged, "choice": choice_reason}
@@ -561,6 +566,31 @@ def _check_not_a_ramp(sub: np.ndarray, pts: np.ndarray, bright: np.ndarray, R_es
     return ramp
 
 
+def _edge_references(lr: _LitRegion, region: BodyRegion) -> tuple[float, float]:
+    """The hard-edge references: the 99.5th percentile of the grey-level gradient (DN/px) and the body's contrast.
+
+    Over the ROI and from the brightest pixel, unless the region is a variegated body's
+    (:func:`~.crop.dark_surface_region`): then both are taken in a band about the region's outline (limb and
+    terminator; the contrast: the median level just inside it), for the strongest edges and the brightest
+    pixels (the Earth's clouds on a dark ocean) lie inside the body, and its Lambert limb at low phase, a
+    soft edge beside them, was refused as "not a hard edge" (``tests/imaging/test_variegated.py``)."""
+    step = max(1, int(math.sqrt(lr.filtered.size / 250_000)))  # subsample large ROIs (speed)
+    f = lr.filtered[::step, ::step]
+    gy, gx = np.gradient(f)
+    g = np.hypot(gy, gx)
+    contrast = float(region.peak - region.background)
+    if not lr.dark_surface:
+        return float(np.percentile(g, 99.5)) / step, contrast
+    b = np.ascontiguousarray(lr.binary[::step, ::step], dtype=np.uint8)
+    k = np.ones((3, 3), np.uint8)
+    inner = cv2.erode(b, k, iterations=3) > 0
+    band = (cv2.dilate(b, k, iterations=3) > 0) & ~inner
+    if np.count_nonzero(band) < 50:
+        return float(np.percentile(g, 99.5)) / step, contrast
+    rim = (b > 0) & ~inner
+    return float(np.percentile(g[band], 99.5)) / step, min(contrast, float(np.median(f[rim])) - float(region.background))
+
+
 def _check_hard_edge(st_lit: float, g_ref: float, contrast: float, opt: ScanlineOptions) -> None:
     """The chosen transitions must be a hard edge: median step >= max(``min_edge_fraction`` x the
     99.5th-percentile gradient, ``min_edge_contrast`` x the body's contrast) (TooManyOutliersError)."""
@@ -574,16 +604,19 @@ def _check_hard_edge(st_lit: float, g_ref: float, contrast: float, opt: Scanline
         )
 
 
-def _binary_threshold(sub_f: np.ndarray, valid: np.ndarray | None, noise_sigma: float, opt: ScanlineOptions) -> float:
+def _binary_threshold(sub_f: np.ndarray, valid: np.ndarray | None, noise_sigma: float, opt: ScanlineOptions) -> tuple[float, float]:
     """Threshold of the lit region: Eq. (10) on the valid pixels, floored at 6 sigma above the sky as in
-    :func:`detect_body` (the 3x3 median leaves ~1/2 of the per-pixel noise)."""
+    :func:`detect_body` (the 3x3 median leaves ~1/2 of the per-pixel noise); and the low threshold of a
+    variegated body, ``sky + max(6 sigma, dark_surface_frac x range)`` (:func:`~.crop.dark_surface_region`)."""
     if valid is None or not valid.any():
         vals = sub_f
         sky = float(np.percentile(sub_f[:: max(1, sub_f.shape[0] // 200), :: max(1, sub_f.shape[1] // 200)], 2.0))
     else:
         vals = sub_f[valid]
         sky = float(np.percentile(vals[:: max(1, vals.size // 40_000)], 2.0))
-    return max(threshold_eq10(vals), sky + 6.0 * (0.5 if opt.median_ksize > 1 else 1.0) * noise_sigma)
+    floor = sky + 6.0 * (0.5 if opt.median_ksize > 1 else 1.0) * noise_sigma
+    low = max(floor, sky + opt.detect.dark_surface_frac * (float(vals.max()) - sky))
+    return max(threshold_eq10(vals), floor), low
 
 
 def _scan_info(pri: Prior, region: BodyRegion, lr: _LitRegion, sel: _LitSet, axis: np.ndarray, spacing: float,

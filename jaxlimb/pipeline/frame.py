@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ConfigError, ImageContentError
+from ..errors import CheckFailed, ConfigError, ImageContentError, RadiusInconsistentError, TooManyOutliersError
 from ..geometry.camera import Camera
 from ..imaging import Hints, check_prior, front_end, prior_from_hints, validate_image
 from .options import LocateOptions
@@ -169,11 +169,48 @@ def frame_mask(frame: Frame) -> np.ndarray | None:
     return frame.mask if frame.observed_cam is None else None
 
 
+#: Above this phase (deg, from the hints) the front ends keep Eq. (10)'s region (:attr:`DetectOptions.dark_surface` off):
+#: the variegated-body region is for the nearly full disc (the Earth from deep space), where a Lambert limb fades
+#: to zero all round; a gibbous cloudy Earth's limb is traced against the sky downstream
+#: (:mod:`jaxlimb.pipeline.limb_trace`), whose starts were measured on Eq. (10)'s circles.
+DARK_SURFACE_MAX_PHASE_DEG = 30.0
+
+
+def _front_end_options(frame: Frame, name: str) -> Any:
+    """The options of front end ``name`` (``None``: defaults), with the variegated-body region off above
+    :data:`DARK_SURFACE_MAX_PHASE_DEG` of phase."""
+    from dataclasses import replace
+
+    from ..imaging import GradientOptions, ScanlineOptions
+
+    opt = (frame.opt.gradient if name == "gradient" else frame.opt.scanline) or (
+        GradientOptions() if name == "gradient" else ScanlineOptions())
+    h = frame.hints
+    if h is None or h.sun_dir_camera is None or not getattr(opt.detect, "dark_surface", False):
+        return opt
+    center = (0.5 * (frame.img.shape[0] - 1), 0.5 * (frame.img.shape[1] - 1))  # the phase hardly varies over a frame
+    if math.degrees(frame.phase(center)) <= DARK_SURFACE_MAX_PHASE_DEG:
+        return opt
+    return replace(opt, detect=replace(opt.detect, dark_surface=False))
+
+
 def candidates(frame: Frame) -> Any:
-    """Stage 2: the front end's limb candidates, circle and lit direction (Checks 1-4)."""
+    """Stage 2: the front end's limb candidates, circle and lit direction (Checks 1-4); the other front end when the
+    chosen one finds no limb (:attr:`LocateOptions.front_end_fallback`)."""
     mask = frame_mask(frame)
-    cand = front_end(frame.opt.front_end, frame.img, None, hints=frame.hints, camera=frame.cam,
-                     options=frame.front_end_options(), mask=mask)
+    name = str(frame.opt.front_end)
+    try:
+        cand = front_end(name, frame.img, None, hints=frame.hints, camera=frame.cam,
+                         options=_front_end_options(frame, name), mask=mask)
+    except (TooManyOutliersError, RadiusInconsistentError) as first:
+        if not frame.opt.front_end_fallback:
+            raise
+        other = "scanline" if name == "gradient" else "gradient"
+        try:
+            cand = front_end(other, frame.img, None, hints=frame.hints, camera=frame.cam,
+                             options=_front_end_options(frame, other), mask=mask)
+        except CheckFailed as second:
+            raise type(first)(f"{first}; the {other} front end too: {second}") from second
     frame.mark("front_end")
     return cand
 

@@ -78,6 +78,13 @@ class LocateOptions:
         ``"gradient"`` (default: Richardson gradient, box filter, RANSAC, Taubin; Aerospace
         2015 §4-5) or ``"scanline"`` (threshold, inertia axis, scan lines; illuminated-ellipsoid
         paper §IV-A, §VI).
+    front_end_fallback
+        ``True`` (default): when the front end finds no limb (Checks 2-4: too few candidates, no
+        consistent circle, a radius outside the prior, a circle that leaves the lit region outside), the
+        other front end is tried (:func:`jaxlimb.pipeline.frame.candidates`); the measurement's
+        ``front_end`` says which one answered.  The gradient front end's strongest edges can all lie inside
+        a variegated body (the Earth's cloud edges at low phase) where the scan lines of the thresholded
+        disc still find its outline.
     model
         ``"circle"`` (default): the circular sigmoid (CSF, Eq. 16) refinement; with a camera the
         limb is then refitted with the elliptical sigmoid whose axis ratio and orientation are
@@ -193,6 +200,7 @@ class LocateOptions:
     """
 
     front_end: str = "gradient"
+    front_end_fallback: bool = True
     model: str = "circle"
     solver: str = "lm"
     estimate_k: bool = True

@@ -155,3 +155,21 @@ def test_earth_on_a_moon_frame_is_not_ok(tmp_path, capsys):
                  str(tmp_path / "hints.json"), "--body", "earth", "--json"])
     out = json.loads(capsys.readouterr().out)
     assert code == 3 and out["status"] == "error", out
+
+
+def test_front_end_fallback():
+    """When the chosen front end finds no limb (here Check 2 of a gradient front end asked for 5000 box-filter
+    survivors), the pipeline tries the other and says so in ``front_end``; with ``front_end_fallback=False``
+    the first failure is the answer."""
+    from jaxlimb.errors import TooManyOutliersError
+    from jaxlimb.imaging import GradientOptions
+    from jaxlimb.pipeline import LocateOptions, locate
+    from tests.imaging._synth import render_disk
+
+    img = render_disk((400, 400), (201.3, 198.6), 120.0, phase_deg=40.0, blur_sigma=1.0, noise_sigma=1.0, ss=2)
+    strict = GradientOptions(min_points_box=5000)
+    m = locate(img, options=LocateOptions(gradient=strict))
+    assert m.front_end == "scanline"
+    assert math.hypot(m.center_rc[0] - 201.3, m.center_rc[1] - 198.6) < 0.5
+    with pytest.raises(TooManyOutliersError, match="min_points_box = 5000"):
+        locate(img, options=LocateOptions(gradient=strict, front_end_fallback=False))

@@ -5,7 +5,8 @@ profile assumes (uniform albedo, lunar-Lambert, Gaussian PSF), every other famil
 thing (``combined`` several).  Moon: 60 000-384 400 km (log-uniform), phase 0-150 deg, centre
 anywhere with the limb in the 1944x2592 frame (16 mm, 2.2 um), 8 or 12 bits.  Earth (WGS-84):
 gibbous (phase 20-70 deg) at 40 000 km with an 8 mm lens or 380 000 km with the 16 mm lens,
-observer latitude 0-60 deg, 8 or 12 bits; ``R_body_to_camera`` is part of the truth.
+observer latitude 0-60 deg, 8 or 12 bits; ``R_body_to_camera`` is part of the truth.  The full-disc Earth
+(:func:`earth_full_disc_case`): the view from L1 (DSCOVR/EPIC), phase 4-12 deg, 1080^2.
 
 ========================  ===========================================================
 family                    what differs from ``own``
@@ -205,6 +206,42 @@ def earth_case(family: str, rng: np.random.Generator, far: bool | None = None) -
     spec = _sensor(rng, family)
     meta = {"family": family, "body": "earth", "range_km": rng_km, "focal_mm": focal, "latitude_deg": lat,
             "phase_deg": phase, "psf": psf.kind.value, "bits": spec.bits, "jpeg": spec.jpeg_quality,
+            "law": surf.photometry.law.value, "glow": None if glow is None else [glow.scale_height_km, glow.brightness]}
+    hints = {"body": "earth", "sun_dir_camera": [float(v) for v in s], "R_body_to_camera": R.tolist(),
+             "range_prior_km": rng_km * (1.0 + 0.05 * float(rng.standard_normal())), "atmosphere_km": 0.0}
+    return _finish(body, surf, pin, psf, spec, rng, cam, hints, meta)
+
+
+#: Families of :func:`earth_full_disc_case` (the deep-space view: no crop, no stars at these exposures).
+EARTH_FULL_DISC_FAMILIES = ("own", "lambert", "clouds", "glow", "jpeg", "combined")
+
+
+def earth_full_disc_case(family: str, rng: np.random.Generator) -> Case:
+    """The sunlit Earth nearly full from deep space, as DSCOVR/EPIC sees it from L1 (~1.5 million km, phase
+    4-12 deg, the disc ~80 % of a 1080^2 frame: radius 380-450 px, observer latitude 0-25 deg), with the
+    photometry, albedo, glow, PSF and sensor of ``family`` (:func:`earth_case`).  At this phase a Lambert Earth
+    darkens to zero at its limb and the strongest edges are the clouds' (``benchmarks/earth_full_disc.py``)."""
+    if family not in EARTH_FULL_DISC_FAMILIES:
+        raise ValueError(f"unknown full-disc Earth family {family!r}; one of {EARTH_FULL_DISC_FAMILIES}")
+    from ...geometry.camera import Camera
+
+    rng_km = 1.5e6 * float(rng.uniform(0.97, 1.03))
+    R_px = float(rng.uniform(380.0, 450.0))
+    f_px = R_px / math.tan(math.asin(WGS84_KM[0] / rng_km))
+    cam = Camera(focal_length_mm=f_px * 0.0022, pixel_pitch_mm=0.0022, rows=1080, cols=1080)
+    pin = Pinhole.from_camera(cam)
+    u = pin.los((539.5 + float(rng.uniform(-20.0, 20.0)), 539.5 + float(rng.uniform(-20.0, 20.0))))
+    lat = float(rng.uniform(0.0, 25.0)) * (1 if rng.uniform() < 0.5 else -1)
+    R = earth_attitude(u, image_direction(pin, u, float(rng.uniform(0, 360))), lat, float(rng.uniform(-180, 180)))
+    phase = float(rng.uniform(4.0, 12.0))
+    s = sun_for_phase(u, image_direction(pin, u, float(rng.uniform(0, 360))), phase)
+    body = Body(WGS84_KM, rng_km * u, R, s)
+    albedo = EarthMap(seed=int(rng.integers(2**31))) if family in ("clouds", "combined") else None
+    glow = (Glow(float(rng.uniform(6.0, 25.0)), float(rng.uniform(0.03, 0.4))) if family in ("glow", "combined") else None)
+    surf = Surface(_photometry(rng, family, "earth"), albedo if albedo is not None else Surface().albedo, glow)
+    psf, spec = _psf(rng, family), _sensor(rng, family)
+    meta = {"family": family, "body": "earth", "geometry": "full-disc", "range_km": rng_km, "focal_px": f_px,
+            "latitude_deg": lat, "phase_deg": phase, "psf": psf.kind.value, "bits": spec.bits, "jpeg": spec.jpeg_quality,
             "law": surf.photometry.law.value, "glow": None if glow is None else [glow.scale_height_km, glow.brightness]}
     hints = {"body": "earth", "sun_dir_camera": [float(v) for v in s], "R_body_to_camera": R.tolist(),
              "range_prior_km": rng_km * (1.0 + 0.05 * float(rng.standard_normal())), "atmosphere_km": 0.0}
