@@ -80,11 +80,12 @@ class LocateOptions:
         paper §IV-A, §VI).
     front_end_fallback
         ``True`` (default): when the front end finds no limb (Checks 2-4: too few candidates, no
-        consistent circle, a radius outside the prior, a circle that leaves the lit region outside), the
-        other front end is tried (:func:`jaxlimb.pipeline.frame.candidates`); the measurement's
+        consistent circle, a radius outside the prior, a circle that leaves the lit region outside) on a
+        variegated body (bright clouds on a darker disc, :func:`jaxlimb.imaging.crop.dark_surface_region`),
+        the other front end is tried (:func:`jaxlimb.pipeline.frame.candidates`); the measurement's
         ``front_end`` says which one answered.  The gradient front end's strongest edges can all lie inside
-        a variegated body (the Earth's cloud edges at low phase) where the scan lines of the thresholded
-        disc still find its outline.
+        such a body (the Earth's cloud edges at low phase) where the scan lines of the thresholded disc
+        still find its outline; on other frames the first refusal is the answer.
     model
         ``"circle"`` (default): the circular sigmoid (CSF, Eq. 16) refinement; with a camera the
         limb is then refitted with the elliptical sigmoid whose axis ratio and orientation are

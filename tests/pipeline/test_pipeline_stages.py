@@ -158,18 +158,25 @@ def test_earth_on_a_moon_frame_is_not_ok(tmp_path, capsys):
 
 
 def test_front_end_fallback():
-    """When the chosen front end finds no limb (here Check 2 of a gradient front end asked for 5000 box-filter
-    survivors), the pipeline tries the other and says so in ``front_end``; with ``front_end_fallback=False``
-    the first failure is the answer."""
+    """When the chosen front end finds no limb on a variegated body (here Check 2 of a gradient front end asked
+    for 5000 box-filter survivors, on bright clouds over a dark Lambert disc), the pipeline tries the other and
+    says so in ``front_end``; with ``front_end_fallback=False``, or on a body of one albedo, the first failure is
+    the answer (the EUV Sun of ``aia_171_level1.fits`` was answered 1.9 px off by the second front end)."""
     from jaxlimb.errors import TooManyOutliersError
     from jaxlimb.imaging import GradientOptions
     from jaxlimb.pipeline import LocateOptions, locate
     from tests.imaging._synth import render_disk
+    from tests.imaging.test_variegated import cloudy_disc
 
-    img = render_disk((400, 400), (201.3, 198.6), 120.0, phase_deg=40.0, blur_sigma=1.0, noise_sigma=1.0, ss=2)
+    from jaxlimb.pipeline.frame import candidates, prepare
+    from tests.imaging.test_variegated import CENTER
+
     strict = GradientOptions(min_points_box=5000)
-    m = locate(img, options=LocateOptions(gradient=strict))
-    assert m.front_end == "scanline"
-    assert math.hypot(m.center_rc[0] - 201.3, m.center_rc[1] - 198.6) < 0.5
+    cand = candidates(prepare(cloudy_disc(0), None, None, LocateOptions(gradient=strict)))
+    assert cand.front_end == "scanline"
+    assert math.hypot(cand.center_rc[0] - CENTER[0], cand.center_rc[1] - CENTER[1]) < 3.0
     with pytest.raises(TooManyOutliersError, match="min_points_box = 5000"):
-        locate(img, options=LocateOptions(gradient=strict, front_end_fallback=False))
+        candidates(prepare(cloudy_disc(0), None, None, LocateOptions(gradient=strict, front_end_fallback=False)))
+    img = render_disk((400, 400), (201.3, 198.6), 120.0, phase_deg=40.0, blur_sigma=1.0, noise_sigma=1.0, ss=2)
+    with pytest.raises(TooManyOutliersError, match="min_points_box = 5000"):
+        locate(img, options=LocateOptions(gradient=strict))
