@@ -247,6 +247,8 @@ def _basis(mu0: np.ndarray, mu: np.ndarray, law: str) -> np.ndarray:
     if law == "lambert":
         return shade(mu0, mu, "lambert")
     k = _MINNAERT_K[law]
+    if k == 0.5:  # the square root of the ratio: the same floats as before the other exponents
+        return np.where((mu0 > 0) & (mu > 0), np.sqrt(np.maximum(mu0, 0.0) / np.maximum(mu, _MU_MIN)), 0.0)
     return np.where((mu0 > 0) & (mu > 0), np.maximum(mu0, 0.0) ** k * np.maximum(mu, _MU_MIN) ** (k - 1.0), 0.0)
 
 
@@ -256,7 +258,7 @@ def _basis_derivative(mu0, mu, dmu0, dmu, law):  # type: ignore[no-untyped-def]
         return dmu0
     k = _MINNAERT_K[law]
     m = np.maximum(mu, _MU_MIN)
-    r = np.maximum(mu0, 1e-12) ** k * m ** (k - 1.0)
+    r = np.sqrt(np.maximum(mu0, 1e-12) / m) if k == 0.5 else np.maximum(mu0, 1e-12) ** k * m ** (k - 1.0)
     return r[:, None] * (k * dmu0 / np.maximum(mu0, 1e-12)[:, None] + (k - 1.0) * np.where(mu > _MU_MIN, 1.0 / m, 0.0)[:, None] * dmu)
 
 

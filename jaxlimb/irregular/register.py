@@ -28,7 +28,8 @@ direction, and registers it to the frame.  Here:
    the last ones at full resolution.
    **What a real surface adds** (each measured on ray-traced frames of
    :mod:`jaxlimb.render.independent.mesh_rays`, whose bias it removed): the model radiance is a
-   fitted mix of Lommel-Seeliger, Lambert, Minnaert ``k = 1/2`` and smooth (Phong-interpolated)
+   fitted mix of Lommel-Seeliger, Lambert, Minnaert ``k = 1/2`` (and ``k = 3/4`` below 75 deg phase, for
+   the limb darkening ``mu^(2k-1)`` of a Minnaert surface at zero phase) and smooth (Phong-interpolated)
    shading (linear columns, :func:`.model_render.render_window`; a Lambert body: 1.5 -> 0.01 px);
    facets in the body's own cast shadow are darkened (:func:`jaxlimb.render.mesh.shadow_fractions`);
    before the sharp iterations the camera's PSF is estimated (:func:`estimate_psf`, a Gaussian
@@ -153,8 +154,8 @@ class RegisterOptions:
         reported sigma had median 2.0 and 90th percentile 4.2 with the term unscaled.
     fit_photometry
         Fit the photometric mix ``m`` of the model radiance ``LS + m_1 (Lambert - LS) +
-        m_2 (Minnaert_1/2 - LS)`` (:func:`.model_render.render_window`; McEwen's
-        lunar-Lambert law is ``m_1 = 1 - L``), two more linear columns: the reflectance of
+        m_2 (Minnaert_1/2 - LS) [+ m_3 (Minnaert_3/4 - LS)]`` (:func:`.model_render.render_window`, ``mix_laws``;
+        McEwen's lunar-Lambert law is ``m_1 = 1 - L``), more linear columns: the reflectance of
         a real surface is not known in advance, and a Lambert or Minnaert body registered
         with a Lommel-Seeliger model is biased by 0.6-1 px
         (``benchmarks/irregular_independent.py``).  ``m`` is kept in ``mix_bounds``.
