@@ -88,6 +88,11 @@ class LosOptions:
         take 0.33 -> 0.11 px off a ray-traced zero-phase Eros of known attitude, but with three rotation
         columns they made the search worse (``benchmarks/irregular_independent.py``, 24 views: median
         0.111 -> 0.090 px, but a contact binary at 30 deg then took a pose 132 deg off, 13.8 px).
+    search_mix_laws
+        :attr:`~.register.RegisterOptions.mix_laws` when the attitude is fitted: the two laws of before.  The
+        third (Minnaert 3/4) helps a known attitude, but with three rotation columns it let the search go
+        astray (``benchmarks/irregular_independent.py --views 1``, attitude unknown, 24 views: median / p90 / max
+        0.138 / 0.371 / 0.502 -> 0.122 / 0.459 / 0.757 px).
     search_max_iterations
         Gauss-Newton iterations of a hypothesis (at least ``register.max_iterations``): a template
         20-40 deg off turns by at most 3 deg per iteration, and on a ray-traced Eros at 60 deg phase
@@ -117,6 +122,7 @@ class LosOptions:
     same_center_px: float = 0.5
     sharp_level2_iterations: int = 6
     search_surge_widths: tuple[float, ...] = ()
+    search_mix_laws: int = 2
     search_max_iterations: int = 24
     search_exact_coverage: bool = False
     register: RegisterOptions = field(default_factory=RegisterOptions)
@@ -207,6 +213,7 @@ def search_register_options(options: LosOptions) -> RegisterOptions:
         sharp_level2_iterations=options.sharp_level2_iterations,
         exact_coverage=options.search_exact_coverage,
         surge_widths=options.search_surge_widths,
+        mix_laws=options.search_mix_laws,
         max_iterations=max(options.register.max_iterations, options.search_max_iterations),
     )
 

@@ -56,7 +56,7 @@ class ModelImage:
     on_body
         ``(h, w)`` bool: pixels whose centre sees a facet (where ``flow`` is defined).
     dM_dmix
-        ``(len(MIX_LAWS) + 1, h, w)``: derivatives of ``M`` for the photometric mix (the laws, then smooth shading)
+        ``(len(mix), h, w)``: derivatives of ``M`` for the photometric mix (the laws, then smooth shading)
         (:func:`render_window`); ``None`` unless ``mix`` was given.
     """
 
@@ -144,10 +144,10 @@ def render_window(
 ) -> ModelImage:  # fmt: skip
     """The model image in the window ``lo..hi`` of ``camera`` (module docstring); ``sun=None``: zero phase.
 
-    With ``mix`` ``(m_1, m_2, m_3)`` the radiance is ``LS + m_1 (Lambert - LS) + m_2 (Minnaert_1/2 - LS)
-    + m_3 (smooth - flat)`` (:data:`MIX_LAWS`: Lommel-Seeliger ``2 mu0 / (mu0 + mu)``, Lambert ``mu0``,
-    Minnaert with ``k = 1/2`` ``sqrt(mu0 / mu)``; ``m_1 = 1 - L`` alone is McEwen's lunar-Lambert law;
-    :func:`_smooth_minus_flat`), and ``dM_dmix`` ``(3, h, w)`` is returned.  With ``shadows``
+    With ``mix`` ``(m_1, .., m_n, m_s)`` the radiance is ``LS + sum_j m_j (law_j - LS) + m_s (smooth - flat)``
+    over the first ``n`` laws of :data:`MIX_LAWS` (:func:`mix_laws`; Lommel-Seeliger ``2 mu0 / (mu0 + mu)``,
+    Lambert ``mu0``, Minnaert ``mu0^k mu^(k-1)`` with ``k = 1/2`` and ``3/4``; ``m_1 = 1 - L`` alone is McEwen's
+    lunar-Lambert law; :func:`_smooth_minus_flat`), and ``dM_dmix`` ``(n + 1, h, w)`` is returned.  With ``shadows``
     every facet's radiance is scaled by its lit fraction (:func:`shadow_fractions`: cast shadows).
     ``exact``: every sub-pixel shows the facet containing its centre (:func:`~jaxlimb.render.mesh.rasterise`);
     off on the pyramid levels (``register`` renders exactly at full resolution only: the answer is made there).
@@ -166,7 +166,8 @@ def render_window(
     lit = shadow_fractions(mesh.vertices, mesh.faces, np.asarray(R, dtype=float).T @ s) if shadows else np.ones(F.shape[0])
     flat = shade(mu0, ras.mu, reflectance)  # per facet
     win = (slice(ras.r0, ras.r0 + ras.h), slice(ras.c0, ras.c0 + ras.w))
-    dflat = [_basis(mu0, ras.mu, law) - flat for law in MIX_LAWS] if mix is not None else []
+    laws = () if mix is None else mix_laws(len(mix) - 1)
+    dflat = [_basis(mu0, ras.mu, law) - flat for law in laws]
     drho = [d * lit for d in dflat]
     rho = flat * lit
     for j, d in enumerate(drho):
@@ -175,8 +176,8 @@ def render_window(
     M[win], C[win] = pix[0], pix[-1]
     D = None
     if mix is not None:
-        D = np.zeros((len(MIX_LAWS) + 1, h, w))
-        for j in range(len(MIX_LAWS)):
+        D = np.zeros((len(laws) + 1, h, w))
+        for j in range(len(laws)):
             D[j][win] = pix[1 + j]
         flat_mix = flat + sum(mix[j] * d for j, d in enumerate(dflat))  # the fitted mix's flat radiance
         vn = body_vertex_normals(mesh) @ np.asarray(R, dtype=float).T  # the camera frame's: rotation-equivariant
@@ -208,7 +209,8 @@ def _facet_means(ras, values: list) -> list:  # type: ignore[no-untyped-def]
 
 
 #: The laws mixed into the model radiance by ``render_window(mix=...)``.
-MIX_LAWS = ("lambert", "minnaert-half")
+MIX_LAWS = ("lambert", "minnaert-half", "minnaert-3/4")
+_MINNAERT_K = {"minnaert-half": 0.5, "minnaert-3/4": 0.75}
 _MU_MIN = 0.05  # Minnaert's mu^(k-1) is held finite at grazing emission (flat facets at the outline)
 
 
@@ -233,20 +235,32 @@ class MixedLaw:
         return out
 
 
+def mix_laws(n: int) -> tuple[str, ...]:
+    """The first ``n`` laws of :data:`MIX_LAWS` (a mix of ``n + 1`` weights: those laws, then smooth shading)."""
+    if not 0 <= n <= len(MIX_LAWS):
+        raise ValueError(f"a photometric mix of {n} laws (at most {len(MIX_LAWS)})")
+    return MIX_LAWS[:n]
+
+
 def _basis(mu0: np.ndarray, mu: np.ndarray, law: str) -> np.ndarray:
-    """Radiance per unit albedo of a :data:`MIX_LAWS` law (0 where unlit or unseen)."""
+    """Radiance per unit albedo of a :data:`MIX_LAWS` law (0 where unlit or unseen): Lambert ``mu0``, or
+    Minnaert ``mu0^k mu^(k - 1)`` (Minnaert 1941) with ``k`` of :data:`_MINNAERT_K`."""
     if law == "lambert":
         return shade(mu0, mu, "lambert")
-    return np.where((mu0 > 0) & (mu > 0), np.sqrt(np.maximum(mu0, 0.0) / np.maximum(mu, _MU_MIN)), 0.0)
+    k = _MINNAERT_K[law]
+    if k == 0.5:  # the square root of the ratio: the same floats as before the other exponents
+        return np.where((mu0 > 0) & (mu > 0), np.sqrt(np.maximum(mu0, 0.0) / np.maximum(mu, _MU_MIN)), 0.0)
+    return np.where((mu0 > 0) & (mu > 0), np.maximum(mu0, 0.0) ** k * np.maximum(mu, _MU_MIN) ** (k - 1.0), 0.0)
 
 
 def _basis_derivative(mu0, mu, dmu0, dmu, law):  # type: ignore[no-untyped-def]
     """``(nf, 3)`` derivative of :func:`_basis` for the rotations (``dmu0``, ``dmu``: ``(nf, 3)``)."""
     if law == "lambert":
         return dmu0
+    k = _MINNAERT_K[law]
     m = np.maximum(mu, _MU_MIN)
-    r = np.sqrt(np.maximum(mu0, 1e-12) / m)
-    return 0.5 * r[:, None] * (dmu0 / np.maximum(mu0, 1e-12)[:, None] - np.where(mu > _MU_MIN, 1.0 / m, 0.0)[:, None] * dmu)
+    r = np.sqrt(np.maximum(mu0, 1e-12) / m) if k == 0.5 else np.maximum(mu0, 1e-12) ** k * m ** (k - 1.0)
+    return r[:, None] * (k * dmu0 / np.maximum(mu0, 1e-12)[:, None] + (k - 1.0) * np.where(mu > _MU_MIN, 1.0 / m, 0.0)[:, None] * dmu)
 
 
 def _safe(x: np.ndarray) -> np.ndarray:
@@ -397,7 +411,7 @@ def _pixel_derivatives(ras, Xc, F, cam, t, s, mu0, ss, reflectance, cover, out, 
         drho = dmu0
     if mix is not None:
         base = drho
-        for j, law in enumerate(MIX_LAWS):  # (the smooth-shading column, mix[-1], is left out here)
+        for j, law in enumerate(mix_laws(len(mix) - 1)):  # (the smooth-shading column, mix[-1], is left out here)
             drho = drho + mix[j] * (_basis_derivative(mu0, mu, dmu0, dmu, law) - base)
     drho = np.where(lit[:, None], drho, 0.0) * (1.0 if shadow is None else shadow[:, None])
     drho = np.concatenate([np.zeros((1, 3)), drho])  # row 0: off the body
@@ -464,4 +478,4 @@ def attitude_columns(model: ModelImage, ratio: float, blur, out: np.ndarray | No
     return out.T
 
 
-__all__ = ["MIX_LAWS", "ModelImage", "attitude_columns", "clustered_mesh", "downsample", "level_camera", "render_window", "window_camera"]
+__all__ = ["MIX_LAWS", "mix_laws", "ModelImage", "attitude_columns", "clustered_mesh", "downsample", "level_camera", "render_window", "window_camera"]

@@ -28,7 +28,8 @@ direction, and registers it to the frame.  Here:
    the last ones at full resolution.
    **What a real surface adds** (each measured on ray-traced frames of
    :mod:`jaxlimb.render.independent.mesh_rays`, whose bias it removed): the model radiance is a
-   fitted mix of Lommel-Seeliger, Lambert, Minnaert ``k = 1/2`` and smooth (Phong-interpolated)
+   fitted mix of Lommel-Seeliger, Lambert, Minnaert ``k = 1/2`` (and ``k = 3/4`` below 75 deg phase, for
+   the limb darkening ``mu^(2k-1)`` of a Minnaert surface at zero phase) and smooth (Phong-interpolated)
    shading (linear columns, :func:`.model_render.render_window`; a Lambert body: 1.5 -> 0.01 px);
    facets in the body's own cast shadow are darkened (:func:`jaxlimb.render.mesh.shadow_fractions`);
    before the sharp iterations the camera's PSF is estimated (:func:`estimate_psf`, a Gaussian
@@ -62,7 +63,7 @@ import numpy as np
 from ..errors import ConvergenceError, MatchError
 from .._validate import check_center_sigma
 from .mesh import Mesh
-from .model_render import MIX_LAWS, attitude_columns, clustered_mesh, downsample, level_camera, render_window
+from .model_render import attitude_columns, clustered_mesh, downsample, level_camera, mix_laws, render_window
 from .silhouette import figure_center, figure_extents, mesh_topology, render_silhouette, segment_components
 
 
@@ -153,11 +154,23 @@ class RegisterOptions:
         reported sigma had median 2.0 and 90th percentile 4.2 with the term unscaled.
     fit_photometry
         Fit the photometric mix ``m`` of the model radiance ``LS + m_1 (Lambert - LS) +
-        m_2 (Minnaert_1/2 - LS)`` (:func:`.model_render.render_window`; McEwen's
-        lunar-Lambert law is ``m_1 = 1 - L``), two more linear columns: the reflectance of
+        m_2 (Minnaert_1/2 - LS) [+ m_3 (Minnaert_3/4 - LS)]`` (:func:`.model_render.render_window`, ``mix_laws``;
+        McEwen's lunar-Lambert law is ``m_1 = 1 - L``), more linear columns: the reflectance of
         a real surface is not known in advance, and a Lambert or Minnaert body registered
         with a Lommel-Seeliger model is biased by 0.6-1 px
         (``benchmarks/irregular_independent.py``).  ``m`` is kept in ``mix_bounds``.
+    mix_laws
+        Laws of :data:`.model_render.MIX_LAWS` in the mix (its first ``mix_laws``): 3 adds Minnaert with
+        ``k = 3/4``, ``m_3 (Minnaert_3/4 - LS)``.  Near zero phase ``mu0 = mu``, Lommel-Seeliger and Minnaert 1/2
+        are both flat and the mix of two laws spans only ``1`` and ``mu``, while a Minnaert surface
+        (Minnaert 1941, ``mu0^k mu^(k-1)``) shows ``mu^(2k-1)``: with ``k = 0.81`` a ray-traced cratered body was
+        registered 0.40 px off, 0.04 px with ``mu^(1/2)`` in the mix (``benchmarks/irregular_independent.py``,
+        attitude known, 32 frames: median / p90 / max 0.098 / 0.178 / 0.403 -> 0.080 / 0.163 / 0.249 px).
+    mix_laws_max_phase_deg
+        From this phase angle on, at most two laws (``mix_laws`` is meant for the zero-phase degeneracy).  At
+        90 deg the third law left the frames of ``benchmarks/irregular_independent.py`` about as they were
+        (24 ray-traced frames, median 0.106 -> 0.102 px) but let our own Lommel-Seeliger render of a cratered
+        body drift from 0.030 to 0.085 px.
     pedestal_min_dark_frac
         A constant column (a level under the whole frame: bias, dark current, stray light) besides
         the sky column ``1 - C`` (a background the body hides), when at least this fraction of the
@@ -208,6 +221,8 @@ class RegisterOptions:
     surge_min_range: float = 0.04
     fit_photometry: bool = True
     mix_bounds: tuple[float, float] = (-1.0, 1.0)
+    mix_laws: int = 3
+    mix_laws_max_phase_deg: float = 75.0
     pedestal_min_dark_frac: float = 0.02
     exact_coverage: bool = True
 
@@ -724,14 +739,26 @@ def fine_stage(st: GNState, pyr, mesh, camera, sun, options, fit_attitude, wide,
     return st
 
 
-def _mix0(options: RegisterOptions) -> np.ndarray | None:
-    return np.zeros(len(MIX_LAWS) + 1) if options.fit_photometry else None
+def _phase_deg(camera: object, P: np.ndarray, sun: np.ndarray | None) -> float:
+    """Sun -- body -- camera angle (deg) at the body seen at ``P`` (``sun=None``: zero phase)."""
+    if sun is None:
+        return 0.0
+    u = np.asarray(camera.los(P), dtype=float)  # type: ignore[attr-defined]
+    return math.degrees(math.acos(max(-1.0, min(1.0, -float(u @ np.asarray(sun, dtype=float)) / float(np.linalg.norm(sun))))))
+
+
+def _mix0(options: RegisterOptions, phase_deg: float = 0.0) -> np.ndarray | None:
+    """The initial photometric mix: ``options.mix_laws`` laws, two from ``options.mix_laws_max_phase_deg`` on."""
+    if not options.fit_photometry:
+        return None
+    n = options.mix_laws if phase_deg < options.mix_laws_max_phase_deg else min(options.mix_laws, 2)
+    return np.zeros(len(mix_laws(n)) + 1)
 
 
 def _gauss_newton(image, mesh, camera, R, sun, P, D, mask, options, fit_attitude=False, wide=False):  # type: ignore[no-untyped-def]
     """Step 3 of the module docstring (coarse to fine: blurred iterations first, on the pyramid)."""
     pyr = _Pyramid(image, camera, mask)
-    st = GNState(np.asarray(P, dtype=float), float(D), np.asarray(R, dtype=float), mix=_mix0(options))
+    st = GNState(np.asarray(P, dtype=float), float(D), np.asarray(R, dtype=float), mix=_mix0(options, _phase_deg(camera, P, sun)))
     coarse_stage(st, pyr, mesh, camera, sun, options, fit_attitude, fit_attitude or wide)
     return fine_stage(st, pyr, mesh, camera, sun, options, fit_attitude, fit_attitude or wide)
 

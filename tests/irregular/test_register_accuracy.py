@@ -133,3 +133,38 @@ def test_exact_coverage_removes_the_painter_bias_at_90_deg(lumpy):
         res = register_known_attitude(frame.image, lumpy, CAM, R, sun, float(np.linalg.norm(t)) * 1.05, opts)
         err[exact] = float(np.linalg.norm(res.center_rc - frame.center_rc))
     assert err[True] < 0.03 and err[False] > 2.0 * err[True], err  # 0.020 and 0.062 px (2026-11-26)
+
+
+def test_minnaert_body_at_zero_phase_needs_the_third_law():
+    """A ray-traced Minnaert body (``k = 0.81``, cratered) at zero phase, attitude known: there ``mu0 = mu``, the
+    two-law mix spans only ``1`` and ``mu`` while the surface shows ``mu^0.62``; Minnaert 3/4 in the mix
+    (``RegisterOptions.mix_laws = 3``) brings 0.26 px to 0.04 px."""
+    pytest.importorskip("embreex")
+    from scipy.spatial.transform import Rotation
+
+    from jaxlimb.irregular.mesh import validate_mesh
+    from jaxlimb.irregular.register import RegisterOptions, register_known_attitude
+    from jaxlimb.render.independent import Photometry, Pinhole, Psf, Reflectance
+    from jaxlimb.render.independent.mesh_rays import MeshScene, cratered_body, render_mesh_frame
+
+    body = validate_mesh(*cratered_body(101, subdivisions=4), source="cratered")
+    R = Rotation.from_rotvec([0.3, -0.8, 0.4]).as_matrix()
+    D = 2.0 * body.max_radius * CAM.focal_px / 250.0
+    t = np.array([10.0 * D / CAM.focal_px, -6.0 * D / CAM.focal_px, D])
+    sun = -t / np.linalg.norm(t)
+    sc = MeshScene(body.vertices, body.faces, R, t, sun, Photometry(law=Reflectance.MINNAERT, minnaert_k=0.81), psf=Psf(sigma=0.75))
+    img, truth = render_mesh_frame(sc, Pinhole.from_camera(CAM), np.random.default_rng(0))
+    err = {n: float(np.linalg.norm(register_known_attitude(img, body, CAM, R, sun, options=RegisterOptions(mix_laws=n)).center_rc - truth))
+           for n in (2, 3)}
+    assert RegisterOptions().mix_laws == 3
+    assert err[3] < 0.1
+    assert err[2] > 0.15  # the two-law mix of before
+
+
+def test_mix_laws_count_checked():
+    from jaxlimb.irregular.model_render import mix_laws
+
+    assert mix_laws(2) == ("lambert", "minnaert-half")
+    assert len(mix_laws(len(MIX_LAWS))) == 3
+    with pytest.raises(ValueError):
+        mix_laws(len(MIX_LAWS) + 1)
