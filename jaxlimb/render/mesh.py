@@ -286,14 +286,17 @@ def shadow_fractions(vertices: np.ndarray, faces: np.ndarray, sun_body: np.ndarr
     1000 body radii away, ``n_px`` across the body); a facet's lit fraction is its sample count
     over the count its projected area predicts (above 0.8: 1, sampling noise).  Facets the Sun
     does not face get 0; facets expected to cover fewer than 6 samples keep 1 (unresolved).  Depends only on the Sun
-    direction in the body frame: cached per mesh, reused within 0.2 deg of it (:func:`_cached_shadows`).
+    direction in the body frame, taken on a grid of ~0.25 deg cells (:data:`_SHADOW_GRID`) and computed at the
+    cell's own direction: the map is a function of the cell alone, whatever direction reached it first (the map of
+    the first direction seen in a cell made a registration depend on the calls before it), and cached per mesh.
     """
     V = np.asarray(vertices, dtype=float)
     F = np.asarray(faces, dtype=np.int64)
-    sb = np.asarray(sun_body, dtype=float) / np.linalg.norm(sun_body)
-    hit = _cached_shadows(vertices, faces, sb)
-    if hit is not None:
-        return hit
+    cell = tuple(np.round(np.asarray(sun_body, dtype=float) / np.linalg.norm(sun_body) * _SHADOW_GRID).astype(int))
+    entry = _SHADOWS.get((id(vertices), id(faces)))
+    if entry is not None and cell in entry[2]:
+        return entry[2][cell]
+    sb = np.asarray(cell, dtype=float) / np.linalg.norm(cell)  # the cell's direction: the map depends on the cell alone
     rmax = float(np.linalg.norm(V, axis=1).max())
     L = 1000.0 * rmax
     z = -sb
@@ -314,29 +317,19 @@ def shadow_fractions(vertices: np.ndarray, faces: np.ndarray, sun_body: np.ndarr
     # with fewer than 6 expected samples is unresolved
     frac = np.where((expected < 6.0) | (frac > 0.8), 1.0, frac)
     frac = np.where(ns_ > 0, frac, 0.0)
-    entries = _SHADOWS.setdefault((id(vertices), id(faces)), (vertices, faces, []))[2]
-    if len(entries) >= _SHADOWS_PER_MESH:
-        del entries[0]
-    entries.append((sb, frac))
+    if entry is None:
+        if len(_SHADOWS) >= 8:
+            _SHADOWS.clear()
+        # the entry holds the mesh's arrays, so their ids cannot be reused by other arrays while it is cached
+        entry = _SHADOWS.setdefault((id(vertices), id(faces)), (vertices, faces, {}))
+    if len(entry[2]) >= _SHADOWS_PER_MESH:
+        del entry[2][next(iter(entry[2]))]
+    entry[2][cell] = frac
     return frac
 
 
 _SHADOWS_PER_MESH = 64
-_SHADOW_REUSE_RAD = math.radians(0.2)
-
-
-def _cached_shadows(vertices: np.ndarray, faces: np.ndarray, sb: np.ndarray) -> np.ndarray | None:
-    """The lit fractions of the cached Sun direction nearest ``sb`` if within 0.2 deg (a fitted attitude moves less
-    per iteration; a grid of cells would miss a 0.002 deg step across a cell boundary), else ``None``.  An entry
-    holds the mesh's arrays, so their ids cannot be reused by other arrays while it is cached."""
-    entry = _SHADOWS.get((id(vertices), id(faces)))
-    if entry is None or not entry[2]:
-        if len(_SHADOWS) > 8:
-            _SHADOWS.clear()
-        return None
-    dirs = np.array([d for d, _ in entry[2]])
-    j = int(np.argmax(dirs @ sb))
-    return entry[2][j][1] if float(dirs[j] @ sb) >= math.cos(_SHADOW_REUSE_RAD) else None
+_SHADOW_GRID = 230.0  # cells of ~0.25 deg of Sun direction (1/230 rad)
 
 
 def render_mesh(

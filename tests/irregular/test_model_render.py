@@ -144,22 +144,25 @@ def test_body_vertex_normals_rotate_with_the_body(lumpy):
     assert body_vertex_normals(lumpy) is body_vertex_normals(lumpy)
 
 
-def test_shadow_maps_are_reused_for_any_tiny_step(lumpy):
-    """A cached lit-fraction map serves every Sun direction within 0.2 deg of its own, wherever the step falls
-    (a grid of cells recomputed the map for a 0.002 deg step across a cell boundary); 1 deg away: a new map."""
+def test_shadow_map_depends_on_the_sun_direction_alone(lumpy):
+    """The lit fractions of a Sun direction are the same whatever directions were asked before (the map is computed
+    at its ~0.25 deg cell's own direction; before, the first direction seen in a cell made it, so a registration
+    depended on the calls before it), and a direction in the same cell reuses the map."""
     from scipy.spatial.transform import Rotation
 
     import jaxlimb.render.mesh as rm
 
-    rm._SHADOWS.clear()
     sun = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
-    first = rm.shadow_fractions(lumpy.vertices, lumpy.faces, sun)
-    for deg in (0.002, 0.05, 0.15):
-        step = Rotation.from_rotvec(np.radians(deg) * np.array([1.0, 0.0, 0.0])).apply(sun)
-        assert rm.shadow_fractions(lumpy.vertices, lumpy.faces, step) is first
-    far = Rotation.from_rotvec(np.radians(1.0) * np.array([1.0, 0.0, 0.0])).apply(sun)
-    assert rm.shadow_fractions(lumpy.vertices, lumpy.faces, far) is not first
-    assert len(rm._SHADOWS[(id(lumpy.vertices), id(lumpy.faces))][2]) == 2
+    near = [Rotation.from_rotvec(np.radians(d) * np.array([1.0, 0.0, 0.0])).apply(sun) for d in (0.1, -0.1, 0.05)]
+    rm._SHADOWS.clear()
+    fresh = rm.shadow_fractions(lumpy.vertices, lumpy.faces, sun).copy()
+    for first in near:
+        rm._SHADOWS.clear()
+        rm.shadow_fractions(lumpy.vertices, lumpy.faces, first)
+        np.testing.assert_array_equal(rm.shadow_fractions(lumpy.vertices, lumpy.faces, sun), fresh)
+    rm._SHADOWS.clear()
+    a = rm.shadow_fractions(lumpy.vertices, lumpy.faces, sun)
+    assert rm.shadow_fractions(lumpy.vertices, lumpy.faces, sun * 1.0000001) is a
 
 
 @pytest.mark.parametrize("ss", [4, 8])
