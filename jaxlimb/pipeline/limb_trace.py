@@ -18,7 +18,8 @@ each ray from the centre, outward, nothing brighter than the sky follows it.
    symmetric blurred step (the edge models' convention, :mod:`jaxlimb.pipeline.earth`).
 
 :func:`fit_traced` fits the ellipse (shape held: ``rho, theta``) to the points with a robust (soft-L1)
-geometric cost.  The per-ray levels normalise the band's pixels for the edge and profile fits
+geometric cost; :func:`fit_traced_glow` adds a glow's lift of each ray's crossing, ``c / (P_ray - s)``
+(:func:`glow_lift_column`), for a glow above a cloudy limb.  The per-ray levels normalise the band's pixels for the edge and profile fits
 (:func:`normalised_band`): ``z_n = (z - s) / (P_ray - s)`` with weights ``(P_ray - s) / C_ref`` (as the
 sphere's ``normalize_levels``, :class:`jaxlimb.pipeline.refine.FitData`), i.e. an inside level that may vary
 from ray to ray, and the pixels of rejected rays (faint, or a cloud edge inside the band) left out.
@@ -239,7 +240,8 @@ def fit_traced_glow(tr: TracedLimb, ell: tuple) -> tuple[tuple, float, float]:
     from scipy.optimize import least_squares
 
     if int(tr.ok.sum()) < 20:
-        raise TooManyOutliersError(f"the limb trace kept {int(tr.ok.sum())} rays with a limb against the sky (need >= 20)")
+        n = int(tr.ok.sum())
+        raise TooManyOutliersError(f"the limb trace kept {n} rays with a limb against the sky (need >= 20)")
     (r0, c0), (a, b), th = ell
     res = _glow_residuals(tr, ell)
     x = least_squares(res, [r0, c0, a, 0.0], loss="soft_l1", f_scale=0.5, x_scale="jac").x
@@ -303,5 +305,5 @@ def normalised_band(img: np.ndarray, pts: np.ndarray, tr: TracedLimb) -> tuple[n
     return keep, FitData(pts[keep], (z[keep] - tr.sky) / c, c / cref, tr.sky, cref)
 
 
-__all__ = ["GLOW_LIFT_Z", "TracedLimb", "fit_traced", "fit_traced_glow", "glow_lift_column", "normalised_band", "trace_limb",
-           "trace_model_cov"]
+__all__ = ["GLOW_LIFT_Z", "TracedLimb", "fit_traced", "fit_traced_glow", "glow_lift_column", "normalised_band",
+           "trace_limb", "trace_model_cov"]
