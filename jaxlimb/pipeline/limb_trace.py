@@ -18,7 +18,8 @@ each ray from the centre, outward, nothing brighter than the sky follows it.
    symmetric blurred step (the edge models' convention, :mod:`jaxlimb.pipeline.earth`).
 
 :func:`fit_traced` fits the ellipse (shape held: ``rho, theta``) to the points with a robust (soft-L1)
-geometric cost.  The per-ray levels normalise the band's pixels for the edge and profile fits
+geometric cost; :func:`fit_traced_glow` adds a glow's lift of each ray's crossing, ``c / (P_ray - s)``
+(:func:`glow_lift_column`), for a glow above a cloudy limb.  The per-ray levels normalise the band's pixels for the edge and profile fits
 (:func:`normalised_band`): ``z_n = (z - s) / (P_ray - s)`` with weights ``(P_ray - s) / C_ref`` (as the
 sphere's ``normalize_levels``, :class:`jaxlimb.pipeline.refine.FitData`), i.e. an inside level that may vary
 from ray to ray, and the pixels of rejected rays (faint, or a cloud edge inside the band) left out.
@@ -53,6 +54,7 @@ class TracedLimb:
     inside: np.ndarray
     sky: float
     noise: float
+    glow_term: bool = False
 
     @property
     def ok(self) -> np.ndarray:
@@ -181,12 +183,16 @@ def trace_limb(img: np.ndarray, ell: tuple, lit_dir, half: float, search: float,
 
 def fit_traced(tr: TracedLimb, ell: tuple, free_shape: bool = False) -> tuple:
     """The ellipse through the traced points: ``(r0, c0, a)`` (and ``rho, theta`` when ``free_shape``) by a
-    soft-L1 geometric fit (scale 0.5 px), started at ``ell``; returns ``((r0, c0), (a, b), theta)``."""
+    soft-L1 geometric fit (scale 0.5 px), started at ``ell``; returns ``((r0, c0), (a, b), theta)``.  With
+    ``tr.glow_term`` (known shape only) the points' residuals include the glow's lift ``g / A_ray``
+    (:func:`glow_lift_column`, :func:`fit_traced_glow`)."""
     from scipy.optimize import least_squares
 
     pts = tr.points[tr.ok]
     if pts.shape[0] < 20:
         raise TooManyOutliersError(f"the limb trace kept {pts.shape[0]} rays with a limb against the sky (need >= 20)")
+    if tr.glow_term and not free_shape:
+        return fit_traced_glow(tr, ell)[0]
     (r0, c0), (a, b), th = ell
 
     def shape(x):
@@ -197,6 +203,61 @@ def fit_traced(tr: TracedLimb, ell: tuple, free_shape: bool = False) -> tuple:
     res = least_squares(lambda x: _band_signed(pts, shape(x)), x0, loss="soft_l1", f_scale=0.5, x_scale="jac")
     (r, c), (aa, bb), t = shape(res.x)
     return ((float(r), float(c)), (float(aa), float(bb)), float(t))
+
+
+GLOW_LIFT_Z = 4.0
+"""The z-score (cluster-robust, :func:`fit_traced_glow`) above which a patchy limb's traced points are fitted with
+the glow's lift.  Measured on ``benchmarks/families.py``'s Earth frames (truth ellipse as the trace's reference):
+``combined`` (clouds + a glow of 0.05-0.34 of the surface) z = -0.4, 3.3, 4.4, 7.2, 28, 76 (the one at -0.4 the
+faintest glow, 0.05); ``clouds`` (no glow) frames 0-16 of seed 2026 z = -2.8 ... 3.2, all below 4."""
+
+
+def glow_lift_column(tr: TracedLimb) -> np.ndarray:
+    """Per kept ray, ``1 / (P - sky)`` over its median: the shape of the outward lift of a ray's half-level crossing
+    by a glow above the limb.  A glow adds radiance ``g(x)`` of its own (the same in DN along the limb: it does not
+    depend on the surface's albedo) to a step of height ``A = P - sky``; the crossing of ``sky + A/2`` moves out by
+    ``g / |I'| ~ sqrt(2 pi) sigma g / A`` (first order), so a ray over ocean (``A`` ten times smaller than over a
+    cloud) is lifted ten times more.  Along a cloudy limb ``1/A`` varies by an order of magnitude, so the lift is
+    not the radius's constant and is estimated beside the ellipse (on a uniform limb it would be)."""
+    inv = 1.0 / np.maximum(tr.inside[tr.ok] - tr.sky, 1e-12)
+    return inv / float(np.median(inv))
+
+
+def _glow_residuals(tr: TracedLimb, ell: tuple):
+    pts, col = tr.points[tr.ok], glow_lift_column(tr)
+    (_, _), (a, b), th = ell
+
+    def res(x):
+        return _band_signed(pts, ((x[0], x[1]), (x[2], x[2] * b / a), th)) - x[3] * col
+
+    return res
+
+
+def fit_traced_glow(tr: TracedLimb, ell: tuple) -> tuple[tuple, float, float]:
+    """The known-shape ellipse through the traced points with the glow's lift ``c / A_ray`` (:func:`glow_lift_column`)
+    fitted beside ``(r0, c0, a)`` (soft-L1, as :func:`fit_traced`); returns the ellipse, ``c`` (px at the median ray)
+    and its z-score with the cluster-robust sigma of :func:`trace_model_cov` (10 deg clusters, CR2)."""
+    from scipy.optimize import least_squares
+
+    if int(tr.ok.sum()) < 20:
+        n = int(tr.ok.sum())
+        raise TooManyOutliersError(f"the limb trace kept {n} rays with a limb against the sky (need >= 20)")
+    (r0, c0), (a, b), th = ell
+    res = _glow_residuals(tr, ell)
+    x = least_squares(res, [r0, c0, a, 0.0], loss="soft_l1", f_scale=0.5, x_scale="jac").x
+    C = _cluster_cov(tr, res, x, 10.0, True)
+    z = float(x[3] / math.sqrt(C[3, 3])) if C[3, 3] > 0 else 0.0
+    return ((float(x[0]), float(x[1])), (float(x[2]), float(x[2] * b / a)), th), float(x[3]), z
+
+
+def _cluster_cov(tr: TracedLimb, res, x0: np.ndarray, bin_deg: float, bias_reduced: bool) -> np.ndarray:
+    """Cluster-robust covariance of the parameters ``x0`` of the residuals ``res`` of the kept rays (clusters of
+    ``bin_deg`` of ray angle); central-difference Jacobian."""
+    t = tr.angles[tr.ok]
+    r = res(x0)
+    J = np.column_stack([(res(x0 + h) - res(x0 - h)) / 2e-3 for h in 1e-3 * np.eye(x0.size)])
+    groups = np.floor((t - t.min()) / math.radians(bin_deg)).astype(int)
+    return (cluster_robust_bias_reduced if bias_reduced else cluster_robust_covariance)(J, r, groups)
 
 
 def trace_model_cov(tr: TracedLimb, ell: tuple, bin_deg: float = 10.0, bias_reduced: bool = True) -> np.ndarray:
@@ -211,18 +272,19 @@ def trace_model_cov(tr: TracedLimb, ell: tuple, bin_deg: float = 10.0, bias_redu
     sigma was 0.04 px for a 0.19 px error (NEES 14.7); with many well-spread sectors the two agree within 10-40 %.
     ``bias_reduced=False``: the plain sandwich (CR1), the gate of :func:`~jaxlimb.pipeline.ellipsoid._patchy_geometry`
     (tuned with it; its choice between the band fit and the rays is left as it was)."""
-    ok = tr.ok
-    pts, t = tr.points[ok], tr.angles[ok]
     (r0, c0), (a, b), th = ell
+    if tr.glow_term:  # the lift fitted beside the ellipse: its uncertainty is the ellipse's too (marginal block)
+        res = _glow_residuals(tr, ell)
+        from scipy.optimize import least_squares
+
+        c = least_squares(lambda y: res(np.array([r0, c0, a, y[0]])), [0.0], loss="soft_l1", f_scale=0.5).x[0]
+        return _cluster_cov(tr, res, np.array([r0, c0, a, c], float), bin_deg, bias_reduced)[:3, :3]
+    pts = tr.points[tr.ok]
 
     def d(x):
         return _band_signed(pts, ((x[0], x[1]), (x[2], x[2] * b / a), th))
 
-    x0 = np.array([r0, c0, a], float)
-    r = d(x0)
-    J = np.column_stack([(d(x0 + h) - d(x0 - h)) / 2e-3 for h in 1e-3 * np.eye(3)])
-    groups = np.floor((t - t.min()) / math.radians(bin_deg)).astype(int)
-    return (cluster_robust_bias_reduced if bias_reduced else cluster_robust_covariance)(J, r, groups)
+    return _cluster_cov(tr, d, np.array([r0, c0, a], float), bin_deg, bias_reduced)
 
 
 def normalised_band(img: np.ndarray, pts: np.ndarray, tr: TracedLimb) -> tuple[np.ndarray, FitData]:
@@ -243,4 +305,5 @@ def normalised_band(img: np.ndarray, pts: np.ndarray, tr: TracedLimb) -> tuple[n
     return keep, FitData(pts[keep], (z[keep] - tr.sky) / c, c / cref, tr.sky, cref)
 
 
-__all__ = ["TracedLimb", "fit_traced", "normalised_band", "trace_limb", "trace_model_cov"]
+__all__ = ["GLOW_LIFT_Z", "TracedLimb", "fit_traced", "fit_traced_glow", "glow_lift_column", "normalised_band",
+           "trace_limb", "trace_model_cov"]
