@@ -1,4 +1,4 @@
-"""Shared helpers of the benchmark scripts: environment record and JSON output."""
+"""Shared helpers of the benchmark scripts: environment record, JSON output, a cache of rendered frames."""
 
 from __future__ import annotations
 
@@ -48,3 +48,20 @@ def save(name: str, obj: dict[str, Any]) -> Path:
     path = RESULTS / f"{name}.json"
     write_json_atomic(path, obj)
     return path
+
+
+def cached(cache: Path | None, key: str, make):  # type: ignore[no-untyped-def]
+    """``make()``, kept as ``cache/key`` (a pickle, written atomically) and read from there when present."""
+    import pickle
+
+    if cache is not None and (cache / key).exists():
+        with open(cache / key, "rb") as fh:
+            return pickle.load(fh)
+    value = make()
+    if cache is not None:
+        cache.mkdir(parents=True, exist_ok=True)
+        tmp = cache / (key + ".tmp")
+        with open(tmp, "wb") as fh:
+            pickle.dump(value, fh)
+        tmp.replace(cache / key)
+    return value

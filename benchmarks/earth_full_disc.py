@@ -20,7 +20,6 @@ once with ``R_body_to_camera`` and once without (``earth`` / ``earth_noR`` rows)
 from __future__ import annotations
 
 import argparse
-import pickle
 import sys
 import time
 from pathlib import Path
@@ -35,20 +34,12 @@ RENDER_VERSION = 1  # bump when the renderer's output changes (cache key)
 
 
 def _case(family: str, idx: int, seed: int, cache: Path | None):
+    from _common import cached
+
     from jaxlimb.render.independent import EARTH_FULL_DISC_FAMILIES, earth_full_disc_case
 
-    key = f"earthdisc_{family}_{idx}_s{seed}_v{RENDER_VERSION}.pkl"
-    if cache is not None and (cache / key).exists():
-        with open(cache / key, "rb") as fh:
-            return pickle.load(fh)
-    case = earth_full_disc_case(family, np.random.default_rng([seed, 2, EARTH_FULL_DISC_FAMILIES.index(family), idx]))
-    if cache is not None:
-        cache.mkdir(parents=True, exist_ok=True)
-        tmp = cache / (key + ".tmp")
-        with open(tmp, "wb") as fh:
-            pickle.dump(case, fh)
-        tmp.replace(cache / key)
-    return case
+    rng = np.random.default_rng([seed, 2, EARTH_FULL_DISC_FAMILIES.index(family), idx])
+    return cached(cache, f"earthdisc_{family}_{idx}_s{seed}_v{RENDER_VERSION}.pkl", lambda: earth_full_disc_case(family, rng))
 
 
 def run(families, n: int, seed: int, cache: Path | None, progress=print) -> dict[str, Any]:

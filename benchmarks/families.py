@@ -49,24 +49,14 @@ def _setup() -> None:
 
 def _case(body: str, family: str, idx: int, seed: int, cache: Path | None):
     """Render (or load from ``cache``) frame ``idx`` of ``family``."""
-    import pickle
+    from _common import cached
 
     from jaxlimb.render.independent import EARTH_FAMILIES, MOON_FAMILIES, earth_case, moon_case
 
     fams = MOON_FAMILIES if body == "moon" else EARTH_FAMILIES
-    key = f"{body}_{family}_{idx}_s{seed}_v{RENDER_VERSION}.pkl"
-    if cache is not None and (cache / key).exists():
-        with open(cache / key, "rb") as fh:
-            return pickle.load(fh)
     rng = np.random.default_rng([seed, 0 if body == "moon" else 1, fams.index(family), idx])
-    case = moon_case(family, rng) if body == "moon" else earth_case(family, rng, far=bool(idx % 2))
-    if cache is not None:
-        cache.mkdir(parents=True, exist_ok=True)
-        tmp = cache / (key + ".tmp")
-        with open(tmp, "wb") as fh:
-            pickle.dump(case, fh)
-        tmp.replace(cache / key)
-    return case
+    return cached(cache, f"{body}_{family}_{idx}_s{seed}_v{RENDER_VERSION}.pkl",
+                  lambda: moon_case(family, rng) if body == "moon" else earth_case(family, rng, far=bool(idx % 2)))
 
 
 def _locate(case, hints: dict):

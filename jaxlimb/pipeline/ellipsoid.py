@@ -229,12 +229,15 @@ class Ellipsoid:
         if pix.patchy and not self.free:
             edge = _patchy_geometry(self, frame, edge)
         (r0, c0), (a, b), _ = edge.fitted
+        # the jump first (as for the sphere, edge.check_edge): a fit that collapsed from a 400 px circle to a point
+        # was reported as a body too small to measure (a full-disc cloudy Earth, benchmarks/earth_full_disc.py)
+        edge = _check_jump(frame, cand, edge, self.eo)
         check_size(0.5 * (a + b), frame.img.shape, min_diameter_px(frame))
         prior = cand.info.get("prior")
         if prior is not None:
             check_radius_prior(0.5 * (a + b), prior.radius_range, prior.source)
         check_center_in_field((r0, c0), a, frame.img.shape)
-        return _check_jump(frame, cand, edge, self.eo)
+        return edge
 
     def report(self, frame: Frame, cand: Any, edge: EllipsoidEdge) -> dict[str, Any]:
         prior = cand.info.get("prior")
