@@ -317,24 +317,13 @@ def detect_body(image: np.ndarray, options: DetectOptions | None = None, *, sky_
             f"no body in the image: smoothed grey-level range {contrast:.4g} DN is below snr_min = {opt.snr_min:g} "
             f"x residual noise {sig_s:.3g} DN (per-pixel noise {sigma:.3g} DN)"
         )
-    # Eq. (10), floored at 6 sigma above the sky (2nd percentile) so that at low
-    # contrast the threshold never cuts into the noise of the background
-    sky = float(np.percentile(sm, 2.0))
-    gt = max(gmin + 0.25 * contrast, sky + 6.0 * sig_s)
     if sky_dn is not None:
         gmin = float(sky_dn)  # the background level of the region (grey tones of the box filter)
-        gt = gmin + max(6.0 * sig_s, 0.25 * (gmax - gmin))
-    binary = (sm > gt).astype(np.uint8)
-    mask, (x, y, w, h) = _brightest_component(sm, binary, gt)
-    gt_eq10 = gt
-    if sky_dn is None and opt.dark_surface:
-        gt, mask, (x, y, w, h) = dark_surface_region(sm, gt, sky + max(6.0 * sig_s, opt.dark_surface_frac * contrast),
-                                                     mask, (x, y, w, h), opt.dark_surface_area_ratio,
-                                                     opt.dark_surface_max_ratio)
-    full_mask = np.zeros_like(binary)
+    gt, dark, mask, (x, y, w, h) = _lit_region(sm, gmin, gmax, sig_s, opt, sky_dn is not None)
+    full_mask = np.zeros(sm.shape, np.uint8)
     full_mask[y : y + h, x : x + w] = mask
     shape = _region_shape(mask, x, y, f, opt)
-    touches = bool(x == 0 or y == 0 or x + w >= binary.shape[1] or y + h >= binary.shape[0])
+    touches = bool(x == 0 or y == 0 or x + w >= sm.shape[1] or y + h >= sm.shape[0])
     m = opt.margin_px
     r0 = max(0, y * f - m)
     r1 = min(R, (y + h) * f + m + (R - (R // f) * f))
@@ -354,7 +343,7 @@ def detect_body(image: np.ndarray, options: DetectOptions | None = None, *, sky_
         crop=crop,
         mask_small=full_mask,
         bright_sky=sky_dn is not None,
-        dark_surface=gt < gt_eq10,
+        dark_surface=dark,
     )
     if opt.run_checks:
         if region.lit_fraction > opt.max_fill_fraction and sky_dn is None:
@@ -368,6 +357,23 @@ def detect_body(image: np.ndarray, options: DetectOptions | None = None, *, sky_
                     pass
         check_region(region, opt, sky_dn)
     return region
+
+
+def _lit_region(sm: np.ndarray, gmin: float, gmax: float, sig_s: float, opt: DetectOptions, sky_known: bool):  # type: ignore[no-untyped-def]
+    """The threshold, whether it is a variegated body's (:func:`dark_surface_region`), and the lit region
+    ``(mask, (x, y, w, h))`` of the working image ``sm``.
+
+    Eq. (10), floored at 6 sigma above the sky (2nd percentile) so that at low contrast the threshold never cuts
+    into the noise of the background; with the sky known (``gmin`` is it), a quarter of the range above it."""
+    contrast = gmax - gmin
+    sky = float(np.percentile(sm, 2.0))
+    gt = gmin + max(6.0 * sig_s, 0.25 * contrast) if sky_known else max(gmin + 0.25 * contrast, sky + 6.0 * sig_s)
+    mask, box = _brightest_component(sm, (sm > gt).astype(np.uint8), gt)
+    if sky_known or not opt.dark_surface:
+        return gt, False, mask, box
+    low = sky + max(6.0 * sig_s, opt.dark_surface_frac * contrast)
+    g2, mask, box = dark_surface_region(sm, gt, low, mask, box, opt.dark_surface_area_ratio, opt.dark_surface_max_ratio)
+    return g2, g2 < gt, mask, box
 
 
 def _smoothed_small(a: np.ndarray, f: int, opt: DetectOptions) -> tuple[np.ndarray, float, float]:

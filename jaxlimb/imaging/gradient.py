@@ -275,12 +275,15 @@ def resolve_prior(
 
 
 def check_region_inside(center_rc, radius: float, region: BodyRegion, max_outside_frac: float) -> None:
-    """Check 3: the lit region of :func:`~.crop.detect_body` lies inside the limb circle (a margin of a few pixels
-    and one working-image block for a glow and the block averaging), else :class:`TooManyOutliersError`.
+    """Check 3 of a variegated body (:attr:`~.crop.BodyRegion.dark_surface`): the lit region of
+    :func:`~.crop.detect_body` lies inside the limb circle (a margin of a few pixels and one working-image block for a
+    glow and the block averaging), else :class:`TooManyOutliersError`.
 
     The strongest gradients of a variegated body (the Earth's cloud edges, dark oceans, Lambert limb darkening at
     low phase) can be edges inside the disc; a circle through them leaves much of the body outside, which no
     limb can do."""
+    if not region.dark_surface:  # a crescent's first circle may be poor yet refined well: only a variegated body's
+        return
     f = region.factor
     rr, cc = np.nonzero(region.mask_small)
     if rr.size == 0:
@@ -446,8 +449,7 @@ def gradient_front_end(
     r0, c0 = win.offset_rc
     points_full = pts[inl] + np.array([r0, c0], dtype=np.float64)
     center = (fit.center_rc[0] + r0, fit.center_rc[1] + c0)
-    if region.dark_surface:  # a crescent's first circle may be poor yet refined well: only a variegated body's is checked
-        check_region_inside(center, float(fit.radius), region, opt.max_region_outside_frac)
+    check_region_inside(center, float(fit.radius), region, opt.max_region_outside_frac)
     sun_rc = pri.sun_dir_rc
     if hints is not None and hints.sun_dir_camera is not None:
         sun_rc = sun_direction_image(hints.sun_dir_camera, camera, center if camera is not None else None)
