@@ -492,20 +492,16 @@ def _lit_region(img: np.ndarray, region: BodyRegion, mask: np.ndarray | None, op
     sub_f = cv2.medianBlur(sub, opt.median_ksize) if opt.median_ksize > 1 else sub
     vsub = None if mask is None else np.asarray(mask, bool)[r0:r1, c0:c1]
     gt, low = _binary_threshold(sub_f, vsub, region.noise_sigma, opt)
-    low = low if low < gt and opt.detect.dark_surface else -math.inf
+    dark = region.dark_surface and low < gt  # a variegated body (crop.dark_surface_region): its low threshold
+    gt = low if dark else gt
     binary = _largest_filled(_masked_binary(sub_f > gt, vsub))
-    if low > -math.inf:  # a variegated body (crop.dark_surface_region): the region above a low threshold, if much larger
-        b_low = _largest_filled(_masked_binary(sub_f > low, vsub))
-        n, n_low = np.count_nonzero(binary), np.count_nonzero(b_low)
-        dark = opt.detect.dark_surface_area_ratio * n <= n_low <= opt.detect.dark_surface_max_ratio * n
-        gt, binary = (low, b_low) if dark else (gt, binary)
     ax = inertia_axes(binary)
     if ax.eigen_ratio < opt.min_eigen_ratio:
         raise TooThinError(
             f"eigenvalue ratio lambda_min/lambda_max = {ax.eigen_ratio:.3g} of the lit region is below "
             f"min_eigen_ratio = {opt.min_eigen_ratio:g} (too thin to process)"
         )
-    return _LitRegion(sub, sub_f, vsub, gt, binary, ax, gt == low)
+    return _LitRegion(sub, sub_f, vsub, gt, binary, ax, dark)
 
 
 @dataclass(frozen=True)
