@@ -79,8 +79,10 @@ class Frame:
     def body_radius_km(self) -> float | None:
         return self.hints.radius_km() if self.hints is not None else None
 
-    def front_end_options(self) -> Any:
-        return self.opt.gradient if self.opt.front_end == "gradient" else self.opt.scanline
+    def front_end_options(self, name: str | None = None) -> Any:
+        """The options of front end ``name`` (default: the chosen one); ``None`` for its defaults."""
+        name = str(self.opt.front_end) if name is None else name
+        return self.opt.gradient if name == "gradient" else self.opt.scanline
 
     def to_observed(self, rc_ideal) -> tuple[float, float]:
         """Ideal (pinhole) pixel -> observed pixel (through the lens distortion, if any)."""
@@ -183,8 +185,7 @@ def _front_end_options(frame: Frame, name: str) -> Any:
 
     from ..imaging import GradientOptions, ScanlineOptions
 
-    opt = (frame.opt.gradient if name == "gradient" else frame.opt.scanline) or (
-        GradientOptions() if name == "gradient" else ScanlineOptions())
+    opt = frame.front_end_options(name) or (GradientOptions() if name == "gradient" else ScanlineOptions())
     h = frame.hints
     if h is None or h.sun_dir_camera is None or not getattr(opt.detect, "dark_surface", False):
         return opt
