@@ -28,7 +28,7 @@ import numpy as np
 from ..errors import AmbiguousMatchError, CheckFailed, MatchError
 from .database import TemplateDatabase
 from .phase import PhaseSearchOptions, phase_candidates
-from .register import RegisterOptions, RegisterResult, lit_figure, register_known_attitude
+from .register import RegisterOptions, RegisterResult, lit_figure, phase_angle_deg, register_known_attitude
 from .silhouette import figure_center
 
 
@@ -143,12 +143,6 @@ class LosResult:
     @property
     def center_rc(self) -> np.ndarray:
         return self.fit.center_rc
-
-
-def phase_angle_deg(sun_dir_camera: np.ndarray, camera: object, center_rc: np.ndarray) -> float:
-    """Sun-body-camera angle at the body seen at ``center_rc``."""
-    u = np.asarray(camera.los(center_rc), dtype=float)  # type: ignore[attr-defined]
-    return math.degrees(math.acos(max(-1.0, min(1.0, float(-u @ np.asarray(sun_dir_camera, dtype=float))))))
 
 
 def _sun_image_direction(sun, camera, fc, options):  # type: ignore[no-untyped-def]

@@ -739,12 +739,17 @@ def fine_stage(st: GNState, pyr, mesh, camera, sun, options, fit_attitude, wide,
     return st
 
 
+def phase_angle_deg(sun_dir_camera: np.ndarray, camera: object, center_rc: np.ndarray) -> float:
+    """Sun-body-camera angle (deg) at the body seen at ``center_rc`` (``sun_dir_camera``: a unit vector)."""
+    u = np.asarray(camera.los(center_rc), dtype=float)  # type: ignore[attr-defined]
+    return math.degrees(math.acos(max(-1.0, min(1.0, float(-u @ np.asarray(sun_dir_camera, dtype=float))))))
+
+
 def _phase_deg(camera: object, P: np.ndarray, sun: np.ndarray | None) -> float:
-    """Sun -- body -- camera angle (deg) at the body seen at ``P`` (``sun=None``: zero phase)."""
+    """:func:`phase_angle_deg` at ``P`` for any Sun vector (normalised; ``sun=None``: zero phase)."""
     if sun is None:
         return 0.0
-    u = np.asarray(camera.los(P), dtype=float)  # type: ignore[attr-defined]
-    return math.degrees(math.acos(max(-1.0, min(1.0, -float(u @ np.asarray(sun, dtype=float)) / float(np.linalg.norm(sun))))))
+    return phase_angle_deg(np.asarray(sun, dtype=float) / float(np.linalg.norm(sun)), camera, P)
 
 
 def _mix0(options: RegisterOptions, phase_deg: float = 0.0) -> np.ndarray | None:
@@ -971,4 +976,4 @@ def finish_registration(img, camera, segmentation, st: GNState, ncc: float, opti
     )
 
 
-__all__ = ["RegisterOptions", "RegisterResult", "initial_center", "lit_figure", "complete_search_registration", "ncc_shift", "register_known_attitude", "start_search_registration", "render_model"]
+__all__ = ["RegisterOptions", "RegisterResult", "initial_center", "lit_figure", "complete_search_registration", "ncc_shift", "phase_angle_deg", "register_known_attitude", "start_search_registration", "render_model"]
