@@ -12,7 +12,11 @@ Gaussian PSF); every other family changes what the module docstring of
 :mod:`jaxlimb.render.independent.families` lists.  ``locate`` gets the camera and the hints a
 navigation filter has (body, Sun direction, range prior 5 % off; for the Earth also
 ``R_body_to_camera`` and ``atmosphere_km = 0``).  Each Earth frame is measured twice: with
-``R_body_to_camera`` known and without it (``earth`` / ``earth_noR`` rows).
+``R_body_to_camera`` known and without it (``earth`` / ``earth_noR`` rows).  An ``earth_noR`` frame also
+gets ``floor_px``: the centre error of its *true* limb ellipse mapped without the pole
+(:func:`pole_unknown_floor_px`), the error no limb-only estimator can go below without the attitude (the
+centre offset cannot be signed, :mod:`jaxlimb.pipeline.earth`, "Free ellipse").  Each body also gets an ``all``
+row: the families pooled.
 
 Reported per body and family: centre-of-body-image error (px) median / p90 / max, |radius
 error| median (Moon: ``radius_px - f tan(alpha)``), |range error| median / max (%), the mean
@@ -102,6 +106,18 @@ def _nees(m, err: np.ndarray) -> float | None:
         return None
 
 
+def pole_unknown_floor_px(case) -> float:
+    """The centre error (px) of the frame's true limb ellipse mapped with the pole unknown (the cone axis,
+    :func:`jaxlimb.pipeline.earth.earth_position_from_ellipse` without ``pole_camera``): ``|gamma_off|`` in
+    pixels, the unsigned centre offset of the spheroid (two mirror attitudes give the same limb and centres
+    ``2 gamma_off`` apart, ``tests/pipeline_earth/test_earth_pipeline.py``), plus the mapping's own error."""
+    from jaxlimb.pipeline.earth import earth_position_from_ellipse
+
+    t = case.truth
+    p, _ = earth_position_from_ellipse(case.camera, t.ellipse_center_rc, t.semi_axes_px, t.angle_rad, np.zeros(3))
+    return float(np.hypot(*(np.asarray(case.camera.project(-p)) - np.asarray(t.body_center_rc))))
+
+
 def measure(case, hints: dict) -> dict[str, Any]:
     """One ``locate`` run against the truth of ``case``."""
     from jaxlimb.errors import JaxlimbError
@@ -145,7 +161,8 @@ def summarise(recs: list[dict]) -> dict[str, Any]:
             "center_max_px": max(ce) if ce else None, "radius_abs_median_px": _q(rad, 50),
             "range_abs_median_pct": _q(rg, 50), "range_abs_max_pct": max(rg) if rg else None,
             "nees_mean": float(np.mean(ne)) if ne else None, "failures": fails,
-            "n_ok_nonphysical": sum(1 for r in ok if r["nonphysical"])}
+            "n_ok_nonphysical": sum(1 for r in ok if r["nonphysical"]),
+            **({"floor_median_px": _q(fl, 50)} if (fl := [r["floor_px"] for r in recs if "floor_px" in r]) else {})}
 
 
 def _fmt(v, f="{:.3f}"):
@@ -160,7 +177,8 @@ def print_table(summary: dict[str, dict[str, dict]]) -> None:
             print(f"{body:10s} {fam:10s} {s['n']:>3d}/{s['n_ok']:<2d} {_fmt(s['center_median_px']):>7s} "
                   f"{_fmt(s['center_p90_px']):>7s} {_fmt(s['center_max_px']):>7s} {_fmt(s['radius_abs_median_px']):>7s} "
                   f"{_fmt(s['range_abs_median_pct'], '{:.4f}'):>8s} {_fmt(s['range_abs_max_pct'], '{:.4f}'):>8s} "
-                  f"{_fmt(s['nees_mean'], '{:.1f}'):>8s} {s['n_ok_nonphysical']:>7d}  {s['failures'] or ''}")
+                  f"{_fmt(s['nees_mean'], '{:.1f}'):>8s} {s['n_ok_nonphysical']:>7d}  {s['failures'] or ''}"
+                  + (f"  floor {s['floor_median_px']:.3f}" if "floor_median_px" in s else ""))
 
 
 def run(bodies, families, n: int, seed: int, cache: Path | None, progress=print) -> dict[str, Any]:
@@ -178,10 +196,13 @@ def run(bodies, families, n: int, seed: int, cache: Path | None, progress=print)
                 for name, hints in rows:
                     rec = measure(case, hints)
                     rec["meta"] = case.meta
+                    if name == "earth_noR":
+                        rec["floor_px"] = pole_unknown_floor_px(case)
                     records.setdefault(name, {}).setdefault(fam, []).append(rec)
                     progress(f"{name:9s} {fam:9s} {i}: {rec['status']} "
                              + (f"{rec['center_err_px']:.3f} px" if rec["status"] == "ok" else rec["check"]))
-    summary = {b: {f: summarise(r) for f, r in fams.items()} for b, fams in records.items()}
+    summary = {b: {**{f: summarise(r) for f, r in fams.items()}, "all": summarise([x for r in fams.values() for x in r])}
+               for b, fams in records.items()}
     return {"records": records, "summary": summary}
 
 

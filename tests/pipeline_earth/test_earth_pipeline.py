@@ -10,7 +10,7 @@ import pytest
 from jaxlimb.errors import ConfigError, GeometryError
 from jaxlimb.geometry.camera import Camera
 from jaxlimb.geometry.earth import EARTH_EQUATORIAL_KM, EARTH_POLAR_KM, earth_radii
-from jaxlimb.geometry.ellipsoid import image_conic, limb_cone
+from jaxlimb.geometry.ellipsoid import image_conic, limb_cone, limb_cone_matrix_camera
 from jaxlimb.pipeline import LocateOptions, locate
 from jaxlimb.pipeline.earth import EllipsoidOptions, earth_position_from_ellipse, image_ellipse_cone
 from jaxlimb.render import RenderOptions, earth_scene, render_body
@@ -198,6 +198,50 @@ def test_free_ellipse_offset_bound_covers_every_latitude():
     P, _ = unsigned_offset_cov(cam, ((900.0, 1200.0), (600.0, 599.0), 0.3), 40000.0, EARTH_EQUATORIAL_KM,
                                EARTH_POLAR_KM, 0.0, 3)
     assert np.allclose(P[:2, :2], (g * cam.focal_px) ** 2 / 3 * np.eye(2)) and P[2, 2] == 0.0
+
+
+@pytest.mark.parametrize("lat_deg, off_axis", [(35.0, (0.0, 0.0)), (50.0, (0.08, -0.05)), (15.0, (-0.1, 0.12))])
+def test_pole_unknown_limb_cannot_sign_the_center_offset(lat_deg, off_axis):
+    """Why issue 10's attitude-unknown Earth target (0.15 px median) has a floor on near frames: the mirror image
+    of the spheroid through a principal plane of its limb cone (one that contains the cone's axis) is another
+    Earth (same radii, a proper attitude) with the *same* limb cone, hence the same image ellipse, perspective and
+    off-axis view included, yet its centre images ``2 |gamma_off|`` away.  Nothing measured on the limb tells the
+    two apart; the cone axis (the pipeline's answer) is off by ``|gamma_off|`` for both (``floor_px`` of
+    ``benchmarks/families.py``'s ``earth_noR`` rows: median 0.27 px on the 40 000 km frames)."""
+    cam = Camera(focal_length_mm=8.0, pixel_pitch_mm=0.0022, rows=1944, cols=2592)
+    radii = earth_radii(0.0)
+    u = np.array([off_axis[0], off_axis[1], 1.0])
+    q = 40000.0 * u / np.linalg.norm(u)  # body centre, camera frame
+    t = math.radians(lat_deg)  # the pole at lat_deg from the plane normal to the line of sight, tilted in the image
+    side = np.cross(q, [0.3, 1.0, 0.0])
+    side /= np.linalg.norm(side)
+    pole = math.cos(t) * side + math.sin(t) * (-q / np.linalg.norm(q))
+    x = np.cross(pole, [1.0, 0.0, 0.0])
+    x /= np.linalg.norm(x)
+    R = np.column_stack([x, np.cross(pole, x), pole])
+    Mc = limb_cone_matrix_camera(radii, q, R)
+    ic = image_conic(cam, radii, q, R)
+    w, V = np.linalg.eigh(Mc)
+    seen = []
+    for e in V.T:
+        S = np.eye(3) - 2.0 * np.outer(e, e)
+        q2, R2 = S @ q, S @ R @ np.diag([1.0, 1.0, -1.0])  # the mirror Earth: a proper rotation, same radii
+        if q2[2] <= 0:  # the plane normal to the cone's axis: the mirror body is behind the camera
+            continue
+        assert np.linalg.det(R2) == pytest.approx(1.0)
+        Mc2 = limb_cone_matrix_camera(radii, q2, R2)
+        assert np.allclose(Mc2, Mc, rtol=0, atol=1e-9 * np.abs(Mc).max())  # the same limb cone
+        ic2 = image_conic(cam, radii, q2, R2)
+        assert np.allclose(ic2.conic, ic.conic, atol=1e-9)  # the same image ellipse
+        seen.append((float(np.hypot(*(np.asarray(ic2.body_center_rc) - ic.body_center_rc))), ic2.body_center_rc))
+    assert len(seen) == 2
+    seen.sort(key=lambda x: x[0])
+    (still, _), (moved, other_center) = seen
+    # one mirror leaves the centre where it is (the plane holds it), the other moves it 2 |gamma_off| (0.32-0.61 px)
+    assert still < 1e-6 and 0.3 < moved < 0.7
+    p_axis, _ = earth_position_from_ellipse(cam, ic.center_rc, ic.semi_axes_px, ic.angle_rad, np.zeros(3))
+    off = [float(np.hypot(*(np.asarray(cam.project(-p_axis)) - np.asarray(c)))) for c in (ic.body_center_rc, other_center)]
+    assert off == pytest.approx([0.5 * moved, 0.5 * moved], rel=0.05)
 
 
 def test_edge_fit_model_error_is_generic_and_keeps_the_noise_covariance():
