@@ -23,7 +23,7 @@ error| median (Moon: ``radius_px - f tan(alpha)``), |range error| median / max (
 NEES of the centre ``e^T P^-1 e`` with the reported 2x2 covariance (chi-square expectation 2),
 typed failures by check, and the number of ``status ok`` answers with a non-physical
 parameter (amplitude <= 0, ymax <= ymin, PSF sigma outside [0.1, 5] px, ``L`` outside
-[-0.5, 1.5], a glow outside [0, 1] of ``amp`` or its scale height outside [0.05, 10] px, non-finite or non-positive radius/range, centre sigma > 2 px).  Results go to
+[-0.5, 1.5], a glow outside [0, 1] of ``amp`` (at the Sun's position angle and square to it) or its scale height outside [0.05, 10] px, non-finite or non-positive radius/range, centre sigma > 2 px).  Results go to
 ``benchmarks/results/<out>.json`` (default ``families``, ``families_quick`` with ``--quick``)
 with the seed and the git SHA.
 """
@@ -83,7 +83,8 @@ def nonphysical(m) -> list[str]:
         bad.append("psf_sigma")
     if "L" in prof and not -0.5 <= prof["L"] <= 1.5:
         bad.append("L")
-    if not 0.0 <= prof.get("glow", 0.0) <= 1.0 or not 0.05 <= prof.get("glow_scale_px", 1.0) <= 10.0:
+    g, g1 = prof.get("glow", 0.0), prof.get("glow", 0.0) * (1.0 + prof.get("glow_tilt", 0.0))  # cpsi = 0 and 1
+    if not (0.0 <= g <= 1.0 and 0.0 <= g1 <= 1.0) or not 0.05 <= prof.get("glow_scale_px", 1.0) <= 10.0:
         bad.append("glow")
     if m.radius_px is not None and not (math.isfinite(m.radius_px) and m.radius_px > 0):
         bad.append("radius")

@@ -197,12 +197,13 @@ def _minnaert_profile_case(rng: np.random.Generator, n_pix: int):  # noqa: ANN20
 
 
 def _glow_profile_case(rng: np.random.Generator, n_pix: int):  # noqa: ANN202
-    """The profile widened by a glow above the limb: ``glow`` 0.02-0.5 of ``amp``, scale height 0.1-5 px.  (The
+    """The profile widened by a glow above the limb: ``glow`` 0.02-0.5 of ``amp``, scale height 0.1-5 px, tilt
+    toward the Sun -0.9-0.9.  (The
     ``log_h`` column is proportional to ``glow``: the central-difference step, inversely proportional to the
     column, grows with a vanishing glow until its truncation error shows, 2.6e-4 at ``glow`` ~ 1e-3.)"""
     p, rc = _profile_case(rng, n_pix)
     return GlowProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()], rng.uniform(0.02, 0.5),
-                             math.log(rng.uniform(0.1, 5.0))), rc
+                             math.log(rng.uniform(0.1, 5.0)), rng.uniform(-0.9, 0.9)), rc
 
 
 _PHYSICAL_CASES = {"lunar_limb": _profile_case, "lunar_limb_minnaert": _minnaert_profile_case,

@@ -57,7 +57,13 @@ shell whose emission falls as :math:`e^{-h/H}` with the altitude (a horizon glow
 limb, and times half the grazing column, :math:`\tfrac12\mathrm{erfcx}(\sqrt{u/H})`, at a depth ``u`` on the disc
 (:func:`_glow_inside`, :func:`_glow_outside`); ``H = exp(log_h)`` px.  The disc side is integrated with the
 radiance; the sky side blurred in closed form.  The pipeline adds the glow only when a score test asks for it
-(:func:`jaxlimb.pipeline.profile_fit.widen_glow`).
+(:func:`jaxlimb.pipeline.profile_fit.widen_glow`).  The shell is lit by the Sun: at the limb point of image
+position angle :math:`\psi` from the Sun's image direction the solar elevation over the tangent point is
+:math:`\sin^{-1}(\sin\alpha\cos\psi)` (phase :math:`\alpha`), so the glow is brighter toward the Sun.  To first
+order in ``cpsi`` :math:`= \cos\psi` its radiance is ``glow (1 + glow_tilt cpsi)`` (``glow_tilt`` fitted; 0 is a
+uniform glow).  Why: on the nearly full Earth of ``benchmarks/earth_full_disc.py`` (phase 4-12 deg) a glow lit as
+``clip((n.s + 0.2)/0.4)`` (the independent renderer) put the uniform-glow fit's centre 0.03-0.19 px sunward with
+its sigma 0.01-0.06 px (NEES 6.5-17); rendered with a uniform glow, the same frames were 0.006 and 0.017 px off.
 
 Off the optical axis the limb is an ellipse (``a - b`` reaches ~5 px at the corner of the
 default imager for the Moon at 60 000 km): the model carries the ellipse ``(r0, c0, a, theta,
@@ -138,11 +144,14 @@ class MinnaertProfileParams(LimbProfileParams):
 
 class GlowProfileParams(LimbProfileParams):
     """:class:`LimbProfileParams` and an exponential glow above the limb (:data:`LIMB_PROFILE_GLOW`):
-    ``glow``, its radiance just above the limb in units of ``amp``, and ``log_h``, the log of its scale
-    height (px)."""
+    ``glow``, its radiance just above the limb in units of ``amp`` where the limb's normal is square to the Sun's
+    image direction, ``log_h``, the log of its scale height (px), and ``glow_tilt``, its linear change with the
+    cosine ``cpsi`` of the angle between the limb's normal and the Sun's image direction: the glow's radiance is
+    ``glow (1 + glow_tilt cpsi)`` (module docstring)."""
 
     glow: ArrayLike
     log_h: ArrayLike
+    glow_tilt: ArrayLike = 0.0
 
 
 def _cos_sin_small(x, small):
@@ -388,22 +397,23 @@ def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brig
     I, I_R, I_cpsi, I_a0, I_ph, I_L, I_k = _radiance_parts(p, v, R[..., None], cpsi[..., None], alpha0, brightened)
     tg = t * g / se  # -dg/dd
     F1, F1_d, F1_dd, F1_dse = _blur_moments(I, t, g, se, derivatives)
-    if glowing:  # the glow seen on the disc, on its own (uncut) nodes: independent of R, cpsi, alpha0, phase, L
+    if glowing:  # the glow seen on the disc, on its own (uncut) nodes: independent of R, alpha0, phase, L
+        gl = p.glow * (1.0 + p.glow_tilt * cpsi)  # the glow at this position angle (GlowProfileParams)
         vg, t_gl, g_gl = _blur_nodes(d, R, se)
         tg_gl = t_gl * g_gl / se
         I_gl, I_lh = _glow_inside(p, vg)
-        I_lh = p.glow * I_lh
+        I_lh = gl[..., None] * I_lh
         G1, G1_d, G1_dd, G1_dse = _blur_moments(I_gl, t_gl, g_gl, se, derivatives)
-        F1, F1_d = F1 + p.glow * G1, F1_d + p.glow * G1_d
+        F1, F1_d = F1 + gl * G1, F1_d + gl * G1_d
     s2d = se * se / (2.0 * d)
     F = F1 + s2d * F1_d
     if glowing:
         Go, Po = _glow_outside(p, d - R, se, d, derivatives)
-        F = F + p.glow * Go
+        F = F + gl * Go
     if not derivatives:
         return F, None
     if glowing:
-        F1_dd, F1_dse = F1_dd + p.glow * G1_dd, F1_dse + p.glow * G1_dse
+        F1_dd, F1_dse = F1_dd + gl * G1_dd, F1_dse + gl * G1_dse
 
     def pair(J, g=g, tg=tg):  # (integral of J g, of -J tg): a partial of F1 and the matching partial of F1_d
         return jnp.sum(J * g, axis=-1), -jnp.sum(J * tg, axis=-1)
@@ -430,11 +440,14 @@ def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brig
     if glowing:
         F1_g, F1_dg = pair(I_gl, g_gl, tg_gl)
         F1_lh, F1_dlh = pair(I_lh, g_gl, tg_gl)
-        parts["F_glow"] = F1_g + s2d * F1_dg + Go
-        parts["F_lh"] = F1_lh + s2d * F1_dlh + p.glow * Po["G_lh"]
-        parts["F_d"] = parts["F_d"] + p.glow * Po["G_d"]
-        parts["F_R"] = parts["F_R"] + p.glow * Po["G_R"]
-        parts["F_se"] = parts["F_se"] + p.glow * Po["G_se"]
+        unit = F1_g + s2d * F1_dg + Go  # the blurred glow of unit radiance
+        parts["F_glow"] = (1.0 + p.glow_tilt * cpsi) * unit
+        parts["F_tilt"] = p.glow * cpsi * unit
+        parts["F_cpsi"] = parts["F_cpsi"] + p.glow * p.glow_tilt * unit
+        parts["F_lh"] = F1_lh + s2d * F1_dlh + gl * Po["G_lh"]
+        parts["F_d"] = parts["F_d"] + gl * Po["G_d"]
+        parts["F_R"] = parts["F_R"] + gl * Po["G_R"]
+        parts["F_se"] = parts["F_se"] + gl * Po["G_se"]
     return F, parts
 
 
@@ -508,7 +521,7 @@ def _profile_value_and_columns(p: LimbProfileParams, rc):
         "kappa": A * P["F_k"],
     }
     if glowing:
-        cols.update(glow=A * P["F_glow"], log_h=A * P["F_lh"])
+        cols.update(glow=A * P["F_glow"], log_h=A * P["F_lh"], glow_tilt=A * P["F_tilt"])
     return p.ymin + A * F, tuple(cols[n] for n in type(p).field_names())
 
 
@@ -561,7 +574,7 @@ def glow_fields(p: LimbProfileParams) -> dict[str, float]:
     ``glow_scale_px`` (its scale height); ``glow = 0`` for the other profiles."""
     if not isinstance(p, GlowProfileParams):
         return {"glow": 0.0}
-    return {"glow": float(p.glow), "glow_scale_px": math.exp(float(p.log_h))}
+    return {"glow": float(p.glow), "glow_scale_px": math.exp(float(p.log_h)), "glow_tilt": float(p.glow_tilt)}
 
 
 PHYSICAL_L = (-0.1, 1.1)

@@ -229,7 +229,7 @@ def widen_glow_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
     along each ray, as for :data:`~jaxlimb.models.LIMB_PROFILE` on the Earth (module docstring of
     :mod:`jaxlimb.pipeline.earth`)."""
     from ..models.lunar_lambert import LIMB_PROFILE_GLOW
-    from .profile_fit import glow_plausible, glow_start
+    from .profile_fit import fit_glow_tilt, glow_plausible, glow_start
 
     q = glow_start(rr)
     if q is None:
@@ -237,12 +237,13 @@ def widen_glow_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
     solver = None if frame.opt.solver == "lm" else solver_from_name(frame.opt.solver)
     solver = NormalLM(rtol=0.0, atol=1e-7) if solver is None else solver
     coords, zz, w = _pad_bucket(rr.data)
-    res = fit(LIMB_PROFILE_GLOW, coords, zz, q, solver, fixed=rr.fixed, weights=w, throw=False)
+    (res, _), fixed = fit_glow_tilt(
+        lambda fx: (fit(LIMB_PROFILE_GLOW, coords, zz, q, solver, fixed=fx, weights=w, throw=False), None), rr.fixed)
     if not bool(res.converged):
         return rr
     if not (glow_plausible(res.params) and float(res.params.amp) > 0 and float(res.params.a) > 0):
         return rr
-    return RefineResult(res, rr.data, 0, rr.fixed)  # the model depends on sigma^2 only (|sigma| reported)
+    return RefineResult(res, rr.data, 0, fixed)  # the model depends on sigma^2 only (|sigma| reported)
 
 
 __all__ = ["edge_with_model_error", "fit_profile_ellipsoid", "profile_wanted", "widen_glow_ellipsoid"]

@@ -384,12 +384,29 @@ def widen_glow(frame: Frame, rr: RefineResult, solver, system=None) -> RefineRes
     if start is None:
         return rr
     try:
-        res, sph = _profile_passes(frame, rr.data, start, None, None, rr.fixed, solver, LIMB_PROFILE_GLOW)
+        (res, sph), fixed = fit_glow_tilt(
+            lambda fx: _profile_passes(frame, rr.data, start, None, None, fx, solver, LIMB_PROFILE_GLOW), rr.fixed)
     except ConvergenceError:
         return rr
     if not glow_plausible(res.params):
         return rr
-    return RefineResult(res, rr.data, 0, rr.fixed, sphere=sph)
+    return RefineResult(res, rr.data, 0, fixed, sphere=sph)
+
+
+def fit_glow_tilt(run, fixed: tuple[str, ...]):
+    """``run(fixed)`` (a widened glow fit returning ``(result, extra)``) with the glow's tilt free, then, when that
+    fit raised :class:`~jaxlimb.errors.ConvergenceError`, did not converge, is not plausible or its tilt is not one
+    to keep (:func:`tilt_kept`), with the tilt held at 0.  Returns ``((result, extra), fixed)``; the second fit
+    may raise."""
+    try:
+        out = run(fixed)
+        res = out[0]
+        if bool(res.converged) and glow_plausible(res.params) and tilt_kept(res.params):
+            return out, fixed
+    except ConvergenceError:
+        pass
+    fixed = fixed + ("glow_tilt",)
+    return run(fixed), fixed
 
 
 def glow_start(rr: RefineResult, system=None) -> GlowProfileParams | None:
@@ -404,10 +421,33 @@ def glow_start(rr: RefineResult, system=None) -> GlowProfileParams | None:
                              math.log(GLOW_H0[0]))
 
 
+GLOW_TILT_MAX = 2.0
+"""The largest glow tilt toward the Sun a widened fit keeps (:func:`tilt_kept`): the glow square to the Sun at least a
+third of the glow at the Sun's position angle."""
+GLOW_TILT_MIN_H_PX = 0.5
+"""The smallest scale height (px) at which a widened fit keeps its glow's tilt (:func:`tilt_kept`)."""
+
+
+def tilt_kept(q: GlowProfileParams) -> bool:
+    """Whether a widened fit keeps its glow's tilt toward the Sun (else :func:`fit_glow_tilt` refits with the tilt
+    held at 0): ``0 <= glow_tilt <= GLOW_TILT_MAX`` and a scale height of at least :data:`GLOW_TILT_MIN_H_PX`.
+
+    A shell lit by the Sun is brighter where its tangent points are lit more (module docstring of
+    :mod:`jaxlimb.models.lunar_lambert`); a tilt away from the Sun is the fit absorbing something else: on
+    ``benchmarks/families.py`` Moon ``airy`` (the PSF's wings pass the glow gate at 7-14 deg phase) the free tilt went
+    to -0.29 to -0.57 and 4 frames from 0.000-0.008 to 0.042-0.090 px.  A glow thinner than half a pixel is a step on
+    the limb whose tilt is the limb's own photometry: on Earth ``glow`` 1 (380 000 km, 0.44 px) it went to 15 and
+    the centre from 0.024 to 0.089 px."""
+    t = float(q.glow_tilt)
+    return 0.0 <= t <= GLOW_TILT_MAX and math.exp(float(q.log_h)) >= GLOW_TILT_MIN_H_PX
+
+
 def glow_plausible(q: GlowProfileParams) -> bool:
-    """A widened fit's glow in ``(0, GLOW_MAX]`` and its scale height in :data:`GLOW_H_RANGE` (NaN fails both)."""
+    """A widened fit's glow in ``(0, GLOW_MAX]`` on the whole lit limb (``cpsi`` in ``[0, 1]``: ``glow`` and
+    ``glow (1 + glow_tilt)`` both in it) and its scale height in :data:`GLOW_H_RANGE`; NaN fails."""
     lh, lo, hi = float(q.log_h), math.log(GLOW_H_RANGE[0]), math.log(GLOW_H_RANGE[1])
-    return 0.0 < float(q.glow) <= GLOW_MAX and lo <= lh <= hi
+    g, g1 = float(q.glow), float(q.glow) * (1.0 + float(q.glow_tilt))
+    return 0.0 < g <= GLOW_MAX and 0.0 <= g1 <= GLOW_MAX and lo <= lh <= hi
 
 
 MODEL_ERROR_SECTORS = 24
@@ -596,6 +636,6 @@ def _shape_change_px(q: LimbProfileParams, sph) -> float:
 
 
 __all__ = ["brightening_step", "edge_sigma", "fit_lunar_profile", "gaussian_sigma_of_k", "profile_start",
-           "profile_sun_direction", "glow_start", "glow_plausible", "patchy_weights",
+           "profile_sun_direction", "glow_start", "glow_plausible", "fit_glow_tilt", "tilt_kept", "patchy_weights",
            "saturation_level",
            "signed_distance", "split_witness", "downweight_patchy_sectors", "sector_misfit", "glow_step", "widen_brightening", "widen_glow", "with_model_error"]

@@ -179,6 +179,23 @@ def test_glow_on_the_disc_is_half_the_grazing_column(h, radius, depth):
     assert got == pytest.approx(num / math.sqrt(2 * math.pi * radius * h), rel=1e-10)
 
 
+@pytest.mark.parametrize("tilt", [-0.5, 0.9, 2.0])
+def test_glow_tilt_scales_the_glow_with_the_cosine_toward_the_sun(tilt):
+    """``glow_tilt`` (GlowProfileParams): the glow's part of the radiance, disc side and sky side, is the untilted
+    glow's times ``1 + glow_tilt cpsi``, ``cpsi`` the cosine between the pixel's direction from the centre and the
+    Sun's image direction; the profile itself is unchanged."""
+    p = _params(math.radians(70.0))  # the profile of _glow_params
+    base = _glow_params(0.0, 0.8)
+    flat = _glow_params(0.3, 0.8)
+    tilted = flat.replace(glow_tilt=tilt)
+    rc, cpsi = _ring(5, n=512)
+    f = jax.jit(limb_profile_intensity)
+    i0, i_flat, i_tilt = (np.asarray(f(q, rc)) for q in (base, flat, tilted))
+    np.testing.assert_allclose(np.asarray(f(p, rc)), i0, rtol=1e-14, atol=1e-12)
+    np.testing.assert_allclose(i_tilt - i0, (1.0 + tilt * cpsi) * (i_flat - i0), rtol=1e-9, atol=1e-9)
+    assert np.abs(i_flat - i0).max() > 1.0  # the glow is there to scale
+
+
 def test_glow_column_is_the_glow_column_at_zero():
     """The score test's column equals the widened model's ``glow`` column at ``glow = 0``, and the widened model at
     ``glow = 0`` is the lunar-Lambert profile (its columns against autodiff and central differences:
