@@ -188,10 +188,12 @@ class RegisterOptions:
     limb_min_phase_deg
         From this phase angle on (attitude known), the centre is the information-weighted mean of the registration
         and of the lit limb's edge positions (:mod:`.limb_edges`: each edge's shift with its own gain, so the
-        surface's albedo does not move it); ``None``: never.  At 90 deg (``benchmarks/irregular_resample.py``,
-        24 renders, the truths corrected for the renderer's jitter pattern) median / p90 / max 0.085 / 0.244 /
-        0.264 -> 0.071 / 0.203 / 0.244 px; at 60 deg it helped five bodies of eight and moved the coarse-model
-        cratered body from 0.19 to 0.39 px, hence not below.
+        surface's albedo does not move it); ``None``: never.  At 90 deg, median / p90 / max px:
+        ``benchmarks/irregular_independent.py --views 1`` (8 frames, RENDER_VERSION 3) 0.136 / 0.171 / 0.203 ->
+        0.088 / 0.182 / 0.195; the same with RENDER_VERSION 4 (other scenes) 0.100 / 0.263 / 0.559 -> 0.095 /
+        0.169 / 0.260; ``benchmarks/irregular_resample.py`` (24 renders, truths corrected for the renderer's
+        jitter pattern) 0.085 / 0.244 / 0.264 -> 0.069 / 0.203 / 0.243.  At 60 deg, without the scatter limit, it
+        moved the coarse-model cratered body from 0.19 to 0.39 px: not used below 75 deg.
     limb_lit_frac, limb_half_px, limb_floor_px, limb_max_scatter_px
         The lit limb's points: model radiance inside at least ``limb_lit_frac`` of the body's; profiles of
         ``+-limb_half_px``; ``limb_floor_px`` (per axis) added to the edge estimate's covariance; not used when the
