@@ -46,6 +46,9 @@ direction, and registers it to the frame.  Here:
 5. **Checks** (:class:`~jaxlimb.errors.MatchError`, exit 3): the excess of the residual
    over the background noise relative to the body's contrast, the overlap (IoU) of
    the observed and predicted lit figures, and convergence.
+6. **The lit limb** (attitude known, from ``limb_min_phase_deg``): the centre is combined with a
+   second estimate from the edge positions of the lit limb alone (:mod:`.limb_edges`, each edge with
+   its own contrast: an albedo the model does not know moves the intensity fit, not the edges).
 
 Rendering is :func:`jaxlimb.render.mesh.rasterise` (painter's algorithm, facets) in a window
 camera around the body (:func:`.model_render.render_window`).
