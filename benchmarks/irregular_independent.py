@@ -39,7 +39,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 RESULTS = Path(__file__).resolve().parent / "results" / "irregular_independent.json"
-RENDER_VERSION = 3  # 2: own renders cast shadows; 3: own renders with exact facet coverage (render.mesh._exact_edges)
+RENDER_VERSION = 4  # 2: own renders cast shadows; 3: own renders with exact facet coverage (render.mesh._exact_edges); 4: independent renders jittered per pixel (mesh_rays._rays)
 LAWS = ("hapke", "minnaert", "lommel-seeliger-surge", "lunar-lambert")
 PSFS = ("gaussian", "airy", "defocus", "motion")
 
