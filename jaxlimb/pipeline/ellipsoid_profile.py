@@ -245,6 +245,16 @@ def widen_glow_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
     return RefineResult(res, rr.data, 0, rr.fixed)  # the model depends on sigma^2 only (|sigma| reported)
 
 
+ANISO_MIN_FRAC = 0.12
+"""The smallest anisotropy ``hypot(s2c, s2s) / sigma_e^2`` a profile refit is kept with (:func:`widen_aniso_ellipsoid`).
+Measured on ``benchmarks/families.py``'s Earth frames (attitude known): ``motion`` 0.18-0.53 (chi^2 of ``s2c, s2s``
+660-34 000); the isotropic PSFs ``own``, ``lambert``, ``airy``, ``defocus``, ``jpeg``, ``hapke`` at most 0.077 (chi^2
+up to 75: a PSF shape the Gaussian does not match, not a smear).  Kept unconditionally, the two free terms moved
+those frames by up to 0.015 px (``lambert`` median 0.009 -> 0.015 px)."""
+ANISO_MIN_CHI2 = 13.8
+"""And significant: ``s^T C_s^-1 s`` above the chi^2(2) 99.9 % point."""
+
+
 def aniso_plausible(q: Any) -> bool:
     """The anisotropic blur variance ``sigma^2 + 1/12 + s2c cos 2psi + s2s sin 2psi`` positive at every ``psi`` (the
     line smears of the independent renderer, 1.5-3.5 px on a 0.5-0.8 px Gaussian, stay within half of it)."""
@@ -252,10 +262,23 @@ def aniso_plausible(q: Any) -> bool:
     return bool(math.hypot(float(q.s2c), float(q.s2s)) < 0.9 * v and float(q.amp) > 0 and float(q.a) > 0)
 
 
+def aniso_significant(res: Any) -> bool:
+    """The refit's anisotropy at least :data:`ANISO_MIN_FRAC` of ``sigma_e^2`` and at chi^2 >= :data:`ANISO_MIN_CHI2`."""
+    q, free = res.params, list(res.free)
+    s = np.array([float(q.s2c), float(q.s2s)])
+    idx = [free.index("s2c"), free.index("s2s")]
+    try:
+        chi2 = float(s @ np.linalg.solve(np.asarray(res.covariance)[np.ix_(idx, idx)], s))
+    except np.linalg.LinAlgError:
+        return False
+    return bool(math.hypot(*s) >= ANISO_MIN_FRAC * (float(q.sigma) ** 2 + 1.0 / 12.0) and chi2 >= ANISO_MIN_CHI2)
+
+
 def widen_aniso_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
     """The ellipsoid's lunar-Lambert profile ``rr`` refitted with an anisotropic blur
     (:data:`~jaxlimb.models.LIMB_PROFILE_ANISO`: ``s2c, s2s`` of the variance across the limb, the shape held as in
-    ``rr``); a refit that does not converge or whose variance is not positive keeps ``rr``.  Not after a glow.
+    ``rr``); a refit that does not converge, whose variance is not positive or whose anisotropy is small
+    (:func:`aniso_significant`) keeps ``rr``.  Not after a glow.
 
     Why: a motion smear blurs the limb more where it runs across it than where it runs along it; one isotropic
     sigma is too wide on part of the lit arc and too narrow on the rest, and with the profile's interior gradient
@@ -273,10 +296,10 @@ def widen_aniso_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
     solver = NormalLM(rtol=0.0, atol=1e-7) if solver is None else solver
     coords, zz, w = _pad_bucket(rr.data)
     res = fit(LIMB_PROFILE_ANISO, coords, zz, q, solver, fixed=rr.fixed, weights=w, throw=False)
-    if not (bool(res.converged) and aniso_plausible(res.params)):
+    if not (bool(res.converged) and aniso_plausible(res.params) and aniso_significant(res)):
         return rr
     return RefineResult(res, rr.data, 0, rr.fixed)
 
 
-__all__ = ["aniso_plausible", "edge_with_model_error", "fit_profile_ellipsoid", "profile_wanted", "widen_aniso_ellipsoid",
+__all__ = ["ANISO_MIN_CHI2", "ANISO_MIN_FRAC", "aniso_plausible", "aniso_significant", "edge_with_model_error", "fit_profile_ellipsoid", "profile_wanted", "widen_aniso_ellipsoid",
            "widen_glow_ellipsoid"]
