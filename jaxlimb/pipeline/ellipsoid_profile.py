@@ -213,7 +213,7 @@ def fit_profile_ellipsoid(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge"
     extras["profile_fits"] = hist
     extras["L_estimated"] = frame.opt.lunar_lambert_L is None
     rr = widen_glow_ellipsoid(frame, RefineResult(res, fd, 0, fixed))
-    ra = widen_aniso_ellipsoid(frame, rr)
+    ra = rr if body.free else widen_aniso_ellipsoid(frame, rr)  # (a free ellipse's rho, theta are 2 psi terms too)
     return with_model_error(ra) if ra is rr else with_aniso_witness(with_model_error(ra), rr)
 
 
@@ -280,7 +280,9 @@ def widen_aniso_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
     """The ellipsoid's lunar-Lambert profile ``rr`` refitted with an anisotropic blur
     (:data:`~jaxlimb.models.LIMB_PROFILE_ANISO`: ``s2c, s2s`` of the variance across the limb, the shape held as in
     ``rr``); a refit that does not converge, whose variance is not positive or whose anisotropy is small
-    (:func:`aniso_significant`) keeps ``rr``.  Not after a glow.
+    (:func:`aniso_significant`) keeps ``rr``.  Not after a glow, and not with a free ellipse (its ``rho, theta`` move
+    the limb in a ``2 psi`` pattern too: with ``R_body_to_camera`` unknown the ``motion`` rows went 0.131 / 0.280 /
+    0.298 -> 0.141 / 0.290 / 0.296 px, range max 0.027 -> 0.045 %).
 
     Why: a motion smear blurs the limb more where it runs across it than where it runs along it; one isotropic
     sigma is too wide on part of the lit arc and too narrow on the rest, and with the profile's interior gradient
