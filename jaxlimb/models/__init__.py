@@ -29,6 +29,8 @@ from .lunar_lambert import (
     MinnaertProfileParams as MinnaertProfileParams,
     GlowProfileParams as GlowProfileParams,
     LIMB_PROFILE_GLOW as LIMB_PROFILE_GLOW,
+    LIMB_PROFILE_ANISO as LIMB_PROFILE_ANISO,
+    AnisoProfileParams as AnisoProfileParams,
     PROFILE_FIXED as PROFILE_FIXED,
     LimbProfileParams as LimbProfileParams,
     limb_profile_intensity as limb_profile_intensity,
@@ -54,4 +56,5 @@ from .sigmoid import (
 
 #: Every limb model, by name (the sigmoids, the ramp, the physical profiles).
 ALL_MODELS: dict[str, LimbModel] = {m.name: m for m in (LINEAR, CIRCLE, ELLIPSE, ELLIPSE_RAMP, LIMB_PROFILE,
-                                                        LIMB_PROFILE_MINNAERT, LIMB_PROFILE_GLOW, LIMB_DARKENED)}
+                                                        LIMB_PROFILE_MINNAERT, LIMB_PROFILE_GLOW, LIMB_DARKENED,
+                                                        LIMB_PROFILE_ANISO)}

@@ -62,8 +62,9 @@ import numpy as np
 from ._base import LimbModel
 from .ellipse_ramp import ELLIPSE_RAMP, EllipseRampParams
 from .limb_darkened import LIMB_DARKENED, LimbDarkenedParams, limb_darkened_intensity_direct
-from .lunar_lambert import (LIMB_PROFILE, LIMB_PROFILE_GLOW, LIMB_PROFILE_MINNAERT, GlowProfileParams,
-                            LimbProfileParams, MinnaertProfileParams, quadrature_nodes)
+from .lunar_lambert import (LIMB_PROFILE, LIMB_PROFILE_ANISO, LIMB_PROFILE_GLOW, LIMB_PROFILE_MINNAERT,
+                            AnisoProfileParams, GlowProfileParams, LimbProfileParams, MinnaertProfileParams,
+                            quadrature_nodes)
 from .sigmoid import CIRCLE, ELLIPSE, LINEAR, CircleParams, EllipseParams, LinearParams
 
 @dataclass(frozen=True)
@@ -85,6 +86,7 @@ SPECS: dict[str, _Spec] = {
     "lunar_limb": _Spec(tol=1e-6, fd_tol=1e-6, floor=1.0, context=lambda: quadrature_nodes(64)),
     "lunar_limb_minnaert": _Spec(tol=1e-6, fd_tol=1e-6, floor=1.0, context=lambda: quadrature_nodes(96)),
     "lunar_limb_glow": _Spec(tol=1e-6, fd_tol=1e-6, floor=1.0, context=lambda: quadrature_nodes(96)),
+    "lunar_limb_aniso": _Spec(tol=1e-6, fd_tol=1e-6, floor=1.0, context=lambda: quadrature_nodes(64)),
     # the tabulated intensity: its analytic columns vs autodiff of the same table agree to 1e-14 of the column
     # scale (1.1e-8 relative on its smallest entries); central differences of the direct quadrature vs the
     # table's Jacobian measure the table's own error, 0.96-2.3e-5 of the column (seeds 0 and 5, 100 points)
@@ -206,8 +208,17 @@ def _glow_profile_case(rng: np.random.Generator, n_pix: int):  # noqa: ANN202
                              math.log(rng.uniform(0.1, 5.0)), rng.uniform(-0.9, 0.9)), rc
 
 
+def _aniso_profile_case(rng: np.random.Generator, n_pix: int):  # noqa: ANN202
+    """The profile with an anisotropic blur: ``|s2c|, |s2s|`` up to 0.6 of ``sigma_e^2`` (a smear up to ~3 px)."""
+    p, rc = _profile_case(rng, n_pix)
+    v = float(p.sigma) ** 2 + 1.0 / 12.0
+    return AnisoProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()],
+                              *(v * rng.uniform(-0.6, 0.6, 2))), rc
+
+
 _PHYSICAL_CASES = {"lunar_limb": _profile_case, "lunar_limb_minnaert": _minnaert_profile_case,
-                   "lunar_limb_glow": _glow_profile_case, "limb_darkened": _limb_darkened_case}
+                   "lunar_limb_glow": _glow_profile_case, "limb_darkened": _limb_darkened_case,
+                   "lunar_limb_aniso": _aniso_profile_case}
 
 
 def _intensity_range(p: Any) -> float:
@@ -257,7 +268,7 @@ def run_gradcheck(n_points: int = 100, seed: int = 0) -> list[GradCheck]:
     """Every limb model; see :func:`check_model`."""
     out: list[GradCheck] = []
     models = (LINEAR, CIRCLE, ELLIPSE, ELLIPSE_RAMP, LIMB_PROFILE, LIMB_DARKENED, LIMB_PROFILE_MINNAERT,
-              LIMB_PROFILE_GLOW)
+              LIMB_PROFILE_GLOW, LIMB_PROFILE_ANISO)
     for i, model in enumerate(models):
         out.extend(check_model(model, n_points=n_points, seed=seed + i))
     return out

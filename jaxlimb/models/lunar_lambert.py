@@ -154,6 +154,17 @@ class GlowProfileParams(LimbProfileParams):
     glow_tilt: ArrayLike = 0.0
 
 
+class AnisoProfileParams(LimbProfileParams):
+    """:class:`LimbProfileParams` and an anisotropic blur (:data:`LIMB_PROFILE_ANISO`): ``s2c, s2s`` (px^2), the
+    cos 2psi and sin 2psi terms of the blur variance across the limb, ``sigma_e^2(psi) = sigma^2 + 1/12 + s2c cos 2psi
+    + s2s sin 2psi`` with ``psi`` the angle of the ray from the centre (the limb normal's, from ``+col`` toward
+    ``-row``).  A line smear of length ``l`` at angle ``phi`` adds ``l^2/12 cos^2(psi - phi)`` to a Gaussian's
+    variance across an edge: ``l^2/24 (1 + cos 2(psi - phi))``, the mean in ``sigma^2``, the rest in ``s2c, s2s``."""
+
+    s2c: ArrayLike
+    s2s: ArrayLike
+
+
 def _cos_sin_small(x, small):
     """``(cos x, sin x)``; by Taylor series (to 1e-16 for ``|x| <= 0.2``) when ``small`` (a
     scalar: the body's angular radius, which bounds ``|x|``, is below 0.2 rad), else
@@ -361,8 +372,9 @@ def _blur_nodes(d, R, se, lit=None):
     half = 0.5 * (v1 - v0)
     w = jnp.asarray(_GL_W) * (2.0 * half)[..., None]
     v = half[..., None] * (xg + 1.0) + v0[..., None]  # (n, nodes)
-    t = (d[..., None] - R[..., None] + v * v) / se  # (d - d') / se
-    g = jnp.exp(-0.5 * t * t) * (v * w / (se * math.sqrt(2 * math.pi)))  # Gaussian x 2v dv / 2 ... x weights
+    sn = jnp.asarray(se)[..., None]  # one sigma_e per pixel (AnisoProfileParams) or one for all
+    t = (d[..., None] - R[..., None] + v * v) / sn  # (d - d') / se
+    g = jnp.exp(-0.5 * t * t) * (v * w / (sn * math.sqrt(2 * math.pi)))  # Gaussian x 2v dv / 2 ... x weights
     return v, t, g
 
 
@@ -370,7 +382,7 @@ def _blur_moments(J, t, g, se, second: bool):
     """The blur of ``J`` on the nodes ``(t, g)`` of :func:`_blur_nodes`: ``F1 = int J g`` and ``dF1/dd``; with
     ``second`` also ``d^2F1/dd^2`` and ``-int J t (t^2 - 3) g / se^2`` (the ``se`` partial of ``dF1/dd``, up to the
     chain factor); ``None`` for those otherwise."""
-    m0, m1 = jnp.sum(J * g, axis=-1), -jnp.sum(J * t * g / se, axis=-1)
+    m0, m1 = jnp.sum(J * g, axis=-1), -jnp.sum(J * t * g / jnp.asarray(se)[..., None], axis=-1)
     if not second:
         return m0, m1, None, None
     return (m0, m1, jnp.sum(J * (t * t - 1.0) * g, axis=-1) / (se * se),
@@ -378,7 +390,7 @@ def _blur_moments(J, t, g, se, second: bool):
 
 
 def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brightened: bool = True,
-                       glowing: bool = False):
+                       glowing: bool = False, s2=None):
     """The blurred profile ``F`` (module docstring) and, if asked, its partials.
 
     ``F = F1 + sigma_e^2 / (2 d) dF1/dd``: the 1-D radial blur ``F1`` plus the first-order
@@ -389,18 +401,19 @@ def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brig
     in the Gaussian, so their own derivative terms are below 1e-8 of ``F``'s and are dropped.
     ``brightened``: as :func:`_radiance_parts`.  ``glowing`` (:class:`GlowProfileParams`): plus ``p.glow``
     times the glow on the disc side (:func:`_glow_inside`, in the integrand) and above the limb
-    (:func:`_glow_outside`, closed form); partials ``F_glow``, ``F_lh``.
+    (:func:`_glow_outside`, closed form); partials ``F_glow``, ``F_lh``.  ``s2``: the per-pixel anisotropic
+    variance of :class:`AnisoProfileParams` (:func:`_aniso_terms`), added to ``sigma_e^2``.
     """
     alpha0 = jnp.arctan(p.rho * p.a * p.inv_f)
-    se = jnp.sqrt(p.sigma * p.sigma + 1.0 / 12.0)
+    se = jnp.sqrt(p.sigma * p.sigma + 1.0 / 12.0 + (0.0 if s2 is None else s2))
     v, t, g = _blur_nodes(d, R, se, (p, cpsi, alpha0))
     I, I_R, I_cpsi, I_a0, I_ph, I_L, I_k = _radiance_parts(p, v, R[..., None], cpsi[..., None], alpha0, brightened)
-    tg = t * g / se  # -dg/dd
+    tg = t * g / jnp.asarray(se)[..., None]  # -dg/dd
     F1, F1_d, F1_dd, F1_dse = _blur_moments(I, t, g, se, derivatives)
     if glowing:  # the glow seen on the disc, on its own (uncut) nodes: independent of R, alpha0, phase, L
         gl = p.glow * (1.0 + p.glow_tilt * cpsi)  # the glow at this position angle (GlowProfileParams)
         vg, t_gl, g_gl = _blur_nodes(d, R, se)
-        tg_gl = t_gl * g_gl / se
+        tg_gl = t_gl * g_gl / jnp.asarray(se)[..., None]
         I_gl, I_lh = _glow_inside(p, vg)
         I_lh = gl[..., None] * I_lh
         G1, G1_d, G1_dd, G1_dse = _blur_moments(I_gl, t_gl, g_gl, se, derivatives)
@@ -451,6 +464,23 @@ def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brig
     return F, parts
 
 
+def _aniso_terms(dr, dc, d):
+    """``cos 2psi, sin 2psi`` of the ray ``(dr, dc)`` (length ``d``; ``psi`` from ``+col`` toward ``-row``) and their
+    partials in ``r0, c0`` (``dr = r - r0``): ``(C, S, C_r0, C_c0, S_r0, S_c0)``."""
+    d4 = d * d * d * d
+    dif = dc * dc - dr * dr
+    return (dif / (d * d), -2.0 * dr * dc / (d * d), 4.0 * dr * dc * dc / d4, -4.0 * dc * dr * dr / d4,
+            2.0 * dc * dif / d4, -2.0 * dr * dif / d4)
+
+
+def _aniso_var(p: LimbProfileParams, dr, dc, d):
+    """The anisotropic part of the blur variance of :class:`AnisoProfileParams` per pixel (``None`` otherwise)."""
+    if not isinstance(p, AnisoProfileParams):
+        return None
+    C, S = _aniso_terms(dr, dc, d)[:2]
+    return p.s2c * C + p.s2s * S
+
+
 def limb_profile_intensity(p: LimbProfileParams, rc):
     """Blurred limb radiance (module docstring) at pixels ``rc`` ``(n, 2)``.
 
@@ -458,9 +488,9 @@ def limb_profile_intensity(p: LimbProfileParams, rc):
     ``R = rho a d / beta`` (``beta = sqrt(rho^2 x^2 + y^2)`` in the ellipse frame of
     :func:`jaxlimb.models.ellipse_coords`); the circle formulas apply with that ``R``.
     """
-    _, _, _, _, d, _, R, cpsi = limb_geometry(p, rc)
+    dr, dc, _, _, d, _, R, cpsi = limb_geometry(p, rc)
     F, _ = _profile_integrals(p, d, R, cpsi, False, isinstance(p, MinnaertProfileParams),
-                              isinstance(p, GlowProfileParams))
+                              isinstance(p, GlowProfileParams), _aniso_var(p, dr, dc, d))
     return p.ymin + p.amp * F
 
 
@@ -484,7 +514,7 @@ def _profile_value_and_columns(p: LimbProfileParams, rc):
     dr, dc, x, y, d, beta, R, cpsi = limb_geometry(p, rc)
     brightened = isinstance(p, MinnaertProfileParams)
     glowing = isinstance(p, GlowProfileParams)
-    F, P = _profile_integrals(p, d, R, cpsi, True, brightened, glowing)
+    F, P = _profile_integrals(p, d, R, cpsi, True, brightened, glowing, _aniso_var(p, dr, dc, d))
     A = p.amp
     ct, st = jnp.cos(p.theta), jnp.sin(p.theta)
     # d/dr0, d/dc0 of d, beta, R, cpsi
@@ -522,6 +552,11 @@ def _profile_value_and_columns(p: LimbProfileParams, rc):
     }
     if glowing:
         cols.update(glow=A * P["F_glow"], log_h=A * P["F_lh"], glow_tilt=A * P["F_tilt"])
+    if isinstance(p, AnisoProfileParams):  # d sigma_e / d s2 = (cos 2psi or sin 2psi) / (2 sigma_e); psi moves with r0, c0
+        C, S, C_r0, C_c0, S_r0, S_c0 = _aniso_terms(dr, dc, d)
+        ws = A * P["F_se"] / (2.0 * P["se"])
+        cols.update(r0=cols["r0"] + ws * (p.s2c * C_r0 + p.s2s * S_r0), c0=cols["c0"] + ws * (p.s2c * C_c0 + p.s2s * S_c0),
+                    s2c=ws * C, s2s=ws * S)
     return p.ymin + A * F, tuple(cols[n] for n in type(p).field_names())
 
 
@@ -542,6 +577,9 @@ LIMB_PROFILE_MINNAERT = LimbModel("lunar_limb_minnaert", MinnaertProfileParams, 
 LIMB_PROFILE_GLOW = LimbModel("lunar_limb_glow", GlowProfileParams, limb_profile_intensity, _profile_jac,
                               _profile_cols, _profile_value_and_columns)
 """The profile widened by an exponential glow above the limb (:class:`GlowProfileParams`)."""
+LIMB_PROFILE_ANISO = LimbModel("lunar_limb_aniso", AnisoProfileParams, limb_profile_intensity, _profile_jac,
+                               _profile_cols, _profile_value_and_columns)
+"""The profile with an anisotropic blur (:class:`AnisoProfileParams`: a motion smear)."""
 
 
 def profile_model(p: LimbProfileParams) -> LimbModel:
@@ -549,6 +587,8 @@ def profile_model(p: LimbProfileParams) -> LimbModel:
     :data:`LIMB_PROFILE`."""
     if isinstance(p, MinnaertProfileParams):
         return LIMB_PROFILE_MINNAERT
+    if isinstance(p, AnisoProfileParams):
+        return LIMB_PROFILE_ANISO
     return LIMB_PROFILE_GLOW if isinstance(p, GlowProfileParams) else LIMB_PROFILE
 
 
@@ -592,6 +632,8 @@ def lunar_lambert_weight(phase_rad: float, coeffs=(-0.019, 2.42e-4, -1.46e-6)) -
 
 __all__ = [
     "LIMB_PROFILE",
+    "LIMB_PROFILE_ANISO",
+    "AnisoProfileParams",
     "LIMB_PROFILE_GLOW",
     "LIMB_PROFILE_MINNAERT",
     "GlowProfileParams",

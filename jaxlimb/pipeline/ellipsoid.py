@@ -608,7 +608,8 @@ def ellipsoid_center(body: Ellipsoid, frame: Frame, final: RefineResult) -> Body
         model_cov, goff = unsigned_offset_cov(cam, fitted, rng, body.equatorial_km, body.polar_km, body.atmosphere_km,
                                               len(outputs))
     (c, (a, b), th) = fitted
-    model = {"LimbProfileParams": "lunar_limb", "GlowProfileParams": "lunar_limb_glow", "EllipseRampParams": "ellipse_ramp"}.get(type(P).__name__, "ellipse")
+    model = {"LimbProfileParams": "lunar_limb", "GlowProfileParams": "lunar_limb_glow", "AnisoProfileParams": "lunar_limb_aniso",
+             "EllipseRampParams": "ellipse_ramp"}.get(type(P).__name__, "ellipse")
     extras = {"model": model, "ellipse_center_rc": list(c), "rho": b / a, "theta_rad": th, "gamma_off_rad": float(info["gamma_off_rad"]),
               "gamma_off_unsigned_model_rad": goff, "a_prime": info["a_prime"], "b_prime": info["b_prime"]}
     return BodyCenter(tuple(float(v) for v in cam.project(-p)), None,

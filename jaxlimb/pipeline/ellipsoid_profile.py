@@ -212,7 +212,9 @@ def fit_profile_ellipsoid(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge"
         return edge_with_model_error(edge, res.params)
     extras["profile_fits"] = hist
     extras["L_estimated"] = frame.opt.lunar_lambert_L is None
-    return with_model_error(widen_glow_ellipsoid(frame, RefineResult(res, fd, 0, fixed)))
+    rr = widen_glow_ellipsoid(frame, RefineResult(res, fd, 0, fixed))
+    ra = rr if body.free else widen_aniso_ellipsoid(frame, rr)  # (a free ellipse's rho, theta are 2 psi terms too)
+    return with_model_error(ra) if ra is rr else with_aniso_witness(with_model_error(ra), rr)
 
 
 def widen_glow_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
@@ -246,4 +248,88 @@ def widen_glow_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
     return RefineResult(res, rr.data, 0, fixed)  # the model depends on sigma^2 only (|sigma| reported)
 
 
-__all__ = ["edge_with_model_error", "fit_profile_ellipsoid", "profile_wanted", "widen_glow_ellipsoid"]
+ANISO_MIN_FRAC = 0.12
+"""The smallest anisotropy ``hypot(s2c, s2s) / sigma_e^2`` a profile refit is kept with (:func:`widen_aniso_ellipsoid`).
+Measured on ``benchmarks/families.py``'s Earth frames (attitude known): ``motion`` 0.18-0.53 (chi^2 of ``s2c, s2s``
+660-34 000); the isotropic PSFs ``own``, ``lambert``, ``airy``, ``defocus``, ``jpeg``, ``hapke`` at most 0.077 (chi^2
+up to 75: a PSF shape the Gaussian does not match, not a smear).  Kept unconditionally, the two free terms moved
+those frames by up to 0.015 px (``lambert`` median 0.009 -> 0.015 px)."""
+ANISO_MIN_CHI2 = 13.8
+"""And significant: ``s^T C_s^-1 s`` above the chi^2(2) 99.9 % point."""
+
+
+def aniso_plausible(q: Any) -> bool:
+    """The anisotropic blur variance ``sigma^2 + 1/12 + s2c cos 2psi + s2s sin 2psi`` positive at every ``psi`` (the
+    line smears of the independent renderer, 1.5-3.5 px on a 0.5-0.8 px Gaussian, stay within half of it)."""
+    v = float(q.sigma) ** 2 + 1.0 / 12.0
+    return bool(math.hypot(float(q.s2c), float(q.s2s)) < 0.9 * v and float(q.amp) > 0 and float(q.a) > 0)
+
+
+def aniso_significant(res: Any) -> bool:
+    """The refit's anisotropy at least :data:`ANISO_MIN_FRAC` of ``sigma_e^2`` and at chi^2 >= :data:`ANISO_MIN_CHI2`."""
+    q, free = res.params, list(res.free)
+    s = np.array([float(q.s2c), float(q.s2s)])
+    idx = [free.index("s2c"), free.index("s2s")]
+    try:
+        chi2 = float(s @ np.linalg.solve(np.asarray(res.covariance)[np.ix_(idx, idx)], s))
+    except np.linalg.LinAlgError:
+        return False
+    return bool(math.hypot(*s) >= ANISO_MIN_FRAC * (float(q.sigma) ** 2 + 1.0 / 12.0) and chi2 >= ANISO_MIN_CHI2)
+
+
+def widen_aniso_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
+    """The ellipsoid's lunar-Lambert profile ``rr`` refitted with an anisotropic blur
+    (:data:`~jaxlimb.models.LIMB_PROFILE_ANISO`: ``s2c, s2s`` of the variance across the limb, the shape held as in
+    ``rr``); a refit that does not converge, whose variance is not positive or whose anisotropy is small
+    (:func:`aniso_significant`) keeps ``rr``.  Not after a glow, and not with a free ellipse (its ``rho, theta`` move
+    the limb in a ``2 psi`` pattern too: with ``R_body_to_camera`` unknown the ``motion`` rows went 0.131 / 0.280 /
+    0.298 -> 0.141 / 0.290 / 0.296 px, range max 0.027 -> 0.045 %).
+
+    Why: a motion smear blurs the limb more where it runs across it than where it runs along it; one isotropic
+    sigma is too wide on part of the lit arc and too narrow on the rest, and with the profile's interior gradient
+    that moves the fitted limb in and out along the arc (a ``cos 2psi`` pattern that moves the centre).
+    ``benchmarks/families.py`` Earth ``motion`` (6 frames, attitude known): 0.037 / 0.104 / 0.060 / 0.009 / 0.037 /
+    0.052 px; the same scenes with the smear replaced by an isotropic Gaussian of the same variance
+    0.010 / 0.011 / 0.005 / 0.007 / 0.006 / 0.006 px."""
+    from ..models.lunar_lambert import LIMB_PROFILE_ANISO, AnisoProfileParams
+
+    p = rr.fit.params
+    if type(p) is not LimbProfileParams:
+        return rr
+    q = AnisoProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()], 0.0, 0.0)
+    solver = None if frame.opt.solver == "lm" else solver_from_name(frame.opt.solver)
+    solver = NormalLM(rtol=0.0, atol=1e-7) if solver is None else solver
+    coords, zz, w = _pad_bucket(rr.data)
+    res = fit(LIMB_PROFILE_ANISO, coords, zz, q, solver, fixed=rr.fixed, weights=w, throw=False)
+    if not (bool(res.converged) and aniso_plausible(res.params) and aniso_significant(res)):
+        return rr
+    return RefineResult(res, rr.data, 0, rr.fixed)
+
+
+ANISO_WITNESS = 0.5
+"""The fraction of the anisotropic refit's move of ``(r0, c0, a)`` kept as model error (:func:`with_aniso_witness`)."""
+
+
+def with_aniso_witness(out: RefineResult, iso: RefineResult) -> RefineResult:
+    """``(w |d|)^2`` added to the variances of ``r0`` and ``c0`` (and ``(w d_a)^2`` to that of ``a``), ``d`` the
+    anisotropic refit's move from the isotropic profile ``iso`` and ``w`` = :data:`ANISO_WITNESS`: a line smear is not
+    a Gaussian of another variance (a 1.5-3.5 px box on a 0.5-0.8 px Gaussian), so the correction is itself uncertain,
+    and not only along its own direction.  ``benchmarks/families.py`` Earth ``motion`` frames 0-11 (seed 2026; 6-11 not
+    tuned on): the refit moved the centre 0.015-0.15 px and left 0.004-0.031 px (residual / move 0.04-0.9); frame 10
+    (moved 0.153 px along the row, left 0.021 px along the column, where its covariance is 0.003 px thin) had NEES 42
+    with the term along ``d`` only, 48 without it."""
+    import equinox as eqx
+
+    free = list(out.fit.free)
+    if not all(n in free for n in ("r0", "c0", "a")):
+        return out
+    d = np.array([float(getattr(out.fit.params, n)) - float(getattr(iso.fit.params, n)) for n in ("r0", "c0", "a")])
+    C = np.array(out.fit.covariance)
+    for i, v in zip((free.index("r0"), free.index("c0"), free.index("a")),
+                    (float(np.hypot(d[0], d[1])),) * 2 + (abs(d[2]),)):
+        C[i, i] += (ANISO_WITNESS * v) ** 2
+    return replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
+
+
+__all__ = ["ANISO_MIN_CHI2", "ANISO_WITNESS", "with_aniso_witness", "ANISO_MIN_FRAC", "aniso_plausible", "aniso_significant", "edge_with_model_error", "fit_profile_ellipsoid", "profile_wanted", "widen_aniso_ellipsoid",
+           "widen_glow_ellipsoid"]

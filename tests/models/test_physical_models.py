@@ -11,6 +11,7 @@ from jaxlimb.models import (
     ELLIPSE_RAMP,
     LIMB_DARKENED,
     LIMB_PROFILE,
+    LIMB_PROFILE_ANISO,
     LIMB_PROFILE_GLOW,
     LIMB_PROFILE_MINNAERT,
     EllipseRampParams,
@@ -25,7 +26,7 @@ jax.config.update("jax_enable_x64", True)
 
 
 @pytest.mark.parametrize("model, n_points", [(ELLIPSE_RAMP, 30), (LIMB_PROFILE, 12), (LIMB_PROFILE_MINNAERT, 12),
-                                             (LIMB_PROFILE_GLOW, 12), (LIMB_DARKENED, 8)],
+                                             (LIMB_PROFILE_GLOW, 12), (LIMB_DARKENED, 8), (LIMB_PROFILE_ANISO, 12)],
                          ids=lambda m: getattr(m, "name", ""))
 def test_analytic_jacobian_matches_autodiff_and_fd(model, n_points):
     checks = check_model(model, n_points=n_points, seed=11)
@@ -37,7 +38,7 @@ def test_analytic_jacobian_matches_autodiff_and_fd(model, n_points):
 
 def test_every_model_is_in_the_registry_with_its_jacobian():
     assert set(ALL_MODELS) == {"linear", "circle", "ellipse", "ellipse_ramp", "lunar_limb", "lunar_limb_minnaert",
-                               "lunar_limb_glow", "limb_darkened"}
+                               "lunar_limb_glow", "limb_darkened", "lunar_limb_aniso"}
     for m in ALL_MODELS.values():
         assert m.value_and_columns is not None, m.name  # the fits' one-pass path, not autodiff
 
@@ -107,3 +108,24 @@ def test_profile_across_the_terminator_is_integrated_on_the_lit_segment_only():
         ad = np.asarray(jax.jacfwd(lambda t: LIMB_PROFILE.intensity(type(p).from_vector(t), x))(v))
     scale = np.max(np.abs(ad), axis=0)
     assert np.max(np.abs(an - ad) / np.where(scale > 0, scale, 1.0)) < 1e-5  # was 0.12 on these 3 pixels
+
+
+def test_anisotropic_blur_is_the_isotropic_profile_at_zero_and_widens_across_the_smear():
+    """``LIMB_PROFILE_ANISO`` at ``s2c = s2s = 0`` is ``LIMB_PROFILE``; with ``s2c > 0`` (more blur where the limb normal
+    runs along ``+col``) the edge there is wider than where the normal runs along ``row``."""
+    from jaxlimb.models import AnisoProfileParams, LimbProfileParams
+
+    p = LimbProfileParams(r0=0.0, c0=0.0, a=200.0, theta=0.0, rho=1.0, sigma=0.8, amp=100.0, ymin=0.0, sun_r=0.0,
+                          sun_c=1.0, phase=0.3, inv_f=1e-4, L=0.5)
+    d = np.linspace(195.0, 205.0, 41)
+    along_c = jnp.asarray(np.column_stack([np.zeros_like(d), d]))
+    along_r = jnp.asarray(np.column_stack([-d, np.zeros_like(d)]))
+    q0 = AnisoProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()], 0.0, 0.0)
+    np.testing.assert_allclose(LIMB_PROFILE_ANISO.intensity(q0, along_c), LIMB_PROFILE.intensity(p, along_c), rtol=1e-12)
+    q = q0.replace(s2c=0.4)
+
+    def width(rc):
+        f = np.asarray(LIMB_PROFILE_ANISO.intensity(q, rc)) / np.asarray(LIMB_PROFILE_ANISO.intensity(q, rc)).max()
+        return np.interp(0.2, f[::-1], d[::-1]) - np.interp(0.8, f[::-1], d[::-1])
+
+    assert width(along_c) > 1.15 * width(along_r)
