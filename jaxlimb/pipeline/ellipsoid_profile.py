@@ -217,6 +217,15 @@ def fit_profile_ellipsoid(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge"
     return with_model_error(ra) if ra is rr else with_aniso_witness(with_model_error(ra), rr)
 
 
+def _widened_fit(frame: Frame, rr: RefineResult, model: Any, start: Any, fixed: tuple[str, ...]) -> Any:
+    """``model`` fitted from ``start`` on the pixels of the profile fit ``rr`` (padded bucket, its weights), with the
+    chosen solver or ``NormalLM(atol=1e-7)``; not raising (the caller checks convergence)."""
+    solver = None if frame.opt.solver == "lm" else solver_from_name(frame.opt.solver)
+    solver = NormalLM(rtol=0.0, atol=1e-7) if solver is None else solver
+    coords, zz, w = _pad_bucket(rr.data)
+    return fit(model, coords, zz, start, solver, fixed=fixed, weights=w, throw=False)
+
+
 def widen_glow_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
     """The ellipsoid's profile ``rr`` refitted with a glow above the limb (:data:`~jaxlimb.models.LIMB_PROFILE_GLOW`,
     the shape ``theta, rho`` held as in ``rr``) when the score test of the sphere's
@@ -236,11 +245,7 @@ def widen_glow_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
     q = glow_start(rr)
     if q is None:
         return rr
-    solver = None if frame.opt.solver == "lm" else solver_from_name(frame.opt.solver)
-    solver = NormalLM(rtol=0.0, atol=1e-7) if solver is None else solver
-    coords, zz, w = _pad_bucket(rr.data)
-    (res, _), fixed = fit_glow_tilt(
-        lambda fx: (fit(LIMB_PROFILE_GLOW, coords, zz, q, solver, fixed=fx, weights=w, throw=False), None), rr.fixed)
+    (res, _), fixed = fit_glow_tilt(lambda fx: (_widened_fit(frame, rr, LIMB_PROFILE_GLOW, q, fx), None), rr.fixed)
     if not bool(res.converged):
         return rr
     if not (glow_plausible(res.params) and float(res.params.amp) > 0 and float(res.params.a) > 0):
@@ -297,10 +302,7 @@ def widen_aniso_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
     if type(p) is not LimbProfileParams:
         return rr
     q = AnisoProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()], 0.0, 0.0)
-    solver = None if frame.opt.solver == "lm" else solver_from_name(frame.opt.solver)
-    solver = NormalLM(rtol=0.0, atol=1e-7) if solver is None else solver
-    coords, zz, w = _pad_bucket(rr.data)
-    res = fit(LIMB_PROFILE_ANISO, coords, zz, q, solver, fixed=rr.fixed, weights=w, throw=False)
+    res = _widened_fit(frame, rr, LIMB_PROFILE_ANISO, q, rr.fixed)
     if not (bool(res.converged) and aniso_plausible(res.params) and aniso_significant(res)):
         return rr
     return RefineResult(res, rr.data, 0, rr.fixed)

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..analysis.crlb import numerical_jacobian
 from ..analysis.model_error import cluster_robust_bias_reduced, cluster_robust_covariance
 from ..errors import TooManyOutliersError
 from .earth import _band_signed
@@ -255,7 +256,7 @@ def _cluster_cov(tr: TracedLimb, res, x0: np.ndarray, bin_deg: float, bias_reduc
     ``bin_deg`` of ray angle); central-difference Jacobian."""
     t = tr.angles[tr.ok]
     r = res(x0)
-    J = np.column_stack([(res(x0 + h) - res(x0 - h)) / 2e-3 for h in 1e-3 * np.eye(x0.size)])
+    J = numerical_jacobian(res, x0, 1e-3)
     groups = np.floor((t - t.min()) / math.radians(bin_deg)).astype(int)
     return (cluster_robust_bias_reduced if bias_reduced else cluster_robust_covariance)(J, r, groups)
 

@@ -197,19 +197,8 @@ def earth_case(family: str, rng: np.random.Generator, far: bool | None = None) -
     R = earth_attitude(u, image_direction(pin, u, float(rng.uniform(0, 360))), lat, float(rng.uniform(-180, 180)))
     phase, sun_angle = float(rng.uniform(20.0, 70.0)), float(rng.uniform(0, 360))
     s = sun_for_phase(u, image_direction(pin, u, sun_angle), phase)
-    body = Body(WGS84_KM, rng_km * u, R, s)
-    albedo = EarthMap(seed=int(rng.integers(2**31))) if family in ("clouds", "combined") else None
-    glow = (Glow(float(rng.uniform(6.0, 25.0)), float(rng.uniform(0.03, 0.4)))
-            if family in ("glow", "combined") else None)
-    surf = Surface(_photometry(rng, family, "earth"), albedo if albedo is not None else Surface().albedo, glow)
-    psf = _psf(rng, family)
-    spec = _sensor(rng, family)
-    meta = {"family": family, "body": "earth", "range_km": rng_km, "focal_mm": focal, "latitude_deg": lat,
-            "phase_deg": phase, "psf": psf.kind.value, "bits": spec.bits, "jpeg": spec.jpeg_quality,
-            "law": surf.photometry.law.value, "glow": None if glow is None else [glow.scale_height_km, glow.brightness]}
-    hints = {"body": "earth", "sun_dir_camera": [float(v) for v in s], "R_body_to_camera": R.tolist(),
-             "range_prior_km": rng_km * (1.0 + 0.05 * float(rng.standard_normal())), "atmosphere_km": 0.0}
-    return _finish(body, surf, pin, psf, spec, rng, cam, hints, meta)
+    return _earth_frame(family, rng, cam, pin, (u, R, s, rng_km), {"range_km": rng_km, "focal_mm": focal},
+                        lat, phase)
 
 
 #: Families of :func:`earth_full_disc_case` (the deep-space view: no crop, no stars at these exposures).
@@ -235,14 +224,25 @@ def earth_full_disc_case(family: str, rng: np.random.Generator) -> Case:
     R = earth_attitude(u, image_direction(pin, u, float(rng.uniform(0, 360))), lat, float(rng.uniform(-180, 180)))
     phase = float(rng.uniform(4.0, 12.0))
     s = sun_for_phase(u, image_direction(pin, u, float(rng.uniform(0, 360))), phase)
+    return _earth_frame(family, rng, cam, pin, (u, R, s, rng_km),
+                        {"geometry": "full-disc", "range_km": rng_km, "focal_px": f_px}, lat, phase)
+
+
+def _earth_frame(family: str, rng: np.random.Generator, cam, pin, pose, geometry: dict, lat: float, phase: float) -> Case:  # type: ignore[no-untyped-def]
+    """The Earth seen along ``u`` at ``rng_km`` (``pose = (u, R, s, rng_km)``: line of sight, attitude, Sun) with the
+    albedo, glow, photometry, PSF and sensor of ``family`` (drawn from ``rng`` in that order), its hints and meta
+    (``geometry``: the meta entries of the view)."""
+    u, R, s, rng_km = pose
     body = Body(WGS84_KM, rng_km * u, R, s)
     albedo = EarthMap(seed=int(rng.integers(2**31))) if family in ("clouds", "combined") else None
-    glow = (Glow(float(rng.uniform(6.0, 25.0)), float(rng.uniform(0.03, 0.4))) if family in ("glow", "combined") else None)
+    glow = (Glow(float(rng.uniform(6.0, 25.0)), float(rng.uniform(0.03, 0.4)))
+            if family in ("glow", "combined") else None)
     surf = Surface(_photometry(rng, family, "earth"), albedo if albedo is not None else Surface().albedo, glow)
-    psf, spec = _psf(rng, family), _sensor(rng, family)
-    meta = {"family": family, "body": "earth", "geometry": "full-disc", "range_km": rng_km, "focal_px": f_px,
-            "latitude_deg": lat, "phase_deg": phase, "psf": psf.kind.value, "bits": spec.bits, "jpeg": spec.jpeg_quality,
-            "law": surf.photometry.law.value, "glow": None if glow is None else [glow.scale_height_km, glow.brightness]}
+    psf = _psf(rng, family)
+    spec = _sensor(rng, family)
+    meta = {"family": family, "body": "earth", **geometry, "latitude_deg": lat, "phase_deg": phase,
+            "psf": psf.kind.value, "bits": spec.bits, "jpeg": spec.jpeg_quality, "law": surf.photometry.law.value,
+            "glow": None if glow is None else [glow.scale_height_km, glow.brightness]}
     hints = {"body": "earth", "sun_dir_camera": [float(v) for v in s], "R_body_to_camera": R.tolist(),
              "range_prior_km": rng_km * (1.0 + 0.05 * float(rng.standard_normal())), "atmosphere_km": 0.0}
     return _finish(body, surf, pin, psf, spec, rng, cam, hints, meta)
