@@ -145,10 +145,13 @@ def _with_trace_error(out: RefineResult, edge: "EllipsoidEdge", replace_block: b
     covariance of ``(r0, c0, a)``; ``replace_block``: the geometry is the rays' own fit
     (:func:`~jaxlimb.pipeline.ellipsoid._ray_geometry`), so its ``(r0, c0, a)`` covariance *is* the rays'
     cluster-robust one (residual noise and albedo bias of whole stretches of rays alike), uncorrelated with
-    the band fit's other parameters."""
+    the band fit's other parameters.  Either way the centre's variance is then floored, in every direction, at the
+    shift the bias field hides in the fit (:func:`~jaxlimb.pipeline.limb_trace.coherent_shift_var`): a floor, not a
+    sum, because the sandwich and the witnesses already hold the visible part of the same field (added, it turned
+    ``benchmarks/families.py``'s Earth ``combined`` 2, 0.086 px off, into ``center_too_uncertain``)."""
     import equinox as eqx
 
-    from .limb_trace import trace_model_cov
+    from .limb_trace import coherent_shift_var, trace_model_cov
 
     free = list(out.fit.free)
     names = [n for n in ("r0", "c0", "a") if n in free]
@@ -161,6 +164,8 @@ def _with_trace_error(out: RefineResult, edge: "EllipsoidEdge", replace_block: b
         C[np.ix_(idx, idx)] = trace_model_cov(edge.pixels.trace, edge.fitted)
     else:
         C[np.ix_(idx, idx)] += trace_model_cov(edge.pixels.trace, edge.fitted)
+    w, V = np.linalg.eigh(C[np.ix_(idx[:2], idx[:2])])  # floor every direction of (r0, c0) at the hidden shift's variance
+    C[np.ix_(idx[:2], idx[:2])] += (V * np.maximum(coherent_shift_var(edge.pixels.trace, edge.fitted) - w, 0.0)) @ V.T
     return replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
 
 

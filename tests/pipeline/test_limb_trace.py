@@ -105,3 +105,32 @@ def test_glow_lift_fitted_on_a_patchy_limb():
         assert np.hypot(e[0][0] - truth[0][0], e[0][1] - truth[0][1]) < 0.2 and abs(e[1][0] - 150.0) < 0.15
         img0, _ = _glow_disc(0.0, seed)
         assert not _fit_rays(trace_limb(img0, truth, (1.0, 0.0), np.radians(60.0), 12.0), truth)[0].glow_term
+
+
+def _traced(bias, noise: float, seed: int = 0):
+    """A :class:`TracedLimb` on a 600 px circle's 130-deg arc, one ray per 0.1 deg: each ray's point moved
+    outward by ``bias(psi)`` plus white noise of ``noise`` px."""
+    from jaxlimb.pipeline.limb_trace import TracedLimb
+
+    rng = np.random.default_rng(seed)
+    c, R = np.array([700.0, 1100.0]), 600.0
+    psi = np.radians(np.arange(60.0, 190.0, 0.1))
+    rad = R + bias(psi) + rng.normal(0.0, noise, psi.size)
+    pts = c + rad[:, None] * np.column_stack([np.sin(psi), np.cos(psi)])
+    tr = TracedLimb(tuple(c), psi, pts, np.full(psi.size, 100.0), 0.0, 1.0)
+    return tr, ((c[0], c[1]), (R, R), 0.0)
+
+
+def test_coherent_shift_var_sees_a_coherent_bias_field_not_white_noise():
+    """``coherent_shift_var``: white per-ray noise (0.3 px) gives a hidden-shift variance near 0, and so does a field the
+    fit absorbs (a radius and a centre shift: ``1, cos psi, sin psi``); a bias field coherent over 40 deg of arc
+    (+-0.3 px, the albedo stretches of a cloudy limb) gives about its own mean square."""
+    from jaxlimb.pipeline.limb_trace import coherent_shift_var
+
+    tr, ell = _traced(lambda p: 0.0 * p, 0.3)
+    assert coherent_shift_var(tr, ell) < 0.01**2 * 4
+    tr, ell = _traced(lambda p: 0.3 + 0.5 * np.cos(p) + 0.2 * np.sin(p), 0.3)
+    assert coherent_shift_var(tr, ell) < 0.01**2 * 4
+    tr, ell = _traced(lambda p: 0.3 * np.sign(np.sin(p * 4.5)), 0.3)
+    v = coherent_shift_var(tr, ell)
+    assert 0.2**2 < v < 0.35**2
