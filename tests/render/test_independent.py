@@ -140,3 +140,38 @@ def test_families_render_with_consistent_truth():
     e = earth_case("clouds", np.random.default_rng(4), far=True)
     assert e.truth.range_km == pytest.approx(e.meta["range_km"])
     assert e.hints["R_body_to_camera"] is not None and e.image.dtype in (np.uint8, np.uint16)
+
+
+def test_earth_ablations_keep_every_draw_and_replace_one_component():
+    """``earth_case(..., ablate=...)`` (benchmarks/earth_ablation.py): the same scene with one component replaced.
+    Without ablations the frame is the benchmark's; with them the truth, hints and the other draws stay, and only
+    the named component changes (the glow, the JPEG, the PSF, the cloud map)."""
+    from dataclasses import replace as _replace
+
+    from jaxlimb.render.independent import ABLATIONS, EARTH_FAMILIES
+    from jaxlimb.render.independent.families import _ablated_psf
+
+    def draw(ablate=()):
+        rng = np.random.default_rng([2026, 1, EARTH_FAMILIES.index("combined"), 1])  # families.py combined 1: far
+        return earth_case("combined", rng, far=True, ablate=ablate)
+
+    base = draw()
+    assert base.meta["glow"] is not None and base.meta["jpeg"] is not None and base.meta["psf"] == "airy"
+    assert "ablated" not in base.meta
+    again = draw(())
+    assert np.array_equal(again.image, base.image)
+    for ablate, key, value in ((("no_glow",), "glow", None), (("no_jpeg",), "jpeg", None), (("psf_core",), "psf", "gaussian")):
+        c = draw(ablate)
+        assert c.truth == base.truth and c.hints == base.hints
+        assert c.meta[key] == value and c.meta["ablated"] == list(ablate)
+        assert {k: v for k, v in c.meta.items() if k not in (key, "ablated")} == {k: v for k, v in base.meta.items() if k != key}
+        assert not np.array_equal(c.image, base.image)
+    clouds = draw(("reseed_clouds",))
+    assert clouds.meta["glow"] == base.meta["glow"] and not np.array_equal(clouds.image, base.image)
+    # the round PSF has the smear's per-axis variance, the core its Gaussian
+    smear = Psf(kind=PsfKind.MOTION, sigma=0.6, length=3.0, angle_deg=30.0)
+    assert _ablated_psf(smear, ("psf_round",)).sigma == pytest.approx(math.sqrt(0.36 + 9.0 / 24.0))
+    assert _ablated_psf(smear, ("psf_core",)) == _replace(Psf(kind=PsfKind.GAUSSIAN, sigma=0.6))
+    assert set(ABLATIONS) == {"psf_core", "psf_round", "no_glow", "no_jpeg", "reseed_clouds"}
+    with pytest.raises(ValueError, match="unknown ablations"):
+        draw(("no_clouds",))

@@ -10,20 +10,20 @@ pixels, and the exact truth: the image of the body centre, the limb ellipse, the
 Public API::
 
     moon_case(family, rng) -> Case          # families: MOON_FAMILIES
-    earth_case(family, rng, far=None) -> Case   # EARTH_FAMILIES
+    earth_case(family, rng, far=None, ablate=()) -> Case   # EARTH_FAMILIES; ablate: ABLATIONS
     earth_full_disc_case(family, rng) -> Case   # EARTH_FULL_DISC_FAMILIES (deep space, EPIC-like)
     Body, Pinhole, limb_truth, cast         # geometry
     Surface, render_radiance                # blurred, pixel-integrated radiance
     Photometry, Reflectance, MariaMap, EarthMap, Psf, PsfKind, Glow, SensorSpec, digitise
 """
 
-from .families import EARTH_FAMILIES, EARTH_FULL_DISC_FAMILIES, MOON_FAMILIES, Case, earth_case, earth_full_disc_case, moon_case
+from .families import ABLATIONS, EARTH_FAMILIES, EARTH_FULL_DISC_FAMILIES, MOON_FAMILIES, Case, earth_case, earth_full_disc_case, moon_case
 from .geometry import Body, LimbTruth, Pinhole, cast, limb_truth
 from .optics import Glow, Psf, PsfKind
 from .raster import Surface, render_radiance
 from .sensor import SensorSpec, digitise
 from .surface import EarthMap, MariaMap, Photometry, Reflectance
 
-__all__ = ["EARTH_FAMILIES", "EARTH_FULL_DISC_FAMILIES", "MOON_FAMILIES", "Body", "Case", "EarthMap", "Glow", "LimbTruth", "MariaMap",
+__all__ = ["ABLATIONS", "EARTH_FAMILIES", "EARTH_FULL_DISC_FAMILIES", "MOON_FAMILIES", "Body", "Case", "EarthMap", "Glow", "LimbTruth", "MariaMap",
            "Photometry", "Pinhole", "Psf", "PsfKind", "Reflectance", "SensorSpec", "Surface", "cast", "digitise",
            "earth_case", "earth_full_disc_case", "limb_truth", "moon_case", "render_radiance"]

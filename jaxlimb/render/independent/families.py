@@ -28,12 +28,28 @@ family                    what differs from ``own``
 ``cropped``               Moon: centre beyond a frame edge by up to half a radius
 ``combined``              Hapke/clouds + maria + any PSF + glow (Earth) + JPEG half the time
 ========================  ===========================================================
+
+Ablations (:func:`earth_case`'s ``ablate``): the same scene with one component of the draw replaced, every random
+draw made as without it (same geometry, Sun, attitude, albedo seed, PSF draws, noise), to tell which component
+moves a measurement (``benchmarks/earth_ablation.py``):
+
+=====================  ===========================================================
+ablation               what is replaced
+=====================  ===========================================================
+``psf_core``           the PSF by its Gaussian core (a motion smear's ``sigma``; Airy and defocus: the
+                       ``sigma`` drawn for them, unused otherwise)
+``psf_round``          the PSF by an isotropic Gaussian of the same per-axis variance (motion
+                       ``sigma^2 + L^2/24``, Airy ``(0.344 r_z)^2``, defocus ``r_d^2/4``)
+``no_glow``            no glow above the limb
+``no_jpeg``            no JPEG compression (the sensor's bit depth kept)
+``reseed_clouds``      the Earth's albedo map drawn with the next seed (other clouds, same statistics)
+=====================  ===========================================================
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -49,6 +65,7 @@ WGS84_KM = (6378.137, 6378.137, 6356.752)
 MOON_FAMILIES = ("own", "hapke", "minnaert", "ls_surge", "maria", "glow", "airy", "defocus", "motion", "jpeg",
                  "stars", "cropped", "combined")
 EARTH_FAMILIES = ("own", "lambert", "clouds", "glow", "hapke", "airy", "defocus", "motion", "jpeg", "combined")
+ABLATIONS = ("psf_core", "psf_round", "no_glow", "no_jpeg", "reseed_clouds")
 _READ_E = 157.0  # read noise (e-): 2 DN at 8 bits
 
 
@@ -181,10 +198,14 @@ def moon_case(family: str, rng: np.random.Generator) -> Case:
     return _finish(body, surf, pin, psf, spec, rng, cam, hints, meta)
 
 
-def earth_case(family: str, rng: np.random.Generator, far: bool | None = None) -> Case:
-    """An Earth frame of ``family`` (module docstring); ``far``: 380 000 km (else 40 000 km; random if None)."""
+def earth_case(family: str, rng: np.random.Generator, far: bool | None = None, ablate: tuple[str, ...] = ()) -> Case:
+    """An Earth frame of ``family`` (module docstring); ``far``: 380 000 km (else 40 000 km; random if None);
+    ``ablate``: names of :data:`ABLATIONS` (module docstring) replaced after the same draws."""
     if family not in EARTH_FAMILIES:
         raise ValueError(f"unknown Earth family {family!r}; one of {EARTH_FAMILIES}")
+    bad = set(ablate) - set(ABLATIONS)
+    if bad:
+        raise ValueError(f"unknown ablations {sorted(bad)}; any of {ABLATIONS}")
     far = bool(rng.uniform() < 0.5) if far is None else far
     rng_km, focal = (380000.0, 16.0) if far else (40000.0, 8.0)
     rng_km *= float(rng.uniform(0.97, 1.03))
@@ -198,7 +219,7 @@ def earth_case(family: str, rng: np.random.Generator, far: bool | None = None) -
     phase, sun_angle = float(rng.uniform(20.0, 70.0)), float(rng.uniform(0, 360))
     s = sun_for_phase(u, image_direction(pin, u, sun_angle), phase)
     return _earth_frame(family, rng, cam, pin, (u, R, s, rng_km), {"range_km": rng_km, "focal_mm": focal},
-                        lat, phase)
+                        lat, phase, tuple(ablate))
 
 
 #: Families of :func:`earth_full_disc_case` (the deep-space view: no crop, no stars at these exposures).
@@ -228,21 +249,39 @@ def earth_full_disc_case(family: str, rng: np.random.Generator) -> Case:
                         {"geometry": "full-disc", "range_km": rng_km, "focal_px": f_px}, lat, phase)
 
 
-def _earth_frame(family: str, rng: np.random.Generator, cam, pin, pose, geometry: dict, lat: float, phase: float) -> Case:  # type: ignore[no-untyped-def]
+def _ablated_psf(psf: Psf, ablate: tuple[str, ...]) -> Psf:
+    """The PSF with ``psf_core`` / ``psf_round`` applied (module docstring, "Ablations")."""
+    if "psf_round" in ablate:
+        var = {PsfKind.MOTION: psf.sigma**2 + psf.length**2 / 24.0, PsfKind.AIRY: (0.344 * psf.r_zero) ** 2,
+               PsfKind.DEFOCUS: psf.r_disc**2 / 4.0}.get(PsfKind(psf.kind), psf.sigma**2)
+        return Psf(kind=PsfKind.GAUSSIAN, sigma=math.sqrt(var))
+    if "psf_core" in ablate:
+        return Psf(kind=PsfKind.GAUSSIAN, sigma=psf.sigma)
+    return psf
+
+
+def _earth_frame(family: str, rng: np.random.Generator, cam, pin, pose, geometry: dict, lat: float, phase: float,  # type: ignore[no-untyped-def]
+                 ablate: tuple[str, ...] = ()) -> Case:
     """The Earth seen along ``u`` at ``rng_km`` (``pose = (u, R, s, rng_km)``: line of sight, attitude, Sun) with the
     albedo, glow, photometry, PSF and sensor of ``family`` (drawn from ``rng`` in that order), its hints and meta
-    (``geometry``: the meta entries of the view)."""
+    (``geometry``: the meta entries of the view); ``ablate``: components replaced after the same draws (module
+    docstring, "Ablations")."""
     u, R, s, rng_km = pose
     body = Body(WGS84_KM, rng_km * u, R, s)
     albedo = EarthMap(seed=int(rng.integers(2**31))) if family in ("clouds", "combined") else None
+    if albedo is not None and "reseed_clouds" in ablate:
+        albedo = EarthMap(seed=(albedo.seed + 1) % 2**31)
     glow = (Glow(float(rng.uniform(6.0, 25.0)), float(rng.uniform(0.03, 0.4)))
             if family in ("glow", "combined") else None)
+    glow = None if "no_glow" in ablate else glow
     surf = Surface(_photometry(rng, family, "earth"), albedo if albedo is not None else Surface().albedo, glow)
-    psf = _psf(rng, family)
+    psf = _ablated_psf(_psf(rng, family), ablate)
     spec = _sensor(rng, family)
+    spec = replace(spec, jpeg_quality=None) if "no_jpeg" in ablate else spec
     meta = {"family": family, "body": "earth", **geometry, "latitude_deg": lat, "phase_deg": phase,
             "psf": psf.kind.value, "bits": spec.bits, "jpeg": spec.jpeg_quality, "law": surf.photometry.law.value,
-            "glow": None if glow is None else [glow.scale_height_km, glow.brightness]}
+            "glow": None if glow is None else [glow.scale_height_km, glow.brightness],
+            **({"ablated": sorted(ablate)} if ablate else {})}
     hints = {"body": "earth", "sun_dir_camera": [float(v) for v in s], "R_body_to_camera": R.tolist(),
              "range_prior_km": rng_km * (1.0 + 0.05 * float(rng.standard_normal())), "atmosphere_km": 0.0}
     return _finish(body, surf, pin, psf, spec, rng, cam, hints, meta)
