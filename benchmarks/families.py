@@ -133,8 +133,11 @@ def measure(case, hints: dict) -> dict[str, Any]:
         return rec
     rec["time_s"] = time.perf_counter() - t0
     err = np.array(m.center_rc) - np.array(t.body_center_rc)
+    c = m.covariance
     rec.update(status="ok", center_err_px=float(np.hypot(*err)), err_rc=err.tolist(), nees=_nees(m, err),
-               nonphysical=nonphysical(m))
+               nonphysical=nonphysical(m),
+               cov_rc=[[c.get("center_r", {}).get(a) for a in ("center_r", "center_c")],
+                       [c.get("center_c", {}).get(a) for a in ("center_r", "center_c")]])
     if m.radius_px is not None and case.meta["body"] == "moon":
         rec["radius_err_px"] = float(m.radius_px - t.apparent_radius_px)
     if m.range_km is not None:
