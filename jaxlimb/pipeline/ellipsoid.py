@@ -61,7 +61,7 @@ from .earth import (
     earth_position_from_ellipse,
     unsigned_offset_cov,
 )
-from .ellipsoid_profile import fit_profile_ellipsoid
+from .ellipsoid_profile import fit_profile_ellipsoid, floor_center_var
 from .frame import Frame, candidates, min_diameter_px
 from .geometry import BodyCenter
 from .refine import FitData, RefineResult
@@ -251,8 +251,9 @@ class Ellipsoid:
                 "sun_direction_known": frame.sun_known, "prior_source": prior.source if prior is not None else None}
 
     def refit(self, frame: Frame, cand: Any, edge: EllipsoidEdge, extras: dict[str, Any]) -> RefineResult:
-        """The lunar-Lambert profile on the edge fit's pixels (Sun direction known), else the edge fit."""
-        return fit_profile_ellipsoid(self, frame, edge, extras)
+        """The lunar-Lambert profile on the edge fit's pixels (Sun direction known), else the edge fit; the centre's
+        variance floored at ``EllipsoidOptions.center_floor_px``."""
+        return floor_center_var(fit_profile_ellipsoid(self, frame, edge, extras), self.eo.center_floor_px ** 2)
 
     def body_center(self, frame: Frame, final: RefineResult) -> BodyCenter:
         return ellipsoid_center(self, frame, final)

@@ -164,8 +164,22 @@ def _with_trace_error(out: RefineResult, edge: "EllipsoidEdge", replace_block: b
         C[np.ix_(idx, idx)] = trace_model_cov(edge.pixels.trace, edge.fitted)
     else:
         C[np.ix_(idx, idx)] += trace_model_cov(edge.pixels.trace, edge.fitted)
-    w, V = np.linalg.eigh(C[np.ix_(idx[:2], idx[:2])])  # floor every direction of (r0, c0) at the hidden shift's variance
-    C[np.ix_(idx[:2], idx[:2])] += (V * np.maximum(coherent_shift_var(edge.pixels.trace, edge.fitted) - w, 0.0)) @ V.T
+    out = replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
+    return floor_center_var(out, coherent_shift_var(edge.pixels.trace, edge.fitted))
+
+
+def floor_center_var(out: RefineResult, var: float) -> RefineResult:
+    """``out`` with the covariance of its ellipse centre ``(r0, c0)`` raised to at least ``var`` (px^2) in every
+    direction (eigenvalues below ``var`` lifted to it, eigenvectors kept; the other parameters untouched)."""
+    import equinox as eqx
+
+    free = list(out.fit.free)
+    if var <= 0.0 or not all(n in free for n in ("r0", "c0")):
+        return out
+    idx = np.ix_(*(2 * ([free.index("r0"), free.index("c0")],)))
+    C = np.array(out.fit.covariance)
+    w, V = np.linalg.eigh(C[idx])
+    C[idx] += (V * np.maximum(var - w, 0.0)) @ V.T
     return replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
 
 

@@ -267,3 +267,52 @@ def test_edge_fit_model_error_is_generic_and_keeps_the_noise_covariance():
     C0, C = out.covariance_noise, np.asarray(out.fit.covariance)
     assert np.allclose(C0, np.asarray(res.covariance))
     assert np.all(np.diag(C) >= np.diag(C0) - 1e-15) and np.all(np.diag(C)[:2] < 4 * np.diag(C0)[:2])
+
+
+def test_center_floor_lifts_only_the_directions_below_it():
+    """``floor_center_var``: eigenvalues of the ``(r0, c0)`` block below the floor are lifted to it, the eigenvectors,
+    the larger eigenvalue and the other parameters' variances kept."""
+    import jax
+
+    from jaxlimb.fitting import fit
+    from jaxlimb.models import ELLIPSE, EllipseParams
+    from jaxlimb.pipeline.ellipsoid_profile import floor_center_var
+    from jaxlimb.pipeline.refine import FitData, RefineResult
+
+    jax.config.update("jax_enable_x64", True)
+    truth = EllipseParams(r0=200.3, c0=250.7, a=80.0, theta=0.3, rho=0.97, k=1.5, ymax=200.0, ymin=10.0)
+    rr, cc = np.meshgrid(np.arange(100, 300), np.arange(150, 350), indexing="ij")
+    d = np.hypot(rr - 200.3, cc - 250.7)
+    sel = (np.abs(d - 79.0) < 5) & (np.abs(np.arctan2(rr - 200.3, cc - 250.7) - 0.2) < 1.2)
+    pts = np.column_stack([rr[sel], cc[sel]]).astype(float)
+    z = np.asarray(ELLIPSE.intensity(truth, pts)) + 2.0 * np.random.default_rng(0).standard_normal(pts.shape[0])
+    res = fit(ELLIPSE, pts, z, truth, fixed=("rho", "theta"), throw=True)
+    rr0 = RefineResult(res, FitData(pts, z, None, 0.0, 1.0), 0, ("rho", "theta"))
+    C = np.asarray(res.covariance)
+    w0, V0 = np.linalg.eigh(C[:2, :2])
+    floor = float(np.sqrt(w0[0] * w0[1]))  # between the two eigenvalues: only the smaller one is lifted
+    C2 = np.asarray(floor_center_var(rr0, floor).fit.covariance)
+    w, V = np.linalg.eigh(C2[:2, :2])
+    assert np.isclose(w[0], floor) and np.isclose(w[1], w0[1])
+    assert np.allclose(np.abs(V.T @ V0), np.eye(2), atol=1e-9)
+    assert np.allclose(C2[2:, 2:], C[2:, 2:])
+    assert floor_center_var(rr0, 0.0) is rr0
+
+
+def test_earth_center_sigma_has_the_specification_floor(earth_far):
+    """``EllipsoidOptions.center_floor_px`` (default 0.0075 px): the reported centre sigma is never below it; with
+    0 the noise and model-error terms alone (smaller on this clean own render)."""
+    from jaxlimb.pipeline import LocateOptions
+    from jaxlimb.pipeline.earth import EllipsoidOptions
+
+    cam, sc, img, truth = earth_far
+    sig = {}
+    for f in (0.0075, 0.0):
+        m = locate(img, cam, _hints(sc, truth), LocateOptions(ellipsoid=EllipsoidOptions(center_floor_px=f)))
+        c = m.covariance
+        P = np.array([[c["center_r"]["center_r"], c["center_r"]["center_c"]],
+                      [c["center_c"]["center_r"], c["center_c"]["center_c"]]])
+        sig[f] = float(np.sqrt(np.linalg.eigvalsh(P)[0]))
+    assert sig[0.0] < 0.0075 and 0.0075 * 0.9 <= sig[0.0075] < 0.02
+    with pytest.raises(Exception, match="center_floor_px"):
+        EllipsoidOptions(center_floor_px=-1.0)
