@@ -63,12 +63,18 @@ def _case(body: str, family: str, idx: int, seed: int, cache: Path | None):
                   lambda: moon_case(family, rng) if body == "moon" else earth_case(family, rng, far=bool(idx % 2)))
 
 
+CENTER_FLOOR_PX: float | None = None
+"""``--center-floor``: ``EllipsoidOptions.center_floor_px`` for the Earth (``None``: the default)."""
+
+
 def _locate(case, hints: dict):
     """The public entry point, the same for every body (``jaxlimb.pipeline.locate``)."""
     from jaxlimb.imaging import Hints
-    from jaxlimb.pipeline import locate
+    from jaxlimb.pipeline import LocateOptions, locate
+    from jaxlimb.pipeline.earth import EllipsoidOptions
 
-    return locate(case.image, case.camera, Hints.from_dict(hints))
+    opt = None if CENTER_FLOOR_PX is None else LocateOptions(ellipsoid=EllipsoidOptions(center_floor_px=CENTER_FLOOR_PX))
+    return locate(case.image, case.camera, Hints.from_dict(hints), opt)
 
 
 def nonphysical(m) -> list[str]:
@@ -219,6 +225,8 @@ def main(argv=None) -> int:
     ap.add_argument("--families", default=None, help="comma-separated subset")
     ap.add_argument("--cache", type=Path, default=None, help="directory to keep rendered frames in between runs")
     ap.add_argument("--out", default=None)
+    ap.add_argument("--center-floor", type=float, default=None,
+                    help="EllipsoidOptions.center_floor_px for the Earth (default: the library's)")
     a = ap.parse_args(argv)
     _setup()
     from _common import environment, save
@@ -229,10 +237,12 @@ def main(argv=None) -> int:
         fams = set(QUICK_FAMILIES["moon"]) | set(QUICK_FAMILIES["earth"])
     n = a.n if a.n is not None else (1 if a.quick else 6)
     t0 = time.perf_counter()
+    global CENTER_FLOOR_PX
+    CENTER_FLOOR_PX = a.center_floor
     res = run(bodies, fams, n, a.seed, a.cache)
     print_table(res["summary"])
     out = {"args": {"n": n, "seed": a.seed, "bodies": bodies, "families": sorted(fams) if fams else None,
-                    "quick": a.quick}, "environment": environment(), "wall_s": time.perf_counter() - t0, **res}
+                    "quick": a.quick, "center_floor_px": a.center_floor}, "environment": environment(), "wall_s": time.perf_counter() - t0, **res}
     path = save(a.out or ("families_quick" if a.quick else "families"), out)
     print(f"saved {path}")
     return 0

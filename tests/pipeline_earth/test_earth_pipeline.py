@@ -244,39 +244,13 @@ def test_pole_unknown_limb_cannot_sign_the_center_offset(lat_deg, off_axis):
     assert off == pytest.approx([0.5 * moved, 0.5 * moved], rel=0.05)
 
 
-def test_edge_fit_model_error_is_generic_and_keeps_the_noise_covariance():
-    """``with_model_error`` on an elliptical sigmoid (the Earth's fallback when the profile is rejected): an
-    exact model leaves the covariance near the noise-only one, which is kept for the CRLB."""
+def _ellipse_edge_fit():
+    """An elliptical sigmoid fitted (``rho, theta`` held) to a noisy 140-deg arc of its own model: the fit and its
+    :class:`RefineResult`."""
     import jax
 
     from jaxlimb.fitting import fit
     from jaxlimb.models import ELLIPSE, EllipseParams
-    from jaxlimb.pipeline.profile_fit import with_model_error
-    from jaxlimb.pipeline.refine import FitData, RefineResult
-
-    jax.config.update("jax_enable_x64", True)
-    truth = EllipseParams(r0=200.3, c0=250.7, a=80.0, theta=0.3, rho=0.97, k=1.5, ymax=200.0, ymin=10.0)
-    rr, cc = np.meshgrid(np.arange(100, 300), np.arange(150, 350), indexing="ij")
-    d = np.hypot(rr - 200.3, cc - 250.7)
-    sel = (np.abs(d - 79.0) < 5) & (np.abs(np.arctan2(rr - 200.3, cc - 250.7) - 0.2) < 1.2)
-    pts = np.column_stack([rr[sel], cc[sel]]).astype(float)
-    rng = np.random.default_rng(0)
-    z = np.asarray(ELLIPSE.intensity(truth, pts)) + 2.0 * rng.standard_normal(pts.shape[0])
-    res = fit(ELLIPSE, pts, z, truth, fixed=("rho", "theta"), throw=True)
-    out = with_model_error(RefineResult(res, FitData(pts, z, None, 0.0, 1.0), 0, ("rho", "theta")), model=ELLIPSE)
-    C0, C = out.covariance_noise, np.asarray(out.fit.covariance)
-    assert np.allclose(C0, np.asarray(res.covariance))
-    assert np.all(np.diag(C) >= np.diag(C0) - 1e-15) and np.all(np.diag(C)[:2] < 4 * np.diag(C0)[:2])
-
-
-def test_center_floor_lifts_only_the_directions_below_it():
-    """``floor_center_var``: eigenvalues of the ``(r0, c0)`` block below the floor are lifted to it, the eigenvectors,
-    the larger eigenvalue and the other parameters' variances kept."""
-    import jax
-
-    from jaxlimb.fitting import fit
-    from jaxlimb.models import ELLIPSE, EllipseParams
-    from jaxlimb.pipeline.ellipsoid_profile import floor_center_var
     from jaxlimb.pipeline.refine import FitData, RefineResult
 
     jax.config.update("jax_enable_x64", True)
@@ -287,7 +261,28 @@ def test_center_floor_lifts_only_the_directions_below_it():
     pts = np.column_stack([rr[sel], cc[sel]]).astype(float)
     z = np.asarray(ELLIPSE.intensity(truth, pts)) + 2.0 * np.random.default_rng(0).standard_normal(pts.shape[0])
     res = fit(ELLIPSE, pts, z, truth, fixed=("rho", "theta"), throw=True)
-    rr0 = RefineResult(res, FitData(pts, z, None, 0.0, 1.0), 0, ("rho", "theta"))
+    return res, RefineResult(res, FitData(pts, z, None, 0.0, 1.0), 0, ("rho", "theta"))
+
+
+def test_edge_fit_model_error_is_generic_and_keeps_the_noise_covariance():
+    """``with_model_error`` on an elliptical sigmoid (the Earth's fallback when the profile is rejected): an
+    exact model leaves the covariance near the noise-only one, which is kept for the CRLB."""
+    from jaxlimb.models import ELLIPSE
+    from jaxlimb.pipeline.profile_fit import with_model_error
+
+    res, rr0 = _ellipse_edge_fit()
+    out = with_model_error(rr0, model=ELLIPSE)
+    C0, C = out.covariance_noise, np.asarray(out.fit.covariance)
+    assert np.allclose(C0, np.asarray(res.covariance))
+    assert np.all(np.diag(C) >= np.diag(C0) - 1e-15) and np.all(np.diag(C)[:2] < 4 * np.diag(C0)[:2])
+
+
+def test_center_floor_lifts_only_the_directions_below_it():
+    """``floor_center_var``: eigenvalues of the ``(r0, c0)`` block below the floor are lifted to it, the eigenvectors,
+    the larger eigenvalue and the other parameters' variances kept."""
+    from jaxlimb.pipeline.ellipsoid_profile import floor_center_var
+
+    res, rr0 = _ellipse_edge_fit()
     C = np.asarray(res.covariance)
     w0, V0 = np.linalg.eigh(C[:2, :2])
     floor = float(np.sqrt(w0[0] * w0[1]))  # between the two eigenvalues: only the smaller one is lifted
