@@ -352,3 +352,22 @@ def test_anisotropic_blur_gate_stays_shut_on_round_psfs(family, idx):
     case = _earth(family, idx)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert m.extras["model"] != "lunar_limb_aniso"
+
+
+def test_crescent_off_the_gradient_circle_measured_by_the_scan_lines():
+    """Held-out frame ``defocus`` 1 of seed 2027 (a 39.5 px Moon at 144 deg phase, defocus disc PSF, the whole lit
+    limb in the frame): the gradient front end's circle (46 px, 9 px off; its points on the crescent's inner slope
+    and on the limb) left 8 of 17 lit-side bins with an edge, 44 deg of arc, and the frame failed as
+    ``arc_too_short``.  The Sun-facing annulus is in the frame, so the other front end is tried
+    (``edge.InitialCircleOffError``, ``locate._measure_or_other_front_end``): 0.112 px, NEES 1.7."""
+    from jaxlimb.errors import ArcTooShortError
+    from jaxlimb.pipeline.edge import InitialCircleOffError
+
+    case = _moon("defocus", 1, seed=2027)
+    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
+    err, nees = _errors(case, m)
+    assert m.front_end == "scanline"
+    assert err < 0.15 and nees < 13.8
+    with pytest.raises(InitialCircleOffError) as e:
+        locate(case.image, case.camera, Hints.from_dict(case.hints), LocateOptions(front_end_fallback=False))
+    assert isinstance(e.value, ArcTooShortError) and e.value.check == "arc_too_short"
