@@ -147,8 +147,22 @@ def limb_pixels(frame: Frame, cand: Any, physical_profile: bool) -> LimbPixels:
     # i.e. half-width (dr_in + dr)/2 about r + (dr - dr_in)/2, never widened (the terminator would enter it)
     shift, h = 0.5 * (dr - dr_in), 0.5 * (dr + dr_in)
     sel = select_annulus(frame.img, cand.center_rc, cand.radius + shift, h, direction, half, opt, frame_mask(frame))
-    check_lit_arc(sel.angles(), min_arc, half, _short_annulus_cause(sel, opt, min_arc, half))
+    cause = _short_annulus_cause(sel, opt, min_arc, half)
+    try:
+        check_lit_arc(sel.angles(), min_arc, half, cause)
+    except ArcTooShortError as e:
+        raise (InitialCircleOffError(str(e)) if cause is not None and frame.sun_known else e) from None
     return LimbPixels(sel, h, direction, half, phase, min_arc, h if dr_in < dr else math.inf, shift)
+
+
+class InitialCircleOffError(ArcTooShortError):
+    """The lit-arc check failed although the Sun-facing annulus is in the frame: its angular bins lack a lit edge
+    at the limb (:func:`_short_annulus_cause`), so the front end's circle may be off the limb rather than the lit
+    limb short; :func:`jaxlimb.pipeline.locate` then tries the other front end (``front_end_fallback``).  Held-out
+    frame ``defocus`` 1 of ``benchmarks/families.py --seed 2027`` (a 39.5 px Moon at 144 deg phase, defocus disc
+    PSF): the gradient front end's 58 points lie on two edges, 35 of them 3 px inside the limb on the crescent's
+    rising inner slope and 23 on the limb, and their Taubin circle has a 46 px radius 9 px off the centre; 8 of
+    17 bins kept, 44 deg of lit limb.  The scan lines' circle: 40.9 px, 0.7 px off."""
 
 
 def thin_crescent_message(phase: float | None, radius: float, dr: float, half: float = 0.0,

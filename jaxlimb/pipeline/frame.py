@@ -221,14 +221,25 @@ def candidates(frame: Frame) -> Any:
     except (TooManyOutliersError, RadiusInconsistentError) as first:
         if not (frame.opt.front_end_fallback and _variegated(frame, name, mask)):
             raise
-        other = "scanline" if name == "gradient" else "gradient"
         try:
-            cand = front_end(other, frame.img, None, hints=frame.hints, camera=frame.cam,
-                             options=_front_end_options(frame, other), mask=mask)
+            cand = other_candidates(frame)
         except CheckFailed as second:
-            raise type(first)(f"{first}; the {other} front end too: {second}") from second
+            raise type(first)(f"{first}; the {other_front_end(frame)} front end too: {second}") from second
     frame.mark("front_end")
     return cand
+
+
+def other_front_end(frame: Frame) -> str:
+    """The name of the front end not chosen in ``frame.opt``."""
+    return "scanline" if str(frame.opt.front_end) == "gradient" else "gradient"
+
+
+def other_candidates(frame: Frame) -> Any:
+    """The limb candidates of the front end not chosen (:func:`other_front_end`), for the fallbacks of
+    :func:`candidates` and :func:`jaxlimb.pipeline.locate.locate`."""
+    other = other_front_end(frame)
+    return front_end(other, frame.img, None, hints=frame.hints, camera=frame.cam,
+                     options=_front_end_options(frame, other), mask=frame_mask(frame))
 
 
 def min_diameter_px(frame: Frame) -> float:
@@ -243,4 +254,5 @@ def arc_angles(coords: np.ndarray, center_rc) -> np.ndarray:
     return np.arctan2(coords[:, 0] - float(center_rc[0]), coords[:, 1] - float(center_rc[1]))
 
 
-__all__ = ["Frame", "arc_angles", "as_camera", "as_hints", "candidates", "frame_mask", "limb_predicted", "min_diameter_px", "prepare"]
+__all__ = ["Frame", "arc_angles", "as_camera", "as_hints", "candidates", "frame_mask", "limb_predicted", "min_diameter_px",
+           "other_candidates", "other_front_end", "prepare"]

@@ -37,7 +37,8 @@ from ..errors import CheckFailed
 from ..geometry.camera import Camera
 from ..imaging import Hints
 from .bodies import body_strategy
-from .frame import arc_only, limb_predicted, prepare
+from .edge import InitialCircleOffError
+from .frame import arc_only, limb_predicted, other_candidates, prepare
 from .options import LocateOptions
 from .report import check_physical, covariance, levels, measurement
 from .result import LimbMeasurement
@@ -103,7 +104,7 @@ def locate(
     frame = body.prepare(frame)
     cand = body.candidates(frame)
     try:
-        return _measure(frame, body, cand)
+        return _measure_or_other_front_end(frame, body, cand)
     except CheckFailed as e:
         region = cand.info.get("region")
         if region is None or not getattr(region, "bright_sky", False):
@@ -112,6 +113,21 @@ def locate(
             f"{e} [the sky ({region.background:.4g} DN at the frame's border) is brighter than the body's shadowed "
             "limb: only the lit arc is a lit limb, and the lit-limb model alone could not measure this frame]"
         ) from None
+
+
+def _measure_or_other_front_end(frame, body, cand) -> LimbMeasurement:
+    """:func:`_measure`, and on :class:`~jaxlimb.pipeline.edge.InitialCircleOffError` (the Sun-facing annulus in the
+    frame but few of its bins with a lit edge: the front end's circle off the limb) :func:`_measure` on the other
+    front end's candidates (``front_end_fallback``); the first failure stands when that one fails too."""
+    try:
+        return _measure(frame, body, cand)
+    except InitialCircleOffError as first:
+        if not frame.opt.front_end_fallback:
+            raise
+        try:
+            return _measure(frame, body, other_candidates(frame))
+        except CheckFailed:
+            raise first from None
 
 
 def _measure(frame, body, cand) -> LimbMeasurement:

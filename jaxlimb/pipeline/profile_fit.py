@@ -20,7 +20,7 @@ from ..fitting import NormalLM
 from ..imaging import sun_direction_image
 from ..models import (LIMB_PROFILE, LIMB_PROFILE_MINNAERT, PROFILE_FIXED, LimbModel, LimbProfileParams,
                       MinnaertProfileParams, lunar_lambert_weight)
-from ..models.lunar_lambert import (LIMB_PROFILE_GLOW, GlowProfileParams, brightening_column, glow_column,
+from ..models.lunar_lambert import (LIMB_PROFILE_GLOW, AnisoProfileParams, GlowProfileParams, brightening_column, glow_column,
                                     limb_geometry, profile_model)
 from .frame import Frame
 from .profile import sphere_from_circle_fit
@@ -114,8 +114,8 @@ def fit_lunar_profile(frame: Frame, circ: RefineResult, sat: float | None = None
         out = base
         if "L" not in fixed:  # the law adapts: widen it to Minnaert-like limbs when the data ask for it
             out = widen_brightening(frame, out, solver, system)
-        if out is base:  # a glow above the limb, when the data ask for it
-            out = widen_glow(frame, out, solver, system)
+        if out is base:  # a motion smear or a glow above the limb, when the data ask for it
+            out = widen_aniso_or_glow(frame, out, solver, system)
         if out is base:
             reweighted = downweight_patchy_sectors(frame, out, solver, system)
             if reweighted is base:
@@ -124,7 +124,95 @@ def fit_lunar_profile(frame: Frame, circ: RefineResult, sat: float | None = None
     else:
         s_e = LOGISTIC_TO_GAUSS / max(float(p.k), 1e-6)
         out, n_clipped = _fit_clipped(frame, data, init, center, float(p.radius), sat, s_e, solver)
-    return with_model_error(downweight_patchy_sectors(frame, out, solver)), n_clipped
+        base = out
+    final = with_model_error(downweight_patchy_sectors(frame, out, solver))
+    return (with_aniso_blur_witness(final, base) if isinstance(out.fit.params, AnisoProfileParams) else final), n_clipped
+
+
+def widen_aniso_or_glow(frame: Frame, rr: RefineResult, solver, system=None) -> RefineResult:
+    """:func:`widen_aniso` and :func:`widen_glow` of ``rr``; when both refit, the one with the smaller residual RMS.
+
+    Why: each one's score gate opens on the other's scenes.  A strong glow on a crescent looks anisotropic (seed 2026
+    ``glow`` 5 and 2: one-step anisotropy 0.13 / 0.12 of ``sigma_e^2``, chi^2 66 / 117; with the anisotropic refit
+    kept, frame 5 went 0.004 -> 0.826 px), and a motion smear raises the glow's step (held-out ``motion`` 0 of seed
+    2028 and 1 of seed 2027 took the glow: 0.064 and 0.061 px; the anisotropic refit 0.006 and 0.018 px)."""
+    aniso = widen_aniso(frame, rr, solver, system)
+    glow = widen_glow(frame, rr, solver, system)
+    if aniso is rr or glow is rr:
+        return glow if aniso is rr else aniso
+    return aniso if float(aniso.fit.rms) < float(glow.fit.rms) else glow
+
+
+ANISO_GATE_CHI2 = 13.8
+"""The chi^2 of the one-step anisotropy (:func:`aniso_step`) above which :func:`widen_aniso` refits (chi^2(2) 99.9 %).
+Measured (``benchmarks/families.py``; size over ``sigma_e^2``, chi^2): held-out ``motion`` crescents 0.32-0.81,
+237-8467; seed 2026 ``own`` 0, ``airy`` 0, ``glow`` 0, ``hapke`` 1 at most 0.024, 7.2; seed 2028 ``own`` 0 0.019, 13.5."""
+ANISO_GATE_FRAC = 0.12
+"""And the one-step anisotropy at least this fraction of ``sigma_e^2`` (the refit's own bound,
+:data:`jaxlimb.pipeline.ellipsoid_profile.ANISO_MIN_FRAC`).  The gate keeps the refit's CPU (112 -> 148 ms per frame
+when always run, three seed-2026 frames under load 4.9) off the frames without a smear."""
+
+
+def aniso_step(rr: RefineResult, system=None) -> tuple[float, float]:
+    """One Gauss--Newton step of the blur's anisotropy ``(s2c, s2s)`` (held at 0 in ``rr``) with the free parameters
+    of ``rr`` refitted beside it: its size over ``sigma_e^2`` and its chi^2 (the score test of :func:`brightening_step`;
+    ``system``: ``rr``'s :func:`_weighted_system` under the profile, if formed)."""
+    from ..models.lunar_lambert import LIMB_PROFILE_ANISO
+
+    J, r, padded, w = _weighted_system(rr, LIMB_PROFILE) if system is None else system
+    p = rr.fit.params
+    q = AnisoProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()], 0.0, 0.0)
+    _, cols = _columns(LIMB_PROFILE_ANISO)(q, padded)
+    names = LIMB_PROFILE_ANISO.param_names
+    A = np.stack([np.asarray(cols[names.index(k)])[: r.size] for k in ("s2c", "s2s")], axis=1) * w[:, None]
+    X = np.concatenate([J, A], axis=1)
+    if X.shape[0] < max(50, 2 * X.shape[1]):
+        return 0.0, 0.0
+    A_inv = np.linalg.pinv(X.T @ X)
+    step = A_inv @ (X.T @ r)
+    s2 = float(np.sum((r - X @ step) ** 2)) / (X.shape[0] - X.shape[1])
+    d = step[-2:]
+    chi2 = float(d @ np.linalg.solve(s2 * A_inv[-2:, -2:], d))
+    return float(math.hypot(*d)) / (float(p.sigma) ** 2 + 1.0 / 12.0), chi2
+
+
+def widen_aniso(frame: Frame, rr: RefineResult, solver, system=None) -> RefineResult:
+    """``rr`` refitted with an anisotropic blur (:data:`~jaxlimb.models.lunar_lambert.LIMB_PROFILE_ANISO`: ``s2c, s2s``
+    of the blur variance across the limb, ``cos 2psi`` and ``sin 2psi``), the sphere's shape iterated as in
+    :func:`_profile_passes`; ``rr`` itself when the refit fails, its variance is not positive or its anisotropy is not
+    significant (the ellipsoid's gate, :func:`jaxlimb.pipeline.ellipsoid_profile.aniso_significant`: at least 0.12 of
+    ``sigma_e^2`` at chi^2(2) 99.9 %).  Tried before the glow: a smear passes the glow's gate too.
+
+    Why: a motion smear blurs the limb more where it runs across it than along it; one isotropic sigma moves the
+    fitted limb in and out along the arc (``cos 2psi``) and the centre with it.  Held-out crescents of
+    ``benchmarks/families.py`` (``motion``, 1.5-3.5 px smears, phase 129-133 deg): seed 2028 frame 1 0.107 -> 0.018 px,
+    frame 0 (which had opened the glow) 0.064 -> 0.006 px, seed 2027 frame 1 0.061 -> 0.018 px."""
+    from ..models.lunar_lambert import LIMB_PROFILE_ANISO
+    from .ellipsoid_profile import aniso_plausible, aniso_significant
+
+    p = rr.fit.params
+    if type(p) is not LimbProfileParams:
+        return rr
+    frac, chi2 = aniso_step(rr, system)
+    if not (chi2 >= ANISO_GATE_CHI2 and frac >= ANISO_GATE_FRAC):
+        return rr
+    q = AnisoProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()], 0.0, 0.0)
+    try:
+        res, sph = _profile_passes(frame, rr.data, q, None, None, rr.fixed, solver, LIMB_PROFILE_ANISO)
+    except ConvergenceError:
+        return rr
+    if not (bool(res.converged) and aniso_plausible(res.params) and aniso_significant(res)):
+        return rr
+    return RefineResult(res, rr.data, 0, rr.fixed, sphere=sph)
+
+
+def with_aniso_blur_witness(out: RefineResult, iso: RefineResult) -> RefineResult:
+    """``out`` (an anisotropic-blur refit, :func:`widen_aniso`) with half its move from the isotropic fit ``iso`` added
+    to the centre's and radius' variances (:func:`jaxlimb.pipeline.ellipsoid_profile.with_aniso_witness`): a line smear
+    is not a Gaussian of another variance.  Held-out ``motion`` 1 of seed 2027: 0.018 px off, NEES 9.5 without it."""
+    from .ellipsoid_profile import with_aniso_witness
+
+    return with_aniso_witness(out, iso)
 
 
 PATCHY_SECTORS = 24
@@ -136,8 +224,16 @@ Measured (``benchmarks/families.py``, Moon, 6 frames per family, fit of main 002
 mare crosses (4-6 such sectors on 5 of the 6 maria frames), at most 1.6 on uniform-albedo lunar-Lambert,
 Minnaert, glow, Airy, defocus, JPEG and star frames; 2.0-3.1 in 1-3 sectors of one Hapke, one
 Lommel-Seeliger, two motion-smeared and one JPEG frame, whose answers moved by at most 0.007 px."""
-PATCHY_PASSES = 2
-"""Reweighted passes (each from the previous answer, the weights from its residuals)."""
+PATCHY_PASSES = 4
+"""Reweighted passes (each from the previous answer, the weights from its residuals).  Two passes with the weight
+``ratio^-1/2`` stopped half way on wide maria: held-out frames (``benchmarks/families.py --seed 2027/2028``) combined 0
+(three maria over 50 deg of the lit limb about the sub-solar point) 0.249 px, maria 0 of seed 2028 0.309 px; with
+:data:`PATCHY_POWER` 1.5 and 4 passes 0.134 / 0.142 px (8 passes: the same to 1e-3 px)."""
+PATCHY_POWER = 1.5
+"""A down-weighted sector's residual weight is ``ratio^-PATCHY_POWER`` (its weight in the normal equations
+``ratio^-3``, :func:`patchy_weights`).  Measured on the held-out maria / combined frames above (4 passes): power 0.5
+0.207 / 0.046 / 0.027 px (combined 0, maria 2 and 0 of seed 2027), 1.0 0.146 / 0.028 / 0.020, 1.5 0.134 / 0.027 /
+0.010, 2.0 0.132 / -, maria 1 of seed 2028 0.036 -> 0.012 (1.5) / 0.011 (2.0)."""
 
 
 def sector_misfit(r: np.ndarray, groups: np.ndarray, n_sectors: int) -> np.ndarray:
@@ -149,7 +245,7 @@ def sector_misfit(r: np.ndarray, groups: np.ndarray, n_sectors: int) -> np.ndarr
 
 def downweight_patchy_sectors(frame: Frame, rr: RefineResult, solver, system=None) -> RefineResult:
     """``rr`` refitted with the sectors of the limb whose residuals are far above the others' down-weighted
-    (weight ``1/sqrt(ratio)`` of :func:`sector_misfit` above :data:`PATCHY_RATIO`; an M-estimator whose unit is
+    (weight ``ratio^-PATCHY_POWER`` of :func:`sector_misfit` above :data:`PATCHY_RATIO`; an M-estimator whose unit is
     the sector, Huber 1981 Sec. 7); ``rr`` itself when no sector is.
 
     Why: the profile assumes one albedo along the lit limb.  A mare crossing the limb changes the profile's
@@ -189,13 +285,13 @@ def downweight_patchy_sectors(frame: Frame, rr: RefineResult, solver, system=Non
 
 
 def patchy_weights(coords: np.ndarray, p, r: np.ndarray) -> np.ndarray | None:
-    """Per-pixel weights of one pass of :func:`downweight_patchy_sectors`: ``1/sqrt(ratio)`` in the sectors about
+    """Per-pixel weights of one pass of :func:`downweight_patchy_sectors`: ``ratio^-PATCHY_POWER`` in the sectors about
     ``p``'s centre whose :func:`sector_misfit` ratio exceeds :data:`PATCHY_RATIO`, 1 elsewhere; ``None`` when none does."""
     groups = sector_groups(coords, (float(p.r0), float(p.c0)), PATCHY_SECTORS)
     ratio = sector_misfit(r, groups, PATCHY_SECTORS)
     if not np.any(ratio > PATCHY_RATIO):
         return None
-    return np.where(ratio > PATCHY_RATIO, 1.0 / np.sqrt(np.maximum(ratio, 1.0)), 1.0)[groups]
+    return np.where(ratio > PATCHY_RATIO, np.maximum(ratio, 1.0) ** -PATCHY_POWER, 1.0)[groups]
 
 
 PATCHY_GN_STEPS = 2
@@ -638,4 +734,5 @@ def _shape_change_px(q: LimbProfileParams, sph) -> float:
 __all__ = ["brightening_step", "edge_sigma", "fit_lunar_profile", "gaussian_sigma_of_k", "profile_start",
            "profile_sun_direction", "glow_start", "glow_plausible", "fit_glow_tilt", "tilt_kept", "patchy_weights",
            "saturation_level",
-           "signed_distance", "split_witness", "downweight_patchy_sectors", "sector_misfit", "glow_step", "widen_brightening", "widen_glow", "with_model_error"]
+           "signed_distance", "split_witness", "downweight_patchy_sectors", "sector_misfit", "glow_step", "widen_aniso", "widen_aniso_or_glow",
+           "widen_brightening", "widen_glow", "with_aniso_blur_witness", "with_model_error"]

@@ -106,7 +106,8 @@ def levels(final: RefineResult) -> Levels:
         if isinstance(fp, LimbProfileParams):
             prof = {"model": "lunar-lambert", "psf_sigma_px": sig, "amp": float(fp.amp),
                     "phase_deg": math.degrees(float(fp.phase)), "L": float(fp.L),
-                    "kappa": float(getattr(fp, "kappa", 0.0)), **glow_fields(fp)}
+                    "kappa": float(getattr(fp, "kappa", 0.0)), **glow_fields(fp),
+                    **({"blur_aniso": [float(fp.s2c), float(fp.s2s)]} if hasattr(fp, "s2c") else {})}
         else:
             prof = {"model": "limb-darkened", "psf_sigma_px": sig, "amp": float(fp.amp), "u1": float(fp.u1),
                     "u2": float(fp.u2)}
