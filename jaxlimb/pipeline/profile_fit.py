@@ -23,7 +23,7 @@ from ..models import (LIMB_PROFILE, LIMB_PROFILE_MINNAERT, PROFILE_FIXED, LimbMo
 from ..models.lunar_lambert import (LIMB_PROFILE_GLOW, AnisoProfileParams, GlowProfileParams, brightening_column, glow_column,
                                     limb_geometry, profile_model)
 from .frame import Frame
-from .profile import sphere_from_circle_fit
+from .profile import l_band, sphere_from_circle_fit
 from .refine import LOGISTIC_TO_GAUSS, FitData, RefineResult, _run, predict
 from .sphere import sphere_from_ellipse_center
 
@@ -263,6 +263,8 @@ def downweight_patchy_sectors(frame: Frame, rr: RefineResult, solver, system=Non
     weighted residual sum, or an answer whose sphere shape has moved by 1e-3 px, falls back to the LM refits
     (:func:`_downweight_by_refits`).  ``system``: ``rr``'s :func:`_weighted_system` under the profile, if formed.
     """
+    if not _l_described(rr):  # a limb the profile does not describe: no sector weighting can make it one
+        return rr
     model = profile_model(rr.fit.params)
     coords, free = np.asarray(rr.data.coords, float), list(rr.fit.free)
     evaluate = _unweighted_system(model, rr, None if system is None else system[2])
@@ -282,6 +284,18 @@ def downweight_patchy_sectors(frame: Frame, rr: RefineResult, solver, system=Non
     if w is None:
         return rr
     return _reweighted_result(frame, rr, p, r, J, w, evaluate.padded) or _downweight_by_refits(frame, rr, solver)
+
+
+def _l_described(rr: RefineResult) -> bool:
+    """Whether the unweighted fit ``rr`` has its ``L`` within :func:`~jaxlimb.pipeline.profile.l_band` (always, with
+    ``L`` held).  The band widens by 3 sigma of ``L``, and down-weighting sectors raises that sigma: on a flat 8-bit
+    own render (``tests/pipeline/test_cli_locate.py``'s Moon, 30 000 km, phase 30 deg) the fit with ``L`` 1.51 outside
+    its band was rejected and the edge fit answered 0.007 px; down-weighted by ``ratio^-1.5`` it came back with ``L``
+    1.26-1.41 inside its widened band and the centre 0.23 px off."""
+    if "L" not in rr.fit.free:
+        return True
+    lo, hi = l_band(rr.fit)
+    return bool(lo <= float(rr.fit.params.L) <= hi)
 
 
 def patchy_weights(coords: np.ndarray, p, r: np.ndarray) -> np.ndarray | None:
