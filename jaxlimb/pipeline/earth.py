@@ -198,7 +198,7 @@ class EllipsoidOptions:
     center_floor_px
         Smallest 1-sigma (px) of the ellipse centre in any direction: the limb model's specification error, which no
         residual shows.  On :mod:`jaxlimb.render.independent`'s uniform-albedo Earths (``benchmarks/families.py``,
-        40 000 km, 600 px) the centre is 0.005-0.02 px off for noise sigmas of 0.001-0.007 px (``own`` and ``lambert``
+        40 000 km, 600 px) the centre is 0.005-0.025 px off for noise sigmas of 0.001-0.007 px (``own`` and ``lambert``
         NEES 3.0 and 3.8 on seed 2026, 6.9 and 22.6 on three held-out frames of seed 2027).  ``0`` keeps the noise
         and model-error terms alone.
     """

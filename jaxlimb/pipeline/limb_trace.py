@@ -301,7 +301,8 @@ def coherent_shift_var(tr: TracedLimb, ell: tuple, bin_deg: float = 10.0, min_ra
     ``m^2 - var(d)/n`` per axis is the hidden shift's variance.  Measured on held-out ``clouds`` frame 6
     (40 000 km, 602 px): the ellipse 0.63 px off along the direction the sandwich gave 0.14 px (NEES 18); this
     term is 0.28 px, and as a floor on the centre's variance (``ellipsoid_profile._with_trace_error``) it brings the
-    NEES to 4.7, while the other near cloudy frames' go 0.3-1.3 -> 0.3-0.5."""
+    NEES to 4.8, while the other near cloudy frames' go 0.3-1.3 -> 0.3-0.5 (frames 0-13,
+    ``benchmarks/results/families_earth_clouds14.json``)."""
     ok = tr.ok
     if int(ok.sum()) < 20:
         return 0.0
