@@ -63,18 +63,20 @@ def _case(body: str, family: str, idx: int, seed: int, cache: Path | None):
                   lambda: moon_case(family, rng) if body == "moon" else earth_case(family, rng, far=bool(idx % 2)))
 
 
-CENTER_FLOOR_PX: float | None = None
-"""``--center-floor``: ``EllipsoidOptions.center_floor_px`` for the Earth (``None``: the default)."""
-
-
-def _locate(case, hints: dict):
+def _locate(case, hints: dict, options=None):
     """The public entry point, the same for every body (``jaxlimb.pipeline.locate``)."""
     from jaxlimb.imaging import Hints
-    from jaxlimb.pipeline import LocateOptions, locate
+    from jaxlimb.pipeline import locate
+
+    return locate(case.image, case.camera, Hints.from_dict(hints), options)
+
+
+def _options(center_floor_px: float | None):
+    """``LocateOptions`` for ``--center-floor`` (``EllipsoidOptions.center_floor_px``), ``None``: the defaults."""
+    from jaxlimb.pipeline import LocateOptions
     from jaxlimb.pipeline.earth import EllipsoidOptions
 
-    opt = None if CENTER_FLOOR_PX is None else LocateOptions(ellipsoid=EllipsoidOptions(center_floor_px=CENTER_FLOOR_PX))
-    return locate(case.image, case.camera, Hints.from_dict(hints), opt)
+    return None if center_floor_px is None else LocateOptions(ellipsoid=EllipsoidOptions(center_floor_px=center_floor_px))
 
 
 def nonphysical(m) -> list[str]:
@@ -125,15 +127,15 @@ def pole_unknown_floor_px(case) -> float:
     return float(np.hypot(*(np.asarray(case.camera.project(-p)) - np.asarray(t.body_center_rc))))
 
 
-def measure(case, hints: dict) -> dict[str, Any]:
-    """One ``locate`` run against the truth of ``case``."""
+def measure(case, hints: dict, options=None) -> dict[str, Any]:
+    """One ``locate`` run (``options``: ``LocateOptions`` or ``None``) against the truth of ``case``."""
     from jaxlimb.errors import JaxlimbError
 
     t = case.truth
     rec: dict[str, Any] = {}
     t0 = time.perf_counter()
     try:
-        m = _locate(case, hints)
+        m = _locate(case, hints, options)
     except JaxlimbError as e:
         rec.update(status="error", check=e.check, message=str(e)[:200])
         return rec
@@ -191,7 +193,7 @@ def print_table(summary: dict[str, dict[str, dict]]) -> None:
                   + (f"  floor {s['floor_median_px']:.3f}" if "floor_median_px" in s else ""))
 
 
-def run(bodies, families, n: int, seed: int, cache: Path | None, progress=print) -> dict[str, Any]:
+def run(bodies, families, n: int, seed: int, cache: Path | None, progress=print, options=None) -> dict[str, Any]:
     from jaxlimb.render.independent import EARTH_FAMILIES, MOON_FAMILIES
 
     records: dict[str, dict[str, list]] = {}
@@ -204,7 +206,7 @@ def run(bodies, families, n: int, seed: int, cache: Path | None, progress=print)
                 if body == "earth":
                     rows.append(("earth_noR", {k: v for k, v in case.hints.items() if k != "R_body_to_camera"}))
                 for name, hints in rows:
-                    rec = measure(case, hints)
+                    rec = measure(case, hints, options)
                     rec["meta"] = case.meta
                     if name == "earth_noR":
                         rec["floor_px"] = pole_unknown_floor_px(case)
@@ -237,9 +239,7 @@ def main(argv=None) -> int:
         fams = set(QUICK_FAMILIES["moon"]) | set(QUICK_FAMILIES["earth"])
     n = a.n if a.n is not None else (1 if a.quick else 6)
     t0 = time.perf_counter()
-    global CENTER_FLOOR_PX
-    CENTER_FLOOR_PX = a.center_floor
-    res = run(bodies, fams, n, a.seed, a.cache)
+    res = run(bodies, fams, n, a.seed, a.cache, options=_options(a.center_floor))
     print_table(res["summary"])
     out = {"args": {"n": n, "seed": a.seed, "bodies": bodies, "families": sorted(fams) if fams else None,
                     "quick": a.quick, "center_floor_px": a.center_floor}, "environment": environment(), "wall_s": time.perf_counter() - t0, **res}

@@ -3,8 +3,8 @@
 
     python benchmarks/nees_floor.py benchmarks/results/families_earth_nofloor.json [--floors 0,0.005,0.0075,0.01]
 
-Each covariance has its eigenvalues below ``floor^2`` raised to it (as ``EllipsoidOptions.center_floor_px`` does to
-the ellipse centre), and the NEES ``e^T C^-1 e`` of the frame's centre error ``e`` is averaged per family.  Run it on
+Each covariance has its eigenvalues below ``floor^2`` raised to it, ``C + [floor^2 I - C]_+`` (as
+``EllipsoidOptions.center_floor_px`` does to the ellipse centre), and the NEES ``e^T C^-1 e`` of the frame's centre error ``e`` is averaged per family.  Run it on
 a ``families.py --center-floor 0`` result to choose the floor on one seed, and check the choice on another.
 """
 
@@ -18,9 +18,10 @@ import numpy as np
 
 def floored_nees(rec: dict, floor: float) -> float:
     """NEES of one ``ok`` record with its centre covariance floored at ``floor`` px in every direction."""
+    from jaxlimb.analysis.model_error import with_model_error
+
     C, e = np.array(rec["cov_rc"], float), np.array(rec["err_rc"], float)
-    w, V = np.linalg.eigh(C)
-    return float(e @ np.linalg.solve(C + (V * np.maximum(floor * floor - w, 0.0)) @ V.T, e))
+    return float(e @ np.linalg.solve(with_model_error(C, floor * floor * np.eye(2)), e))
 
 
 def table(results: dict, body: str, floors: list[float]) -> dict[str, list[float]]:

@@ -473,12 +473,17 @@ def _aniso_terms(dr, dc, d):
             2.0 * dc * dif / d4, -2.0 * dr * dif / d4)
 
 
-def _aniso_var(p: LimbProfileParams, dr, dc, d):
-    """The anisotropic part of the blur variance of :class:`AnisoProfileParams` per pixel (``None`` otherwise)."""
-    if not isinstance(p, AnisoProfileParams):
+def _aniso_var(p: LimbProfileParams, terms):
+    """The anisotropic part of the blur variance of :class:`AnisoProfileParams` per pixel from its
+    :func:`_aniso_terms` (``None`` for the other profiles, ``terms`` then ``None``)."""
+    if terms is None:
         return None
-    C, S = _aniso_terms(dr, dc, d)[:2]
-    return p.s2c * C + p.s2s * S
+    return p.s2c * terms[0] + p.s2s * terms[1]
+
+
+def _aniso_terms_of(p: LimbProfileParams, dr, dc, d):
+    """:func:`_aniso_terms` for :class:`AnisoProfileParams`, ``None`` for the other profiles."""
+    return _aniso_terms(dr, dc, d) if isinstance(p, AnisoProfileParams) else None
 
 
 def limb_profile_intensity(p: LimbProfileParams, rc):
@@ -490,7 +495,7 @@ def limb_profile_intensity(p: LimbProfileParams, rc):
     """
     dr, dc, _, _, d, _, R, cpsi = limb_geometry(p, rc)
     F, _ = _profile_integrals(p, d, R, cpsi, False, isinstance(p, MinnaertProfileParams),
-                              isinstance(p, GlowProfileParams), _aniso_var(p, dr, dc, d))
+                              isinstance(p, GlowProfileParams), _aniso_var(p, _aniso_terms_of(p, dr, dc, d)))
     return p.ymin + p.amp * F
 
 
@@ -514,7 +519,8 @@ def _profile_value_and_columns(p: LimbProfileParams, rc):
     dr, dc, x, y, d, beta, R, cpsi = limb_geometry(p, rc)
     brightened = isinstance(p, MinnaertProfileParams)
     glowing = isinstance(p, GlowProfileParams)
-    F, P = _profile_integrals(p, d, R, cpsi, True, brightened, glowing, _aniso_var(p, dr, dc, d))
+    aniso = _aniso_terms_of(p, dr, dc, d)
+    F, P = _profile_integrals(p, d, R, cpsi, True, brightened, glowing, _aniso_var(p, aniso))
     A = p.amp
     ct, st = jnp.cos(p.theta), jnp.sin(p.theta)
     # d/dr0, d/dc0 of d, beta, R, cpsi
@@ -552,8 +558,8 @@ def _profile_value_and_columns(p: LimbProfileParams, rc):
     }
     if glowing:
         cols.update(glow=A * P["F_glow"], log_h=A * P["F_lh"], glow_tilt=A * P["F_tilt"])
-    if isinstance(p, AnisoProfileParams):  # d sigma_e / d s2 = (cos 2psi or sin 2psi) / (2 sigma_e); psi moves with r0, c0
-        C, S, C_r0, C_c0, S_r0, S_c0 = _aniso_terms(dr, dc, d)
+    if aniso is not None:  # d sigma_e / d s2 = (cos 2psi or sin 2psi) / (2 sigma_e); psi moves with r0, c0
+        C, S, C_r0, C_c0, S_r0, S_c0 = aniso
         ws = A * P["F_se"] / (2.0 * P["se"])
         cols.update(r0=cols["r0"] + ws * (p.s2c * C_r0 + p.s2s * S_r0), c0=cols["c0"] + ws * (p.s2c * C_c0 + p.s2s * S_c0),
                     s2c=ws * C, s2s=ws * S)

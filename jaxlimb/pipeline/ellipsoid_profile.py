@@ -170,16 +170,18 @@ def _with_trace_error(out: RefineResult, edge: "EllipsoidEdge", replace_block: b
 
 def floor_center_var(out: RefineResult, var: float) -> RefineResult:
     """``out`` with the covariance of its ellipse centre ``(r0, c0)`` raised to at least ``var`` (px^2) in every
-    direction (eigenvalues below ``var`` lifted to it, eigenvectors kept; the other parameters untouched)."""
+    direction: ``C + [var I - C]_+`` (:func:`jaxlimb.analysis.model_error.with_model_error`; eigenvalues below ``var``
+    lifted to it, eigenvectors kept; the other parameters untouched)."""
     import equinox as eqx
+
+    from ..analysis.model_error import with_model_error as widen
 
     free = list(out.fit.free)
     if var <= 0.0 or not all(n in free for n in ("r0", "c0")):
         return out
     idx = np.ix_(*(2 * ([free.index("r0"), free.index("c0")],)))
     C = np.array(out.fit.covariance)
-    w, V = np.linalg.eigh(C[idx])
-    C[idx] += (V * np.maximum(var - w, 0.0)) @ V.T
+    C[idx] = widen(C[idx], var * np.eye(2))
     return replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
 
 
