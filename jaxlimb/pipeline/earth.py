@@ -383,12 +383,14 @@ def _band_pixels(shape, ell: tuple, band: float, lit_dir, half_angle: float) -> 
 def _band_signed(pts: np.ndarray, ell: tuple) -> np.ndarray:
     """Signed first-order distance (px) of pixels ``(..., 2)`` to the ellipse (negative inside):
     ``F / |grad F|`` with ``F = x^2/a^2 + y^2/b^2 - 1`` in the ellipse frame of
-    :func:`jaxlimb.models.ellipse_coords`."""
-    from ..models import EllipseParams, ellipse_coords
-
+    :func:`jaxlimb.models.ellipse_coords` (Eq. 19), computed in float64 NumPy: the JAX transform runs in float32,
+    whose 1e-4 px resolution at a 2000 px centre swallowed the finite-difference steps of the fits that call this
+    (``limb_trace.fit_traced``'s centre never moved from its start)."""
     (r0, c0), (a, b), th = ell
-    xj, yj = ellipse_coords(EllipseParams(r0, c0, a, th, b / a, 1.0, 1.0, 0.0), np.asarray(pts, float))
-    x, y = np.asarray(xj, float), np.asarray(yj, float)
+    p = np.asarray(pts, float)
+    dr, dc = p[..., 0] - float(r0), p[..., 1] - float(c0)
+    ct, st = math.cos(float(th)), math.sin(float(th))
+    x, y = dc * ct - dr * st, -dr * ct - dc * st
     F = x * x / (a * a) + y * y / (b * b) - 1.0
     g = 2.0 * np.hypot(x / (a * a), y / (b * b))
     return F / np.maximum(g, 1e-300)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import jax
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
@@ -134,3 +135,24 @@ def test_coherent_shift_var_sees_a_coherent_bias_field_not_white_noise():
     tr, ell = _traced(lambda p: 0.3 * np.sign(np.sin(p * 4.5)), 0.3)
     v = coherent_shift_var(tr, ell)
     assert 0.2**2 < v < 0.35**2
+
+
+def test_fit_traced_moves_a_centre_far_from_the_origin():
+    """At a 2000 px centre the ellipse frame in float32 (1e-4 px resolution) swallowed the finite-difference steps
+    of the soft-L1 fit: its centre never left the start (a far cloudy Earth, ``benchmarks/families.py`` Earth
+    ``clouds`` 3, stayed on a front-end circle 4 px off).  ``_band_signed`` is float64 now, whatever JAX's x64 flag."""
+    from jaxlimb.pipeline.limb_trace import TracedLimb
+
+    truth = ((1697.46, 2097.64), (124.03, 122.42), 2.4)
+    t = np.linspace(-1.4, 1.4, 200) + 0.6
+    ct, st = np.cos(truth[2]), np.sin(truth[2])
+    x, y = truth[1][0] * np.cos(t), truth[1][1] * np.sin(t)
+    pts = np.column_stack([truth[0][0] - x * st - y * ct, truth[0][1] + x * ct - y * st])  # Eq. 20
+    tr = TracedLimb((1694.9, 2093.4), t, pts, np.full(t.size, 100.0), 0.0, 1.0)
+    start = ((1694.9, 2093.4), (121.5, 121.5 * truth[1][1] / truth[1][0]), truth[2])
+    shifted = ((truth[0][0] + 1e-6, truth[0][1]), truth[1], truth[2])
+    with jax.enable_x64(False):  # a library user who did not enable x64 (the CLI and the benchmarks do)
+        assert np.max(np.abs(_band_signed(pts, truth))) < 1e-9
+        assert np.all(_band_signed(pts, shifted) != _band_signed(pts, truth))  # resolves a micro-pixel step
+        e = fit_traced(tr, start)
+    assert np.hypot(e[0][0] - truth[0][0], e[0][1] - truth[0][1]) < 1e-3 and abs(e[1][0] - truth[1][0]) < 1e-3
