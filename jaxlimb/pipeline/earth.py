@@ -201,6 +201,13 @@ class EllipsoidOptions:
         40 000 km, 600 px) the centre is 0.005-0.025 px off for noise sigmas of 0.001-0.007 px (``own`` and ``lambert``
         NEES 3.0 and 3.8 on seed 2026, 6.9 and 22.6 on three held-out frames of seed 2027).  ``0`` keeps the noise
         and model-error terms alone.
+    patchy_shading_L
+        The lunar-Lambert ``L`` of the shading under an albedo-patchy limb's traced rays (attitude and Sun known):
+        each ray's half-level crossing is moved by where it lies on a uniform disc of that shading, blurred by the
+        PSF sigma the rays' profiles fit best (:func:`~jaxlimb.pipeline.limb_trace.shading_offsets`,
+        :func:`~jaxlimb.pipeline.limb_trace.shading_sigma`).  ``0``: Lambert (the Earth's clouds and surface; not
+        measurable from the rays, which the flatness test selects).  ``None``: no correction (the crossings as
+        traced: biased toward the Sun by 0.15-0.37 px on Lambert discs).
     """
 
     band_px: float = 4.0
@@ -216,6 +223,7 @@ class EllipsoidOptions:
     profile_band_px: float | None = None
     trace: bool = True
     center_floor_px: float = 0.0075
+    patchy_shading_L: float | None = 0.0
 
     def __post_init__(self) -> None:
         if self.profile_band_px is not None and not (isinstance(self.profile_band_px, (int, float))
@@ -228,6 +236,9 @@ class EllipsoidOptions:
         if not (isinstance(self.center_floor_px, (int, float)) and math.isfinite(self.center_floor_px)
                 and 0.0 <= self.center_floor_px <= 1.0):
             raise ConfigError(f"EllipsoidOptions.center_floor_px must be in [0, 1] px, got {self.center_floor_px!r}")
+        if self.patchy_shading_L is not None and not (isinstance(self.patchy_shading_L, (int, float))
+                                                      and 0.0 <= self.patchy_shading_L <= 1.0):
+            raise ConfigError(f"EllipsoidOptions.patchy_shading_L must be None or in [0, 1], got {self.patchy_shading_L!r}")
         if not (isinstance(self.arc_margin_deg, (int, float)) and 0 <= self.arc_margin_deg < 80):
             raise ConfigError(f"EllipsoidOptions.arc_margin_deg must be in [0, 80) deg, got {self.arc_margin_deg!r}")
         for name in ("max_refits", "max_iter"):

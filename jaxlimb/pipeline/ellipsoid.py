@@ -102,6 +102,7 @@ class EllipsoidEdge:
     jump_limit_px: float
     witness: tuple | None = None
     band_converged: bool = True
+    shading_shift: tuple | None = None
     asymmetry: tuple | None = None
 
     @property
@@ -443,7 +444,7 @@ def _ray_geometry(body: Ellipsoid, frame: Frame, edge: EllipsoidEdge, passes: in
     is replaced by the rays' cluster-robust one in the refit stage
     (:func:`~jaxlimb.pipeline.ellipsoid_profile.fit_profile_ellipsoid`).  Returns the edge with its
     ``pixels.trace`` the last trace."""
-    from .limb_trace import trace_limb
+    from .limb_trace import fit_traced, trace_limb
 
     pix, cam = edge.pixels, frame.cam
     search = max(6.0, 2.0 * body.eo.band_px)
@@ -452,13 +453,41 @@ def _ray_geometry(body: Ellipsoid, frame: Frame, edge: EllipsoidEdge, passes: in
         rho, th = body._predicted_shape(cam, -p)
         ell = (ell[0], (ell[1][0], ell[1][0] * rho), th)
         tr, fitted = _fit_rays(trace_limb(frame.img, ell, pix.lit_dir, pix.half, search), ell)
+        shift = None
+        if not tr.glow_term:  # (a glow's lift and the shading model do not compose: combined 2-4 moved 0.1-0.2 px)
+            tr, plain = _shaded(body, frame, tr, ell), fitted
+            fitted = fit_traced(tr, ell)
+            shift = (fitted[0][0] - plain[0][0], fitted[0][1] - plain[0][1], fitted[1][0] - plain[1][0])
         p, _ = position(body, cam, fitted, p)
         ell = fitted
     (r0, c0), (a, b), th = fitted
     P = edge.final.fit.params.replace(r0=r0, c0=c0, a=a, rho=b / a, theta=th)
     fit = eqx.tree_at(lambda x: x.params, edge.final.fit, P)
     return replace(edge, final=replace(edge.final, fit=fit), pixels=replace(pix, trace=tr, ray_fit=True), fitted=fitted,
-                   p=p)
+                   p=p, shading_shift=shift)
+
+
+def _shifted(edge: EllipsoidEdge, shift: tuple | None) -> EllipsoidEdge:
+    """``edge`` with its ``(r0, c0, a)`` moved by ``shift`` (the rays' shading correction, :func:`_ray_geometry`): the
+    band fit of the level-normalised pixels assumes the same flat inside as the rays' half-level crossings."""
+    if shift is None:
+        return edge
+    (r0, c0), (a, b), th = edge.fitted
+    fitted = ((r0 + shift[0], c0 + shift[1]), (a + shift[2], (a + shift[2]) * b / a), th)
+    P = edge.final.fit.params.replace(r0=fitted[0][0], c0=fitted[0][1], a=fitted[1][0])
+    return replace(edge, final=replace(edge.final, fit=eqx.tree_at(lambda x: x.params, edge.final.fit, P)), fitted=fitted)
+
+
+def _shaded(body: Ellipsoid, frame: Frame, tr: Any, ell: tuple) -> Any:
+    """The traced rays with their crossings' shading bias removed (``EllipsoidOptions.patchy_shading_L``; needs the
+    Sun direction); ``tr`` unchanged without it or with fewer than 20 rays."""
+    from .limb_trace import shading_corrected, shading_offsets, shading_sigma
+
+    L, sun = body.eo.patchy_shading_L, frame.hints.sun_dir_camera
+    if L is None or sun is None or tr.ok.sum() < 20:
+        return tr
+    sig = shading_sigma(frame.img, tr, ell, frame.cam, sun, L)
+    return shading_corrected(tr, shading_offsets(tr, ell, frame.cam, sun, sig, L))
 
 
 def _fit_rays(tr: Any, ell: tuple) -> tuple[Any, tuple]:
@@ -521,7 +550,7 @@ def _patchy_geometry(body: Ellipsoid, frame: Frame, edge: EllipsoidEdge, chi2: f
         m2 = math.inf
     if m2 > chi2 or rays.pixels.trace.glow_term:  # (the band fit has no glow: the rays' lift answers)
         return replace(rays, witness=tuple(float(v) for v in geo(edge)), asymmetry=asym)
-    return replace(edge, witness=tuple(float(v) for v in geo(rays)), asymmetry=asym)
+    return replace(_shifted(edge, rays.shading_shift), witness=tuple(float(v) for v in geo(rays)), asymmetry=asym)
 
 
 def _asymmetry(img: np.ndarray, ell: tuple, lit_dir, half: float) -> tuple[float, float, float] | None:

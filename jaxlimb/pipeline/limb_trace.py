@@ -182,6 +182,113 @@ def trace_limb(img: np.ndarray, ell: tuple, lit_dir, half: float, search: float,
     return TracedLimb((float(c[0]), float(c[1])), angles, pts, P, sky, noise)
 
 
+SHADE_FINE = 0.05
+"""The fine grid (px) on which :func:`shading_offsets` blurs its shading model."""
+
+
+def _limb_normals(cam, ell: tuple, angles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per ray angle: the outward surface normal at the limb ``n0`` (camera frame, perpendicular to the line of sight)
+    and the unit vector ``v`` toward the observer from the centre of ellipse ``ell`` (a sphere's limb)."""
+    c = np.asarray(ell[0], float)
+    v = -np.asarray(cam.los(c), float)
+    u = np.column_stack([np.sin(angles), np.cos(angles)])
+    d3 = np.array([cam.los(c + 5.0 * ui) for ui in u]) + v[None, :]  # each ray's image direction in 3-D
+    n0 = d3 - (d3 @ v)[:, None] * v[None, :]
+    return n0 / np.linalg.norm(n0, axis=1, keepdims=True), v
+
+
+def _shaded_rows(n0: np.ndarray, v: np.ndarray, sun: np.ndarray, R: float, sigma: float, L: float,
+                 xs: np.ndarray) -> np.ndarray:
+    """Rows of a uniform disc's radiance sampled at ``xs`` (px, outward from the limb): lunar-Lambert shading
+    ``2L mu0/(mu0 + mu) + (1 - L) mu0`` on a sphere of radius ``R`` px, blurred by a Gaussian of ``sigma`` px."""
+    from scipy.ndimage import gaussian_filter1d
+
+    xf = np.arange(xs[0] - 4.0 * sigma - 2.0, xs[-1] + 4.0 * sigma + 2.0, SHADE_FINE)
+    th = np.arccos(np.clip(1.0 - np.clip(-xf, 0.0, None) / R, -1.0, 1.0))  # the normal's tilt toward the observer
+    n = n0[:, None, :] * np.cos(th)[None, :, None] + v[None, None, :] * np.sin(th)[None, :, None]
+    mu0, mu = np.clip(n @ sun, 0.0, None), np.sin(th)[None, :]
+    shade = np.where(xf[None, :] <= 0.0, 2.0 * L * mu0 / np.maximum(mu0 + mu, 1e-9) + (1.0 - L) * mu0, 0.0)
+    prof = gaussian_filter1d(shade, sigma / SHADE_FINE, axis=1, mode="nearest")
+    return np.array([np.interp(xs, xf, p) for p in prof])
+
+
+def shading_offsets(tr: TracedLimb, ell: tuple, cam, sun_dir_camera, psf_sigma_px: float, L: float = 0.0,
+                    search: float = 6.0, step: float = 0.5) -> np.ndarray:
+    r"""Per ray of ``tr``, where :func:`trace_limb`'s half-level crossing lies (px, outward positive) on a disc of
+    *uniform* albedo (lunar-Lambert shading, ``L = 0``: Lambert), blurred by a Gaussian PSF of ``psf_sigma_px`` and
+    the pixel: the crossing's photometric bias, which an albedo that varies from ray to ray scales but does not move.
+
+    Why: the shading rises inward from the limb (``mu0 ~ sin(a) cos(psi) + cos(a) sqrt(2u/R)`` at depth ``u``, phase
+    ``a``, position angle ``psi`` from the Sun), so the inside level ``P`` 2-5 px deep exceeds the limb's own radiance,
+    most toward the horns; the crossings sit up to ~1 PSF sigma inside the limb there and less at the sub-solar point,
+    and the ellipse through them moves toward the Sun (``benchmarks/families.py`` Earth ``lambert`` frames traced
+    about their true ellipse: +0.15 to +0.37 px along the Sun, 0.00-0.01 px across).  Each ray's model is sampled
+    like the ray (``step`` px over ``+-search``), scaled to the ray's inside level, and put through the trace's own
+    edge rule (:func:`_ray_edges`, flatness not tested: the ray passed it).  NaN where ``tr`` rejected the ray."""
+    n0, v = _limb_normals(cam, ell, tr.angles)
+    sun = np.asarray(sun_dir_camera, float) / np.linalg.norm(sun_dir_camera)
+    xs = np.arange(-search, search + 0.5 * step, step)
+    sigma = math.hypot(psf_sigma_px, math.sqrt(1.0 / 12.0))
+    rows = _shaded_rows(n0, v, sun, float(ell[1][0]), sigma, L, xs)
+    inner = (xs >= -5.0 - sigma) & (xs <= -2.0 - sigma)  # about the window below the foot
+    ref = np.median(rows[:, inner], axis=1)
+    with np.errstate(all="ignore"):
+        gain = np.where(tr.ok & (ref > 0), (tr.inside - tr.sky) / ref, np.nan)
+        r_edge, _ = _ray_edges(rows * gain[:, None], np.broadcast_to(xs, rows.shape), 0.0, tr.noise, step, np.inf)
+    return np.where(tr.ok, r_edge, np.nan)
+
+
+SHADE_SIGMAS = tuple(round(0.4 + 0.1 * i, 1) for i in range(13))
+"""The PSF sigmas (px) :func:`shading_sigma` chooses from."""
+
+
+def _shape_misfit(y: np.ndarray, rel: np.ndarray, rows: np.ndarray, xs: np.ndarray, gain: np.ndarray,
+                  noise: float) -> float:
+    """Mean square between the rays' level-normalised samples ``y`` at ``rel`` (px from each ray's crossing) and the
+    shading model ``rows`` (on grid ``xs``, limb at 0) put through the same edge rule and aligned on its crossing."""
+    step = float(xs[1] - xs[0])
+    with np.errstate(all="ignore"):
+        em, Pm = _ray_edges(rows * gain[:, None], np.broadcast_to(xs, rows.shape), 0.0, noise, step, np.inf)
+        m = np.array([np.interp(rel[j] + em[j], xs, rows[j] * gain[j] / Pm[j]) for j in range(rows.shape[0])])
+    w = (rel >= -5.0) & (rel <= 3.0) & np.isfinite(y) & np.isfinite(m)
+    return float(np.mean((y - m)[w] ** 2)) if w.any() else math.inf
+
+
+def shading_sigma(img: np.ndarray, tr: TracedLimb, ell: tuple, cam, sun_dir_camera, L: float = 0.0,
+                  sigmas: tuple[float, ...] = SHADE_SIGMAS, search: float = 6.0) -> float:
+    """The PSF sigma (px, from ``sigmas``) whose shading model (:func:`shading_offsets`) best matches the kept rays'
+    level-normalised profiles about their own crossings (5 px inside to 3 px outside).  ``L`` is given, not
+    chosen: the flatness test keeps the rays whose albedo falls inward, and their profiles look flatter than the
+    shading (on the Lambert ``clouds`` frames of ``benchmarks/families.py`` the best ``L`` was 0.25-1.0; on the
+    uniform ``lambert`` and lunar-Lambert ``own`` frames it was found, 0 and 0.25-0.75)."""
+    ok = tr.ok
+    if ok.sum() < 20:
+        raise TooManyOutliersError(f"the limb trace kept {int(ok.sum())} rays with a limb against the sky (need >= 20)")
+    ang = tr.angles[ok]
+    v, rad, _ = _sample_rays(img, ell, ang, search, 0.5)
+    r_obs = np.linalg.norm(tr.points[ok] - np.asarray(ell[0], float)[None, :], axis=1)
+    y, rel = (v - tr.sky) / (tr.inside[ok] - tr.sky)[:, None], rad - r_obs[:, None]
+    n0, vv = _limb_normals(cam, ell, ang)
+    sun = np.asarray(sun_dir_camera, float) / np.linalg.norm(sun_dir_camera)
+    xs = np.arange(-search - 4.0, search + 4.25, 0.25)
+    cost = []
+    for sg in sigmas:
+        sig = math.hypot(sg, math.sqrt(1.0 / 12.0))
+        rows = _shaded_rows(n0, vv, sun, float(ell[1][0]), sig, L, xs)
+        ref = np.median(rows[:, (xs >= -5.0 - sig) & (xs <= -2.0 - sig)], axis=1)
+        cost.append(_shape_misfit(y, rel, rows, xs, (tr.inside[ok] - tr.sky) / ref, tr.noise))
+    return float(sigmas[int(np.argmin(cost))])
+
+
+def shading_corrected(tr: TracedLimb, offsets: np.ndarray) -> TracedLimb:
+    """``tr`` with each kept ray's limb point moved back along its ray by its :func:`shading_offsets` (rays whose
+    offset is not finite left out)."""
+    u = np.column_stack([np.sin(tr.angles), np.cos(tr.angles)])
+    pts = tr.points - np.where(np.isfinite(offsets), offsets, np.nan)[:, None] * u
+    inside = np.where(np.isfinite(offsets), tr.inside, np.nan)
+    return TracedLimb(tr.center_rc, tr.angles, pts, inside, tr.sky, tr.noise, tr.glow_term)
+
+
 def fit_traced(tr: TracedLimb, ell: tuple, free_shape: bool = False) -> tuple:
     """The ellipse through the traced points: ``(r0, c0, a)`` (and ``rho, theta`` when ``free_shape``) by a
     soft-L1 geometric fit (scale 0.5 px), started at ``ell``; returns ``((r0, c0), (a, b), theta)``.  With
