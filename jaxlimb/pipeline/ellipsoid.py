@@ -330,10 +330,16 @@ def _traced_start(img: np.ndarray, ell: tuple, lit_dir, half: float, band: float
 
     try:
         tr = trace_limb(img, ell, lit_dir, half, max(12.0, 0.2 * ell[1][0]))
-        if tr.ok.sum() and np.median(np.abs(_band_signed(tr.points[tr.ok], ell))) < 1.0:
-            # the front end's ellipse is on the traced limb: it stays the start (the trace only gives the levels)
+        on_limb = bool(tr.ok.sum()) and np.median(np.abs(_band_signed(tr.points[tr.ok], ell))) < 1.0
+        if on_limb and tr.ok.sum() < 20:
             return ell, trace_limb(img, ell, lit_dir, half, max(6.0, 2.0 * band))
         e1 = fit_traced(tr, ell)
+        if on_limb and _ell_change(ell, e1) < 1.0:
+            # the front end's ellipse is on the traced limb: it stays the start (the trace only gives the levels).
+            # (Not when the rays' own fit lies elsewhere: on a full-disc cloudy Earth the front end's circle, 10 px
+            # inside on cloud edges, had half the wide trace's crossings within 1 px and the rays' fit 0.3 px from the
+            # limb; benchmarks/earth_full_disc.py ``clouds`` 0.)
+            return ell, trace_limb(img, ell, lit_dir, half, max(6.0, 2.0 * band))
         tr = trace_limb(img, e1, lit_dir, half, max(6.0, 2.0 * band))
         e2 = fit_traced(tr, e1)
     except TooManyOutliersError:  # too few rays with a flat inside (a bright glow's foot): the front end's ellipse

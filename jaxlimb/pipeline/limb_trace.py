@@ -225,31 +225,40 @@ def shading_offsets(tr: TracedLimb, ell: tuple, cam, sun_dir_camera, psf_sigma_p
     about their true ellipse: +0.15 to +0.37 px along the Sun, 0.00-0.01 px across).  Each ray's model is sampled
     like the ray (``step`` px over ``+-search``), scaled to the ray's inside level, and put through the trace's own
     edge rule (:func:`_ray_edges`, flatness not tested: the ray passed it).  NaN where ``tr`` rejected the ray."""
-    n0, v = _limb_normals(cam, ell, tr.angles)
-    sun = np.asarray(sun_dir_camera, float) / np.linalg.norm(sun_dir_camera)
     xs = np.arange(-search, search + 0.5 * step, step)
+    rows = _scaled_rows(tr, np.ones_like(tr.ok), ell, cam, sun_dir_camera, psf_sigma_px, L, xs)  # (NaN: rejected)
+    with np.errstate(all="ignore"):
+        r_edge, _ = _ray_edges(rows, np.broadcast_to(xs, rows.shape), 0.0, tr.noise, step, np.inf)
+    return np.where(tr.ok, r_edge, np.nan)
+
+
+def _scaled_rows(tr: TracedLimb, sel: np.ndarray, ell: tuple, cam, sun_dir_camera, psf_sigma_px: float, L: float,
+                 xs: np.ndarray) -> np.ndarray:
+    """:func:`_shaded_rows` for the rays ``sel`` of ``tr`` (PSF and pixel blur), each scaled so that its level
+    about the trace's window (2-5 px inside the foot, ~1 sigma outside the limb) is the ray's inside level ``P - s``
+    (NaN rows where ``tr`` has no level)."""
+    n0, v = _limb_normals(cam, ell, tr.angles[sel])
+    sun = np.asarray(sun_dir_camera, float) / np.linalg.norm(sun_dir_camera)
     sigma = math.hypot(psf_sigma_px, math.sqrt(1.0 / 12.0))
     rows = _shaded_rows(n0, v, sun, float(ell[1][0]), sigma, L, xs)
-    inner = (xs >= -5.0 - sigma) & (xs <= -2.0 - sigma)  # about the window below the foot
-    ref = np.median(rows[:, inner], axis=1)
+    ref = np.median(rows[:, (xs >= -5.0 - sigma) & (xs <= -2.0 - sigma)], axis=1)
     with np.errstate(all="ignore"):
-        gain = np.where(tr.ok & (ref > 0), (tr.inside - tr.sky) / ref, np.nan)
-        r_edge, _ = _ray_edges(rows * gain[:, None], np.broadcast_to(xs, rows.shape), 0.0, tr.noise, step, np.inf)
-    return np.where(tr.ok, r_edge, np.nan)
+        gain = np.where(ref > 0, (tr.inside[sel] - tr.sky) / ref, np.nan)
+    return rows * gain[:, None]
 
 
 SHADE_SIGMAS = tuple(round(0.4 + 0.1 * i, 1) for i in range(13))
 """The PSF sigmas (px) :func:`shading_sigma` chooses from."""
 
 
-def _shape_misfit(y: np.ndarray, rel: np.ndarray, rows: np.ndarray, xs: np.ndarray, gain: np.ndarray,
-                  noise: float) -> float:
+def _shape_misfit(y: np.ndarray, rel: np.ndarray, rows: np.ndarray, xs: np.ndarray, noise: float) -> float:
     """Mean square between the rays' level-normalised samples ``y`` at ``rel`` (px from each ray's crossing) and the
-    shading model ``rows`` (on grid ``xs``, limb at 0) put through the same edge rule and aligned on its crossing."""
+    shading model ``rows`` (DN above the sky on grid ``xs``, limb at 0) put through the same edge rule, normalised by
+    its own inside level and aligned on its own crossing."""
     step = float(xs[1] - xs[0])
     with np.errstate(all="ignore"):
-        em, Pm = _ray_edges(rows * gain[:, None], np.broadcast_to(xs, rows.shape), 0.0, noise, step, np.inf)
-        m = np.array([np.interp(rel[j] + em[j], xs, rows[j] * gain[j] / Pm[j]) for j in range(rows.shape[0])])
+        em, Pm = _ray_edges(rows, np.broadcast_to(xs, rows.shape), 0.0, noise, step, np.inf)
+        m = np.array([np.interp(rel[j] + em[j], xs, rows[j] / Pm[j]) for j in range(rows.shape[0])])
     w = (rel >= -5.0) & (rel <= 3.0) & np.isfinite(y) & np.isfinite(m)
     return float(np.mean((y - m)[w] ** 2)) if w.any() else math.inf
 
@@ -268,15 +277,9 @@ def shading_sigma(img: np.ndarray, tr: TracedLimb, ell: tuple, cam, sun_dir_came
     v, rad, _ = _sample_rays(img, ell, ang, search, 0.5)
     r_obs = np.linalg.norm(tr.points[ok] - np.asarray(ell[0], float)[None, :], axis=1)
     y, rel = (v - tr.sky) / (tr.inside[ok] - tr.sky)[:, None], rad - r_obs[:, None]
-    n0, vv = _limb_normals(cam, ell, ang)
-    sun = np.asarray(sun_dir_camera, float) / np.linalg.norm(sun_dir_camera)
     xs = np.arange(-search - 4.0, search + 4.25, 0.25)
-    cost = []
-    for sg in sigmas:
-        sig = math.hypot(sg, math.sqrt(1.0 / 12.0))
-        rows = _shaded_rows(n0, vv, sun, float(ell[1][0]), sig, L, xs)
-        ref = np.median(rows[:, (xs >= -5.0 - sig) & (xs <= -2.0 - sig)], axis=1)
-        cost.append(_shape_misfit(y, rel, rows, xs, (tr.inside[ok] - tr.sky) / ref, tr.noise))
+    cost = [_shape_misfit(y, rel, _scaled_rows(tr, ok, ell, cam, sun_dir_camera, sg, L, xs), xs, tr.noise)
+            for sg in sigmas]
     return float(sigmas[int(np.argmin(cost))])
 
 
