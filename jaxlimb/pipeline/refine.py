@@ -495,21 +495,69 @@ def _outlier_pass(model, data: FitData, res: LimbFit, options: LocateOptions, fi
     r = data.z - pred
     if data.weights is not None:
         r = r * data.weights
-    mad = 1.4826 * float(np.median(np.abs(r - np.median(r))))
-    sig = max(mad, 1e-12 * max(1.0, float(np.max(np.abs(data.z)))))
+    sig = _robust_sigma(r)
     bad = np.abs(r) > options.outlier_sigma * sig
     nb = int(np.count_nonzero(bad))
     n = data.z.shape[0]
     if nb > options.max_outlier_fraction * n:
-        raise TooManyOutliersError(
-            f"Check 3: {nb} of {n} annulus pixels ({100.0 * nb / n:.1f} %) have residuals above "
-            f"{options.outlier_sigma:g} robust sigma; max_outlier_fraction = {options.max_outlier_fraction:g}"
-        )
+        # a misfit of the edge model's shape (a bright rim) is not an outlier: test what is left about it (same sigma)
+        bad = np.abs(r - local_misfit(r, data.coords, res.params)) > options.outlier_sigma * sig
+        nl = int(np.count_nonzero(bad))
+        if nl > MISFIT_OUTLIER_SHARE * options.max_outlier_fraction * n:
+            raise TooManyOutliersError(
+                f"Check 3: {nb} of {n} annulus pixels ({100.0 * nb / n:.1f} %) have residuals above "
+                f"{options.outlier_sigma:g} robust sigma; max_outlier_fraction = {options.max_outlier_fraction:g} "
+                f"({100.0 * nl / n:.1f} % about their neighbourhood's misfit, above {MISFIT_OUTLIER_SHARE:g} of it)"
+            )
+        nb = nl
     if nb == 0:
         return res, data, 0
     d2 = data.subset(~bad)
     res2 = _run(model, d2, res.params, options, fixed)
     return res2, d2, nb
+
+
+def _robust_sigma(r: np.ndarray) -> float:
+    """1.4826 MAD of the residuals ``r`` (at least 1e-12 of their largest)."""
+    mad = 1.4826 * float(np.median(np.abs(r - np.median(r))))
+    return max(mad, 1e-12 * max(1.0, float(np.max(np.abs(r)))))
+
+
+MISFIT_BIN_PX = 1.0
+"""Width (px) of the distance bins of :func:`local_misfit`."""
+MISFIT_SECTORS = 8
+"""Angular sectors (about the fitted centre) of :func:`local_misfit`."""
+MISFIT_OUTLIER_SHARE = 0.25
+"""About :func:`local_misfit`, at most this share of ``max_outlier_fraction`` of the annulus may be outliers (else
+Check 3 fails).  Measured (5 sigma of the plain residuals): the Minnaert crescent of :func:`local_misfit` 1.2 % (24 %
+plain), the bright square of ``test_check3_too_many_outliers`` 10-11 % (23 % plain) with 1-8 sectors."""
+
+
+def local_misfit(r: np.ndarray, coords: np.ndarray, params) -> np.ndarray:
+    """The systematic part of the residuals ``r``: the median residual of each pixel's cell of
+    :data:`MISFIT_BIN_PX` in distance from the fitted centre by :data:`MISFIT_SECTORS` sectors about it.
+
+    Why: Check 3's outliers are stars, hot pixels and cosmic rays, pixels unlike their neighbours.  A limb whose
+    radial shape the sigmoid cannot follow misfits whole bands of the annulus instead, each pixel by about as much as
+    its neighbours: the bright rim of a Minnaert crescent (``benchmarks/families.py`` Moon ``minnaert`` 4 of seed 2028,
+    38 px at phase 134 deg, 8 bit) left the bands 1-2 px and 5-6 px inside the limb 5-9 robust sigmas off (the
+    sky's noise sets the MAD), 24 % of the annulus: a typed failure.  About their cells' medians 1.2 % are; the
+    profile refit that follows fits that rim (its Minnaert exponent) and put the centre 0.013 px off.  Used only
+    when the plain test fails Check 3 (no frame that passes it changes), with the plain test's sigma and a smaller
+    share (:data:`MISFIT_OUTLIER_SHARE`): a model wrong everywhere (a bright square,
+    ``test_check3_too_many_outliers``) leaves its cells' pixels far apart still."""
+    c = np.asarray(coords, float)
+    r0, c0 = float(params.r0), float(params.c0)
+    rad = float(params.radius) if hasattr(params, "radius") else float(params.a)
+    d = np.floor((np.hypot(c[:, 0] - r0, c[:, 1] - c0) - rad) / MISFIT_BIN_PX).astype(np.int64)
+    sec = np.floor((np.arctan2(c[:, 1] - c0, c[:, 0] - r0) + np.pi) / (2 * np.pi) * MISFIT_SECTORS).astype(np.int64)
+    cell = (d - d.min()) * (MISFIT_SECTORS + 1) + np.clip(sec, 0, MISFIT_SECTORS)
+    out = np.zeros_like(r)
+    order = np.argsort(cell, kind="stable")
+    bounds = np.flatnonzero(np.diff(cell[order])) + 1
+    for idx in np.split(order, bounds):
+        out[idx] = np.median(r[idx])
+    return out
 
 
 def fit_circle_annulus(sel: AnnulusSelection, options: LocateOptions) -> RefineResult:
