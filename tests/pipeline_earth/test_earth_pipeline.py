@@ -311,3 +311,23 @@ def test_earth_center_sigma_has_the_specification_floor(earth_far):
     assert sig[0.0] < 0.0075 and 0.0075 * 0.9 <= sig[0.0075] < 0.02
     with pytest.raises(Exception, match="center_floor_px"):
         EllipsoidOptions(center_floor_px=-1.0)
+
+
+def test_traced_start_leaves_a_front_end_circle_on_cloud_edges():
+    """Full-disc cloudy Earth (independent renderer, ``benchmarks/earth_full_disc.py`` ``clouds`` 0, 1.5 million km,
+    phase 11 deg): the front end's circle lies ~10 px inside the limb on cloud edges, and half the wide trace's
+    crossings are within 1 px of it; the rays' own fit is on the limb, so the trace's start is that fit, not the
+    circle (``ellipsoid._traced_start``; it used to keep the circle, and the band fit then failed Check 5)."""
+    from jaxlimb.imaging import Hints
+    from jaxlimb.pipeline.locate import body_strategy, prepare
+    from jaxlimb.render.independent import EARTH_FULL_DISC_FAMILIES, earth_full_disc_case
+
+    case = earth_full_disc_case("clouds", np.random.default_rng([2026, 2, EARTH_FULL_DISC_FAMILIES.index("clouds"), 0]))
+    frame = prepare(case.image, case.camera, Hints.from_dict(case.hints), None, None)
+    body = body_strategy(frame)
+    frame = body.prepare(frame)
+    cand = body.candidates(frame)
+    start = body.limb_pixels(frame, cand).ellipse
+    t = case.truth
+    assert math.dist(cand.center_rc, t.ellipse_center_rc) > 5.0  # the premise: the front end is off
+    assert math.dist(start[0], t.ellipse_center_rc) < 1.0 and abs(start[1][0] - t.semi_axes_px[0]) < 1.0
