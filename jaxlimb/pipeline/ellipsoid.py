@@ -460,17 +460,21 @@ def _ray_geometry(body: Ellipsoid, frame: Frame, edge: EllipsoidEdge, passes: in
         ell = (ell[0], (ell[1][0], ell[1][0] * rho), th)
         tr, fitted = _fit_rays(trace_limb(frame.img, ell, pix.lit_dir, pix.half, search), ell)
         shift = None
-        if not tr.glow_term:  # (a glow's lift and the shading model do not compose: combined 2-4 moved 0.1-0.2 px)
-            tr, plain = _shaded(body, frame, tr, ell), fitted
+        shaded = tr if tr.glow_term else _shaded(body, frame, tr, ell)  # (a glow's lift and the shading model do not
+        if shaded is not tr:  # compose: combined 2-4 moved 0.1-0.2 px)
+            tr, plain = shaded, fitted
             fitted = fit_traced(tr, ell)
             shift = (fitted[0][0] - plain[0][0], fitted[0][1] - plain[0][1], fitted[1][0] - plain[1][0])
         p, _ = position(body, cam, fitted, p)
         ell = fitted
+    return replace(_with_ellipse(edge, fitted), pixels=replace(pix, trace=tr, ray_fit=True), p=p, shading_shift=shift)
+
+
+def _with_ellipse(edge: EllipsoidEdge, fitted: tuple) -> EllipsoidEdge:
+    """``edge`` answering ellipse ``fitted`` (``fitted`` and its final fit's ``r0, c0, a, rho, theta``)."""
     (r0, c0), (a, b), th = fitted
     P = edge.final.fit.params.replace(r0=r0, c0=c0, a=a, rho=b / a, theta=th)
-    fit = eqx.tree_at(lambda x: x.params, edge.final.fit, P)
-    return replace(edge, final=replace(edge.final, fit=fit), pixels=replace(pix, trace=tr, ray_fit=True), fitted=fitted,
-                   p=p, shading_shift=shift)
+    return replace(edge, final=replace(edge.final, fit=eqx.tree_at(lambda x: x.params, edge.final.fit, P)), fitted=fitted)
 
 
 def _shifted(edge: EllipsoidEdge, shift: tuple | None) -> EllipsoidEdge:
@@ -479,9 +483,7 @@ def _shifted(edge: EllipsoidEdge, shift: tuple | None) -> EllipsoidEdge:
     if shift is None:
         return edge
     (r0, c0), (a, b), th = edge.fitted
-    fitted = ((r0 + shift[0], c0 + shift[1]), (a + shift[2], (a + shift[2]) * b / a), th)
-    P = edge.final.fit.params.replace(r0=fitted[0][0], c0=fitted[0][1], a=fitted[1][0])
-    return replace(edge, final=replace(edge.final, fit=eqx.tree_at(lambda x: x.params, edge.final.fit, P)), fitted=fitted)
+    return _with_ellipse(edge, ((r0 + shift[0], c0 + shift[1]), (a + shift[2], (a + shift[2]) * b / a), th))
 
 
 def _shaded(body: Ellipsoid, frame: Frame, tr: Any, ell: tuple) -> Any:

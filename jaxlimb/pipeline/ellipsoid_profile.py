@@ -118,6 +118,13 @@ def _passes(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", fd: FitData,
     return res, fixed, hist
 
 
+def _with_covariance(out: RefineResult, C: np.ndarray) -> RefineResult:
+    """``out`` with its fit's covariance replaced by ``C``."""
+    import equinox as eqx
+
+    return replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
+
+
 def edge_with_model_error(edge: "EllipsoidEdge", rejected: Any = None) -> RefineResult:
     """The edge fit's :class:`RefineResult` with the model-error terms of
     :func:`~jaxlimb.pipeline.profile_fit.with_model_error` (the answer when the profile is not fitted or is
@@ -129,15 +136,13 @@ def edge_with_model_error(edge: "EllipsoidEdge", rejected: Any = None) -> Refine
         return out
     # a rejected profile fit (its L outside the physical band) is a second model of the same limb: the
     # difference of the two limbs' geometry is model error too (the edge fit keeps no model of the interior)
-    import equinox as eqx
-
     free = list(out.fit.free)
     names = [n for n in ("r0", "c0", "a") if n in free]
     idx = [free.index(n) for n in names]
     d = np.array([float(getattr(rejected, n)) - float(getattr(out.fit.params, n)) for n in names])
     C = np.array(out.fit.covariance)
     C[np.ix_(idx, idx)] += np.outer(d, d)
-    return replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
+    return _with_covariance(out, C)
 
 
 def _with_trace_error(out: RefineResult, edge: "EllipsoidEdge", replace_block: bool = False) -> RefineResult:
@@ -149,8 +154,6 @@ def _with_trace_error(out: RefineResult, edge: "EllipsoidEdge", replace_block: b
     shift the bias field hides in the fit (:func:`~jaxlimb.pipeline.limb_trace.coherent_shift_var`): a floor, not a
     sum, because the sandwich and the witnesses already hold the visible part of the same field (added, it turned
     ``benchmarks/families.py``'s Earth ``combined`` 2, 0.086 px off, into ``center_too_uncertain``)."""
-    import equinox as eqx
-
     from .limb_trace import coherent_shift_var, trace_model_cov
 
     free = list(out.fit.free)
@@ -164,7 +167,7 @@ def _with_trace_error(out: RefineResult, edge: "EllipsoidEdge", replace_block: b
         C[np.ix_(idx, idx)] = trace_model_cov(edge.pixels.trace, edge.fitted)
     else:
         C[np.ix_(idx, idx)] += trace_model_cov(edge.pixels.trace, edge.fitted)
-    out = replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
+    out = _with_covariance(out, C)
     return floor_center_var(out, coherent_shift_var(edge.pixels.trace, edge.fitted))
 
 
@@ -172,8 +175,6 @@ def floor_center_var(out: RefineResult, var: float) -> RefineResult:
     """``out`` with the covariance of its ellipse centre ``(r0, c0)`` raised to at least ``var`` (px^2) in every
     direction: ``C + [var I - C]_+`` (:func:`jaxlimb.analysis.model_error.with_model_error`; eigenvalues below ``var``
     lifted to it, eigenvectors kept; the other parameters untouched)."""
-    import equinox as eqx
-
     from ..analysis.model_error import with_model_error as widen
 
     free = list(out.fit.free)
@@ -182,15 +183,13 @@ def floor_center_var(out: RefineResult, var: float) -> RefineResult:
     idx = np.ix_(*(2 * ([free.index("r0"), free.index("c0")],)))
     C = np.array(out.fit.covariance)
     C[idx] = widen(C[idx], var * np.eye(2))
-    return replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
+    return _with_covariance(out, C)
 
 
 def _with_witness(out: RefineResult, edge: "EllipsoidEdge") -> RefineResult:
     """``d d^T`` added to the covariance of ``(r0, c0, a)``, ``d`` the difference between the answer and the other
     estimate of the same patchy limb (``edge.witness``, :func:`~jaxlimb.pipeline.ellipsoid._patchy_geometry`), and
     the traced step's asymmetry likewise (``edge.asymmetry``, :func:`~jaxlimb.pipeline.ellipsoid._asymmetry`)."""
-    import equinox as eqx
-
     free = list(out.fit.free)
     if not all(n in free for n in ("r0", "c0", "a")):
         return out
@@ -201,7 +200,7 @@ def _with_witness(out: RefineResult, edge: "EllipsoidEdge") -> RefineResult:
         C[np.ix_(idx, idx)] += np.outer(d, d)
     if edge.asymmetry is not None:  # the traced step's asymmetry (ellipsoid._asymmetry)
         C[np.ix_(idx, idx)] += np.outer(edge.asymmetry, edge.asymmetry)
-    return replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
+    return _with_covariance(out, C)
 
 
 def fit_profile_ellipsoid(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", extras: dict[str, Any]) -> RefineResult:
@@ -341,8 +340,6 @@ def with_aniso_witness(out: RefineResult, iso: RefineResult) -> RefineResult:
     tuned on): the refit moved the centre 0.015-0.15 px and left 0.004-0.031 px (residual / move 0.04-0.9); frame 10
     (moved 0.153 px along the row, left 0.021 px along the column, where its covariance is 0.003 px thin) had NEES 42
     with the term along ``d`` only, 48 without it."""
-    import equinox as eqx
-
     free = list(out.fit.free)
     if not all(n in free for n in ("r0", "c0", "a")):
         return out
@@ -351,7 +348,7 @@ def with_aniso_witness(out: RefineResult, iso: RefineResult) -> RefineResult:
     for i, v in zip((free.index("r0"), free.index("c0"), free.index("a")),
                     (float(np.hypot(d[0], d[1])),) * 2 + (abs(d[2]),)):
         C[i, i] += (ANISO_WITNESS * v) ** 2
-    return replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
+    return _with_covariance(out, C)
 
 
 __all__ = ["ANISO_MIN_CHI2", "ANISO_WITNESS", "with_aniso_witness", "ANISO_MIN_FRAC", "aniso_plausible", "aniso_significant", "edge_with_model_error", "fit_profile_ellipsoid", "profile_wanted", "widen_aniso_ellipsoid",

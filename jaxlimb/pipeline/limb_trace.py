@@ -192,7 +192,7 @@ def _limb_normals(cam, ell: tuple, angles: np.ndarray) -> tuple[np.ndarray, np.n
     c = np.asarray(ell[0], float)
     v = -np.asarray(cam.los(c), float)
     u = np.column_stack([np.sin(angles), np.cos(angles)])
-    d3 = np.array([cam.los(c + 5.0 * ui) for ui in u]) + v[None, :]  # each ray's image direction in 3-D
+    d3 = np.asarray(cam.los(c[None, :] + 5.0 * u), float) + v[None, :]  # each ray's image direction in 3-D
     n0 = d3 - (d3 @ v)[:, None] * v[None, :]
     return n0 / np.linalg.norm(n0, axis=1, keepdims=True), v
 
@@ -226,18 +226,19 @@ def shading_offsets(tr: TracedLimb, ell: tuple, cam, sun_dir_camera, psf_sigma_p
     like the ray (``step`` px over ``+-search``), scaled to the ray's inside level, and put through the trace's own
     edge rule (:func:`_ray_edges`, flatness not tested: the ray passed it).  NaN where ``tr`` rejected the ray."""
     xs = np.arange(-search, search + 0.5 * step, step)
-    rows = _scaled_rows(tr, np.ones_like(tr.ok), ell, cam, sun_dir_camera, psf_sigma_px, L, xs)  # (NaN: rejected)
+    sel = np.ones_like(tr.ok)  # every ray (rejected ones get NaN rows)
+    rows = _scaled_rows(tr, sel, ell, _limb_normals(cam, ell, tr.angles), sun_dir_camera, psf_sigma_px, L, xs)
     with np.errstate(all="ignore"):
         r_edge, _ = _ray_edges(rows, np.broadcast_to(xs, rows.shape), 0.0, tr.noise, step, np.inf)
     return np.where(tr.ok, r_edge, np.nan)
 
 
-def _scaled_rows(tr: TracedLimb, sel: np.ndarray, ell: tuple, cam, sun_dir_camera, psf_sigma_px: float, L: float,
-                 xs: np.ndarray) -> np.ndarray:
-    """:func:`_shaded_rows` for the rays ``sel`` of ``tr`` (PSF and pixel blur), each scaled so that its level
-    about the trace's window (2-5 px inside the foot, ~1 sigma outside the limb) is the ray's inside level ``P - s``
-    (NaN rows where ``tr`` has no level)."""
-    n0, v = _limb_normals(cam, ell, tr.angles[sel])
+def _scaled_rows(tr: TracedLimb, sel: np.ndarray, ell: tuple, normals: tuple, sun_dir_camera, psf_sigma_px: float,
+                 L: float, xs: np.ndarray) -> np.ndarray:
+    """:func:`_shaded_rows` for the rays ``sel`` of ``tr`` (their :func:`_limb_normals` ``normals``; PSF and pixel
+    blur), each scaled so that its level about the trace's window (2-5 px inside the foot, ~1 sigma outside the limb)
+    is the ray's inside level ``P - s`` (NaN rows where ``tr`` has no level)."""
+    n0, v = normals
     sun = np.asarray(sun_dir_camera, float) / np.linalg.norm(sun_dir_camera)
     sigma = math.hypot(psf_sigma_px, math.sqrt(1.0 / 12.0))
     rows = _shaded_rows(n0, v, sun, float(ell[1][0]), sigma, L, xs)
@@ -278,7 +279,8 @@ def shading_sigma(img: np.ndarray, tr: TracedLimb, ell: tuple, cam, sun_dir_came
     r_obs = np.linalg.norm(tr.points[ok] - np.asarray(ell[0], float)[None, :], axis=1)
     y, rel = (v - tr.sky) / (tr.inside[ok] - tr.sky)[:, None], rad - r_obs[:, None]
     xs = np.arange(-search - 4.0, search + 4.25, 0.25)
-    cost = [_shape_misfit(y, rel, _scaled_rows(tr, ok, ell, cam, sun_dir_camera, sg, L, xs), xs, tr.noise)
+    normals = _limb_normals(cam, ell, ang)  # (the same for every sigma)
+    cost = [_shape_misfit(y, rel, _scaled_rows(tr, ok, ell, normals, sun_dir_camera, sg, L, xs), xs, tr.noise)
             for sg in sigmas]
     return float(sigmas[int(np.argmin(cost))])
 
