@@ -217,7 +217,7 @@ class Ellipsoid:
         ell = ((float(c_rc[0]), float(c_rc[1])), (a0, a0 * rho), th)
         if not eo.trace:
             return EllipsePixels(p0, float(D0), lit_dir, half, ell)
-        ell, tr = _traced_start(frame.img, ell, lit_dir, half, eo.band_px)
+        ell, tr = _traced_start(frame.img, ell, lit_dir, half, eo.band_px, _ray_shading(self, frame))
         return EllipsePixels(p0, float(D0), lit_dir, half, ell, tr)
 
     def _predicted_shape(self, cam: Camera, center_km: np.ndarray) -> tuple[float, float]:
@@ -320,27 +320,57 @@ def _blob_candidates(body: Ellipsoid, frame: Frame) -> Any:
                           "range prior + disc extreme", {"fallback": "front end failed"})
 
 
-def _traced_start(img: np.ndarray, ell: tuple, lit_dir, half: float, band: float) -> tuple[tuple, Any]:
+def _ray_shading(body: "Ellipsoid", frame: Frame) -> Any:
+    """The uniform disc's shading for the trace's flatness test (:class:`~jaxlimb.pipeline.limb_trace.RayShading`,
+    lunar-Lambert ``EllipsoidOptions.patchy_shading_L``), ``None`` without the Sun direction or with the option off."""
+    from .limb_trace import RayShading
+
+    L, sun = body.eo.patchy_shading_L, frame.hints.sun_dir_camera
+    return None if L is None or sun is None else RayShading(frame.cam, tuple(float(x) for x in sun), float(L))
+
+
+def _wide_trace(img: np.ndarray, ell: tuple, lit_dir, half: float, shade: Any) -> Any:
+    """The start's wide trace (20 % of the radius deep) -- with the shading-flattened flatness test
+    (:class:`~jaxlimb.pipeline.limb_trace.RayShading`) only when the plain test keeps fewer than one ray in ten, the
+    shading explains it (a uniform disc would fail the plain test on half the rays or more,
+    :meth:`~jaxlimb.pipeline.limb_trace.RayShading.dark_share`) and the flattened test keeps more: a dark Lambert
+    limb near zero phase.  Every other frame keeps its trace (a cloudy limb under a glow and a smear at 58 deg of
+    phase, ``benchmarks/families.py`` Earth ``combined`` 2, went from 0.09 to 1.32 px when its rays were flattened:
+    the flattened trace is not tested for a glow, :func:`_rays_once`)."""
+    from .limb_trace import trace_limb
+
+    search = max(12.0, 0.2 * ell[1][0])
+    tr = trace_limb(img, ell, lit_dir, half, search)
+    if shade is None or tr.ok.mean() >= 0.1 or shade.dark_share(ell, tr.angles) < 0.5:
+        return tr
+    flat = trace_limb(img, ell, lit_dir, half, search, shade=shade)
+    return flat if flat.ok.sum() > max(2 * tr.ok.sum(), 20) else tr
+
+
+def _traced_start(img: np.ndarray, ell: tuple, lit_dir, half: float, band: float,
+                  shade: Any = None) -> tuple[tuple, Any]:
     """The initial ellipse from the limb against the sky (:mod:`jaxlimb.pipeline.limb_trace`): a wide trace about the
-    front end's ellipse (it may lie on cloud edges: the search reaches 20 % of the radius), a fit, a narrow trace about it
-    and a second fit; returns the ellipse and the narrow trace (its per-ray levels normalise the band). A front-end ellipse
+    front end's ellipse (it may lie on cloud edges: the search reaches 20 % of the radius; :func:`_wide_trace`), a
+    fit, a narrow trace about it and a second fit; returns the ellipse and the narrow trace (its per-ray levels
+    normalise the band; it carries the wide trace's ``shade`` to every later trace). A front-end ellipse
     within 1 px (median) of the traced points is kept (replacing it by the fit of a few traced rays sent one far
     ``lambert`` frame's free ellipse to a 1.3 px centre sigma)."""
     from .limb_trace import fit_traced, trace_limb
 
     try:
-        tr = trace_limb(img, ell, lit_dir, half, max(12.0, 0.2 * ell[1][0]))
+        tr = _wide_trace(img, ell, lit_dir, half, shade)
+        narrow = max(6.0, 2.0 * band)
         on_limb = bool(tr.ok.sum()) and np.median(np.abs(_band_signed(tr.points[tr.ok], ell))) < 1.0
         if on_limb and tr.ok.sum() < 20:
-            return ell, trace_limb(img, ell, lit_dir, half, max(6.0, 2.0 * band))
+            return ell, trace_limb(img, ell, lit_dir, half, narrow, shade=tr.shade)
         e1 = fit_traced(tr, ell)
         if on_limb and _ell_change(ell, e1) < 1.0:
             # the front end's ellipse is on the traced limb: it stays the start (the trace only gives the levels).
             # (Not when the rays' own fit lies elsewhere: on a full-disc cloudy Earth the front end's circle, 10 px
             # inside on cloud edges, had half the wide trace's crossings within 1 px and the rays' fit 0.3 px from the
             # limb; benchmarks/earth_full_disc.py ``clouds`` 0.)
-            return ell, trace_limb(img, ell, lit_dir, half, max(6.0, 2.0 * band))
-        tr = trace_limb(img, e1, lit_dir, half, max(6.0, 2.0 * band))
+            return ell, trace_limb(img, ell, lit_dir, half, narrow, shade=tr.shade)
+        tr = trace_limb(img, e1, lit_dir, half, narrow, shade=tr.shade)
         e2 = fit_traced(tr, e1)
     except TooManyOutliersError:  # too few rays with a flat inside (a bright glow's foot): the front end's ellipse
         return ell, None
@@ -450,7 +480,7 @@ def _ray_geometry(body: Ellipsoid, frame: Frame, edge: EllipsoidEdge, passes: in
     is replaced by the rays' cluster-robust one in the refit stage
     (:func:`~jaxlimb.pipeline.ellipsoid_profile.fit_profile_ellipsoid`).  Returns the edge with its
     ``pixels.trace`` the last trace."""
-    from .limb_trace import fit_traced, trace_limb
+    from .limb_trace import trace_limb
 
     pix, cam = edge.pixels, frame.cam
     search = max(6.0, 2.0 * body.eo.band_px)
@@ -458,16 +488,38 @@ def _ray_geometry(body: Ellipsoid, frame: Frame, edge: EllipsoidEdge, passes: in
     for _ in range(passes):
         rho, th = body._predicted_shape(cam, -p)
         ell = (ell[0], (ell[1][0], ell[1][0] * rho), th)
-        tr, fitted = _fit_rays(trace_limb(frame.img, ell, pix.lit_dir, pix.half, search), ell)
-        shift = None
-        shaded = tr if tr.glow_term else _shaded(body, frame, tr, ell)  # (a glow's lift and the shading model do not
-        if shaded is not tr:  # compose: combined 2-4 moved 0.1-0.2 px)
-            tr, plain = shaded, fitted
-            fitted = fit_traced(tr, ell)
-            shift = (fitted[0][0] - plain[0][0], fitted[0][1] - plain[0][1], fitted[1][0] - plain[1][0])
+        tr, fitted, shift = _rays_once(body, frame, trace_limb(frame.img, ell, pix.lit_dir, pix.half, search,
+                                                                shade=tr.shade), ell)
         p, _ = position(body, cam, fitted, p)
         ell = fitted
     return replace(_with_ellipse(edge, fitted), pixels=replace(pix, trace=tr, ray_fit=True), p=p, shading_shift=shift)
+
+
+def _rays_once(body: Ellipsoid, frame: Frame, tr: Any, ell: tuple) -> tuple[Any, tuple, tuple | None]:
+    """One pass of :func:`_ray_geometry` on trace ``tr`` about ``ell``: the rays' ellipse (:func:`_fit_rays`) with the
+    crossings' shading bias removed (:func:`_shaded`), and the shift ``(dr0, dc0, da)`` that removal made (``None``
+    when it was not made).  The glow's lift and the shading model do not compose (``combined`` 2-4 moved 0.1-0.2 px),
+    so a glow fitted on the raw crossings is kept alone -- except on a shading-flattened trace (a dark Lambert limb,
+    :class:`~jaxlimb.pipeline.limb_trace.RayShading`), whose raw crossings lie 0.6-0.8 px inside the limb, deepest
+    where the limb is darkest: a ``c / A_ray`` lift takes that for a glow (the mottled Earth at 2 deg phase,
+    ``benchmarks/earth_mottled.py``, 0.89 px off; tested after the shading's removal it still fitted one, 0.76 px).
+    There only the shading is removed: a glow above a dark limb is not modelled (such a trace arises only near zero
+    phase, :func:`_wide_trace`)."""
+    from .limb_trace import fit_traced
+
+    def moved(a: tuple, b: tuple) -> tuple:
+        return (a[0][0] - b[0][0], a[0][1] - b[0][1], a[1][0] - b[1][0])
+
+    if tr.shade is not None:
+        plain, shaded = fit_traced(tr, ell), _shaded(body, frame, tr, ell)
+        fitted = fit_traced(shaded, ell)
+        return shaded, fitted, moved(fitted, plain)
+    tr, fitted = _fit_rays(tr, ell)
+    shaded = tr if tr.glow_term else _shaded(body, frame, tr, ell)
+    if shaded is tr:
+        return tr, fitted, None
+    corrected = fit_traced(shaded, ell)
+    return shaded, corrected, moved(corrected, fitted)
 
 
 def _with_ellipse(edge: EllipsoidEdge, fitted: tuple) -> EllipsoidEdge:
@@ -543,7 +595,7 @@ def _patchy_geometry(body: Ellipsoid, frame: Frame, edge: EllipsoidEdge, chi2: f
         if edge.band_converged:
             return edge
         raise
-    asym = _asymmetry(frame.img, rays.fitted, rays.pixels.lit_dir, rays.pixels.half)
+    asym = _asymmetry(frame.img, rays.fitted, rays.pixels.lit_dir, rays.pixels.half, rays.pixels.trace.shade)
     if not edge.band_converged:
         return replace(rays, asymmetry=asym)
 
@@ -561,7 +613,8 @@ def _patchy_geometry(body: Ellipsoid, frame: Frame, edge: EllipsoidEdge, chi2: f
     return replace(_shifted(edge, rays.shading_shift), witness=tuple(float(v) for v in geo(rays)), asymmetry=asym)
 
 
-def _asymmetry(img: np.ndarray, ell: tuple, lit_dir, half: float) -> tuple[float, float, float] | None:
+def _asymmetry(img: np.ndarray, ell: tuple, lit_dir, half: float,
+               shade: Any = None) -> tuple[float, float, float] | None:
     """The traced step's asymmetry as a witness of the patchy limb's centre: the known-shape ellipse ``ell`` (start)
     through the rays' 30 % crossings less the one through their 70 % crossings, ``(dr0, dc0, 0)``.  A symmetric
     blurred step moves only the radius between the two (by ~1 PSF sigma; left out, it is the step's width, not an
@@ -574,7 +627,7 @@ def _asymmetry(img: np.ndarray, ell: tuple, lit_dir, half: float) -> tuple[float
     out = []
     try:
         for level in (0.3, 0.7):
-            tr = trace_limb(img, ell, lit_dir, half, 8.0, level=level)
+            tr = trace_limb(img, ell, lit_dir, half, 8.0, level=level, shade=shade)
             e = fit_traced(tr, ell)
             out.append(np.array([e[0][0], e[0][1]]))
     except TooManyOutliersError:

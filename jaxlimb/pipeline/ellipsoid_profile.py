@@ -13,7 +13,6 @@ refitted once with a glow above the limb when a score test finds one (:func:`wid
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import jax.numpy as jnp
@@ -118,13 +117,6 @@ def _passes(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", fd: FitData,
     return res, fixed, hist
 
 
-def _with_covariance(out: RefineResult, C: np.ndarray) -> RefineResult:
-    """``out`` with its fit's covariance replaced by ``C``."""
-    import equinox as eqx
-
-    return replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jnp.asarray(C)))
-
-
 def edge_with_model_error(edge: "EllipsoidEdge", rejected: Any = None) -> RefineResult:
     """The edge fit's :class:`RefineResult` with the model-error terms of
     :func:`~jaxlimb.pipeline.profile_fit.with_model_error` (the answer when the profile is not fitted or is
@@ -142,7 +134,7 @@ def edge_with_model_error(edge: "EllipsoidEdge", rejected: Any = None) -> Refine
     d = np.array([float(getattr(rejected, n)) - float(getattr(out.fit.params, n)) for n in names])
     C = np.array(out.fit.covariance)
     C[np.ix_(idx, idx)] += np.outer(d, d)
-    return _with_covariance(out, C)
+    return out.with_covariance(C)
 
 
 def _with_trace_error(out: RefineResult, edge: "EllipsoidEdge", replace_block: bool = False) -> RefineResult:
@@ -167,7 +159,7 @@ def _with_trace_error(out: RefineResult, edge: "EllipsoidEdge", replace_block: b
         C[np.ix_(idx, idx)] = trace_model_cov(edge.pixels.trace, edge.fitted)
     else:
         C[np.ix_(idx, idx)] += trace_model_cov(edge.pixels.trace, edge.fitted)
-    out = _with_covariance(out, C)
+    out = out.with_covariance(C)
     return floor_center_var(out, coherent_shift_var(edge.pixels.trace, edge.fitted))
 
 
@@ -183,7 +175,7 @@ def floor_center_var(out: RefineResult, var: float) -> RefineResult:
     idx = np.ix_(*(2 * ([free.index("r0"), free.index("c0")],)))
     C = np.array(out.fit.covariance)
     C[idx] = widen(C[idx], var * np.eye(2))
-    return _with_covariance(out, C)
+    return out.with_covariance(C)
 
 
 def _with_witness(out: RefineResult, edge: "EllipsoidEdge") -> RefineResult:
@@ -200,7 +192,7 @@ def _with_witness(out: RefineResult, edge: "EllipsoidEdge") -> RefineResult:
         C[np.ix_(idx, idx)] += np.outer(d, d)
     if edge.asymmetry is not None:  # the traced step's asymmetry (ellipsoid._asymmetry)
         C[np.ix_(idx, idx)] += np.outer(edge.asymmetry, edge.asymmetry)
-    return _with_covariance(out, C)
+    return out.with_covariance(C)
 
 
 def fit_profile_ellipsoid(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", extras: dict[str, Any]) -> RefineResult:
@@ -348,7 +340,7 @@ def with_aniso_witness(out: RefineResult, iso: RefineResult) -> RefineResult:
     for i, v in zip((free.index("r0"), free.index("c0"), free.index("a")),
                     (float(np.hypot(d[0], d[1])),) * 2 + (abs(d[2]),)):
         C[i, i] += (ANISO_WITNESS * v) ** 2
-    return _with_covariance(out, C)
+    return out.with_covariance(C)
 
 
 __all__ = ["ANISO_MIN_CHI2", "ANISO_WITNESS", "with_aniso_witness", "ANISO_MIN_FRAC", "aniso_plausible", "aniso_significant", "edge_with_model_error", "fit_profile_ellipsoid", "profile_wanted", "widen_aniso_ellipsoid",

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -56,6 +56,8 @@ class TracedLimb:
     sky: float
     noise: float
     glow_term: bool = False
+    shade: "RayShading | None" = None
+    albedo: np.ndarray | None = None
 
     @property
     def ok(self) -> np.ndarray:
@@ -71,15 +73,39 @@ class TracedLimb:
         traced about a front-end circle 4 px off, four uniform Earths kept 4-10 % of their rays at RMS 0.006-0.014 and
         one, ``lambert`` 4, was measured as a patchy limb 1.4 px off; the cloudy frames' RMS is 0.14-0.49)."""
         ok = self.ok & (self.inside > self.sky)
+        if self.albedo is not None:
+            ok &= self.albedo > 0
         if ok.sum() < 20:
             return False
-        t, y = self.angles[ok], np.log(self.inside[ok] - self.sky)
-        A = np.column_stack([np.ones_like(t), np.cos(t), np.sin(t), np.cos(2 * t), np.sin(2 * t)])
-        r = y - A @ np.linalg.lstsq(A, y, rcond=None)[0]
-        rms = float(np.sqrt(np.mean(r * r)))
+        t = self.angles[ok]
+        if self.albedo is not None:
+            return _albedo_patchy(t, np.log(self.albedo[ok]))
+        rms = _harmonic_rms(t, np.log(self.inside[ok] - self.sky))
         # nine rays in ten with no flat inside against the sky: an albedo map (clouds), unless the rays kept are as
         # level as a uniform disc's (RMS <= FEW_RAYS_RMS)
         return bool(rms > tol or (ok.mean() < 0.1 and rms > FEW_RAYS_RMS))
+
+
+PATCHY_ALBEDO_TOL = 0.04
+"""RMS (of ``log``) of the albedo along a shading-flattened trace's rays above which the limb is patchy."""
+
+
+def _harmonic_rms(t: np.ndarray, y: np.ndarray) -> float:
+    """RMS of ``y`` about its second-order harmonic fit in the ray angle ``t``."""
+    A = np.column_stack([np.ones_like(t), np.cos(t), np.sin(t), np.cos(2 * t), np.sin(2 * t)])
+    r = y - A @ np.linalg.lstsq(A, y, rcond=None)[0]
+    return float(np.sqrt(np.mean(r * r)))
+
+
+def _albedo_patchy(t: np.ndarray, y: np.ndarray) -> bool:
+    """:meth:`TracedLimb.patchy` for a shading-flattened trace (:class:`RayShading`): ``y`` is each ray's ``log``
+    albedo (its window divided by the uniform disc's shading), which a uniform disc keeps level to the noise.  Patchy
+    when its RMS about the second-order harmonic fit exceeds both :data:`PATCHY_ALBEDO_TOL` and three times the ray
+    noise (from neighbouring rays' differences: an albedo map changes slowly along the limb).  ``log P`` would not
+    do: the shading makes it vary along a dark limb (``benchmarks/earth_mottled.py`` at 2 deg phase: RMS 0.042 for
+    the uniform disc, 0.094 for the mottled one; the albedo's 0.015 and 0.083, ray noise 0.012 and 0.017)."""
+    noise = 1.4826 * float(np.median(np.abs(np.diff(y)))) / math.sqrt(2.0)
+    return _harmonic_rms(t, y) > max(PATCHY_ALBEDO_TOL, 3.0 * noise)
 
 
 def _ray_radius(ell: tuple, u: np.ndarray) -> np.ndarray:
@@ -148,9 +174,11 @@ def _window_stats(vv: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.nd
 
 
 def _ray_edges(v: np.ndarray, rad: np.ndarray, sky: float, noise: float, step: float, flat_frac: float,
-               level: float = 0.5):
-    """Steps 2-4 of the module docstring on every ray: the limb's radius along the ray and the inside level.
-    (Tried: the level 2-5 px inside the half crossing, iterated from the foot, so that a bright glow's foot
+               level: float = 0.5, shade_rows: np.ndarray | None = None):
+    """Steps 2-4 of the module docstring on every ray: the limb's radius along the ray and the inside level; with
+    ``shade_rows`` (a uniform disc's radiance on the same samples, :class:`RayShading`) the flatness of step 3 is
+    tested on the samples divided by it, and the third value is each ray's albedo (the window's median of that
+    ratio; ``None`` without ``shade_rows``).  (Tried: the level 2-5 px inside the half crossing, iterated from the foot, so that a bright glow's foot
     does not set it: on the ``clouds`` frames it climbed onto cloud edges inside the ocean limb, centres
     0.6-2.9 px off instead of 0.1-0.5 px.)"""
     m = v.shape[1]
@@ -162,24 +190,32 @@ def _ray_edges(v: np.ndarray, rad: np.ndarray, sky: float, noise: float, step: f
         warnings.simplefilter("ignore", RuntimeWarning)  # empty windows (rays off the frame): NaN, rejected below
         P, spread = _window_stats(vv, foot - i1, foot - i0)
         r_edge, jo = _crossing(vv, rad, sky + level * (P - sky), foot)
+        flat, fmed = spread <= flat_frac * (P - sky), None
+        if shade_rows is not None:
+            cut = 1e-3 * np.nanmax(shade_rows, axis=1, keepdims=True)
+            fmed, frng = _window_stats((vv - sky) / np.where(shade_rows > cut, shade_rows, np.nan), foot - i1, foot - i0)
+            flat = frng <= flat_frac * fmed
     amp = P - sky
-    ok = (foot - i1 >= 0) & (foot < m - 1) & (amp >= 8.0 * noise) & (spread <= flat_frac * amp)
+    ok = (foot - i1 >= 0) & (foot < m - 1) & (amp >= 8.0 * noise) & flat
     ok &= (jo >= 1) & (jo < m - 1)
-    return np.where(ok, r_edge, np.nan), np.where(ok, P, np.nan)
+    albedo = None if fmed is None else np.where(ok, fmed, np.nan)
+    return np.where(ok, r_edge, np.nan), np.where(ok, P, np.nan), albedo
 
 
 def trace_limb(img: np.ndarray, ell: tuple, lit_dir, half: float, search: float, *, step: float = 0.5,
-               flat_frac: float = 0.35, level: float = 0.5) -> TracedLimb:
+               flat_frac: float = 0.35, level: float = 0.5, shade: "RayShading | None" = None) -> TracedLimb:
     """Trace the limb along rays across the lit window about ellipse ``ell`` (module docstring); ``level``: the
     crossing's fraction of the step (0.5, the edge; others measure the step's asymmetry, see
-    :func:`jaxlimb.pipeline.ellipsoid._asymmetry`)."""
+    :func:`jaxlimb.pipeline.ellipsoid._asymmetry`); ``shade``: test the inside's flatness on the rays divided by a
+    uniform disc's shading (:class:`RayShading`)."""
     angles = _ray_angles(ell, lit_dir, half)
     v, rad, u = _sample_rays(img, ell, angles, search, step)
     sky, noise = _sky(v)
-    r_edge, P = _ray_edges(v, rad, sky, noise, step, flat_frac, level)
+    rows = None if shade is None else shade.rows(ell, angles, np.arange(-search, search + 0.5 * step, step))
+    r_edge, P, albedo = _ray_edges(v, rad, sky, noise, step, flat_frac, level, rows)
     c = np.asarray(ell[0], float)
     pts = c[None, :] + r_edge[:, None] * u
-    return TracedLimb((float(c[0]), float(c[1])), angles, pts, P, sky, noise)
+    return TracedLimb((float(c[0]), float(c[1])), angles, pts, P, sky, noise, shade=shade, albedo=albedo)
 
 
 SHADE_FINE = 0.05
@@ -212,6 +248,41 @@ def _shaded_rows(n0: np.ndarray, v: np.ndarray, sun: np.ndarray, R: float, sigma
     return np.array([np.interp(xs, xf, p) for p in prof])
 
 
+@dataclass(frozen=True)
+class RayShading:
+    r"""A uniform disc's shading along the rays, for :func:`trace_limb`'s flatness test (step 3) on a dark limb.
+
+    Why: near zero phase a Lambert limb is dark and its radiance rises inward as ``sqrt(2u/R)`` (``mu0 ~ mu`` at depth
+    ``u``), so the 2-5 px window inside the foot spans a factor ~1.6 and fails the flatness test on every ray of a
+    uniform disc: a mottled Lambert Earth at 2 deg phase (``benchmarks/earth_mottled.py``) kept 2 of 323 rays, its
+    limb was not recognised as patchy, and the one-albedo profile answered 1.27 px off (NEES 12).  Divided by the
+    shading a uniform ray is flat again, and a cloud edge inside the window is not.  The model is
+    :func:`_shaded_rows` (lunar-Lambert ``L``; ``psf_sigma_px`` need not be the frame's: the window is 2-5 px deep,
+    where the blur hardly changes the shape), aligned on the trace's reference ellipse."""
+
+    cam: object
+    sun_dir_camera: tuple
+    L: float = 0.0
+    psf_sigma_px: float = 1.0
+
+    def rows(self, ell: tuple, angles: np.ndarray, xs: np.ndarray) -> np.ndarray:
+        """The model's radiance on each ray (``angles`` about ``ell``'s centre) at ``xs`` px outward from ``ell``."""
+        sun = np.asarray(self.sun_dir_camera, float) / np.linalg.norm(self.sun_dir_camera)
+        sigma = math.hypot(self.psf_sigma_px, math.sqrt(1.0 / 12.0))
+        return _shaded_rows(*_limb_normals(self.cam, ell, angles), sun, float(ell[1][0]), sigma, self.L, xs)
+
+    def dark_share(self, ell: tuple, angles: np.ndarray, depths: tuple[float, float] = (0.5, 4.0),
+                   flat_frac: float = 0.35) -> float:
+        """The share of the rays ``angles`` about ``ell`` on which the uniform disc's own shading, unblurred, fails
+        the plain flatness test (range over ``depths`` px inside the limb -- about the trace's window, 2-5 px inside
+        a foot 1-2 px outside the limb -- above ``flat_frac`` of the mean): how much of a low keep rate the shading
+        explains."""
+        xs = np.array([-depths[1], -depths[0]])
+        sun = np.asarray(self.sun_dir_camera, float) / np.linalg.norm(self.sun_dir_camera)
+        m = _shaded_rows(*_limb_normals(self.cam, ell, angles), sun, float(ell[1][0]), SHADE_FINE, self.L, xs)
+        return float(np.mean(np.abs(m[:, 0] - m[:, 1]) > flat_frac * 0.5 * (m[:, 0] + m[:, 1])))
+
+
 def shading_offsets(tr: TracedLimb, ell: tuple, cam, sun_dir_camera, psf_sigma_px: float, L: float = 0.0,
                     search: float = 6.0, step: float = 0.5) -> np.ndarray:
     r"""Per ray of ``tr``, where :func:`trace_limb`'s half-level crossing lies (px, outward positive) on a disc of
@@ -229,7 +300,7 @@ def shading_offsets(tr: TracedLimb, ell: tuple, cam, sun_dir_camera, psf_sigma_p
     sel = np.ones_like(tr.ok)  # every ray (rejected ones get NaN rows)
     rows = _scaled_rows(tr, sel, ell, _limb_normals(cam, ell, tr.angles), sun_dir_camera, psf_sigma_px, L, xs)
     with np.errstate(all="ignore"):
-        r_edge, _ = _ray_edges(rows, np.broadcast_to(xs, rows.shape), 0.0, tr.noise, step, np.inf)
+        r_edge, _, _ = _ray_edges(rows, np.broadcast_to(xs, rows.shape), 0.0, tr.noise, step, np.inf)
     return np.where(tr.ok, r_edge, np.nan)
 
 
@@ -258,7 +329,7 @@ def _shape_misfit(y: np.ndarray, rel: np.ndarray, rows: np.ndarray, xs: np.ndarr
     its own inside level and aligned on its own crossing."""
     step = float(xs[1] - xs[0])
     with np.errstate(all="ignore"):
-        em, Pm = _ray_edges(rows, np.broadcast_to(xs, rows.shape), 0.0, noise, step, np.inf)
+        em, Pm, _ = _ray_edges(rows, np.broadcast_to(xs, rows.shape), 0.0, noise, step, np.inf)
         m = np.array([np.interp(rel[j] + em[j], xs, rows[j] / Pm[j]) for j in range(rows.shape[0])])
     w = (rel >= -5.0) & (rel <= 3.0) & np.isfinite(y) & np.isfinite(m)
     return float(np.mean((y - m)[w] ** 2)) if w.any() else math.inf
@@ -291,7 +362,7 @@ def shading_corrected(tr: TracedLimb, offsets: np.ndarray) -> TracedLimb:
     u = np.column_stack([np.sin(tr.angles), np.cos(tr.angles)])
     pts = tr.points - np.where(np.isfinite(offsets), offsets, np.nan)[:, None] * u
     inside = np.where(np.isfinite(offsets), tr.inside, np.nan)
-    return TracedLimb(tr.center_rc, tr.angles, pts, inside, tr.sky, tr.noise, tr.glow_term)
+    return replace(tr, points=pts, inside=inside, albedo=None if tr.albedo is None else np.where(np.isfinite(offsets), tr.albedo, np.nan))
 
 
 def fit_traced(tr: TracedLimb, ell: tuple, free_shape: bool = False) -> tuple:

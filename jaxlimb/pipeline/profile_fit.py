@@ -5,7 +5,6 @@ iteration with a camera (as :func:`~jaxlimb.pipeline.refine.fit_sphere_annulus`)
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import Any
 
@@ -270,7 +269,7 @@ def with_reweighting_witness(out: RefineResult, unweighted: RefineResult) -> Ref
     C = np.array(out.fit.covariance)
     for i, v in zip((free.index("r0"), free.index("c0"), free.index("a")), (float(np.hypot(d[0], d[1])),) * 2 + (abs(d[2]),)):
         C[i, i] += (PATCHY_WITNESS * v) ** 2
-    return dataclasses.replace(out, fit=eqx.tree_at(lambda x: x.covariance, out.fit, jax.device_put(C)))
+    return out.with_covariance(C)
 
 
 def sector_misfit(r: np.ndarray, groups: np.ndarray, n_sectors: int) -> np.ndarray:
@@ -701,7 +700,7 @@ def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS, mod
     C = widen(C0, cluster_robust_covariance(J, r, groups))
     idx, W = split_witness(rr, J, r, signed_distance(fit.params, coords, padded))
     C[np.ix_(idx, idx)] += W
-    return dataclasses.replace(rr, fit=eqx.tree_at(lambda x: x.covariance, fit, jax.device_put(C)), noise_covariance=C0)
+    return rr.with_covariance(C, noise_covariance=C0)
 
 
 def _weighted_system(rr: RefineResult, model: LimbModel):

@@ -462,6 +462,13 @@ class RefineResult:
         """The noise-only covariance of the free parameters (see ``noise_covariance``)."""
         return np.asarray(self.fit.covariance if self.noise_covariance is None else self.noise_covariance)
 
+    def with_covariance(self, C: np.ndarray, **changes) -> "RefineResult":
+        """A copy whose fit's covariance is ``C`` (and whose other fields are ``changes``, e.g. the
+        ``noise_covariance`` it widened): the one setter of the model-error terms."""
+        from dataclasses import replace
+
+        return replace(self, fit=eqx.tree_at(lambda x: x.covariance, self.fit, jnp.asarray(C)), **changes)
+
 
 @eqx.filter_jit
 def _predict_jit(model, params, coords):
