@@ -237,3 +237,41 @@ def test_mottled_lambert_earth_near_zero_phase_measured_with_an_honest_covarianc
                   [c["center_c"]["center_r"], c["center_c"]["center_c"]]])
     assert m.extras["profile_rejected"] is not None  # the one-albedo profile is not this limb's
     assert np.hypot(*err) < 0.25 and float(err @ np.linalg.solve(P, err)) < 4.0, (err, P)
+
+
+def test_albedo_patchy_weighs_the_albedo_field_against_the_ray_noise():
+    """A flattened trace's albedo (log) along 240 rays over 120 deg: an albedo field of four cycles along the arc
+    (RMS 0.088 after the second-order harmonic fit) over ray noise of 0.030 is patchy -- as ``earth_mottled.py`` map 9
+    at 2 deg, 0.080 over 0.033, which three times the noise called uniform -- and ray noise of 0.05 alone (RMS above
+    PATCHY_ALBEDO_TOL) is not."""
+    from jaxlimb.pipeline.limb_trace import _albedo_patchy
+
+    rng = np.random.default_rng(5)
+    t = np.linspace(-np.radians(60.0), np.radians(60.0), 240)
+    field = 0.12 * np.sin(12.0 * t + 0.3)
+    assert _albedo_patchy(t, field + rng.normal(0.0, 0.03, t.size))
+    assert not _albedo_patchy(t, rng.normal(0.0, 0.05, t.size))
+    assert not _albedo_patchy(t, 0.2 * np.cos(t) + rng.normal(0.0, 0.01, t.size))  # a smooth fade is no albedo map
+
+
+def test_dark_share_opens_the_flattened_trace_only_near_zero_phase():
+    """``RayShading.dark_share``: the share of the lit window's rays on which a uniform Lambert disc fails the plain
+    flatness test by its shading alone -- all of them at 2 deg of phase, none at 40 deg (where a low keep rate comes
+    from clouds, glows or smear, and flattening moved ``families.py`` Earth ``combined`` 2 from 0.09 to 1.32 px)."""
+    import math
+
+    from jaxlimb.geometry.camera import Camera
+    from jaxlimb.imaging.prior import sun_direction_image
+    from jaxlimb.pipeline.limb_trace import RayShading
+    from jaxlimb.render import RenderOptions, earth_scene, render_body
+
+    cam = Camera(focal_length_mm=16.0, rows=420, cols=420)
+    share = {}
+    for phase in (2.0, 40.0):
+        sc = earth_scene(300000.0, 20.0, phase, center_rc=(208.3, 211.6), camera=cam, sun_angle_deg=30.0)
+        _, truth = render_body(sc, cam, RenderOptions(reflectance="lambert", psf_sigma_px=0.9), seed=3)
+        ell = (tuple(truth.limb.center_rc), tuple(truth.limb.semi_axes_px), truth.limb.angle_rad)
+        sd = np.asarray(sun_direction_image(truth.sun_dir_cam, cam, ell[0]))
+        angles = math.atan2(sd[0], sd[1]) + np.linspace(-np.radians(60.0), np.radians(60.0), 120)
+        share[phase] = RayShading(cam, tuple(truth.sun_dir_cam)).dark_share(ell, angles)
+    assert share[2.0] == 1.0 and share[40.0] == 0.0, share
