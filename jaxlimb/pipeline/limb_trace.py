@@ -180,9 +180,9 @@ def _ray_edges(v: np.ndarray, rad: np.ndarray, sky: float, noise: float, step: f
     """Steps 2-4 of the module docstring on every ray: the limb's radius along the ray and the inside level; with
     ``shade_rows`` (a uniform disc's radiance on the same samples, :class:`RayShading`) the flatness of step 3 is
     tested on the samples divided by it, and the third value is each ray's albedo (the window's median of that
-    ratio; ``None`` without ``shade_rows``).  (Tried: the level 2-5 px inside the half crossing, iterated from the foot, so that a bright glow's foot
-    does not set it: on the ``clouds`` frames it climbed onto cloud edges inside the ocean limb, centres
-    0.6-2.9 px off instead of 0.1-0.5 px.)"""
+    ratio; ``None`` without ``shade_rows``).  (Tried: the level 2-5 px inside the half crossing, iterated from the
+    foot, so that a bright glow's foot does not set it: on the ``clouds`` frames it climbed onto cloud edges inside
+    the ocean limb, centres 0.6-2.9 px off instead of 0.1-0.5 px.)"""
     m = v.shape[1]
     vv = np.where(np.isfinite(v), v, sky)
     bright = vv > sky + 5.0 * noise
@@ -195,7 +195,8 @@ def _ray_edges(v: np.ndarray, rad: np.ndarray, sky: float, noise: float, step: f
         flat, fmed = spread <= flat_frac * (P - sky), None
         if shade_rows is not None:
             cut = 1e-3 * np.nanmax(shade_rows, axis=1, keepdims=True)
-            fmed, frng = _window_stats((vv - sky) / np.where(shade_rows > cut, shade_rows, np.nan), foot - i1, foot - i0)
+            ratio = (vv - sky) / np.where(shade_rows > cut, shade_rows, np.nan)
+            fmed, frng = _window_stats(ratio, foot - i1, foot - i0)
             flat = frng <= flat_frac * fmed
     amp = P - sky
     ok = (foot - i1 >= 0) & (foot < m - 1) & (amp >= 8.0 * noise) & flat
@@ -364,7 +365,8 @@ def shading_corrected(tr: TracedLimb, offsets: np.ndarray) -> TracedLimb:
     u = np.column_stack([np.sin(tr.angles), np.cos(tr.angles)])
     pts = tr.points - np.where(np.isfinite(offsets), offsets, np.nan)[:, None] * u
     inside = np.where(np.isfinite(offsets), tr.inside, np.nan)
-    return replace(tr, points=pts, inside=inside, albedo=None if tr.albedo is None else np.where(np.isfinite(offsets), tr.albedo, np.nan))
+    albedo = None if tr.albedo is None else np.where(np.isfinite(offsets), tr.albedo, np.nan)
+    return replace(tr, points=pts, inside=inside, albedo=albedo)
 
 
 def fit_traced(tr: TracedLimb, ell: tuple, free_shape: bool = False) -> tuple:
