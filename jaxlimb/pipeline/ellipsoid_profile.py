@@ -332,15 +332,7 @@ def with_aniso_witness(out: RefineResult, iso: RefineResult) -> RefineResult:
     tuned on): the refit moved the centre 0.015-0.15 px and left 0.004-0.031 px (residual / move 0.04-0.9); frame 10
     (moved 0.153 px along the row, left 0.021 px along the column, where its covariance is 0.003 px thin) had NEES 42
     with the term along ``d`` only, 48 without it."""
-    free = list(out.fit.free)
-    if not all(n in free for n in ("r0", "c0", "a")):
-        return out
-    d = np.array([float(getattr(out.fit.params, n)) - float(getattr(iso.fit.params, n)) for n in ("r0", "c0", "a")])
-    C = np.array(out.fit.covariance)
-    for i, v in zip((free.index("r0"), free.index("c0"), free.index("a")),
-                    (float(np.hypot(d[0], d[1])),) * 2 + (abs(d[2]),)):
-        C[i, i] += (ANISO_WITNESS * v) ** 2
-    return out.with_covariance(C)
+    return out.with_move_witness(iso, ANISO_WITNESS)
 
 
 __all__ = ["ANISO_MIN_CHI2", "ANISO_WITNESS", "with_aniso_witness", "ANISO_MIN_FRAC", "aniso_plausible", "aniso_significant", "edge_with_model_error", "fit_profile_ellipsoid", "profile_wanted", "widen_aniso_ellipsoid",

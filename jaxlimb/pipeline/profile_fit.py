@@ -262,14 +262,7 @@ def with_reweighting_witness(out: RefineResult, unweighted: RefineResult) -> Ref
     near it; any subset of them 0.003-0.024 px): moved 0.28 px, left 0.094 px across the move for a sigma of
     0.015-0.022 px (NEES 40).  The same in every direction: what is left is not along the move (as
     :func:`jaxlimb.pipeline.ellipsoid_profile.with_aniso_witness`); the noise-only covariance is kept."""
-    free = list(out.fit.free)
-    if not all(n in free for n in ("r0", "c0", "a")):
-        return out
-    d = np.array([float(getattr(out.fit.params, n)) - float(getattr(unweighted.fit.params, n)) for n in ("r0", "c0", "a")])
-    C = np.array(out.fit.covariance)
-    for i, v in zip((free.index("r0"), free.index("c0"), free.index("a")), (float(np.hypot(d[0], d[1])),) * 2 + (abs(d[2]),)):
-        C[i, i] += (PATCHY_WITNESS * v) ** 2
-    return out.with_covariance(C)
+    return out.with_move_witness(unweighted, PATCHY_WITNESS)
 
 
 def sector_misfit(r: np.ndarray, groups: np.ndarray, n_sectors: int) -> np.ndarray:

@@ -469,6 +469,20 @@ class RefineResult:
 
         return replace(self, fit=eqx.tree_at(lambda x: x.covariance, self.fit, jnp.asarray(C)), **changes)
 
+    def with_move_witness(self, other: "RefineResult", frac: float) -> "RefineResult":
+        """A copy with ``(frac |d|)^2`` added to the variances of ``r0`` and ``c0`` and ``(frac d_a)^2`` to that of
+        ``a``, ``d`` the move of ``(r0, c0, a)`` from ``other`` (a second model of the same limb whose correction is
+        itself uncertain, in every direction); unchanged unless all three are free."""
+        free = list(self.fit.free)
+        if not all(n in free for n in ("r0", "c0", "a")):
+            return self
+        d = np.array([float(getattr(self.fit.params, n)) - float(getattr(other.fit.params, n)) for n in ("r0", "c0", "a")])
+        C = np.array(self.fit.covariance)
+        for i, v in zip((free.index("r0"), free.index("c0"), free.index("a")),
+                        (float(np.hypot(d[0], d[1])),) * 2 + (abs(d[2]),)):
+            C[i, i] += (frac * v) ** 2
+        return self.with_covariance(C)
+
 
 @eqx.filter_jit
 def _predict_jit(model, params, coords):
