@@ -544,11 +544,11 @@ def _shaded(body: Ellipsoid, frame: Frame, tr: Any, ell: tuple) -> Any:
     Sun direction); ``tr`` unchanged without it or with fewer than 20 rays."""
     from .limb_trace import shading_corrected, shading_offsets, shading_sigma
 
-    L, sun = body.eo.patchy_shading_L, frame.hints.sun_dir_camera
-    if L is None or sun is None or tr.ok.sum() < 20:
+    sh = _ray_shading(body, frame)
+    if sh is None or tr.ok.sum() < 20:
         return tr
-    sig = shading_sigma(frame.img, tr, ell, frame.cam, sun, L)
-    return shading_corrected(tr, shading_offsets(tr, ell, frame.cam, sun, sig, L))
+    sig = shading_sigma(frame.img, tr, ell, frame.cam, sh.sun_dir_camera, sh.L)
+    return shading_corrected(tr, shading_offsets(tr, ell, frame.cam, sh.sun_dir_camera, sig, sh.L))
 
 
 def _fit_rays(tr: Any, ell: tuple) -> tuple[Any, tuple]:
