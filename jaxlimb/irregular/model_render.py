@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from .._identity_cache import IdentityCache
 from ..render.mesh import rasterise, shade, shadow_fractions
 from .mesh import Mesh
 
@@ -74,7 +75,7 @@ class _Facets:
     faces: np.ndarray
 
 
-_CLUSTERED: dict = {}
+_CLUSTERED = IdentityCache(maxsize=9)
 
 
 def clustered_mesh(mesh: Mesh, cell_km: float) -> Mesh | _Facets:
@@ -87,8 +88,8 @@ def clustered_mesh(mesh: Mesh, cell_km: float) -> Mesh | _Facets:
     iterations reuse the same simplified mesh.
     """
     q = 2.0 ** (math.floor(2.0 * math.log2(cell_km)) / 2.0)
-    key = (id(mesh), q)
-    if key not in _CLUSTERED:
+
+    def cluster() -> "Mesh | _Facets":
         V = np.asarray(mesh.vertices, dtype=float)
         F = np.asarray(mesh.faces, dtype=np.int64)
         cell = np.floor(V / q).astype(np.int64)
@@ -101,10 +102,9 @@ def clustered_mesh(mesh: Mesh, cell_km: float) -> Mesh | _Facets:
         Vn = np.stack([np.bincount(inv, weights=V[:, i]) for i in range(3)], axis=1) / counts[:, None]
         Fn = inv[F]
         Fn = Fn[(Fn[:, 0] != Fn[:, 1]) & (Fn[:, 1] != Fn[:, 2]) & (Fn[:, 0] != Fn[:, 2])]
-        if len(_CLUSTERED) > 8:
-            _CLUSTERED.clear()
-        _CLUSTERED[key] = (mesh, _Facets(Vn, Fn) if len(Fn) >= 20 else mesh)
-    return _CLUSTERED[key][1]
+        return _Facets(Vn, Fn) if len(Fn) >= 20 else mesh
+
+    return _CLUSTERED.get((mesh,), cluster, q)
 
 
 def window_camera(camera: object, lo: np.ndarray, hi: np.ndarray) -> object:
@@ -288,20 +288,14 @@ def _vertex_normals(Xc: np.ndarray, F: np.ndarray) -> np.ndarray:
     return vn / np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
 
 
-_NORMALS: dict = {}
+_NORMALS = IdentityCache(maxsize=9)
 
 
 def body_vertex_normals(mesh: Mesh) -> np.ndarray:
     """:func:`_vertex_normals` of the mesh in its body frame, computed once per mesh (rotating the vertices rotates
     the normals: ``R`` applied to these equals them recomputed from the rotated vertices to ~1e-16)."""
-    key = (id(mesh.vertices), id(mesh.faces))
-    if key not in _NORMALS:
-        if len(_NORMALS) > 8:
-            _NORMALS.clear()
-        # the entry holds the mesh's arrays, so their ids cannot be reused by other arrays while it is cached
-        _NORMALS[key] = (mesh.vertices, mesh.faces, _vertex_normals(np.asarray(mesh.vertices, float),
-                                                                      np.asarray(mesh.faces, np.int64)))
-    return _NORMALS[key][2]
+    return _NORMALS.get((mesh.vertices, mesh.faces), lambda: _vertex_normals(np.asarray(mesh.vertices, float),
+                                                                             np.asarray(mesh.faces, np.int64)))
 
 
 def _smooth_minus_flat(ras, Xc, F, vn, cam, s, reflectance, ss, flat, lit, cover):  # type: ignore[no-untyped-def]

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from .._identity_cache import IdentityCache
 from .database import TemplateDatabase
 from .matching import _Chamfer, _rot_z_to
 from .silhouette import figure_extents
@@ -132,20 +133,20 @@ def _score_block(conts, nrms, rolls, s_xy, xo, chamfer, opts, size):  # type: ig
     return score, k, T
 
 
-_CONTOURS: dict = {}
+_CONTOURS = IdentityCache(maxsize=1)
 
 
 def _template_contours(db: TemplateDatabase, n_points: int) -> tuple[np.ndarray, np.ndarray]:
     """Subsampled template contours and their outward normals (float32), kept for the last database."""
-    key = (id(db), n_points)
-    if key not in _CONTOURS:
+
+    def make() -> tuple[np.ndarray, np.ndarray]:
         n_all = db.contour_xy.shape[1]
         sub = np.linspace(0, n_all, n_points, endpoint=False).astype(int)
         conts_all = np.asarray(db.contour_xy, dtype=float)
         nrms = contour_normals(conts_all, sub).astype(np.float32)
-        _CONTOURS.clear()
-        _CONTOURS[key] = (db, np.ascontiguousarray(conts_all[:, sub], dtype=np.float32), nrms)
-    return _CONTOURS[key][1], _CONTOURS[key][2]
+        return np.ascontiguousarray(conts_all[:, sub], dtype=np.float32), nrms
+
+    return _CONTOURS.get((db,), make, n_points)
 
 
 def phase_candidates(

@@ -79,7 +79,7 @@ from scipy.spatial import cKDTree
 from ..errors import ConvergenceError, GeometryError
 from .database import TemplateDatabase
 from .matching import LocateResult, _rot_z_to
-from .silhouette import mesh_topology, outline_edges, render_silhouette, visible_faces
+from .silhouette import cached_topology, outline_edges, render_silhouette, visible_faces
 
 
 @dataclass(frozen=True)
@@ -232,7 +232,7 @@ def densify_match(
     from .features import features_from_contours
     from .matching import observe
 
-    topo = _topology(db)
+    topo = cached_topology(db.mesh)
     ob = observe(mask, camera, db.options.n_contour)
     S = db.options.template_size_px
     t = np.array([0.0, 0.0, db.distance_km])
@@ -471,7 +471,7 @@ def _small_rotation(w: np.ndarray) -> np.ndarray:
 
 def _refine(image, db, camera, match, sun_dir_camera, options, override=None):  # type: ignore[no-untyped-def]
     """Outer loop: extract the outline at the current pose, linearise, solve, update."""
-    topo = _topology(db)
+    topo = cached_topology(db.mesh)
     f = float(camera.focal_px)
     pp = tuple(float(v) for v in camera.principal_point_rc)
     R, t, match = _start_pose(image, db, camera, match, options, override)
@@ -536,14 +536,6 @@ def _refine(image, db, camera, match, sun_dir_camera, options, override=None):  
     )
 
 
-_TOPO: dict = {}
-
-
-def _topology(db: TemplateDatabase):  # type: ignore[no-untyped-def]
-    if db.mesh_hash not in _TOPO:
-        _TOPO.clear()
-        _TOPO[db.mesh_hash] = mesh_topology(db.mesh)
-    return _TOPO[db.mesh_hash]
 
 
 def _outline_pieces(rc, V, edges, third, limb, fig, lo, ss, options):  # type: ignore[no-untyped-def]

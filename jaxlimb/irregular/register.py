@@ -64,10 +64,11 @@ import cv2
 import numpy as np
 
 from ..errors import ConvergenceError, MatchError
+from .._identity_cache import IdentityCache
 from .._validate import check_center_sigma
 from .mesh import Mesh
 from .model_render import attitude_columns, clustered_mesh, downsample, level_camera, mix_laws, render_window
-from .silhouette import figure_center, figure_extents, mesh_topology, render_silhouette, segment_components
+from .silhouette import cached_topology, figure_center, figure_extents, render_silhouette, segment_components
 
 
 @dataclass(frozen=True)
@@ -289,15 +290,6 @@ class RegisterResult:
     R_body_to_camera: np.ndarray
 
 
-_TOPO: dict = {}
-
-
-def _topology(mesh: Mesh):  # type: ignore[no-untyped-def]
-    key = id(mesh)
-    if key not in _TOPO:
-        _TOPO.clear()
-        _TOPO[key] = (mesh, mesh_topology(mesh))
-    return _TOPO[key][1]
 
 
 def render_model(
@@ -349,7 +341,7 @@ def initial_center(mesh: Mesh, camera: object, R: np.ndarray, sun, mask: np.ndar
     """Step 1 of the module docstring: ``(P, D)`` from the observed lit figure ``mask``."""
     from ..imaging.prior import sun_direction_image
 
-    topo = _topology(mesh)
+    topo = cached_topology(mesh)
     fc = figure_center(mask)
     rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
     extent = float(max(rr[-1] - rr[0], cc[-1] - cc[0]) + 1)
@@ -510,18 +502,17 @@ def _level(sigma: float, size: float, options: RegisterOptions) -> int:
     return max(1, min(k, int(size // options.pyramid_min_size_px)))
 
 
-_BBOX: dict = {}
+_BBOX = IdentityCache(maxsize=17)
 
 
 def _bbox(mask: np.ndarray) -> np.ndarray:
     """``(r0, c0, r1, c1)`` of a figure, remembered for the last few masks (the pyramid's, asked every iteration)."""
-    hit = _BBOX.get(id(mask))
-    if hit is None or hit[0] is not mask:
+
+    def box() -> np.ndarray:
         rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
-        if len(_BBOX) > 16:
-            _BBOX.clear()
-        hit = _BBOX[id(mask)] = (mask, np.array([rr[0], cc[0], rr[-1], cc[-1]]))
-    return hit[1]
+        return np.array([rr[0], cc[0], rr[-1], cc[-1]])
+
+    return _BBOX.get((mask,), box)
 
 
 def _figure_size(mask: np.ndarray) -> float:

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from .._identity_cache import IdentityCache
 from ..errors import ImageContentError, NoBodyError, TooBigError, TooSmallError
 from .mesh import Mesh, edge_faces, face_normals
 
@@ -56,6 +57,15 @@ class MeshTopology:
     edges: np.ndarray  # (E, 2) vertex indices, as traversed by adjacent[:, 0]
     adjacent: np.ndarray  # (E, 2) faces
     third: np.ndarray  # (E, 2) the vertex opposite the edge in each adjacent face
+
+
+_TOPOLOGY = IdentityCache(maxsize=2)
+
+
+def cached_topology(mesh: Mesh) -> MeshTopology:
+    """:func:`mesh_topology` of ``mesh``, computed once for the last meshes asked about (registration and the
+    outline refinement ask for it at every iteration)."""
+    return _TOPOLOGY.get((mesh,), lambda: mesh_topology(mesh))
 
 
 def mesh_topology(mesh: Mesh) -> MeshTopology:

@@ -333,19 +333,25 @@ def _wide_trace(img: np.ndarray, ell: tuple, lit_dir, half: float, shade: Any) -
     """The start's wide trace (20 % of the radius deep) -- with the shading-flattened flatness test
     (:class:`~jaxlimb.pipeline.limb_trace.RayShading`) when the shading explains the plain test's rejections (a
     uniform disc would fail it on half the rays or more, :meth:`~jaxlimb.pipeline.limb_trace.RayShading.dark_share`:
-    a dark Lambert limb near zero phase) and the flattened test keeps more rays.  Every other frame keeps its trace (a
+    a dark Lambert limb near zero phase) and the flattened test keeps more rays, traced about ``ell`` or, when that
+    keeps fewer than the plain test, about the plain rays' own fit.  Every other frame keeps its trace (a
     cloudy limb under a glow and a smear at 58 deg of phase, ``benchmarks/families.py`` Earth ``combined`` 2, went from
     0.09 to 1.32 px when its rays were flattened: the flattened trace is not tested for a glow, :func:`_rays_once`).
     (Also requiring the plain test to keep under one ray in ten left mottled frames whose brighter stretches passed
     it to the one-albedo profile: ``benchmarks/earth_mottled.py`` maps 8-12, NEES 4-45.)"""
-    from .limb_trace import trace_limb
+    from .limb_trace import fit_traced, trace_limb
 
     search = max(12.0, 0.2 * ell[1][0])
     tr = trace_limb(img, ell, lit_dir, half, search)
     if shade is None or shade.dark_share(ell, tr.angles) < 0.5:
         return tr
-    flat = trace_limb(img, ell, lit_dir, half, search, shade=shade)
-    return flat if flat.ok.sum() > max(tr.ok.sum(), 20) else tr
+    best = max((tr, trace_limb(img, ell, lit_dir, half, search, shade=shade)), key=lambda x: int(x.ok.sum()))
+    if best is tr and tr.ok.sum() >= 20:
+        # the shading is placed on the reference ellipse: about a start 1 px off (on a cloud edge) the flattened
+        # trace kept 24 rays of 321, about the plain rays' own fit 270 (benchmarks/earth_mottled.py map 15, 10 deg)
+        best = max((tr, trace_limb(img, fit_traced(tr, ell), lit_dir, half, search, shade=shade)),
+                   key=lambda x: int(x.ok.sum()))
+    return best if best.ok.sum() > max(tr.ok.sum(), 20) else tr
 
 
 def _traced_start(img: np.ndarray, ell: tuple, lit_dir, half: float, band: float,

@@ -236,12 +236,19 @@ def _limb_normals(cam, ell: tuple, angles: np.ndarray) -> tuple[np.ndarray, np.n
     return n0 / np.linalg.norm(n0, axis=1, keepdims=True), v
 
 
-def _shaded_rows(n0: np.ndarray, v: np.ndarray, sun: np.ndarray, R: float, sigma: float, L: float,
-                 xs: np.ndarray) -> np.ndarray:
-    """Rows of a uniform disc's radiance sampled at ``xs`` (px, outward from the limb): lunar-Lambert shading
-    ``2L mu0/(mu0 + mu) + (1 - L) mu0`` on a sphere of radius ``R`` px, blurred by a Gaussian of ``sigma`` px."""
+def _pixel_blur(psf_sigma_px: float) -> float:
+    """The Gaussian sigma (px) of a PSF of ``psf_sigma_px`` sampled by square pixels (variance + 1/12)."""
+    return math.hypot(psf_sigma_px, math.sqrt(1.0 / 12.0))
+
+
+def _shaded_rows(normals: tuple, sun_dir_camera, R: float, sigma: float, L: float, xs: np.ndarray) -> np.ndarray:
+    """Rows of a uniform disc's radiance sampled at ``xs`` (px, outward from the limb) on the rays of ``normals``
+    (:func:`_limb_normals`): lunar-Lambert shading ``2L mu0/(mu0 + mu) + (1 - L) mu0`` on a sphere of radius ``R`` px
+    under the Sun ``sun_dir_camera`` (any length), blurred by a Gaussian of ``sigma`` px."""
     from scipy.ndimage import gaussian_filter1d
 
+    n0, v = normals
+    sun = np.asarray(sun_dir_camera, float) / np.linalg.norm(sun_dir_camera)
     xf = np.arange(xs[0] - 4.0 * sigma - 2.0, xs[-1] + 4.0 * sigma + 2.0, SHADE_FINE)
     th = np.arccos(np.clip(1.0 - np.clip(-xf, 0.0, None) / R, -1.0, 1.0))  # the normal's tilt toward the observer
     n = n0[:, None, :] * np.cos(th)[None, :, None] + v[None, None, :] * np.sin(th)[None, :, None]
@@ -268,11 +275,11 @@ class RayShading:
     L: float = 0.0
     psf_sigma_px: float = 1.0
 
-    def rows(self, ell: tuple, angles: np.ndarray, xs: np.ndarray) -> np.ndarray:
-        """The model's radiance on each ray (``angles`` about ``ell``'s centre) at ``xs`` px outward from ``ell``."""
-        sun = np.asarray(self.sun_dir_camera, float) / np.linalg.norm(self.sun_dir_camera)
-        sigma = math.hypot(self.psf_sigma_px, math.sqrt(1.0 / 12.0))
-        return _shaded_rows(*_limb_normals(self.cam, ell, angles), sun, float(ell[1][0]), sigma, self.L, xs)
+    def rows(self, ell: tuple, angles: np.ndarray, xs: np.ndarray, normals: tuple | None = None) -> np.ndarray:
+        """The model's radiance on each ray (``angles`` about ``ell``'s centre; or the rays' precomputed
+        :func:`_limb_normals` ``normals``) at ``xs`` px outward from ``ell``, blurred by the PSF and the pixel."""
+        normals = _limb_normals(self.cam, ell, angles) if normals is None else normals
+        return _shaded_rows(normals, self.sun_dir_camera, float(ell[1][0]), _pixel_blur(self.psf_sigma_px), self.L, xs)
 
     def dark_share(self, ell: tuple, angles: np.ndarray, depths: tuple[float, float] = (0.5, 4.0),
                    flat_frac: float = 0.35) -> float:
@@ -281,8 +288,8 @@ class RayShading:
         a foot 1-2 px outside the limb -- above ``flat_frac`` of the mean): how much of a low keep rate the shading
         explains."""
         xs = np.array([-depths[1], -depths[0]])
-        sun = np.asarray(self.sun_dir_camera, float) / np.linalg.norm(self.sun_dir_camera)
-        m = _shaded_rows(*_limb_normals(self.cam, ell, angles), sun, float(ell[1][0]), SHADE_FINE, self.L, xs)
+        m = _shaded_rows(_limb_normals(self.cam, ell, angles), self.sun_dir_camera, float(ell[1][0]), SHADE_FINE,
+                         self.L, xs)
         return float(np.mean(np.abs(m[:, 0] - m[:, 1]) > flat_frac * 0.5 * (m[:, 0] + m[:, 1])))
 
 
@@ -312,10 +319,8 @@ def _scaled_rows(tr: TracedLimb, sel: np.ndarray, ell: tuple, normals: tuple, su
     """:func:`_shaded_rows` for the rays ``sel`` of ``tr`` (their :func:`_limb_normals` ``normals``; PSF and pixel
     blur), each scaled so that its level about the trace's window (2-5 px inside the foot, ~1 sigma outside the limb)
     is the ray's inside level ``P - s`` (NaN rows where ``tr`` has no level)."""
-    n0, v = normals
-    sun = np.asarray(sun_dir_camera, float) / np.linalg.norm(sun_dir_camera)
-    sigma = math.hypot(psf_sigma_px, math.sqrt(1.0 / 12.0))
-    rows = _shaded_rows(n0, v, sun, float(ell[1][0]), sigma, L, xs)
+    sigma = _pixel_blur(psf_sigma_px)
+    rows = RayShading(None, sun_dir_camera, L, psf_sigma_px).rows(ell, tr.angles[sel], xs, normals)
     ref = np.median(rows[:, (xs >= -5.0 - sigma) & (xs <= -2.0 - sigma)], axis=1)
     with np.errstate(all="ignore"):
         gain = np.where(ref > 0, (tr.inside[sel] - tr.sky) / ref, np.nan)

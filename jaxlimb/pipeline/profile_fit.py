@@ -142,16 +142,6 @@ def widen_aniso_or_glow(frame: Frame, rr: RefineResult, solver, system=None) -> 
     return aniso if float(aniso.fit.rms) < float(glow.fit.rms) else glow
 
 
-ANISO_GATE_CHI2 = 13.8
-"""The chi^2 of the one-step anisotropy (:func:`aniso_step`) above which :func:`widen_aniso` refits (chi^2(2) 99.9 %).
-Measured (``benchmarks/families.py``; size over ``sigma_e^2``, chi^2): held-out ``motion`` crescents 0.32-0.81,
-237-8467; seed 2026 ``own`` 0, ``airy`` 0, ``glow`` 0, ``hapke`` 1 at most 0.024, 7.2; seed 2028 ``own`` 0 0.019, 13.5."""
-ANISO_GATE_FRAC = 0.12
-"""And the one-step anisotropy at least this fraction of ``sigma_e^2`` (the refit's own bound,
-:data:`jaxlimb.pipeline.ellipsoid_profile.ANISO_MIN_FRAC`).  The gate keeps the refit's CPU (112 -> 148 ms per frame
-when always run, three seed-2026 frames under load 4.9) off the frames without a smear."""
-
-
 def aniso_step(rr: RefineResult, system=None) -> tuple[float, float]:
     """One Gauss--Newton step of the blur's anisotropy ``(s2c, s2s)`` (held at 0 in ``rr``) with the free parameters
     of ``rr`` refitted beside it: its size over ``sigma_e^2`` and its chi^2 (the score test of :func:`brightening_step`;
@@ -187,13 +177,13 @@ def widen_aniso(frame: Frame, rr: RefineResult, solver, system=None) -> RefineRe
     ``benchmarks/families.py`` (``motion``, 1.5-3.5 px smears, phase 129-133 deg): seed 2028 frame 1 0.107 -> 0.018 px,
     frame 0 (which had opened the glow) 0.064 -> 0.006 px, seed 2027 frame 1 0.061 -> 0.018 px."""
     from ..models.lunar_lambert import LIMB_PROFILE_ANISO
-    from .ellipsoid_profile import aniso_plausible, aniso_significant
+    from .ellipsoid_profile import aniso_clears, aniso_plausible, aniso_significant
 
     p = rr.fit.params
     if type(p) is not LimbProfileParams:
         return rr
     frac, chi2 = aniso_step(rr, system)
-    if not (chi2 >= ANISO_GATE_CHI2 and frac >= ANISO_GATE_FRAC):
+    if not aniso_clears(frac, chi2):
         return rr
     q = AnisoProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()], 0.0, 0.0)
     try:

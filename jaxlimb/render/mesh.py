@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from .._identity_cache import IdentityCache
 from ..errors import ConfigError, GeometryError
 from ._masks import boundary_mask
 
@@ -276,7 +277,7 @@ class _SunView:
     principal_point_rc: tuple[float, float]
 
 
-_SHADOWS: dict = {}
+_SHADOWS = IdentityCache(maxsize=8)
 
 
 def shadow_fractions(vertices: np.ndarray, faces: np.ndarray, sun_body: np.ndarray, n_px: int = 1024) -> np.ndarray:
@@ -293,9 +294,9 @@ def shadow_fractions(vertices: np.ndarray, faces: np.ndarray, sun_body: np.ndarr
     V = np.asarray(vertices, dtype=float)
     F = np.asarray(faces, dtype=np.int64)
     cell = tuple(np.round(np.asarray(sun_body, dtype=float) / np.linalg.norm(sun_body) * _SHADOW_GRID).astype(int))
-    entry = _SHADOWS.get((id(vertices), id(faces)))
-    if entry is not None and cell in entry[2]:
-        return entry[2][cell]
+    cells = _SHADOWS.get((vertices, faces), dict)  # this mesh's maps by Sun cell
+    if cell in cells:
+        return cells[cell]
     sb = np.asarray(cell, dtype=float) / np.linalg.norm(cell)  # the cell's direction: the map depends on the cell alone
     rmax = float(np.linalg.norm(V, axis=1).max())
     L = 1000.0 * rmax
@@ -317,14 +318,9 @@ def shadow_fractions(vertices: np.ndarray, faces: np.ndarray, sun_body: np.ndarr
     # with fewer than 6 expected samples is unresolved
     frac = np.where((expected < 6.0) | (frac > 0.8), 1.0, frac)
     frac = np.where(ns_ > 0, frac, 0.0)
-    if entry is None:
-        if len(_SHADOWS) >= 8:
-            _SHADOWS.clear()
-        # the entry holds the mesh's arrays, so their ids cannot be reused by other arrays while it is cached
-        entry = _SHADOWS.setdefault((id(vertices), id(faces)), (vertices, faces, {}))
-    if len(entry[2]) >= _SHADOWS_PER_MESH:
-        del entry[2][next(iter(entry[2]))]
-    entry[2][cell] = frac
+    if len(cells) >= _SHADOWS_PER_MESH:
+        del cells[next(iter(cells))]
+    cells[cell] = frac
     return frac
 
 

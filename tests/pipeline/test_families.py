@@ -404,7 +404,7 @@ def test_moon_motion_smear_is_fitted_by_the_anisotropic_profile(monkeypatch):
 @pytest.mark.parametrize("family, idx", [("own", 0), ("airy", 0), ("glow", 0), ("hapke", 1)])
 def test_moon_anisotropic_blur_gate_stays_shut_on_round_psfs(family, idx):
     """The anisotropy's score gate (``profile_fit.aniso_step``) on round PSFs: at most 0.024 of ``sigma_e^2`` where the
-    smears give 0.32-0.81 (``ANISO_GATE_FRAC`` 0.12); no refit."""
+    smears give 0.32-0.81 (``ANISO_MIN_FRAC`` 0.12); no refit."""
     case = _moon(family, idx)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert "blur_aniso" not in m.extras["profile"]
