@@ -45,6 +45,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "sun_dir_camera, which removes the sigmoid's 0.1-0.6 px limb bias; else the sigmoid), "
                    "the limb-darkened disc for --body sun; else the sigmoid), sigmoid (the papers' model), "
                    "lunar-lambert or limb-darkened")
+    from .._validate import Range, arg_number
+
+    p.add_argument("--sun-declination-max", type=arg_number(Range(0.0, 90.0)), metavar="DEG", default=None,
+                   help="Earth (or spheroid) without R_body_to_camera, Sun known: the largest angle (0-90 deg) of the "
+                   "Sun from the body's equator (the Earth: 23.44); the centre is marginalised over the poles it "
+                   "allows, which often signs the centre offset the limb leaves open (default: not used)")
     p.add_argument("--figure", metavar="PATH", help="also save a picture of the fit (PNG/PDF)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     from ._batch import add_batch_arguments
@@ -183,6 +189,7 @@ def _measure_frame(args: argparse.Namespace, frame):
     from ..errors import SaturationWarning
     from ..geometry.camera import Camera
     from ..pipeline import LocateOptions, locate
+    from ..pipeline.earth import EllipsoidOptions
     from . import warnings_to_stderr
 
     image = frame.data
@@ -190,8 +197,10 @@ def _measure_frame(args: argparse.Namespace, frame):
     camera = Camera.from_json(args.camera) if args.camera is not None else (geom.camera if geom else None)
     hints = _read_hints(args.hints, args.body.lower() if args.body else (geom.target.lower() if geom else None),
                         base=geom.hints() if geom else None)
+    ellipsoid = (None if args.sun_declination_max is None
+                 else EllipsoidOptions(sun_declination_max_deg=args.sun_declination_max))
     options = LocateOptions(front_end=args.front_end, front_end_fallback=args.front_end_fallback, model=args.model,
-                            solver=args.solver, estimate_k=not args.fixed_k, profile=args.profile)
+                            solver=args.solver, estimate_k=not args.fixed_k, profile=args.profile, ellipsoid=ellipsoid)
     with warnings_to_stderr(SaturationWarning):
         meas = locate(image, camera, hints, options, mask=frame.mask_or_none)
     return meas, (_spice_report(geom, meas) if geom is not None else None), image

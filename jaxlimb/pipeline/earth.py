@@ -100,6 +100,9 @@ Then the pole is unknown, ``rho`` and ``theta`` are fitted.  Two facts (derived 
   minor axis, with ``|phi|`` from the measured ratio (far field:
   ``rho^2 = sin^2 phi + (Rp/Re)^2 cos^2 phi``).  ``gamma_off`` reaches 15 arcsec at 40 000 km
   (0.26 px with the 8 mm camera) and 0.17 arcsec at 380 000 km.
+* with the Sun direction known and ``EllipsoidOptions.sun_declination_max_deg`` set (the Earth: 23.44 deg), the
+  centre is instead marginalised over the poles whose equator the Sun does not leave by more than that
+  (:mod:`jaxlimb.pipeline.pole_prior`): the bound often excludes one of the two mirror poles.
 
 Atmosphere
 ----------
@@ -208,6 +211,12 @@ class EllipsoidOptions:
         :func:`~jaxlimb.pipeline.limb_trace.shading_sigma`).  ``0``: Lambert (the Earth's clouds and surface; not
         measurable from the rays, which the flatness test selects).  ``None``: no correction (the crossings as
         traced: biased toward the Sun by 0.15-0.37 px on Lambert discs).
+    sun_declination_max_deg
+        Attitude unknown, Sun direction known: the largest angle (deg) between the Sun and the body's equator (the
+        Earth: its obliquity, 23.44).  The centre is then marginalised over the poles that bound allows
+        (:mod:`jaxlimb.pipeline.pole_prior`), which often decides the sign of the centre offset the limb alone leaves
+        open.  ``None`` (default): no bound (the cone axis and the unsigned offset as a uniform error).  Not for scenes
+        whose Sun is placed freely (a renderer's): the bound is a fact about the real Sun.
     """
 
     band_px: float = 4.0
@@ -224,6 +233,7 @@ class EllipsoidOptions:
     trace: bool = True
     center_floor_px: float = 0.0075
     patchy_shading_L: float | None = 0.0
+    sun_declination_max_deg: float | None = None
 
     def __post_init__(self) -> None:
         if self.profile_band_px is not None and not (isinstance(self.profile_band_px, (int, float))
@@ -239,6 +249,10 @@ class EllipsoidOptions:
         if self.patchy_shading_L is not None and not (isinstance(self.patchy_shading_L, (int, float))
                                                       and 0.0 <= self.patchy_shading_L <= 1.0):
             raise ConfigError(f"EllipsoidOptions.patchy_shading_L must be None or in [0, 1], got {self.patchy_shading_L!r}")
+        dmax = self.sun_declination_max_deg
+        if dmax is not None and (isinstance(dmax, bool) or not (isinstance(dmax, (int, float)) and 0.0 <= dmax <= 90.0)):
+            raise ConfigError("EllipsoidOptions.sun_declination_max_deg must be None or in [0, 90] deg, got "
+                              f"{self.sun_declination_max_deg!r}")
         if not (isinstance(self.arc_margin_deg, (int, float)) and 0 <= self.arc_margin_deg < 80):
             raise ConfigError(f"EllipsoidOptions.arc_margin_deg must be in [0, 80) deg, got {self.arc_margin_deg!r}")
         for name in ("max_refits", "max_iter"):

@@ -702,17 +702,44 @@ def ellipsoid_center(body: Ellipsoid, frame: Frame, final: RefineResult) -> Body
     G = numerical_jacobian(g, x0, np.array([1e-3, 1e-3, 1e-3, 1e-5, 1e-4][: len(geo)]))
     rng = float(np.linalg.norm(p))
     model_cov, goff = None, 0.0
+    center, los = cam.project(-p), -p / rng
     if body.free:
         model_cov, goff = unsigned_offset_cov(cam, fitted, rng, body.equatorial_km, body.polar_km, body.atmosphere_km,
                                               len(outputs))
+        marg = _pole_marginal(body, frame, final, p)
+        if marg is not None:
+            center, model_cov[:2, :2], info["pole_prior"] = marg
+            los = cam.los(np.asarray(center, float))
     (c, (a, b), th) = fitted
     model = {"LimbProfileParams": "lunar_limb", "GlowProfileParams": "lunar_limb_glow", "AnisoProfileParams": "lunar_limb_aniso",
              "EllipseRampParams": "ellipse_ramp"}.get(type(P).__name__, "ellipse")
     extras = {"model": model, "ellipse_center_rc": list(c), "rho": b / a, "theta_rad": th, "gamma_off_rad": float(info["gamma_off_rad"]),
               "gamma_off_unsigned_model_rad": goff, "a_prime": info["a_prime"], "b_prime": info["b_prime"]}
-    return BodyCenter(tuple(float(v) for v in cam.project(-p)), None,
-                      EllipseResult(center_rc=c, semi_axes_px=(a, b), angle_rad=th), tuple(float(v) for v in -p / rng),
+    if "pole_prior" in info:
+        extras["pole_prior"] = info["pole_prior"]
+    return BodyCenter(tuple(float(v) for v in center), None,
+                      EllipseResult(center_rc=c, semi_axes_px=(a, b), angle_rad=th), tuple(float(v) for v in los),
                       rng, outputs, geo, G, model_cov, extras)
+
+
+def _pole_marginal(body: Ellipsoid, frame: Frame, final: RefineResult, p: np.ndarray) -> tuple | None:
+    """The free ellipse's body centre marginalised over the poles the Sun's declination bound allows
+    (``EllipsoidOptions.sun_declination_max_deg``, :func:`jaxlimb.pipeline.pole_prior.marginal_center`): its image,
+    covariance and a report; ``None`` when the option is off, the pole is known, the Sun unknown or no pole fits."""
+    from .pole_prior import marginal_center
+
+    dmax, sun = body.eo.sun_declination_max_deg, frame.hints.sun_dir_camera
+    free = list(final.fit.free)
+    if dmax is None or body.R is not None or sun is None or not all(n in free for n in ("rho", "theta")):
+        return None
+    idx = [free.index(n) for n in ("r0", "c0", "a", "rho", "theta")]
+    C = np.asarray(final.fit.covariance, float)[np.ix_(idx, idx)]
+    Re, Rp = body.radii_limb[0], body.radii_limb[2]
+    out = marginal_center(frame.cam, final.fit.params, C, -p, sun, math.sin(math.radians(dmax)), Re, Rp)
+    if out is None:
+        return None
+    mean, cov, rep = out
+    return mean, cov, {**rep, "sun_declination_max_deg": float(dmax)}
 
 
 def frame_position_start(final: RefineResult, body: Ellipsoid, cam: Camera, fitted: tuple) -> np.ndarray:

@@ -97,6 +97,7 @@ CASES = [
     ("moon.png", ("--hints", "bad_hints.json"), 2, "bad_config"),
     ("moon.png", ("--hints", "bad_hints_value.json"), 2, "bad_config"),
     ("moon.png", ("--solver", "nope"), 2, "bad_arguments"),
+    ("moon.png", ("--sun-declination-max", "100"), 2, "bad_arguments"),
 ]
 
 

@@ -198,9 +198,12 @@ def moon_case(family: str, rng: np.random.Generator) -> Case:
     return _finish(body, surf, pin, psf, spec, rng, cam, hints, meta)
 
 
-def earth_case(family: str, rng: np.random.Generator, far: bool | None = None, ablate: tuple[str, ...] = ()) -> Case:
+def earth_case(family: str, rng: np.random.Generator, far: bool | None = None, ablate: tuple[str, ...] = (),
+               sun_declination_max_deg: float | None = None) -> Case:
     """An Earth frame of ``family`` (module docstring); ``far``: 380 000 km (else 40 000 km; random if None);
-    ``ablate``: names of :data:`ABLATIONS` (module docstring) replaced after the same draws."""
+    ``ablate``: names of :data:`ABLATIONS` (module docstring) replaced after the same draws;
+    ``sun_declination_max_deg``: the phase and the Sun's image direction are drawn again until the Sun lies within
+    that angle of the equator (the real Earth: 23.44), else the Sun is placed freely."""
     if family not in EARTH_FAMILIES:
         raise ValueError(f"unknown Earth family {family!r}; one of {EARTH_FAMILIES}")
     bad = set(ablate) - set(ABLATIONS)
@@ -216,10 +219,21 @@ def earth_case(family: str, rng: np.random.Generator, far: bool | None = None, a
     u = pin.los(rc)
     lat = float(rng.uniform(0.0, 60.0)) * (1 if rng.uniform() < 0.5 else -1)
     R = earth_attitude(u, image_direction(pin, u, float(rng.uniform(0, 360))), lat, float(rng.uniform(-180, 180)))
-    phase, sun_angle = float(rng.uniform(20.0, 70.0)), float(rng.uniform(0, 360))
-    s = sun_for_phase(u, image_direction(pin, u, sun_angle), phase)
+    phase, s = _earth_sun(rng, pin, u, R, sun_declination_max_deg)
     return _earth_frame(family, rng, cam, pin, (u, R, s, rng_km), {"range_km": rng_km, "focal_mm": focal},
                         lat, phase, tuple(ablate))
+
+
+def _earth_sun(rng: np.random.Generator, pin, u: np.ndarray, R: np.ndarray,  # type: ignore[no-untyped-def]
+               declination_max_deg: float | None) -> tuple[float, np.ndarray]:
+    """The phase (20-70 deg) and the Sun direction of :func:`earth_case` (module docstring), drawn again (up to 500
+    times) until ``|s . pole| <= sin(declination_max_deg)`` when that is given."""
+    for _ in range(500):
+        phase, sun_angle = float(rng.uniform(20.0, 70.0)), float(rng.uniform(0, 360))
+        s = sun_for_phase(u, image_direction(pin, u, sun_angle), phase)
+        if declination_max_deg is None or abs(float(np.dot(s, R[:, 2]))) <= math.sin(math.radians(declination_max_deg)):
+            return phase, s
+    raise ValueError(f"no gibbous Sun within {declination_max_deg} deg of this observer's equator")
 
 
 #: Families of :func:`earth_full_disc_case` (the deep-space view: no crop, no stars at these exposures).
