@@ -536,8 +536,6 @@ def _refine(image, db, camera, match, sun_dir_camera, options, override=None):  
     )
 
 
-
-
 def _outline_pieces(rc, V, edges, third, limb, fig, lo, ss, options):  # type: ignore[no-untyped-def]
     """Every outline edge split into pieces of <= ``piece_px`` (3-D interpolation projects onto the same
     straight line); only the pieces on the outer boundary of the figure ``fig`` are kept.  Returns the

@@ -290,8 +290,6 @@ class RegisterResult:
     R_body_to_camera: np.ndarray
 
 
-
-
 def render_model(
     mesh: Mesh, camera: object, R: np.ndarray, t: np.ndarray, sun: np.ndarray | None, lo, hi, options: RegisterOptions
 ) -> tuple[np.ndarray, np.ndarray]:
