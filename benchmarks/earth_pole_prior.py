@@ -27,18 +27,18 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 OBLIQUITY_DEG = 23.44
-RENDER_VERSION = 1
+RENDER_VERSION = 1  # of the real-Sun frames' cache files
 
 
 def _case(family: str, idx: int, seed: int, cache: Path | None, free_sun: bool):
     from _common import cached
+    from families import _case as families_case
 
     from jaxlimb.render.independent import EARTH_FAMILIES, earth_case
 
-    rng = np.random.default_rng([seed, 1, EARTH_FAMILIES.index(family), idx])
     if free_sun:  # exactly benchmarks/families.py's frame (and its cache file)
-        return cached(cache, f"earth_{family}_{idx}_s{seed}_v{RENDER_VERSION}.pkl",
-                      lambda: earth_case(family, rng, far=bool(idx % 2)))
+        return families_case("earth", family, idx, seed, cache)
+    rng = np.random.default_rng([seed, 1, EARTH_FAMILIES.index(family), idx])
     return cached(cache, f"earth_realsun_{family}_{idx}_s{seed}_v{RENDER_VERSION}.pkl",
                   lambda: earth_case(family, rng, far=bool(idx % 2), sun_declination_max_deg=OBLIQUITY_DEG))
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from .._validate import Range, arg_number
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     from .._solver_names import SOLVER_NAMES
@@ -45,8 +47,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "sun_dir_camera, which removes the sigmoid's 0.1-0.6 px limb bias; else the sigmoid), "
                    "the limb-darkened disc for --body sun; else the sigmoid), sigmoid (the papers' model), "
                    "lunar-lambert or limb-darkened")
-    from .._validate import Range, arg_number
-
     p.add_argument("--sun-declination-max", type=arg_number(Range(0.0, 90.0)), metavar="DEG", default=None,
                    help="Earth (or spheroid) without R_body_to_camera, Sun known: the largest angle (0-90 deg) of the "
                    "Sun from the body's equator (the Earth: 23.44); the centre is marginalised over the poles it "

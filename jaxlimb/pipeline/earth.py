@@ -147,6 +147,7 @@ from ..models.ellipse_ramp import ELLIPSE_RAMP, EllipseRampParams, ellipse_ramp_
 __all__ = [
     "ELLIPSE_RAMP",
     "EarthCone",
+    "cone_eigen",
     "EllipseRampParams",
     "EllipsoidOptions",
     "earth_position_from_ellipse",
@@ -308,16 +309,22 @@ def image_ellipse_cone(camera: Camera, center_rc, semi_axes_px, angle_rad: float
         )
     C = ellipse_to_conic(center_rc, semi_axes_px, angle_rad)
     K = camera.K
-    M = -(K.T @ C @ K)
-    M = 0.5 * (M + M.T)
-    lam, V = np.linalg.eigh(M)
+    lam, axis, a_, b_, V = cone_eigen(-(K.T @ C @ K))
     if not (lam[0] < 0 and lam[1] < 0 and lam[2] > 0):
         raise GeometryError(f"image ellipse does not define a limb cone: eigenvalues {lam.tolist()} (need -, -, +)")
-    axis = V[:, 2] * (1.0 if V[2, 2] > 0 else -1.0)
+    return EarthCone(axis=axis, semi_axes=(float(a_), float(b_)), major_dir=V[:, 1].copy(), minor_dir=V[:, 0].copy())
+
+
+def cone_eigen(M: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Eigen-analysis (Eq. 8) of limb cones ``M`` ``(..., 3, 3)``, positive on the rays that hit the body: the
+    ascending eigenvalues, the unit axis (``z > 0``), the sines ``a' >= b'`` of the half-angles and the eigenvectors
+    (columns; ``[..., :, 1]`` the major direction, ``[..., :, 0]`` the minor one).  Signs are not checked."""
+    lam, V = np.linalg.eigh(0.5 * (M + np.swapaxes(M, -1, -2)))
+    axis = V[..., :, 2] * np.where(V[..., 2, 2] > 0, 1.0, -1.0)[..., None]
     # lam ascending: lam[0] is the most negative (minor half-angle), lam[1] the major one
-    a_ = 1.0 / math.sqrt(1.0 + abs(lam[1]) / lam[2])
-    b_ = 1.0 / math.sqrt(1.0 + abs(lam[0]) / lam[2])
-    return EarthCone(axis=axis, semi_axes=(a_, b_), major_dir=V[:, 1].copy(), minor_dir=V[:, 0].copy())
+    a_ = 1.0 / np.sqrt(1.0 + np.abs(lam[..., 1]) / lam[..., 2])
+    b_ = 1.0 / np.sqrt(1.0 + np.abs(lam[..., 0]) / lam[..., 2])
+    return lam, axis, a_, b_, V
 
 
 # =============================================================================== ellipse -> position

@@ -345,13 +345,12 @@ def _wide_trace(img: np.ndarray, ell: tuple, lit_dir, half: float, shade: Any) -
     tr = trace_limb(img, ell, lit_dir, half, search)
     if shade is None or shade.dark_share(ell, tr.angles) < 0.5:
         return tr
-    best = max((tr, trace_limb(img, ell, lit_dir, half, search, shade=shade)), key=lambda x: int(x.ok.sum()))
-    if best is tr and tr.ok.sum() >= 20:
+    flat = trace_limb(img, ell, lit_dir, half, search, shade=shade)
+    if flat.ok.sum() <= tr.ok.sum() and tr.ok.sum() >= 20:
         # the shading is placed on the reference ellipse: about a start 1 px off (on a cloud edge) the flattened
         # trace kept 24 rays of 321, about the plain rays' own fit 270 (benchmarks/earth_mottled.py map 15, 10 deg)
-        best = max((tr, trace_limb(img, fit_traced(tr, ell), lit_dir, half, search, shade=shade)),
-                   key=lambda x: int(x.ok.sum()))
-    return best if best.ok.sum() > max(tr.ok.sum(), 20) else tr
+        flat = trace_limb(img, fit_traced(tr, ell), lit_dir, half, search, shade=shade)
+    return flat if flat.ok.sum() > max(tr.ok.sum(), 20) else tr
 
 
 def _traced_start(img: np.ndarray, ell: tuple, lit_dir, half: float, band: float,
@@ -702,21 +701,21 @@ def ellipsoid_center(body: Ellipsoid, frame: Frame, final: RefineResult) -> Body
     G = numerical_jacobian(g, x0, np.array([1e-3, 1e-3, 1e-3, 1e-5, 1e-4][: len(geo)]))
     rng = float(np.linalg.norm(p))
     model_cov, goff = None, 0.0
-    center, los = cam.project(-p), -p / rng
+    center, los, pole_report = cam.project(-p), -p / rng, None
     if body.free:
         model_cov, goff = unsigned_offset_cov(cam, fitted, rng, body.equatorial_km, body.polar_km, body.atmosphere_km,
                                               len(outputs))
         marg = _pole_marginal(body, frame, final, p)
         if marg is not None:
-            center, model_cov[:2, :2], info["pole_prior"] = marg
+            center, model_cov[:2, :2], pole_report = marg
             los = cam.los(np.asarray(center, float))
     (c, (a, b), th) = fitted
     model = {"LimbProfileParams": "lunar_limb", "GlowProfileParams": "lunar_limb_glow", "AnisoProfileParams": "lunar_limb_aniso",
              "EllipseRampParams": "ellipse_ramp"}.get(type(P).__name__, "ellipse")
     extras = {"model": model, "ellipse_center_rc": list(c), "rho": b / a, "theta_rad": th, "gamma_off_rad": float(info["gamma_off_rad"]),
               "gamma_off_unsigned_model_rad": goff, "a_prime": info["a_prime"], "b_prime": info["b_prime"]}
-    if "pole_prior" in info:
-        extras["pole_prior"] = info["pole_prior"]
+    if pole_report is not None:
+        extras["pole_prior"] = pole_report
     return BodyCenter(tuple(float(v) for v in center), None,
                       EllipseResult(center_rc=c, semi_axes_px=(a, b), angle_rad=th), tuple(float(v) for v in los),
                       rng, outputs, geo, G, model_cov, extras)
@@ -726,13 +725,13 @@ def _pole_marginal(body: Ellipsoid, frame: Frame, final: RefineResult, p: np.nda
     """The free ellipse's body centre marginalised over the poles the Sun's declination bound allows
     (``EllipsoidOptions.sun_declination_max_deg``, :func:`jaxlimb.pipeline.pole_prior.marginal_center`): its image,
     covariance and a report; ``None`` when the option is off, the pole is known, the Sun unknown or no pole fits."""
-    from .pole_prior import marginal_center
+    from .pole_prior import FREE_ELLIPSE, marginal_center
 
     dmax, sun = body.eo.sun_declination_max_deg, frame.hints.sun_dir_camera
     free = list(final.fit.free)
-    if dmax is None or body.R is not None or sun is None or not all(n in free for n in ("rho", "theta")):
+    if dmax is None or body.R is not None or sun is None or not all(n in free for n in FREE_ELLIPSE):
         return None
-    idx = [free.index(n) for n in ("r0", "c0", "a", "rho", "theta")]
+    idx = [free.index(n) for n in FREE_ELLIPSE]
     C = np.asarray(final.fit.covariance, float)[np.ix_(idx, idx)]
     Re, Rp = body.radii_limb[0], body.radii_limb[2]
     out = marginal_center(frame.cam, final.fit.params, C, -p, sun, math.sin(math.radians(dmax)), Re, Rp)

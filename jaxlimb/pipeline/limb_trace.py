@@ -275,11 +275,11 @@ class RayShading:
     L: float = 0.0
     psf_sigma_px: float = 1.0
 
-    def rows(self, ell: tuple, angles: np.ndarray, xs: np.ndarray, normals: tuple | None = None) -> np.ndarray:
-        """The model's radiance on each ray (``angles`` about ``ell``'s centre; or the rays' precomputed
-        :func:`_limb_normals` ``normals``) at ``xs`` px outward from ``ell``, blurred by the PSF and the pixel."""
-        normals = _limb_normals(self.cam, ell, angles) if normals is None else normals
-        return _shaded_rows(normals, self.sun_dir_camera, float(ell[1][0]), _pixel_blur(self.psf_sigma_px), self.L, xs)
+    def rows(self, ell: tuple, angles: np.ndarray, xs: np.ndarray) -> np.ndarray:
+        """The model's radiance on each ray (``angles`` about ``ell``'s centre) at ``xs`` px outward from ``ell``,
+        blurred by the PSF and the pixel."""
+        return _shaded_rows(_limb_normals(self.cam, ell, angles), self.sun_dir_camera, float(ell[1][0]),
+                            _pixel_blur(self.psf_sigma_px), self.L, xs)
 
     def dark_share(self, ell: tuple, angles: np.ndarray, depths: tuple[float, float] = (0.5, 4.0),
                    flat_frac: float = 0.35) -> float:
@@ -320,7 +320,7 @@ def _scaled_rows(tr: TracedLimb, sel: np.ndarray, ell: tuple, normals: tuple, su
     blur), each scaled so that its level about the trace's window (2-5 px inside the foot, ~1 sigma outside the limb)
     is the ray's inside level ``P - s`` (NaN rows where ``tr`` has no level)."""
     sigma = _pixel_blur(psf_sigma_px)
-    rows = RayShading(None, sun_dir_camera, L, psf_sigma_px).rows(ell, tr.angles[sel], xs, normals)
+    rows = _shaded_rows(normals, sun_dir_camera, float(ell[1][0]), sigma, L, xs)
     ref = np.median(rows[:, (xs >= -5.0 - sigma) & (xs <= -2.0 - sigma)], axis=1)
     with np.errstate(all="ignore"):
         gain = np.where(ref > 0, (tr.inside[sel] - tr.sky) / ref, np.nan)

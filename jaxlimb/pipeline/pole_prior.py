@@ -26,7 +26,7 @@ import numpy as np
 
 from ..analysis.crlb import numerical_jacobian
 from ..geometry.camera import Camera
-from ..geometry.ellipsoid import ellipse_to_conic
+from .earth import cone_eigen, image_ellipse_cone
 
 G_FLOOR_FRAC = 0.25
 """Per-component sigma added to the fitted flattening vector's, in units of the flattening (module docstring)."""
@@ -34,7 +34,8 @@ G_FLOOR_FRAC = 0.25
 N_POLES = 4096
 """Poles on the sphere grid (half of them distinct: ``p`` and ``-p`` are the same spheroid)."""
 
-_GEO = ("r0", "c0", "a", "rho", "theta")
+FREE_ELLIPSE = ("r0", "c0", "a", "rho", "theta")
+"""The free ellipse's parameters, in the order of the covariance :func:`marginal_center` takes."""
 _STEPS = np.array([1e-3, 1e-3, 1e-3, 1e-6, 1e-5])
 
 
@@ -49,27 +50,26 @@ def sphere_grid(n: int = N_POLES) -> np.ndarray:
 
 def cone_flattening(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Flattening vectors ``g`` ``(..., 2)`` and unit axes ``(..., 3)`` (``z > 0``) of limb cones ``M`` ``(..., 3, 3)``
-    (positive on the rays that hit the body, eigenvalues ``(-, -, +)``); ``psi`` is measured from the camera's
-    ``x`` axis projected on the plane normal to the cone axis."""
-    lam, V = np.linalg.eigh(0.5 * (M + np.swapaxes(M, -1, -2)))
-    axis = V[..., :, 2] * np.where(V[..., 2, 2] > 0, 1.0, -1.0)[..., None]
-    a_ = 1.0 / np.sqrt(1.0 + np.abs(lam[..., 1]) / lam[..., 2])
-    b_ = 1.0 / np.sqrt(1.0 + np.abs(lam[..., 0]) / lam[..., 2])
-    major = V[..., :, 1]
+    (positive on the rays that hit the body, eigenvalues ``(-, -, +)``; :func:`jaxlimb.pipeline.earth.cone_eigen`);
+    ``psi`` is measured from the camera's ``x`` axis projected on the plane normal to the cone axis."""
+    _, axis, a_, b_, V = cone_eigen(M)
+    return _flattening(axis, a_, b_, V[..., :, 1]), axis
+
+
+def _flattening(axis: np.ndarray, a_, b_, major: np.ndarray) -> np.ndarray:
+    """``g = (1 - b'/a') (cos 2psi, sin 2psi)`` of cones with unit ``axis``, sines ``a' >= b'`` and ``major`` axis."""
     e1 = np.array([1.0, 0.0, 0.0]) - axis[..., :1] * axis
     e1 /= np.linalg.norm(e1, axis=-1, keepdims=True)
     e2 = np.cross(axis, e1)
     psi = np.arctan2(np.sum(major * e2, axis=-1), np.sum(major * e1, axis=-1))
-    g = (1.0 - b_ / a_)[..., None] * np.stack([np.cos(2.0 * psi), np.sin(2.0 * psi)], axis=-1)
-    return g, axis
+    return (1.0 - np.asarray(b_) / np.asarray(a_))[..., None] * np.stack([np.cos(2.0 * psi), np.sin(2.0 * psi)], axis=-1)
 
 
 def ellipse_flattening(camera: Camera, ell: tuple) -> np.ndarray:
-    """``g`` of the limb cone of image ellipse ``ell = ((r0, c0), (a, b), theta)`` (as
-    :func:`jaxlimb.pipeline.earth.image_ellipse_cone`)."""
-    C = ellipse_to_conic(*ell)
-    K = camera.K
-    return cone_flattening(-(K.T @ C @ K))[0]
+    """``g`` of the limb cone of image ellipse ``ell = ((r0, c0), (a, b), theta)``
+    (:func:`jaxlimb.pipeline.earth.image_ellipse_cone`)."""
+    cone = image_ellipse_cone(camera, *ell)
+    return _flattening(cone.axis, *cone.semi_axes, cone.major_dir)
 
 
 def spheroid_cones(q: np.ndarray, poles: np.ndarray, equatorial_km: float, polar_km: float) -> np.ndarray:
@@ -84,7 +84,7 @@ def spheroid_cones(q: np.ndarray, poles: np.ndarray, equatorial_km: float, polar
 
 def _g_likelihood(camera: Camera, params, cov_geo: np.ndarray, flattening: float):  # type: ignore[no-untyped-def]
     """The fitted ``g`` and the inverse of its covariance (module docstring)."""
-    x0 = np.array([float(getattr(params, n)) for n in _GEO])
+    x0 = np.array([float(getattr(params, n)) for n in FREE_ELLIPSE])
 
     def g_of(x: np.ndarray) -> np.ndarray:
         r0, c0, a, rho, th = (float(v) for v in x)
@@ -125,5 +125,5 @@ def marginal_center(camera: Camera, params, cov_geo: np.ndarray, q: np.ndarray, 
                        "chi2_min": float(chi2.min())}
 
 
-__all__ = ["G_FLOOR_FRAC", "N_POLES", "cone_flattening", "ellipse_flattening", "marginal_center", "sphere_grid",
+__all__ = ["FREE_ELLIPSE", "G_FLOOR_FRAC", "N_POLES", "cone_flattening", "ellipse_flattening", "marginal_center", "sphere_grid",
            "spheroid_cones"]

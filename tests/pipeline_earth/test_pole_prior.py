@@ -39,7 +39,6 @@ def _scene(lat_deg: float, phase_deg: float, discriminating: bool):
     ic = image_conic(cam, (RE, RE, RP), q, R)
     ell = (tuple(ic.center_rc), tuple(ic.semi_axes_px), float(ic.angle_rad))
     p_free, _ = earth_position_from_ellipse(cam, *ell, np.zeros(3))
-    params = SimpleNamespace(r0=ell[0][0], c0=ell[0][1], a=ell[1][0], rho=ell[1][1] / ell[1][0], theta=ell[2])
     return cam, ell, np.asarray(ic.body_center_rc), -p_free, s, pole
 
 
