@@ -440,7 +440,7 @@ def gradient_front_end(
     band = radius_band(pri, region)
     win = _gradient_window(img, region, st, opt, mask)
     t_grad = time.perf_counter()
-    pts, n_box = _box_filtered_points(win, region, st, opt)
+    pts, n_box = _masked_retry(img, region, st, opt, mask, win)
     t_box = time.perf_counter()
     inl, fit, res, n_dark = _ransac_taubin(pts, n_box, win.offset_rc, pri, st, band, hints, camera, opt)
     t_fit = time.perf_counter()
@@ -505,15 +505,37 @@ def outline_band(region: BodyRegion, window: tuple[int, int, int, int], frac: fl
     return band_small[np.ix_(rows, cols)]
 
 
+def _masked_retry(img: np.ndarray, region: BodyRegion, st, opt: GradientOptions, mask: np.ndarray | None,
+                  win: _GradientWindow) -> tuple[np.ndarray, int]:
+    """Step 5 on ``win``; when Check 2 fails because the lit body reaches the invalid pixels (:func:`_masked_limb_note`:
+    a product whose off-body pixels are blanked 1-2 px outside the limb, ``resampled_hmi.fits``), step 3-5 again on the
+    frame with each invalid pixel holding its nearest valid one (no step at the mask's edge) and only the invalid pixels
+    themselves excluded; if that fails too, the first failure stands."""
+    try:
+        return _box_filtered_points(win, region, st, opt)
+    except TooManyOutliersError as err:
+        if not _masked_limb_note(win, region):
+            raise
+        first = err
+    try:
+        return _box_filtered_points(_gradient_window(img, region, st, opt, mask, near_mask=True), region, st, opt)
+    except TooManyOutliersError:
+        raise first from None
+
+
 def _gradient_window(img: np.ndarray, region: BodyRegion, st, opt: GradientOptions,
-                     mask: np.ndarray | None) -> _GradientWindow:
+                     mask: np.ndarray | None, near_mask: bool = False) -> _GradientWindow:
     """Steps 3-4: the ROI padded for the box filter, pre-smoothed, differentiated (Eq. 18-22), and its
-    ``N`` strongest gradient pixels; the gradient near an invalid pixel is zeroed."""
+    ``N`` strongest gradient pixels; the gradient near an invalid pixel is zeroed.  ``near_mask``
+    (:func:`_masked_retry`): the invalid pixels hold their nearest valid pixel's value, only their own gradient is
+    zeroed, and the box filter is not given the mask."""
     r0, r1, c0, c1 = region.roi
     pad = st.box_size // 2 + 6
     r0, c0 = max(0, r0 - pad), max(0, c0 - pad)
     r1, c1 = min(img.shape[0], r1 + pad), min(img.shape[1], c1 + pad)
     sub = img[r0:r1, c0:c1].astype(np.float32)  # exact for integer data up to 2^24
+    if near_mask and mask is not None:
+        sub = nearest_fill(sub, np.asarray(mask, bool)[r0:r1, c0:c1])
     sigma_pre = opt.presmooth_sigma
     if sigma_pre is None:
         contrast = max(region.peak - region.background, 1e-300)
@@ -526,7 +548,8 @@ def _gradient_window(img: np.ndarray, region: BodyRegion, st, opt: GradientOptio
     vsub = None
     if mask is not None:
         vsub = np.asarray(mask, bool)[r0:r1, c0:c1]
-        g = np.where(valid_zone(vsub, 4 + int(math.ceil(3 * sigma_pre))), g, 0)
+        g = np.where(vsub if near_mask else valid_zone(vsub, 4 + int(math.ceil(3 * sigma_pre))), g, 0)
+        vsub = None if near_mask else vsub
     if region.dark_surface:
         g = np.where(outline_band(region, (r0, r1, c0, c1)), g, 0)
     n_req = int(min(st.n_points, max(10, g.size // 4)))

@@ -183,7 +183,7 @@ def select_annulus(
                                       mask)
     ang = np.arctan2(coords[:, 0] - cr, coords[:, 1] - cc)
     inner = dsel <= radius - 0.5 * dr
-    outer = dsel >= radius + 0.5 * dr
+    outer = _outer_pixels(dsel, ang, radius, dr, options) if mask is not None else dsel >= radius + 0.5 * dr
     bins, keep_bin, lev_in, lev_out, n_bins = _lit_bins(z, ang, inner, outer, radius, dr, options)
     keep = keep_bin[bins]
     if np.count_nonzero(keep) < 20 or not np.any(inner & keep) or not np.any(outer & keep):
@@ -215,6 +215,24 @@ def select_annulus(
         pixel_inner=lev_in[bins],
         pixel_outer=lev_out[bins],
     )
+
+
+NEAR_SKY_PX = 1.5
+"""Where a validity mask leaves an angular bin fewer than two pixels in the annulus's outer half (a product whose
+off-body pixels are blanked 1-2 px outside the limb, ``resampled_hmi.fits``), its sky level is taken from its valid
+pixels this far (px) or farther outside the limb.  Without a mask nothing changes (a bin cut by the frame's border
+is dropped as before)."""
+
+
+def _outer_pixels(dsel: np.ndarray, ang: np.ndarray, radius: float, dr: float, options: LocateOptions) -> np.ndarray:
+    """The sky side of the annulus: its outer half, and in the angular bins (as :func:`_lit_bins`) with fewer than two
+    pixels there, every pixel :data:`NEAR_SKY_PX` or farther outside the limb."""
+    outer = dsel >= radius + 0.5 * dr
+    width = max(math.radians(options.angular_bin_deg), 4.0 / max(radius, 1e-9))
+    nb = max(1, int(math.ceil(2 * math.pi / width)))
+    bins = np.minimum(((ang + math.pi) / (2 * math.pi) * nb).astype(np.int64), nb - 1)
+    short = np.bincount(bins[outer], minlength=nb) < 2
+    return outer | (short[bins] & (dsel >= radius + min(NEAR_SKY_PX, 0.5 * dr)))
 
 
 def _annulus_window(img: np.ndarray, center_rc: tuple[float, float], radius: float, dr: float,

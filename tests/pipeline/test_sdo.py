@@ -45,3 +45,27 @@ def test_sdo_hmi_with_the_limb_darkened_profile():
     assert np.hypot(*np.subtract(m.center_rc, tr.center_rc)) <= 0.05
     assert abs(m.radius_px - tr.radius_px) <= 0.1
     assert 0.0 < np.sqrt(m.covariance["radius"]["radius"]) < 0.01
+
+
+HMI_FITS = shared_data_dir() / "sun/resampled_hmi.fits"
+
+
+@pytest.mark.skipif(not HMI_FITS.exists(), reason="SDO data not available")
+def test_blanked_hmi_product_is_measured_to_its_disc():
+    """The 100 px HMI product blanks (NaN) its off-disc pixels 1-2 px outside the limb.  The front end retries with the
+    invalid pixels holding their nearest valid value, and the annulus takes each bin's sky from its valid pixels
+    1.5 px or more outside the limb (``refine.NEAR_SKY_PX``): the limb-darkened disc lands 0.008 px from the centre
+    the header gives with ``CROTA2`` dropped and 0.001 px from ``RSUN_OBS``.  (With ``CROTA2 = 179.93`` applied, the
+    header's centre lies 0.30 px from the disc; the NaN mask's own circle, which the HMI pipeline draws about its
+    disc, agrees with the disc: ``benchmarks/sun_limb.py``.)"""
+    from jaxlimb.imaging.formats import read_frame
+    from jaxlimb.imaging.sdo import sun_truth_from_header
+
+    fr = read_frame(HMI_FITS)
+    h0 = fr.info.header.copy()
+    h0["CROTA2"] = 0.0
+    t = sun_truth_from_header(h0)
+    m = locate(fr.data, None, Hints(body="sun"), mask=fr.mask)
+    assert m.extras["profile"]["model"] == "limb-darkened"
+    assert np.hypot(*np.subtract(m.center_rc, t.center_rc)) <= 0.03
+    assert abs(m.radius_px - t.radius_px) <= 0.02
