@@ -322,8 +322,9 @@ def cone_eigen(M: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nd
     lam, V = np.linalg.eigh(0.5 * (M + np.swapaxes(M, -1, -2)))
     axis = V[..., :, 2] * np.where(V[..., 2, 2] > 0, 1.0, -1.0)[..., None]
     # lam ascending: lam[0] is the most negative (minor half-angle), lam[1] the major one
-    a_ = 1.0 / np.sqrt(1.0 + np.abs(lam[..., 1]) / lam[..., 2])
-    b_ = 1.0 / np.sqrt(1.0 + np.abs(lam[..., 0]) / lam[..., 2])
+    with np.errstate(invalid="ignore", divide="ignore"):  # not a cone (lam[2] <= 0): NaN, refused by the callers
+        a_ = 1.0 / np.sqrt(1.0 + np.abs(lam[..., 1]) / lam[..., 2])
+        b_ = 1.0 / np.sqrt(1.0 + np.abs(lam[..., 0]) / lam[..., 2])
     return lam, axis, a_, b_, V
 
 
