@@ -381,6 +381,7 @@ def _stage_info(pri, st, win, region, n_box, res, inl, n_dark, fit, center, shap
         "ransac_tests": res.n_tests,
         "ransac_dmax": st.ransac_dmax,
         "presmooth_sigma": win.presmooth_sigma,
+        "masked_retry": win.near_mask,
         "residual_max": fit.max_abs,
         "cropped": region.crop,
         "center_in_image": bool(0 <= center[0] <= shape[0] - 1 and 0 <= center[1] <= shape[1] - 1),
@@ -440,7 +441,7 @@ def gradient_front_end(
     band = radius_band(pri, region)
     win = _gradient_window(img, region, st, opt, mask)
     t_grad = time.perf_counter()
-    pts, n_box = _masked_retry(img, region, st, opt, mask, win)
+    win, pts, n_box = _masked_retry(img, region, st, opt, mask, win)
     t_box = time.perf_counter()
     inl, fit, res, n_dark = _ransac_taubin(pts, n_box, win.offset_rc, pri, st, band, hints, camera, opt)
     t_fit = time.perf_counter()
@@ -482,6 +483,7 @@ class _GradientWindow:
     candidates: np.ndarray
     valid: np.ndarray | None
     presmooth_sigma: float
+    near_mask: bool = False
 
     @property
     def offset_rc(self) -> tuple[int, int]:
@@ -506,19 +508,21 @@ def outline_band(region: BodyRegion, window: tuple[int, int, int, int], frac: fl
 
 
 def _masked_retry(img: np.ndarray, region: BodyRegion, st, opt: GradientOptions, mask: np.ndarray | None,
-                  win: _GradientWindow) -> tuple[np.ndarray, int]:
+                  win: _GradientWindow) -> tuple[_GradientWindow, np.ndarray, int]:
     """Step 5 on ``win``; when Check 2 fails because the lit body reaches the invalid pixels (:func:`_masked_limb_note`:
     a product whose off-body pixels are blanked 1-2 px outside the limb, ``resampled_hmi.fits``), step 3-5 again on the
     frame with each invalid pixel holding its nearest valid one (no step at the mask's edge) and only the invalid pixels
-    themselves excluded; if that fails too, the first failure stands."""
+    themselves excluded (``info["masked_retry"]``); if that fails too, the first failure stands.  Returns the window
+    used and its points."""
     try:
-        return _box_filtered_points(win, region, st, opt)
+        return (win, *_box_filtered_points(win, region, st, opt))
     except TooManyOutliersError as err:
         if not _masked_limb_note(win, region):
             raise
         first = err
+    near = _gradient_window(img, region, st, opt, mask, near_mask=True)
     try:
-        return _box_filtered_points(_gradient_window(img, region, st, opt, mask, near_mask=True), region, st, opt)
+        return (near, *_box_filtered_points(near, region, st, opt))
     except TooManyOutliersError:
         raise first from None
 
@@ -553,7 +557,8 @@ def _gradient_window(img: np.ndarray, region: BodyRegion, st, opt: GradientOptio
     if region.dark_surface:
         g = np.where(outline_band(region, (r0, r1, c0, c1)), g, 0)
     n_req = int(min(st.n_points, max(10, g.size // 4)))
-    return _GradientWindow((r0, r1, c0, c1), sub_s, g, gr, gc, strongest_pixels(g, n_req), vsub, sigma_pre)
+    return _GradientWindow((r0, r1, c0, c1), sub_s, g, gr, gc, strongest_pixels(g, n_req), vsub, sigma_pre,
+                           near_mask and mask is not None)
 
 
 def _masked_limb_note(win: _GradientWindow, region: BodyRegion) -> str:

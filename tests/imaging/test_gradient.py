@@ -220,6 +220,7 @@ def test_limb_next_to_blanked_pixels_is_measured_or_the_failure_says_why():
     h0["CROTA2"] = 0.0
     t = sun_truth_from_header(h0)
     lc = gradient_front_end(fr.data, mask=fr.mask)
+    assert lc.info["masked_retry"] and lc.info["n_after_box"] >= 10
     assert math.hypot(lc.center_rc[0] - t.center_rc[0], lc.center_rc[1] - t.center_rc[1]) < 0.3
     assert abs(lc.radius - t.radius_px) < 0.5
     img = render_disk((200, 200), (100.3, 99.6), 50.0, phase_deg=0.0, blur_sigma=1.0, noise_sigma=1.0, seed=2)
@@ -232,4 +233,5 @@ def test_limb_next_to_blanked_pixels_is_measured_or_the_failure_says_why():
     mask = np.ones(img.shape, bool)
     mask[:, :40] = False  # far from the limb: measured
     lc = gradient_front_end(img, mask=mask)
+    assert not lc.info["masked_retry"]
     assert math.hypot(lc.center_rc[0] - 100.3, lc.center_rc[1] - 99.6) < 0.5
