@@ -228,9 +228,7 @@ def _outer_pixels(dsel: np.ndarray, ang: np.ndarray, radius: float, dr: float, o
     """The sky side of the annulus: its outer half, and in the angular bins (as :func:`_lit_bins`) with fewer than two
     pixels there, every pixel :data:`NEAR_SKY_PX` or farther outside the limb."""
     outer = dsel >= radius + 0.5 * dr
-    width = max(math.radians(options.angular_bin_deg), 4.0 / max(radius, 1e-9))
-    nb = max(1, int(math.ceil(2 * math.pi / width)))
-    bins = np.minimum(((ang + math.pi) / (2 * math.pi) * nb).astype(np.int64), nb - 1)
+    bins, nb = _angular_bins(ang, radius, options)
     short = np.bincount(bins[outer], minlength=nb) < 2
     return outer | (short[bins] & (dsel >= radius + min(NEAR_SKY_PX, 0.5 * dr)))
 
@@ -274,14 +272,19 @@ def _annulus_window(img: np.ndarray, center_rc: tuple[float, float], radius: flo
     return coords, img[ir + r0, ic + c0].astype(np.float64), d[ir, ic]
 
 
+def _angular_bins(ang: np.ndarray, radius: float, options: LocateOptions) -> tuple[np.ndarray, int]:
+    """Each pixel's angular bin (``options.angular_bin_deg`` wide, at least 4 px of arc) and the number of bins."""
+    width = max(math.radians(options.angular_bin_deg), 4.0 / max(radius, 1e-9))
+    nb = max(1, int(math.ceil(2 * math.pi / width)))
+    return np.minimum(((ang + math.pi) / (2 * math.pi) * nb).astype(np.int64), nb - 1), nb
+
+
 def _lit_bins(z: np.ndarray, ang: np.ndarray, inner: np.ndarray, outer: np.ndarray, radius: float, dr: float,
               options: LocateOptions):
     """Rules 3-4: angular bins of the annulus with a lit edge at the limb.  Returns each pixel's bin, the
     bins kept, the bins' inner and outer levels and the number of bins with pixels."""
     # rule 3: contrast per angular bin (medians: robust to stars, hot pixels, craters)
-    width = max(math.radians(options.angular_bin_deg), 4.0 / max(radius, 1e-9))
-    nb = max(1, int(math.ceil(2 * math.pi / width)))
-    bins = np.minimum(((ang + math.pi) / (2 * math.pi) * nb).astype(np.int64), nb - 1)
+    bins, nb = _angular_bins(ang, radius, options)
     lev_in, n_in = _bin_median(bins[inner], z[inner], nb)
     lev_out, n_out = _bin_median(bins[outer], z[outer], nb)
     have = (n_in >= 2) & (n_out >= 2)
