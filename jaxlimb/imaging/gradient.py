@@ -537,8 +537,9 @@ def _gradient_window(img: np.ndarray, region: BodyRegion, st, opt: GradientOptio
     pad = st.box_size // 2 + 6
     r0, c0 = max(0, r0 - pad), max(0, c0 - pad)
     r1, c1 = min(img.shape[0], r1 + pad), min(img.shape[1], c1 + pad)
+    near_mask = near_mask and mask is not None
     sub = img[r0:r1, c0:c1].astype(np.float32)  # exact for integer data up to 2^24
-    if near_mask and mask is not None:
+    if near_mask:
         sub = nearest_fill(sub, np.asarray(mask, bool)[r0:r1, c0:c1])
     sigma_pre = opt.presmooth_sigma
     if sigma_pre is None:
@@ -553,12 +554,11 @@ def _gradient_window(img: np.ndarray, region: BodyRegion, st, opt: GradientOptio
     if mask is not None:
         vsub = np.asarray(mask, bool)[r0:r1, c0:c1]
         g = np.where(vsub if near_mask else valid_zone(vsub, 4 + int(math.ceil(3 * sigma_pre))), g, 0)
-        vsub = None if near_mask else vsub
     if region.dark_surface:
         g = np.where(outline_band(region, (r0, r1, c0, c1)), g, 0)
     n_req = int(min(st.n_points, max(10, g.size // 4)))
-    return _GradientWindow((r0, r1, c0, c1), sub_s, g, gr, gc, strongest_pixels(g, n_req), vsub, sigma_pre,
-                           near_mask and mask is not None)
+    return _GradientWindow((r0, r1, c0, c1), sub_s, g, gr, gc, strongest_pixels(g, n_req),
+                           None if near_mask else vsub, sigma_pre, near_mask)
 
 
 def _masked_limb_note(win: _GradientWindow, region: BodyRegion) -> str:

@@ -183,8 +183,9 @@ def select_annulus(
                                       mask)
     ang = np.arctan2(coords[:, 0] - cr, coords[:, 1] - cc)
     inner = dsel <= radius - 0.5 * dr
-    outer = _outer_pixels(dsel, ang, radius, dr, options) if mask is not None else dsel >= radius + 0.5 * dr
-    bins, keep_bin, lev_in, lev_out, n_bins = _lit_bins(z, ang, inner, outer, radius, dr, options)
+    bins, nb = _angular_bins(ang, radius, options)
+    outer = _outer_pixels(dsel, bins, nb, radius, dr, mask is not None)
+    keep_bin, lev_in, lev_out, n_bins = _lit_bins(z, bins, nb, inner, outer, radius, dr, options)
     keep = keep_bin[bins]
     if np.count_nonzero(keep) < 20 or not np.any(inner & keep) or not np.any(outer & keep):
         raise TooManyOutliersError(
@@ -224,11 +225,13 @@ pixels this far (px) or farther outside the limb.  Without a mask nothing change
 is dropped as before)."""
 
 
-def _outer_pixels(dsel: np.ndarray, ang: np.ndarray, radius: float, dr: float, options: LocateOptions) -> np.ndarray:
-    """The sky side of the annulus: its outer half, and in the angular bins (as :func:`_lit_bins`) with fewer than two
-    pixels there, every pixel :data:`NEAR_SKY_PX` or farther outside the limb."""
+def _outer_pixels(dsel: np.ndarray, bins: np.ndarray, nb: int, radius: float, dr: float, masked: bool) -> np.ndarray:
+    """The sky side of the annulus: its outer half; with a validity mask (``masked``), also every pixel
+    :data:`NEAR_SKY_PX` or farther outside the limb in the angular bins (``bins`` of ``nb``, :func:`_angular_bins`)
+    with fewer than two pixels in that half."""
     outer = dsel >= radius + 0.5 * dr
-    bins, nb = _angular_bins(ang, radius, options)
+    if not masked:
+        return outer
     short = np.bincount(bins[outer], minlength=nb) < 2
     return outer | (short[bins] & (dsel >= radius + min(NEAR_SKY_PX, 0.5 * dr)))
 
@@ -279,12 +282,11 @@ def _angular_bins(ang: np.ndarray, radius: float, options: LocateOptions) -> tup
     return np.minimum(((ang + math.pi) / (2 * math.pi) * nb).astype(np.int64), nb - 1), nb
 
 
-def _lit_bins(z: np.ndarray, ang: np.ndarray, inner: np.ndarray, outer: np.ndarray, radius: float, dr: float,
-              options: LocateOptions):
-    """Rules 3-4: angular bins of the annulus with a lit edge at the limb.  Returns each pixel's bin, the
-    bins kept, the bins' inner and outer levels and the number of bins with pixels."""
+def _lit_bins(z: np.ndarray, bins: np.ndarray, nb: int, inner: np.ndarray, outer: np.ndarray, radius: float,
+              dr: float, options: LocateOptions):
+    """Rules 3-4: angular bins (each pixel's of ``nb``, :func:`_angular_bins`) of the annulus with a lit edge at the
+    limb.  Returns the bins kept, the bins' inner and outer levels and the number of bins with pixels."""
     # rule 3: contrast per angular bin (medians: robust to stars, hot pixels, craters)
-    bins, nb = _angular_bins(ang, radius, options)
     lev_in, n_in = _bin_median(bins[inner], z[inner], nb)
     lev_out, n_out = _bin_median(bins[outer], z[outer], nb)
     have = (n_in >= 2) & (n_out >= 2)
@@ -305,7 +307,7 @@ def _lit_bins(z: np.ndarray, ang: np.ndarray, inner: np.ndarray, outer: np.ndarr
         ok = keep_bin & (cnt > 0)
         e_b[ok] = radius - dr + 2.0 * dr * s_zn[ok] / cnt[ok]
         keep_bin = keep_bin & ~(_edge_offsets(e_b, ok, nb, options.max_edge_offset_px) < -options.max_edge_offset_px)
-    return bins, keep_bin, lev_in, lev_out, n_bins
+    return keep_bin, lev_in, lev_out, n_bins
 
 
 def _edge_offsets(e_b: np.ndarray, ok: np.ndarray, nb: int, tol: float = 0.75, n_iter: int = 3) -> np.ndarray:
