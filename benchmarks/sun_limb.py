@@ -70,9 +70,7 @@ def run_one(name: str) -> dict:
         truth = sun_truth_from_header(hdr)
         out["truth"] = {"center_rc": list(truth.center_rc), "radius_px": truth.radius_px, "crota2": float(hdr.get("CROTA2", 0.0))}
         if "CROTA2" in hdr:
-            h0 = hdr.copy()
-            h0["CROTA2"] = 0.0
-            out["truth"]["center_rc_crota2_dropped"] = list(sun_truth_from_header(h0).center_rc)
+            out["truth"]["center_rc_crota2_dropped"] = list(sun_truth_from_header(hdr, ignore_rotation=True).center_rc)
         if np.isnan(img_fit).any():
             out["nan_mask_circle"] = _nan_mask_circle(img_fit)
     else:

@@ -74,7 +74,8 @@ class SunTruth:
     rsun_obs_arcsec: float
 
 
-def sun_truth_from_header(header: Any, *, rows_flipped: bool = False, n_limb: int = 360) -> SunTruth:
+def sun_truth_from_header(header: Any, *, rows_flipped: bool = False, n_limb: int = 360,
+                          ignore_rotation: bool = False) -> SunTruth:
     """Sun centre ``(row, col)`` and radius (px) from a FITS header, via ``astropy.wcs``.
 
     Parameters
@@ -87,6 +88,10 @@ def sun_truth_from_header(header: Any, *, rows_flipped: bool = False, n_limb: in
         (Helioviewer JPEG 2000, and PNGs decoded from them).
     n_limb
         Number of projected limb points averaged for the radius.
+    ignore_rotation
+        Map with ``CROTA2`` set to 0.  ``resampled_hmi.fits`` (``CROTA2 = 179.93``) is a resampled product whose
+        pixels no longer carry that rotation: its disc, its NaN mask and the limb fit agree with the centre this gives,
+        0.30 px from the rotated WCS's (``benchmarks/sun_limb.py``, README "Session 16").
 
     Raises
     ------
@@ -102,6 +107,9 @@ def sun_truth_from_header(header: Any, *, rows_flipped: bool = False, n_limb: in
             header = fits.Header(dict(header))
         except Exception as e:
             raise ConfigError(f"header must be a FITS header or mapping, got {type(header).__name__}: {e}") from None
+    if ignore_rotation and "CROTA2" in header:
+        header = header.copy()
+        header["CROTA2"] = 0.0
     if "RSUN_OBS" not in header:
         raise ConfigError("header has no RSUN_OBS (observed solar radius, arcsec)")
     rsun = float(header["RSUN_OBS"])

@@ -62,7 +62,7 @@ from .earth import (
     unsigned_offset_cov,
 )
 from .ellipsoid_profile import fit_profile_ellipsoid, floor_center_var
-from .frame import Frame, candidates, min_diameter_px
+from .frame import Frame, candidates, frame_phase_deg, min_diameter_px
 from .geometry import BodyCenter
 from .refine import FitData, RefineResult
 from .result import EllipseResult, LimbMeasurement
@@ -520,7 +520,7 @@ def _rays_once(body: Ellipsoid, frame: Frame, tr: Any, ell: tuple) -> tuple[Any,
         plain, shaded = fit_traced(tr, ell), _shaded(body, frame, tr, ell)
         fitted = fit_traced(shaded, ell)
         return shaded, fitted, moved(fitted, plain)
-    tr, fitted = _fit_rays(tr, ell)
+    tr, fitted = _fit_rays(tr, ell, glow_tilt=_glow_tilt(frame))
     shaded = tr if tr.glow_term else _shaded(body, frame, tr, ell)
     if shaded is tr:
         return tr, fitted, None
@@ -556,7 +556,24 @@ def _shaded(body: Ellipsoid, frame: Frame, tr: Any, ell: tuple) -> Any:
     return shading_corrected(tr, shading_offsets(tr, ell, frame.cam, sh.sun_dir_camera, sig, sh.L))
 
 
-def _fit_rays(tr: Any, ell: tuple) -> tuple[Any, tuple]:
+GLOW_TILT_MAX_PHASE_DEG = 20.0
+"""At or below this phase (deg) a glow fitted above a patchy limb (:func:`_fit_rays`) carries its tilt toward the Sun
+in the covariance (:func:`~jaxlimb.pipeline.limb_trace.glow_lift_columns`).  A glow is sunlight scattered by the
+atmosphere at the limb's tangent points, whose solar zenith angle is ``acos(sin(phase) cos(psi))``: at 20 deg of
+phase or less it is 70 deg or more all along the lit limb, where the twilight glow changes fast with it (the full disc
+from L1, 4-12 deg: the uniform lift left ``benchmarks/earth_full_disc.py``'s held-out ``combined`` 0 and 2 0.54 and
+0.56 px off along the Sun at NEES 49 and 14).  On a gibbous limb most tangent points are in full sunlight and the
+glow is nearly uniform: there the tilt's marginal only widened the sigmas, past the tolerance on
+``benchmarks/families.py``'s Earth ``combined`` 2 and 3 (39-58 deg; 0.09 and 0.20 px off at NEES 3.1 and 1.7)."""
+
+
+def _glow_tilt(frame: Frame) -> bool:
+    """Whether the frame's phase (Sun known) is at most :data:`GLOW_TILT_MAX_PHASE_DEG`."""
+    phase = frame_phase_deg(frame)
+    return phase is not None and phase <= GLOW_TILT_MAX_PHASE_DEG
+
+
+def _fit_rays(tr: Any, ell: tuple, glow_tilt: bool = False) -> tuple[Any, tuple]:
     """The known-shape ellipse through the traced rays (:func:`~jaxlimb.pipeline.limb_trace.fit_traced`), with the
     glow's lift ``c / A_ray`` fitted beside it when it is positive at more than
     :data:`~jaxlimb.pipeline.limb_trace.GLOW_LIFT_Z` cluster-robust sigmas
@@ -579,8 +596,8 @@ def _fit_rays(tr: Any, ell: tuple) -> tuple[Any, tuple]:
     from .limb_trace import GLOW_LIFT_Z, fit_traced, fit_traced_glow
 
     e, c, z = fit_traced_glow(tr, ell)
-    if c > 0.0 and z > GLOW_LIFT_Z:
-        return _replace(tr, glow_term=True), e
+    if c > 0.0 and z > GLOW_LIFT_Z:  # near zero phase its tilt too, in the covariance (GLOW_TILT_MAX_PHASE_DEG)
+        return _replace(tr, glow_term=True, glow_tilt=glow_tilt), e
     return tr, fit_traced(tr, ell)
 
 

@@ -47,7 +47,9 @@ FEW_RAYS_RMS = 0.03
 @dataclass(frozen=True)
 class TracedLimb:
     """Rays of :func:`trace_limb`: polar angles (rad, about ``center_rc``), limb points ``(n, 2)`` (NaN where the
-    ray was rejected), inside levels ``P`` (NaN likewise), the sky level and its noise."""
+    ray was rejected), inside levels ``P`` (NaN likewise), the sky level and its noise; ``lit_angle``: the polar
+    angle of the lit side's direction (the Sun's image direction when known), which a glow's tilt is measured from;
+    ``glow_tilt``: with ``glow_term``, the covariance carries the glow's tilt too (:func:`glow_lift_columns`)."""
 
     center_rc: tuple[float, float]
     angles: np.ndarray
@@ -58,6 +60,8 @@ class TracedLimb:
     glow_term: bool = False
     shade: "RayShading | None" = None
     albedo: np.ndarray | None = None
+    lit_angle: float | None = None
+    glow_tilt: bool = False
 
     @property
     def ok(self) -> np.ndarray:
@@ -218,7 +222,9 @@ def trace_limb(img: np.ndarray, ell: tuple, lit_dir, half: float, search: float,
     r_edge, P, albedo = _ray_edges(v, rad, sky, noise, step, flat_frac, level, rows)
     c = np.asarray(ell[0], float)
     pts = c[None, :] + r_edge[:, None] * u
-    return TracedLimb((float(c[0]), float(c[1])), angles, pts, P, sky, noise, shade=shade, albedo=albedo)
+    lit_angle = None if lit_dir is None else math.atan2(lit_dir[0], lit_dir[1])
+    return TracedLimb((float(c[0]), float(c[1])), angles, pts, P, sky, noise, shade=shade, albedo=albedo,
+                      lit_angle=lit_angle)
 
 
 SHADE_FINE = 0.05
@@ -416,12 +422,32 @@ def glow_lift_column(tr: TracedLimb) -> np.ndarray:
     return inv / float(np.median(inv))
 
 
-def _glow_residuals(tr: TracedLimb, ell: tuple):
-    pts, col = tr.points[tr.ok], glow_lift_column(tr)
+def glow_lift_columns(tr: TracedLimb, tilt: bool = True) -> np.ndarray:
+    """``(n_kept, k)``: :func:`glow_lift_column`, and with ``tilt`` (and ``tr.glow_tilt``, ``tr.lit_angle`` known) the
+    same times ``cos psi``, ``psi`` the ray's angle from the lit side's direction: a glow lit by the Sun is brighter
+    toward it, ``g (1 + t cos psi)`` (the profile's ``glow_tilt``, :mod:`jaxlimb.models.lunar_lambert`), and lifts the
+    sunward rays more, which moves the ellipse toward the Sun.  The tilt is nearly a centre shift along the Sun (the
+    two differ only by ``1 / A_ray``), so it is not fitted (:func:`fit_traced_glow`): it is marginalised in the
+    covariance (:func:`trace_model_cov`).
+
+    Why: on the full-disc Earth with clouds and a glow (``benchmarks/earth_full_disc.py`` ``combined``, held-out
+    seed 2027) the uniform lift left two frames 0.54 and 0.56 px off, both along the Sun's image direction, at centre
+    sigmas of 0.08 px (NEES 49 and 14); with the tilt marginalised, NEES 2.4 and 1.1.  Fitting the tilt instead put
+    them 0.09 px off and into a typed failure, but moved ``benchmarks/families.py``'s gibbous ``combined`` frames 2-4
+    from 0.09 / 0.20 / 0.32 px to 0.48 / 0.38 / 0.50 px.  The pipeline asks for the tilt near zero phase only
+    (:data:`jaxlimb.pipeline.ellipsoid.GLOW_TILT_MAX_PHASE_DEG`)."""
+    col = glow_lift_column(tr)
+    if not (tilt and tr.glow_tilt) or tr.lit_angle is None:
+        return col[:, None]
+    return np.column_stack([col, col * np.cos(tr.angles[tr.ok] - tr.lit_angle)])
+
+
+def _glow_residuals(tr: TracedLimb, ell: tuple, tilt: bool):
+    pts, cols = tr.points[tr.ok], glow_lift_columns(tr, tilt)
     (_, _), (a, b), th = ell
 
     def res(x):
-        return _band_signed(pts, ((x[0], x[1]), (x[2], x[2] * b / a), th)) - x[3] * col
+        return _band_signed(pts, ((x[0], x[1]), (x[2], x[2] * b / a), th)) - cols @ x[3:]
 
     return res
 
@@ -436,7 +462,7 @@ def fit_traced_glow(tr: TracedLimb, ell: tuple) -> tuple[tuple, float, float]:
         n = int(tr.ok.sum())
         raise TooManyOutliersError(f"the limb trace kept {n} rays with a limb against the sky (need >= 20)")
     (r0, c0), (a, b), th = ell
-    res = _glow_residuals(tr, ell)
+    res = _glow_residuals(tr, ell, tilt=False)
     x = least_squares(res, [r0, c0, a, 0.0], loss="soft_l1", f_scale=0.5, x_scale="jac").x
     C = _cluster_cov(tr, res, x, 10.0, True)
     z = float(x[3] / math.sqrt(C[3, 3])) if C[3, 3] > 0 else 0.0
@@ -466,12 +492,13 @@ def trace_model_cov(tr: TracedLimb, ell: tuple, bin_deg: float = 10.0, bias_redu
     ``bias_reduced=False``: the plain sandwich (CR1), the gate of :func:`~jaxlimb.pipeline.ellipsoid._patchy_geometry`
     (tuned with it; its choice between the band fit and the rays is left as it was)."""
     (r0, c0), (a, b), th = ell
-    if tr.glow_term:  # the lift fitted beside the ellipse: its uncertainty is the ellipse's too (marginal block)
-        res = _glow_residuals(tr, ell)
+    if tr.glow_term:  # the lift (and its tilt) beside the ellipse: their uncertainty is the ellipse's too (marginal)
+        res = _glow_residuals(tr, ell, tilt=True)
         from scipy.optimize import least_squares
 
-        c = least_squares(lambda y: res(np.array([r0, c0, a, y[0]])), [0.0], loss="soft_l1", f_scale=0.5).x[0]
-        return _cluster_cov(tr, res, np.array([r0, c0, a, c], float), bin_deg, bias_reduced)[:3, :3]
+        k = glow_lift_columns(tr).shape[1]
+        c = least_squares(lambda y: res(np.concatenate([[r0, c0, a], y])), [0.0] * k, loss="soft_l1", f_scale=0.5).x
+        return _cluster_cov(tr, res, np.concatenate([[r0, c0, a], c]), bin_deg, bias_reduced)[:3, :3]
     pts = tr.points[tr.ok]
 
     def d(x):
@@ -531,5 +558,5 @@ def normalised_band(img: np.ndarray, pts: np.ndarray, tr: TracedLimb) -> tuple[n
     return keep, FitData(pts[keep], (z[keep] - tr.sky) / c, c / cref, tr.sky, cref)
 
 
-__all__ = ["GLOW_LIFT_Z", "TracedLimb", "coherent_shift_var", "fit_traced", "fit_traced_glow", "glow_lift_column", "normalised_band",
-           "trace_limb", "trace_model_cov"]
+__all__ = ["GLOW_LIFT_Z", "TracedLimb", "coherent_shift_var", "fit_traced", "fit_traced_glow", "glow_lift_column",
+           "glow_lift_columns", "normalised_band", "trace_limb", "trace_model_cov"]

@@ -202,6 +202,10 @@ def test_sun_truth_rotation_and_bad_header():
     assert t.radius_px == pytest.approx(50.0, abs=1e-3)
     tf = sun_truth_from_header(fits.Header(base), rows_flipped=True)
     assert tf.center_rc[0] == pytest.approx(79 - t.center_rc[0])
+    # ignore_rotation: the unrotated mapping (10 px west along the pixel x axis), the caller's header untouched
+    h = fits.Header(base)
+    t0 = sun_truth_from_header(h, ignore_rotation=True)
+    assert t0.center_rc == pytest.approx((39.5, 39.5), abs=1e-3) and h["CROTA2"] == 90.0
     bad = dict(base)
     del bad["RSUN_OBS"]
     with pytest.raises(ConfigError, match="RSUN_OBS"):
