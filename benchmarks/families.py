@@ -20,7 +20,8 @@ row: the families pooled.
 
 Reported per body and family: centre-of-body-image error (px) median / p90 / max, |radius
 error| median (Moon: ``radius_px - f tan(alpha)``), |range error| median / max (%), the mean
-NEES of the centre ``e^T P^-1 e`` with the reported 2x2 covariance (chi-square expectation 2),
+NEES of the centre ``e^T P^-1 e`` with the reported 2x2 covariance (chi-square expectation 2), the mean
+NEES of the range ``(e / sigma)^2`` with its reported variance (expectation 1; ``range_z`` per record),
 typed failures by check, and the number of ``status ok`` answers with a non-physical
 parameter (amplitude <= 0, ymax <= ymin, PSF sigma outside [0.1, 5] px, ``L`` outside
 [-0.5, 1.5], a glow outside [0, 1] of ``amp`` (at the Sun's position angle and square to it) or its scale height outside [0.05, 10] px, non-finite or non-positive radius/range, centre sigma > 2 px).  Results go to
@@ -150,6 +151,9 @@ def measure(case, hints: dict, options=None) -> dict[str, Any]:
         rec["radius_err_px"] = float(m.radius_px - t.apparent_radius_px)
     if m.range_km is not None:
         rec["range_err_pct"] = float(100.0 * (m.range_km - t.range_km) / t.range_km)
+        var = c.get("range_km", {}).get("range_km")
+        if var is not None and var > 0:  # the range's normalised error (its 1-dof NEES is z^2)
+            rec["range_z"] = float((m.range_km - t.range_km) / math.sqrt(var))
     rec["profile"] = (m.extras or {}).get("profile")
     rec["profile_rejected"] = (m.extras or {}).get("profile_rejected")
     return rec
@@ -165,6 +169,7 @@ def summarise(recs: list[dict]) -> dict[str, Any]:
     ne = [r["nees"] for r in ok if r.get("nees") is not None]
     rad = [abs(r["radius_err_px"]) for r in ok if "radius_err_px" in r]
     rg = [abs(r["range_err_pct"]) for r in ok if "range_err_pct" in r]
+    rz = [r["range_z"] ** 2 for r in ok if "range_z" in r]
     fails: dict[str, int] = {}
     for r in recs:
         if r["status"] != "ok":
@@ -172,7 +177,8 @@ def summarise(recs: list[dict]) -> dict[str, Any]:
     return {"n": len(recs), "n_ok": len(ok), "center_median_px": _q(ce, 50), "center_p90_px": _q(ce, 90),
             "center_max_px": max(ce) if ce else None, "radius_abs_median_px": _q(rad, 50),
             "range_abs_median_pct": _q(rg, 50), "range_abs_max_pct": max(rg) if rg else None,
-            "nees_mean": float(np.mean(ne)) if ne else None, "failures": fails,
+            "nees_mean": float(np.mean(ne)) if ne else None,
+            "range_nees_mean": float(np.mean(rz)) if rz else None, "failures": fails,
             "n_ok_nonphysical": sum(1 for r in ok if r["nonphysical"]),
             **({"floor_median_px": _q(fl, 50)} if (fl := [r["floor_px"] for r in recs if "floor_px" in r]) else {})}
 
@@ -183,13 +189,14 @@ def _fmt(v, f="{:.3f}"):
 
 def print_table(summary: dict[str, dict[str, dict]]) -> None:
     print(f"{'body':10s} {'family':10s} {'n/ok':>6s} {'med':>7s} {'p90':>7s} {'max':>7s} {'|dR|':>7s} "
-          f"{'rng%med':>8s} {'rng%max':>8s} {'NEES':>8s} {'nonphys':>7s}  failures")
+          f"{'rng%med':>8s} {'rng%max':>8s} {'NEES':>8s} {'rngNEES':>8s} {'nonphys':>7s}  failures")
     for body, fams in summary.items():
         for fam, s in fams.items():
             print(f"{body:10s} {fam:10s} {s['n']:>3d}/{s['n_ok']:<2d} {_fmt(s['center_median_px']):>7s} "
                   f"{_fmt(s['center_p90_px']):>7s} {_fmt(s['center_max_px']):>7s} {_fmt(s['radius_abs_median_px']):>7s} "
                   f"{_fmt(s['range_abs_median_pct'], '{:.4f}'):>8s} {_fmt(s['range_abs_max_pct'], '{:.4f}'):>8s} "
-                  f"{_fmt(s['nees_mean'], '{:.1f}'):>8s} {s['n_ok_nonphysical']:>7d}  {s['failures'] or ''}"
+                  f"{_fmt(s['nees_mean'], '{:.1f}'):>8s} {_fmt(s.get('range_nees_mean'), '{:.1f}'):>8s} "
+                  f"{s['n_ok_nonphysical']:>7d}  {s['failures'] or ''}"
                   + (f"  floor {s['floor_median_px']:.3f}" if "floor_median_px" in s else ""))
 
 
