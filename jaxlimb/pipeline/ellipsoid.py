@@ -62,7 +62,7 @@ from .earth import (
     unsigned_offset_cov,
 )
 from .ellipsoid_profile import fit_profile_ellipsoid, floor_center_var
-from .frame import Frame, candidates, frame_phase_deg, min_diameter_px
+from .frame import Frame, candidates, min_diameter_px
 from .geometry import BodyCenter
 from .refine import FitData, RefineResult
 from .result import EllipseResult, LimbMeasurement
@@ -520,7 +520,7 @@ def _rays_once(body: Ellipsoid, frame: Frame, tr: Any, ell: tuple) -> tuple[Any,
         plain, shaded = fit_traced(tr, ell), _shaded(body, frame, tr, ell)
         fitted = fit_traced(shaded, ell)
         return shaded, fitted, moved(fitted, plain)
-    tr, fitted = _fit_rays(tr, ell, glow_tilt=_glow_tilt(frame))
+    tr, fitted = _fit_rays(tr, ell, glow_tilt=_glow_tilt(frame, ell[0]))
     shaded = tr if tr.glow_term else _shaded(body, frame, tr, ell)
     if shaded is tr:
         return tr, fitted, None
@@ -567,10 +567,11 @@ glow is nearly uniform: there the tilt's marginal only widened the sigmas, past 
 ``benchmarks/families.py``'s Earth ``combined`` 2 and 3 (39-58 deg; 0.09 and 0.20 px off at NEES 3.1 and 1.7)."""
 
 
-def _glow_tilt(frame: Frame) -> bool:
-    """Whether the frame's phase (Sun known) is at most :data:`GLOW_TILT_MAX_PHASE_DEG`."""
-    phase = frame_phase_deg(frame)
-    return phase is not None and phase <= GLOW_TILT_MAX_PHASE_DEG
+def _glow_tilt(frame: Frame, center_rc) -> bool:
+    """Whether the phase at the body's image ``center_rc`` (Sun known) is at most :data:`GLOW_TILT_MAX_PHASE_DEG`."""
+    if frame.hints is None or frame.hints.sun_dir_camera is None:
+        return False
+    return math.degrees(frame.phase(center_rc)) <= GLOW_TILT_MAX_PHASE_DEG
 
 
 def _fit_rays(tr: Any, ell: tuple, glow_tilt: bool = False) -> tuple[Any, tuple]:

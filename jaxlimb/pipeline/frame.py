@@ -171,14 +171,6 @@ def frame_mask(frame: Frame) -> np.ndarray | None:
     return frame.mask if frame.observed_cam is None else None
 
 
-def frame_phase_deg(frame: Frame) -> float | None:
-    """The phase angle (deg) at the frame's centre from the hints' Sun direction (it hardly varies over a frame);
-    ``None`` without the Sun."""
-    if frame.hints is None or frame.hints.sun_dir_camera is None:
-        return None
-    return math.degrees(frame.phase((0.5 * (frame.img.shape[0] - 1), 0.5 * (frame.img.shape[1] - 1))))
-
-
 #: Above this phase (deg, from the hints) the front ends keep Eq. (10)'s region (:attr:`DetectOptions.dark_surface` off):
 #: the variegated-body region is for the nearly full disc (the Earth from deep space), where a Lambert limb fades
 #: to zero all round; a gibbous cloudy Earth's limb is traced against the sky downstream
@@ -194,10 +186,11 @@ def _front_end_options(frame: Frame, name: str) -> Any:
     from ..imaging import GradientOptions, ScanlineOptions
 
     opt = frame.front_end_options(name) or (GradientOptions() if name == "gradient" else ScanlineOptions())
-    if not getattr(opt.detect, "dark_surface", False):
+    h = frame.hints
+    if h is None or h.sun_dir_camera is None or not getattr(opt.detect, "dark_surface", False):
         return opt
-    phase = frame_phase_deg(frame)
-    if phase is None or phase <= DARK_SURFACE_MAX_PHASE_DEG:
+    center = (0.5 * (frame.img.shape[0] - 1), 0.5 * (frame.img.shape[1] - 1))  # the phase hardly varies over a frame
+    if math.degrees(frame.phase(center)) <= DARK_SURFACE_MAX_PHASE_DEG:
         return opt
     return replace(opt, detect=replace(opt.detect, dark_surface=False))
 
@@ -261,5 +254,5 @@ def arc_angles(coords: np.ndarray, center_rc) -> np.ndarray:
     return np.arctan2(coords[:, 0] - float(center_rc[0]), coords[:, 1] - float(center_rc[1]))
 
 
-__all__ = ["Frame", "arc_angles", "as_camera", "as_hints", "candidates", "frame_mask", "frame_phase_deg", "limb_predicted",
-           "min_diameter_px", "other_candidates", "other_front_end", "prepare"]
+__all__ = ["Frame", "arc_angles", "as_camera", "as_hints", "candidates", "frame_mask", "limb_predicted", "min_diameter_px",
+           "other_candidates", "other_front_end", "prepare"]

@@ -336,8 +336,8 @@ def test_wide_trace_retraces_a_dark_limb_about_the_rays_own_fit():
 
 
 def test_glow_tilt_is_asked_for_near_zero_phase_only():
-    """``ellipsoid._glow_tilt``: the Sun 12 deg from behind the camera (the full disc from L1) asks for the glow's tilt,
-    45 deg (a gibbous Earth) does not, and neither does a frame without the Sun."""
+    """``ellipsoid._glow_tilt``: the Sun 12 deg from behind the body on the boresight (the full disc from L1) asks for
+    the glow's tilt, 45 deg (a gibbous Earth) does not, and neither does a frame without the Sun."""
     from jaxlimb.geometry.camera import Camera
     from jaxlimb.pipeline.ellipsoid import GLOW_TILT_MAX_PHASE_DEG, _glow_tilt
     from jaxlimb.pipeline.frame import prepare
@@ -350,5 +350,6 @@ def test_glow_tilt_is_asked_for_near_zero_phase_only():
         return prepare(img, cam, {"body": "earth", "sun_dir_camera": [np.sin(a), 0.0, -np.cos(a)]}, None)
 
     assert 12.0 < GLOW_TILT_MAX_PHASE_DEG < 45.0
-    assert _glow_tilt(frame(12.0)) and not _glow_tilt(frame(45.0))
-    assert not _glow_tilt(prepare(img, cam, {"body": "earth"}, None))
+    c = (50.0, 60.0)  # the boresight
+    assert _glow_tilt(frame(12.0), c) and not _glow_tilt(frame(45.0), c)
+    assert not _glow_tilt(prepare(img, cam, {"body": "earth"}, None), c)
