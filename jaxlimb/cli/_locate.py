@@ -51,12 +51,33 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="Earth (or spheroid) without R_body_to_camera, Sun known: the largest angle (0-90 deg) of the "
                    "Sun from the body's equator (the Earth: 23.44); the centre is marginalised over the poles it "
                    "allows, which often signs the centre offset the limb leaves open (default: not used)")
+    p.add_argument("--unresolved-glow", type=_unresolved_glow, metavar="G_MAX,H_LO_KM,H_HI_KM|none",
+                   default=(0.4, 6.0, 25.0),
+                   help="Earth (or spheroid): the glow above the edge carried in the covariance when the fit has none: "
+                   "brightness up to G_MAX of the disc's radiance, scale height H_LO_KM to H_HI_KM (default "
+                   "0.4,6,25; none for a body without an atmosphere)")
     p.add_argument("--figure", metavar="PATH", help="also save a picture of the fit (PNG/PDF)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     from ._batch import add_batch_arguments
 
     add_batch_arguments(p)
     p.set_defaults(func=run)
+
+
+def _unresolved_glow(text: str):
+    """``--unresolved-glow``: ``none`` or ``G_MAX,H_LO_KM,H_HI_KM`` (finite, >= 0, ``0 < H_LO_KM <= H_HI_KM``)."""
+    import argparse
+    import math
+
+    if text.strip().lower() == "none":
+        return None
+    try:
+        g, lo, hi = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected G_MAX,H_LO_KM,H_HI_KM or none, got {text!r}") from None
+    if not (all(math.isfinite(v) for v in (g, lo, hi)) and g >= 0 and 0 < lo <= hi):
+        raise argparse.ArgumentTypeError(f"need finite G_MAX >= 0 and 0 < H_LO_KM <= H_HI_KM, got {text!r}")
+    return (g, lo, hi)
 
 
 def _read_hints(path: str | None, body: str | None, base=None):
@@ -197,8 +218,8 @@ def _measure_frame(args: argparse.Namespace, frame):
     camera = Camera.from_json(args.camera) if args.camera is not None else (geom.camera if geom else None)
     hints = _read_hints(args.hints, args.body.lower() if args.body else (geom.target.lower() if geom else None),
                         base=geom.hints() if geom else None)
-    ellipsoid = (None if args.sun_declination_max is None
-                 else EllipsoidOptions(sun_declination_max_deg=args.sun_declination_max))
+    ellipsoid = EllipsoidOptions(sun_declination_max_deg=args.sun_declination_max,
+                                 unresolved_glow=args.unresolved_glow)
     options = LocateOptions(front_end=args.front_end, front_end_fallback=args.front_end_fallback, model=args.model,
                             solver=args.solver, estimate_k=not args.fixed_k, profile=args.profile, ellipsoid=ellipsoid)
     with warnings_to_stderr(SaturationWarning):

@@ -122,6 +122,12 @@ clear limb over ocean or land, the cloud-top height where clouds make the limb (
 5-8 km mid-level, 10-12 km tropical cirrus and anvils), for a haze-resolving imager the altitude
 where the haze has fallen to half the disc's edge brightness (calibrate once on frames of known
 range).  A 1 km error biases the range by 1/6378 (0.016 %), not the line of sight (README).
+
+A glow thinner than a pixel (a 16 km haze beyond ~400 000 km with a 16 mm lens) cannot be told from the
+edge: its light lifts the fitted limb by about its brightness times its scale height (0.1 x 16 km = 1.6 km,
+0.025 % of the range).  The covariance carries it as a consider parameter
+(``EllipsoidOptions.unresolved_glow``, :func:`jaxlimb.pipeline.ellipsoid_profile.with_unresolved_glow`); the
+estimate is not moved, since the glow of a given frame is unknown.
 """
 
 from __future__ import annotations
@@ -218,6 +224,13 @@ class EllipsoidOptions:
         (:mod:`jaxlimb.pipeline.pole_prior`), which often decides the sign of the centre offset the limb alone leaves
         open.  ``None`` (default): no bound (the cone axis and the unsigned offset as a uniform error).  Not for scenes
         whose Sun is placed freely (a renderer's): the bound is a fact about the real Sun.
+    unresolved_glow
+        ``(g_max, H_lo_km, H_hi_km)``: the glow above the measured edge that the covariance carries when the profile
+        fit has none (:func:`~jaxlimb.pipeline.ellipsoid_profile.with_unresolved_glow`): its brightness uniform up to
+        ``g_max`` (units of the disc's radiance scale ``amp``; or, where the data would see a fainter glow, the
+        largest the glow gate misses), its scale height uniform on ``[H_lo_km, H_hi_km]``.  Default ``(0.4, 6.0, 25.0)``: the glows of
+        :mod:`jaxlimb.render.independent` (0.03-0.4 of the surface, 6-25 km; the Earth's haze at its limb); ``None``
+        for a body without an atmosphere.
     """
 
     band_px: float = 4.0
@@ -235,6 +248,7 @@ class EllipsoidOptions:
     center_floor_px: float = 0.0075
     patchy_shading_L: float | None = 0.0
     sun_declination_max_deg: float | None = None
+    unresolved_glow: tuple[float, float, float] | None = (0.4, 6.0, 25.0)
 
     def __post_init__(self) -> None:
         if self.profile_band_px is not None and not (isinstance(self.profile_band_px, (int, float))
@@ -254,6 +268,12 @@ class EllipsoidOptions:
         if dmax is not None and (isinstance(dmax, bool) or not (isinstance(dmax, (int, float)) and 0.0 <= dmax <= 90.0)):
             raise ConfigError("EllipsoidOptions.sun_declination_max_deg must be None or in [0, 90] deg, got "
                               f"{self.sun_declination_max_deg!r}")
+        ug = self.unresolved_glow
+        if ug is not None and not (isinstance(ug, tuple) and len(ug) == 3
+                                   and all(isinstance(v, (int, float)) and math.isfinite(v) and v >= 0 for v in ug)
+                                   and 0 < ug[1] <= ug[2]):
+            raise ConfigError("EllipsoidOptions.unresolved_glow must be None or (g_max, H_lo_km, H_hi_km), all >= 0, "
+                              f"0 < H_lo_km <= H_hi_km, got {ug!r}")
         if not (isinstance(self.arc_margin_deg, (int, float)) and 0 <= self.arc_margin_deg < 80):
             raise ConfigError(f"EllipsoidOptions.arc_margin_deg must be in [0, 80) deg, got {self.arc_margin_deg!r}")
         for name in ("max_refits", "max_iter"):

@@ -98,6 +98,10 @@ CASES = [
     ("moon.png", ("--hints", "bad_hints_value.json"), 2, "bad_config"),
     ("moon.png", ("--solver", "nope"), 2, "bad_arguments"),
     ("moon.png", ("--sun-declination-max", "100"), 2, "bad_arguments"),
+    ("moon.png", ("--unresolved-glow", "0.4"), 2, "bad_arguments"),
+    ("moon.png", ("--unresolved-glow", "0.4,-3,25"), 2, "bad_arguments"),
+    ("moon.png", ("--unresolved-glow", "0.4,25,6"), 2, "bad_arguments"),
+    ("moon.png", ("--unresolved-glow", "nan,6,25"), 2, "bad_arguments"),
 ]
 
 
