@@ -52,10 +52,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "Sun from the body's equator (the Earth: 23.44); the centre is marginalised over the poles it "
                    "allows, which often signs the centre offset the limb leaves open (default: not used)")
     p.add_argument("--unresolved-glow", type=_unresolved_glow, metavar="G_MAX,H_LO_KM,H_HI_KM|none",
-                   default=(0.4, 6.0, 25.0),
+                   default=argparse.SUPPRESS,
                    help="Earth (or spheroid): the glow above the edge carried in the covariance when the fit has none: "
-                   "brightness up to G_MAX of the disc's radiance, scale height H_LO_KM to H_HI_KM (default "
-                   "0.4,6,25; none for a body without an atmosphere)")
+                   "brightness up to G_MAX of the disc's radiance, scale height H_LO_KM to H_HI_KM (default: "
+                   "EllipsoidOptions', 0.4,6,25; none for a body without an atmosphere)")
     p.add_argument("--figure", metavar="PATH", help="also save a picture of the fit (PNG/PDF)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     from ._batch import add_batch_arguments
@@ -218,8 +218,8 @@ def _measure_frame(args: argparse.Namespace, frame):
     camera = Camera.from_json(args.camera) if args.camera is not None else (geom.camera if geom else None)
     hints = _read_hints(args.hints, args.body.lower() if args.body else (geom.target.lower() if geom else None),
                         base=geom.hints() if geom else None)
-    ellipsoid = EllipsoidOptions(sun_declination_max_deg=args.sun_declination_max,
-                                 unresolved_glow=args.unresolved_glow)
+    glow = {"unresolved_glow": args.unresolved_glow} if "unresolved_glow" in vars(args) else {}  # else the library's
+    ellipsoid = EllipsoidOptions(sun_declination_max_deg=args.sun_declination_max, **glow)
     options = LocateOptions(front_end=args.front_end, front_end_fallback=args.front_end_fallback, model=args.model,
                             solver=args.solver, estimate_k=not args.fixed_k, profile=args.profile, ellipsoid=ellipsoid)
     with warnings_to_stderr(SaturationWarning):

@@ -569,9 +569,7 @@ glow is nearly uniform: there the tilt's marginal only widened the sigmas, past 
 
 def _glow_tilt(frame: Frame, center_rc) -> bool:
     """Whether the phase at the body's image ``center_rc`` (Sun known) is at most :data:`GLOW_TILT_MAX_PHASE_DEG`."""
-    if frame.hints is None or frame.hints.sun_dir_camera is None:
-        return False
-    return math.degrees(frame.phase(center_rc)) <= GLOW_TILT_MAX_PHASE_DEG
+    return frame.sun_known and math.degrees(frame.phase(center_rc)) <= GLOW_TILT_MAX_PHASE_DEG
 
 
 def _fit_rays(tr: Any, ell: tuple, glow_tilt: bool = False) -> tuple[Any, tuple]:

@@ -25,7 +25,8 @@ from ..models import lunar_lambert_weight
 from .earth import _ell_change
 from .frame import Frame
 from .profile import l_band
-from .profile_fit import gaussian_sigma_of_k, profile_sun_direction, with_model_error
+from ..models.lunar_lambert import profile_model
+from .profile_fit import _weighted_system, gaussian_sigma_of_k, profile_sun_direction, with_model_error
 from .refine import FitData, RefineResult, _pad_bucket
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -226,11 +227,13 @@ def fit_profile_ellipsoid(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge"
     extras["L_estimated"] = frame.opt.lunar_lambert_L is None
     rr = widen_glow_ellipsoid(frame, RefineResult(res, fd, 0, fixed))
     ra = rr if body.free else widen_aniso_ellipsoid(frame, rr)  # (a free ellipse's rho, theta are 2 psi terms too)
-    out = with_model_error(ra) if ra is rr else with_aniso_witness(with_model_error(ra), rr)
-    return with_unresolved_glow(body, out)
+    system = _weighted_system(ra, profile_model(ra.fit.params))  # (shared by both covariance terms)
+    out = with_model_error(ra, system=system)
+    out = out if ra is rr else with_aniso_witness(out, rr)
+    return with_unresolved_glow(body, out, system)
 
 
-def with_unresolved_glow(body: "Ellipsoid", rr: RefineResult) -> RefineResult:
+def with_unresolved_glow(body: "Ellipsoid", rr: RefineResult, system=None) -> RefineResult:
     """``rr`` (a profile fit without a glow, its PSF round or smeared) with the consider covariance of a glow the
     fit did not take (``EllipsoidOptions.unresolved_glow = (g_max, H_lo, H_hi)``: brightness uniform on
     ``[0, g_max]`` in units of ``amp``, scale height uniform on ``[H_lo, H_hi]`` km): ``C + mean_k s_k^2 G_k G_k^T``
@@ -249,9 +252,11 @@ def with_unresolved_glow(body: "Ellipsoid", rr: RefineResult) -> RefineResult:
     short at z = -4.5 and -3.5 with centre NEES 4.7 and 1.3 (the lit arc couples the radius to the centre).  A
     faint glow the gate misses at 40 000 km does the same (held-out seed 2028 ``glow`` 2: 7 km, 0.06 of the disc,
     1.4 px; z = -5.4).  The Schmidt consider term of orbit determination (Tapley, Schutz & Born 2004, Sec. 6.3)
-    carries that one-sided bias in the covariance without estimating it: a given frame's glow is unknown."""
-    from ..models.lunar_lambert import GlowProfileParams, MinnaertProfileParams, profile_model
-    from .profile_fit import _glow_columns, _weighted_system
+    carries that one-sided bias in the covariance without estimating it: a given frame's glow is unknown.
+    ``system``: ``rr``'s weighted system under its profile (:func:`~jaxlimb.pipeline.profile_fit.with_model_error`'s),
+    if formed."""
+    from ..models.lunar_lambert import GlowProfileParams, MinnaertProfileParams
+    from .profile_fit import _glow_columns
 
     p = rr.fit.params
     if body.eo.unresolved_glow is None or isinstance(p, (GlowProfileParams, MinnaertProfileParams)):
@@ -262,7 +267,7 @@ def with_unresolved_glow(body: "Ellipsoid", rr: RefineResult) -> RefineResult:
     h = H * float(p.a) / (body.equatorial_km + body.atmosphere_km)
     if g_max <= 0.0 or not np.all(h > 0.0):
         return rr
-    J, r, padded, w = _weighted_system(rr, profile_model(p))
+    J, r, padded, w = _weighted_system(rr, profile_model(p)) if system is None else system
     q = LimbProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()])  # (a smear's column: round)
     cols = np.asarray(_glow_columns(q, padded, jnp.log(jnp.asarray(h))))[:, : r.size] * w
     C = np.array(rr.fit.covariance)
@@ -277,13 +282,12 @@ UNRESOLVED_GLOW_NODES = 4
 
 
 def _consider_var(J: np.ndarray, r: np.ndarray, c: np.ndarray, g_max: float) -> float:
-    """``s_k^2`` of :func:`with_unresolved_glow` for the column ``c``: ``min(g_max / sqrt(3), GLOW_Z s_d)^2``."""
-    from .profile_fit import GLOW_Z
+    """``s_k^2`` of :func:`with_unresolved_glow` for the column ``c``: ``min(g_max / sqrt(3), GLOW_Z s_d)^2``, ``s_d``
+    the sigma of the column's coefficient fitted beside ``J`` (:func:`~jaxlimb.pipeline.profile_fit.last_column_step`)."""
+    from .profile_fit import GLOW_Z, last_column_step
 
-    X = np.concatenate([J, c[:, None]], axis=1)
-    A_inv = np.linalg.pinv(X.T @ X)
-    s2 = float(np.sum((r - X @ (A_inv @ (X.T @ r))) ** 2)) / max(X.shape[0] - X.shape[1], 1)
-    return min(g_max / math.sqrt(3.0), GLOW_Z * math.sqrt(max(s2 * A_inv[-1, -1], 0.0))) ** 2
+    _, var = last_column_step(np.concatenate([J, c[:, None]], axis=1), r)
+    return min(g_max / math.sqrt(3.0), GLOW_Z * math.sqrt(max(var, 0.0))) ** 2
 
 
 def _widened_fit(frame: Frame, rr: RefineResult, model: Any, start: Any, fixed: tuple[str, ...]) -> Any:

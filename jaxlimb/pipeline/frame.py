@@ -186,8 +186,7 @@ def _front_end_options(frame: Frame, name: str) -> Any:
     from ..imaging import GradientOptions, ScanlineOptions
 
     opt = frame.front_end_options(name) or (GradientOptions() if name == "gradient" else ScanlineOptions())
-    h = frame.hints
-    if h is None or h.sun_dir_camera is None or not getattr(opt.detect, "dark_surface", False):
+    if not (frame.sun_known and getattr(opt.detect, "dark_surface", False)):
         return opt
     center = (0.5 * (frame.img.shape[0] - 1), 0.5 * (frame.img.shape[1] - 1))  # the phase hardly varies over a frame
     if math.degrees(frame.phase(center)) <= DARK_SURFACE_MAX_PHASE_DEG:

@@ -441,10 +441,17 @@ def _last_step(X: np.ndarray, r: np.ndarray) -> tuple[float, float]:
     """The last component of the least-squares step ``X^+ r`` and its z-score (0, 0 with too few rows)."""
     if X.shape[0] < max(50, 2 * X.shape[1]):
         return 0.0, 0.0
+    step, var = last_column_step(X, r)
+    return step, step / math.sqrt(max(var, 1e-300))
+
+
+def last_column_step(X: np.ndarray, r: np.ndarray) -> tuple[float, float]:
+    """The last component of the least-squares step ``X^+ r`` (the last column's coefficient with the others fitted
+    beside it) and its variance from the residual scatter (``s^2 [(X^T X)^-1]_{-1,-1}``)."""
     A_inv = np.linalg.pinv(X.T @ X)
     step = A_inv @ (X.T @ r)
-    s2 = float(np.sum((r - X @ step) ** 2)) / (X.shape[0] - X.shape[1])
-    return float(step[-1]), float(step[-1] / math.sqrt(max(s2 * A_inv[-1, -1], 1e-300)))
+    s2 = float(np.sum((r - X @ step) ** 2)) / max(X.shape[0] - X.shape[1], 1)
+    return float(step[-1]), s2 * float(A_inv[-1, -1])
 
 
 def widen_brightening(frame: Frame, rr: RefineResult, solver, system=None) -> RefineResult:
@@ -794,7 +801,7 @@ def _shape_change_px(q: LimbProfileParams, sph) -> float:
     return dab + a * abs(1.0 - float(sph.rho)) * dth
 
 
-__all__ = ["brightening_step", "edge_sigma", "fit_lunar_profile", "gaussian_sigma_of_k", "profile_start",
+__all__ = ["brightening_step", "edge_sigma", "fit_lunar_profile", "last_column_step", "gaussian_sigma_of_k", "profile_start",
            "profile_sun_direction", "glow_start", "glow_plausible", "fit_glow_tilt", "tilt_kept", "tilt_significant", "patchy_weights",
            "saturation_level",
            "signed_distance", "split_witness", "downweight_patchy_sectors", "sector_misfit", "glow_step", "widen_aniso", "widen_aniso_or_glow",
