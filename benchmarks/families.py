@@ -158,6 +158,8 @@ def measure(case, hints: dict, options=None) -> dict[str, Any]:
         var = c.get("range_km", {}).get("range_km")
         if var is not None and var > 0:  # the range's normalised error (its 1-dof NEES is z^2)
             rec["range_z"] = float((m.range_km - t.range_km) / math.sqrt(var))
+    if m.crlb is not None and "center_r" in m.crlb:  # noise-only Cramer-Rao sigmas at the estimate (px)
+        rec["crlb_rc"] = [float(m.crlb["center_r"]), float(m.crlb["center_c"])]
     rec["profile"] = (m.extras or {}).get("profile")
     rec["profile_rejected"] = (m.extras or {}).get("profile_rejected")
     return rec

@@ -100,6 +100,11 @@ Then the pole is unknown, ``rho`` and ``theta`` are fitted.  Two facts (derived 
   minor axis, with ``|phi|`` from the measured ratio (far field:
   ``rho^2 = sin^2 phi + (Rp/Re)^2 cos^2 phi``).  ``gamma_off`` reaches 15 arcsec at 40 000 km
   (0.26 px with the 8 mm camera) and 0.17 arcsec at 380 000 km.
+* far away the offset vanishes but the free shape costs the centre its precision: on a gibbous arc the fitted
+  flattening is nearly collinear with the centre, and the centre's noise-only Cramér-Rao bound without the pole is
+  ~10x the attitude-known one (per axis at 380 000 km with the 16 mm camera, 10-90 % 0.03-0.13 px against 0.004-0.013 px;
+  ``benchmarks/earth_attitude_floor.py``, which also gives the median error an unbiased estimator reaching that bound
+  and the mirror floor would have on the same frames).
 * with the Sun direction known and ``EllipsoidOptions.sun_declination_max_deg`` set (the Earth: 23.44 deg), the
   centre is instead marginalised over the poles whose equator the Sun does not leave by more than that
   (:mod:`jaxlimb.pipeline.pole_prior`): the bound often excludes one of the two mirror poles.
