@@ -157,11 +157,8 @@ def aniso_step(rr: RefineResult, system=None) -> tuple[float, float]:
     X = np.concatenate([J, A], axis=1)
     if X.shape[0] < max(50, 2 * X.shape[1]):
         return 0.0, 0.0
-    A_inv = np.linalg.pinv(X.T @ X)
-    step = A_inv @ (X.T @ r)
-    s2 = float(np.sum((r - X @ step) ** 2)) / (X.shape[0] - X.shape[1])
-    d = step[-2:]
-    chi2 = float(d @ np.linalg.solve(s2 * A_inv[-2:, -2:], d))
+    d, cov = trailing_step(X, r, 2)
+    chi2 = float(d @ np.linalg.solve(cov, d))
     return float(math.hypot(*d)) / (float(p.sigma) ** 2 + 1.0 / 12.0), chi2
 
 
@@ -445,13 +442,20 @@ def _last_step(X: np.ndarray, r: np.ndarray) -> tuple[float, float]:
     return step, step / math.sqrt(max(var, 1e-300))
 
 
-def last_column_step(X: np.ndarray, r: np.ndarray) -> tuple[float, float]:
-    """The last component of the least-squares step ``X^+ r`` (the last column's coefficient with the others fitted
-    beside it) and its variance from the residual scatter (``s^2 [(X^T X)^-1]_{-1,-1}``)."""
+def trailing_step(X: np.ndarray, r: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The last ``k`` components of the least-squares step ``X^+ r`` (the last ``k`` columns' coefficients with the
+    others fitted beside them) and their ``(k, k)`` covariance from the residual scatter (``s^2 [(X^T X)^-1]``'s
+    trailing block)."""
     A_inv = np.linalg.pinv(X.T @ X)
     step = A_inv @ (X.T @ r)
     s2 = float(np.sum((r - X @ step) ** 2)) / max(X.shape[0] - X.shape[1], 1)
-    return float(step[-1]), s2 * float(A_inv[-1, -1])
+    return step[-k:], s2 * A_inv[-k:, -k:]
+
+
+def last_column_step(X: np.ndarray, r: np.ndarray) -> tuple[float, float]:
+    """:func:`trailing_step` of the last column alone: its coefficient and its variance."""
+    step, var = trailing_step(X, r, 1)
+    return float(step[0]), float(var[0, 0])
 
 
 def widen_brightening(frame: Frame, rr: RefineResult, solver, system=None) -> RefineResult:
@@ -801,7 +805,8 @@ def _shape_change_px(q: LimbProfileParams, sph) -> float:
     return dab + a * abs(1.0 - float(sph.rho)) * dth
 
 
-__all__ = ["brightening_step", "edge_sigma", "fit_lunar_profile", "last_column_step", "gaussian_sigma_of_k", "profile_start",
+__all__ = ["brightening_step", "edge_sigma", "fit_lunar_profile", "last_column_step", "trailing_step", "gaussian_sigma_of_k",
+           "profile_start",
            "profile_sun_direction", "glow_start", "glow_plausible", "fit_glow_tilt", "tilt_kept", "tilt_significant", "patchy_weights",
            "saturation_level",
            "signed_distance", "split_witness", "downweight_patchy_sectors", "sector_misfit", "glow_step", "widen_aniso", "widen_aniso_or_glow",
