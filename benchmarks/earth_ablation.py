@@ -10,7 +10,8 @@ Usage::
 Every frame is the one of ``benchmarks/families.py`` (same seed, family, index: ``none`` is that benchmark's
 frame bit for bit); an ablation replaces, after the same random draws, the PSF by its Gaussian core
 (``psf_core``) or by a round Gaussian of the same variance (``psf_round``), removes the glow (``no_glow``) or the
-JPEG step (``no_jpeg``), or draws the clouds with the next seed (``reseed_clouds``); ``a+b`` combines them.
+JPEG step (``no_jpeg``), draws the clouds with the next seed (``reseed_clouds``) or removes them (``no_clouds``: a
+uniform albedo); ``a+b`` combines them.
 Reported per frame and ablation, with ``R_body_to_camera`` known: the ``locate`` centre error (px) and its NEES
 (``e^T P^-1 e``, chi-square 2 expectation), and two estimators that need no pipeline choice, the known-shape
 ellipse through the limb traced about the *true* limb ellipse (:func:`jaxlimb.pipeline.limb_trace.trace_limb`,

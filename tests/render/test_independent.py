@@ -172,6 +172,9 @@ def test_earth_ablations_keep_every_draw_and_replace_one_component():
     smear = Psf(kind=PsfKind.MOTION, sigma=0.6, length=3.0, angle_deg=30.0)
     assert _ablated_psf(smear, ("psf_round",)).sigma == pytest.approx(math.sqrt(0.36 + 9.0 / 24.0))
     assert _ablated_psf(smear, ("psf_core",)) == _replace(Psf(kind=PsfKind.GAUSSIAN, sigma=0.6))
-    assert set(ABLATIONS) == {"psf_core", "psf_round", "no_glow", "no_jpeg", "reseed_clouds"}
+    plain = draw(("no_clouds",))  # a uniform albedo under the same geometry, glow, PSF and noise draws
+    assert plain.truth == base.truth and plain.meta["glow"] == base.meta["glow"]
+    assert not np.array_equal(plain.image, base.image) and not np.array_equal(plain.image, clouds.image)
+    assert set(ABLATIONS) == {"psf_core", "psf_round", "no_glow", "no_jpeg", "reseed_clouds", "no_clouds"}
     with pytest.raises(ValueError, match="unknown ablations"):
-        draw(("no_clouds",))
+        draw(("no_such_thing",))

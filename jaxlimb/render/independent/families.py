@@ -43,6 +43,7 @@ ablation               what is replaced
 ``no_glow``            no glow above the limb
 ``no_jpeg``            no JPEG compression (the sensor's bit depth kept)
 ``reseed_clouds``      the Earth's albedo map drawn with the next seed (other clouds, same statistics)
+``no_clouds``          no albedo map: the family's reflectance law on a uniform albedo (its seed still drawn)
 =====================  ===========================================================
 """
 
@@ -65,7 +66,7 @@ WGS84_KM = (6378.137, 6378.137, 6356.752)
 MOON_FAMILIES = ("own", "hapke", "minnaert", "ls_surge", "maria", "glow", "airy", "defocus", "motion", "jpeg",
                  "stars", "cropped", "combined")
 EARTH_FAMILIES = ("own", "lambert", "clouds", "glow", "hapke", "airy", "defocus", "motion", "jpeg", "combined")
-ABLATIONS = ("psf_core", "psf_round", "no_glow", "no_jpeg", "reseed_clouds")
+ABLATIONS = ("psf_core", "psf_round", "no_glow", "no_jpeg", "reseed_clouds", "no_clouds")
 _READ_E = 157.0  # read noise (e-): 2 DN at 8 bits
 
 
@@ -285,6 +286,7 @@ def _earth_frame(family: str, rng: np.random.Generator, cam, pin, pose, geometry
     albedo = EarthMap(seed=int(rng.integers(2**31))) if family in ("clouds", "combined") else None
     if albedo is not None and "reseed_clouds" in ablate:
         albedo = EarthMap(seed=(albedo.seed + 1) % 2**31)
+    albedo = None if "no_clouds" in ablate else albedo
     glow = (Glow(float(rng.uniform(6.0, 25.0)), float(rng.uniform(0.03, 0.4)))
             if family in ("glow", "combined") else None)
     glow = None if "no_glow" in ablate else glow
