@@ -21,7 +21,8 @@ row: the families pooled.
 Reported per body and family: centre-of-body-image error (px) median / p90 / max, |radius
 error| median (Moon: ``radius_px - f tan(alpha)``), |range error| median / max (%), the mean
 NEES of the centre ``e^T P^-1 e`` with the reported 2x2 covariance (chi-square expectation 2), the mean
-NEES of the range ``(e / sigma)^2`` with its reported variance (expectation 1; ``range_z`` per record),
+NEES of the range ``(e / sigma)^2`` with its reported variance (expectation 1; ``range_z`` per record; ``crlb_rc``:
+the centre's noise-only Cramér--Rao sigmas ``locate`` reports),
 typed failures by check, and the number of ``status ok`` answers with a non-physical
 parameter (amplitude <= 0, ymax <= ymin, PSF sigma outside [0.1, 5] px, ``L`` outside
 [-0.5, 1.5], a glow outside [0, 1] of ``amp`` (at the Sun's position angle and square to it) or its scale height outside [0.05, 10] px, non-finite or non-positive radius/range, centre sigma > 2 px).  Results go to
