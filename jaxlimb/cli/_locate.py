@@ -65,9 +65,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _unresolved_glow(text: str):
-    """``--unresolved-glow``: ``none`` or ``G_MAX,H_LO_KM,H_HI_KM`` (finite, >= 0, ``0 < H_LO_KM <= H_HI_KM``)."""
+    """``--unresolved-glow``: ``none`` or ``G_MAX,H_LO_KM,H_HI_KM``, checked by ``EllipsoidOptions`` itself."""
     import argparse
-    import math
+
+    from ..errors import ConfigError
+    from ..pipeline.earth import EllipsoidOptions
 
     if text.strip().lower() == "none":
         return None
@@ -75,9 +77,10 @@ def _unresolved_glow(text: str):
         g, lo, hi = (float(v) for v in text.split(","))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected G_MAX,H_LO_KM,H_HI_KM or none, got {text!r}") from None
-    if not (all(math.isfinite(v) for v in (g, lo, hi)) and g >= 0 and 0 < lo <= hi):
-        raise argparse.ArgumentTypeError(f"need finite G_MAX >= 0 and 0 < H_LO_KM <= H_HI_KM, got {text!r}")
-    return (g, lo, hi)
+    try:
+        return EllipsoidOptions(unresolved_glow=(g, lo, hi)).unresolved_glow
+    except ConfigError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
 
 
 def _read_hints(path: str | None, body: str | None, base=None):
