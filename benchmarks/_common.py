@@ -50,6 +50,16 @@ def save(name: str, obj: dict[str, Any]) -> Path:
     return path
 
 
+def add_earth_frame_args(ap) -> None:  # type: ignore[no-untyped-def]
+    """``--families --n --seed --cache``: the set of ``benchmarks/families.py``'s Earth frames a benchmark runs on."""
+    from jaxlimb.render.independent import EARTH_FAMILIES
+
+    ap.add_argument("--families", default=",".join(EARTH_FAMILIES))
+    ap.add_argument("--n", type=int, default=6, help="frames per family (even: near, odd: far)")
+    ap.add_argument("--seed", type=int, default=2026)
+    ap.add_argument("--cache", type=Path, default=None)
+
+
 def cached(cache: Path | None, key: str, make):  # type: ignore[no-untyped-def]
     """``make()``, kept as ``cache/key`` (a pickle, written atomically) and read from there when present."""
     import pickle

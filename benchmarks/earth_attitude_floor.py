@@ -63,6 +63,11 @@ def efficient_errors(rows: list[dict], samples: int, rng: np.random.Generator) -
     return np.concatenate(out) if out else np.zeros(0)
 
 
+def bound_px(r: dict) -> float:
+    """The frame's bound without the attitude: ``sqrt(floor^2 + crlb_r^2 + crlb_c^2)`` (px)."""
+    return math.sqrt(r["floor_px"] ** 2 + sum(c * c for c in r["unknown"]["crlb_rc"]))
+
+
 def _stats(x) -> dict[str, float | None]:
     x = np.asarray(x, float)
     if x.size == 0:
@@ -79,7 +84,7 @@ def summarise(rows: list[dict], samples: int, seed: int) -> dict[str, Any]:
                       ("all", lambda r: True)):
         rs = [r for r in rows if sel(r)]
         ok = [r for r in rs if r["unknown"]["status"] == "ok" and "crlb_rc" in r["unknown"]]
-        bound = [math.sqrt(r["floor_px"] ** 2 + sum(c * c for c in r["unknown"]["crlb_rc"])) for r in ok]
+        bound = [bound_px(r) for r in ok]
         out[name] = {
             "frames": len(rs), "answered_unknown": len(ok),
             "locate_known": _stats([r["known"]["center_err_px"] for r in rs if r["known"]["status"] == "ok"]),
@@ -105,7 +110,7 @@ def figure(rows: list[dict], path: Path) -> None:
     for far, mark, label in ((False, "o", "40 000 km, 8 mm"), (True, "s", "380 000 km, 16 mm")):
         sel = [r for r in rows if (r["range_km"] >= 1e5) == far and r["unknown"]["status"] == "ok"
                and "crlb_rc" in r["unknown"]]
-        b = [math.sqrt(r["floor_px"] ** 2 + sum(c * c for c in r["unknown"]["crlb_rc"])) for r in sel]
+        b = [bound_px(r) for r in sel]
         ax.scatter(b, [r["unknown"]["center_err_px"] for r in sel], marker=mark, label=f"attitude unknown, {label}")
         ax.scatter(b, [r["known"]["center_err_px"] if r["known"]["status"] == "ok" else np.nan for r in sel],
                    marker=mark, facecolors="none", edgecolors="grey", label=f"same frame, attitude known ({label})")
@@ -136,16 +141,11 @@ def main(argv=None) -> int:
     import jax
 
     jax.config.update("jax_enable_x64", True)
-    from _common import environment, save
-
-    from jaxlimb.render.independent import EARTH_FAMILIES
+    from _common import add_earth_frame_args, environment, save
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--families", default=",".join(EARTH_FAMILIES))
-    ap.add_argument("--n", type=int, default=6, help="frames per family (even: near, odd: far)")
-    ap.add_argument("--seed", type=int, default=2026)
+    add_earth_frame_args(ap)
     ap.add_argument("--samples", type=int, default=4000)
-    ap.add_argument("--cache", type=Path, default=None)
     ap.add_argument("--out", default="earth_attitude_floor")
     ap.add_argument("--replot", action="store_true", help="redraw <out>.png from <out>.json, measure nothing")
     a = ap.parse_args(argv)

@@ -70,16 +70,11 @@ def main(argv=None) -> int:
     import jax
 
     jax.config.update("jax_enable_x64", True)
-    from _common import environment, save
-
-    from jaxlimb.render.independent import EARTH_FAMILIES
+    from _common import add_earth_frame_args, environment, save
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--families", default=",".join(EARTH_FAMILIES))
-    ap.add_argument("--n", type=int, default=6, help="frames per family (even: near, odd: far)")
-    ap.add_argument("--seed", type=int, default=2026)
+    add_earth_frame_args(ap)
     ap.add_argument("--free-sun", action="store_true", help="the Sun placed freely (benchmarks/families.py's frames)")
-    ap.add_argument("--cache", type=Path, default=None)
     ap.add_argument("--out", default=None)
     a = ap.parse_args(argv)
     rows = []
