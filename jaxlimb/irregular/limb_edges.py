@@ -29,9 +29,10 @@ Its covariance is the cluster-robust sandwich over 16 position-angle sectors
 
 from __future__ import annotations
 
-
 import cv2
 import numpy as np
+
+from ..analysis.model_error import sector_groups
 
 
 def _sample(a: np.ndarray, r: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -98,8 +99,6 @@ def lit_limb_center(F, I, coverage, P_win, lit_frac: float = 0.3, half_px: float
     ``F``: the fitted model image at the centre ``P_win`` (blurred by the estimated PSF, with its background);
     ``I``: the frame; ``coverage``: the model's (blurred) coverage, all on the same window.
     """
-    from ..analysis.model_error import sector_groups
-
     pts, nv = outline_points(coverage)
     if len(pts) < min_points:
         return None

@@ -44,6 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._validate import Range, number
 from ..errors import ConfigError
 
 _POLE_PERMUTATION = {
@@ -74,8 +75,6 @@ class ViewSphereOptions:
     rings: str = "paper"
 
     def __post_init__(self) -> None:
-        from .._validate import Range, number
-
         s = number(self.step_deg, "view sphere `step_deg`", Range(0.0, 90.0, lo_open=True))
         if self.pole_axis not in _POLE_PERMUTATION:
             raise ConfigError(f"view sphere `pole_axis` must be 'x', 'y' or 'z', got {self.pole_axis!r}")
