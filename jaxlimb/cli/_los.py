@@ -34,8 +34,11 @@ from typing import Any
 
 import numpy as np
 
+from .._io import exclusive_output
 from .._validate import Range, arg_number, input_file, output_file
-from ..errors import ConfigError, DatabaseError, ImageContentError, MeshError
+from ..errors import ConfigError, DatabaseError, ImageContentError, MeshError, NoBodyError
+from . import emit_json
+from ._batch import add_batch_arguments, is_many, run_frames
 
 #: ``--step-deg``: below 0.5 deg a database has > 250 000 views (> 10 min to build); above 60 no ring is left.
 STEP_DEG_RANGE = Range(0.5, 60.0)
@@ -69,8 +72,6 @@ def register(subparsers: Any) -> None:
     q.add_argument("--no-refine", action="store_true", help="the template match of Wu et al. alone: no registration, no checks")
     _add_db_options(q)
     q.add_argument("--json", action="store_true", help="print the result as one JSON object")
-    from ._batch import add_batch_arguments
-
     add_batch_arguments(q)
     q.set_defaults(func=run_locate, needs_jax=False)  # numpy + OpenCV only: no JAX start-up
 
@@ -91,7 +92,6 @@ def _db_options(args: argparse.Namespace) -> Any:
 
 
 def run_build(args: argparse.Namespace) -> int:
-    from .._io import exclusive_output
     from ..irregular.database import build_database, save_database
     from ..irregular.mesh import load_mesh
 
@@ -114,8 +114,6 @@ def run_build(args: argparse.Namespace) -> int:
         "build_seconds": round(dt, 3),
     }
     if args.json:
-        from . import emit_json
-
         emit_json(summary)
     else:
         print(f"wrote {out} ({len(db)} templates, {dt:.1f} s)")
@@ -192,22 +190,18 @@ def _locate_checked(image: np.ndarray, db: Any, camera: Any, hints: Any) -> dict
 
 
 def run_locate(args: argparse.Namespace) -> int:
-    from . import _batch
-
     # the database/mesh file is checked before any frame is read (and long before a database build)
     if args.db is not None:
         input_file(args.db, "--db", error=DatabaseError)
     else:
         input_file(args.mesh, "--mesh", error=MeshError)
     images = list(args.image)
-    if _batch.is_many(images, args):  # many frames: JSON Lines, one per frame (cli/_batch.py)
+    if is_many(images, args):  # many frames: JSON Lines, one per frame (cli/_batch.py)
         memo: dict[str, Any] = {}  # the camera and the database, loaded once for every frame
-        return _batch.run_frames(images, args, _read_image, lambda path, image: _locate_one(args, path, image, memo))
+        return run_frames(images, args, _read_image, lambda path, image: _locate_one(args, path, image, memo))
     args.image = images[0]
     out = _locate_one(args, args.image, _read_image(args.image), {})
     if args.json:
-        from . import emit_json
-
         emit_json(out)
     else:
         c, los = out["center_rc"], out["los_camera"]
@@ -232,8 +226,6 @@ def _locate_one(args: argparse.Namespace, path: str, image: np.ndarray, memo: di
     if image.shape != camera.shape:
         raise ImageContentError(f"image {path!r} has shape {image.shape}, the camera expects {camera.shape}")
     if float(image.max()) == float(image.min()):  # before any database load or build
-        from ..errors import NoBodyError
-
         raise NoBodyError(f"image {path!r} is constant (every pixel = {float(image.min()):g}): no body")
     if "db" not in memo:
         if args.db is not None:
