@@ -33,7 +33,7 @@ import numpy as np
 
 from .._identity_cache import IdentityCache
 from .database import TemplateDatabase
-from .matching import _Chamfer, _rot_z_to
+from .rectify import Chamfer, rot_z_to
 from .silhouette import figure_extents
 
 
@@ -160,7 +160,7 @@ def phase_candidates(
     s_xy /= np.linalg.norm(s_xy)
     e = np.array([-s_xy[1], s_xy[0]])
     xo = figure_extents(mask, np.stack([e, -e, s_xy])[:, ::-1])  # axes (x, y) -> (row, col)
-    chamfer = _Chamfer(mask)
+    chamfer = Chamfer(mask)
     rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
     size = float(max(rr[-1] - rr[0], cc[-1] - cc[0]) + 1)
     conts_all, nrms_all = _template_contours(db, options.n_points)
@@ -207,7 +207,7 @@ def _pose_of(db, camera, j, theta, k, T_xy, score) -> PoseHypothesis:  # type: i
     P = np.array([T_xy[1] + k * (s * dx + c * dy), T_xy[0] + k * (c * dx - s * dy)])
     cR = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     u = np.asarray(camera.los(P))  # type: ignore[attr-defined]
-    R = _rot_z_to(u) @ cR @ np.asarray(db.R_body_to_camera[j])
+    R = rot_z_to(u) @ cR @ np.asarray(db.R_body_to_camera[j])
     D = camera.focal_px * db.distance_km / (db.focal_px * k)  # type: ignore[attr-defined]
     return PoseHypothesis(j, theta, k, score, P, R, float(D))
 
