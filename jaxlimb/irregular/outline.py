@@ -28,7 +28,7 @@ _N_NEIGHBOURS = 4  # candidate outline pieces kept per pixel
 
 
 def _outline_pieces(rc, V, edges, third, limb, fig, lo, ss):  # type: ignore[no-untyped-def]
-    """Every outline edge split into pieces of <= ``piece_px`` (3-D interpolation projects onto the same
+    """Every outline edge split into pieces of <= ``_PIECE_PX`` (3-D interpolation projects onto the same
     straight line); only the pieces on the outer boundary of the figure ``fig`` (rasterised ``ss`` x) are kept.  Returns the
     3-D end points and third vertex ``PA, PB, PC``, the image end points ``pa, pb`` and the limb flag."""
     a2, b2 = rc[edges[:, 0]], rc[edges[:, 1]]
