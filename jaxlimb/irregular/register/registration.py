@@ -78,10 +78,8 @@ def register_known_attitude(
 
     Raises
     ------
-    MatchError
-        The registered model does not explain the frame (residual, overlap).
-    ConvergenceError
-        No convergence.
+    MatchError, ConvergenceError
+        The registered model does not explain the frame (residual, overlap, centre's sigma), or no convergence.
     """
     img = np.asarray(image, dtype=float)
     R = np.asarray(R_body_to_camera, dtype=float)
