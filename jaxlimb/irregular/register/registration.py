@@ -78,8 +78,9 @@ def register_known_attitude(
 
     Raises
     ------
-    MatchError, ConvergenceError
-        The registered model does not explain the frame (residual, overlap, centre's sigma), or no convergence.
+    MatchError, CenterTooUncertainError, ConvergenceError
+        The registered model does not explain the frame (residual, overlap), measures the centre too loosely,
+        or does not converge.
     """
     img = np.asarray(image, dtype=float)
     R = np.asarray(R_body_to_camera, dtype=float)
