@@ -15,7 +15,14 @@ Each sub-command lives in its own module ``jaxlimb/cli/_<name>.py`` that defines
   ``JAXLIMB_DEBUG`` is set) and OpenCV's own ``[ WARN ]`` logging is silenced (the
   image readers report every failure themselves);
 * a closed stdout (``jaxlimb ... --json | head -c 1``) ends the command quietly
-  with exit 141 (128 + SIGPIPE, as the POSIX tools do).
+  with exit 141 (128 + SIGPIPE, as the POSIX tools do);
+* SIGINT (Ctrl-C) ends the command with one ``interrupted`` message and exit 130, SIGTERM
+  with one ``terminated`` message and exit 143 (128 + the signal); outputs stay whole and
+  resumable (files are written atomically or one whole line at a time);
+* a standard stream closed at start (``<&-``, ``2>&-``) is opened on ``/dev/null``, so no
+  file the command opens can take its place and no message fails for want of it.
+
+The exit codes and what every command guarantees are tabled in ``docs/guarantees.md``.
 """
 
 from __future__ import annotations
@@ -25,6 +32,7 @@ import contextlib
 import importlib
 import json
 import os
+import signal
 import sys
 import warnings
 from collections.abc import Callable, Iterator, Sequence
@@ -148,6 +156,49 @@ def _json_default(o: object) -> object:
 
 
 _EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE
+EXIT_INTERRUPTED = 130  # 128 + SIGINT
+EXIT_TERMINATED = 143  # 128 + SIGTERM
+
+
+class Terminated(BaseException):
+    """SIGTERM received: raised in the main thread by the CLI's handler, so ``finally`` blocks
+    (locks, partial records, Dask clusters) run as for Ctrl-C."""
+
+
+def _on_sigterm(signum: int, frame: object) -> None:
+    del signum, frame
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a second SIGTERM ends the process at once
+    raise Terminated()
+
+
+@contextlib.contextmanager
+def _sigterm_raises() -> Iterator[None]:
+    """SIGTERM raises :class:`Terminated` in the block (main thread only; the old handler is restored)."""
+    try:
+        old = signal.signal(signal.SIGTERM, _on_sigterm)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+def _reopen_closed_std_streams() -> None:
+    """Open ``/dev/null`` on a closed fd 0, 1 or 2 (and give ``sys`` a stream on it), so a file the command
+    opens never takes a standard fd, and a message to a closed stream is dropped rather than an error."""
+    for fd, name, mode in ((0, "stdin", "r"), (1, "stdout", "w"), (2, "stderr", "w")):
+        try:
+            os.fstat(fd)
+            if getattr(sys, name) is not None:
+                continue
+        except OSError:
+            got = os.open(os.devnull, os.O_RDWR)
+            if got != fd:
+                os.dup2(got, fd)
+                os.close(got)
+        setattr(sys, name, open(fd, mode, closefd=False, encoding="utf-8", errors="replace"))
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ANN001
@@ -183,13 +234,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     (:mod:`jaxlimb._jaxcache`: ``JAXLIMB_CACHE_DIR``, ``off`` to disable).  A closed stdout
     ends the command quietly (exit 141).
     """
+    _reopen_closed_std_streams()
     _quiet_opencv()
     try:
-        code = _main(argv)
-        sys.stdout.flush()
+        with _sigterm_raises():
+            code = _main(argv)
+            sys.stdout.flush()
         return code
     except BrokenPipeError:
         return _stdout_closed()
+    except Terminated:  # after _main returned (while flushing)
+        return EXIT_TERMINATED
+    except OSError as e:  # stdout on a full device (`> /dev/full`): its last flush
+        from .._io import write_error
+
+        _report(False, "write_failed", str(write_error("<stdout>", e)))
+        _stdout_closed()
+        return 2
 
 
 def entry() -> int:
@@ -234,19 +295,34 @@ def _main(argv: Sequence[str] | None) -> int:
             return int(args.func(args) or 0)
     except BrokenPipeError:
         raise
+    except OSError as e:
+        from .._io import WRITE_ERRNOS, write_error
+
+        if e.errno not in WRITE_ERRNOS or os.environ.get("JAXLIMB_DEBUG"):
+            return _internal_error(want_json, e)
+        err = write_error(e.filename or "<stdout>", e)
+        _report(want_json, err.check, str(err))  # type: ignore[attr-defined]
+        return 2
     except JaxlimbError as e:
         _report(want_json, e.check, str(e))
         return e.exit_code
     except KeyboardInterrupt:
-        _report(want_json, "interrupted", "interrupted")
-        return 130
+        _report(want_json, "interrupted", "interrupted (SIGINT)")
+        return EXIT_INTERRUPTED
+    except Terminated:
+        _report(want_json, "terminated", "terminated (SIGTERM)")
+        return EXIT_TERMINATED
     except SystemExit as e:
         return int(e.code) if isinstance(e.code, int) else 2
     except Exception as e:  # last resort: never a traceback unless asked for
-        if os.environ.get("JAXLIMB_DEBUG"):
-            raise
-        _report(want_json, "internal_error", f"{type(e).__name__}: {e}")
-        return 1
+        return _internal_error(want_json, e)
+
+
+def _internal_error(want_json: bool, e: Exception) -> int:
+    if os.environ.get("JAXLIMB_DEBUG"):
+        raise e
+    _report(want_json, "internal_error", f"{type(e).__name__}: {e}")
+    return 1
 
 
 def _request_host_devices(n: int) -> None:
