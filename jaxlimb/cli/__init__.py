@@ -100,7 +100,11 @@ def finite_json(obj: object) -> object:
 def warnings_to_stderr(*categories: type[Warning]) -> Iterator[None]:
     """Show warnings of ``categories`` raised in the block as one ``jaxlimb: warning: ...`` line
     each on stderr (every one, not only the first of its kind); other warnings recorded in the
-    block are not shown (the CLI prints one-line messages, never Python's warning format)."""
+    block are not shown (the CLI prints one-line messages, never Python's warning format), except a
+    cache's :class:`~jaxlimb.errors.CacheRepairWarning`, which is always shown."""
+    from ..errors import CacheRepairWarning
+
+    categories = (*categories, CacheRepairWarning)
     with warnings.catch_warnings(record=True) as caught:
         for c in categories:
             warnings.simplefilter("always", c)
@@ -285,13 +289,13 @@ def _main(argv: Sequence[str] | None) -> int:
         needs_jax = getattr(args, "needs_jax", True)  # a sub-command may declare it runs without JAX
         if callable(needs_jax):  # ... or decide from its arguments
             needs_jax = needs_jax(args)
-        if needs_jax:
-            host_devices = getattr(args, "host_devices", None)
-            _request_host_devices(host_devices(args) if host_devices else 1)
-            _start_jax()
         with warnings.catch_warnings():
             warnings.simplefilter("default")
             warnings.showwarning = _one_line_warning
+            if needs_jax:
+                host_devices = getattr(args, "host_devices", None)
+                _request_host_devices(host_devices(args) if host_devices else 1)
+                _start_jax()
             return int(args.func(args) or 0)
     except BrokenPipeError:
         raise
@@ -342,10 +346,25 @@ def _start_jax() -> None:
     from .._jaxcache import start_jax
 
     start_jax()  # LAPACK kernels before JAX (no scipy.linalg package import), float64, compilation cache
+    _check_backend()
     if _STATE.get("process"):  # the command's own process (entry): JAX's objects live until its end
         import gc
 
         gc.freeze()
+
+
+def _check_backend() -> None:
+    """JAX's backend starts (``JAX_PLATFORMS=cuda`` on a machine without CUDA does not): else exit 2, one line."""
+    import jax
+
+    from ..errors import ConfigError
+
+    try:
+        jax.devices()
+    except Exception as e:  # noqa: BLE001 - RuntimeError, or an AssertionError when no platform asked for exists
+        first = next((ln.strip() for ln in str(e).splitlines() if ln.strip()), "no such platform on this machine")
+        raise ConfigError(f"JAX cannot start a backend (JAX_PLATFORMS={os.environ.get('JAX_PLATFORMS', '')!r}): "
+                          f"{first}") from None
 
 
 def _report(want_json: bool, check: str, message: str) -> None:
