@@ -292,6 +292,9 @@ def _main(argv: Sequence[str] | None) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("default")
             warnings.showwarning = _one_line_warning
+            precheck = getattr(args, "precheck", None)  # cheap input checks before JAX starts (image bombs)
+            if precheck is not None:
+                precheck(args)
             if needs_jax:
                 host_devices = getattr(args, "host_devices", None)
                 _request_host_devices(host_devices(args) if host_devices else 1)
