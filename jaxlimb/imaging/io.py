@@ -279,7 +279,11 @@ def _read_cv2(p: Path, kind: str) -> np.ndarray:
         if tail != _PNG_IEND:
             raise ImageReadError(f"PNG file {str(p)!r} is truncated (no IEND chunk at the end)")
     buf = np.fromfile(p, dtype=np.uint8)
-    img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
+    try:
+        img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
+    except cv2.error as e:  # OpenCV's own size limit (OPENCV_IO_MAX_IMAGE_PIXELS) or a decoder assertion
+        msg = " ".join(str(e).split())[-160:]
+        raise ImageReadError(f"cannot decode image file {str(p)!r}: {msg}") from None
     if img is None and kind == "jp2":
         try:  # pragma: no cover - only when OpenCV lacks OpenJPEG
             import glymur
