@@ -317,9 +317,11 @@ def _main(argv: Sequence[str] | None) -> int:
         return e.exit_code
     except KeyboardInterrupt:
         _report(want_json, "interrupted", "interrupted (SIGINT)")
+        _last_message()
         return EXIT_INTERRUPTED
     except Terminated:
         _report(want_json, "terminated", "terminated (SIGTERM)")
+        _last_message()
         return EXIT_TERMINATED
     except SystemExit as e:
         return int(e.code) if isinstance(e.code, int) else 2
@@ -356,6 +358,18 @@ def _start_jax() -> None:
         import gc
 
         gc.freeze()
+
+
+def _last_message() -> None:
+    """After the one message of an interrupted command process: nothing more on stderr (the shutdown of a
+    half-started Dask cluster, interrupted library threads).  A command run in a Python session is left alone."""
+    if not _STATE.get("process"):
+        return
+    with contextlib.suppress(OSError, ValueError, AttributeError):
+        sys.stderr.flush()
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, 2)
+        os.close(devnull)
 
 
 def _check_backend() -> None:

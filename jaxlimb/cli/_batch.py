@@ -272,9 +272,9 @@ def _records(todo: list[str], args: argparse.Namespace, read: Callable[[str], An
     from ..analysis.distributed import close_client, make_client, map_chunks
 
     client = make_client(args.scheduler, args.workers or 2)
-    n_workers = max(1, len(client.scheduler_info().get("workers", {})))
-    size = max(1, min(16, -(-len(todo) // (4 * n_workers))))
     try:
+        n_workers = max(1, len(client.scheduler_info().get("workers", {})))
+        size = max(1, min(16, -(-len(todo) // (4 * n_workers))))
         for chunk in map_chunks(partial(_frame_chunk, read=read, measure=measure), todo, client, size):
             yield from chunk
     finally:
