@@ -206,7 +206,7 @@ def read_sealed(path: Path, what: str, versions: bytes | None = None) -> bytes |
     foreign entry is deleted (and said once, :func:`warn_once`); so is one that cannot be read."""
     try:
         data = path.read_bytes()
-    except FileNotFoundError:
+    except (FileNotFoundError, NotADirectoryError):
         return None
     except OSError as e:
         warn_once(what, f"{what} entry {path.name} cannot be read ({e.strerror or e}): compiled again")
