@@ -151,24 +151,22 @@ def _jpeg(fh, head: bytes) -> HeaderSize:  # noqa: ANN001
 def _tiff(fh, head: bytes) -> HeaderSize:  # noqa: ANN001
     e = "<" if head[:2] == b"II" else ">"
     (version,) = struct.unpack(e + "H", head[2:4])
-    big = version == 43
-    if big:
+    if version == 43:  # BigTIFF: 8-byte entry counts, value counts and offsets
         (offset,) = struct.unpack(e + "Q", head[8:16])
-        count_fmt, entry_size, value_fmt = "Q", 20, "Q"
+        n_fmt, cnt_bytes, field_fmt = "Q", 8, "Q"
     else:
         (offset,) = struct.unpack(e + "I", head[4:8])
-        count_fmt, entry_size, value_fmt = "H", 12, "I"
-    del big
+        n_fmt, cnt_bytes, field_fmt = "H", 4, "I"
     fh.seek(offset)
-    (n,) = struct.unpack(e + count_fmt, fh.read(struct.calcsize(count_fmt)))
+    (n,) = struct.unpack(e + n_fmt, fh.read(struct.calcsize(n_fmt)))
     if n > 4096:
         raise ValueError(f"{n} tags in the first IFD")
     tags: dict[int, int] = {}
     for _ in range(n):
-        entry = fh.read(entry_size)
+        entry = fh.read(4 + cnt_bytes + struct.calcsize(field_fmt))
         tag, typ = struct.unpack(e + "HH", entry[:4])
-        raw = entry[4 + struct.calcsize(count_fmt) :]
-        fmt = {3: "H", 4: "I", 16: "Q"}.get(typ, value_fmt)  # values are left-justified in the value field
+        raw = entry[4 + cnt_bytes :]
+        fmt = {3: "H", 4: "I", 16: "Q"}.get(typ, field_fmt)  # values are left-justified in the value field
         tags[tag] = struct.unpack(e + fmt, raw[: struct.calcsize(fmt)])[0]
     if 256 not in tags or 257 not in tags:
         raise ValueError("no ImageWidth/ImageLength tag")

@@ -207,11 +207,11 @@ def _head(p: Path, n: int = 64) -> bytes:
 
 
 def _read_vicar(p: Path) -> tuple[np.ndarray, dict[str, Any]]:
-    import vicar
-
     from .bounds import check_size, vicar_size
 
     check_size(vicar_size(p), p)  # the label's size against the file and memory, before reading the data
+    import vicar
+
     try:
         im = vicar.VicarImage(str(p))
         a = np.asarray(im.data_2d)
