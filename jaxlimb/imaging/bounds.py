@@ -25,7 +25,7 @@ import struct
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import ImageReadError
+from ..errors import ImageReadError, LabelError
 
 #: Most pixels of an image jaxlimb decodes (16384 x 16384; the largest mission frames are ~2.6e8).
 MAX_IMAGE_PIXELS = 1 << 28
@@ -243,7 +243,8 @@ _VICAR_BYTES = {b"BYTE": 1, b"HALF": 2, b"WORD": 2, b"FULL": 4, b"LONG": 4, b"RE
 
 def vicar_size(path: str | os.PathLike[str]) -> HeaderSize:
     """The size a VICAR label declares (``NL`` x ``NS`` x ``NB`` of ``FORMAT``), checked against the file:
-    a label that declares more data than the file holds is an :class:`~jaxlimb.errors.ImageReadError`."""
+    a label that declares more data than the file holds, or garbles its sizes, is a
+    :class:`~jaxlimb.errors.LabelError`."""
     p = Path(path)
     with open(p, "rb") as fh:
         head = fh.read(1 << 16)
@@ -255,12 +256,12 @@ def vicar_size(path: str | os.PathLike[str]) -> HeaderSize:
         nb, nbb, nlb = (int(keys.get(k, d)) for k, d in ((b"NB", b"1"), (b"NBB", b"0"), (b"NLB", b"0")))
         sample = _VICAR_BYTES[keys.get(b"FORMAT", b"BYTE")]
     except (KeyError, ValueError):
-        raise ImageReadError(f"VICAR file {str(p)!r}: the label lacks or garbles LBLSIZE/NL/NS/NB/FORMAT") from None
+        raise LabelError(f"VICAR file {str(p)!r}: the label lacks or garbles LBLSIZE/NL/NS/NB/FORMAT") from None
     recsize = int(keys.get(b"RECSIZE", str(nbb + ns * sample).encode()))
     need = lbl + (nlb + nl * nb) * recsize
     have = p.stat().st_size
     if min(nl, ns, nb) <= 0 or need > have:
-        raise ImageReadError(f"VICAR file {str(p)!r} declares {nl} x {ns} x {nb} samples ({need} bytes with its "
+        raise LabelError(f"VICAR file {str(p)!r} declares {nl} x {ns} x {nb} samples ({need} bytes with its "
                              f"label), the file holds {have}: truncated or a corrupt label")
     return HeaderSize(nl, ns, nb, sample, "VICAR")
 

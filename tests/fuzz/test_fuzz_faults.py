@@ -28,6 +28,7 @@ import time
 import pytest
 
 from ._cli import assert_refused, run_cli
+from ._hostile import CACHED_PROGRAM
 
 N_FRAMES = 40
 _CMD = [sys.executable, "-m", "jaxlimb.cli"]
@@ -174,6 +175,10 @@ def test_hostile_environment_is_one_line_or_a_normal_run(inputs, tmp_path):
         "cache-file": subprocess.Popen([*_CMD, "locate", missing, "--json"], stdout=subprocess.PIPE,
                                        stderr=subprocess.PIPE, text=True,
                                        env={**_env(JAXLIMB_CACHE=str(a_file)), "JAXLIMB_CACHE_DIR": ""}),
+        "stdout-full": subprocess.Popen([*sh, 'exec "$@" > /dev/full', "sh", *_CMD, "los", "build-db",
+                                         str(inputs["mesh.obj"]), "--out", str(tmp_path / "db.npz"), "--step-deg", "30",
+                                         "--template-size", "64", "--no-progress", "--json"],
+                                        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env()),
     }
     out = {k: (p.wait(timeout=300), *p.communicate()) for k, p in procs.items()}
     code, stdout, stderr = out["cuda"]
@@ -183,34 +188,18 @@ def test_hostile_environment_is_one_line_or_a_normal_run(inputs, tmp_path):
     code, stdout, stderr = out["cache-file"]
     assert code == 2 and json.loads(stdout)["check"] == "bad_image", out["cache-file"]
     assert "Traceback" not in stderr and all(ln.startswith("jaxlimb: warning:") for ln in stderr.splitlines())
+    code, stdout, stderr = out["stdout-full"]  # the database is written; its summary cannot be
+    assert code == 2 and stderr.startswith("jaxlimb: error: cannot write '<stdout>'") and len(stderr.splitlines()) == 1
+    assert (tmp_path / "db.npz").is_file()
 
 
 # ----------------------------------------------------------------------------- a damaged cache
-_CACHED = """
-import json, sys, time, warnings
-t0 = time.perf_counter()
-with warnings.catch_warnings(record=True) as seen:
-    warnings.simplefilter("always")
-    from jaxlimb._jaxcache import start_jax
-    start_jax()
-    import jax, jax.numpy as jnp, numpy as np
-    from jaxlimb.fitting._aot import ExportedCore
-    def core(x):
-        return {"y": jnp.cos(x) * 0.5 + jnp.sum(x * x), "n": jnp.linalg.norm(x)}
-    x = jnp.linspace(0.0, 2.0, 9)
-    out = ExportedCore(core, "faults-test-core", lambda x: {"y": x, "n": x})(x)
-    z = jax.jit(lambda v: jnp.exp(v) / (1.0 + v * v))(x)
-print(json.dumps({"y": [float(v).hex() for v in np.asarray(out["y"])], "n": float(out["n"]).hex(),
-                  "z": [float(v).hex() for v in np.asarray(z)], "s": time.perf_counter() - t0,
-                  "warnings": [f"{w.category.__name__}: {w.message}" for w in seen
-                               if w.category.__name__ == "CacheRepairWarning"]}))
-"""
 
 
 def test_damaged_cache_gives_the_same_answer_without_waiting_on_its_lock(tmp_path):
     cache = tmp_path / "cache"
     env = _env(JAXLIMB_CACHE_DIR=str(cache))
-    first = json.loads(subprocess.run([sys.executable, "-c", _CACHED], capture_output=True, text=True, env=env,
+    first = json.loads(subprocess.run([sys.executable, "-c", CACHED_PROGRAM], capture_output=True, text=True, env=env,
                                       check=True).stdout)
     entries = sorted(cache.glob("*-cache")) + sorted(cache.glob("exported/*.bin"))
     assert len(entries) >= 3 and first["warnings"] == []
@@ -227,7 +216,7 @@ def test_damaged_cache_gives_the_same_answer_without_waiting_on_its_lock(tmp_pat
     try:
         holder.stdout.readline()
         os.kill(holder.pid, signal.SIGSTOP)  # a stopped holder of JAX's cache lock
-        second = json.loads(subprocess.run([sys.executable, "-c", _CACHED], capture_output=True, text=True, env=env,
+        second = json.loads(subprocess.run([sys.executable, "-c", CACHED_PROGRAM], capture_output=True, text=True, env=env,
                                            check=True).stdout)
     finally:
         holder.kill()

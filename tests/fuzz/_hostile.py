@@ -1,4 +1,5 @@
-"""Decompression bombs: small files whose headers declare huge images (made in the tests, a few bytes each)."""
+"""Hostile inputs made by the fault tests (and ``benchmarks/faults.py``): decompression bombs -- small files
+whose headers declare huge images -- and a program that fills the compilation and export caches."""
 
 from __future__ import annotations
 
@@ -85,3 +86,26 @@ def write_bomb(folder: Path, kind: str, rows: int = HUGE, cols: int = HUGE) -> P
     data = make(rows, cols) if kind != "png" else png(rows, cols, zlib.compress(b"\0" * 100))
     p.write_bytes(data)
     return p
+
+
+#: A script that compiles a program and exports a core through the caches of ``JAXLIMB_CACHE_DIR`` and prints
+#: the answers (hex floats), its seconds and the cache warnings it saw, as JSON.
+CACHED_PROGRAM = """
+import json, sys, time, warnings
+t0 = time.perf_counter()
+with warnings.catch_warnings(record=True) as seen:
+    warnings.simplefilter("always")
+    from jaxlimb._jaxcache import start_jax
+    start_jax()
+    import jax, jax.numpy as jnp, numpy as np
+    from jaxlimb.fitting._aot import ExportedCore
+    def core(x):
+        return {"y": jnp.cos(x) * 0.5 + jnp.sum(x * x), "n": jnp.linalg.norm(x)}
+    x = jnp.linspace(0.0, 2.0, 9)
+    out = ExportedCore(core, "faults-test-core", lambda x: {"y": x, "n": x})(x)
+    z = jax.jit(lambda v: jnp.exp(v) / (1.0 + v * v))(x)
+print(json.dumps({"y": [float(v).hex() for v in np.asarray(out["y"])], "n": float(out["n"]).hex(),
+                  "z": [float(v).hex() for v in np.asarray(z)], "s": time.perf_counter() - t0,
+                  "warnings": [f"{w.category.__name__}: {w.message}" for w in seen
+                               if w.category.__name__ == "CacheRepairWarning"]}))
+"""
