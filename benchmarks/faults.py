@@ -103,12 +103,15 @@ def cache(folder: Path) -> dict:
     return out
 
 
+# peak RSS of this process image (VmHWM: ru_maxrss would carry the parent's peak over fork + exec)
 _MESH = """
-import resource, sys
+import sys
 import trimesh, scipy.sparse.csgraph  # noqa: F401
 from jaxlimb.irregular.mesh import load_mesh
 from jaxlimb.irregular.database import DatabaseOptions, build_database
-rss = lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+def rss():
+    line = next(s for s in open("/proc/self/status") if s.startswith("VmHWM:"))
+    return int(line.split()[1]) * 1024
 base = rss()
 m = load_mesh(sys.argv[1])
 loaded = rss()
