@@ -215,9 +215,9 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 
 def _quiet_opencv() -> None:
     """Silence OpenCV's ``[ WARN ]`` logging (it writes to the stderr fd from C++), and bound the images its
-    decoders accept to :data:`jaxlimb.imaging.bounds.MAX_IMAGE_PIXELS` (formats whose header jaxlimb does not read)."""
+    decoders accept to :data:`jaxlimb._image_bounds.MAX_IMAGE_PIXELS` (formats whose header jaxlimb does not read)."""
     os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")  # read when cv2 is first imported
-    os.environ.setdefault("OPENCV_IO_MAX_IMAGE_PIXELS", str(1 << 28))  # = imaging.bounds.MAX_IMAGE_PIXELS
+    os.environ.setdefault("OPENCV_IO_MAX_IMAGE_PIXELS", str(1 << 28))  # = _image_bounds.MAX_IMAGE_PIXELS
     cv2 = sys.modules.get("cv2")
     if cv2 is not None:
         with contextlib.suppress(AttributeError):

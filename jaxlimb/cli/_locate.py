@@ -66,7 +66,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _precheck(args: argparse.Namespace) -> None:
     """One frame: the size its header declares, checked before JAX starts (a bomb is refused in milliseconds)."""
-    from ..imaging.bounds import check_file
+    from .._image_bounds import check_file
 
     if len(args.image) == 1 and not args.image[0].startswith("@") and args.out is None:
         check_file(args.image[0])

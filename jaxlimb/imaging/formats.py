@@ -207,7 +207,7 @@ def _head(p: Path, n: int = 64) -> bytes:
 
 
 def _read_vicar(p: Path) -> tuple[np.ndarray, dict[str, Any]]:
-    from .bounds import check_size, vicar_size
+    from .._image_bounds import check_size, vicar_size
 
     check_size(vicar_size(p), p)  # the label's size against the file and memory, before reading the data
     import vicar
@@ -252,8 +252,8 @@ _META_KEYS = ("IMAGE_MID_TIME", "IMAGE_TIME", "START_TIME", "SPACECRAFT_NAME", "
 def _pds3_image(d, p: Path) -> None:  # noqa: ANN001
     """A PDS3 label's layout against its data file, before any data are read: the file holds exactly
     ``FILE_RECORDS`` x ``RECORD_BYTES`` (fixed-length records), the ``IMAGE`` object ends inside the file,
-    and its size passes :func:`jaxlimb.imaging.bounds.check_size`; else :class:`~jaxlimb.errors.LabelError`."""
-    from .bounds import HeaderSize, check_size
+    and its size passes :func:`jaxlimb._image_bounds.check_size`; else :class:`~jaxlimb.errors.LabelError`."""
+    from .._image_bounds import HeaderSize, check_size
 
     def num(v: Any) -> int | None:
         try:

@@ -207,7 +207,7 @@ def _suffix(p: Path) -> str:
 def _read_fits(p: Path) -> tuple[np.ndarray, Any, int]:
     from astropy.io import fits
 
-    from .bounds import check_size, fits_size
+    from .._image_bounds import check_size, fits_size
 
     try:
         with warnings.catch_warnings():
@@ -266,7 +266,7 @@ def read_jp2_header(path: str | os.PathLike[str]) -> Any:
 
 
 def _read_cv2(p: Path, kind: str) -> np.ndarray:
-    from .bounds import check_size, header_size
+    from .._image_bounds import check_size, header_size
 
     check_size(header_size(p), p)  # the declared size, before the decoder allocates it
     if kind == "png":

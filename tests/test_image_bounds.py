@@ -1,4 +1,4 @@
-"""Image sizes read from headers (imaging/bounds.py) are the sizes the decoders produce."""
+"""Image sizes read from headers (jaxlimb/_image_bounds.py) are the sizes the decoders produce."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from jaxlimb.errors import ImageReadError
-from jaxlimb.imaging.bounds import MAX_IMAGE_PIXELS, HeaderSize, check_size, fits_file_sizes, header_size
+from jaxlimb._image_bounds import MAX_IMAGE_PIXELS, HeaderSize, check_size, fits_file_sizes, header_size
 
 ROWS, COLS = 37, 53
 

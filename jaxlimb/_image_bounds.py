@@ -1,7 +1,7 @@
 """Image sizes read from file headers and checked before any pixel is decoded.
 
 A decoder allocates what the header declares: a 467-byte PNG can declare 100 000 x 100 000 px and a
-valid 875 kB PNG inflates to 30 000 x 30 000 px (6.7 GiB once converted to float64).  Every reader of
+valid 880 kB PNG inflates to 30 000 x 30 000 px (6.7 GiB once converted to float64).  Every reader of
 jaxlimb first reads the declared size from the header -- PNG ``IHDR``, JPEG ``SOFn``, TIFF/BigTIFF
 first IFD, JPEG 2000 ``ihdr`` box or ``SIZ`` marker, BMP, PNM, FITS ``NAXISn``/``BITPIX`` (the
 decompressed size of a tile-compressed HDU), VICAR ``NL``/``NS``/``NB``/``FORMAT``, PDS3 ``LINES``/
@@ -26,7 +26,7 @@ import struct
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import ImageReadError, LabelError
+from .errors import ImageReadError, LabelError
 
 #: Most pixels of an image jaxlimb decodes (16384 x 16384; the largest mission frames are ~2.6e8).
 MAX_IMAGE_PIXELS = 1 << 28
@@ -60,7 +60,7 @@ class HeaderSize:
 
 def check_size(size: HeaderSize | None, path: str | os.PathLike[str]) -> None:
     """Refuse (:class:`~jaxlimb.errors.ImageReadError`) an image too large to decode (module docstring)."""
-    from .._validate import check_memory
+    from ._validate import check_memory
 
     if size is None:
         return
