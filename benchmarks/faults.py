@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
 import subprocess
 import sys
 import tempfile
@@ -30,7 +29,8 @@ from _common import environment, save
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
-from fuzz._hostile import CACHED_PROGRAM, MAKERS, inflating_png, write_bomb  # noqa: E402
+from fuzz._hostile import (CACHED_PROGRAM, MAKERS, damage_cache, inflating_png,  # noqa: E402
+                           stopped_lock_holder, write_bomb)
 
 _MEASURE = """
 import resource, subprocess, sys, time
@@ -76,25 +76,10 @@ def cache(folder: Path) -> dict:
     c = folder / "cache"
     env = _env(JAXLIMB_CACHE_DIR=str(c))
     cold, warm = _cached_run(env), _cached_run(env)
-    entries = sorted(c.glob("*-cache")) + sorted(c.glob("exported/*.bin"))
-    for i, p in enumerate(entries):
-        data = bytearray(p.read_bytes())
-        data[(i * 7919) % len(data)] ^= 1 << (i % 8)
-        p.write_bytes(bytes(data))
-    (c / "junk-cache").write_bytes(os.urandom(4096))
-    for p in c.glob("*-atime"):
-        p.unlink()
-    holder = subprocess.Popen([sys.executable, "-c", "import fcntl, os, sys, time; fd = os.open(sys.argv[1], "
-                               "os.O_RDWR | os.O_CREAT); fcntl.flock(fd, fcntl.LOCK_EX); print(1, flush=True); "
-                               "time.sleep(3600)", str(c / ".lockfile")], stdout=subprocess.PIPE)
-    holder.stdout.readline()
-    os.kill(holder.pid, signal.SIGSTOP)
-    try:
+    entries = damage_cache(c)
+    with stopped_lock_holder(c / ".lockfile"):
         damaged = _cached_run(env)
         locked_warm = _cached_run(env)  # repaired entries, lock still held by the stopped process
-    finally:
-        holder.kill()
-        holder.wait()
     same = all(r[k] == cold[k] for r in (warm, damaged, locked_warm) for k in ("y", "n", "z"))
     out = {"entries_damaged": len(entries), "same_answer_bit_for_bit": same, "warnings": damaged["warnings"],
            "wall_s": {"cold": cold["wall_s"], "warm": warm["wall_s"], "damaged_and_locked": damaged["wall_s"],

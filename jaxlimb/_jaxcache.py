@@ -27,7 +27,7 @@ different answer: it is deleted, the program is compiled again, and one
 atomically (a temporary renamed into place), so readers never see half an entry and no lock is
 needed: a stale or stopped lock holder cannot hold a run up.  The least recently used entries
 (file modification time, touched on every hit) are evicted beyond :data:`MAX_BYTES`; junk files
-and JAX's ``-atime`` files neither stop the cache from storing nor count as entries.  A cache
+(evicted like entries) and missing or orphan JAX ``-atime`` files do not stop it storing.  A cache
 that cannot be written (a full disk, ``JAXLIMB_CACHE`` naming a file) is bypassed with one
 warning; the run goes on without it.
 

@@ -3,8 +3,14 @@ whose headers declare huge images -- and a program that fills the compilation an
 
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
 import struct
+import subprocess
+import sys
 import zlib
+from collections.abc import Iterator
 from pathlib import Path
 
 HUGE = 100_000  # px per side: 10^10 pixels
@@ -109,3 +115,32 @@ print(json.dumps({"y": [float(v).hex() for v in np.asarray(out["y"])], "n": floa
                   "warnings": [f"{w.category.__name__}: {w.message}" for w in seen
                                if w.category.__name__ == "CacheRepairWarning"]}))
 """
+
+
+def damage_cache(cache: Path) -> list[Path]:
+    """One flipped bit in every entry of a compilation cache (``*-cache``, ``exported/*.bin``; from the header
+    to the last byte), a junk entry, and JAX's ``-atime`` files deleted; returns the damaged entries."""
+    entries = sorted(cache.glob("*-cache")) + sorted(cache.glob("exported/*.bin"))
+    for i, p in enumerate(entries):
+        data = bytearray(p.read_bytes())
+        data[(i * 7919) % len(data)] ^= 1 << (i % 8)
+        p.write_bytes(bytes(data))
+    (cache / "junk-cache").write_bytes(os.urandom(4096))
+    for p in cache.glob("*-atime"):
+        p.unlink()
+    return entries
+
+
+@contextlib.contextmanager
+def stopped_lock_holder(lock: Path) -> Iterator[int]:
+    """A process that holds ``flock`` on ``lock`` and is stopped (SIGSTOP) for the block; its pid."""
+    code = ("import fcntl, os, sys, time; fd = os.open(sys.argv[1], os.O_RDWR | os.O_CREAT); "
+            "fcntl.flock(fd, fcntl.LOCK_EX); print(1, flush=True); time.sleep(3600)")
+    with subprocess.Popen([sys.executable, "-c", code, str(lock)], stdout=subprocess.PIPE) as holder:
+        try:
+            holder.stdout.readline()
+            os.kill(holder.pid, signal.SIGSTOP)
+            yield holder.pid
+        finally:
+            holder.kill()
+            holder.wait()
