@@ -37,11 +37,13 @@ def test_json_that_is_not_what_it_claims_exits_2(role, text, names, inputs, tmp_
 
 
 def test_attitude_json_is_read_strictly(inputs, tmp_path):
+    text = '{"quaternion": [0, 0, 0, 1], "quaternion": [1, 0, 0, 0]}'
     bad = tmp_path / "att.json"
-    bad.write_text('{"quaternion": [0, 0, 0, 1], "quaternion": [1, 0, 0, 0]}')
-    res = run_cli(["navigate", inputs["moon.png"], "--camera", inputs["camera.json"], "--epoch",
-                   "2026-01-01T00:00:00Z", "--attitude", bad, "--json"])
-    assert_refused(res, 2, "'quaternion' twice")
+    bad.write_text(text)
+    for attitude in (bad, text):  # a file, or the JSON itself on the command line
+        res = run_cli(["navigate", inputs["moon.png"], "--camera", inputs["camera.json"], "--epoch",
+                       "2026-01-01T00:00:00Z", "--attitude", attitude, "--json"])
+        assert_refused(res, 2, "'quaternion' twice", check="bad_config")
 
 
 # ----------------------------------------------------------------------------- SPICE kernels
