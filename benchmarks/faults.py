@@ -8,9 +8,12 @@
   process: the answer (bit for bit), the warnings, and the run's wall time against an undamaged warm run
   (target: no wait on the cache beyond 15 s);
 * ``mesh``: peak RSS per face while a shape model is read, validated and its templates built (20 deg), for
-  the shared ``phobos.obj`` and a 327 680-face icosphere: the basis of ``irregular.mesh.BYTES_PER_FACE``.
+  the shared ``phobos.obj`` and a 327 680-face icosphere: the basis of ``irregular.mesh.BYTES_PER_FACE``;
+* ``signals``: SIGINT and SIGTERM to the whole process group of ``montecarlo --pipeline --workers 2`` on
+  120x160 frames, 3, 6 and 20 s after its start (the cluster starting, then running): exit code (130 / 143)
+  and the stderr lines (target: one; the Dask workers printed a traceback each).
 
-Run:  python benchmarks/faults.py [--only bombs|cache|mesh]
+Run:  python benchmarks/faults.py [--only bombs|cache|mesh|signals]
 Writes benchmarks/results/faults.json.
 """
 
@@ -19,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -120,13 +124,38 @@ def mesh(folder: Path) -> dict:
     return out
 
 
+_CAMERA = {"focal_length_mm": 0.9876543209876543, "pixel_pitch_mm": 0.0022, "rows": 120, "cols": 160,
+           "principal_point_rc": [59.5, 79.5]}
+
+
+def signals(folder: Path) -> dict:
+    """SIGINT / SIGTERM to the process group of ``montecarlo --pipeline --workers 2`` (as a terminal's Ctrl-C
+    does) after a delay: while the cluster starts, while it runs; the exit code and the stderr lines."""
+    (folder / "cam.json").write_text(json.dumps(_CAMERA))
+    out = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        for delay in (3.0, 6.0, 20.0):
+            study = folder / f"mc-{sig.name}-{delay:g}"
+            cmd = [sys.executable, "-m", "jaxlimb.cli", "montecarlo", "--pipeline", "--workers", "2", "--n", "2000",
+                   "--out", str(study), "--camera", str(folder / "cam.json"), "--range-km", "20000"]
+            p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(),
+                                 start_new_session=True)
+            time.sleep(delay)
+            os.killpg(p.pid, sig)
+            _, err = p.communicate(timeout=300)
+            lines = [ln for ln in err.replace("\r", "\n").splitlines() if ln.strip() and "%|" not in ln]
+            out[f"{sig.name}@{delay:g}s"] = {"exit": p.returncode, "stderr_lines": len(lines), "first": lines[:2]}
+            print(sig.name, delay, out[f"{sig.name}@{delay:g}s"], flush=True)
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--only", choices=("bombs", "cache", "mesh"), default=None)
+    ap.add_argument("--only", choices=("bombs", "cache", "mesh", "signals"), default=None)
     args = ap.parse_args()
     res: dict = {"environment": environment(), "load_before": os.getloadavg()}
     with tempfile.TemporaryDirectory() as tmp:
-        for name, fn in (("bombs", bombs), ("cache", cache), ("mesh", mesh)):
+        for name, fn in (("bombs", bombs), ("cache", cache), ("mesh", mesh), ("signals", signals)):
             if args.only in (None, name):
                 (Path(tmp) / name).mkdir()
                 res[name] = fn(Path(tmp) / name)

@@ -53,7 +53,7 @@ _TABLE_EXT = {".tab", ".txt", ".dat"}
 #: costs memory and time (decimate it first).
 MAX_FACES = 1_000_000
 #: Memory per face while a mesh is read, validated and its templates built: about twice the peak measured
-#: (560-620 B/face for phobos.obj and a 327 680-face sphere: ``python benchmarks/faults.py --only mesh``).
+#: (564-622 B/face for phobos.obj and a 327 680-face sphere: ``python benchmarks/faults.py --only mesh``).
 BYTES_PER_FACE = 1024
 
 
