@@ -61,7 +61,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     from ._batch import add_batch_arguments
 
     add_batch_arguments(p)
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, precheck=_precheck)
+
+
+def _precheck(args: argparse.Namespace) -> None:
+    """One frame: the size its header declares, checked before JAX starts (a bomb is refused in milliseconds)."""
+    from .._image_bounds import check_file
+
+    if len(args.image) == 1 and not args.image[0].startswith("@") and args.out is None:
+        check_file(args.image[0])
 
 
 def _unresolved_glow(text: str):

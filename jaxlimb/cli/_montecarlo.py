@@ -8,7 +8,7 @@ from .._validate import Range, arg_number
 
 #: Argument ranges (exit 2 outside them); memory is estimated before allocating too.
 RANGES = {"radius": Range(5.0, 5000.0), "sigma": Range(0.0, 1e6, lo_open=True), "n": Range(2, 10_000_000),
-          "seed": Range(0, 2**32 - 1), "k": Range(0.0, 1e3, lo_open=True), "annulus": Range(0.0, 1000.0, lo_open=True),
+          "seed": Range(0, 2**32 - 1), "k": Range(0.0, 1e3, lo_open=True), "annulus": Range(0.5, 1000.0),
           "batch": Range(1, 100_000), "range_km": Range(2000.0, 1e9), "phase_deg": Range(0.0, 170.0),
           "workers": Range(1, 1024), "devices": Range(1, 256)}
 
@@ -35,7 +35,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--solver", choices=sorted(SOLVER_NAMES), default="lm")
     p.add_argument("--seed", type=_num("seed", True), default=0)
     p.add_argument("--k", type=_num("k"), default=3.0, help="sigmoid steepness (default 3)")
-    p.add_argument("--annulus", type=_num("annulus"), default=6.0, help="half-width of the pixel band, px (default 6)")
+    p.add_argument("--annulus", type=_num("annulus"), default=6.0,
+                   help=f"half-width of the pixel band, px {RANGES['annulus']} (default 6; a narrower band holds no pixel "
+                   "of some rows)")
     p.add_argument("--fix", default="", help="comma-separated parameters held at truth, e.g. k,ymax,ymin")
     p.add_argument("--batch", type=_num("batch", True), default=None,
                    help="realisations per compiled batch / per task (default 250; --pipeline: about 16 tasks per worker; --resume: the study's own)")
@@ -102,6 +104,13 @@ def _check_out(args: argparse.Namespace) -> None:
         raise ConfigError(f"--out {args.out!r} is a non-empty directory without a study; choose a new or empty directory")
 
 
+def _batch_size(args: argparse.Namespace) -> int:
+    """``--batch`` (default 250), at most ``--n`` for a new study: a batch is compiled for its full width, so a
+    wider one only fits padding (``--n 2 --batch 100000`` would fit 100 000 members); a resumed study keeps its own."""
+    batch = 250 if args.batch is None else int(args.batch)
+    return batch if args.resume else min(batch, int(args.n))
+
+
 def run(args: argparse.Namespace) -> int:
     if args.pipeline:
         from ._mc_pipeline import run_pipeline
@@ -121,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
     size = int(max(400, 2 * args.radius + 100))
     opt = ModelStudyOptions(
         model=args.model, shape=(size, size), radius=args.radius, sigma=args.sigma, n=args.n, seed=args.seed,
-        k=args.k, annulus=args.annulus, batch=250 if args.batch is None else args.batch,
+        k=args.k, annulus=args.annulus, batch=_batch_size(args),
         fixed=tuple(s.strip() for s in args.fix.split(",") if s.strip()),
     )
     with warnings_to_stderr(ChunkRecomputedWarning):

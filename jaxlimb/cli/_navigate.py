@@ -33,7 +33,6 @@ epoch outside the ephemeris, missing ephemeris file, impossible geometry; exit 3
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from typing import Any
 
@@ -92,15 +91,12 @@ def parse_attitude(text: str) -> tuple[np.ndarray, str]:
     from ..errors import ConfigError
     from ..geometry.attitude import quat_to_dcm, validate_dcm
 
-    from .._io import read_json_file
+    from .._io import loads_strict, read_json_file
     from .._validate import real_array
 
     src = text.strip()
     if src.startswith("{") or src.startswith("["):
-        try:
-            obj = json.loads(src)
-        except json.JSONDecodeError as e:
-            raise ConfigError(f"--attitude is not valid JSON: {e.msg} at line {e.lineno}") from None
+        obj = loads_strict(src, "--attitude")  # a key twice, absurd nesting or digits: ConfigError
     else:
         obj = read_json_file(src, "--attitude file")
     order = "xyzw"

@@ -49,8 +49,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--noise", choices=("marginal", "known", "free"), default="marginal",
                    help="noise treatment: sigma marginalised (default), known (--sigma), or sampled")
     p.add_argument("--sigma", type=arg_number(POSITIVE), help="noise sd in DN for --noise known (> 0)")
-    p.add_argument("--walkers", type=arg_number(_WALKERS, integer=True), default=32,
-                   help=f"emcee walkers, even, {_WALKERS} (default 32)")
+    p.add_argument("--walkers", type=_even_walkers, default=32,
+                   help=f"emcee walkers: an even integer {_WALKERS} and at least twice the sampled parameters "
+                   "(the circle samples 6 with --noise marginal: 12; fewer with --fix); default 32")
     p.add_argument("--max-steps", type=arg_number(_STEPS, integer=True), default=20000,
                    help=f"stop unconverged after this many steps {_STEPS}")
     p.add_argument("--max-time", type=arg_number(_SECONDS), default=120.0,
@@ -59,6 +60,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--plot", metavar="OUT.png", help="save a corner plot")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)
+
+
+def _even_walkers(text: str) -> int:
+    """``--walkers``: an even integer in ``_WALKERS`` (argparse reports the failure, exit 2)."""
+    n = arg_number(_WALKERS, integer=True)(text)
+    if n % 2:
+        raise argparse.ArgumentTypeError(f"must be an even integer {_WALKERS}, got {text!r}")
+    return n
 
 
 def _load(path: str):  # noqa: ANN202

@@ -114,6 +114,7 @@ def loaded_kernels(kernels) -> Iterator[list[Path]]:
     done: list[str] = []
     try:
         for p in paths:
+            _check_kernel(sp, p)
             try:
                 sp.furnsh(str(p))
             except sp.utils.exceptions.SpiceyError as e:
@@ -124,6 +125,25 @@ def loaded_kernels(kernels) -> Iterator[list[Path]]:
         for p in reversed(done):
             with contextlib.suppress(Exception):
                 sp.unload(p)
+
+
+def _check_kernel(sp, p: Path) -> None:  # noqa: ANN001
+    """A file SPICE would accept and then ignore is refused: a kernel is a binary DAF/DAS file, or a text
+    kernel (meta-kernel included) with a ``\\begindata`` section -- CSPICE ``furnsh`` "loads" any other file
+    (a text note, a PNG) as a text kernel with nothing in it."""
+    try:
+        arch, _ = sp.getfat(str(p))
+    except sp.utils.exceptions.SpiceyError as e:
+        raise SpiceError(f"cannot read SPICE kernel {str(p)!r}: {_short(e)}") from None
+    if arch in ("DAF", "DAS"):
+        return
+    try:
+        text = p.read_bytes()
+    except OSError as e:
+        raise SpiceError(f"cannot read SPICE kernel {str(p)!r}: {e.strerror or e}") from None
+    if b"\0" in text[:4096] or b"\\begindata" not in text:
+        raise SpiceError(f"{str(p)!r} is not a SPICE kernel: neither a binary DAF/DAS kernel nor a text kernel "
+                         "with a \\begindata section (nothing would be loaded from it)")
 
 
 def _short(e: Exception) -> str:
