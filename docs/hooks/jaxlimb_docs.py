@@ -1,0 +1,166 @@
+"""MkDocs hooks of the jaxlimb site.
+
+* ``<!-- cli-reference -->`` in a page becomes the reference of every ``jaxlimb`` sub-command, generated from
+  the argparse parser the command itself uses (:func:`jaxlimb.cli.build_parser`), so the page cannot drift
+  from ``--help``.
+* ``<!-- results: NAME ARG... -->`` becomes a table read from ``benchmarks/results/`` (``results_tables.py``).
+* The notebooks of ``notebooks/`` are pages under ``notebooks/``.  They are committed without outputs; set
+  ``JAXLIMB_DOCS_EXECUTED=DIR`` to render executed copies from ``DIR/notebooks/`` instead (``make docs``
+  executes them with nbconvert into ``build/docs-executed/notebooks/`` first).
+* ``design.md``, ``guarantees.md`` and ``track.md`` are optional while they are written: a missing one leaves
+  the navigation, and links to it become plain text.  Every other missing page or link fails the build.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import logging
+import os
+import re
+import sys
+from pathlib import Path
+
+from mkdocs.exceptions import PluginError
+from mkdocs.plugins import event_priority
+from mkdocs.structure.files import File
+
+ROOT = Path(__file__).resolve().parents[2]
+NOTEBOOKS = ROOT / "notebooks"
+OPTIONAL_PAGES = ("design.md", "guarantees.md", "track.md")
+log = logging.getLogger("mkdocs.hooks.jaxlimb")
+
+_spec = importlib.util.spec_from_file_location("jaxlimb_results_tables", Path(__file__).with_name("results_tables.py"))
+results_tables = importlib.util.module_from_spec(_spec)
+sys.modules[_spec.name] = results_tables
+_spec.loader.exec_module(results_tables)
+
+
+# ----------------------------------------------------------------------------------------- pages others write
+def _missing_optional(config) -> set[str]:
+    docs = Path(config["docs_dir"])
+    return {p for p in OPTIONAL_PAGES if not (docs / p).is_file()}
+
+
+def _prune(nav, missing: set[str]):
+    out = []
+    for item in nav:
+        if isinstance(item, dict):
+            (title, value), = item.items()
+            if isinstance(value, list):
+                out.append({title: _prune(value, missing)})
+            elif value not in missing:
+                out.append(item)
+        elif item not in missing:
+            out.append(item)
+    return out
+
+
+def on_config(config):
+    missing = _missing_optional(config)
+    if missing:
+        log.info("pages not written yet, left out of the navigation: %s", ", ".join(sorted(missing)))
+        config["nav"] = _prune(config["nav"], missing)
+    return config
+
+
+# ----------------------------------------------------------------------------------------- notebooks
+@event_priority(100)  # before mkdocs-jupyter turns .ipynb files into pages
+def on_files(files, config):
+    executed = os.environ.get("JAXLIMB_DOCS_EXECUTED")
+    root = Path(executed).resolve() if executed else ROOT  # holds notebooks/NAME.ipynb
+    for nb in sorted(NOTEBOOKS.glob("*.ipynb")):
+        if not (root / "notebooks" / nb.name).is_file():
+            raise PluginError(f"JAXLIMB_DOCS_EXECUTED={executed}: notebooks/{nb.name} is missing (run `make docs`)")
+        files.append(File(f"notebooks/{nb.name}", str(root), config["site_dir"], config["use_directory_urls"]))
+    return files
+
+
+# ----------------------------------------------------------------------------------------- page markdown
+_RESULTS = re.compile(r"<!--\s*results:\s*(\w+)((?:\s+[^\s>]+)*)\s*-->")
+_OPTIONAL_LINK = re.compile(r"\[([^\]]+)\]\((?:\.\./)*(" + "|".join(map(re.escape, OPTIONAL_PAGES)) + r")(#[^)]*)?\)")
+
+
+def on_page_markdown(markdown, page, config, files):
+    if "<!-- cli-reference -->" in markdown:
+        markdown = markdown.replace("<!-- cli-reference -->", cli_reference())
+
+    def _table(m: re.Match) -> str:
+        name, args = m.group(1), m.group(2).split()
+        try:
+            return results_tables.render(name, args)
+        except KeyError:
+            raise PluginError(f"{page.file.src_uri}: unknown results table {name!r}; known: {results_tables.names()}")
+        except FileNotFoundError as e:
+            raise PluginError(f"{page.file.src_uri}: {e}") from None
+
+    markdown = _RESULTS.sub(_table, markdown)
+    missing = _missing_optional(config)
+    if missing:
+        markdown = _OPTIONAL_LINK.sub(lambda m: m.group(1) if m.group(2) in missing else m.group(0), markdown)
+    return markdown
+
+
+# ----------------------------------------------------------------------------------------- CLI reference
+def _escape(text: str) -> str:
+    text = " ".join(str(text).split())
+    return text.replace("|", "\\|").replace("<", "&lt;").replace(">", "&gt;").replace("*", "\\*")
+
+
+def _subcommands(parser: argparse.ArgumentParser) -> list[tuple[str, argparse.ArgumentParser, str]]:
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            helps = {a.dest: a.help for a in action._choices_actions}
+            return [(name, p, helps.get(name) or "") for name, p in action.choices.items()]
+    return []
+
+
+def _option_rows(parser: argparse.ArgumentParser) -> list[list[str]]:
+    fmt = parser._get_formatter()
+    rows = []
+    for a in parser._actions:
+        if isinstance(a, (argparse._HelpAction, argparse._SubParsersAction)):
+            continue
+        if a.option_strings:
+            metavar = "" if a.nargs == 0 else " " + fmt._format_args(a, a.dest.upper())
+            names = ", ".join(f"`{o}{metavar}`" for o in a.option_strings)
+        else:
+            names = f"`{fmt._format_args(a, a.dest)}`"
+        help_ = fmt._expand_help(a) if a.help and a.help != argparse.SUPPRESS else ""
+        if a.choices is not None and not isinstance(a, argparse._SubParsersAction):
+            help_ += f" (one of: {', '.join(map(str, a.choices))})" if "{" not in names else ""
+        rows.append([names, _escape(help_) or "–"])
+    return rows
+
+
+def _command_md(path: str, parser: argparse.ArgumentParser, summary: str, level: int) -> list[str]:
+    parser.formatter_class = lambda prog: argparse.HelpFormatter(prog, width=100)
+    out = [f"{'#' * level} `{path}`", ""]
+    if parser.description:
+        out += [_escape(parser.description), ""]
+    elif summary:
+        out += [_escape(summary[0].upper() + summary[1:]) + ".", ""]
+    out += ["```text", parser.format_usage().strip(), "```", ""]
+    rows = _option_rows(parser)
+    if rows:
+        out += ["| argument | meaning |", "|---|---|"] + [f"| {a} | {b} |" for a, b in rows] + [""]
+    subs = _subcommands(parser)
+    if subs:
+        out += ["| sub-command | what it does |", "|---|---|"]
+        out += [f"| [`{path} {n}`](#{_anchor(path + ' ' + n)}) | {_escape(h)} |" for n, _, h in subs] + [""]
+        for name, sub, help_ in subs:
+            out += _command_md(f"{path} {name}", sub, help_, level + 1)
+    return out
+
+
+def _anchor(title: str) -> str:
+    return re.sub(r"[^a-z0-9_\- ]", "", title.lower()).strip().replace(" ", "-")
+
+
+def cli_reference() -> str:
+    sys.path.insert(0, str(ROOT))
+    try:
+        from jaxlimb.cli import build_parser
+    finally:
+        sys.path.pop(0)
+    return "\n".join(_command_md("jaxlimb", build_parser(), "", 2))
