@@ -3,6 +3,8 @@
 * ``<!-- cli-reference -->`` in a page becomes the reference of every ``jaxlimb`` sub-command, generated from
   the argparse parser the command itself uses (:func:`jaxlimb.cli.build_parser`), so the page cannot drift
   from ``--help``.
+* ``<!-- api: jaxlimb.PACKAGE -->`` becomes the mkdocstrings directive for the package's public names: its
+  ``__all__``, else the names it re-exports (``from .mod import X as X``) and defines.
 * ``<!-- results: NAME ARG... -->`` becomes a table read from ``benchmarks/results/`` (``results_tables.py``).
 * The notebooks of ``notebooks/`` are pages under ``notebooks/``.  They are committed without outputs; set
   ``JAXLIMB_DOCS_EXECUTED=DIR`` to render executed copies from ``DIR/notebooks/`` instead (``make docs``
@@ -81,9 +83,13 @@ _RESULTS = re.compile(r"<!--\s*results:\s*(\w+)((?:\s+[^\s>]+)*)\s*-->")
 _OPTIONAL_LINK = re.compile(r"\[([^\]]+)\]\((?:\.\./)*(" + "|".join(map(re.escape, OPTIONAL_PAGES)) + r")(#[^)]*)?\)")
 
 
+_API = re.compile(r"<!--\s*api:\s*([\w.]+)\s*-->")
+
+
 def on_page_markdown(markdown, page, config, files):
     if "<!-- cli-reference -->" in markdown:
         markdown = markdown.replace("<!-- cli-reference -->", cli_reference())
+    markdown = _API.sub(lambda m: api_directive(m.group(1)), markdown)
 
     def _table(m: re.Match) -> str:
         name, args = m.group(1), m.group(2).split()
@@ -164,3 +170,39 @@ def cli_reference() -> str:
     finally:
         sys.path.pop(0)
     return "\n".join(_command_md("jaxlimb", build_parser(), "", 2))
+
+
+# ----------------------------------------------------------------------------------------- API pages
+def public_names(package: str) -> list[str]:
+    """The public names of ``package`` (read from its ``__init__.py``, not imported): ``__all__`` if it has
+    one, else its explicit re-exports ``from .mod import X as X`` and its own public definitions, in order."""
+    import ast
+
+    init = ROOT.joinpath(*package.split(".")) / "__init__.py"
+    tree = ast.parse(init.read_text())
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "__all__" for t in node.targets):
+            return list(ast.literal_eval(node.value))
+    names: list[str] = []
+    for node in tree.body:
+        if isinstance(node, ast.ImportFrom):
+            names += [a.asname for a in node.names if a.asname and a.asname == a.name]
+        elif isinstance(node, (ast.FunctionDef, ast.ClassDef)):
+            names.append(node.name)
+        elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
+            names.append(node.target.id)
+    return [n for n in dict.fromkeys(names) if not n.startswith("_")]
+
+
+def api_directive(package: str) -> str:
+    """The package's public names; a package that re-exports nothing gets one section per public module."""
+    names = public_names(package)
+    if names:
+        return f"::: {package}\n    options:\n      members: [{', '.join(names)}]\n"
+    pkg = ROOT.joinpath(*package.split("."))
+    modules = sorted(p.stem for p in pkg.glob("*.py") if not p.stem.startswith("_"))
+    if not modules:
+        raise PluginError(f"{package}: no public names or modules found for its API page")
+    out = [f"::: {package}\n    options:\n      members: false\n"]
+    out += [f"::: {package}.{m}\n    options:\n      heading_level: 2\n" for m in modules]
+    return "\n".join(out)
