@@ -9,6 +9,7 @@
 * The notebooks of ``notebooks/`` are pages under ``notebooks/``.  They are committed without outputs; set
   ``JAXLIMB_DOCS_EXECUTED=DIR`` to render executed copies from ``DIR/notebooks/`` instead (``make docs``
   executes them with nbconvert into ``build/docs-executed/notebooks/`` first).
+* The figures of ``benchmarks/results/*.png`` are served under ``results/``.
 * ``design.md``, ``guarantees.md`` and ``track.md`` are optional while they are written: a missing one leaves
   the navigation, and links to it become plain text.  Every other missing page or link fails the build.
 """
@@ -75,6 +76,9 @@ def on_files(files, config):
         if not (root / "notebooks" / nb.name).is_file():
             raise PluginError(f"JAXLIMB_DOCS_EXECUTED={executed}: notebooks/{nb.name} is missing (run `make docs`)")
         files.append(File(f"notebooks/{nb.name}", str(root), config["site_dir"], config["use_directory_urls"]))
+    bench = ROOT / "benchmarks"
+    for png in sorted((bench / "results").glob("*.png")):  # figures the validation pages show, not copied
+        files.append(File(f"results/{png.name}", str(bench), config["site_dir"], config["use_directory_urls"]))
     return files
 
 

@@ -51,7 +51,7 @@ def commit_of(d: dict) -> str:
 
 def source(rel: str, d: dict | None = None) -> str:
     sha = commit_of(d) if d is not None else None
-    at = f", recorded at commit `{sha}`" if sha else ""
+    at = "" if sha is None else ", commit not recorded" if sha == "not recorded" else f", recorded at commit `{sha}`"
     return f"\n*Source: `benchmarks/results/{rel}`{at}.*\n"
 
 
@@ -72,7 +72,7 @@ def g(x, digits: int = 2) -> str:
 
 
 def table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
-    out = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    out = ["| " + " | ".join(h.replace("|", "\\|") for h in header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     out += ["| " + " | ".join(str(c).replace("|", "\\|") for c in r) + " |" for r in rows]
     return "\n".join(out) + "\n"
 
@@ -176,9 +176,9 @@ def earth_targets(rel: str = "earth_targets.json") -> str:
 @renderer
 def horizon_vs_sigmoid(rel: str = "horizon_vs_sigmoid.json") -> str:
     d = load(rel)
-    rows = [[f"`{r['frame']}`", r["method"], f"{r['n_ok']}/{r['n_ok'] + r['n_fail']}", f(r["center_rms_px"]),
+    rows = [[f"`{r['frame']}`", r["arc"], r["method"], f"{r['n_ok']}/{r['n_ok'] + r['n_fail']}", f(r["center_rms_px"]),
              f(r["range_rms_pct"], 4), f(r.get("median_ms"), 1)] for r in d["rows"]]
-    head = ["frame", "method", "ok", "centre RMS (px)", "range RMS (%)", "median ms"]
+    head = ["frame", "arc", "method", "ok", "centre RMS (px)", "range RMS (%)", "median ms"]
     return table(head, rows) + source(rel, d) + f"*{d['runs_per_frame']} noise realisations per frame.*\n"
 
 
@@ -335,7 +335,7 @@ def solvers(rel: str = "solvers.json") -> str:
     p = d["problem"]
     note = (f"\n*Problem: {p['shape'][0]}×{p['shape'][1]} image, circular sigmoid, radius {p['radius']} px, "
             f"k = {p['k']}, σ = {p['sigma']} DN, {p['n_pixels']} pixels; load average {', '.join(map(str, d['loadavg']))}.*\n")
-    return d["table_md"].strip() + "\n" + note + source(rel, d)
+    return d["table_md"].strip().replace("|Δ|", "\\|Δ\\|") + "\n" + note + source(rel, d)
 
 
 @renderer
