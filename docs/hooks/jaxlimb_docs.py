@@ -111,6 +111,22 @@ def on_page_markdown(markdown, page, config, files):
     return markdown
 
 
+# ----------------------------------------------------------------------------------------- docstring roles
+_ROLE = re.compile(r":(?:func|class|data|mod|meth|attr|exc|obj|const):<code>~?([^<]*)</code>")
+_MATH = re.compile(r":math:<code>([^<]*)</code>")
+_ROLE_LITERAL = re.compile(r":(?:func|class|data|mod|meth|attr|exc|obj|const):`~?([^`]*)`")  # inside code spans
+
+
+def on_page_content(html, page, config, files):
+    """The docstrings are numpydoc with reStructuredText roles: ``:func:`x``` reads as ``x``, ``:math:`...``` is
+    typeset by MathJax."""
+    if not page.file.src_uri.startswith("api/"):
+        return html
+    html = _ROLE.sub(lambda m: f"<code>{m.group(1)}</code>", html)
+    html = _ROLE_LITERAL.sub(lambda m: m.group(1), html)
+    return _MATH.sub(lambda m: f'<span class="arithmatex">\\({m.group(1)}\\)</span>', html)
+
+
 # ----------------------------------------------------------------------------------------- CLI reference
 def _escape(text: str) -> str:
     text = " ".join(str(text).split())
@@ -199,11 +215,18 @@ def public_names(package: str) -> list[str]:
 
 
 def api_directive(package: str) -> str:
-    """The package's public names; a package that re-exports nothing gets one section per public module."""
+    """The package's public names; a package that re-exports nothing gets one section per public module.
+
+    A name that is also a submodule (``jaxlimb.fitting.fit``, the function, in ``fit.py``) would render as the
+    module: it gets its own directive at its defining path."""
     names = public_names(package)
-    if names:
-        return f"::: {package}\n    options:\n      members: [{', '.join(names)}]\n"
     pkg = ROOT.joinpath(*package.split("."))
+    if names:
+        shadowed = [n for n in names if (pkg / f"{n}.py").is_file() or (pkg / n / "__init__.py").is_file()]
+        plain = [n for n in names if n not in shadowed]
+        out = [f"::: {package}\n    options:\n      members: [{', '.join(plain)}]\n"]
+        out += [f"::: {package}.{n}.{n}\n    options:\n      heading_level: 3\n" for n in shadowed]
+        return "\n".join(out)
     modules = sorted(p.stem for p in pkg.glob("*.py") if not p.stem.startswith("_"))
     if not modules:
         raise PluginError(f"{package}: no public names or modules found for its API page")

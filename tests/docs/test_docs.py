@@ -41,7 +41,10 @@ def test_site_builds_strict(tmp_path):
         assert command in cli, f"the CLI reference lacks {command}"
     accuracy = (site / "validation" / "accuracy" / "index.html").read_text()
     assert "benchmarks/results/families_moon.json" in accuracy and "<table>" in accuracy
-    assert "jaxlimb.fitting.fit" in (site / "api" / "fitting" / "index.html").read_text()
+    api = (site / "api" / "fitting" / "index.html").read_text()
+    for name in ("jaxlimb.fitting.fit.fit", "jaxlimb.fitting.fit_batch", "jaxlimb.fitting.NormalLM"):
+        assert f'id="{name}"' in api, f"the API reference lacks {name}"
+    assert ":func:" not in api
     for nb in sorted((ROOT / "notebooks").glob("*.ipynb")):
         assert (site / "notebooks" / nb.stem / "index.html").is_file(), f"notebook {nb.name} is not a page"
 
