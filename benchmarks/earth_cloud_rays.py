@@ -1,4 +1,4 @@
-"""Per-ray limb estimators on cloudy Earths, measured against the true limb (issue 10, attitude known).
+"""Per-ray limb estimators on cloudy Earths, measured against the true limb (attitude known).
 
 Usage::
 

@@ -15,7 +15,7 @@ and the same frame + front end to the sigmoid routes:
 * ``ESF+ramp``: the same with the edge model of
   :func:`jaxlimb.pipeline.earth.ellipse_ramp_intensity` (Gaussian kernel, interior ramp, level
   varying along the limb);
-* ``profile`` (our default since issue 4): ``ESF+ramp``, then the same pixels refitted with the
+* ``profile`` (the default of ``locate``): ``ESF+ramp``, then the same pixels refitted with the
   physical lunar-Lambert limb profile (:data:`jaxlimb.pipeline.profile.LIMB_PROFILE`, ``L``
   estimated; ``LocateOptions(profile="auto")``), Earth only;
 * ``CSF`` (Moon only, whole limb): the Moon pipeline, :func:`jaxlimb.pipeline.locate.locate` with

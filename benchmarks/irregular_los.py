@@ -1,4 +1,4 @@
-"""Benchmark of the checked model-based line of sight of irregular bodies (issue 12).
+"""Benchmark of the checked model-based line of sight of irregular bodies.
 
 Independent renders (``jaxlimb.render.mesh``, Lommel-Seeliger, Gaussian noise
 ``--noise`` DN) of the shared meshes (Thebe, Eros; Phobos unless ``--quick``) and of

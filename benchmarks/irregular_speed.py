@@ -1,4 +1,4 @@
-"""Speed of ``jaxlimb los locate`` with the attitude unknown (issue 12: <= 3 s per call, process start included).
+"""Speed of ``jaxlimb los locate`` with the attitude unknown (target: <= 3 s per call, process start included).
 
 Frames of ``benchmarks/irregular_los.py`` (same renderer, camera and noise): Thebe
 and a generated contact binary at phase 30 deg and 3x / 10x the long axis, plus Phobos

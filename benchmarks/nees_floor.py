@@ -1,7 +1,7 @@
 """Mean NEES of the centre per family under candidate specification floors, from a results JSON of
 ``benchmarks/families.py`` (its ``ok`` records keep the reported 2x2 centre covariance ``cov_rc``).
 
-    python benchmarks/nees_floor.py benchmarks/results/families_earth_nofloor.json [--floors 0,0.005,0.0075,0.01]
+    python benchmarks/nees_floor.py benchmarks/results/families_earth.json [--floors 0,0.005,0.0075,0.01]
 
 Each covariance has its eigenvalues below ``floor^2`` raised to it, ``C + [floor^2 I - C]_+`` (as
 ``EllipsoidOptions.center_floor_px`` does to the ellipse centre), and the NEES ``e^T C^-1 e`` of the frame's centre error ``e`` is averaged per family.  Run it on

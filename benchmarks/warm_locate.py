@@ -1,4 +1,4 @@
-"""Warm ``locate`` per 1944x2592 Moon frame (issue 10's budget: the default path <= 150 ms after warm-up).
+"""Warm ``locate`` per 1944x2592 Moon frame (budget: the default path <= 150 ms after warm-up).
 
 Two frame sets, each timed in its own fresh process after one warm-up pass, CPU and wall time per frame:
 
