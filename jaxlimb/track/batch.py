@@ -183,11 +183,11 @@ class _Problem:
         return _whiteners(self.frames, X, np.broadcast_to(theta, self.frames.theta.shape))
 
     def fit(self, x_ref, theta, basis, W, max_steps):  # noqa: ANN001, ANN201
-        p, n = _solve(self.args(x_ref, theta, basis, W), 6 + basis.shape[1], max_steps)
+        p, n = _solve(self.args(x_ref, theta, basis, W), 10, max_steps)
         return x_ref + self.Dx * p[:6], theta + basis @ p[6:], n
 
     def jacobian(self, x_ref, theta, basis, W) -> np.ndarray:  # noqa: ANN001
-        return np.asarray(_jacobian(jnp.zeros(6 + basis.shape[1]), self.args(x_ref, theta, basis, W)))
+        return np.asarray(_jacobian(jnp.zeros(10), self.args(x_ref, theta, basis, W)))
 
 
 def fit_arc(frames: Frames, prop: Propagator, t0: float, x_guess, *, prior=None, calibrate: bool = False,
@@ -218,22 +218,24 @@ def fit_arc(frames: Frames, prop: Propagator, t0: float, x_guess, *, prior=None,
     ConvergenceError
         The optimiser did not converge.
     """
-    theta = np.asarray(frames.theta[0], float) if calibrate else np.asarray(frames.theta, float)
-    if calibrate and not np.all(frames.theta == theta):
+    theta = np.asarray(frames.theta, float)  # (n, 4) always: one compiled problem for every kind of fit
+    if calibrate and not np.all(frames.theta == theta[0]):
         raise ConfigError("self-calibration needs every frame to share one camera")
     gate = gate_threshold(gate_probability)
     pri = None if prior is None else (jnp.asarray(prior[0], float), jnp.asarray(np.linalg.inv(np.linalg.cholesky(prior[1]))))
     prob = _Problem(prop, frames, t0, np.ones(len(frames)) if use is None else np.asarray(use, float), pri)
-    x_ref, basis, obs = np.asarray(x_guess, float), np.zeros((4, 0)), None
+    # the camera moves along the columns of ``basis`` (4x4, zero columns: fixed directions); the problem
+    # always has 10 unknowns, so that the state-only and the calibrated fits share one compiled program
+    x_ref, basis, obs = np.asarray(x_guess, float), np.zeros((4, 4)), None
     for passes in range(1, max_passes + 1):
         W = prob.whiteners(x_ref, theta)
         x_ref, theta, n_steps = prob.fit(x_ref, theta, basis, W, max_steps)
         for _ in range(3 if calibrate else 0):  # the observable subspace at the solution, refit within it
-            S = np.diag(camera_scales(theta))
+            S = np.diag(camera_scales(theta[0]))
             J = prob.jacobian(x_ref, theta, S, W)
             obs = observability(J.T @ J, CAMERA_PARAMS, unobservable_sigma)
-            new = S @ obs.eigenvectors[:, obs.observable]
-            if new.shape == basis.shape and np.allclose(new, basis, atol=1e-6 * np.max(np.abs(S))):
+            new = S @ np.where(obs.observable[None, :], obs.eigenvectors, 0.0)
+            if np.allclose(new, basis, atol=1e-6 * np.max(np.abs(S))):
                 break
             basis = new
             x_ref, theta, n_steps = prob.fit(x_ref, theta, basis, W, max_steps)
@@ -254,13 +256,14 @@ def _frame_chi2(prop, frames, t0, x0, theta, W):  # noqa: ANN001, ANN202
 
 
 def _finish(prob, x0, theta, basis, W, obs, n_steps, passes, chi) -> ArcFit:  # noqa: ANN001
-    J = prob.jacobian(x0, theta, basis, W)
-    m = J.shape[1]
-    cov_p = np.linalg.inv(J.T @ J)
-    T = np.zeros((10, m))
+    live = np.concatenate([np.ones(6, bool), np.any(basis != 0, axis=0)])  # the unknowns that move
+    J = prob.jacobian(x0, theta, basis, W)[:, live]
+    T = np.zeros((10, 10))
     T[:6, :6] = np.diag(prob.Dx)
     T[6:, 6:] = basis
-    cov = T @ cov_p @ T.T
+    T = T[:, live]
+    cov = T @ np.linalg.inv(J.T @ J) @ T.T
+    m = 10
     used = prob.weights > 0
     res = np.asarray(_residuals(jnp.zeros(m), prob.args(x0, theta, basis, W)))[: 3 * len(prob.frames)].reshape(-1, 3)[used]
     th = np.asarray(theta).reshape(-1, 4)[0]

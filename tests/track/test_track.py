@@ -23,6 +23,8 @@ from jaxlimb.track import (
 )
 
 THETA = np.array([1000.0, 127.5, 127.5, 0.0])
+# compiling diffrax + jacfwd through it (filter, batch, self-calibration) dominates: ~1-2 min on 2 cores
+slow = pytest.mark.slow
 N = 24
 
 
@@ -42,6 +44,7 @@ def test_table_matches_the_ephemeris(setup):
     assert np.max(np.abs(arc.body_position("moon", np.array([t]))[0] - want)) < 1e-3
 
 
+@slow
 def test_stm_is_the_derivative_of_the_flow(setup):
     _, prop, tr = setup
     x = jnp.asarray(tr.x0)
@@ -54,12 +57,14 @@ def test_stm_is_the_derivative_of_the_flow(setup):
         np.testing.assert_allclose(np.asarray(Phi)[:, i], d, rtol=1e-6, atol=1e-9)
 
 
+@slow
 def test_transfer_reaches_its_flyby(setup):
     arc, _, tr = setup
     moon = arc.body_position("moon", tr.t[-1:])[0]
     assert abs(np.linalg.norm(tr.states[-1, :3] - moon) - 40_000.0) < 1.0
 
 
+@slow
 def test_filter_smoother_consistent_and_gate(setup):
     _, prop, tr = setup
     rng = np.random.default_rng(7)
@@ -75,6 +80,7 @@ def test_filter_smoother_consistent_and_gate(setup):
     assert np.all(np.sqrt(np.trace(res.P_smooth[:, :3, :3], axis1=1, axis2=2)) < np.sqrt(np.trace(P0[:3, :3])))
 
 
+@slow
 def test_batch_self_calibration_and_observability(setup):
     _, prop, tr = setup
     rng = np.random.default_rng(11)
