@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -40,6 +41,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import environment, save  # noqa: E402
 from track_render import THETA_NOMINAL, THETA_TRUE, camera, scenario  # noqa: E402
+
+DOCS_PLOT = Path(__file__).resolve().parents[1] / "docs" / "track_transfer.png"
 
 
 def load_records(cache: Path) -> dict[str, dict[int, dict]]:
@@ -168,6 +171,8 @@ def cli_speed(arc, tr, draw: dict[int, dict], keep) -> dict:  # noqa: ANN001
         p = subprocess.run(cmd, capture_output=True, text=True)
         wall = time.perf_counter() - t
         summary = json.loads(p.stdout.strip().splitlines()[-1]) if p.stdout.strip() else {"stderr": p.stderr[-500:]}
+        if (d / "t.png").exists():  # the picture of docs/track.md
+            shutil.copyfile(d / "t.png", DOCS_PLOT)
     return {"command": "jaxlimb track --frames F --camera C --measurements M --resume --out T --plot P --json",
             "exit": p.returncode, "wall_s": wall, "frames": len(keep), "summary": {k: v for k, v in summary.items()
                                                                                       if k not in ("observability",)}}
