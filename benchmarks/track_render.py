@@ -116,6 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--realizations", type=int, default=6)
     ap.add_argument("--seed", type=int, default=38)
     ap.add_argument("--first-frame", type=int, default=0, help="start at this frame (split a run over processes)")
+    ap.add_argument("--last-frame", type=int, default=None, help="stop before this frame")
     ap.add_argument("--draws", default=None, help="comma-separated subset of the draws (0.., nominal) to run")
     a = ap.parse_args(argv)
     a.cache.mkdir(parents=True, exist_ok=True)
@@ -129,7 +130,7 @@ def main(argv: list[str] | None = None) -> int:
         done = {json.loads(x)["frame"] for x in out.read_text().splitlines() if x.strip()} if out.exists() else set()
         t0 = time.time()
         with open(out, "a") as fh:
-            for k in range(a.first_frame, a.n_frames):
+            for k in range(a.first_frame, a.n_frames if a.last_frame is None else a.last_frame):
                 if k in done:
                     continue
                 rec = measure(arc, tr, k, render(arc, tr, k, a.cache), d, theta, a.seed)
