@@ -42,6 +42,7 @@ _COMMANDS = (
     "_demo",
     "_locate",
     "_navigate",
+    "_track",
     "_los",
     "_posterior",
     "_montecarlo",
