@@ -45,7 +45,10 @@ from typing import Any, Iterator, Sequence
 import numpy as np
 
 from ..errors import SpiceError
+from .bodies import body_radii_km
 from .camera import Camera
+from .ellipsoid import image_conic
+from .hints import Hints
 
 #: Camera-frame flip F (instrument frame -> jaxlimb camera frame), per SPICE instrument.
 _FLIP_ISS = ((-1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (0.0, 0.0, 1.0))
@@ -217,9 +220,7 @@ class SpiceGeometry:
     limb: Any = field(repr=False)
 
     def hints(self, *, radius_uncertainty_frac: float = 0.05):
-        """:class:`~jaxlimb.imaging.Hints` from the prediction: body, radii, range, Sun, orientation."""
-        from ..imaging import Hints
-
+        """:class:`~jaxlimb.geometry.hints.Hints` from the prediction: body, radii, range, Sun, orientation."""
         return Hints(
             body=self.target.lower(),
             body_radii_km=self.radii_km,
@@ -274,9 +275,6 @@ def predict_loaded(utc: str, instrument: Instrument, target: str) -> SpiceGeomet
     """:class:`SpiceGeometry` with the kernels already loaded (see :func:`spice_geometry`)."""
     import spiceypy as sp
 
-    from .bodies import body_radii_km
-    from .ellipsoid import image_conic
-
     et = _et(sp, utc)
     cam = camera_from_ik(instrument)
     frame, obs, tgt = instrument.spice_name, instrument.observer, str(target).upper()
@@ -289,7 +287,7 @@ def predict_loaded(utc: str, instrument: Instrument, target: str) -> SpiceGeomet
     sun_j, _ = _coverage(lambda: sp.spkpos("SUN", et - lt, "J2000", "CN+S", tgt), f"the Sun seen from {tgt}", utc)
     s = C @ np.asarray(sun_j, float)
     obs_j = -(C.T @ c_cam)  # the observer seen from the body along the apparent line of sight
-    radii = body_radii_km(tgt, use_spice=True)
+    radii = spice_body_radii(tgt) or body_radii_km(tgt)  # the kernels' PCK first, else the shipped table
     limb = image_conic(cam, radii, c_cam, Rb)
     rc = cam.project(c_cam)
     t3 = lambda v: tuple(float(x) for x in v)  # noqa: E731

@@ -43,8 +43,8 @@ from .io import (
     read_jp2_header as read_jp2_header,
     validate_image as validate_image,
 )
+from ..geometry.hints import Hints as Hints
 from .prior import (
-    Hints as Hints,
     Prior as Prior,
     PriorOptions as PriorOptions,
     Settings as Settings,

@@ -44,7 +44,7 @@ from typing import Any
 import equinox as eqx
 import numpy as np
 
-from ..analysis.crlb import numerical_jacobian
+from ..fitting.jacobian import numerical_jacobian
 from ..errors import ArcTooShortError, ConfigError, ConvergenceError, GeometryError, LimbInputError, RadiusInconsistentError, TooManyOutliersError
 from ..fitting import fit, solver_from_name
 from ..geometry.camera import Camera

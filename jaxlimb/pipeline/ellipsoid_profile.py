@@ -168,7 +168,7 @@ def floor_center_var(out: RefineResult, var: float) -> RefineResult:
     """``out`` with the covariance of its ellipse centre ``(r0, c0)`` raised to at least ``var`` (px^2) in every
     direction: ``C + [var I - C]_+`` (:func:`jaxlimb.analysis.model_error.with_model_error`; eigenvalues below ``var``
     lifted to it, eigenvectors kept; the other parameters untouched)."""
-    from ..analysis.model_error import with_model_error as widen
+    from ..fitting.model_error import with_model_error as widen
 
     free = list(out.fit.free)
     if var <= 0.0 or not all(n in free for n in ("r0", "c0")):

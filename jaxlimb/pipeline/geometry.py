@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ..analysis.crlb import numerical_jacobian
+from ..fitting.jacobian import numerical_jacobian
 from ..geometry.camera import Camera
 from .frame import Frame
 from .result import EllipseResult

@@ -33,8 +33,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..analysis.crlb import numerical_jacobian
-from ..analysis.model_error import cluster_robust_bias_reduced, cluster_robust_covariance
+from ..fitting.jacobian import numerical_jacobian
+from ..fitting.model_error import cluster_robust_bias_reduced, cluster_robust_covariance
 from ..errors import TooManyOutliersError
 from .earth import _band_signed
 from .refine import FitData

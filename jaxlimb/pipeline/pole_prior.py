@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from ..analysis.crlb import numerical_jacobian
+from ..fitting.jacobian import numerical_jacobian
 from ..geometry.camera import Camera
 from .earth import cone_eigen, image_ellipse_cone
 

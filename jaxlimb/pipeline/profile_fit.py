@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..analysis.model_error import sector_groups
+from ..fitting.model_error import sector_groups
 from ..errors import ConfigError, ConvergenceError
 from ..fitting import NormalLM
 from ..imaging import sun_direction_image
@@ -683,7 +683,7 @@ def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS, mod
     brightening: 0.3-0.4 px for a reported 0.02 px) leaves no sector structure; the split witness sees
     it (the sky-side fit moves 0.2-0.25 px of the 0.3-0.4 px).  ``system``: ``rr``'s :func:`_weighted_system` under
     ``model``, if already formed."""
-    from ..analysis.model_error import cluster_robust_covariance, sector_groups, with_model_error as widen
+    from ..fitting.model_error import cluster_robust_covariance, sector_groups, with_model_error as widen
 
     model = profile_model(rr.fit.params) if model is None else model
     fit = rr.fit
@@ -726,7 +726,7 @@ def split_witness(rr: RefineResult, J: np.ndarray, r: np.ndarray, s: np.ndarray)
 
     Measured (``benchmarks/families.py`` Minnaert frames, centre errors 0.03 / 0.41 / 0.34 px): the sky-side
     fit moves by 0.028 / 0.32 / 0.26 px toward the truth; own-family frames move by 0.00-0.04 px."""
-    from ..analysis.model_error import hausman_term
+    from ..fitting.model_error import hausman_term
 
     fit = rr.fit
     free = list(fit.free)

@@ -163,7 +163,7 @@ def sphere_jacobian(focal_px: float, principal_point_rc, ellipse_center_rc, a_px
     body centre and the equivalent radius.  Step 1e-4 px: the map is smooth on the px scale,
     so the truncation error (~1e-8 relative) is far below the statistical errors.
     """
-    from ..analysis.crlb import numerical_jacobian
+    from ..fitting.jacobian import numerical_jacobian
 
     def out(x: np.ndarray) -> np.ndarray:
         s = sphere_from_ellipse_center(focal_px, principal_point_rc, (x[0], x[1]), x[2])
