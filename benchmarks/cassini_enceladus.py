@@ -56,7 +56,7 @@ def _one(name: str):
         "edges_from_predicted_limb": _edge_offsets(fr, _shapes(g, m)[1]),
         "ck": _ck_probe(fr, g),
         "with_iau2015_radii": _iau_shape(fr, g),
-        "extras": {k: m.extras[k] for k in ("edge_fit", "angular_bins", "sigma_center_pixel_independent_px",
+        "extras": {k: m.extras.get(k) for k in ("edge_fit", "angular_bins", "sigma_center_pixel_independent_px",
                                              "sigma_center_cluster_robust_px", "scale_vs_predicted", "polarity_split")},
     }
     return fr, g, m, res

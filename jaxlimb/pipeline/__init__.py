@@ -52,10 +52,10 @@ from ..models import (
     LimbProfileParams as LimbProfileParams,
     limb_profile_intensity as limb_profile_intensity,
 )
-from .profile import sphere_from_circle_fit as sphere_from_circle_fit
+from ..geometry.sphere_image import sphere_from_circle_fit as sphere_from_circle_fit
 from .sun_profile import SunLimbFit as SunLimbFit, fit_limb_darkened as fit_limb_darkened
 from .result import EllipseResult as EllipseResult, LimbMeasurement as LimbMeasurement
-from .sphere import SphereImage as SphereImage, sphere_from_ellipse_center as sphere_from_ellipse_center
+from ..geometry.sphere_image import SphereImage as SphereImage, sphere_from_ellipse_center as sphere_from_ellipse_center
 
 __all__ = [
     "LIMB_DARKENED",

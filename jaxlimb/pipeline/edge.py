@@ -10,12 +10,12 @@ of the fit) is in :func:`limb_pixels`; the fits that follow only use the pixels 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from ..errors import ArcTooShortError
+from .stages import EdgeFit, LimbPixels
 from .checks import (
     MIN_LIT_ARC_DEG,
     MIN_LIT_ARC_PROFILE_DEG,
@@ -40,49 +40,6 @@ from .refine import (
 
 #: Widen the annulus when it is narrower than this many Gaussian-equivalent edge sigmas.
 EDGE_SIGMAS = 4.5
-
-
-@dataclass(frozen=True)
-class LimbPixels:
-    """The pixels of the lit limb: the annulus and the lit-side window it was cut with.
-
-    ``direction`` (unit ``(d_row, d_col)`` toward the lit side, ``None``: all round) and ``half``
-    (rad) the window; ``phase`` (rad) the phase angle used (``None``: unknown); ``dr`` the annulus
-    half-width (px); ``min_arc_deg`` the shortest lit arc accepted; ``dr_max`` the widest half-width the
-    edge fit may widen it to; ``shift`` (px) how far the annulus' middle lies outside the circle (a thin
-    crescent's band: :func:`crescent_halfwidth`, :func:`limb_pixels`).
-    """
-
-    sel: AnnulusSelection
-    dr: float
-    direction: tuple[float, float] | None
-    half: float
-    phase: float | None
-    min_arc_deg: float
-    dr_max: float = math.inf
-    shift: float = 0.0
-
-
-@dataclass(frozen=True)
-class EdgeFit:
-    """The edge fit of a round limb: the circular sigmoid on the final annulus, and how it was reached."""
-
-    circ: RefineResult
-    pixels: LimbPixels
-    widened: bool
-    recentered: bool
-    arc_deg: float
-    jump_px: float = 0.0
-    jump_limit_px: float = 0.0
-
-    @property
-    def center_rc(self) -> tuple[float, float]:
-        p = self.circ.fit.params
-        return (float(p.r0), float(p.c0))
-
-    @property
-    def radius(self) -> float:
-        return float(self.circ.fit.params.radius)
 
 
 #: Narrowest annulus half-width (px) for a thin crescent: +-3 px cover +-2.5 sigma of a 1.2 px Gaussian PSF.
@@ -277,4 +234,4 @@ def edge_report(frame: Frame, cand: Any, edge: EdgeFit) -> dict[str, Any]:
     }
 
 
-__all__ = ["EDGE_SIGMAS", "check_front_end_arc", "edge_report", "EdgeFit", "LimbPixels", "check_edge", "edge_fit", "limb_pixels", "lit_window"]
+__all__ = ["EDGE_SIGMAS", "check_front_end_arc", "edge_report", "check_edge", "edge_fit", "limb_pixels", "lit_window"]

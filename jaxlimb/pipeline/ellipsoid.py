@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, ClassVar, final
 
 import equinox as eqx
 import numpy as np
@@ -62,56 +62,15 @@ from .earth import (
     unsigned_offset_cov,
 )
 from .ellipsoid_profile import fit_profile_ellipsoid, floor_center_var
-from .frame import Frame, candidates, min_diameter_px
-from .geometry import BodyCenter
-from .refine import FitData, RefineResult
+from .frame import candidates, min_diameter_px
+from .report import check_physical
+from .stages import Body, BodyCenter, Covariance, EllipsePixels, EllipsoidEdge, FitData, Frame, Levels, RefineResult
 from .result import EllipseResult, LimbMeasurement
 
 
+@final
 @dataclass(frozen=True)
-class EllipsePixels:
-    """The start of the ellipsoid's edge fit: position prior, lit window and initial ellipse."""
-
-    p0: np.ndarray
-    range_prior_km: float
-    lit_dir: tuple[float, float] | None
-    half: float
-    ellipse: tuple
-    trace: Any = None
-    ray_fit: bool = False
-
-    @property
-    def patchy(self) -> bool:
-        """An albedo-patchy lit limb (:meth:`~jaxlimb.pipeline.limb_trace.TracedLimb.patchy`): the band is then
-        level-normalised per ray and the edge is a plain step (no ramp, no profile refit)."""
-        return self.trace is not None and self.trace.patchy()
-
-
-@dataclass(frozen=True)
-class EllipsoidEdge:
-    """The ellipsoid's edge fit: the last fit, its pixels, ellipse ``((r0, c0), (a, b), theta)``, position; on a
-    patchy limb also the other estimate's ``(r0, c0, a)`` (``witness``, :func:`_patchy_geometry`) and whether the
-    band fit converged."""
-
-    final: RefineResult
-    pixels: EllipsePixels
-    fitted: tuple
-    p: np.ndarray
-    history: list
-    jump_px: float
-    jump_limit_px: float
-    witness: tuple | None = None
-    band_converged: bool = True
-    shading_shift: tuple | None = None
-    asymmetry: tuple | None = None
-
-    @property
-    def n_steps(self) -> int:
-        return int(sum(h["fit_steps"] for h in self.history))
-
-
-@dataclass(frozen=True)
-class Ellipsoid:
+class Ellipsoid(Body[EllipsePixels, EllipsoidEdge]):
     """The ellipsoid strategy (module docstring)."""
 
     eo: EllipsoidOptions
@@ -120,7 +79,7 @@ class Ellipsoid:
     atmosphere_km: float
     R: np.ndarray | None
     free: bool
-    name: str = "ellipsoid"
+    name: ClassVar[str] = "ellipsoid"
 
     @classmethod
     def for_frame(cls, frame: Frame) -> "Ellipsoid":
@@ -256,8 +215,11 @@ class Ellipsoid:
         variance floored at ``EllipsoidOptions.center_floor_px``."""
         return floor_center_var(fit_profile_ellipsoid(self, frame, edge, extras), self.eo.center_floor_px ** 2)
 
-    def body_center(self, frame: Frame, final: RefineResult) -> BodyCenter:
+    def body_center(self, frame: Frame, edge: EllipsoidEdge, final: RefineResult) -> BodyCenter:
         return ellipsoid_center(self, frame, final)
+
+    def check(self, frame: Frame, levels: Levels, cov: Covariance) -> None:
+        check_physical(frame, levels, cov, self.name)
 
     def iterations(self, edge: EllipsoidEdge, final: RefineResult) -> int:
         # the edge fit with its model-error term is the same fit (same data), the profile a second one
@@ -763,4 +725,4 @@ def frame_position_start(final: RefineResult, body: Ellipsoid, cam: Camera, fitt
     return position(free, cam, fitted, np.zeros(3))[0]
 
 
-__all__ = ["Ellipsoid", "EllipsoidEdge", "EllipsePixels", "ellipsoid_center", "position"]
+__all__ = ["Ellipsoid", "ellipsoid_center", "position"]

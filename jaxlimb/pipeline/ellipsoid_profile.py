@@ -27,7 +27,7 @@ from .frame import Frame
 from .profile import l_band
 from ..models.lunar_lambert import profile_model
 from .profile_fit import _weighted_system, gaussian_sigma_of_k, profile_sun_direction, with_model_error
-from .refine import FitData, RefineResult, _pad_bucket
+from .refine import FitData, RefineResult, pad_bucket
 
 if TYPE_CHECKING:  # pragma: no cover
     from .ellipsoid import Ellipsoid, EllipsoidEdge
@@ -97,7 +97,7 @@ def _passes(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", fd: FitData,
     fixed = tuple(n for n in PROFILE_FIXED if not (n == "L" and frame.opt.lunar_lambert_L is None))
     if body.free:
         fixed = tuple(n for n in fixed if n not in ("theta", "rho"))
-    data = _pad_bucket(fd)
+    data = pad_bucket(fd)
     q, p, hist, res = _start(body, frame, edge, fd.coords, fd.z), edge.p, [], None
     for i in range(body.eo.max_refits):
         res, q = _one_fit(frame, data, q, fixed, i)
@@ -295,7 +295,7 @@ def _widened_fit(frame: Frame, rr: RefineResult, model: Any, start: Any, fixed: 
     chosen solver or ``NormalLM(atol=1e-7)``; not raising (the caller checks convergence)."""
     solver = None if frame.opt.solver == "lm" else solver_from_name(frame.opt.solver)
     solver = NormalLM(rtol=0.0, atol=1e-7) if solver is None else solver
-    coords, zz, w = _pad_bucket(rr.data)
+    coords, zz, w = pad_bucket(rr.data)
     return fit(model, coords, zz, start, solver, fixed=fixed, weights=w, throw=False)
 
 

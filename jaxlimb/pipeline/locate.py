@@ -38,9 +38,9 @@ from ..geometry.camera import Camera
 from ..imaging import Hints
 from .bodies import body_strategy
 from .edge import InitialCircleOffError
-from .frame import arc_only, limb_predicted, other_candidates, prepare
+from .frame import other_candidates, prepare
 from .options import LocateOptions
-from .report import check_physical, covariance, levels, measurement
+from .report import covariance, levels, measurement
 from .result import LimbMeasurement
 
 
@@ -70,9 +70,8 @@ def locate(
         Validity mask (``True`` = measured pixel; :class:`jaxlimb.imaging.formats.Frame`); masked
         pixels are neither limb nor background.  With a camera and hints that predict the limb of a
         sphere (``expected_center_rc``, ``range_prior_km``, radii: SPICE), the whole limb, lit and
-        dark, is measured by :func:`jaxlimb.pipeline.whole_limb.locate_whole_limb` instead of the
-        stages below; a sphere whose expected disc exceeds the frame (camera, range, radius) is
-        measured on its visible arc by :func:`jaxlimb.pipeline.whole_limb.locate_arc`.
+        dark, is measured (:mod:`jaxlimb.pipeline.predicted_limb`); so is the visible arc of a sphere whose
+        expected disc exceeds the frame (camera, range, radius).
 
     Returns
     -------
@@ -92,15 +91,6 @@ def locate(
     """
     frame = prepare(image, camera, hints, options, mask)
     body = body_strategy(frame)
-    if body.name == "sphere" and limb_predicted(frame):
-        from .whole_limb import locate_whole_limb
-
-        return locate_whole_limb(frame.img, frame.cam, frame.hints, frame.opt, mask=mask)
-    if body.name == "sphere" and arc_only(frame):
-        # close approach: the disc exceeds the frame; the visible arc is measured (too_big only without one)
-        from .whole_limb import locate_arc
-
-        return locate_arc(frame.img, frame.cam, frame.hints, frame.opt, mask=mask)
     frame = body.prepare(frame)
     cand = body.candidates(frame)
     try:
@@ -137,11 +127,11 @@ def _measure(frame, body, cand) -> LimbMeasurement:
     extras = body.report(frame, cand, edge)
     final = body.refit(frame, cand, edge, extras)
     frame.mark("profile")
-    geo = body.body_center(frame, final)
+    geo = body.body_center(frame, edge, final)
     cov = covariance(final, geo)
     frame.mark("body_center")
     lev = levels(final)
-    check_physical(frame, lev, cov, body.name)
+    body.check(frame, lev, cov)
     return body.finish(frame, measurement(frame, cand, final, geo, cov, lev, extras, body.iterations(edge, final)))
 
 

@@ -17,14 +17,15 @@ from ..fitting.model_error import sector_groups
 from ..errors import ConfigError, ConvergenceError
 from ..fitting import NormalLM
 from ..imaging import sun_direction_image
-from ..models import (LIMB_PROFILE, LIMB_PROFILE_MINNAERT, PROFILE_FIXED, LimbModel, LimbProfileParams,
+from ..models import (LIMB_PROFILE, LIMB_PROFILE_MINNAERT, PROFILE_FIXED, CircleParams, LimbModel, LimbProfileParams,
                       MinnaertProfileParams, lunar_lambert_weight)
 from ..models.lunar_lambert import (LIMB_PROFILE_GLOW, AnisoProfileParams, GlowProfileParams, brightening_column, glow_column,
                                     limb_geometry, profile_model)
 from .frame import Frame
-from .profile import l_band, sphere_from_circle_fit
-from .refine import LOGISTIC_TO_GAUSS, FitData, RefineResult, _run, predict
-from .sphere import sphere_from_ellipse_center
+from .profile import l_band
+from ..geometry.sphere_image import sphere_from_circle_fit
+from .refine import LOGISTIC_TO_GAUSS, FitData, RefineResult, run_fit, predict
+from ..geometry.sphere_image import sphere_from_ellipse_center
 
 
 def saturation_level(img: np.ndarray) -> float | None:
@@ -66,17 +67,18 @@ def profile_sun_direction(sun_dir_camera, camera=None, center_rc=None) -> tuple[
     return (1.0, 0.0) if sun_rc is None else sun_rc
 
 
-def profile_start(frame: Frame, circ: RefineResult, center) -> LimbProfileParams:
-    """The profile's start: the CSF circle and levels, the PSF from its ``k``, the Sun from the hints."""
-    p = circ.fit.params
+def profile_start(frame: Frame, circle: CircleParams, data: FitData, center) -> LimbProfileParams:
+    """The profile's start: the CSF ``circle`` and its levels (``data``: the CSF's, maybe level-normalised), the PSF
+    from its ``k``, the Sun from the hints."""
+    p = circle
     h = frame.hints
     assert h is not None and h.sun_dir_camera is not None
     phase = frame.phase((float(p.r0), float(p.c0)))
     sun_rc = profile_sun_direction(h.sun_dir_camera, frame.cam, (float(p.r0), float(p.c0)) if frame.cam is not None
                                    else None)
-    normalised = circ.data.weights is not None
-    scale = float(circ.data.scale) if normalised else float(p.ymax) - float(p.ymin)
-    offset = float(circ.data.offset) if normalised else float(p.ymin)
+    normalised = data.weights is not None
+    scale = float(data.scale) if normalised else float(p.ymax) - float(p.ymin)
+    offset = float(data.offset) if normalised else float(p.ymin)
     L = frame.opt.lunar_lambert_L
     return LimbProfileParams(r0=center[0], c0=center[1], a=float(p.radius), theta=0.0, rho=1.0,
                              sigma=gaussian_sigma_of_k(float(p.k)), amp=max(scale, 1e-6), ymin=offset, sun_r=sun_rc[0],
@@ -84,22 +86,23 @@ def profile_start(frame: Frame, circ: RefineResult, center) -> LimbProfileParams
                              L=lunar_lambert_weight(phase) if L is None else float(L))
 
 
-def fit_lunar_profile(frame: Frame, circ: RefineResult, sat: float | None = None) -> tuple[RefineResult, int]:
-    """Refit the pixels of the CSF with the physical lunar-Lambert limb profile.
+def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: float | None = None
+                      ) -> tuple[RefineResult, int]:
+    """Refit the pixels of the CSF (``circle`` fitted to ``data``) with the physical lunar-Lambert limb profile.
 
     ``sat``: the image's clip level (:func:`saturation_level`), if any.  Returns the
-    :class:`~jaxlimb.pipeline.refine.RefineResult` and the number of clipped pixels left out."""
+    :class:`~jaxlimb.pipeline.stages.RefineResult` and the number of clipped pixels left out."""
     h, opt = frame.hints, frame.opt
     if h is None or h.sun_dir_camera is None:
         raise ConfigError("LocateOptions.profile = 'lunar-lambert' needs the Sun direction (hints `sun_dir_camera`)")
-    p = circ.fit.params
-    coords = circ.coords
+    p = circle
+    coords = data.coords
     z = frame.img[coords[:, 0].astype(np.int64), coords[:, 1].astype(np.int64)].astype(np.float64)
     center = (float(p.r0), float(p.c0))
     if frame.use_camera:
         coords = frame.to_ideal(coords)
         center = tuple(float(v) for v in frame.to_ideal(np.array(center)))
-    init = profile_start(frame, circ, center)
+    init = profile_start(frame, circle, data, center)
     data = FitData(coords, z, None, 0.0, 1.0)
     # L is estimated unless given: it adapts the profile to Lambert (0) ... Lommel-Seeliger (1) limbs
     fixed = PROFILE_FIXED if opt.lunar_lambert_L is not None else tuple(n for n in PROFILE_FIXED if n != "L")
@@ -778,7 +781,7 @@ def _profile_passes(frame: Frame, data: FitData, start: LimbProfileParams, cente
     one fitted by more than 1e-3 px anywhere on the limb; it starts at the answer, without coarse phase."""
     opt = frame.opt
     if not frame.use_camera:
-        return _run(model, data, start, opt, fixed, solver), None
+        return run_fit(model, data, start, opt, fixed, solver), None
     f, pp = frame.cam.focal_px, frame.cam.principal_point_rc
     q = start
     if center is not None:
@@ -787,7 +790,7 @@ def _profile_passes(frame: Frame, data: FitData, start: LimbProfileParams, cente
     res = sph = None
     for i in range(2):
         s_i = solver if (i == 0 or solver is None) else NormalLM(rtol=0.0, atol=1e-5, coarse_stride=1)
-        res = _run(model, data, q, opt, fixed, s_i)
+        res = run_fit(model, data, q, opt, fixed, s_i)
         q = res.params
         sph = sphere_from_ellipse_center(f, pp, (float(q.r0), float(q.c0)), float(q.a))
         if _shape_change_px(q, sph) < 1e-3:

@@ -56,7 +56,6 @@ is Check 3 (:class:`~jaxlimb.errors.TooManyOutliersError`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import equinox as eqx
 import jax
@@ -67,8 +66,9 @@ from ..errors import ConvergenceError, TooManyOutliersError
 from ..fitting import LimbFit, fit, solver_from_name
 from ..fitting.fit import bucket_size
 from ..models import CIRCLE, ELLIPSE, CircleParams, EllipseParams
+from .stages import AnnulusSelection, FitData, RefineResult
 from .options import LocateOptions
-from .sphere import SphereImage, sphere_from_ellipse_center
+from ..geometry.sphere_image import SphereImage, sphere_from_ellipse_center
 
 #: Ratio between the Gaussian sigma of an edge and the logistic scale 1/k that matches it.
 LOGISTIC_TO_GAUSS = 1.7
@@ -108,51 +108,6 @@ def lit_halfangle(phase_rad: float | None, radius: float, dr: float, horn_margin
     # thickness decreases with psi: the last psi where the lit band is thick enough
     last = int(np.nonzero(ok)[0].max())
     return float(min(base, psi[last]))
-
-
-@dataclass(frozen=True)
-class AnnulusSelection:
-    """The pixels selected for the sigmoid fit.
-
-    Attributes
-    ----------
-    coords : ``(n, 2)`` pixel coordinates ``(row, col)``.
-    z : ``(n,)`` intensities.
-    center_rc, radius : the circle the annulus is built on.
-    dr : the half-width (px).
-    direction : unit ``(d_row, d_col)`` of the middle of the selected arc, or ``None`` (whole circle).
-    halfangle : half-angle of the geometric window (rad; ``pi`` = whole circle).
-    inner_level, outer_level : medians of the inner and outer quarters (initial ``ymax``, ``ymin``).
-    inner_edge_mean, outer_edge_mean : means of the pixels within 1 px of ``r - dr`` and ``r + dr``
-        (the fixed levels of the illuminated-ellipsoid paper §VI).
-    n_bins_kept, n_bins : angular bins kept by the contrast test, and bins with pixels.
-    pixel_inner, pixel_outer : ``(n,)`` the inner and outer levels (medians of the inner and
-        outer quarters) of each pixel's angular bin, for the level normalisation.
-    """
-
-    coords: np.ndarray
-    z: np.ndarray
-    center_rc: tuple[float, float]
-    radius: float
-    dr: float
-    direction: tuple[float, float] | None
-    halfangle: float
-    inner_level: float
-    outer_level: float
-    inner_edge_mean: float
-    outer_edge_mean: float
-    n_bins_kept: int
-    n_bins: int
-    pixel_inner: np.ndarray | None = None
-    pixel_outer: np.ndarray | None = None
-
-    @property
-    def n(self) -> int:
-        return int(self.z.shape[0])
-
-    def angles(self) -> np.ndarray:
-        """Polar angles ``atan2(d_row, d_col)`` of the pixels about ``center_rc``."""
-        return np.arctan2(self.coords[:, 0] - self.center_rc[0], self.coords[:, 1] - self.center_rc[1])
 
 
 def select_annulus(
@@ -287,8 +242,8 @@ def _lit_bins(z: np.ndarray, bins: np.ndarray, nb: int, inner: np.ndarray, outer
     """Rules 3-4: angular bins (each pixel's of ``nb``, :func:`_angular_bins`) of the annulus with a lit edge at the
     limb.  Returns the bins kept, the bins' inner and outer levels and the number of bins with pixels."""
     # rule 3: contrast per angular bin (medians: robust to stars, hot pixels, craters)
-    lev_in, n_in = _bin_median(bins[inner], z[inner], nb)
-    lev_out, n_out = _bin_median(bins[outer], z[outer], nb)
+    lev_in, n_in = bin_median(bins[inner], z[inner], nb)
+    lev_out, n_out = bin_median(bins[outer], z[outer], nb)
     have = (n_in >= 2) & (n_out >= 2)
     contrast = np.full(nb, -np.inf)
     contrast[have] = lev_in[have] - lev_out[have]
@@ -343,7 +298,7 @@ def _edge_offsets(e_b: np.ndarray, ok: np.ndarray, nb: int, tol: float = 0.75, n
     return off
 
 
-def _bin_median(bins: np.ndarray, values: np.ndarray, nb: int) -> tuple[np.ndarray, np.ndarray]:
+def bin_median(bins: np.ndarray, values: np.ndarray, nb: int) -> tuple[np.ndarray, np.ndarray]:
     """Median of ``values`` in each of ``nb`` bins (NaN where empty) and the counts (one sort)."""
     counts = np.bincount(bins, minlength=nb)
     med = np.full(nb, np.nan)
@@ -360,36 +315,9 @@ def _bin_median(bins: np.ndarray, values: np.ndarray, nb: int) -> tuple[np.ndarr
 
 
 # ============================================================================ fits
-def _fixed(options: LocateOptions) -> tuple[str, ...]:
+def levels_held(options: LocateOptions) -> tuple[str, ...]:
+    """The edge parameters held fixed: none with ``estimate_k``, else ``k`` and the levels (the papers' setting)."""
     return () if options.estimate_k else ("k", "ymax", "ymin")
-
-
-@dataclass(frozen=True)
-class FitData:
-    """The data of a sigmoid fit: pixels, (normalised) intensities, weights and the DN scale.
-
-    With ``normalize_levels`` each pixel is divided by its angular bin's contrast,
-    ``z_n = (z - O_bin) / (I_bin - O_bin)`` and weighted by ``w = (I_bin - O_bin) / C_ref``
-    (``C_ref`` the median contrast), so that the weighted residuals are the DN residuals
-    divided by ``C_ref``: the fit is the CSF with an angle-dependent amplitude, i.e. the
-    lit limb's brightness may vary along the arc (it does: Lambert-like surfaces fade
-    toward the horns as the cosine of the angle from the sub-solar limb point, which pulls
-    a one-level CSF inward there by px).  ``offset``/``scale`` map fitted levels back to
-    DN: ``DN = offset + scale * y``.
-    """
-
-    coords: np.ndarray
-    z: np.ndarray
-    weights: np.ndarray | None
-    offset: float
-    scale: float
-
-    def subset(self, keep: np.ndarray) -> FitData:
-        return FitData(self.coords[keep], self.z[keep], None if self.weights is None else self.weights[keep],
-                       self.offset, self.scale)
-
-    def with_coords(self, coords: np.ndarray) -> FitData:
-        return FitData(coords, self.z, self.weights, self.offset, self.scale)
 
 
 def fit_data(sel: AnnulusSelection, options: LocateOptions) -> FitData:
@@ -415,7 +343,7 @@ def _levels(sel: AnnulusSelection, data: FitData, options: LocateOptions) -> tup
     return float(options.k_fixed), ymax, ymin
 
 
-def _pad_bucket(data: FitData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def pad_bucket(data: FitData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Pad to the next size ``2^k`` or ``1.5 * 2^k`` (>= 4096) with zero-weight copies of the first pixel.
 
     The sizes are those of :func:`jaxlimb.fitting.fit.bucket_size`, starting at 4096: few
@@ -434,8 +362,11 @@ def _pad_bucket(data: FitData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             np.concatenate([w, np.zeros(pad)]))
 
 
-def _run(model, data: FitData, init, options: LocateOptions, fixed, solver=None) -> LimbFit:
-    coords, z, w = _pad_bucket(data)
+def run_fit(model, data: FitData, init, options: LocateOptions, fixed, solver=None) -> LimbFit:
+    """``model`` fitted to ``data`` from ``init`` (``fixed`` held; the options' solver unless ``solver``), padded to a
+    bucket (:func:`pad_bucket`); Check 5: no convergence or non-finite parameters is a
+    :class:`~jaxlimb.errors.ConvergenceError`."""
+    coords, z, w = pad_bucket(data)
     res = fit(model, coords, z, init, solver if solver is not None else solver_from_name(options.solver), fixed=fixed,
               weights=w,
               max_steps=options.max_steps, throw=False)
@@ -449,62 +380,6 @@ def _run(model, data: FitData, init, options: LocateOptions, fixed, solver=None)
     if not np.all(np.isfinite(vals)):
         raise ConvergenceError(f"Check 5: the {model.name} sigmoid fit returned non-finite parameters {vals.tolist()}")
     return res
-
-
-@dataclass(frozen=True)
-class RefineResult:
-    r"""A sigmoid fit on an annulus, after the outlier pass.
-
-    Attributes
-    ----------
-    fit : the final :class:`~jaxlimb.fitting.LimbFit`.
-    data : the :class:`FitData` of the final fit (outliers removed; ideal pixel coordinates
-        for the sphere fit of a camera with distortion).
-    n_outliers : pixels dropped by the residual test.
-    fixed : names of the parameters held fixed.
-    sphere : for :func:`fit_sphere_annulus`, the :class:`~jaxlimb.pipeline.sphere.SphereImage`
-        of the final estimate.
-    noise_covariance : the fit's noise-only covariance :math:`\hat\sigma^2 (J^\top J)^{-1}` when
-        ``fit.covariance`` carries a model-error term (:func:`jaxlimb.pipeline.profile_fit.with_model_error`);
-        ``None``: ``fit.covariance`` is noise-only.  The Cramér--Rao bound uses this one.
-    """
-
-    fit: LimbFit
-    data: FitData
-    n_outliers: int
-    fixed: tuple[str, ...]
-    sphere: SphereImage | None = None
-    noise_covariance: np.ndarray | None = None
-
-    @property
-    def coords(self) -> np.ndarray:
-        return self.data.coords
-
-    @property
-    def covariance_noise(self) -> np.ndarray:
-        """The noise-only covariance of the free parameters (see ``noise_covariance``)."""
-        return np.asarray(self.fit.covariance if self.noise_covariance is None else self.noise_covariance)
-
-    def with_covariance(self, C: np.ndarray, **changes) -> "RefineResult":
-        """A copy whose fit's covariance is ``C`` (and whose other fields are ``changes``, e.g. the
-        ``noise_covariance`` it widened): the one setter of the model-error terms."""
-        from dataclasses import replace
-
-        return replace(self, fit=eqx.tree_at(lambda x: x.covariance, self.fit, jnp.asarray(C)), **changes)
-
-    def with_move_witness(self, other: "RefineResult", frac: float) -> "RefineResult":
-        """A copy with ``(frac |d|)^2`` added to the variances of ``r0`` and ``c0`` and ``(frac d_a)^2`` to that of
-        ``a``, ``d`` the move of ``(r0, c0, a)`` from ``other`` (a second model of the same limb whose correction is
-        itself uncertain, in every direction); unchanged unless all three are free."""
-        free = list(self.fit.free)
-        if not all(n in free for n in ("r0", "c0", "a")):
-            return self
-        d = np.array([float(getattr(self.fit.params, n)) - float(getattr(other.fit.params, n)) for n in ("r0", "c0", "a")])
-        C = np.array(self.fit.covariance)
-        for i, v in zip((free.index("r0"), free.index("c0"), free.index("a")),
-                        (float(np.hypot(d[0], d[1])),) * 2 + (abs(d[2]),)):
-            C[i, i] += (frac * v) ** 2
-        return self.with_covariance(C)
 
 
 @eqx.filter_jit
@@ -521,14 +396,14 @@ def _fisher_jit(model, params, coords, w2, free_idx):
 def predict(model, params, coords: np.ndarray) -> np.ndarray:
     """Model intensities at ``coords`` (jitted on power-of-two padded shapes: no per-image recompiles)."""
     n = coords.shape[0]
-    cp, _, _ = _pad_bucket(FitData(coords, np.zeros(n), None, 0.0, 1.0))
+    cp, _, _ = pad_bucket(FitData(coords, np.zeros(n), None, 0.0, 1.0))
     return np.asarray(_predict_jit(model, params, jax.device_put(np.asarray(cp))))[:n]
 
 
 def fisher_information(model, params, data: FitData, fixed: tuple[str, ...], sigma: float) -> np.ndarray:
     """Fisher matrix ``J^T diag(w^2) J / sigma^2`` over the free parameters (the information of
     :func:`jaxlimb.analysis.crlb.crlb` with per-pixel noise ``sigma / w_i``), jitted on padded shapes."""
-    cp, _, w = _pad_bucket(data)
+    cp, _, w = pad_bucket(data)
     idx = jnp.asarray(model.free_indices(fixed))
     F = np.asarray(_fisher_jit(model, params, jnp.asarray(cp), jnp.asarray(w * w), idx))
     return F / sigma**2
@@ -557,7 +432,7 @@ def _outlier_pass(model, data: FitData, res: LimbFit, options: LocateOptions, fi
     if nb == 0:
         return res, data, 0
     d2 = data.subset(~bad)
-    res2 = _run(model, d2, res.params, options, fixed)
+    res2 = run_fit(model, d2, res.params, options, fixed)
     return res2, d2, nb
 
 
@@ -606,17 +481,17 @@ def local_misfit(r: np.ndarray, coords: np.ndarray, params) -> np.ndarray:
 
 def fit_circle_annulus(sel: AnnulusSelection, options: LocateOptions) -> RefineResult:
     """Circular sigmoid (Eq. 16) on the selected pixels, from the annulus circle; outlier pass."""
-    fixed = _fixed(options)
+    fixed = levels_held(options)
     data = fit_data(sel, options)
     k0, ymax0, ymin0 = _levels(sel, data, options)
     init = CircleParams(r0=sel.center_rc[0], c0=sel.center_rc[1], radius=sel.radius, k=k0, ymax=ymax0, ymin=ymin0)
-    res = _run(CIRCLE, data, init, options, fixed)
+    res = run_fit(CIRCLE, data, init, options, fixed)
     res, data, nb = _outlier_pass(CIRCLE, data, res, options, fixed)
     return RefineResult(res, data, nb, fixed)
 
 
 def sphere_shape(focal_px: float, principal_point_rc, center_rc, a: float) -> SphereImage:
-    """Shorthand for :func:`~jaxlimb.pipeline.sphere.sphere_from_ellipse_center`."""
+    """Shorthand for :func:`~jaxlimb.geometry.sphere_image.sphere_from_ellipse_center`."""
     return sphere_from_ellipse_center(focal_px, principal_point_rc, center_rc, a)
 
 
@@ -632,14 +507,14 @@ def fit_sphere_annulus(
 
     The ESF (Sec. V-C) is fitted with ``rho`` and ``theta`` held at the values of the sphere
     image whose ellipse centre and radial semi-axis are the current estimate
-    (:func:`~jaxlimb.pipeline.sphere.sphere_from_ellipse_center`), free ``r0, c0, a`` (and
+    (:func:`~jaxlimb.geometry.sphere_image.sphere_from_ellipse_center`), free ``r0, c0, a`` (and
     ``k, ymax, ymin`` unless fixed); then ``rho``, ``theta`` are recomputed from the new
     estimate and the fit repeated (``n_iter`` fits in all).  ``rho`` changes by
     ~``1e-4 x`` the centre change in px at the corner of the default camera, so after
     the second fit the held shape is exact to ~1e-8 px.  ``data.coords`` are pinhole
     (undistorted) pixel coordinates.
     """
-    fixed = ("theta", "rho") + _fixed(options)
+    fixed = ("theta", "rho") + levels_held(options)
     sph = sphere_shape(focal_px, principal_point_rc, (float(circle.r0), float(circle.c0)), float(circle.radius))
     # a circle fitted to an ellipse returns ~ the mean radius (a + b)/2
     a0 = 2.0 * float(circle.radius) / (1.0 + sph.rho)
@@ -648,7 +523,7 @@ def fit_sphere_annulus(
                       ymax=circle.ymax, ymin=circle.ymin)
     res = None
     for _ in range(n_iter):
-        res = _run(ELLIPSE, data, p, options, fixed)
+        res = run_fit(ELLIPSE, data, p, options, fixed)
         q = res.params
         sph = sphere_shape(focal_px, principal_point_rc, (float(q.r0), float(q.c0)), float(q.a))
         p = replace_params(q, theta=sph.angle_rad, rho=sph.rho)
@@ -658,8 +533,8 @@ def fit_sphere_annulus(
 
 def fit_ellipse_annulus(data: FitData, start: EllipseParams, options: LocateOptions) -> RefineResult:
     """Elliptical sigmoid with every geometric parameter free (``rho``, ``theta`` too)."""
-    fixed = _fixed(options)
-    res = _run(ELLIPSE, data, start, options, fixed)
+    fixed = levels_held(options)
+    res = run_fit(ELLIPSE, data, start, options, fixed)
     res, data2, nb = _outlier_pass(ELLIPSE, data, res, options, fixed)
     return RefineResult(res, data2, nb, fixed)
 
@@ -670,10 +545,7 @@ def replace_params(p, **kw):
 
 
 __all__ = [
-    "AnnulusSelection",
-    "FitData",
     "fit_data",
-    "RefineResult",
     "annulus_halfwidth",
     "fit_circle_annulus",
     "fit_ellipse_annulus",

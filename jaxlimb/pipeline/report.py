@@ -13,34 +13,18 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from ..models import CIRCLE, ELLIPSE, ELLIPSE_RAMP, CircleParams, EllipseRampParams, LimbDarkenedParams, LimbProfileParams
 from ..models.lunar_lambert import glow_fields, profile_model
+from .stages import Covariance, Levels
 from .checks import check_center_sigma, check_edge_width, check_levels
 from .frame import Frame
 from .geometry import BodyCenter
 from .refine import LOGISTIC_TO_GAUSS, RefineResult, fisher_information
 from .result import LimbMeasurement
-
-
-@dataclass(frozen=True)
-class Covariance:
-    """A square covariance and the names of its rows (and the Jacobian from the fit's free parameters)."""
-
-    names: list[str]
-    matrix: np.ndarray
-    jacobian: np.ndarray
-
-    def as_dict(self) -> dict[str, dict[str, float]]:
-        return {a: {b: float(self.matrix[i, j]) for j, b in enumerate(self.names)} for i, a in enumerate(self.names)}
-
-    def block(self, names: tuple[str, ...]) -> np.ndarray:
-        idx = [self.names.index(n) for n in names]
-        return self.matrix[np.ix_(idx, idx)]
 
 
 def covariance(final: RefineResult, geo: BodyCenter) -> Covariance:
@@ -82,17 +66,6 @@ def crlb(frame: Frame, final: RefineResult, cov: Covariance) -> dict[str, float]
         except np.linalg.LinAlgError:  # pragma: no cover - singular Fisher matrix
             return None
     return {n: float(math.sqrt(max(C[i, i], 0.0))) for i, n in enumerate(cov.names)}
-
-
-@dataclass(frozen=True)
-class Levels:
-    """The edge in the units of the result: logistic ``k``, inside/outside levels (DN) and the PSF sigma."""
-
-    k: float
-    ymax: float
-    ymin: float
-    psf_sigma_px: float
-    profile: dict[str, Any] | None
 
 
 def levels(final: RefineResult) -> Levels:
@@ -162,4 +135,4 @@ def measurement(frame: Frame, cand: Any, final: RefineResult, geo: BodyCenter, c
         selected_pixels_rc=pix)
 
 
-__all__ = ["Covariance", "Levels", "check_physical", "covariance", "crlb", "levels", "measurement", "timings"]
+__all__ = ["check_physical", "covariance", "crlb", "levels", "measurement", "timings"]

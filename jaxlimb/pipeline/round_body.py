@@ -51,7 +51,7 @@ def lunar_profile_refit(frame: Frame, edge: EdgeFit, sat: float | None, extras: 
     ``L`` is outside the band of lunar-Lambert-like limbs; ``extras["profile_rejected"]`` says why)."""
     opt = frame.opt
     try:
-        res, n_clipped = fit_lunar_profile(frame, edge.circ, sat)
+        res, n_clipped = fit_lunar_profile(frame, edge.circ.fit.params, edge.circ.data, sat)
     except ConvergenceError as e:
         if opt.profile != "auto":
             raise

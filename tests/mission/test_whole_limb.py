@@ -117,4 +117,4 @@ def test_lit_dark_split_puts_the_crescent_bias_in_the_covariance():
 def test_no_split_without_a_dark_limb():
     img, ic = _render((250.3, 262.7), seed=2, crescent_dn=0.0)
     m = locate(img, CAM, _hints((244.0, 270.0)))
-    assert m.extras["polarity_split"] is None
+    assert m.extras.get("polarity_split") is None
