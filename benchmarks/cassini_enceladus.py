@@ -4,7 +4,7 @@ Both raw frames of ``shared/data/cassini`` (VICAR, read with rms-vicar; the seco
 missing lines, masked) are located with the mission's own kernels and nothing typed by hand:
 camera from the IK, image time from the label, predicted limb / Sun / range / orientation
 from SPICE (:mod:`jaxlimb.geometry.spice`), the whole-limb stage
-(:mod:`jaxlimb.pipeline.whole_limb`).  Reported per frame: the measured body centre and its
+(:mod:`jaxlimb.pipeline.sphere.whole_limb`).  Reported per frame: the measured body centre and its
 covariance, measured - predicted (px and microradians), the radius and range against the
 prediction, the observer position from the measurement.  Between the frames (33 s apart):
 the change of the residual against the combined sigma, and -- independent of SPICE -- the

@@ -21,7 +21,7 @@ place (and, weakly, its scale) is not.  This front end uses that:
    centre and ``a`` free: in the frame :math:`x' = x,\ y' = y/\rho` the ellipse is a circle,
    fitted with Taubin's method (Aerospace 2015, Eq. 26-35) and a 3-MAD trim.
 
-The result feeds the sigmoid refinement of :mod:`jaxlimb.pipeline.whole_limb`.  With a
+The result feeds the sigmoid refinement of :mod:`jaxlimb.pipeline.sphere.whole_limb`.  With a
 short visible arc (a body larger than the frame) the held shape is what keeps the fit
 determined.
 """

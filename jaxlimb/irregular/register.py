@@ -39,7 +39,7 @@ direction, and registers it to the frame.  Here:
    it varies across the body the opposition surge is fitted (:func:`surge_fields`).
 4. **Covariance** ``sigma^2 (A^T A)^{-1}`` of the linear solve at convergence, with
    ``sigma^2`` the residual variance, mapped to ``(row, col)`` by ``1/a``, plus the
-   cluster-robust model-error term of :mod:`jaxlimb.analysis.model_error` over position-angle
+   cluster-robust model-error term of :mod:`jaxlimb.fitting.model_error` over position-angle
    sectors (an albedo the model does not know biases the centre by ~0.1 px: the term makes the
    reported sigma say so), plus a model floor (``model_floor_px``).  Monte Carlo (30 noise
    draws, Thebe, phase 30): mean NEES 2.4 at 10 DN noise without the floor (chi^2_2: 2).
@@ -146,7 +146,7 @@ class RegisterOptions:
         sharp iterations (the model is blurred by it; empty: an ideal camera).
     model_error_sectors
         The centre covariance carries the cluster-robust model-error term of
-        :mod:`jaxlimb.analysis.model_error` with the window's pixels grouped in this many
+        :mod:`jaxlimb.fitting.model_error` with the window's pixels grouped in this many
         position-angle sectors about the centre (0: off): a surface whose albedo, shading or
         shadows differ from the model's leaves residuals that follow the centre's columns
         from one side of the body to the other, and the white-noise covariance alone then
@@ -951,7 +951,7 @@ def _overlap(obs: np.ndarray, model_flat: np.ndarray, thr: float, sigma: float, 
 
 
 def _with_sector_model_error(At, N, res, lo, hi, P, cov, a, n_sectors, scale=1.0):  # type: ignore[no-untyped-def]
-    """The centre covariance with the cluster-robust model-error term of :mod:`jaxlimb.analysis.model_error`
+    """The centre covariance with the cluster-robust model-error term of :mod:`jaxlimb.fitting.model_error`
     (pixels grouped in ``n_sectors`` position-angle sectors about ``P``; :attr:`RegisterOptions.model_error_sectors`;
     ``N = At At^T``, the normal matrix of the last solve)."""
     from ..analysis.model_error import cluster_robust_from_normal, positive_part, sector_groups

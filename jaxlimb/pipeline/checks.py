@@ -12,7 +12,7 @@ no body    no contrast in the frame (all-black, all-    :func:`jaxlimb.imaging.d
 1/2        new moon / crescent too thin (p_i < 3 px    prior / image (``TooThinError``)
            from the hints; < 4 px measured)
 2          too few candidates after the box filter     gradient front end (``TooManyOutliersError``)
-3          too few RANSAC inliers; too many residual   front ends; :func:`jaxlimb.pipeline.refine`
+3          too few RANSAC inliers; too many residual   front ends; :func:`jaxlimb.pipeline.sphere.annulus`
            outliers in the annulus                     outlier pass (``TooManyOutliersError``)
 3/4        RANSAC / Taubin radius outside the prior    front ends (``RadiusInconsistentError``);
            band; the refined radius too                :func:`check_radius_prior`
@@ -21,7 +21,7 @@ no body    no contrast in the frame (all-black, all-    :func:`jaxlimb.imaging.d
 3/4        the lit limb arc in the frame is shorter   :func:`check_lit_arc`
            than ``MIN_LIT_ARC_DEG`` (cropped body      (:class:`~jaxlimb.errors.ArcTooShortError`)
            whose Sun-facing side is out of frame)
-5          no convergence within ``max_steps``          :func:`jaxlimb.pipeline.refine` fits
+5          no convergence within ``max_steps``          :func:`jaxlimb.pipeline.sphere.annulus` fits
                                                        (``ConvergenceError``)
 5          the fit jumped away from the Taubin circle  :func:`check_jump` (``JumpError``)
 =========  ==========================================  ==============================================
@@ -164,7 +164,7 @@ def check_size(radius: float, shape: tuple[int, int], min_diameter_px: float = 1
     ``arc_deg`` (the fitted arc in the frame) makes the too-big message say what is missing: a limb arc
     *is* visible, but a free circle larger than the frame through it is not checked by anything; the
     camera and a range prior fix the circle's size and the arc is then measured
-    (:func:`jaxlimb.pipeline.whole_limb.locate_arc`)."""
+    (:func:`jaxlimb.pipeline.sphere.predicted.PredictedLimbSphere`)."""
     if 2.0 * radius < min_diameter_px:
         raise TooSmallError(
             f"Check 1: measured apparent diameter {2 * radius:.3g} px is below min_diameter_px = {min_diameter_px:g} px"

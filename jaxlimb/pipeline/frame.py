@@ -4,7 +4,6 @@ on the prior) and ``candidates`` (the front end, Checks 1-4); the typed value :c
 from __future__ import annotations
 
 import math
-
 import time
 from typing import Any
 
@@ -12,9 +11,15 @@ import numpy as np
 
 from ..errors import CheckFailed, ConfigError, ImageContentError, RadiusInconsistentError, TooManyOutliersError
 from ..geometry.camera import Camera
-from ..imaging import Hints, check_prior, front_end, prior_from_hints, validate_image
-from .stages import Frame
+from ..geometry.hints import Hints
+from ..imaging import front_end
+from ..imaging.crop import detect_body, nearest_fill
+from ..imaging.gradient import GradientOptions
+from ..imaging.io import validate_image
+from ..imaging.prior import check_prior, prior_from_hints
+from ..imaging.scanline import ScanlineOptions
 from .options import LocateOptions
+from .stages import Frame
 
 
 def as_hints(hints: Any) -> Hints | None:
@@ -101,7 +106,7 @@ def frame_mask(frame: Frame) -> np.ndarray | None:
 #: Above this phase (deg, from the hints) the front ends keep Eq. (10)'s region (:attr:`DetectOptions.dark_surface` off):
 #: the variegated-body region is for the nearly full disc (the Earth from deep space), where a Lambert limb fades
 #: to zero all round; a gibbous cloudy Earth's limb is traced against the sky downstream
-#: (:mod:`jaxlimb.pipeline.limb_trace`), whose starts were measured on Eq. (10)'s circles.
+#: (:mod:`jaxlimb.pipeline.ellipsoid.trace`), whose starts were measured on Eq. (10)'s circles.
 DARK_SURFACE_MAX_PHASE_DEG = 30.0
 
 
@@ -109,8 +114,6 @@ def _front_end_options(frame: Frame, name: str) -> Any:
     """The options of front end ``name`` (``None``: defaults), with the variegated-body region off above
     :data:`DARK_SURFACE_MAX_PHASE_DEG` of phase."""
     from dataclasses import replace
-
-    from ..imaging import GradientOptions, ScanlineOptions
 
     opt = frame.front_end_options(name) or (GradientOptions() if name == "gradient" else ScanlineOptions())
     if not (frame.sun_known and getattr(opt.detect, "dark_surface", False)):
@@ -126,8 +129,6 @@ def _variegated(frame: Frame, name: str, mask) -> bool:  # type: ignore[no-untyp
     only then is the other front end tried.  On other frames a second front end's circle is no better founded
     than the first's refusal: the EUV Sun of ``aia_171_level1.fits`` (corona, no photospheric limb), refused by
     the gradient front end, was answered ``ok`` 1.9 px off with a 0.25 px sigma by the scan lines."""
-    from ..imaging import detect_body
-    from ..imaging.crop import nearest_fill
 
     detect = _front_end_options(frame, name).detect
     try:

@@ -24,7 +24,7 @@ result                 the same :class:`LimbMeasurement` for every body         
 
 A camera with lens distortion: the round bodies fit ideal (undistorted) pixel coordinates and distort
 the body-centre image back; the ellipsoid resamples the frame onto the ideal grid
-(:mod:`jaxlimb.pipeline.ellipsoid`) and maps the centre and its covariance back.
+(:mod:`jaxlimb.pipeline.ellipsoid.body`) and maps the centre and its covariance back.
 """
 
 from __future__ import annotations
@@ -35,13 +35,13 @@ import numpy as np
 
 from ..errors import CheckFailed
 from ..geometry.camera import Camera
-from ..imaging import Hints
+from ..geometry.hints import Hints
 from .bodies import body_strategy
-from .edge import InitialCircleOffError
 from .frame import other_candidates, prepare
 from .options import LocateOptions
 from .report import covariance, levels, measurement
 from .result import LimbMeasurement
+from .sphere.edge import InitialCircleOffError
 
 
 def locate(
@@ -70,7 +70,7 @@ def locate(
         Validity mask (``True`` = measured pixel; :class:`jaxlimb.imaging.formats.Frame`); masked
         pixels are neither limb nor background.  With a camera and hints that predict the limb of a
         sphere (``expected_center_rc``, ``range_prior_km``, radii: SPICE), the whole limb, lit and
-        dark, is measured (:mod:`jaxlimb.pipeline.predicted_limb`); so is the visible arc of a sphere whose
+        dark, is measured (:mod:`jaxlimb.pipeline.sphere.predicted`); so is the visible arc of a sphere whose
         expected disc exceeds the frame (camera, range, radius).
 
     Returns
@@ -106,7 +106,7 @@ def locate(
 
 
 def _measure_or_other_front_end(frame, body, cand) -> LimbMeasurement:
-    """:func:`_measure`, and on :class:`~jaxlimb.pipeline.edge.InitialCircleOffError` (the Sun-facing annulus in the
+    """:func:`_measure`, and on :class:`~jaxlimb.pipeline.sphere.edge.InitialCircleOffError` (the Sun-facing annulus in the
     frame but few of its bins with a lit edge: the front end's circle off the limb) :func:`_measure` on the other
     front end's candidates (``front_end_fallback``); the first failure stands when that one fails too."""
     try:

@@ -7,6 +7,7 @@ from enum import Enum
 
 from .._validate import NON_NEGATIVE, POSITIVE, number
 from ..errors import ConfigError
+from ..fitting.solvers import SOLVERS
 
 
 class _Choice(str, Enum):
@@ -107,7 +108,7 @@ class LocateOptions:
         limb profile of a sunlit body when the hints give the Sun direction, the limb-darkened
         disc when they say ``body = "sun"``; else the sigmoid.  ``"limb-darkened"``: after
         the sigmoid, refit a full annulus with the blurred quadratic limb-darkening law of a
-        self-luminous disc (:mod:`jaxlimb.pipeline.sun_profile`; the SDO/HMI radius error
+        self-luminous disc (:mod:`jaxlimb.pipeline.sphere.sun`; the SDO/HMI radius error
         goes from -0.156 px with the sigmoid to +0.039 px).  ``"sigmoid"``: the papers' sigmoid
         limb.  ``"lunar-lambert"``: after the sigmoid, refit the same pixels with the physical
         limb profile of a lunar-Lambert sphere blurred by a Gaussian PSF
@@ -118,7 +119,7 @@ class LocateOptions:
         The weight ``L`` of the lunar-Lambert law ``I = L 2 mu0/(mu0 + mu) + (1 - L) mu0`` used
         by the profile (``1``: Lommel-Seeliger, ``0``: Lambert), held fixed; ``None`` (default):
         ``L`` is estimated with the limb, starting from McEwen's ``L(phase)``
-        (:func:`jaxlimb.pipeline.profile.lunar_lambert_weight`).  With ``profile="auto"`` a
+        (:func:`jaxlimb.models.lunar_lambert.lunar_lambert_weight`).  With ``profile="auto"`` a
         fitted ``L`` outside ``[-0.1, 1.1]`` (a limb no such law describes, e.g. a flat disc)
         sends the measurement back to the sigmoid (``extras["profile_rejected"]``).
     min_lit_arc_deg
@@ -130,12 +131,12 @@ class LocateOptions:
         to accept short arcs with their (large) covariance.
     normalize_levels
         Divide each angular bin of the annulus by its own inside-outside contrast (and weight
-        it by that contrast) before the fit (default ``True``; :class:`jaxlimb.pipeline.refine.FitData`):
+        it by that contrast) before the fit (default ``True``; :class:`jaxlimb.pipeline.stages.FitData`):
         the lit limb of the Moon fades toward the horns, which biases a one-level sigmoid by px.
         ``False`` fits the raw intensities as the papers do.
     annulus_px
         Half-width ``dr`` (px) of the annulus ``r_hat +- dr`` of pixels fitted; ``None``
-        (default) applies the rule of :func:`jaxlimb.pipeline.refine.annulus_halfwidth`:
+        (default) applies the rule of :func:`jaxlimb.pipeline.sphere.annulus.annulus_halfwidth`:
         ``dr = max(annulus_min_px, annulus_frac * r_hat, 4 * rms_taubin)``, widened after a
         first fit to ``4.5 * 1.7 / k`` when the fitted edge is broader (1.7/k is the Gaussian
         sigma equivalent to a logistic of steepness k), capped at ``max(annulus_min_px, r_hat/2)``.
@@ -148,7 +149,7 @@ class LocateOptions:
         With a known Sun direction, the lit limb is the half-circle facing the Sun; the
         pixels within this angle of the horns (where the limb meets the terminator and the
         brightness falls) are left out (default 10 deg; more for a thin crescent, see
-        :func:`jaxlimb.pipeline.refine.lit_halfangle`).
+        :func:`jaxlimb.pipeline.sphere.annulus.lit_halfangle`).
     min_lit_contrast_frac
         Angular bins (``angular_bin_deg`` wide) of the annulus whose inside-minus-outside
         contrast is below this fraction of the 90th-percentile bin contrast are dropped
@@ -193,7 +194,7 @@ class LocateOptions:
     shape
         The body strategy (:class:`BodyShape`; default ``auto``: the hints' body decides).
     ellipsoid
-        :class:`~jaxlimb.pipeline.ellipsoid.EllipsoidOptions` of the ellipsoid strategy (``None`` = defaults).
+        :class:`~jaxlimb.pipeline.ellipsoid.options.EllipsoidOptions` of the ellipsoid strategy (``None`` = defaults).
     gradient
         :class:`~jaxlimb.imaging.GradientOptions` (``None`` = defaults).
     scanline
@@ -235,7 +236,6 @@ class LocateOptions:
     def __post_init__(self) -> None:
         for name, kind in (("front_end", FrontEnd), ("model", LimbModelKind), ("profile", Profile), ("shape", BodyShape)):
             object.__setattr__(self, name, kind.parse(name, getattr(self, name)))
-        from ..fitting import SOLVERS
 
         if self.solver not in SOLVERS:
             raise ConfigError(f"LocateOptions.solver must be one of {sorted(SOLVERS)}, got {self.solver!r}")

@@ -2,7 +2,7 @@ r"""The last stages of :func:`jaxlimb.pipeline.locate`, the same for every body:
 physical checks and the :class:`~jaxlimb.pipeline.result.LimbMeasurement`.
 
 Covariance.  The fit's :math:`\hat\sigma^2 (J^\top J)^{-1}` over its free parameters is propagated through the
-body-centre map (:class:`~jaxlimb.pipeline.geometry.BodyCenter`): the mapped quantities (``center_r``,
+body-centre map (:class:`~jaxlimb.pipeline.stages.BodyCenter`): the mapped quantities (``center_r``,
 ``center_c``, ``radius`` or ``range_km`` ...) replace the fit parameters they are a function of, the other
 free parameters are carried as they are.  One square matrix, reported as ``{name: {name: value}}``
 (DESIGN.md).  A model-error term of the map (the free ellipse's unsigned centre offset) is added to the
@@ -17,14 +17,15 @@ from typing import Any
 
 import numpy as np
 
-from ..models import CIRCLE, ELLIPSE, ELLIPSE_RAMP, CircleParams, EllipseRampParams, LimbDarkenedParams, LimbProfileParams
-from ..models.lunar_lambert import glow_fields, profile_model
-from .stages import Covariance, Levels
-from .checks import check_center_sigma, check_edge_width, check_levels
-from .frame import Frame
-from .geometry import BodyCenter
-from .refine import LOGISTIC_TO_GAUSS, RefineResult, fisher_information
+from .._validate import check_center_sigma
+from ..models.ellipse_ramp import ELLIPSE_RAMP, EllipseRampParams
+from ..models.limb_darkened import LimbDarkenedParams
+from ..models.lunar_lambert import glow_fields, LimbProfileParams, profile_model
+from ..models.sigmoid import CIRCLE, ELLIPSE, CircleParams
+from .checks import check_edge_width, check_levels
 from .result import LimbMeasurement
+from .sigmoid import LOGISTIC_TO_GAUSS, fisher_information
+from .stages import BodyCenter, Covariance, Frame, Levels, RefineResult
 
 
 def covariance(final: RefineResult, geo: BodyCenter) -> Covariance:
@@ -47,7 +48,7 @@ def covariance(final: RefineResult, geo: BodyCenter) -> Covariance:
 def crlb(frame: Frame, final: RefineResult, cov: Covariance) -> dict[str, float] | None:
     """The Cramér--Rao bound at the estimate with :math:`\\hat\\sigma` as the noise level, propagated as the
     covariance.  Noise only: the model-error terms of the covariance (the profile's cluster-robust term,
-    :func:`~jaxlimb.pipeline.profile_fit.with_model_error`; the free ellipse's offset) are not in it.  With
+    :func:`~jaxlimb.pipeline.profile.model_error.with_model_error`; the free ellipse's offset) are not in it.  With
     unit pixel weights it is the fit's noise-only covariance :math:`\\hat\\sigma^2 (J^\\top J)^{-1}` (no second
     pass over the pixels); with the level normalisation's weights it is :func:`~jaxlimb.analysis.crlb.crlb`'s
     Fisher information with per-pixel noise ``sigma / w_i``."""

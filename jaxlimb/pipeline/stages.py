@@ -21,7 +21,7 @@ result                 the same measurement for every body                      
 =====================  ==========================================================  =====================
 
 A body strategy (:class:`Body`) supplies the stages that differ between bodies; every strategy is a final class
-(:mod:`jaxlimb.pipeline.sphere`, :mod:`jaxlimb.pipeline.ellipsoid`), chosen by :func:`jaxlimb.pipeline.bodies.body_strategy`.
+(:mod:`jaxlimb.geometry.sphere_image`, :mod:`jaxlimb.pipeline.ellipsoid.body`), chosen by :func:`jaxlimb.pipeline.bodies.body_strategy`.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ..fitting import LimbFit
+from ..fitting.fit import LimbFit
 from ..geometry.camera import Camera
 from ..geometry.hints import Hints
 from ..geometry.sphere_image import SphereImage
@@ -207,7 +207,7 @@ class RefineResult:
     sphere : for :func:`fit_sphere_annulus`, the :class:`~jaxlimb.geometry.sphere_image.SphereImage`
         of the final estimate.
     noise_covariance : the fit's noise-only covariance :math:`\hat\sigma^2 (J^\top J)^{-1}` when
-        ``fit.covariance`` carries a model-error term (:func:`jaxlimb.pipeline.profile_fit.with_model_error`);
+        ``fit.covariance`` carries a model-error term (:func:`jaxlimb.pipeline.profile.model_error.with_model_error`);
         ``None``: ``fit.covariance`` is noise-only.  The Cramér--Rao bound uses this one.
     """
 
@@ -304,7 +304,7 @@ class EllipsePixels:
 
     @property
     def patchy(self) -> bool:
-        """An albedo-patchy lit limb (:meth:`~jaxlimb.pipeline.limb_trace.TracedLimb.patchy`): the band is then
+        """An albedo-patchy lit limb (:meth:`~jaxlimb.pipeline.ellipsoid.trace.TracedLimb.patchy`): the band is then
         level-normalised per ray and the edge is a plain step (no ramp, no profile refit)."""
         return self.trace is not None and self.trace.patchy()
 
@@ -384,7 +384,7 @@ class BodyCenter:
     params : the fit parameters they are a function of (names of the fit's free parameters).
     jacobian : ``(len(outputs), len(params))`` derivative of the map at the estimate.
     model_cov : optional ``(len(outputs),)*2`` covariance of a model error added to the mapped block
-        (the unsigned centre offset of a free ellipse, :mod:`jaxlimb.pipeline.ellipsoid`).
+        (the unsigned centre offset of a free ellipse, :mod:`jaxlimb.pipeline.ellipsoid.body`).
     extras : numbers worth reporting (the limb ellipse ...).
     """
 

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from scipy import ndimage
 
+from jaxlimb.geometry.attitude import rotation_vector_to_dcm
 from jaxlimb.geometry.camera import Camera
 from jaxlimb.geometry.ellipsoid import image_conic
-from jaxlimb.geometry.attitude import rotation_vector_to_dcm
-from jaxlimb.imaging import Hints
+from jaxlimb.geometry.hints import Hints
 from jaxlimb.pipeline import locate
 
 CAM = Camera(2000.0, 0.012, 512, 512, (255.5, 255.5))

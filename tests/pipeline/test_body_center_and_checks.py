@@ -18,8 +18,9 @@ from jaxlimb.errors import (
     TooThinError,
 )
 from jaxlimb.geometry.camera import Camera
-from jaxlimb.imaging import Hints
-from jaxlimb.pipeline import LocateOptions, locate
+from jaxlimb.geometry.hints import Hints
+from jaxlimb.pipeline import locate
+from jaxlimb.pipeline.options import LocateOptions
 
 from ._scenes import SMALL_CAMERA, scene, sun_hints
 

@@ -1,6 +1,6 @@
 """Thin Moon crescents: measured where the lit limb is in the frame (the annulus narrowed on the terminator side,
 the sky side always there), a typed failure that says why where the crescent is too thin; rule 4 of
-:mod:`jaxlimb.pipeline.refine` measures the edges from the limb's trend when the initial circle is off."""
+:mod:`jaxlimb.pipeline.sphere.annulus` measures the edges from the limb's trend when the initial circle is off."""
 
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from jaxlimb.errors import ArcTooShortError
-from jaxlimb.pipeline import locate, lit_halfangle
+from jaxlimb.pipeline import lit_halfangle, locate
 from jaxlimb.pipeline.checks import check_lit_arc
-from jaxlimb.pipeline.edge import CRESCENT_HALF_DEG, CRESCENT_MIN_DR, crescent_halfwidth, thin_crescent_message
-from jaxlimb.pipeline.refine import _edge_offsets
+from jaxlimb.pipeline.sphere.annulus import _edge_offsets
+from jaxlimb.pipeline.sphere.edge import CRESCENT_HALF_DEG, CRESCENT_MIN_DR, crescent_halfwidth, thin_crescent_message
 
 from ._scenes import SMALL_CAMERA, errors, scene, sun_hints
 

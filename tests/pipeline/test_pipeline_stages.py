@@ -13,19 +13,15 @@ import cv2
 import numpy as np
 import pytest
 
-import jaxlimb.pipeline as pipeline_pkg
+from jaxlimb._validate import check_center_sigma
 from jaxlimb.cli import main
-from jaxlimb.errors import ArcTooShortError, CheckFailed, ConfigError, ConvergenceError
+from jaxlimb.errors import ArcTooShortError, CenterTooUncertainError, CheckFailed, ConfigError, ConvergenceError
 from jaxlimb.geometry.camera import Camera
-from jaxlimb.pipeline import LocateOptions, locate
-from jaxlimb.pipeline.checks import (
-    CenterTooUncertainError,
-    NonPhysicalFitError,
-    check_center_sigma,
-    check_edge_width,
-    check_levels,
-)
-from jaxlimb.pipeline.options import BodyShape, FrontEnd, Profile
+from jaxlimb.geometry.earth_cone import earth_position_from_ellipse
+import jaxlimb.pipeline as pipeline_pkg
+from jaxlimb.pipeline import locate
+from jaxlimb.pipeline.checks import NonPhysicalFitError, check_edge_width, check_levels
+from jaxlimb.pipeline.options import BodyShape, FrontEnd, LocateOptions, Profile
 
 from ._scenes import SMALL_CAMERA, scene, sun_hints
 
@@ -46,9 +42,9 @@ def test_no_pipeline_function_over_80_lines():
 
 
 def test_locate_earth_is_gone_and_the_strategies_are_chosen_by_the_hints():
-    import jaxlimb.pipeline.earth as earth
+    import jaxlimb.pipeline.ellipsoid as earth
     from jaxlimb.pipeline.bodies import Disc, Sphere, body_strategy
-    from jaxlimb.pipeline.ellipsoid import Ellipsoid
+    from jaxlimb.pipeline.ellipsoid.body import Ellipsoid
     from jaxlimb.pipeline.frame import prepare
 
     assert not hasattr(earth, "locate_earth")
@@ -126,7 +122,6 @@ def test_earth_short_arc_is_arc_too_short():
 
 def test_range_iteration_without_convergence_is_a_failed_check():
     from jaxlimb.geometry.ellipsoid import image_conic
-    from jaxlimb.pipeline.earth import earth_position_from_ellipse
     from jaxlimb.render import earth_scene
 
     cam = Camera(focal_length_mm=8.0, rows=1400, cols=1400)

@@ -9,19 +9,12 @@ import pytest
 
 from jaxlimb.errors import JumpError, RadiusInconsistentError, TooBigError, TooManyOutliersError, TooSmallError
 from jaxlimb.geometry.camera import Camera, sphere_image_ellipse
-from jaxlimb.pipeline import (
-    CenterOutOfFieldError,
-    LocateOptions,
-    annulus_halfwidth,
-    check_center_in_field,
-    check_jump,
-    check_radius_prior,
-    check_size,
-    lit_halfangle,
-    select_annulus,
-    sphere_from_ellipse_center,
-)
-from jaxlimb.pipeline.refine import fit_circle_annulus
+from jaxlimb.geometry.sphere_image import sphere_from_ellipse_center
+from jaxlimb.pipeline.checks import (CenterOutOfFieldError, check_center_in_field, check_jump, check_radius_prior,
+                                     check_size)
+from jaxlimb.pipeline.options import LocateOptions
+from jaxlimb.pipeline.sphere.annulus import annulus_halfwidth, lit_halfangle, select_annulus
+from jaxlimb.pipeline.sphere.fits import fit_circle_annulus
 
 
 @pytest.mark.parametrize("direction", [(0.0, 0.0, 1.0), (0.1, -0.08, 1.0), (0.16, 0.12, 1.0), (-0.2, 0.05, 1.0)])

@@ -2,21 +2,21 @@ r"""The predicted-limb sphere strategy of :func:`jaxlimb.pipeline.locate`: a bod
 (SPICE: camera, range, radii, orientation, expected centre), measured on its whole limb, lit and dark; or a body
 larger than the frame, measured on its visible arc.
 
-The stages (:mod:`jaxlimb.pipeline.whole_limb` has the fits and the method):
+The stages (:mod:`jaxlimb.pipeline.sphere.whole_limb` has the fits and the method):
 
 * **prepare**: the frame in float64, at least :data:`MIN_MAX_STEPS` solver steps (the shape is held and the
   start is the prediction); for a limb arc the start's centre is found by RANSAC with the radius the range
   predicts (:func:`jaxlimb.imaging.predicted.arc_center`), too-big only when no arc is visible;
 * **candidates**: the predicted-limb front end (:mod:`jaxlimb.imaging.predicted`), edges of either polarity;
-* **edge fit**: :data:`N_PASSES` whole-limb fits (:func:`~jaxlimb.pipeline.whole_limb.fit_pass`), the annulus
+* **edge fit**: :data:`N_PASSES` whole-limb fits (:func:`~jaxlimb.pipeline.sphere.whole_limb.fit_pass`), the annulus
   narrowed to the fitted edge; Check 4 on the scale against the prediction;
 * **profile refit**: a sunlit sphere measured on its lit limb only: the lunar-Lambert profile
-  (:func:`jaxlimb.pipeline.profile_fit.fit_lunar_profile`); the covariance the larger of the pixel-independent
-  and the cluster-robust one (:func:`~jaxlimb.pipeline.whole_limb.cluster_covariance`);
+  (:func:`jaxlimb.pipeline.profile.fit.fit_lunar_profile`); the covariance the larger of the pixel-independent
+  and the cluster-robust one (:func:`~jaxlimb.pipeline.sphere.whole_limb.cluster_covariance`);
 * **body-centre mapping**: the sphere's exact map (profile), or the ellipse centre plus the predicted offset with
   the radius and range scaled by ``a / a_pred`` (sigmoid); model errors of the edge
   (:data:`EDGE_MODEL_SIGMA_PX` through the arc's gains) and, with both polarities, of their split
-  (:mod:`jaxlimb.pipeline.polarity_split`).
+  (:mod:`jaxlimb.pipeline.sphere.polarity_split`).
 
 Accuracy: ``tests/mission/test_whole_limb.py`` (renders with exact truth), ``benchmarks/limb_arc.py`` (arcs of a
 body larger than the frame) and ``benchmarks/cassini_enceladus.py`` (real frames).
@@ -30,22 +30,22 @@ from typing import Any, ClassVar, final
 
 import numpy as np
 
-from ..errors import ConvergenceError, RadiusInconsistentError
-from ..geometry.bodies import BODY_TABLE
-from ..geometry.hints import Hints
-from ..imaging.crop import estimate_noise
-from ..imaging.predicted import arc_center, edge_bias_gain, fit_shape, limb_edges, predicted_limb
-from ..models import CircleParams, LimbProfileParams
-from ..models.lunar_lambert import profile_model
-from .checks import check_edge_width, check_levels
+from ...errors import ConvergenceError, RadiusInconsistentError
+from ...geometry.bodies import BODY_TABLE
+from ...geometry.hints import Hints
+from ...imaging.crop import estimate_noise
+from ...imaging.predicted import arc_center, edge_bias_gain, fit_shape, limb_edges, predicted_limb
+from ...models.lunar_lambert import LimbProfileParams, profile_model
+from ...models.sigmoid import CircleParams
+from ..checks import check_edge_width, check_levels
+from ..profile.fit import fit_lunar_profile
+from ..result import EllipseResult, LimbMeasurement
+from ..sigmoid import LOGISTIC_TO_GAUSS
+from ..stages import (Body, BodyCenter, Covariance, FitData, Frame, Levels, PredictedCandidates, PredictedEdge,
+                      PredictedPixels, RefineResult)
+from .center import ROUND_OUTPUTS, sphere_center
 from .edge import EDGE_SIGMAS
-from .geometry import ROUND_OUTPUTS, sphere_center
 from .polarity_split import polarity_split
-from .profile_fit import fit_lunar_profile
-from .refine import LOGISTIC_TO_GAUSS
-from .result import EllipseResult, LimbMeasurement
-from .stages import (Body, BodyCenter, Covariance, FitData, Frame, Levels, PredictedCandidates, PredictedEdge,
-                     PredictedPixels, RefineResult)
 from .whole_limb import cluster_covariance, fit_pass, select_whole_limb
 
 #: 1-sigma of a limb model's edge position error along the limb (px), per pattern of
@@ -53,7 +53,7 @@ from .whole_limb import cluster_covariance, fit_pass, select_whole_limb
 #: family (~0.01-0.02 px).  On short arcs the profile's residual mismatch is larger -- the limb-arc
 #: renders' centre errors divided by the arcs' gains are a first-harmonic edge error of -0.018 to -0.058 px
 #: (``benchmarks/limb_arc.py``) -- and is covered there by the profile's own split-witness model error
-#: (:func:`jaxlimb.pipeline.profile_fit.split_witness`).  It dominates the centre covariance of short arcs
+#: (:func:`jaxlimb.pipeline.profile.model_error.split_witness`).  It dominates the centre covariance of short arcs
 #: without that term.
 EDGE_MODEL_SIGMA_PX = 0.02
 #: Solver steps at least: the shape is held and the start is the predicted limb.
@@ -135,7 +135,7 @@ def sunlit_sphere(hints: Hints, counts: dict[str, int]) -> bool:
 
 def lit_limb_profile(frame: Frame, edge: PredictedEdge) -> RefineResult:
     """The lunar-Lambert limb profile on the lit limb's annulus, started from the whole-limb fit's circle (the
-    pipeline's own refit, :func:`~jaxlimb.pipeline.profile_fit.fit_lunar_profile`): removes the flat-topped sigmoid's
+    pipeline's own refit, :func:`~jaxlimb.pipeline.profile.fit.fit_lunar_profile`): removes the flat-topped sigmoid's
     edge bias (0.35-0.5 px on short arcs)."""
     data, _ = select_whole_limb(frame.img, frame.mask, edge.shape, FIRST_ANNULUS_PX, edge.noise)
     res, shape = edge.fit, edge.shape

@@ -1,6 +1,6 @@
 r"""Model error of the whole-limb fit from its two polarities: the lit limb against the dark limb.
 
-The whole-limb stage (:mod:`jaxlimb.pipeline.whole_limb`) fits one elliptical sigmoid to the lit limb (disc
+The whole-limb stage (:mod:`jaxlimb.pipeline.sphere.whole_limb`) fits one elliptical sigmoid to the lit limb (disc
 brighter than the sky) and the dark limb (disc darker than a brighter background) together.  The two see
 different profiles: a crescent brightening toward the limb, a plume or a glow beside it, a dark limb
 softened by the sky's gradient.  A profile the sigmoid does not describe moves the fitted edge, and the
@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from ..models import ELLIPSE
-from .refine import run_fit
+from ...models.sigmoid import ELLIPSE
+from ..sigmoid import run_fit
 from .whole_limb import binned_limb_steps, ellipse_distance
 
 #: Fewest pixels of each polarity for the split.
@@ -41,7 +41,7 @@ def pixel_polarity(img: np.ndarray, mask: np.ndarray | None, shape, dr: float, n
                    n_bins: int = 180, min_snr: float = 5.0) -> np.ndarray:
     """+1 (lit: disc brighter than the sky), -1 (dark) or 0 for each of ``coords``, from its angular bin's
     inner and outer levels on the annulus ``|d| <= dr`` about ``shape`` (as
-    :func:`jaxlimb.pipeline.whole_limb.select_whole_limb` classifies the bins)."""
+    :func:`jaxlimb.pipeline.sphere.whole_limb.select_whole_limb` classifies the bins)."""
     _, _, _, _, c, good, _ = binned_limb_steps(img, mask, shape, dr, noise, n_bins, min_snr)
     pol = np.where(good, np.sign(np.nan_to_num(c)), 0.0)
     _, phi_p = ellipse_distance(shape, coords)
@@ -52,7 +52,7 @@ def pixel_polarity(img: np.ndarray, mask: np.ndarray | None, shape, dr: float, n
 def polarity_split(img: np.ndarray, mask: np.ndarray | None, res, shape, dr: float, noise: float, opt,
                    fixed: tuple[str, ...]) -> dict[str, Any] | None:
     """The split of the module docstring for the whole-limb fit ``res`` (a
-    :class:`~jaxlimb.pipeline.refine.RefineResult`); ``None`` when a polarity has too few pixels."""
+    :class:`~jaxlimb.pipeline.stages.RefineResult`); ``None`` when a polarity has too few pixels."""
     pol = pixel_polarity(img, mask, shape, dr, noise, res.data.coords)
     held = tuple(dict.fromkeys(tuple(fixed) + ("a",)))
     out: dict[str, Any] = {}

@@ -20,7 +20,7 @@ Steps (:func:`locate_whole_limb`):
    :math:`|I - O|` exceeds ``min_snr`` times its noise; intensities are normalised,
    :math:`z_n = (z - O)/(I - O)` (so a dark limb, :math:`I < O`, becomes the same 0-to-1
    step as a lit one) and weighted by :math:`|I - O|/C_{ref}` (the weighted residuals are DN
-   residuals over :math:`C_{ref}`, as in :class:`jaxlimb.pipeline.refine.FitData`);
+   residuals over :math:`C_{ref}`, as in :class:`jaxlimb.pipeline.stages.FitData`);
 4. the elliptical sigmoid (ESF, Mortari et al. 2016) with the predicted axis ratio and angle
    held, centre, ``a``, ``k`` and the levels free; an outlier pass (Check 3) with a robust
    scale per 10-deg stretch of limb; the annulus is
@@ -32,13 +32,13 @@ Steps (:func:`locate_whole_limb`):
 
 6. a sphere with the Sun direction known, measured on its lit limb only (no dark-limb bins):
    the lit-limb pixels are refitted with the physical lunar-Lambert profile through the
-   pipeline's own refit (:func:`jaxlimb.pipeline.profile_fit.fit_lunar_profile`), which removes the
+   pipeline's own refit (:func:`jaxlimb.pipeline.profile.fit.fit_lunar_profile`), which removes the
    sigmoid's edge bias (0.35-0.5 px on short arcs);
 7. the centre covariance: the larger of the pixel-independent and the cluster-robust one,
    plus an edge-model error (:data:`EDGE_MODEL_SIGMA_PX` through the arc's gains of
    :func:`jaxlimb.imaging.predicted.edge_bias_gain`);
 8. lit and dark limb both measured: the model error of their split (the centre fitted on each
-   polarity alone, :mod:`jaxlimb.pipeline.polarity_split`) is added to the centre covariance.
+   polarity alone, :mod:`jaxlimb.pipeline.sphere.polarity_split`) is added to the centre covariance.
 
 Bodies larger than the frame (:func:`locate_arc`): the visible arc's circle is found by RANSAC
 with the radius the range predicts and the same stage runs from there; too-big only when no
@@ -60,19 +60,20 @@ import math
 
 import numpy as np
 
-from ..errors import TooManyOutliersError
-from ..imaging.predicted import LimbShape
-from ..models import ELLIPSE, EllipseParams
-from .options import LocateOptions
-from .refine import K_INIT, bin_median, levels_held, predict, run_fit
-from .stages import FitData, RefineResult
+from ...errors import TooManyOutliersError
+from ...imaging.predicted import LimbShape
+from ...models.sigmoid import ELLIPSE, EllipseParams
+from ..options import LocateOptions
+from ..sigmoid import K_INIT, levels_held, predict, run_fit
+from ..stages import FitData, RefineResult
+from .annulus import bin_median
 
 #: 1-sigma of a limb model's edge position error along the limb (px), per pattern of
 #: :func:`~jaxlimb.imaging.predicted.edge_bias_gain`: the physical profile's accuracy on renders of its own
 #: family (README: ~0.01-0.02 px).  On short arcs the profile's residual mismatch is larger -- the limb-arc
 #: renders' centre errors divided by the arcs' gains are a first-harmonic edge error of -0.018 to -0.058 px
 #: (``benchmarks/limb_arc.py``) -- and is covered there by the profile's own split-witness model error
-#: (:func:`jaxlimb.pipeline.profile_fit.split_witness`); 0.04 px here as well counted it twice (RMS/sigma
+#: (:func:`jaxlimb.pipeline.profile.model_error.split_witness`); 0.04 px here as well counted it twice (RMS/sigma
 #: 0.47/0.67 against 0.58/1.03).  It dominates the centre covariance of short arcs without that term.
 EDGE_MODEL_SIGMA_PX = 0.02
 

@@ -16,12 +16,12 @@ from typing import Any
 
 import numpy as np
 
-from ..fitting.jacobian import numerical_jacobian
-from ..geometry.camera import Camera
-from .stages import BodyCenter
-from .frame import Frame
-from .result import EllipseResult
-from ..geometry.sphere_image import sphere_from_ellipse_center
+from ...fitting.jacobian import numerical_jacobian
+from ...geometry.camera import Camera
+from ...geometry.navigation import sphere_from_ellipse
+from ...geometry.sphere_image import sphere_from_ellipse_center
+from ..result import EllipseResult
+from ..stages import BodyCenter, Frame
 
 #: The names of the body-centre outputs of a round body.
 ROUND_OUTPUTS = ("center_r", "center_c", "radius")
@@ -72,7 +72,6 @@ def _ellipse_axes(a: float, rho: float, theta: float) -> tuple[float, float, flo
 
 def _body_from_ellipse(pin: Camera, d: dict[str, float]) -> tuple[float, float]:
     """Body-centre image (ideal px) of a free ellipse ``(r0, c0, a, rho, theta)`` of a sphere (exact)."""
-    from ..geometry.navigation import sphere_from_ellipse
 
     a, rho, _ = _ellipse_axes(d["a"], d["rho"], 0.0)
     u, _ = sphere_from_ellipse(pin, (d["r0"], d["c0"]), (a, max(a * rho, 1e-9)), 1.0)

@@ -14,9 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ArcTooShortError
-from .stages import EdgeFit, LimbPixels
-from .checks import (
+from ...errors import ArcTooShortError
+from ..checks import (
     MIN_LIT_ARC_DEG,
     MIN_LIT_ARC_PROFILE_DEG,
     check_center_in_field,
@@ -27,16 +26,11 @@ from .checks import (
     jump_threshold,
     max_limb_displacement,
 )
-from .frame import Frame, arc_angles, frame_mask, min_diameter_px
-from .refine import (
-    LOGISTIC_TO_GAUSS,
-    AnnulusSelection,
-    RefineResult,
-    annulus_halfwidth,
-    fit_circle_annulus,
-    lit_halfangle,
-    select_annulus,
-)
+from ..frame import arc_angles, frame_mask, min_diameter_px
+from ..sigmoid import LOGISTIC_TO_GAUSS
+from ..stages import AnnulusSelection, EdgeFit, Frame, LimbPixels, RefineResult
+from .annulus import annulus_halfwidth, lit_halfangle, select_annulus
+from .fits import fit_circle_annulus
 
 #: Widen the annulus when it is narrower than this many Gaussian-equivalent edge sigmas.
 EDGE_SIGMAS = 4.5
@@ -52,13 +46,13 @@ def crescent_halfwidth(phase: float | None, radius: float, dr: float, horn_margi
                        min_arc_deg: float) -> float:
     """The annulus half-width (px) for a thin crescent: ``dr`` unless the lit band is too thin for it.
 
-    :func:`~jaxlimb.pipeline.refine.lit_halfangle` keeps the directions where the terminator lies at least
+    :func:`~jaxlimb.pipeline.sphere.annulus.lit_halfangle` keeps the directions where the terminator lies at least
     ``dr + 2`` px inside the limb.  A thin crescent (``R (1 - |cos phase|) < dr + 2`` at the Sun direction; e.g.
     benchmark row ``jpeg`` 5, 145 deg phase, R ~ 40 px: a 7 px thick band for a 6 px annulus) then has no
     usable direction at all although its whole lit limb is in the frame.  When the usable arc is below
     ``min_arc_deg`` the inner band is narrowed to the PSF's width: the half-width is lowered (never below ``CRESCENT_MIN_DR``) to the one for which the lit limb is
     usable over ``CRESCENT_HALF_DEG`` about the Sun direction (terminator at ``R/sqrt(cos^2 psi/cos^2 phase +
-    sin^2 psi)`` along the ray at ``psi``, :mod:`jaxlimb.pipeline.refine` rule 2)."""
+    sin^2 psi)`` along the ray at ``psi``, :mod:`jaxlimb.pipeline.sphere.annulus` rule 2)."""
     if phase is None or phase <= math.pi / 2 or dr <= CRESCENT_MIN_DR:
         return dr
     if 2.0 * math.degrees(lit_halfangle(phase, radius, dr, horn_margin_deg)) >= min_arc_deg:
@@ -87,7 +81,7 @@ def lit_window(frame: Frame, cand: Any, dr: float) -> tuple[tuple[float, float] 
 
 
 def limb_pixels(frame: Frame, cand: Any, physical_profile: bool) -> LimbPixels:
-    """Stage 3: the annulus ``r_hat +- dr`` on the lit side (:func:`~jaxlimb.pipeline.refine.select_annulus`),
+    """Stage 3: the annulus ``r_hat +- dr`` on the lit side (:func:`~jaxlimb.pipeline.sphere.annulus.select_annulus`),
     and the lit-arc check before any fit (cropped body, Sun-facing side out of the frame): on the front end's
     limb points (:func:`check_front_end_arc`), then on the annulus."""
     opt = frame.opt
@@ -141,7 +135,7 @@ def thin_crescent_message(phase: float | None, radius: float, dr: float, half: f
 def _short_annulus_cause(sel: AnnulusSelection, opt: Any, min_arc_deg: float, half: float) -> str | None:
     """Why the annulus' lit arc may be short, for :func:`~jaxlimb.pipeline.checks.check_lit_arc`: ``None`` (the
     default, a cropped body) unless the angular bins with pixels in the frame span the arc needed, in which case
-    the bins were dropped for want of a lit edge at the limb (rules 3-4 of :mod:`jaxlimb.pipeline.refine`)."""
+    the bins were dropped for want of a lit edge at the limb (rules 3-4 of :mod:`jaxlimb.pipeline.sphere.annulus`)."""
     width = max(float(opt.angular_bin_deg), math.degrees(4.0 / max(sel.radius, 1e-9)))
     in_frame = min(sel.n_bins * width, 2.0 * math.degrees(half))
     if in_frame < min(min_arc_deg, 0.9 * 2.0 * math.degrees(half)):

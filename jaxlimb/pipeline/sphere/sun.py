@@ -11,19 +11,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConvergenceError, LimbInputError
-from ..fitting import AbstractLimbSolver, LimbFit, NormalLM, fit
-from ..models.limb_darkened import (  # noqa: F401  (re-exported)
-    LIMB_DARKENED as LIMB_DARKENED,
-    N_TABLE as N_TABLE,
-    SUN_FIXED as SUN_FIXED,
-    U1_DEFAULT as U1_DEFAULT,
-    U2_DEFAULT as U2_DEFAULT,
-    LimbDarkenedParams as LimbDarkenedParams,
-    limb_darkened_intensity as limb_darkened_intensity,
-    limb_darkened_intensity_direct as limb_darkened_intensity_direct,
-    limb_darkening as limb_darkening,
-)
+from ...errors import ConvergenceError, LimbInputError
+from ...fitting import fit
+from ...fitting.fit import LimbFit
+from ...fitting.solvers import AbstractLimbSolver, NormalLM
+from ...models.limb_darkened import (LIMB_DARKENED as LIMB_DARKENED, SUN_FIXED as SUN_FIXED, U1_DEFAULT as U1_DEFAULT,
+                                     U2_DEFAULT as U2_DEFAULT, LimbDarkenedParams as LimbDarkenedParams,
+                                     limb_darkened_intensity as limb_darkened_intensity,
+                                     limb_darkening as limb_darkening)
 
 #: Below this PSF sigma (px) :func:`fit_limb_darkened` refits with ``sigma`` held at 0.
 SIGMA_FLOOR = 0.03
