@@ -40,7 +40,7 @@ import numpy as np
 
 from ..errors import LimbInputError
 from ..fitting import bucket_size
-from ..fitting.jacobian import numerical_jacobian
+from ..numerics import numerical_jacobian
 from ..geometry.navigation import sphere_from_circle
 from ..models import LimbModel, LimbParams
 

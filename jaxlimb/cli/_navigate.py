@@ -199,7 +199,7 @@ def navigate_measurement(
     names, fn = _measurement_map(body, camera, meas)
     x0 = np.array([meas.center_rc[0], meas.center_rc[1], meas.range_km if body == "earth" else meas.radius_px], float)
     P = np.array([[meas.covariance[a][b] for b in names] for a in names])
-    from ..fitting.jacobian import numerical_jacobian
+    from ..numerics import numerical_jacobian
 
     G = numerical_jacobian(fn, x0, np.array([1e-3, 1e-3, 1e-3 if body != "earth" else 1e-3 * max(1.0, x0[2] * 1e-6)]))
     r_om = fn(x0)

@@ -27,7 +27,7 @@ import numpy as np
 
 def observer_solution(meas, camera, C_ci: np.ndarray, attitude_sigma_rad: float = 0.0) -> dict[str, Any]:
     """Observer position relative to the body (frame of ``C_ci``, km), its covariance and parts."""
-    from ..fitting.jacobian import numerical_jacobian
+    from ..numerics import numerical_jacobian
     from ..errors import CheckFailed
     from ..geometry.navigation import navigate
     from ._navigate import _measurement_map

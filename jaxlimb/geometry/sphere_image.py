@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import GeometryError
-from ..fitting.jacobian import numerical_jacobian
+from ..numerics import numerical_jacobian
 
 
 @dataclass(frozen=True)

@@ -42,7 +42,7 @@ from typing import Any, ClassVar, final
 
 import numpy as np
 
-from ...fitting.jacobian import numerical_jacobian
+from ...numerics import numerical_jacobian
 from ...imaging.undistort import pinhole_of, undistort_image
 from ..report import check_physical
 from ..result import LimbMeasurement

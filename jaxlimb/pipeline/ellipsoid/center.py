@@ -9,7 +9,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ...fitting.jacobian import numerical_jacobian
+from ...numerics import numerical_jacobian
 from ...geometry.camera import Camera
 from ...geometry.earth_cone import max_gamma_off
 from ..result import EllipseResult

@@ -24,7 +24,7 @@ import math
 
 import numpy as np
 
-from ...fitting.jacobian import numerical_jacobian
+from ...numerics import numerical_jacobian
 from ...geometry.camera import Camera
 from ...geometry.earth_cone import cone_eigen, image_ellipse_cone
 

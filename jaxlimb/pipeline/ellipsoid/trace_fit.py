@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from ...errors import TooManyOutliersError
-from ...fitting.jacobian import numerical_jacobian
+from ...numerics import numerical_jacobian
 from ...fitting.model_error import cluster_robust_bias_reduced, cluster_robust_covariance
 from ...geometry.conic import ellipse_signed_distance
 from ..stages import FitData

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ...fitting.jacobian import numerical_jacobian
+from ...numerics import numerical_jacobian
 from ...geometry.camera import Camera
 from ...geometry.navigation import sphere_from_ellipse
 from ...geometry.sphere_image import sphere_from_ellipse_center

@@ -1,11 +1,12 @@
-"""The central-difference Jacobian of a map that is not written in JAX (the body-centre maps of a fitted limb,
-the Earth's range iteration), for the delta method :math:`G C G^\\top` of a fit's covariance."""
+"""Numerical tools every layer may use: the central-difference Jacobian of a map that is not written in JAX (the
+body-centre maps of a fitted limb, the Earth's range iteration), for the delta method :math:`G C G^\\top` of a fit's
+covariance."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..errors import LimbInputError
+from .errors import LimbInputError
 
 
 def numerical_jacobian(fn, x: np.ndarray, step: np.ndarray | float = 1e-4) -> np.ndarray:  # noqa: ANN001
