@@ -17,7 +17,7 @@ import pathlib
 from collections import defaultdict
 
 #: The layers, bottom first; a module's layer is that of its first package under ``jaxlimb``
-#: (the top-level modules ``errors``, ``_validate``, ``_io`` ... are the core).
+#: (the top-level modules ``errors``, ``numerics``, ``_validate``, ``_io`` ... are the core).
 LAYERS = (("core",), ("models", "geometry", "conics"), ("fitting",), ("imaging", "render"), ("pipeline",),
           ("analysis", "irregular"), ("cli",))
 #: Function-local imports allowed: optional or heavy third-party dependencies imported where they are used.
@@ -90,7 +90,7 @@ def _layer(mod: str) -> int | None:
     for i, names in enumerate(LAYERS):
         if top in names:
             return i
-    return 0 if (top.startswith("_") or top in ("errors",)) else None
+    return 0 if (top.startswith("_") or top in ("errors", "numerics")) else None
 
 
 def _sccs(graph: dict[str, set[str]]) -> list[list[str]]:

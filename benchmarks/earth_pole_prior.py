@@ -47,7 +47,7 @@ def _row(case) -> dict[str, Any]:
     from families import measure, pole_unknown_floor_px
 
     from jaxlimb.pipeline import LocateOptions
-    from jaxlimb.pipeline.ellipsoid import EllipsoidOptions
+    from jaxlimb.pipeline import EllipsoidOptions
 
     hints = {k: v for k, v in case.hints.items() if k != "R_body_to_camera"}
     bound = LocateOptions(ellipsoid=EllipsoidOptions(sun_declination_max_deg=OBLIQUITY_DEG))

@@ -79,7 +79,7 @@ def _options(center_floor_px: float | None, unresolved_glow: bool = True):
     """``LocateOptions`` for ``--center-floor`` (``EllipsoidOptions.center_floor_px``) and ``--no-unresolved-glow``
     (``EllipsoidOptions.unresolved_glow = None``); ``None``: the defaults."""
     from jaxlimb.pipeline import LocateOptions
-    from jaxlimb.pipeline.ellipsoid import EllipsoidOptions
+    from jaxlimb.pipeline import EllipsoidOptions
 
     kw = {} if center_floor_px is None else {"center_floor_px": center_floor_px}
     if not unresolved_glow:

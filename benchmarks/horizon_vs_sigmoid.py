@@ -123,7 +123,7 @@ def run_frame(fr: Frame, n_noise: int, seed: int, reflectance: str = "lommel-see
     from jaxlimb.geometry.horizon import horizon_from_pixels
     from jaxlimb.imaging import Hints, gradient_front_end
     from jaxlimb.pipeline import LocateOptions, locate as locate_any
-    from jaxlimb.pipeline.ellipsoid import EllipsoidOptions
+    from jaxlimb.pipeline import EllipsoidOptions
 
     noisy = _noisy()
     cam, sc, frame, truth = render(fr, reflectance)

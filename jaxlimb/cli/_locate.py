@@ -69,7 +69,7 @@ def _unresolved_glow(text: str):
     import argparse
 
     from ..errors import ConfigError
-    from ..pipeline.ellipsoid.options import EllipsoidOptions
+    from ..pipeline import EllipsoidOptions
 
     if text.strip().lower() == "none":
         return None
@@ -213,7 +213,7 @@ def _measure_frame(args: argparse.Namespace, frame):
     from ..errors import SaturationWarning
     from ..geometry.camera import Camera
     from ..pipeline import LocateOptions, locate
-    from ..pipeline.ellipsoid.options import EllipsoidOptions
+    from ..pipeline import EllipsoidOptions
     from . import warnings_to_stderr
 
     image = frame.data

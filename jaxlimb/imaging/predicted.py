@@ -32,6 +32,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
 from ..conics import fit_circle_taubin
 from ..errors import ConfigError, TooManyOutliersError
 from ..geometry.camera import Camera

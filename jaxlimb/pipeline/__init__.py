@@ -27,7 +27,7 @@ from .checks import (
     check_size as check_size,
     jump_threshold as jump_threshold,
 )
-from .ellipsoid.options import EllipsoidOptions as EllipsoidOptions
+from .options import EllipsoidOptions as EllipsoidOptions
 from .figure import save_locate_figure as save_locate_figure
 from .locate import locate as locate
 from .options import (

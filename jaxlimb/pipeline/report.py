@@ -18,10 +18,9 @@ from typing import Any
 import numpy as np
 
 from .._validate import check_center_sigma
-from ..models.ellipse_ramp import ELLIPSE_RAMP, EllipseRampParams
-from ..models.limb_darkened import LimbDarkenedParams
-from ..models.lunar_lambert import glow_fields, LimbProfileParams, profile_model
-from ..models.sigmoid import CIRCLE, ELLIPSE, CircleParams
+from ..models import (CIRCLE, CircleParams, ELLIPSE, ELLIPSE_RAMP, EllipseRampParams, LimbDarkenedParams,
+                      LimbProfileParams)
+from ..models.lunar_lambert import glow_fields, profile_model
 from .checks import check_edge_width, check_levels
 from .result import LimbMeasurement
 from .sigmoid import LOGISTIC_TO_GAUSS, fisher_information
@@ -99,7 +98,7 @@ def check_physical(frame: Frame, lev: Levels, cov: Covariance, what: str) -> Non
     check_levels(lev.ymax, lev.ymin, what)
     if lev.profile is not None and float(lev.profile["amp"]) <= 0:
         check_levels(lev.ymin + float(lev.profile["amp"]), lev.ymin, what)
-    check_edge_width(lev.psf_sigma_px, frame.opt.max_psf_sigma_px, what)
+    check_edge_width(lev.psf_sigma_px, what)
     if "center_r" in cov.names:
         check_center_sigma(cov.block(("center_r", "center_c")), frame.opt.max_center_sigma_px)
 

@@ -9,9 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ConvergenceError
-from ..fitting import fit
-from ..fitting.fit import bucket_size, LimbFit
-from ..fitting.solvers import solver_from_name
+from ..fitting import bucket_size, fit, LimbFit, solver_from_name
 from .options import LocateOptions
 from .stages import FitData
 

@@ -36,7 +36,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ..fitting.fit import LimbFit
+from ..fitting import LimbFit
 from ..geometry.camera import Camera
 from ..geometry.hints import Hints
 from ..geometry.sphere_image import SphereImage

@@ -510,7 +510,7 @@ def test_unresolved_earth_glow_is_carried_in_the_range_covariance():
     gate): the limb is lifted and the range 0.09 % short.  Without the unresolved glow's consider term
     (``EllipsoidOptions.unresolved_glow = None``) it was reported at z = -3.5; with it the range's z is within 2 and
     the estimate itself is unchanged (``ellipsoid_profile.with_unresolved_glow``)."""
-    from jaxlimb.pipeline.ellipsoid import EllipsoidOptions
+    from jaxlimb.pipeline import EllipsoidOptions
 
     case = _earth("glow", 5)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
@@ -526,7 +526,7 @@ def test_unresolved_earth_glow_is_carried_in_the_range_covariance():
 def test_unresolved_glow_term_is_small_on_a_resolved_glow_free_limb():
     """At 40 000 km a 6-25 km glow is 1-5 px high and the glow gate would see all but a faint one: on a frame without
     a glow the term adds little to the range's variance (the fit's own sigma is what the data give)."""
-    from jaxlimb.pipeline.ellipsoid import EllipsoidOptions
+    from jaxlimb.pipeline import EllipsoidOptions
 
     case = _earth("own", 2)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
@@ -540,7 +540,7 @@ def test_unresolved_glow_term_is_small_on_a_resolved_glow_free_limb():
                                  (float("nan"), 6.0, 25.0), "0.4,6,25", (0.4, None, 25.0)])
 def test_unresolved_glow_option_is_checked(bad):
     from jaxlimb.errors import ConfigError
-    from jaxlimb.pipeline.ellipsoid import EllipsoidOptions
+    from jaxlimb.pipeline import EllipsoidOptions
 
     with pytest.raises(ConfigError, match="unresolved_glow"):
         EllipsoidOptions(unresolved_glow=bad)

@@ -9,12 +9,12 @@ import pytest
 
 from jaxlimb.errors import ConfigError, GeometryError
 from jaxlimb.geometry.camera import Camera
-from jaxlimb.geometry.earth import EARTH_EQUATORIAL_KM, EARTH_POLAR_KM, earth_radii
+from jaxlimb.geometry.earth import EARTH_EQUATORIAL_KM, EARTH_POLAR_KM, earth_radii, gamma_off
 from jaxlimb.geometry.earth_cone import earth_position_from_ellipse, image_ellipse_cone, max_gamma_off
 from jaxlimb.geometry.ellipsoid import image_conic, limb_cone, limb_cone_matrix_camera
 from jaxlimb.pipeline import locate
 from jaxlimb.pipeline.ellipsoid.center import unsigned_offset_cov
-from jaxlimb.pipeline.ellipsoid import EllipsoidOptions
+from jaxlimb.pipeline import EllipsoidOptions
 from jaxlimb.pipeline.options import LocateOptions
 from jaxlimb.pipeline.stages import FitData, RefineResult
 from jaxlimb.render import RenderOptions, earth_scene, render_body
@@ -300,7 +300,7 @@ def test_earth_center_sigma_has_the_specification_floor(earth_far):
     """``EllipsoidOptions.center_floor_px`` (default 0.0075 px): the reported centre sigma is never below it; with
     0 the noise and model-error terms alone (smaller on this clean own render)."""
     from jaxlimb.pipeline import LocateOptions
-    from jaxlimb.pipeline.ellipsoid import EllipsoidOptions
+    from jaxlimb.pipeline import EllipsoidOptions
 
     cam, sc, img, truth = earth_far
     sig = {}

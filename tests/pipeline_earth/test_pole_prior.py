@@ -14,7 +14,7 @@ from jaxlimb.geometry.camera import Camera
 from jaxlimb.geometry.earth import EARTH_EQUATORIAL_KM as RE, EARTH_POLAR_KM as RP
 from jaxlimb.geometry.earth_cone import earth_position_from_ellipse
 from jaxlimb.geometry.ellipsoid import image_conic
-from jaxlimb.pipeline.ellipsoid import EllipsoidOptions
+from jaxlimb.pipeline import EllipsoidOptions
 from jaxlimb.pipeline.ellipsoid.pole_prior import cone_flattening, ellipse_flattening, marginal_center, spheroid_cones
 
 SIN_OBLIQUITY = math.sin(math.radians(23.44))

@@ -32,6 +32,6 @@ be told from the edge; the covariance carries it as a consider parameter (``Elli
 
 from .body import Ellipsoid as Ellipsoid
 from .model import EllipsoidModel as EllipsoidModel
-from .options import EllipsoidOptions as EllipsoidOptions
+from ..options import EllipsoidOptions as EllipsoidOptions
 
 __all__ = ["Ellipsoid", "EllipsoidModel", "EllipsoidOptions"]

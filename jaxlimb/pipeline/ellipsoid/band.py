@@ -12,10 +12,10 @@ import equinox as eqx
 import numpy as np
 
 from ...geometry.conic import ellipse_signed_distance
-from ...models.ellipse_ramp import EllipseRampParams
-from ...models.sigmoid import EllipseParams
+from ...models import EllipseParams, EllipseRampParams
+from ..options import EllipsoidOptions
+from ..sigmoid import K_INIT
 from ..stages import EllipsePixels, EllipsoidEdge, FitData
-from .options import EllipsoidOptions
 from .trace_fit import normalised_band
 
 
@@ -64,7 +64,7 @@ def edge_start(eo: EllipsoidOptions, ell: tuple, prev: Any, levels: tuple[float,
     geo = dict(r0=r0, c0=c0, a=a, theta=th, rho=b / a)
     if prev is not None:
         return prev.replace(**geo)
-    kw = dict(**geo, k=eo.k_init, ymax=levels[0], ymin=levels[1])
+    kw = dict(**geo, k=K_INIT, ymax=levels[0], ymin=levels[1])
     return EllipseRampParams(**kw, g=0.0, g2=0.0, h1=0.0, h2=0.0, h3=0.0, h4=0.0) if eo.interior_ramp else EllipseParams(**kw)
 
 

@@ -42,8 +42,8 @@ from typing import Any, ClassVar, final
 
 import numpy as np
 
-from ...numerics import numerical_jacobian
 from ...imaging.undistort import pinhole_of, undistort_image
+from ...numerics import numerical_jacobian
 from ..report import check_physical
 from ..result import LimbMeasurement
 from ..stages import Body, BodyCenter, Covariance, EllipsePixels, EllipsoidEdge, Frame, Levels, RefineResult

@@ -9,9 +9,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from ...numerics import numerical_jacobian
 from ...geometry.camera import Camera
 from ...geometry.earth_cone import max_gamma_off
+from ...numerics import numerical_jacobian
 from ..result import EllipseResult
 from ..stages import BodyCenter, Frame, RefineResult
 from .model import EllipsoidModel, as_ellipse, position

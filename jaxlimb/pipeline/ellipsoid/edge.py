@@ -14,14 +14,13 @@ import numpy as np
 from ...errors import JumpError, TooManyOutliersError
 from ...fitting import fit
 from ...geometry.conic import ellipse_change, ellipse_points, ellipse_signed_distance
-from ...models.ellipse_ramp import ELLIPSE_RAMP
-from ...models.sigmoid import ELLIPSE
+from ...models import ELLIPSE, ELLIPSE_RAMP
 from ..checks import check_center_in_field, check_radius_prior, check_size, jump_threshold
 from ..frame import min_diameter_px
+from ..options import EllipsoidOptions
 from ..stages import EllipsePixels, EllipsoidEdge, Frame, RefineResult
 from .band import band_data, edge_start, first_levels
-from .model import EllipsoidModel, as_ellipse, position
-from .options import EllipsoidOptions
+from .model import as_ellipse, EllipsoidModel, MAX_REFITS, position, REFIT_TOL_PX
 from .patchy import patchy_geometry
 
 
@@ -49,12 +48,12 @@ def edge_loop(body: EllipsoidModel, frame: Frame, pix: EllipsePixels) -> Ellipso
     fit instead of raising."""
     eo, cam, img = body.eo, frame.cam, frame.img
     model = ELLIPSE_RAMP if eo.interior_ramp else ELLIPSE
-    fixed = (() if body.free else ("rho", "theta")) + (tuple(eo.fix_profile) if eo.interior_ramp else ())
+    fixed = () if body.free else ("rho", "theta")
     if pix.patchy and eo.interior_ramp:  # per-ray levels and a flat interior (limb_trace): a plain step
         fixed = fixed + tuple(n for n in ("g", "g2", "h1", "h2", "h3", "h4") if n not in fixed)
     ell, p, prev, res, hist = pix.ellipse, pix.p0, None, None, []
     rays = pix.patchy and not body.free  # a band fit that does not converge is not the end (patchy_geometry)
-    for it in range(eo.max_refits):
+    for it in range(MAX_REFITS):
         data = band_data(img, ell, eo.band_px, pix)
         pts, z = data.coords, data.z
         if pts.shape[0] < 50:
@@ -73,12 +72,12 @@ def edge_loop(body: EllipsoidModel, frame: Frame, pix: EllipsePixels) -> Ellipso
         hist.append({"fit": it + 1, "range_km": float(np.linalg.norm(p)), "range_iterations": info["iterations"],
                      "fit_steps": int(res.n_steps)})
         if body.free:
-            done, ell = prev is not None and ellipse_change(prev, fitted) < eo.refit_tol_px, fitted
+            done, ell = prev is not None and ellipse_change(prev, fitted) < REFIT_TOL_PX, fitted
             prev = fitted
         else:  # the shape predicted at the new position; refit only if it moves the ellipse noticeably
             rho, th = body.predicted_shape(cam, -p)
             ell = (fitted[0], (fitted[1][0], fitted[1][0] * rho), th)
-            done = ellipse_change(fitted, ell) < eo.refit_tol_px
+            done = ellipse_change(fitted, ell) < REFIT_TOL_PX
         if done:
             break
     frame.mark("refine")
@@ -105,7 +104,7 @@ def check_ellipse_jump(frame: Frame, cand: Any, edge: EllipsoidEdge, eo: Ellipso
                                      cand.center_rc[1] + cand.radius * np.cos(ang)])
     disp = float(np.max(np.abs(ellipse_signed_distance(on_circle, edge.fitted)))) if pts.size else math.inf
     (_, _), (a, b), _ = edge.fitted
-    thr = jump_threshold(eo.band_px, frame.opt.max_jump_px) + (a - b)
+    thr = jump_threshold(eo.band_px) + (a - b)
     if not disp <= thr:
         raise JumpError(f"Check 5: the elliptical fit moved the limb by up to {disp:.3g} px from the front end's "
                         f"circle (limit {thr:.3g} px)")

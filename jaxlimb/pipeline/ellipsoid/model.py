@@ -10,14 +10,20 @@ from typing import Any
 import numpy as np
 
 from ...errors import ConfigError, ConvergenceError, GeometryError, LimbInputError
-from ...fitting.solvers import solver_from_name
+from ...fitting import solver_from_name
 from ...geometry.camera import Camera
 from ...geometry.earth import EARTH_EQUATORIAL_KM, EARTH_POLAR_KM
 from ...geometry.earth_cone import earth_position_from_ellipse
 from ...geometry.ellipsoid import check_rotation, image_conic
 from ...geometry.hints import Hints
+from ..options import EllipsoidOptions
 from ..stages import Frame
-from .options import EllipsoidOptions
+
+
+#: Fits (edge and profile) with ``rho, theta`` predicted from the latest position, at most ...
+MAX_REFITS = 3
+#: ... until the newly predicted ellipse differs from the fitted one by less than this (px, at the semi-major axis).
+REFIT_TOL_PX = 2e-3
 
 
 @dataclass(frozen=True)
@@ -45,15 +51,12 @@ class EllipsoidModel:
                               "ellipsoid: its edge model estimates the kernel with the interior ramp")
         if opt.profile == "limb-darkened":
             raise ConfigError("profile = 'limb-darkened' is the disc strategy's (the Sun), not the ellipsoid's")
-        eo = opt.ellipsoid if opt.ellipsoid is not None else EllipsoidOptions()
-        if not isinstance(eo, EllipsoidOptions):
-            raise ConfigError(f"LocateOptions.ellipsoid must be an EllipsoidOptions, got {type(eo).__name__}")
+        eo = opt.ellipsoid_options
         h = h if h is not None else earth_hints()
         Re, Rp, atm = spheroid(h)
         R = None if h.R_body_to_camera is None else check_rotation(np.asarray(h.R_body_to_camera), "R_body_to_camera",
                                                                    tol=1e-6)
-        free = True if opt.model == "ellipse" else (eo.free_ellipse if eo.free_ellipse is not None else R is None)
-        return cls(eo, Re, Rp, atm, R, bool(free))
+        return cls(eo, Re, Rp, atm, R, opt.model == "ellipse" or R is None)
 
 
     @property
@@ -96,7 +99,7 @@ def position(body: EllipsoidModel, cam: Camera, fitted: tuple, p0: np.ndarray) -
     try:
         return earth_position_from_ellipse(
             cam, *fitted, p0, pole_camera=body.pole, equatorial_km=body.equatorial_km, polar_km=body.polar_km,
-            atmosphere_km=body.atmosphere_km, eps_rad=body.eo.eps_rad, max_iter=body.eo.max_iter)
+            atmosphere_km=body.atmosphere_km)
     except ConvergenceError:
         raise
     except LimbInputError as e:  # a bad ellipse (no limb cone): not a measurement of this body

@@ -24,9 +24,9 @@ import math
 
 import numpy as np
 
-from ...numerics import numerical_jacobian
 from ...geometry.camera import Camera
 from ...geometry.earth_cone import cone_eigen, image_ellipse_cone
+from ...numerics import numerical_jacobian
 
 G_FLOOR_FRAC = 0.25
 """Per-component sigma added to the fitted flattening vector's, in units of the flattening (module docstring)."""

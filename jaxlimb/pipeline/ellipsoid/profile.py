@@ -19,24 +19,21 @@ import jax.numpy as jnp
 import numpy as np
 
 from ...errors import ConfigError, ConvergenceError, GeometryError, LimbInputError
-from ...fitting import fit
+from ...fitting import fit, NormalLM, solver_from_name
 from ...fitting.model_error import with_model_error as widen
-from ...fitting.solvers import NormalLM, solver_from_name
 from ...geometry.conic import ellipse_change
-from ...models.ellipse_ramp import ELLIPSE_RAMP, EllipseRampParams
-from ...models.lunar_lambert import (AnisoProfileParams, GlowProfileParams, LIMB_PROFILE, LIMB_PROFILE_ANISO,
-                                     LIMB_PROFILE_GLOW, limb_profile_intensity, LimbProfileParams,
-                                     lunar_lambert_weight, MinnaertProfileParams, PROFILE_FIXED, profile_model)
-from ...models.sigmoid import ELLIPSE
+from ...models import (AnisoProfileParams, ELLIPSE, ELLIPSE_RAMP, EllipseRampParams, GlowProfileParams, LIMB_PROFILE,
+                       LIMB_PROFILE_ANISO, LIMB_PROFILE_GLOW, limb_profile_intensity, LimbProfileParams,
+                       lunar_lambert_weight, MinnaertProfileParams)
+from ...models.lunar_lambert import profile_model
 from ..profile.fit import profile_sun_direction
 from ..profile.glow import GLOW_Z, fit_glow_tilt, glow_columns, glow_plausible, glow_start
 from ..profile.model_error import last_column_step, weighted_system, with_model_error
-from ..profile.passes import gaussian_sigma_of_k, l_band
+from ..profile.passes import gaussian_sigma_of_k, l_band, PROFILE_HELD
 from ..profile.widen import aniso_plausible, aniso_significant, with_aniso_witness
 from ..sigmoid import pad_bucket
 from ..stages import FitData, Frame, RefineResult
-from .band import band_data
-from .model import as_ellipse, position
+from .model import as_ellipse, MAX_REFITS, position, REFIT_TOL_PX
 from .trace_fit import coherent_shift_var, trace_model_cov
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -70,10 +67,9 @@ def _start(body: "EllipsoidModel", frame: Frame, edge: "EllipsoidEdge", pts: np.
     k = float(e.k)
     sigma0 = (math.sqrt(max(1.0 / max(k, 1e-6) ** 2 - 1.0 / 12.0, 0.09)) if isinstance(e, EllipseRampParams)
               else gaussian_sigma_of_k(k))  # the ramp's kernel is a Gaussian of sigma 1/k; the ESF's a logistic
-    L = frame.opt.lunar_lambert_L
     q = LimbProfileParams(r0=r0, c0=c0, a=float(a), theta=th0, rho=rho0, sigma=sigma0, amp=1.0, ymin=0.0,
                           sun_r=sun_rc[0], sun_c=sun_rc[1], phase=phase, inv_f=1.0 / cam.focal_px,
-                          L=lunar_lambert_weight(phase) if L is None else float(L))
+                          L=lunar_lambert_weight(phase))
     F0 = np.asarray(limb_profile_intensity(q, jnp.asarray(np.asarray(pts, float))))
     (amp0, ymin0), *_ = np.linalg.lstsq(np.column_stack([F0, np.ones_like(F0)]), z, rcond=None)
     if not (math.isfinite(amp0) and amp0 > 0):
@@ -104,12 +100,12 @@ def _one_fit(frame: Frame, data: tuple, q: LimbProfileParams, fixed: tuple, i: i
 def _passes(body: "EllipsoidModel", frame: Frame, edge: "EllipsoidEdge", fd: FitData, band: float):  # noqa: ANN202
     """The profile fits with the shape re-predicted at each new position (module docstring)."""
 
-    fixed = tuple(n for n in PROFILE_FIXED if not (n == "L" and frame.opt.lunar_lambert_L is None))
+    fixed = PROFILE_HELD
     if body.free:
         fixed = tuple(n for n in fixed if n not in ("theta", "rho"))
     data = pad_bucket(fd)
     q, p, hist, res = _start(body, frame, edge, fd.coords, fd.z), edge.p, [], None
-    for i in range(body.eo.max_refits):
+    for i in range(MAX_REFITS):
         res, q = _one_fit(frame, data, q, fixed, i)
         pf = as_ellipse(q)
         moved = ellipse_change(edge.fitted, pf)
@@ -122,7 +118,7 @@ def _passes(body: "EllipsoidModel", frame: Frame, edge: "EllipsoidEdge", fd: Fit
         if body.free:
             break
         rho, th = body.predicted_shape(frame.cam, -p)
-        if ellipse_change(pf, (pf[0], (float(q.a), float(q.a) * rho), th)) < body.eo.refit_tol_px:
+        if ellipse_change(pf, (pf[0], (float(q.a), float(q.a) * rho), th)) < REFIT_TOL_PX:
             break
         q = q.replace(theta=th, rho=rho)
     return res, fixed, hist
@@ -213,11 +209,7 @@ def fit_profile_ellipsoid(body: "EllipsoidModel", frame: Frame, edge: "Ellipsoid
         if edge.pixels.ray_fit:  # the geometry is the rays' (ellipsoid.ray_geometry): their covariance
             return _with_witness(_with_trace_error(edge.final, edge, replace_block=True), edge)
         return _with_witness(_with_trace_error(edge_with_model_error(edge), edge), edge)
-    band = body.eo.profile_band_px if body.eo.profile_band_px is not None else body.eo.band_px
-    fd = edge.final.data
-    if band != body.eo.band_px:
-
-        fd = band_data(frame.img, edge.fitted, band, edge.pixels)
+    band, fd = body.eo.band_px, edge.final.data
     try:
         res, fixed, hist = _passes(body, frame, edge, fd, band)
     except (ConvergenceError, GeometryError, LimbInputError) as e:
@@ -231,7 +223,6 @@ def fit_profile_ellipsoid(body: "EllipsoidModel", frame: Frame, edge: "Ellipsoid
         extras["profile_rejected"] = {"model": "lunar-lambert", "L": L, "allowed_L": list(band_L)}
         return edge_with_model_error(edge, res.params)
     extras["profile_fits"] = hist
-    extras["L_estimated"] = frame.opt.lunar_lambert_L is None
     rr = widen_glow_ellipsoid(frame, RefineResult(res, fd, 0, fixed))
     ra = rr if body.free else widen_aniso_ellipsoid(frame, rr)  # (a free ellipse's rho, theta are 2 psi terms too)
     system = weighted_system(ra, profile_model(ra.fit.params))  # (shared by both covariance terms)

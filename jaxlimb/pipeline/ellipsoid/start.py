@@ -22,6 +22,11 @@ from .trace import trace_limb
 from .trace_fit import fit_traced
 
 
+#: The lunar-Lambert ``L`` of the shading under an albedo-patchy limb's traced rays (:class:`RayShading`): 0, Lambert
+#: (the Earth's clouds and surface; not measurable from the rays, which the flatness test selects).
+PATCHY_SHADING_L = 0.0
+
+
 def ellipsoid_candidates(body: EllipsoidModel, frame: Frame) -> Any:
     """Stage "candidates" of the ellipsoid: the shared front end; when it fails on the limb's size or outliers (its circle on cloud edges: a 37 px
     circle for a 124 px Earth) and the trace is on, the disc's outermost lit pixel and the range prior's
@@ -31,12 +36,12 @@ def ellipsoid_candidates(body: EllipsoidModel, frame: Frame) -> Any:
     try:
         cand = candidates(frame)
     except (RadiusInconsistentError, TooManyOutliersError):
-        start = blob_candidates(body, frame) if body.eo.trace else None
+        start = blob_candidates(body, frame)
         if start is None:
             raise
         return start
     prior = cand.info.get("prior")
-    if (body.eo.trace and prior is not None and prior.expected_radius_px
+    if (prior is not None and prior.expected_radius_px
             and abs(cand.radius / prior.expected_radius_px - 1.0) > prior.radius_uncertainty_frac):
         # a circle on cloud edges that RANSAC's 3-sigma band let through (61 and 168 px for 124-127 px Earths,
         # benchmarks/families.py Earth ``clouds`` 3, 5): the trace cannot reach the limb from it (it searches
@@ -70,8 +75,6 @@ def ellipse_pixels(body: EllipsoidModel, frame: Frame, cand: Any) -> EllipsePixe
     a0 = cand.radius / math.sqrt(rho)
     half = half if lit_dir is not None else math.pi
     ell = ((float(c_rc[0]), float(c_rc[1])), (a0, a0 * rho), th)
-    if not eo.trace:
-        return EllipsePixels(p0, float(D0), lit_dir, half, ell)
     ell, tr = traced_start(frame.img, ell, lit_dir, half, eo.band_px, ray_shading(body, frame))
     return EllipsePixels(p0, float(D0), lit_dir, half, ell, tr)
 
@@ -113,10 +116,9 @@ def blob_candidates(body: EllipsoidModel, frame: Frame) -> Any:
 
 def ray_shading(body: EllipsoidModel, frame: Frame) -> Any:
     """The uniform disc's shading for the trace's flatness test (:class:`~jaxlimb.pipeline.ellipsoid.shading.RayShading`,
-    lunar-Lambert ``EllipsoidOptions.patchy_shading_L``), ``None`` without the Sun direction or with the option off."""
-
-    L, sun = body.eo.patchy_shading_L, frame.hints.sun_dir_camera
-    return None if L is None or sun is None else RayShading(frame.cam, tuple(float(x) for x in sun), float(L))
+    lunar-Lambert :data:`PATCHY_SHADING_L`), ``None`` without the Sun direction."""
+    sun = frame.hints.sun_dir_camera
+    return None if sun is None else RayShading(frame.cam, tuple(float(x) for x in sun), PATCHY_SHADING_L)
 
 
 def wide_trace(img: np.ndarray, ell: tuple, lit_dir, half: float, shade: Any) -> Any:

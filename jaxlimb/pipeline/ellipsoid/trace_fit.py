@@ -8,9 +8,9 @@ import math
 import numpy as np
 
 from ...errors import TooManyOutliersError
-from ...numerics import numerical_jacobian
 from ...fitting.model_error import cluster_robust_bias_reduced, cluster_robust_covariance
 from ...geometry.conic import ellipse_signed_distance
+from ...numerics import numerical_jacobian
 from ..stages import FitData
 from .trace import TracedLimb
 

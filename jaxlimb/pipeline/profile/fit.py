@@ -10,16 +10,15 @@ import math
 import numpy as np
 
 from ...errors import ConfigError
-from ...fitting.solvers import NormalLM
+from ...fitting import NormalLM
 from ...imaging.prior import sun_direction_image
-from ...models.lunar_lambert import (AnisoProfileParams, LIMB_PROFILE, LimbProfileParams, lunar_lambert_weight,
-                                     PROFILE_FIXED)
-from ...models.sigmoid import CircleParams
+from ...models import (AnisoProfileParams, CircleParams, LIMB_PROFILE, LimbProfileParams, lunar_lambert_weight,
+                       PROFILE_FIXED)
 from ..sigmoid import LOGISTIC_TO_GAUSS, predict
 from ..stages import FitData, Frame, RefineResult
 from .glow import widen_aniso_or_glow
 from .model_error import weighted_system, with_model_error
-from .passes import gaussian_sigma_of_k, profile_passes
+from .passes import gaussian_sigma_of_k, PROFILE_HELD, profile_passes
 from .patchy import downweight_patchy_sectors, with_reweighting_witness
 from .widen import widen_brightening, with_aniso_blur_witness
 
@@ -61,11 +60,10 @@ def profile_start(frame: Frame, circle: CircleParams, data: FitData, center) -> 
     normalised = data.weights is not None
     scale = float(data.scale) if normalised else float(p.ymax) - float(p.ymin)
     offset = float(data.offset) if normalised else float(p.ymin)
-    L = frame.opt.lunar_lambert_L
     return LimbProfileParams(r0=center[0], c0=center[1], a=float(p.radius), theta=0.0, rho=1.0,
                              sigma=gaussian_sigma_of_k(float(p.k)), amp=max(scale, 1e-6), ymin=offset, sun_r=sun_rc[0],
                              sun_c=sun_rc[1], phase=phase, inv_f=_inv_focal(frame, float(p.radius)),
-                             L=lunar_lambert_weight(phase) if L is None else float(L))
+                             L=lunar_lambert_weight(phase))
 
 
 def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: float | None = None
@@ -86,8 +84,7 @@ def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: fl
         center = tuple(float(v) for v in frame.to_ideal(np.array(center)))
     init = profile_start(frame, circle, data, center)
     data = FitData(coords, z, None, 0.0, 1.0)
-    # L is estimated unless given: it adapts the profile to Lambert (0) ... Lommel-Seeliger (1) limbs
-    fixed = PROFILE_FIXED if opt.lunar_lambert_L is not None else tuple(n for n in PROFILE_FIXED if n != "L")
+    fixed = PROFILE_HELD
     # the default solver with a tolerance on the parameters' own scale (px, DN): 1e-7 is
     # far below any measurable change; 1e-10 relative costs ~4 more passes for nothing
     solver = NormalLM(rtol=0.0, atol=1e-7, coarse_stride=1) if opt.solver == "lm" else None

@@ -11,7 +11,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ...errors import ConvergenceError
-from ...models.lunar_lambert import glow_column, GlowProfileParams, LIMB_PROFILE, LIMB_PROFILE_GLOW, LimbProfileParams
+from ...models import GlowProfileParams, LIMB_PROFILE, LIMB_PROFILE_GLOW, LimbProfileParams
+from ...models.lunar_lambert import glow_column
 from ..stages import Frame, RefineResult
 from .model_error import last_step, weighted_system
 from .passes import profile_passes

@@ -11,11 +11,11 @@ from typing import Any
 import jax
 import numpy as np
 
-from ...fitting.fit import bucket_size
+from ...fitting import bucket_size
 from ...fitting.model_error import cluster_robust_covariance, hausman_term, sector_groups, with_model_error as widen
 from ...geometry.conic import ellipse_signed_distance
-from ...models._base import LimbModel
-from ...models.lunar_lambert import limb_geometry, LimbProfileParams, profile_model
+from ...models import LimbModel, LimbProfileParams
+from ...models.lunar_lambert import limb_geometry, profile_model
 from ..sigmoid import LOGISTIC_TO_GAUSS
 from ..stages import RefineResult
 

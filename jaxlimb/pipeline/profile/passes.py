@@ -1,9 +1,6 @@
-"""The pipeline's side of the physical limb profile: the accepted range of the fitted ``L`` and the
-sphere whose image has a given centre and mean radius.
-
-The model itself (:data:`LIMB_PROFILE`, :func:`limb_profile_intensity`, its Jacobian) lives in
-:mod:`jaxlimb.models.lunar_lambert`; its names are re-exported here for older imports.
-"""
+"""The physical limb profile's fit passes (the sphere's image shape iterated with a camera), its start's PSF from a
+sigmoid's steepness, a frame's clip level, and the accepted range of the fitted lunar-Lambert weight ``L``.  The
+model (:data:`~jaxlimb.models.LIMB_PROFILE`, its Jacobian) lives in :mod:`jaxlimb.models`."""
 
 from __future__ import annotations
 
@@ -11,13 +8,18 @@ import math
 
 import numpy as np
 
-from ...fitting.solvers import NormalLM
+from ...fitting import NormalLM
 from ...geometry.sphere_image import sphere_from_circle_fit, sphere_from_ellipse_center
-from ...models._base import LimbModel
-from ...models.lunar_lambert import (LIMB_PROFILE as LIMB_PROFILE, PHYSICAL_L as PHYSICAL_L,
-                                     LimbProfileParams as LimbProfileParams)
+from ...models import LIMB_PROFILE, LimbModel, LimbProfileParams, PROFILE_FIXED
+from ...models.lunar_lambert import PHYSICAL_L
 from ..sigmoid import LOGISTIC_TO_GAUSS, run_fit
 from ..stages import FitData, Frame
+
+
+#: The profile's parameters held in its fit: the Sun's image direction, the phase and ``1/f`` (from the hints and the
+#: camera); the lunar-Lambert weight ``L`` is estimated, from McEwen's ``L(phase)``: it adapts the profile to Lambert
+#: (0) ... Lommel-Seeliger (1) limbs.
+PROFILE_HELD = tuple(n for n in PROFILE_FIXED if n != "L")
 
 
 def l_band(fit) -> tuple[float, float]:

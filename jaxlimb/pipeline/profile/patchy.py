@@ -11,10 +11,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ...fitting.fit import bucket_size
+from ...fitting import bucket_size
 from ...fitting.model_error import sector_groups
 from ...geometry.sphere_image import sphere_from_ellipse_center
-from ...models._base import LimbModel
+from ...models import LimbModel
 from ...models.lunar_lambert import profile_model
 from ..sigmoid import predict
 from ..stages import FitData, Frame, RefineResult

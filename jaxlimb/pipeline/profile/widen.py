@@ -10,8 +10,9 @@ from typing import Any
 import numpy as np
 
 from ...errors import ConvergenceError
-from ...models.lunar_lambert import (AnisoProfileParams, brightening_column, LIMB_PROFILE, LIMB_PROFILE_ANISO,
-                                     LIMB_PROFILE_MINNAERT, LimbProfileParams, MinnaertProfileParams)
+from ...models import (AnisoProfileParams, LIMB_PROFILE, LIMB_PROFILE_ANISO, LIMB_PROFILE_MINNAERT, LimbProfileParams,
+                       MinnaertProfileParams)
+from ...models.lunar_lambert import brightening_column
 from ..stages import Frame, RefineResult
 from .model_error import columns, edge_sigma, last_step, signed_distance, trailing_step, weighted_system
 from .passes import profile_passes

@@ -1,13 +1,13 @@
-r"""Refinement: the sigmoid least-squares fit on an annulus of pixels around the initial circle.
+r"""The round limb's pixels: an annulus about the initial circle on the lit side, its angular bins with a lit edge at
+the limb.
 
-Aerospace 2015 §5-6 (circular sigmoid, ``k`` estimated) and Mortari, D'Souza & Zanetti §VI
-(pixels between the radii :math:`\hat r \pm \Delta r` on the lit side, ``k = 3`` and
-``ymax``/``ymin`` fixed at the means of the pixels at the two extreme radii, Table 1).
+Aerospace 2015 §5-6 (circular sigmoid, ``k`` estimated) and Mortari, D'Souza & Zanetti §VI (pixels between the radii
+:math:`\hat r \pm \Delta r` on the lit side, Table 1); the fits on these pixels are :mod:`jaxlimb.pipeline.sphere.fits`.
 
 Pixel selection (:func:`select_annulus`)
 ----------------------------------------
 1. *Annulus*: pixels whose distance ``d`` from the initial centre satisfies
-   :math:`|d - \hat r| \le \Delta r`, inside the frame (less ``border_px``).
+   :math:`|d - \hat r| \le \Delta r`, inside the frame.
    The half-width rule (:func:`annulus_halfwidth`, decision -- the papers say "a few
    pixels", "a function of the initial radius"):
    :math:`\Delta r = \max(\Delta r_{min}, f_r \hat r, 4\,\mathrm{rms}_{Taubin})`, capped at
@@ -29,28 +29,20 @@ Pixel selection (:func:`select_annulus`)
    so along the ray at :math:`\psi` it lies at :math:`\hat r / \sqrt{\cos^2\psi/\cos^2\vartheta
    + \sin^2\psi}`).  Without the Sun, the half-angle is the front end's arc (points found
    on the limb) plus 2 deg.
-3. *Contrast per angular bin*: the annulus is cut into bins of ``angular_bin_deg``
+3. *Contrast per angular bin*: the annulus is cut into bins of :data:`ANGULAR_BIN_DEG`
    (at least 4 px of arc); a bin whose inside-minus-outside contrast (means over the inner
-   and outer quarters of the annulus) is below ``min_lit_contrast_frac`` of the
+   and outer quarters of the annulus) is below :data:`MIN_LIT_CONTRAST_FRAC` of the
    90th-percentile bin contrast is dropped: it removes the dark limb beyond the horns when
    the Sun is unknown, a terminator crossing the annulus, and bins spoiled by a bright star.
 4. *Edge at the limb*: in each kept bin the edge position is estimated from the
    bin-normalised intensities :math:`z_n = (z - O_b)/(I_b - O_b)` as
    :math:`e_b = \hat r - \Delta r + 2\Delta r\,\langle z_n\rangle` (the integral of a
-   unit step across the annulus); bins whose edge lies more than ``max_edge_offset_px``
+   unit step across the annulus); bins whose edge lies more than :data:`MAX_EDGE_OFFSET_PX`
    inside the 75th percentile of the bins' edges are dropped: there the edge is the
    terminator or the dark limb beyond a horn (e.g. the unlit sliver of a gibbous Moon, 1-2 px
    thick at 20-30 deg phase), which would pull a circle fitted to the lit limb inward.  When more than a third
    of the bins fall inward of that percentile the initial circle is off (a crescent's or a cropped limb's Taubin
    circle) and the edges are measured from their own first-order circle trend instead (:func:`_edge_offsets`).
-
-Fit (:func:`fit_circle_annulus`, :func:`fit_sphere_annulus`, :func:`fit_ellipse_annulus`)
------------------------------------------------------------------------------------------
-Initial ``ymax``/``ymin`` are the medians of the inner and outer quarters of the annulus
-(robust to stars and craters), ``k0 = 1.5``/px (a ~1 px PSF).  After the first fit, pixels
-whose residual exceeds ``outlier_sigma`` robust sigmas (1.4826 MAD) are dropped (stars, hot
-pixels) and the fit repeated from the estimate; more than ``max_outlier_fraction`` of them
-is Check 3 (:class:`~jaxlimb.errors.TooManyOutliersError`).
 """
 
 from __future__ import annotations
@@ -60,19 +52,30 @@ import math
 import numpy as np
 
 from ...errors import ArcTooShortError, TooManyOutliersError
-from ..options import LocateOptions
 from ..stages import AnnulusSelection
 
 
-def annulus_halfwidth(radius: float, residual_rms: float, options: LocateOptions) -> float:
+#: Smallest half-width of the annulus (px): covers +-4 sigma of a 1.5 px blur (rule 1).
+ANNULUS_MIN_PX = 6.0
+#: Half-width as a fraction of the initial radius: a few px for the papers' 50-500 px Moons (rule 1).
+ANNULUS_FRAC = 0.02
+#: With a known Sun direction, the pixels within this angle (deg) of the horns are left out (rule 2).
+HORN_MARGIN_DEG = 10.0
+#: Width (deg) of the annulus' angular bins (at least 4 px of arc; rule 3).
+ANGULAR_BIN_DEG = 5.0
+#: Bins whose inside-minus-outside contrast is below this fraction of the 90th-percentile bin's are dropped (rule 3).
+MIN_LIT_CONTRAST_FRAC = 0.3
+#: Bins whose edge lies more than this (px) inside the limb's are dropped (rule 4).
+MAX_EDGE_OFFSET_PX = 0.75
+
+
+def annulus_halfwidth(radius: float, residual_rms: float) -> float:
     """Half-width ``dr`` (px) of the fitted annulus (module docstring, rule 1)."""
-    if options.annulus_px is not None:
-        return float(options.annulus_px)
-    dr = max(options.annulus_min_px, options.annulus_frac * radius, 4.0 * float(residual_rms))
-    return float(min(dr, max(options.annulus_min_px, 0.5 * radius)))
+    dr = max(ANNULUS_MIN_PX, ANNULUS_FRAC * radius, 4.0 * float(residual_rms))
+    return float(min(dr, max(ANNULUS_MIN_PX, 0.5 * radius)))
 
 
-def lit_halfangle(phase_rad: float | None, radius: float, dr: float, horn_margin_deg: float) -> float:
+def lit_halfangle(phase_rad: float | None, radius: float, dr: float, horn_margin_deg: float = HORN_MARGIN_DEG) -> float:
     """Half-angle (rad) of the usable lit limb about the Sun direction (module docstring, rule 2).
 
     ``pi/2 - horn_margin`` for a gibbous body; for a crescent (phase > 90 deg) also no more
@@ -105,7 +108,6 @@ def select_annulus(
     dr: float,
     direction: tuple[float, float] | None,
     halfangle: float,
-    options: LocateOptions,
     mask: np.ndarray | None = None,
 ) -> AnnulusSelection:
     """Pixels of the annulus ``radius +- dr`` on the lit side (module docstring, rules 1-3).
@@ -122,13 +124,12 @@ def select_annulus(
         Fewer than 20 pixels survive (the limb is not in the frame, or no bin has contrast).
     """
     cr, cc = float(center_rc[0]), float(center_rc[1])
-    coords, z, dsel = _annulus_window(np.asarray(image), (cr, cc), radius, dr, direction, halfangle, options.border_px,
-                                      mask)
+    coords, z, dsel = _annulus_window(np.asarray(image), (cr, cc), radius, dr, direction, halfangle, mask)
     ang = np.arctan2(coords[:, 0] - cr, coords[:, 1] - cc)
     inner = dsel <= radius - 0.5 * dr
-    bins, nb = _angular_bins(ang, radius, options)
+    bins, nb = _angular_bins(ang, radius)
     outer = _outer_pixels(dsel, bins, nb, radius, dr, mask is not None)
-    keep_bin, lev_in, lev_out, n_bins = _lit_bins(z, bins, nb, inner, outer, radius, dr, options)
+    keep_bin, lev_in, lev_out, n_bins = _lit_bins(z, bins, nb, inner, outer, radius, dr)
     keep = keep_bin[bins]
     if np.count_nonzero(keep) < 20 or not np.any(inner & keep) or not np.any(outer & keep):
         raise TooManyOutliersError(
@@ -180,16 +181,14 @@ def _outer_pixels(dsel: np.ndarray, bins: np.ndarray, nb: int, radius: float, dr
 
 
 def _annulus_window(img: np.ndarray, center_rc: tuple[float, float], radius: float, dr: float,
-                    direction: tuple[float, float] | None, halfangle: float, border_px: int,
-                    mask: np.ndarray | None = None):
-    """Rules 1-2: the pixels ``(coords, z, distance)`` of the annulus ``radius +- dr`` inside the frame (less
-    ``border_px``), valid in ``mask`` and inside the lit-side window; the typed failures when too few are left."""
+                    direction: tuple[float, float] | None, halfangle: float, mask: np.ndarray | None = None):
+    """Rules 1-2: the pixels ``(coords, z, distance)`` of the annulus ``radius +- dr`` inside the frame, valid in
+    ``mask`` and inside the lit-side window; the typed failures when too few are left."""
     R, C = img.shape
     cr, cc = center_rc
-    b = int(border_px)
     rmax = radius + dr
-    r0, r1 = max(b, int(math.floor(cr - rmax))), min(R - b, int(math.ceil(cr + rmax)) + 1)
-    c0, c1 = max(b, int(math.floor(cc - rmax))), min(C - b, int(math.ceil(cc + rmax)) + 1)
+    r0, r1 = max(0, int(math.floor(cr - rmax))), min(R, int(math.ceil(cr + rmax)) + 1)
+    c0, c1 = max(0, int(math.floor(cc - rmax))), min(C, int(math.ceil(cc + rmax)) + 1)
     if r1 <= r0 or c1 <= c0:
         raise TooManyOutliersError("the limb annulus lies outside the frame: no pixels to fit")
     drow = np.arange(r0, r1, dtype=np.float64)[:, None] - cr
@@ -217,15 +216,15 @@ def _annulus_window(img: np.ndarray, center_rc: tuple[float, float], radius: flo
     return coords, img[ir + r0, ic + c0].astype(np.float64), d[ir, ic]
 
 
-def _angular_bins(ang: np.ndarray, radius: float, options: LocateOptions) -> tuple[np.ndarray, int]:
-    """Each pixel's angular bin (``options.angular_bin_deg`` wide, at least 4 px of arc) and the number of bins."""
-    width = max(math.radians(options.angular_bin_deg), 4.0 / max(radius, 1e-9))
+def _angular_bins(ang: np.ndarray, radius: float) -> tuple[np.ndarray, int]:
+    """Each pixel's angular bin (:data:`ANGULAR_BIN_DEG` wide, at least 4 px of arc) and the number of bins."""
+    width = max(math.radians(ANGULAR_BIN_DEG), 4.0 / max(radius, 1e-9))
     nb = max(1, int(math.ceil(2 * math.pi / width)))
     return np.minimum(((ang + math.pi) / (2 * math.pi) * nb).astype(np.int64), nb - 1), nb
 
 
 def _lit_bins(z: np.ndarray, bins: np.ndarray, nb: int, inner: np.ndarray, outer: np.ndarray, radius: float,
-              dr: float, options: LocateOptions):
+              dr: float):
     """Rules 3-4: angular bins (each pixel's of ``nb``, :func:`_angular_bins`) of the annulus with a lit edge at the
     limb.  Returns the bins kept, the bins' inner and outer levels and the number of bins with pixels."""
     # rule 3: contrast per angular bin (medians: robust to stars, hot pixels, craters)
@@ -238,17 +237,17 @@ def _lit_bins(z: np.ndarray, bins: np.ndarray, nb: int, inner: np.ndarray, outer
     keep_bin = have
     if have.any():
         ref = float(np.percentile(contrast[have], 90))
-        keep_bin = have & (contrast >= options.min_lit_contrast_frac * ref) & (contrast > 0)
+        keep_bin = have & (contrast >= MIN_LIT_CONTRAST_FRAC * ref) & (contrast > 0)
     # rule 4: the edge of each bin must be at the limb, not inside it (a terminator or the
     # dark limb beyond a horn): e_b = r - dr + 2 dr <z_n>, z_n the bin-normalised intensities
-    if options.max_edge_offset_px is not None and keep_bin.any():
+    if keep_bin.any():
         zn = np.clip((z - lev_out[bins]) / np.where(contrast[bins] > 0, contrast[bins], np.inf), -0.5, 1.5)
         s_zn = np.bincount(bins, weights=zn, minlength=nb)
         cnt = np.bincount(bins, minlength=nb)
         e_b = np.full(nb, np.nan)
         ok = keep_bin & (cnt > 0)
         e_b[ok] = radius - dr + 2.0 * dr * s_zn[ok] / cnt[ok]
-        keep_bin = keep_bin & ~(_edge_offsets(e_b, ok, nb, options.max_edge_offset_px) < -options.max_edge_offset_px)
+        keep_bin = keep_bin & ~(_edge_offsets(e_b, ok, nb, MAX_EDGE_OFFSET_PX) < -MAX_EDGE_OFFSET_PX)
     return keep_bin, lev_in, lev_out, n_bins
 
 

@@ -16,10 +16,10 @@ from typing import Any
 
 import numpy as np
 
-from ...numerics import numerical_jacobian
 from ...geometry.camera import Camera
 from ...geometry.navigation import sphere_from_ellipse
 from ...geometry.sphere_image import sphere_from_ellipse_center
+from ...numerics import numerical_jacobian
 from ..result import EllipseResult
 from ..stages import BodyCenter, Frame
 

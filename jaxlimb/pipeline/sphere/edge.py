@@ -30,6 +30,7 @@ from ..frame import arc_angles, frame_mask, min_diameter_px
 from ..sigmoid import LOGISTIC_TO_GAUSS
 from ..stages import AnnulusSelection, EdgeFit, Frame, LimbPixels, RefineResult
 from .annulus import annulus_halfwidth, lit_halfangle, select_annulus
+from .annulus import ANGULAR_BIN_DEG, ANNULUS_MIN_PX
 from .fits import fit_circle_annulus
 
 #: Widen the annulus when it is narrower than this many Gaussian-equivalent edge sigmas.
@@ -42,8 +43,7 @@ CRESCENT_MIN_DR = 3.0
 CRESCENT_HALF_DEG = 40.0
 
 
-def crescent_halfwidth(phase: float | None, radius: float, dr: float, horn_margin_deg: float,
-                       min_arc_deg: float) -> float:
+def crescent_halfwidth(phase: float | None, radius: float, dr: float, min_arc_deg: float) -> float:
     """The annulus half-width (px) for a thin crescent: ``dr`` unless the lit band is too thin for it.
 
     :func:`~jaxlimb.pipeline.sphere.annulus.lit_halfangle` keeps the directions where the terminator lies at least
@@ -55,7 +55,7 @@ def crescent_halfwidth(phase: float | None, radius: float, dr: float, horn_margi
     sin^2 psi)`` along the ray at ``psi``, :mod:`jaxlimb.pipeline.sphere.annulus` rule 2)."""
     if phase is None or phase <= math.pi / 2 or dr <= CRESCENT_MIN_DR:
         return dr
-    if 2.0 * math.degrees(lit_halfangle(phase, radius, dr, horn_margin_deg)) >= min_arc_deg:
+    if 2.0 * math.degrees(lit_halfangle(phase, radius, dr)) >= min_arc_deg:
         return dr  # usable as it is (narrowing further moved benchmark row airy 1 from 0.017 to 0.069 px)
     psi = math.radians(CRESCENT_HALF_DEG)
     c2 = max(math.cos(phase) ** 2, 1e-300)
@@ -66,17 +66,16 @@ def crescent_halfwidth(phase: float | None, radius: float, dr: float, horn_margi
 def lit_window(frame: Frame, cand: Any, dr: float) -> tuple[tuple[float, float] | None, float, float | None]:
     """The lit side: ``(direction, half-angle, phase)`` from the Sun direction, else from the image."""
     prior = cand.info.get("prior")
-    opt = frame.opt
     phase = frame.phase(cand.center_rc) if frame.sun_known else (prior.phase_rad if prior is not None else None)
     direction = cand.lit_direction
     if direction is None:
         return None, math.pi, phase
     if frame.sun_known:
-        return direction, lit_halfangle(phase, cand.radius, dr, opt.horn_margin_deg), phase
+        return direction, lit_halfangle(phase, cand.radius, dr), phase
     # Sun unknown: the arc of the front end's points, but never more than the lit half-circle of the
     # phase measured on the image (more is the dark limb / terminator)
     ph_img = prior.phase_rad if prior is not None else None
-    half = min(cand.lit_halfangle + math.radians(2.0), lit_halfangle(ph_img, cand.radius, dr, opt.horn_margin_deg))
+    half = min(cand.lit_halfangle + math.radians(2.0), lit_halfangle(ph_img, cand.radius, dr))
     return direction, half, phase
 
 
@@ -85,11 +84,11 @@ def limb_pixels(frame: Frame, cand: Any, physical_profile: bool) -> LimbPixels:
     and the lit-arc check before any fit (cropped body, Sun-facing side out of the frame): on the front end's
     limb points (:func:`check_front_end_arc`), then on the annulus."""
     opt = frame.opt
-    dr = dr_in = annulus_halfwidth(cand.radius, cand.residual_rms, opt)
+    dr = dr_in = annulus_halfwidth(cand.radius, cand.residual_rms)
     min_arc = float(opt.min_lit_arc_deg) if opt.min_lit_arc_deg is not None else (
         MIN_LIT_ARC_PROFILE_DEG if physical_profile else MIN_LIT_ARC_DEG)
-    if frame.sun_known and opt.annulus_px is None:
-        dr_in = crescent_halfwidth(frame.phase(cand.center_rc), cand.radius, dr, opt.horn_margin_deg, min_arc)
+    if frame.sun_known:
+        dr_in = crescent_halfwidth(frame.phase(cand.center_rc), cand.radius, dr, min_arc)
     direction, half, phase = lit_window(frame, cand, dr_in)
     if direction is not None and (half <= 0.0 or (dr_in < dr and 2.0 * math.degrees(half) < min_arc)):
         raise ArcTooShortError(thin_crescent_message(phase, cand.radius, dr_in, half, min_arc))
@@ -97,8 +96,8 @@ def limb_pixels(frame: Frame, cand: Any, physical_profile: bool) -> LimbPixels:
     # a thin crescent: the band [r - dr_in, r + dr] (inside: the lit band; outside: the sky, always there),
     # i.e. half-width (dr_in + dr)/2 about r + (dr - dr_in)/2, never widened (the terminator would enter it)
     shift, h = 0.5 * (dr - dr_in), 0.5 * (dr + dr_in)
-    sel = select_annulus(frame.img, cand.center_rc, cand.radius + shift, h, direction, half, opt, frame_mask(frame))
-    cause = _short_annulus_cause(sel, opt, min_arc, half)
+    sel = select_annulus(frame.img, cand.center_rc, cand.radius + shift, h, direction, half, frame_mask(frame))
+    cause = _short_annulus_cause(sel, min_arc, half)
     try:
         check_lit_arc(sel.angles(), min_arc, half, cause)
     except ArcTooShortError as e:
@@ -132,11 +131,11 @@ def thin_crescent_message(phase: float | None, radius: float, dr: float, half: f
             f"the usable half-angle of the lit limb comes out {math.degrees(half):.0f} deg{arc}")
 
 
-def _short_annulus_cause(sel: AnnulusSelection, opt: Any, min_arc_deg: float, half: float) -> str | None:
+def _short_annulus_cause(sel: AnnulusSelection, min_arc_deg: float, half: float) -> str | None:
     """Why the annulus' lit arc may be short, for :func:`~jaxlimb.pipeline.checks.check_lit_arc`: ``None`` (the
     default, a cropped body) unless the angular bins with pixels in the frame span the arc needed, in which case
     the bins were dropped for want of a lit edge at the limb (rules 3-4 of :mod:`jaxlimb.pipeline.sphere.annulus`)."""
-    width = max(float(opt.angular_bin_deg), math.degrees(4.0 / max(sel.radius, 1e-9)))
+    width = max(ANGULAR_BIN_DEG, math.degrees(4.0 / max(sel.radius, 1e-9)))
     in_frame = min(sel.n_bins * width, 2.0 * math.degrees(half))
     if in_frame < min(min_arc_deg, 0.9 * 2.0 * math.degrees(half)):
         return None
@@ -166,7 +165,7 @@ def check_front_end_arc(cand: Any, min_arc_deg: float, half: float) -> float | N
 def _reselect(frame: Frame, pix: LimbPixels, circ: RefineResult, dr: float) -> tuple[LimbPixels, RefineResult]:
     p = circ.fit.params
     sel = select_annulus(frame.img, (float(p.r0), float(p.c0)), float(p.radius) + pix.shift, dr, pix.direction,
-                         pix.half, frame.opt, frame_mask(frame))
+                         pix.half, frame_mask(frame))
     pix = LimbPixels(sel, dr, pix.direction, pix.half, pix.phase, pix.min_arc_deg, pix.dr_max, pix.shift)
     return pix, fit_circle_annulus(sel, frame.opt)
 
@@ -178,9 +177,9 @@ def edge_fit(frame: Frame, pix: LimbPixels) -> EdgeFit:
     opt = frame.opt
     circ = fit_circle_annulus(pix.sel, opt)
     widened = recentered = False
-    if opt.estimate_k and opt.annulus_px is None:
+    if opt.estimate_k:
         need = EDGE_SIGMAS * LOGISTIC_TO_GAUSS / max(float(circ.fit.params.k), 1e-6)
-        cap = min(max(opt.annulus_min_px, 0.5 * pix.sel.radius), pix.dr_max)
+        cap = min(max(ANNULUS_MIN_PX, 0.5 * pix.sel.radius), pix.dr_max)
         if need > 1.05 * pix.dr and pix.dr < cap:
             pix, circ = _reselect(frame, pix, circ, min(cap, need))
             widened = True
@@ -198,7 +197,7 @@ def edge_fit(frame: Frame, pix: LimbPixels) -> EdgeFit:
 def check_edge(frame: Frame, cand: Any, edge: EdgeFit) -> EdgeFit:
     """Checks 5 (jump from the front end's circle), 1 (size), 3/4 (radius in the prior's band) and 4
     (centre in the field) on the fitted circle; returns ``edge`` with the jump and its limit."""
-    thr = jump_threshold(edge.pixels.dr, frame.opt.max_jump_px)
+    thr = jump_threshold(edge.pixels.dr)
     # a thin crescent's band lies ``shift`` outside the front end's circle: the jump is from the band's middle
     jump = check_jump(cand.center_rc, cand.radius + edge.pixels.shift, edge.center_rc, edge.radius, edge.pixels.sel.angles(), thr)
     check_size(edge.radius, frame.img.shape, min_diameter_px(frame), edge.arc_deg)

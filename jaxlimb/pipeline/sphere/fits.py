@@ -7,17 +7,22 @@ from __future__ import annotations
 import numpy as np
 
 from ...errors import TooManyOutliersError
-from ...fitting.fit import LimbFit
+from ...fitting import LimbFit
 from ...geometry.sphere_image import SphereImage, sphere_from_ellipse_center
-from ...models.sigmoid import CIRCLE, CircleParams, ELLIPSE, EllipseParams
+from ...models import CIRCLE, CircleParams, ELLIPSE, EllipseParams
+from ..checks import MAX_OUTLIER_FRACTION, OUTLIER_SIGMA
 from ..options import LocateOptions
 from ..sigmoid import K_INIT, levels_held, predict, replace_params, run_fit
 from ..stages import AnnulusSelection, FitData, RefineResult
 
 
-def fit_data(sel: AnnulusSelection, options: LocateOptions) -> FitData:
-    """The (optionally level-normalised) data of ``sel`` (see :class:`FitData`)."""
-    if not options.normalize_levels or sel.pixel_inner is None or sel.pixel_outer is None:
+#: The steepness (1/px) held when ``estimate_k`` is off (the illuminated-ellipsoid paper §VI, Table 1).
+K_FIXED = 3.0
+
+
+def fit_data(sel: AnnulusSelection) -> FitData:
+    """The level-normalised data of ``sel`` (each angular bin divided by its contrast; :class:`FitData`)."""
+    if sel.pixel_inner is None or sel.pixel_outer is None:
         return FitData(sel.coords, sel.z, None, 0.0, 1.0)
     c = sel.pixel_inner - sel.pixel_outer
     cref = float(np.median(c))
@@ -26,6 +31,9 @@ def fit_data(sel: AnnulusSelection, options: LocateOptions) -> FitData:
 
 
 def initial_levels(sel: AnnulusSelection, data: FitData, options: LocateOptions) -> tuple[float, float, float]:
+    """The fit's start ``(k, ymax, ymin)``: :data:`~jaxlimb.pipeline.sigmoid.K_INIT` and the levels (1, 0 for
+    level-normalised data) with ``estimate_k``; else :data:`K_FIXED` and the means of the pixels within 1 px of the
+    annulus' inner and outer radii (held in the fit, the paper's setting)."""
     if options.estimate_k:
         if data.weights is not None:
             return K_INIT, 1.0, 0.0
@@ -35,26 +43,29 @@ def initial_levels(sel: AnnulusSelection, data: FitData, options: LocateOptions)
     e_out = d >= sel.radius + sel.dr - 1.0
     ymax = float(np.mean(data.z[e_in])) if e_in.any() else float(np.max(data.z))
     ymin = float(np.mean(data.z[e_out])) if e_out.any() else float(np.min(data.z))
-    return float(options.k_fixed), ymax, ymin
+    return K_FIXED, ymax, ymin
 
 
 def outlier_pass(model, data: FitData, res: LimbFit, options: LocateOptions, fixed) -> tuple[LimbFit, FitData, int]:
+    """Check 3: pixels whose residual exceeds :data:`~jaxlimb.pipeline.checks.OUTLIER_SIGMA` robust sigmas are dropped
+    and the fit repeated; more than :data:`~jaxlimb.pipeline.checks.MAX_OUTLIER_FRACTION` of them (beyond the local
+    misfit of the edge model's shape, :func:`local_misfit`) is a :class:`~jaxlimb.errors.TooManyOutliersError`."""
     pred = predict(model, res.params, data.coords)
     r = data.z - pred
     if data.weights is not None:
         r = r * data.weights
     sig = _robust_sigma(r)
-    bad = np.abs(r) > options.outlier_sigma * sig
+    bad = np.abs(r) > OUTLIER_SIGMA * sig
     nb = int(np.count_nonzero(bad))
     n = data.z.shape[0]
-    if nb > options.max_outlier_fraction * n:
+    if nb > MAX_OUTLIER_FRACTION * n:
         # a misfit of the edge model's shape (a bright rim) is not an outlier: test what is left about it (same sigma)
-        bad = np.abs(r - local_misfit(r, data.coords, res.params)) > options.outlier_sigma * sig
+        bad = np.abs(r - local_misfit(r, data.coords, res.params)) > OUTLIER_SIGMA * sig
         nl = int(np.count_nonzero(bad))
-        if nl > MISFIT_OUTLIER_SHARE * options.max_outlier_fraction * n:
+        if nl > MISFIT_OUTLIER_SHARE * MAX_OUTLIER_FRACTION * n:
             raise TooManyOutliersError(
                 f"Check 3: {nb} of {n} annulus pixels ({100.0 * nb / n:.1f} %) have residuals above "
-                f"{options.outlier_sigma:g} robust sigma; max_outlier_fraction = {options.max_outlier_fraction:g} "
+                f"{OUTLIER_SIGMA:g} robust sigma; max_outlier_fraction = {MAX_OUTLIER_FRACTION:g} "
                 f"({100.0 * nl / n:.1f} % about their neighbourhood's misfit, above {MISFIT_OUTLIER_SHARE:g} of it)"
             )
         nb = nl
@@ -115,7 +126,7 @@ def local_misfit(r: np.ndarray, coords: np.ndarray, params) -> np.ndarray:
 def fit_circle_annulus(sel: AnnulusSelection, options: LocateOptions) -> RefineResult:
     """Circular sigmoid (Eq. 16) on the selected pixels, from the annulus circle; outlier pass."""
     fixed = levels_held(options)
-    data = fit_data(sel, options)
+    data = fit_data(sel)
     k0, ymax0, ymin0 = initial_levels(sel, data, options)
     init = CircleParams(r0=sel.center_rc[0], c0=sel.center_rc[1], radius=sel.radius, k=k0, ymax=ymax0, ymin=ymin0)
     res = run_fit(CIRCLE, data, init, options, fixed)

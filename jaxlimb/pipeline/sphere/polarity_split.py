@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from ...models.sigmoid import ELLIPSE
+from ...models import ELLIPSE
 from ..sigmoid import run_fit
 from .whole_limb import binned_limb_steps, ellipse_distance
 

@@ -35,8 +35,8 @@ from ...geometry.bodies import BODY_TABLE
 from ...geometry.hints import Hints
 from ...imaging.crop import estimate_noise
 from ...imaging.predicted import arc_center, edge_bias_gain, fit_shape, limb_edges, predicted_limb
-from ...models.lunar_lambert import LimbProfileParams, profile_model
-from ...models.sigmoid import CircleParams
+from ...models import CircleParams, LimbProfileParams
+from ...models.lunar_lambert import profile_model
 from ..checks import check_edge_width, check_levels
 from ..profile.fit import fit_lunar_profile
 from ..result import EllipseResult, LimbMeasurement
@@ -245,7 +245,7 @@ class PredictedLimbSphere(Body[PredictedPixels, PredictedEdge]):
         """The fit is physical (levels, edge blur); no tolerance on the centre's sigma: the covariance carries the
         edge's and the polarities' model errors, which make it honest rather than small."""
         check_levels(levels.ymax, levels.ymin, self.name)
-        check_edge_width(levels.psf_sigma_px, frame.opt.max_psf_sigma_px, self.name)
+        check_edge_width(levels.psf_sigma_px, self.name)
 
     def iterations(self, edge: PredictedEdge, final: RefineResult) -> int:
         return int(final.fit.n_steps)

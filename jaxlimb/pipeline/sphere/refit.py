@@ -19,10 +19,8 @@ from typing import Any
 import numpy as np
 
 from ...errors import ConvergenceError, SaturationWarning
-from ...fitting.solvers import solver_from_name
-from ...models.limb_darkened import LimbDarkenedParams
-from ...models.lunar_lambert import LimbProfileParams
-from ...models.sigmoid import CircleParams, EllipseParams
+from ...fitting import solver_from_name
+from ...models import CircleParams, EllipseParams, LimbDarkenedParams, LimbProfileParams
 from ..checks import MIN_LIT_ARC_DEG, check_lit_arc
 from ..frame import arc_angles, frame_mask
 from ..profile.fit import fit_lunar_profile

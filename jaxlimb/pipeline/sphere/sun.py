@@ -1,8 +1,6 @@
-"""Fit of the limb-darkened disc of a self-luminous star (the Sun) on an annulus about a circle.
-
-The model (:data:`LIMB_DARKENED`, the quadratic limb-darkening law blurred by a Gaussian PSF, and its
-Jacobian) lives in :mod:`jaxlimb.models.limb_darkened`; its names are re-exported here for older imports.
-"""
+"""Fit of the limb-darkened disc of a self-luminous star (the Sun) on an annulus about a circle, the disc
+strategy's profile refit.  The model (:data:`~jaxlimb.models.LIMB_DARKENED`, the quadratic limb-darkening law blurred
+by a Gaussian PSF, and its Jacobian) lives in :mod:`jaxlimb.models`."""
 
 from __future__ import annotations
 
@@ -12,13 +10,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...errors import ConvergenceError, LimbInputError
-from ...fitting import fit
-from ...fitting.fit import LimbFit
-from ...fitting.solvers import AbstractLimbSolver, NormalLM
-from ...models.limb_darkened import (LIMB_DARKENED as LIMB_DARKENED, SUN_FIXED as SUN_FIXED, U1_DEFAULT as U1_DEFAULT,
-                                     U2_DEFAULT as U2_DEFAULT, LimbDarkenedParams as LimbDarkenedParams,
-                                     limb_darkened_intensity as limb_darkened_intensity,
-                                     limb_darkening as limb_darkening)
+from ...fitting import AbstractLimbSolver, fit, LimbFit, NormalLM
+from ...models import LIMB_DARKENED, LimbDarkenedParams, limb_darkened_intensity, limb_darkening
+from ...models.limb_darkened import SUN_FIXED, U1_DEFAULT, U2_DEFAULT
 
 #: Below this PSF sigma (px) :func:`fit_limb_darkened` refits with ``sigma`` held at 0.
 SIGMA_FLOOR = 0.03

@@ -62,7 +62,8 @@ import numpy as np
 
 from ...errors import TooManyOutliersError
 from ...imaging.predicted import LimbShape
-from ...models.sigmoid import ELLIPSE, EllipseParams
+from ...models import ELLIPSE, EllipseParams
+from ..checks import MAX_OUTLIER_FRACTION, OUTLIER_SIGMA
 from ..options import LocateOptions
 from ..sigmoid import K_INIT, levels_held, predict, run_fit
 from ..stages import FitData, RefineResult
@@ -170,12 +171,12 @@ def _outlier_pass_by_stretch(data: FitData, res, shape: LimbShape, opt: LocateOp
         i = cl == c
         med = float(np.median(r[i]))
         sig = max(1.4826 * float(np.median(np.abs(r[i] - med))), 1e-12)
-        bad[i] = np.abs(r[i] - med) > opt.outlier_sigma * sig
+        bad[i] = np.abs(r[i] - med) > OUTLIER_SIGMA * sig
     nb = int(np.count_nonzero(bad))
-    if nb > opt.max_outlier_fraction * len(r):
+    if nb > MAX_OUTLIER_FRACTION * len(r):
         raise TooManyOutliersError(
             f"Check 3: {nb} of {len(r)} limb pixels ({100.0 * nb / len(r):.1f} %) have residuals above "
-            f"{opt.outlier_sigma:g} robust sigma of their stretch of limb; max_outlier_fraction = {opt.max_outlier_fraction:g}")
+            f"{OUTLIER_SIGMA:g} robust sigma of their stretch of limb; max_outlier_fraction = {MAX_OUTLIER_FRACTION:g}")
     if nb == 0:
         return res, data, 0
     d2 = data.subset(~bad)
