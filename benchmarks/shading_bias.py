@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from jaxlimb.pipeline.ellipsoid.body import shading, trace as lt
+from jaxlimb.pipeline.ellipsoid import shading, trace as lt
 from jaxlimb.pipeline.ellipsoid.trace_fit import fit_traced
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

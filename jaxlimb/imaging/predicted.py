@@ -37,7 +37,7 @@ from ..conics import fit_circle_taubin
 from ..errors import ConfigError, TooManyOutliersError
 from ..geometry.camera import Camera
 from .crop import estimate_noise
-from .gradient import _bilinear
+from .gradient import bilinear
 from .prior import Hints
 
 
@@ -158,7 +158,7 @@ def limb_edges(image: np.ndarray, shape: LimbShape, *, mask: np.ndarray | None =
     (r0, r1), (c0, c1) = _window(pts, img.shape, max(int(math.ceil(4 * smooth_px)) + 2, erode + 2))
     # Gaussian of reach 4 sigma, replicated border: the same values on the window as on the frame
     sm = cv2.GaussianBlur(np.ascontiguousarray(img[r0:r1, c0:c1]), (0, 0), smooth_px, borderType=cv2.BORDER_REPLICATE)
-    prof = _bilinear(sm, pts[..., 0] - r0, pts[..., 1] - c0)
+    prof = bilinear(sm, pts[..., 0] - r0, pts[..., 1] - c0)
     d = np.gradient(prof, t, axis=1)
     bad = ~inside
     if mask is not None:  # valid pixels at least `erode` (4-connected steps) from any invalid one

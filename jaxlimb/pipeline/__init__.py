@@ -15,7 +15,7 @@ Public API::
         fit_ellipse_annulus, AnnulusSelection, RefineResult
     the Sun's limb-darkened disc: fit_limb_darkened, SunLimbFit
 
-Sub-packages: :mod:`~jaxlimb.geometry.sphere_image` (round bodies), :mod:`~jaxlimb.pipeline.ellipsoid.body` (the Earth),
+Sub-packages: :mod:`~jaxlimb.pipeline.sphere` (round bodies), :mod:`~jaxlimb.pipeline.ellipsoid` (the Earth),
 :mod:`~jaxlimb.pipeline.profile` (the physical limb profile both refit with).
 """
 

@@ -14,10 +14,10 @@ from ..geometry.camera import Camera
 from ..geometry.hints import Hints
 from ..imaging import front_end
 from ..imaging.crop import detect_body, nearest_fill
-from ..imaging.gradient import GradientOptions
+from ..imaging.gradient_front_end import GradientOptions
 from ..imaging.io import validate_image
 from ..imaging.prior import check_prior, prior_from_hints
-from ..imaging.scanline import ScanlineOptions
+from ..imaging.scanline_front_end import ScanlineOptions
 from .options import LocateOptions
 from .stages import Frame
 

@@ -24,7 +24,7 @@ result                 the same :class:`LimbMeasurement` for every body         
 
 A camera with lens distortion: the round bodies fit ideal (undistorted) pixel coordinates and distort
 the body-centre image back; the ellipsoid resamples the frame onto the ideal grid
-(:mod:`jaxlimb.pipeline.ellipsoid.body`) and maps the centre and its covariance back.
+(:mod:`jaxlimb.pipeline.ellipsoid`) and maps the centre and its covariance back.
 """
 
 from __future__ import annotations

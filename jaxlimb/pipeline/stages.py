@@ -21,7 +21,7 @@ result                 the same measurement for every body                      
 =====================  ==========================================================  =====================
 
 A body strategy (:class:`Body`) supplies the stages that differ between bodies; every strategy is a final class
-(:mod:`jaxlimb.geometry.sphere_image`, :mod:`jaxlimb.pipeline.ellipsoid.body`), chosen by :func:`jaxlimb.pipeline.bodies.body_strategy`.
+(:mod:`jaxlimb.pipeline.sphere`, :mod:`jaxlimb.pipeline.ellipsoid`), chosen by :func:`jaxlimb.pipeline.bodies.body_strategy`.
 """
 
 from __future__ import annotations
@@ -384,7 +384,7 @@ class BodyCenter:
     params : the fit parameters they are a function of (names of the fit's free parameters).
     jacobian : ``(len(outputs), len(params))`` derivative of the map at the estimate.
     model_cov : optional ``(len(outputs),)*2`` covariance of a model error added to the mapped block
-        (the unsigned centre offset of a free ellipse, :mod:`jaxlimb.pipeline.ellipsoid.body`).
+        (the unsigned centre offset of a free ellipse, :mod:`jaxlimb.pipeline.ellipsoid`).
     extras : numbers worth reporting (the limb ellipse ...).
     """
 

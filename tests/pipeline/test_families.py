@@ -10,14 +10,14 @@ import jax
 import numpy as np
 import pytest
 
-from jaxlimb.geometry.hints import Hints
 from jaxlimb.geometry.conic import ellipse_signed_distance
+from jaxlimb.geometry.hints import Hints
 from jaxlimb.pipeline import locate
-from jaxlimb.pipeline.ellipsoid.body import edge as ellipsoid_edge, patchy as patchy_mod
-from jaxlimb.pipeline.profile import fit as profile_fit, glow, patchy, widen
-from jaxlimb.geometry.sphere_image import fits
+from jaxlimb.pipeline.ellipsoid import edge as ellipsoid_edge, patchy as patchy_mod
 from jaxlimb.pipeline.ellipsoid.trace_fit import fit_traced
 from jaxlimb.pipeline.options import LocateOptions
+from jaxlimb.pipeline.profile import fit as profile_fit, glow, patchy, widen
+from jaxlimb.pipeline.sphere import fits
 from jaxlimb.pipeline.sphere.fits import _robust_sigma, local_misfit
 from jaxlimb.render.independent.families import EARTH_FAMILIES, MOON_FAMILIES, earth_case, moon_case
 

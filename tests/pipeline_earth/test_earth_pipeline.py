@@ -13,8 +13,8 @@ from jaxlimb.geometry.earth import EARTH_EQUATORIAL_KM, EARTH_POLAR_KM, earth_ra
 from jaxlimb.geometry.earth_cone import earth_position_from_ellipse, image_ellipse_cone, max_gamma_off
 from jaxlimb.geometry.ellipsoid import image_conic, limb_cone, limb_cone_matrix_camera
 from jaxlimb.pipeline import locate
-from jaxlimb.pipeline.ellipsoid.center import unsigned_offset_cov
 from jaxlimb.pipeline import EllipsoidOptions
+from jaxlimb.pipeline.ellipsoid.center import unsigned_offset_cov
 from jaxlimb.pipeline.options import LocateOptions
 from jaxlimb.pipeline.stages import FitData, RefineResult
 from jaxlimb.render import RenderOptions, earth_scene, render_body

@@ -29,7 +29,7 @@ import numpy as np
 
 from ...errors import DarkLimbInconsistentError
 from ...imaging.crop import estimate_noise
-from ...imaging.gradient import _bilinear
+from ...imaging.gradient import bilinear
 from ...imaging.predicted import LimbShape, limb_edges
 from ..frame import frame_mask
 
@@ -67,7 +67,7 @@ def _median_contrast(img: np.ndarray, pts: np.ndarray, center: tuple[float, floa
     3-6 px outside minus 3-6 px inside each edge along the radius."""
     u = pts - np.asarray(center)
     u /= np.maximum(np.linalg.norm(u, axis=1), 1e-12)[:, None]
-    side = [np.mean([_bilinear(img, *(pts + sgn * d * u).T) for d in (3.0, 4.0, 5.0, 6.0)], axis=0) for sgn in (1, -1)]
+    side = [np.mean([bilinear(img, *(pts + sgn * d * u).T) for d in (3.0, 4.0, 5.0, 6.0)], axis=0) for sgn in (1, -1)]
     return float(np.median(side[0] - side[1]))
 
 

@@ -65,7 +65,7 @@ def outlier_pass(model, data: FitData, res: LimbFit, options: LocateOptions, fix
         if nl > MISFIT_OUTLIER_SHARE * MAX_OUTLIER_FRACTION * n:
             raise TooManyOutliersError(
                 f"Check 3: {nb} of {n} annulus pixels ({100.0 * nb / n:.1f} %) have residuals above "
-                f"{OUTLIER_SIGMA:g} robust sigma; max_outlier_fraction = {MAX_OUTLIER_FRACTION:g} "
+                f"{OUTLIER_SIGMA:g} robust sigma, above the {MAX_OUTLIER_FRACTION:g} allowed "
                 f"({100.0 * nl / n:.1f} % about their neighbourhood's misfit, above {MISFIT_OUTLIER_SHARE:g} of it)"
             )
         nb = nl
@@ -91,7 +91,7 @@ MISFIT_SECTORS = 8
 
 
 MISFIT_OUTLIER_SHARE = 0.25
-"""About :func:`local_misfit`, at most this share of ``max_outlier_fraction`` of the annulus may be outliers (else
+"""About :func:`local_misfit`, at most this share of :data:`~jaxlimb.pipeline.checks.MAX_OUTLIER_FRACTION` of the annulus may be outliers (else
 Check 3 fails).  Measured (5 sigma of the plain residuals): the Minnaert crescent of :func:`local_misfit` 1.2 % (24 %
 plain), the bright square of ``test_check3_too_many_outliers`` 10-11 % (23 % plain) with 1-8 sectors."""
 

@@ -176,7 +176,7 @@ def _outlier_pass_by_stretch(data: FitData, res, shape: LimbShape, opt: LocateOp
     if nb > MAX_OUTLIER_FRACTION * len(r):
         raise TooManyOutliersError(
             f"Check 3: {nb} of {len(r)} limb pixels ({100.0 * nb / len(r):.1f} %) have residuals above "
-            f"{OUTLIER_SIGMA:g} robust sigma of their stretch of limb; max_outlier_fraction = {MAX_OUTLIER_FRACTION:g}")
+            f"{OUTLIER_SIGMA:g} robust sigma of their stretch of limb, above the {MAX_OUTLIER_FRACTION:g} allowed")
     if nb == 0:
         return res, data, 0
     d2 = data.subset(~bad)
