@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import GeometryError
+from ..geometry.attitude import rotation_vector_to_dcm
 from ..geometry.camera import Camera
 
 MOON_RADIUS_KM = 1737.4
@@ -213,7 +214,6 @@ def monte_carlo_center_attitude(
 ) -> np.ndarray:
     """Sample exact small rotations (per-axis ``sigma``), project the rotated LOS; return the
     ``(n, 2)`` (radial, tangential) image displacements in px (check of Eq. 39)."""
-    from ..geometry.attitude import rotation_vector_to_dcm
 
     cam = camera or Camera()
     rng = np.random.default_rng(seed)

@@ -58,6 +58,7 @@ from typing import Any
 
 import numpy as np
 
+from .._io import read_json_file
 from .._validate import Range, number, vector
 from ..errors import ConfigError, GeometryError
 
@@ -136,7 +137,6 @@ class Camera:
     @classmethod
     def from_json(cls, path: str | os.PathLike[str]) -> Camera:
         """Read a camera JSON file (``{"focal_length_mm", "pixel_pitch_mm", "rows", "cols", "principal_point_rc"}``)."""
-        from .._io import read_json_file
 
         return cls.from_dict(read_json_file(path, "camera file"))
 

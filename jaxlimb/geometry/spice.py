@@ -239,7 +239,7 @@ class SpiceGeometry:
             "radii_km": list(self.radii_km), "sun_dir_camera": list(self.sun_dir_camera),
             "ellipse": {"center_rc": list(self.limb.center_rc), "semi_axes_px": list(self.limb.semi_axes_px),
                         "angle_rad": self.limb.angle_rad},
-            "camera": self.camera.to_dict() if hasattr(self.camera, "to_dict") else None,
+            "camera": self.camera.to_dict(),
         }
 
 

@@ -33,12 +33,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..conics import fit_circle_taubin
-from ..errors import ConfigError, TooManyOutliersError
+from ..conics.ransac import RansacOptions, ransac_circle
+from ..conics.taubin import fit_circle_taubin
+from ..errors import ConfigError, TooBigError, TooManyOutliersError
+from ..geometry.bodies import body_radii_km
 from ..geometry.camera import Camera
+from ..geometry.ellipsoid import image_conic
+from ..geometry.hints import Hints
 from .crop import estimate_noise
-from .gradient import bilinear
-from .prior import Hints
+from .gradient import bilinear, strongest_pixels
 
 
 @dataclass(frozen=True)
@@ -80,8 +83,6 @@ def predicted_limb(camera: Camera, hints: Hints, center_rc=None) -> LimbShape:
     ConfigError
         The hints lack the range, the radii or the centre.
     """
-    from ..geometry.bodies import body_radii_km
-    from ..geometry.ellipsoid import image_conic
 
     c = center_rc if center_rc is not None else hints.expected_center_rc
     if c is None or hints.range_prior_km is None or hints.body is None and hints.body_radii_km is None:
@@ -260,9 +261,6 @@ def arc_center(image: np.ndarray, expected_radius_px: float, radius_uncertainty_
     TooBigError
         No arc of that radius in the frame: the body fills the image and no limb is visible.
     """
-    from ..conics import RansacOptions, ransac_circle
-    from ..errors import TooBigError
-    from .gradient import strongest_pixels
 
     img = np.asarray(image, dtype=np.float64)
     from scipy import ndimage

@@ -56,6 +56,7 @@ import numpy as np
 from ..errors import ConfigError, TooBigError, TooSmallError, TooThinError
 from ..geometry.camera import Camera
 from ..geometry.hints import Hints
+from .crop import detect_body
 
 @dataclass(frozen=True)
 class PriorOptions:
@@ -346,7 +347,6 @@ def prior_from_image(image: np.ndarray, options: PriorOptions | None = None, reg
     bound and the band is ``[0.85 p_r - 1, inf)``.  This is what keeps a circle
     through terminator points, or a small arc, from being accepted.
     """
-    from .crop import detect_body
 
     opt = options or PriorOptions()
     reg = region if region is not None else detect_body(image)

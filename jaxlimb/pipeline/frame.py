@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -62,7 +63,8 @@ def prepare(image: Any, camera: Any, hints: Any, options: Any, mask: Any = None)
         img = fill_invalid(img, mask)
     frame = Frame(img, cam, hin, opt, t0, mask=mask)
     if hin is not None and not arc_only(frame):  # (a disc larger than the frame: its arc is measured)
-        popt = getattr(frame.front_end_options(), "prior", None)
+        fe = frame.front_end_options()
+        popt = None if fe is None else fe.prior
         pri0 = prior_from_hints(hin, cam, options=popt, check=True)
         if pri0 is not None and cam is None:
             check_prior(pri0, img.shape, popt)
@@ -113,10 +115,8 @@ DARK_SURFACE_MAX_PHASE_DEG = 30.0
 def _front_end_options(frame: Frame, name: str) -> Any:
     """The options of front end ``name`` (``None``: defaults), with the variegated-body region off above
     :data:`DARK_SURFACE_MAX_PHASE_DEG` of phase."""
-    from dataclasses import replace
-
     opt = frame.front_end_options(name) or (GradientOptions() if name == "gradient" else ScanlineOptions())
-    if not (frame.sun_known and getattr(opt.detect, "dark_surface", False)):
+    if not (frame.sun_known and opt.detect.dark_surface):
         return opt
     center = (0.5 * (frame.img.shape[0] - 1), 0.5 * (frame.img.shape[1] - 1))  # the phase hardly varies over a frame
     if math.degrees(frame.phase(center)) <= DARK_SURFACE_MAX_PHASE_DEG:

@@ -97,7 +97,7 @@ def locate(
         return _measure_or_other_front_end(frame, body, cand)
     except CheckFailed as e:
         region = cand.info.get("region")
-        if region is None or not getattr(region, "bright_sky", False):
+        if region is None or not region.bright_sky:
             raise
         raise type(e)(  # the same check, with what makes this frame hard
             f"{e} [the sky ({region.background:.4g} DN at the frame's border) is brighter than the body's shadowed "

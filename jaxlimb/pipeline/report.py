@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from .._validate import check_center_sigma
-from ..models import (CIRCLE, CircleParams, ELLIPSE, ELLIPSE_RAMP, EllipseRampParams, LimbDarkenedParams,
-                      LimbProfileParams)
+from ..models import (AnisoProfileParams, CIRCLE, CircleParams, ELLIPSE, ELLIPSE_RAMP, EllipseRampParams,
+                      LimbDarkenedParams, LimbProfileParams, MinnaertProfileParams)
 from ..models.lunar_lambert import glow_fields, profile_model
 from .checks import check_edge_width, check_levels
 from .result import LimbMeasurement
@@ -79,8 +79,8 @@ def levels(final: RefineResult) -> Levels:
         if isinstance(fp, LimbProfileParams):
             prof = {"model": "lunar-lambert", "psf_sigma_px": sig, "amp": float(fp.amp),
                     "phase_deg": math.degrees(float(fp.phase)), "L": float(fp.L),
-                    "kappa": float(getattr(fp, "kappa", 0.0)), **glow_fields(fp),
-                    **({"blur_aniso": [float(fp.s2c), float(fp.s2s)]} if hasattr(fp, "s2c") else {})}
+                    "kappa": float(fp.kappa) if isinstance(fp, MinnaertProfileParams) else 0.0, **glow_fields(fp),
+                    **({"blur_aniso": [float(fp.s2c), float(fp.s2s)]} if isinstance(fp, AnisoProfileParams) else {})}
         else:
             prof = {"model": "limb-darkened", "psf_sigma_px": sig, "amp": float(fp.amp), "u1": float(fp.u1),
                     "u2": float(fp.u2)}

@@ -40,7 +40,9 @@ from ..fitting import LimbFit
 from ..geometry.camera import Camera
 from ..geometry.hints import Hints
 from ..geometry.sphere_image import SphereImage
+from ..imaging.gradient_front_end import GradientOptions
 from ..imaging.predicted import LimbShape
+from ..imaging.scanline_front_end import ScanlineOptions
 from .options import LocateOptions
 from .result import EllipseResult, LimbMeasurement
 
@@ -90,7 +92,7 @@ class Frame:
     def body_radius_km(self) -> float | None:
         return self.hints.radius_km() if self.hints is not None else None
 
-    def front_end_options(self, name: str | None = None) -> Any:
+    def front_end_options(self, name: str | None = None) -> GradientOptions | ScanlineOptions | None:
         """The options of front end ``name`` (default: the chosen one); ``None`` for its defaults."""
         name = str(self.opt.front_end) if name is None else name
         return self.opt.gradient if name == "gradient" else self.opt.scanline

@@ -14,7 +14,7 @@ import numpy as np
 from ...fitting import bucket_size
 from ...fitting.model_error import cluster_robust_covariance, hausman_term, sector_groups, with_model_error as widen
 from ...geometry.conic import ellipse_signed_distance
-from ...models import LimbModel, LimbProfileParams
+from ...models import CircleParams, EllipseRampParams, LimbModel, LimbProfileParams
 from ...models.lunar_lambert import limb_geometry, profile_model
 from ..sigmoid import LOGISTIC_TO_GAUSS
 from ..stages import RefineResult
@@ -56,8 +56,7 @@ def signed_distance(params: Any, coords: np.ndarray, padded: np.ndarray) -> np.n
     if isinstance(params, LimbProfileParams):
         return np.asarray(_signed_profile(params, padded))[: coords.shape[0]]
     c = np.asarray(coords, float)
-    if hasattr(params, "rho"):
-
+    if not isinstance(params, CircleParams):  # an elliptical sigmoid or ramp
         a = float(params.a)
         ell = ((float(params.r0), float(params.c0)), (a, a * float(params.rho)), float(params.theta))
         return ellipse_signed_distance(c, ell)
@@ -70,7 +69,7 @@ def edge_sigma(params: Any) -> float:
     if isinstance(params, LimbProfileParams):
         return math.sqrt(float(params.sigma) ** 2 + 1.0 / 12.0)
     k = abs(float(params.k))
-    return (1.0 if hasattr(params, "g2") else LOGISTIC_TO_GAUSS) / max(k, 1e-6)
+    return (1.0 if isinstance(params, EllipseRampParams) else LOGISTIC_TO_GAUSS) / max(k, 1e-6)
 
 
 def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS, model: LimbModel | None = None,

@@ -29,8 +29,7 @@ from ..checks import (
 from ..frame import arc_angles, frame_mask, min_diameter_px
 from ..sigmoid import LOGISTIC_TO_GAUSS
 from ..stages import AnnulusSelection, EdgeFit, Frame, LimbPixels, RefineResult
-from .annulus import annulus_halfwidth, lit_halfangle, select_annulus
-from .annulus import ANGULAR_BIN_DEG, ANNULUS_MIN_PX
+from .annulus import ANGULAR_BIN_DEG, annulus_halfwidth, ANNULUS_MIN_PX, lit_halfangle, select_annulus
 from .fits import fit_circle_annulus
 
 #: Widen the annulus when it is narrower than this many Gaussian-equivalent edge sigmas.
@@ -156,8 +155,8 @@ def check_front_end_arc(cand: Any, min_arc_deg: float, half: float) -> float | N
     passed; the circle sigmoid then wandered (no convergence in 100-150 steps, an 86 px jump at 400), so the
     frame failed as ``no_convergence`` instead of ``arc_too_short``.  On every other Moon frame of the benchmark
     the front end's points span 66 deg or more (118 deg or more outside the ``cropped`` family)."""
-    pts = getattr(cand, "points_rc", None)
-    if pts is None or len(pts) < 2:
+    pts = cand.points_rc
+    if len(pts) < 2:
         return None
     return check_lit_arc(arc_angles(np.asarray(pts, float), cand.center_rc), min_arc_deg, half)
 

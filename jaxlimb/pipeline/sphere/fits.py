@@ -111,7 +111,7 @@ def local_misfit(r: np.ndarray, coords: np.ndarray, params) -> np.ndarray:
     ``test_check3_too_many_outliers``) leaves its cells' pixels far apart still."""
     c = np.asarray(coords, float)
     r0, c0 = float(params.r0), float(params.c0)
-    rad = float(params.radius) if hasattr(params, "radius") else float(params.a)
+    rad = float(params.radius) if isinstance(params, CircleParams) else float(params.a)
     d = np.floor((np.hypot(c[:, 0] - r0, c[:, 1] - c0) - rad) / MISFIT_BIN_PX).astype(np.int64)
     sec = np.floor((np.arctan2(c[:, 1] - c0, c[:, 0] - r0) + np.pi) / (2 * np.pi) * MISFIT_SECTORS).astype(np.int64)
     cell = (d - d.min()) * (MISFIT_SECTORS + 1) + np.clip(sec, 0, MISFIT_SECTORS)
