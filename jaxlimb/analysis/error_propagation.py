@@ -32,7 +32,7 @@ Checks against the paper (each shown by a test in ``tests/analysis/test_error_pr
    underestimates ``sigma_c`` by 2.  We use the rotation-angle sigma throughout.
 5. The text lists Fig. 18's distances as 50 000, 150 000, 250 000 "and 35 000" km; the regular
    spacing says 350 000 km (a typo) -- :func:`figure18_data` uses 350 000 km.
-6. The paper's ``R_m = 1737.5`` km; DESIGN.md fixes 1737.4 km (0.006 % -- negligible).
+6. The paper's ``R_m = 1737.5`` km; docs/design.md fixes 1737.4 km (0.006 % -- negligible).
 """
 
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 Each sub-command lives in its own module ``jaxlimb/cli/_<name>.py`` that defines
 ``register(subparsers)``; the parser it adds sets ``func`` to a callable
-``run(args) -> int``.  This module owns the error contract of DESIGN.md:
+``run(args) -> int``.  This module owns the error contract of docs/design.md:
 
 * exit 0 on success;
 * exit 2 for unusable input (:class:`~jaxlimb.errors.LimbInputError`, bad arguments);

@@ -30,7 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "several files, a directory, a quoted glob or @LIST.txt: one JSON line per frame (see --out)")
     p.add_argument("--camera", metavar="CAMERA.json",
                    help='camera file {"focal_length_mm", "pixel_pitch_mm", "rows", "cols", "principal_point_rc"}')
-    p.add_argument("--hints", metavar="HINTS.json", help="navigation prior (DESIGN.md hints; every key optional)")
+    p.add_argument("--hints", metavar="HINTS.json", help="navigation prior (docs/design.md hints; every key optional)")
     p.add_argument("--body", metavar="NAME", default=None,
                    help="the body: moon, earth, sun (limb-darkened disc) or any body with known radii (e.g. enceladus; "
                    "SPICE PCK with --kernels, else the IAU 2015 table; hints body_radii_km override); default: the "

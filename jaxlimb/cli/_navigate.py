@@ -60,7 +60,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "with its first-order covariance.  Exit 0 on success, 2 for unusable input, 3 when a check fails.",
     )
     p.add_argument("image", metavar="IMAGE", help="image file (PNG, TIFF, FITS; VICAR/PDS with --kernels)")
-    p.add_argument("--camera", metavar="CAMERA.json", help="camera file (DESIGN.md); required without --kernels")
+    p.add_argument("--camera", metavar="CAMERA.json", help="camera file (docs/design.md); required without --kernels")
     p.add_argument("--epoch", metavar="T",
                    help="epoch of the image: ISO 8601 UTC (e.g. 2026-03-01T12:00:00Z) or a TDB Julian date; "
                    "required without --kernels")
@@ -76,7 +76,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "relative to the body, J2000, beside SPICE's")
     p.add_argument("--instrument", metavar="NAME", default=None,
                    help="SPICE instrument with --kernels (default: the label's INSTRUMENT_ID)")
-    p.add_argument("--hints", metavar="HINTS.json", help="navigation prior (DESIGN.md hints)")
+    p.add_argument("--hints", metavar="HINTS.json", help="navigation prior (docs/design.md hints)")
     p.add_argument("--attitude-sigma-arcsec", type=arg_number(_ATT_SIGMA), default=0.0, dest="attitude_sigma_arcsec",
                    help=f"per-axis 1-sigma attitude error added to the covariance, arcsec {_ATT_SIGMA} (default 0)")
     p.add_argument("--ephemeris", metavar="BSP", default=None,

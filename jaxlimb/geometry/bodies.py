@@ -4,7 +4,7 @@ Source of the table (:data:`BODY_TABLE`): the triaxial radii of the IAU Working 
 Cartographic Coordinates and Rotational Elements, 2015 report -- B. A. Archinal et al.,
 *Celest. Mech. Dyn. Astron.* 130:22 (2018), Tables 4-6 -- as distributed by NAIF in the
 generic PCK ``pck00011.tpc`` (keywords ``BODYnnn_RADII``), with the NAIF ID code of each
-body.  Two entries follow DESIGN.md instead: the Moon's mean radius 1737.4 km (also the
+body.  Two entries follow docs/design.md instead: the Moon's mean radius 1737.4 km (also the
 IAU value) and the Earth's WGS-84 ellipsoid (6378.137 / 6356.752 km; IAU 6378.1366 /
 6356.7519).  The Sun's radius is the IAU 2015 Resolution B3 nominal value 695 700 km.
 

@@ -1,4 +1,4 @@
-"""Pinhole camera model and the pixel / camera-frame conventions of DESIGN.md.
+"""Pinhole camera model and the pixel / camera-frame conventions of docs/design.md.
 
 Conventions (fixed):
 
@@ -122,7 +122,7 @@ class Camera:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Camera:
-        """Build from the camera-file dictionary of DESIGN.md (unknown keys are an error)."""
+        """Build from the camera-file dictionary of docs/design.md (unknown keys are an error)."""
         if not isinstance(d, dict):
             raise ConfigError(f"camera must be a JSON object, got {type(d).__name__}")
         allowed = _CAMERA_KEYS + _DISTORTION_KEYS

@@ -5,7 +5,7 @@ Implements Sec. III (Eq. 1-9) and the centre offset of Sec. IV of
     D. Mortari, C. N. D'Souza, R. Zanetti, "Image Processing of Illuminated
     Ellipsoid", J. Spacecraft and Rockets (2016)  -- "Mortari et al. 2016".
 
-Conventions (DESIGN.md): the body-fixed frame is centred on the ellipsoid with
+Conventions (docs/design.md): the body-fixed frame is centred on the ellipsoid with
 its axes along the semi-axes ``radii = (a, b, c)`` so that the surface is
 :math:`x^T J x = 1`, :math:`J = \mathrm{diag}(a^{-2}, b^{-2}, c^{-2})` (Eq. 1).
 Positions are in km.  Images are ``[row, col]``; pixel ``(0, 0)`` is the centre
@@ -375,7 +375,7 @@ class ImageConic:
         return (r0 - hr, r0 + hr, c0 - hc, c0 + hc)
 
     def as_dict(self) -> dict[str, object]:
-        """The DESIGN.md ``ellipse`` JSON object (plus the projected body centre)."""
+        """The docs/design.md ``ellipse`` JSON object (plus the projected body centre)."""
         return {
             "center_rc": list(self.center_rc),
             "semi_axes_px": list(self.semi_axes_px),

@@ -9,7 +9,7 @@ What is computed (CSPICE through ``spiceypy``; Acton 1996, *Planet. Space Sci.* 
 * the **camera** from the instrument kernel (IK): ``INS<id>_FOCAL_LENGTH`` (mm),
   ``INS<id>_PIXEL_SIZE`` (µm), ``INS<id>_PIXEL_SAMPLES/LINES`` and
   ``INS<id>_FOV_CENTER_PIXEL`` (sample, line; 0-based pixel centres, i.e. jaxlimb's
-  convention of DESIGN.md, (0, 0) = centre of the top-left pixel);
+  convention of docs/design.md, (0, 0) = centre of the top-left pixel);
 * the body centre in the camera frame, ``spkpos(target, et, frame, "CN+S", observer)``
   (converged Newtonian light time and stellar aberration: where the body *appears*);
 * the body orientation ``R_body_to_camera = F pxfrm2(body_frame, frame, et - lt, et)``
@@ -20,7 +20,7 @@ What is computed (CSPICE through ``spiceypy``; Acton 1996, *Planet. Space Sci.* 
   image of the body centre, with the body's radii from the kernel pool (``bodvrd``).
 
 Camera-frame convention (verify per instrument).  jaxlimb's camera frame has ``+x`` toward
-``+col`` and ``+y`` toward ``+row`` (DESIGN.md).  The instrument frame of SPICE need not:
+``+col`` and ``+y`` toward ``+row`` (docs/design.md).  The instrument frame of SPICE need not:
 the Cassini ISS IK (``cas_iss_v08.ti``) says "the CCD samples and lines increase with
 decreasing X and Y", so ``x_jaxlimb = -X_ISS``, ``y_jaxlimb = -Y_ISS``, ``z = Z``:
 ``F = diag(-1, -1, 1)`` for both ISS cameras (:data:`INSTRUMENTS`).  Checked on the
@@ -172,7 +172,7 @@ def camera_from_ik(instrument: Instrument) -> Camera:
 # ----------------------------------------------------------------------------- geometry
 @dataclass(frozen=True)
 class SpiceGeometry:
-    """The SPICE prediction for one frame (camera frame = jaxlimb's, DESIGN.md).
+    """The SPICE prediction for one frame (camera frame = jaxlimb's, docs/design.md).
 
     Attributes
     ----------

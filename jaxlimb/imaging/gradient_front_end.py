@@ -163,7 +163,7 @@ def _outward_bright_to_dark(cand: np.ndarray, diag: dict, region: BodyRegion, of
     return np.einsum("ij,ij->i", out, diag["normal_rc"]) > 0
 
 
-def _stage_info(pri, st, win, region, n_box, res, inl, n_dark, fit, center, shape) -> dict:  # type: ignore[no-untyped-def]
+def _stage_info(pri, st, win, region, n_box, res, inl, n_dark, fit, shape) -> dict:  # type: ignore[no-untyped-def]
     """The gradient front end's stage counts and settings (:attr:`LimbCandidates.info`)."""
     return {
         "prior": pri,
@@ -181,7 +181,8 @@ def _stage_info(pri, st, win, region, n_box, res, inl, n_dark, fit, center, shap
         "masked_retry": win.near_mask,
         "residual_max": fit.max_abs,
         "cropped": region.crop,
-        "center_in_image": bool(0 <= center[0] <= shape[0] - 1 and 0 <= center[1] <= shape[1] - 1),
+        "center_in_image": bool(0 <= fit.center_rc[0] + win.offset_rc[0] <= shape[0] - 1
+                                and 0 <= fit.center_rc[1] + win.offset_rc[1] <= shape[1] - 1),
     }
 
 
@@ -243,28 +244,26 @@ def gradient_front_end(
     inl, fit, res, n_dark = _ransac_taubin(pts, n_box, win.offset_rc, pri, st, band, hints, camera, opt)
     t_fit = time.perf_counter()
     check_radius(fit.radius, pri, band)
+    times = {"detect": t_detect - t0, "gradient": t_grad - t_detect, "box": t_box - t_grad, "ransac_taubin": t_fit - t_box}
+    info = _stage_info(pri, st, win, region, n_box, res, inl, n_dark, fit, img.shape)
+    info["timings_s"] = {**times, "total": time.perf_counter() - t0}
+    return _limb_candidates(pts[inl], fit, win.offset_rc, region, pri, hints, camera, info)
 
-    r0, c0 = win.offset_rc
-    points_full = pts[inl] + np.array([r0, c0], dtype=np.float64)
-    center = (fit.center_rc[0] + r0, fit.center_rc[1] + c0)
+
+def _limb_candidates(pts: np.ndarray, fit, offset_rc, region: BodyRegion, pri: Prior, hints: Hints | None,  # noqa: ANN001
+                     camera: Camera | None, info: dict) -> LimbCandidates:
+    """The front end's answer from the final circle ``fit`` of the inliers ``pts`` (ROI frame): Check 3 of a
+    variegated body's region, the lit arc (about the Sun's image direction when known)."""
+    points_full = pts + np.asarray(offset_rc, dtype=np.float64)
+    center = (fit.center_rc[0] + offset_rc[0], fit.center_rc[1] + offset_rc[1])
     check_region_inside(center, float(fit.radius), region, MAX_REGION_OUTSIDE_FRAC)
     sun_rc = pri.sun_dir_rc
     if hints is not None and hints.sun_dir_camera is not None:
         sun_rc = sun_direction_image(hints.sun_dir_camera, camera, center if camera is not None else None)
     lit_dir, half = lit_arc(points_full, center, sun_rc) if sun_rc is not None else lit_arc(points_full, center)
-    times = {"detect": t_detect - t0, "gradient": t_grad - t_detect, "box": t_box - t_grad, "ransac_taubin": t_fit - t_box}
-    info = _stage_info(pri, st, win, region, n_box, res, inl, n_dark, fit, center, img.shape)
-    info["timings_s"] = {**times, "total": time.perf_counter() - t0}
-    return LimbCandidates(
-        points_rc=points_full,
-        center_rc=(float(center[0]), float(center[1])),
-        radius=float(fit.radius),
-        residual_rms=float(fit.rms),
-        lit_direction=lit_dir,
-        lit_halfangle=half,
-        front_end="gradient",
-        info=info,
-    )
+    return LimbCandidates(points_rc=points_full, center_rc=(float(center[0]), float(center[1])), radius=float(fit.radius),
+                          residual_rms=float(fit.rms), lit_direction=lit_dir, lit_halfangle=half, front_end="gradient",
+                          info=info)
 
 
 @dataclass(frozen=True)

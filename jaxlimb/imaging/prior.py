@@ -2,7 +2,7 @@ r"""The prior: expected radius, illumination parameter and the derived settings.
 
 Section 3 of the Aerospace 2015 paper ("Expected radius and illumination
 parameter").  Inputs are a :class:`~jaxlimb.geometry.camera.Camera` and the
-navigation filter's :class:`Hints` (DESIGN.md hints JSON).  When neither is
+navigation filter's :class:`Hints` (docs/design.md hints JSON).  When neither is
 available the prior is measured on the image itself (:func:`prior_from_image`).
 
 Expected radius, Eq. (1):  :math:`p_r = \frac{f}{d} \frac{R_m}{\sqrt{|r_o|^2 - R_m^2}}`.

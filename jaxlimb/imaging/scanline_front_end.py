@@ -133,25 +133,23 @@ def scanline_front_end(
     sel = _select_lit_set(tr, lr, region, pri, axis, sun_rc is not None)
     check_radius(sel.fit.radius, pri, band)
 
-    off = np.array([r0, c0], float)
-    points_full = sel.points + off
-    center = (sel.fit.center_rc[0] + r0, sel.fit.center_rc[1] + c0)
+    info = _scan_info(pri, region, lr, sel, axis, spacing, offsets.size, np.array([r0, c0], float))
+    info["timings_s"] = {"total": time.perf_counter() - t0}
+    return _limb_candidates(sel, (r0, c0), sun_rc, info)
+
+
+def _limb_candidates(sel: _LitSet, offset_rc, sun_rc, info: dict) -> LimbCandidates:  # noqa: ANN001
+    """The front end's answer from the lit set ``sel`` (ROI frame): the lit arc about the Sun's image direction, or
+    all round for a merged (fully lit) set with the Sun unknown."""
+    points_full = sel.points + np.asarray(offset_rc, float)
+    center = (sel.fit.center_rc[0] + offset_rc[0], sel.fit.center_rc[1] + offset_rc[1])
     if sel.merged and sun_rc is None:
         lit_dir, half = lit_arc(points_full, center)
     else:
         lit_dir, half = lit_arc(points_full, center, sun_rc)
-    info = _scan_info(pri, region, lr, sel, axis, spacing, offsets.size, off)
-    info["timings_s"] = {"total": time.perf_counter() - t0}
-    return LimbCandidates(
-        points_rc=points_full,
-        center_rc=(float(center[0]), float(center[1])),
-        radius=float(sel.fit.radius),
-        residual_rms=float(sel.fit.rms),
-        lit_direction=lit_dir,
-        lit_halfangle=half,
-        front_end="scanline",
-        info=info,
-    )
+    return LimbCandidates(points_rc=points_full, center_rc=(float(center[0]), float(center[1])),
+                          radius=float(sel.fit.radius), residual_rms=float(sel.fit.rms), lit_direction=lit_dir,
+                          lit_halfangle=half, front_end="scanline", info=info)
 
 
 @dataclass(frozen=True)

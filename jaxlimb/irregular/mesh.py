@@ -21,7 +21,7 @@ Open meshes are always refused: closing holes would invent geometry that moves
 the silhouette.  Failures raise :class:`jaxlimb.errors.MeshError`.
 
 Coordinates are kept exactly as in the file (km, body-fixed frame).  The body
-centre is the **origin** of these coordinates (DESIGN.md), not the volume
+centre is the **origin** of these coordinates (docs/design.md), not the volume
 centroid.  No axis is re-labelled here: which axis is the pole only matters for
 the view-sphere sampling, see :class:`jaxlimb.irregular.views.ViewSphereOptions`
 (``pole_axis``; Celestia models such as ``thebe.obj``/``phobos.obj`` are y-up).

@@ -1,7 +1,7 @@
 r"""``locate``: image -> image of the body centre, apparent radius / limb ellipse, line of sight and range.
 
 One pipeline for every body, a short composition of stages with typed values between them
-(DESIGN.md's data flow); the body strategy (:mod:`jaxlimb.pipeline.bodies`) supplies what differs:
+(docs/design.md's data flow); the body strategy (:mod:`jaxlimb.pipeline.bodies`) supplies what differs:
 
 =====================  ==========================================================  =====================
 stage                  what                                                        value
@@ -62,7 +62,7 @@ def locate(
         :class:`~jaxlimb.geometry.camera.Camera` (or its dict); enables the body-centre
         correction, the line of sight and the range (the ellipsoid strategy needs it).
     hints
-        :class:`~jaxlimb.imaging.Hints` (or the hints dict of DESIGN.md): body (``earth`` selects the
+        :class:`~jaxlimb.imaging.Hints` (or the hints dict of docs/design.md): body (``earth`` selects the
         ellipsoid strategy, ``sun`` the disc), radii, range prior, Sun direction, attitude ...
     options
         :class:`~jaxlimb.pipeline.options.LocateOptions`.

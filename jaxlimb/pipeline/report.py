@@ -5,7 +5,7 @@ Covariance.  The fit's :math:`\hat\sigma^2 (J^\top J)^{-1}` over its free parame
 body-centre map (:class:`~jaxlimb.pipeline.stages.BodyCenter`): the mapped quantities (``center_r``,
 ``center_c``, ``radius`` or ``range_km`` ...) replace the fit parameters they are a function of, the other
 free parameters are carried as they are.  One square matrix, reported as ``{name: {name: value}}``
-(DESIGN.md).  A model-error term of the map (the free ellipse's unsigned centre offset) is added to the
+(docs/design.md).  A model-error term of the map (the free ellipse's unsigned centre offset) is added to the
 mapped block.
 """
 

@@ -171,8 +171,8 @@ class AnnulusSelection:
 class FitData:
     """The data of a sigmoid fit: pixels, (normalised) intensities, weights and the DN scale.
 
-    With ``normalize_levels`` each pixel is divided by its angular bin's contrast,
-    ``z_n = (z - O_bin) / (I_bin - O_bin)`` and weighted by ``w = (I_bin - O_bin) / C_ref``
+    Level-normalised (the round limb's annulus, :func:`jaxlimb.pipeline.sphere.fits.fit_data`), each pixel is
+    divided by its angular bin's contrast, ``z_n = (z - O_bin) / (I_bin - O_bin)`` and weighted by ``w = (I_bin - O_bin) / C_ref``
     (``C_ref`` the median contrast), so that the weighted residuals are the DN residuals
     divided by ``C_ref``: the fit is the CSF with an angle-dependent amplitude, i.e. the
     lit limb's brightness may vary along the arc (it does: Lambert-like surfaces fade

@@ -1,6 +1,6 @@
 r"""Scenes for the truth renderer: an ellipsoidal body, its pose, the Sun, albedo and atmosphere.
 
-Frames (DESIGN.md): camera frame ``+z`` boresight, ``+x`` toward ``+col``, ``+y``
+Frames (docs/design.md): camera frame ``+z`` boresight, ``+x`` toward ``+col``, ``+y``
 toward ``+row``.  ``R_body_to_camera`` rotates body-fixed vectors into the camera
 frame; ``center_cam`` is the body centre in the camera frame (km); the Sun
 direction is a unit vector **from the body toward the Sun**, camera frame.

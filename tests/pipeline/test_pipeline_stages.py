@@ -33,12 +33,12 @@ def _functions(root: pathlib.Path):
                 yield path.name, node.name, node.end_lineno - node.lineno + 1
 
 
-def test_no_pipeline_function_over_80_lines():
+def test_no_pipeline_function_over_60_lines():
     root = pathlib.Path(pipeline_pkg.__file__).parent
-    long = [(f, n, k) for f, n, k in _functions(root) if k > 80]
+    long = [(f, n, k) for f, n, k in _functions(root) if k > 60]
     assert long == [], long
-    # the entry point is a short composition of stages
-    assert max(k for f, n, k in _functions(root) if n == "locate" and f == "locate.py") <= 80
+    # the entry point is a short composition of stages (its docstring is most of it)
+    assert max(k for f, n, k in _functions(root) if n == "locate" and f == "locate.py") <= 60
 
 
 def test_strategies_are_final_and_chosen_by_the_hints():

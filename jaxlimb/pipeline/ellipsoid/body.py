@@ -11,7 +11,7 @@ Earth offset and range iteration of Mortari, D'Souza & Zanetti 2016 §IV, Fig. 2
 * **limb pixels**: the lit window from the Sun direction (else the front end's arc) less
   ``arc_margin_deg`` at each horn (:class:`~jaxlimb.errors.ArcTooShortError` when nothing is left),
   and the band of half-width ``band_px`` about the current ellipse (:func:`~jaxlimb.pipeline.ellipsoid.band.band_pixels`).
-  The ellipse is the limb traced against the sky (``EllipsoidOptions.trace``, :mod:`jaxlimb.pipeline.ellipsoid.trace`:
+  The ellipse is the limb traced against the sky (:mod:`jaxlimb.pipeline.ellipsoid.trace`:
   the outermost edge along rays, not the front end's circle, which lies on cloud edges 7-19 px off on cloudy
   frames); on an albedo-patchy limb (clouds) the band is level-normalised per ray, rays with a cloud edge inside
   the band are left out, the edge is a plain step, the uniform-albedo profile is not fitted and the traced points'

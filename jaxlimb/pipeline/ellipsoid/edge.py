@@ -43,7 +43,7 @@ def ellipsoid_edge(body: EllipsoidModel, frame: Frame, cand: Any, pix: EllipsePi
 
 def edge_loop(body: EllipsoidModel, frame: Frame, pix: EllipsePixels) -> EllipsoidEdge:
     """Steps 2-5 of the module docstring of :mod:`jaxlimb.pipeline.ellipsoid`: fit, range iteration, predicted
-    shape, refit while the prediction moves the ellipse by more than ``refit_tol_px``.  On a patchy limb with the
+    shape, refit while the prediction moves the ellipse by more than :data:`~jaxlimb.pipeline.ellipsoid.model.REFIT_TOL_PX`.  On a patchy limb with the
     attitude known a band fit that does not converge returns its start (``band_converged=False``) for the rays'
     fit instead of raising."""
     eo, cam, img = body.eo, frame.cam, frame.img

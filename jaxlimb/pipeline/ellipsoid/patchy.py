@@ -71,7 +71,7 @@ def _rays_once(body: EllipsoidModel, frame: Frame, tr: Any, ell: tuple) -> tuple
 
 
 def _shaded(body: EllipsoidModel, frame: Frame, tr: Any, ell: tuple) -> Any:
-    """The traced rays with their crossings' shading bias removed (``EllipsoidOptions.patchy_shading_L``; needs the
+    """The traced rays with their crossings' shading bias removed (:data:`~jaxlimb.pipeline.ellipsoid.start.PATCHY_SHADING_L`; needs the
     Sun direction); ``tr`` unchanged without it or with fewer than 20 rays."""
 
     sh = ray_shading(body, frame)

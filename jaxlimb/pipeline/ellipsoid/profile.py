@@ -4,7 +4,7 @@ lunar-Lambert radiance (:data:`jaxlimb.models.LIMB_PROFILE`); see "Physical limb
 
 Known attitude: ``theta, rho`` held at the image of the limb spheroid at the current position,
 re-predicted after the fit and the fit repeated (once is typical) while they move the ellipse by more
-than ``refit_tol_px``; free ellipse: ``theta, rho`` estimated.  ``profile="auto"`` keeps the edge fit
+than :data:`~jaxlimb.pipeline.ellipsoid.model.REFIT_TOL_PX`; free ellipse: ``theta, rho`` estimated.  ``profile="auto"`` keeps the edge fit
 (``extras["profile_rejected"]`` says why) when the fit fails, its ``L`` is outside the band of
 lunar-Lambert-like limbs, or it moves the limb by more than half the band from the edge fit.  An accepted fit is
 refitted once with a glow above the limb when a score test finds one (:func:`widen_glow_ellipsoid`).
@@ -13,32 +13,30 @@ refitted once with a glow above the limb when a score test finds one (:func:`wid
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import jax.numpy as jnp
 import numpy as np
 
 from ...errors import ConfigError, ConvergenceError, GeometryError, LimbInputError
-from ...fitting import fit, NormalLM, solver_from_name
+from ...fitting import fit
 from ...fitting.model_error import with_model_error as widen
+from ...fitting.solvers import NormalLM, solver_from_name
 from ...geometry.conic import ellipse_change
-from ...models import (AnisoProfileParams, ELLIPSE, ELLIPSE_RAMP, EllipseRampParams, GlowProfileParams, LIMB_PROFILE,
-                       LIMB_PROFILE_ANISO, LIMB_PROFILE_GLOW, limb_profile_intensity, LimbProfileParams,
-                       lunar_lambert_weight, MinnaertProfileParams)
-from ...models.lunar_lambert import profile_model
+from ...models.ellipse_ramp import ELLIPSE_RAMP, EllipseRampParams
+from ...models.lunar_lambert import (AnisoProfileParams, GlowProfileParams, LIMB_PROFILE, LIMB_PROFILE_ANISO,
+                                     LIMB_PROFILE_GLOW, limb_profile_intensity, LimbProfileParams,
+                                     lunar_lambert_weight, MinnaertProfileParams, profile_model)
+from ...models.sigmoid import ELLIPSE
 from ..profile.fit import profile_sun_direction
 from ..profile.glow import GLOW_Z, fit_glow_tilt, glow_columns, glow_plausible, glow_start
 from ..profile.model_error import last_column_step, weighted_system, with_model_error
 from ..profile.passes import gaussian_sigma_of_k, l_band, PROFILE_HELD
 from ..profile.widen import aniso_plausible, aniso_significant, with_aniso_witness
 from ..sigmoid import pad_bucket
-from ..stages import FitData, Frame, RefineResult
-from .model import as_ellipse, MAX_REFITS, position, REFIT_TOL_PX
+from ..stages import EllipsoidEdge, FitData, Frame, RefineResult
+from .model import as_ellipse, EllipsoidModel, MAX_REFITS, position, REFIT_TOL_PX
 from .trace_fit import coherent_shift_var, trace_model_cov
-
-if TYPE_CHECKING:  # pragma: no cover
-    from .body import EllipsoidModel
-    from ..stages import EllipsoidEdge
 
 
 def profile_wanted(frame: Frame, interior_ramp: bool) -> bool:
@@ -55,7 +53,7 @@ def profile_wanted(frame: Frame, interior_ramp: bool) -> bool:
     return prof == "lunar-lambert" or interior_ramp
 
 
-def _start(body: "EllipsoidModel", frame: Frame, edge: "EllipsoidEdge", pts: np.ndarray, z: np.ndarray) -> LimbProfileParams:
+def _start(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdge, pts: np.ndarray, z: np.ndarray) -> LimbProfileParams:
     """The profile's start: the edge fit's ellipse (shape predicted with a known attitude), the PSF of its
     kernel, the Sun from the hints, and the levels at their linear least-squares values for this geometry
     (the edge fit's ``ymax`` is no radiance scale when its ramp terms carry the interior)."""
@@ -97,7 +95,7 @@ def _one_fit(frame: Frame, data: tuple, q: LimbProfileParams, fixed: tuple, i: i
     return res, q.replace(sigma=abs(float(q.sigma)))  # the model depends on sigma^2 only (|sigma| reported)
 
 
-def _passes(body: "EllipsoidModel", frame: Frame, edge: "EllipsoidEdge", fd: FitData, band: float):  # noqa: ANN202
+def _passes(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdge, fd: FitData, band: float):  # noqa: ANN202
     """The profile fits with the shape re-predicted at each new position (module docstring)."""
 
     fixed = PROFILE_HELD
@@ -124,7 +122,7 @@ def _passes(body: "EllipsoidModel", frame: Frame, edge: "EllipsoidEdge", fd: Fit
     return res, fixed, hist
 
 
-def edge_with_model_error(edge: "EllipsoidEdge", rejected: Any = None) -> RefineResult:
+def edge_with_model_error(edge: EllipsoidEdge, rejected: Any = None) -> RefineResult:
     """The edge fit's :class:`RefineResult` with the model-error terms of
     :func:`~jaxlimb.pipeline.profile.model_error.with_model_error` (the answer when the profile is not fitted or is
     rejected: a limb the profile does not describe, e.g. Hapke's, biased 0.05-0.06 px for a noise-only sigma
@@ -144,7 +142,7 @@ def edge_with_model_error(edge: "EllipsoidEdge", rejected: Any = None) -> Refine
     return out.with_covariance(C)
 
 
-def _with_trace_error(out: RefineResult, edge: "EllipsoidEdge", replace_block: bool = False) -> RefineResult:
+def _with_trace_error(out: RefineResult, edge: EllipsoidEdge, replace_block: bool = False) -> RefineResult:
     """The albedo-patchy limb's model error (:func:`~jaxlimb.pipeline.ellipsoid.trace_fit.trace_model_cov`) added to the
     covariance of ``(r0, c0, a)``; ``replace_block``: the geometry is the rays' own fit
     (:func:`~jaxlimb.pipeline.ellipsoid.patchy.ray_geometry`), so its ``(r0, c0, a)`` covariance *is* the rays'
@@ -183,7 +181,7 @@ def floor_center_var(out: RefineResult, var: float) -> RefineResult:
     return out.with_covariance(C)
 
 
-def _with_witness(out: RefineResult, edge: "EllipsoidEdge") -> RefineResult:
+def _with_witness(out: RefineResult, edge: EllipsoidEdge) -> RefineResult:
     """``d d^T`` added to the covariance of ``(r0, c0, a)``, ``d`` the difference between the answer and the other
     estimate of the same patchy limb (``edge.witness``, :func:`~jaxlimb.pipeline.ellipsoid.patchy.patchy_geometry`), and
     the traced step's asymmetry likewise (``edge.asymmetry``, :func:`~jaxlimb.pipeline.ellipsoid.patchy._asymmetry`)."""
@@ -200,7 +198,7 @@ def _with_witness(out: RefineResult, edge: "EllipsoidEdge") -> RefineResult:
     return out.with_covariance(C)
 
 
-def fit_profile_ellipsoid(body: "EllipsoidModel", frame: Frame, edge: "EllipsoidEdge", extras: dict[str, Any]) -> RefineResult:
+def fit_profile_ellipsoid(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdge, extras: dict[str, Any]) -> RefineResult:
     """The stage (module docstring): the profile's :class:`RefineResult`, or the edge fit's."""
     if not profile_wanted(frame, body.eo.interior_ramp):
         return edge_with_model_error(edge)
@@ -231,7 +229,7 @@ def fit_profile_ellipsoid(body: "EllipsoidModel", frame: Frame, edge: "Ellipsoid
     return with_unresolved_glow(body, out, system)
 
 
-def with_unresolved_glow(body: "EllipsoidModel", rr: RefineResult, system=None) -> RefineResult:
+def with_unresolved_glow(body: EllipsoidModel, rr: RefineResult, system=None) -> RefineResult:
     """``rr`` (a profile fit without a glow, its PSF round or smeared) with the consider covariance of a glow the
     fit did not take (``EllipsoidOptions.unresolved_glow = (g_max, H_lo, H_hi)``: brightness uniform on
     ``[0, g_max]`` in units of ``amp``, scale height uniform on ``[H_lo, H_hi]`` km): ``C + mean_k s_k^2 G_k G_k^T``

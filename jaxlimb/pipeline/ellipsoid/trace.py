@@ -21,7 +21,7 @@ each ray from the centre, outward, nothing brighter than the sky follows it.
 geometric cost; :func:`fit_traced_glow` adds a glow's lift of each ray's crossing, ``c / (P_ray - s)``
 (:func:`glow_lift_column`), for a glow above a cloudy limb.  The per-ray levels normalise the band's pixels for the edge and profile fits
 (:func:`normalised_band`): ``z_n = (z - s) / (P_ray - s)`` with weights ``(P_ray - s) / C_ref`` (as the
-sphere's ``normalize_levels``, :class:`jaxlimb.pipeline.stages.FitData`), i.e. an inside level that may vary
+sphere's level normalisation, :class:`jaxlimb.pipeline.stages.FitData`), i.e. an inside level that may vary
 from ray to ray, and the pixels of rejected rays (faint, or a cloud edge inside the band) left out.
 """
 

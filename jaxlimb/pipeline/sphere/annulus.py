@@ -140,26 +140,20 @@ def select_annulus(
     inner, outer = inner[keep], outer[keep]
     e_in = dsel <= radius - dr + 1.0
     e_out = dsel >= radius + dr - 1.0
-    u = np.stack([np.sin(ang), np.cos(ang)], axis=1).mean(0)
-    nu = float(np.linalg.norm(u))
-    mid = (float(u[0] / nu), float(u[1] / nu)) if nu > 0.15 else None
     return AnnulusSelection(
-        coords=coords,
-        z=z,
-        center_rc=(cr, cc),
-        radius=float(radius),
-        dr=float(dr),
-        direction=mid,
-        halfangle=float(halfangle),
-        inner_level=float(np.median(z[inner])),
-        outer_level=float(np.median(z[outer])),
+        coords=coords, z=z, center_rc=(cr, cc), radius=float(radius), dr=float(dr), direction=_mid_direction(ang),
+        halfangle=float(halfangle), inner_level=float(np.median(z[inner])), outer_level=float(np.median(z[outer])),
         inner_edge_mean=float(np.mean(z[e_in])) if e_in.any() else float(np.median(z[inner])),
         outer_edge_mean=float(np.mean(z[e_out])) if e_out.any() else float(np.median(z[outer])),
-        n_bins_kept=int(np.count_nonzero(keep_bin)),
-        n_bins=n_bins,
-        pixel_inner=lev_in[bins],
-        pixel_outer=lev_out[bins],
-    )
+        n_bins_kept=int(np.count_nonzero(keep_bin)), n_bins=n_bins, pixel_inner=lev_in[bins], pixel_outer=lev_out[bins])
+
+
+def _mid_direction(ang: np.ndarray) -> tuple[float, float] | None:
+    """Unit ``(d_row, d_col)`` of the mean direction of the polar angles ``ang``, ``None`` when they spread all round
+    (mean resultant below 0.15)."""
+    u = np.stack([np.sin(ang), np.cos(ang)], axis=1).mean(0)
+    nu = float(np.linalg.norm(u))
+    return (float(u[0] / nu), float(u[1] / nu)) if nu > 0.15 else None
 
 
 NEAR_SKY_PX = 1.5
@@ -258,7 +252,7 @@ def _edge_offsets(e_b: np.ndarray, ok: np.ndarray, nb: int, tol: float = 0.75, n
     of the initial circle, to first order), fitted to the bins whose edge is not inward of it (``n_iter`` passes
     from all ``ok`` bins), and then its 75th percentile residual: the initial circle of a crescent or a cropped
     limb is often off by 1-3 px (a Taubin circle through a short noisy arc), and its ``e_b`` then trend with the
-    angle across the arc; measured against a constant, more than half of such an arc lies ``max_edge_offset_px``
+    angle across the arc; measured against a constant, more than half of such an arc lies :data:`MAX_EDGE_OFFSET_PX`
     inward and was dropped (benchmark row ``cropped`` 0: 149 deg phase, 25 of ~100 deg of lit limb kept).
     Fewer than 6 bins, a third or less of them inward of the 75th percentile by ``tol``, or a trend ``hypot(b, c)``
     within ``tol`` (a good initial circle): the constant of the 75th percentile alone, as before (a terminator or

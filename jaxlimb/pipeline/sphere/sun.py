@@ -126,17 +126,23 @@ def fit_limb_darkened(img, center_rc, radius_px: float, *, annulus_px: float | N
         res = fit(LIMB_DARKENED, coords, z, init, solver, fixed=fixed, max_steps=max_steps, throw=False)
     else:
         res = _fit_free_sigma(coords, z, init, solver, fixed, max_steps)
+    p = _checked(res)
+    idx = [res.free.index(n) for n in ("r0", "c0", "a") if n in res.free]
+    cov = np.asarray(res.covariance)[np.ix_(idx, idx)]
+    return SunLimbFit(center_rc=(float(p.r0), float(p.c0)), radius_px=float(p.a), covariance=cov, params=p, fit=res,
+                      n_pixels=int(res.n_pixels), annulus_px=h)
+
+
+def _checked(res: LimbFit) -> LimbDarkenedParams:
+    """The fit's parameters (``sigma`` as ``|sigma|``: the model depends on its square); no convergence or non-finite
+    parameters are a :class:`~jaxlimb.errors.ConvergenceError`."""
     if not bool(res.converged):
         raise ConvergenceError(f"limb-darkened disc fit ({res.solver}) did not converge: {res.message}")
     p = res.params
     vals = np.asarray(p.to_vector())
     if not np.all(np.isfinite(vals)):
         raise ConvergenceError(f"limb-darkened disc fit returned non-finite parameters {vals.tolist()}")
-    p = p.replace(sigma=abs(float(p.sigma)))
-    idx = [res.free.index(n) for n in ("r0", "c0", "a") if n in res.free]
-    cov = np.asarray(res.covariance)[np.ix_(idx, idx)]
-    return SunLimbFit(center_rc=(float(p.r0), float(p.c0)), radius_px=float(p.a), covariance=cov, params=p, fit=res,
-                      n_pixels=int(res.n_pixels), annulus_px=h)
+    return p.replace(sigma=abs(float(p.sigma)))
 
 
 def _fit_free_sigma(coords, z, init, solver, fixed: tuple[str, ...], max_steps: int):  # noqa: ANN202

@@ -8,7 +8,7 @@ brighter background -- the case of the Cassini high-phase frames of Enceladus, w
 crescent alone is an 80-deg arc on which centre and radius trade off (a circle through the
 crescent alone came out 302-305 px against the 288 px the range says).
 
-Steps (:func:`locate_whole_limb`):
+Steps (the stages of :class:`~jaxlimb.pipeline.sphere.predicted.PredictedLimbSphere`; this module has the fits):
 
 1. the predicted-limb front end (:mod:`jaxlimb.imaging.predicted`): edge points of either
    polarity along the predicted ellipse, fitted with the predicted shape held;
@@ -35,20 +35,13 @@ Steps (:func:`locate_whole_limb`):
    pipeline's own refit (:func:`jaxlimb.pipeline.profile.fit.fit_lunar_profile`), which removes the
    sigmoid's edge bias (0.35-0.5 px on short arcs);
 7. the centre covariance: the larger of the pixel-independent and the cluster-robust one,
-   plus an edge-model error (:data:`EDGE_MODEL_SIGMA_PX` through the arc's gains of
+   plus an edge-model error (:data:`~jaxlimb.pipeline.sphere.predicted.EDGE_MODEL_SIGMA_PX` through the arc's gains of
    :func:`jaxlimb.imaging.predicted.edge_bias_gain`);
 8. lit and dark limb both measured: the model error of their split (the centre fitted on each
    polarity alone, :mod:`jaxlimb.pipeline.sphere.polarity_split`) is added to the centre covariance.
 
-Bodies larger than the frame (:func:`locate_arc`): the visible arc's circle is found by RANSAC
-with the radius the range predicts and the same stage runs from there; too-big only when no
-arc is visible (``benchmarks/limb_arc.py``).
-
-Accuracy (renders with exact truth, ``tests/mission/test_whole_limb.py``): uniform discs,
-lit or dark against the sky, 0.006-0.06 px; a lit crescent whose brightness ramps from the
-terminator to the limb over 10 px biases the sigmoid's edge by ~0.35 px along the Sun
-direction (the flat-topped sigmoid is not the crescent's profile; the physical lunar-Lambert
-profile of :mod:`jaxlimb.pipeline.profile` is not yet used in this stage).
+Bodies larger than the frame: the visible arc's circle is found by RANSAC with the radius the range predicts and
+the same stages run from there; too-big only when no arc is visible.
 
 Check 4: ``a`` must agree with the predicted one within ``3 u`` (hints
 ``expected_radius_uncertainty_frac``), else :class:`~jaxlimb.errors.RadiusInconsistentError`.
@@ -69,14 +62,6 @@ from ..sigmoid import K_INIT, levels_held, predict, run_fit
 from ..stages import FitData, RefineResult
 from .annulus import bin_median
 
-#: 1-sigma of a limb model's edge position error along the limb (px), per pattern of
-#: :func:`~jaxlimb.imaging.predicted.edge_bias_gain`: the physical profile's accuracy on renders of its own
-#: family (README: ~0.01-0.02 px).  On short arcs the profile's residual mismatch is larger -- the limb-arc
-#: renders' centre errors divided by the arcs' gains are a first-harmonic edge error of -0.018 to -0.058 px
-#: (``benchmarks/limb_arc.py``) -- and is covered there by the profile's own split-witness model error
-#: (:func:`jaxlimb.pipeline.profile.model_error.split_witness`); 0.04 px here as well counted it twice (RMS/sigma
-#: 0.47/0.67 against 0.58/1.03).  It dominates the centre covariance of short arcs without that term.
-EDGE_MODEL_SIGMA_PX = 0.02
 
 #: Shape parameters held at the prediction.
 SHAPE_FIXED = ("theta", "rho")

@@ -20,7 +20,7 @@ the model the registration fits (:mod:`jaxlimb.irregular.model_render`).  Here:
   each pixel (:func:`~.raster.pixel_kernel`), then :func:`~.sensor.digitise` (photon and read
   noise, 8 or 12 bits, stars, hot pixels, JPEG).
 
-Truth: the image of the mesh origin (the body centre, DESIGN.md) through the pinhole,
+Truth: the image of the mesh origin (the body centre, docs/design.md) through the pinhole,
 :meth:`~.geometry.Pinhole.project` of ``t``.  Pixel ``(0, 0)`` is the centre of the top-left pixel.
 
 :func:`cratered_body` makes shapes unlike :mod:`jaxlimb.irregular.shapes`' radius functions:
