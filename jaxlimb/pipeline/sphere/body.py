@@ -19,7 +19,7 @@ from .refit import disc_center_of, disc_refit, sphere_center_of, sphere_refit
 @final
 @dataclass(frozen=True)
 class Sphere(Body[LimbPixels, EdgeFit]):
-    """A sphere (module table); ``physical``: the lunar-Lambert profile refit is tried."""
+    """A sphere measured on its lit limb (module docstring); ``physical``: the lunar-Lambert profile refit is tried."""
 
     physical: bool
     name: ClassVar[str] = "sphere"
