@@ -17,7 +17,6 @@ PKG = ROOT / "jaxlimb"
 #: Private names still taken across files outside the pipeline's layers (the optimistix solver's helpers, the CLI's
 #: shared runners, the irregular body's matcher): none may be added.
 KNOWN_PRIVATE = {
-    ("jaxlimb/cli/_batch.py", "_start_jax"), ("jaxlimb/cli/_batch.py", "_json_default"),
     ("jaxlimb/cli/_mc_pipeline.py", "_check_out"), ("jaxlimb/fitting/_optx.py", "_coarse"),
     ("jaxlimb/fitting/_optx.py", "_finish"), ("jaxlimb/irregular/phase.py", "_Chamfer"),
     ("jaxlimb/irregular/phase.py", "_rot_z_to"), ("jaxlimb/irregular/refine.py", "_rot_z_to"),
