@@ -9,7 +9,7 @@ latitude 20 deg, ``AlbedoPatches(seed=K, amplitude=0.6)`` for each ``K`` of ``--
 of extra noise; ``locate`` gets the camera, the Sun direction, a range prior 1 % off and ``R_body_to_camera``.
 Near zero phase the Lambert limb is dark and its traced rays fail the plain flatness test, so a limb tested on
 flatness alone is not flagged patchy and the one-albedo profile answers far off; the trace tests their
-flatness divided by the shading (:class:`jaxlimb.pipeline.limb_trace.RayShading`).  Prints and writes ``benchmarks/results/<out>.json`` (default
+flatness divided by the shading (:class:`jaxlimb.pipeline.ellipsoid.shading.RayShading`).  Prints and writes ``benchmarks/results/<out>.json`` (default
 ``earth_mottled``): per phase the status, centre error, centre sigmas and NEES.
 """
 

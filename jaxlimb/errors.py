@@ -1,6 +1,6 @@
 """Exception hierarchy of jaxlimb.
 
-Two families, matching the command-line contract of DESIGN.md:
+Two families, matching the command-line contract of docs/design.md:
 
 * :class:`LimbInputError` (a ``ValueError``): the input is unusable -- a missing,
   corrupt, empty, wrong-shaped or non-finite image, a bad argument, a bad camera

@@ -2,7 +2,7 @@
 
 Each sub-command lives in its own module ``jaxlimb/cli/_<name>.py`` that defines
 ``register(subparsers)``; the parser it adds sets ``func`` to a callable
-``run(args) -> int``.  This module owns the error contract of DESIGN.md:
+``run(args) -> int``.  This module owns the error contract of docs/design.md:
 
 * exit 0 on success;
 * exit 2 for unusable input (:class:`~jaxlimb.errors.LimbInputError`, bad arguments);
@@ -79,7 +79,7 @@ def emit_json(obj: object) -> None:
 
     The output is strict JSON: a non-finite float (NaN, inf) is written as ``null``.
     """
-    print(json.dumps(finite_json(obj), allow_nan=False, default=_json_default))
+    print(json.dumps(finite_json(obj), allow_nan=False, default=json_default))
 
 
 def finite_json(obj: object) -> object:
@@ -148,7 +148,8 @@ def report_after_result(error: str | None) -> int:
     return 2
 
 
-def _json_default(o: object) -> object:
+def json_default(o: object) -> object:
+    """``json.dumps``'s ``default`` for the commands' output: NumPy scalars and arrays as Python values."""
     import numpy as np
 
     if isinstance(o, np.generic):
@@ -301,7 +302,7 @@ def _main(argv: Sequence[str] | None) -> int:
             if needs_jax:
                 host_devices = getattr(args, "host_devices", None)
                 _request_host_devices(host_devices(args) if host_devices else 1)
-                _start_jax()
+                start_command_jax()
             return int(args.func(args) or 0)
     except BrokenPipeError:
         raise
@@ -350,7 +351,8 @@ def _request_host_devices(n: int) -> None:
         os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={n}".strip()
 
 
-def _start_jax() -> None:
+def start_command_jax() -> None:
+    """Start JAX for a command (float64, compilation cache); in the command's own process, freeze its objects."""
     from .._jaxcache import start_jax
 
     start_jax()  # LAPACK kernels before JAX (no scipy.linalg package import), float64, compilation cache

@@ -188,9 +188,9 @@ class _LineWriter:
 
     def write(self, rec: dict[str, Any]) -> None:
         from .._io import WRITE_ERRNOS, append_whole, write_error
-        from . import _json_default
+        from . import json_default
 
-        line = json.dumps(rec, allow_nan=False, default=_json_default) + "\n"
+        line = json.dumps(rec, allow_nan=False, default=json_default) + "\n"
         if self._fd is None:
             try:
                 sys.stdout.write(line)
@@ -253,10 +253,10 @@ def _frame_chunk(paths: list[str], read: Callable[[str], Any],
                  measure: Callable[[str, Any], dict[str, Any]]) -> list[tuple[dict[str, Any], int]]:
     """A Dask task: the records of a chunk of frames (the worker sets up JAX as the command does)."""
     from ..analysis.dask_worker import wait_started
-    from . import _start_jax
+    from . import start_command_jax
 
     wait_started()  # a worker's preload thread may still be importing the package
-    _start_jax()
+    start_command_jax()
     return [_one_frame(p, read, measure) for p in paths]
 
 

@@ -37,7 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("image", metavar="IMAGE", help="image file (PNG, TIFF, FITS) or a .npy array")
     p.add_argument("--camera", metavar="CAMERA.json", help="camera file (enables LOS and range)")
-    p.add_argument("--hints", metavar="HINTS.json", help="hints (DESIGN.md); expected_radius_px becomes a radius prior")
+    p.add_argument("--hints", metavar="HINTS.json", help="hints (docs/design.md); expected_radius_px becomes a radius prior")
     p.add_argument("--center-rc", nargs=2, type=arg_number(_COORD), metavar=("ROW", "COL"),
                    help=f"skip locate: circle centre, px {_COORD} (with --radius)")
     p.add_argument("--radius", type=arg_number(_PX), help=f"skip locate: circle radius, px {_PX} (with --center-rc)")

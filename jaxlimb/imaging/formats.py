@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ImageContentError, ImageReadError, LabelError
-from .io import MIN_IMAGE_SIZE, ImageInfo, _read_fits, load_image, validate_image
+from .io import MIN_IMAGE_SIZE, ImageInfo, read_fits, load_image, validate_image
 
 #: Shortest run of fill-value pixels (along a row or a column) taken as missing data.
 MIN_FILL_RUN = 8
@@ -344,7 +344,7 @@ def _frame_from_file(p: Path, min_size: int) -> Frame:
     mask = np.ones(a.shape, dtype=bool)
     if info.format == "fits" and info.n_nonfinite_filled:
         # load_image already filled the NaNs with the minimum finite value (SDO: the dark off-disc corners)
-        raw, _, _ = _read_fits(p)
+        raw, _, _ = read_fits(p)
         mask = np.isfinite(np.asarray(raw, dtype=np.float64))
     return Frame(a, mask, info, meta_from_label(_fits_label(info.header)))
 

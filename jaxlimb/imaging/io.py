@@ -204,7 +204,9 @@ def _suffix(p: Path) -> str:
     return p.suffix.lower()
 
 
-def _read_fits(p: Path) -> tuple[np.ndarray, Any, int]:
+def read_fits(p: Path) -> tuple[np.ndarray, Any, int]:
+    """The image array of a FITS file (the first HDU with 2-D data), its header and the HDU's index; astropy
+    reads it (imported here: an optional, heavy dependency)."""
     from astropy.io import fits
 
     from .._image_bounds import check_size, fits_size
@@ -334,7 +336,7 @@ def load_image(
     n_filled = 0
     if suf in _FITS_SUFFIXES:
         fmt = "fits"
-        raw, header, hdu_index = _read_fits(p)
+        raw, header, hdu_index = read_fits(p)
         raw, a, n_filled = _fits_as_float(raw, p)
     else:
         fmt = {".png": "png", ".tif": "tiff", ".tiff": "tiff"}.get(suf, "jp2" if suf in _JP2_SUFFIXES else "other")

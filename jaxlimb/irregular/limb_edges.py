@@ -22,7 +22,7 @@ registration:
    outline, and a shift toward the Sun and a scale are nearly the same motion of it).
 
 Its covariance is the cluster-robust sandwich over 16 position-angle sectors
-(:func:`jaxlimb.analysis.model_error.sector_groups`) plus ``floor_px`` per axis, and the answer of
+(:func:`jaxlimb.fitting.model_error.sector_groups`) plus ``floor_px`` per axis, and the answer of
 :func:`.register.register_known_attitude` is the information-weighted mean of both estimates
 (:func:`combine`).
 """

@@ -28,7 +28,7 @@ index ``0`` is refused (a reader would take it for the last vertex).  Failures
 raise :class:`jaxlimb.errors.MeshError`.
 
 Coordinates are kept exactly as in the file (km, body-fixed frame).  The body
-centre is the **origin** of these coordinates (DESIGN.md), not the volume
+centre is the **origin** of these coordinates (docs/design.md), not the volume
 centroid.  No axis is re-labelled here: which axis is the pole only matters for
 the view-sphere sampling, see :class:`jaxlimb.irregular.views.ViewSphereOptions`
 (``pole_axis``; Celestia models such as ``thebe.obj``/``phobos.obj`` are y-up).

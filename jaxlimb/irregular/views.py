@@ -33,7 +33,7 @@ axes in the sampling frame::
     y_c = ( sin b,       -cos b,        0    )    (= -e_beta)
     z_c = (-sin a cos b, -sin a sin b, -cos a)    (= -e_r, toward the centre)
 
-which is right-handed (``x_c x y_c = z_c``), so it matches the DESIGN.md camera
+which is right-handed (``x_c x y_c = z_c``), so it matches the docs/design.md camera
 (+x toward +col, +y toward +row, +z boresight).
 """
 
@@ -183,7 +183,7 @@ def project_points(
     """Pinhole projection of body-frame points, Eq. (9) of Wu et al.
 
     ``X_c = R X_b + t``; ``row = rc + f y_c / z_c``, ``col = cc + f x_c / z_c``
-    (DESIGN.md convention; ``k_x = k_y = f`` in the paper's notation).
+    (docs/design.md convention; ``k_x = k_y = f`` in the paper's notation).
 
     Returns
     -------

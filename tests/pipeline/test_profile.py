@@ -9,9 +9,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from jaxlimb.models.lunar_lambert import (LIMB_PROFILE, LIMB_PROFILE_MINNAERT, LimbProfileParams,
+                                          MinnaertProfileParams, limb_profile_intensity)
 import jaxlimb.models.lunar_lambert as prof
-from jaxlimb.models import (LIMB_PROFILE, LIMB_PROFILE_MINNAERT, LimbProfileParams, MinnaertProfileParams,
-                            limb_profile_intensity)
 
 jax.config.update("jax_enable_x64", True)
 
@@ -121,7 +121,8 @@ def test_small_angle_series():
 def test_l_band_widens_with_the_fits_own_uncertainty():
     from types import SimpleNamespace
 
-    from jaxlimb.pipeline.profile import PHYSICAL_L, l_band
+    from jaxlimb.models.lunar_lambert import PHYSICAL_L
+    from jaxlimb.pipeline.profile.passes import l_band
 
     free = ("r0", "c0", "a", "sigma", "amp", "ymin", "L")
     cov = np.diag([1e-4] * 6 + [0.05**2])

@@ -55,6 +55,7 @@ from typing import Any
 
 import numpy as np
 
+from ...geometry.camera import Camera
 from .geometry import Body, LimbTruth, Pinhole, limb_truth
 from .optics import Glow, Psf, PsfKind
 from .raster import Surface, render_radiance
@@ -114,7 +115,6 @@ def earth_attitude(u: np.ndarray, north: np.ndarray, lat_deg: float, lon_deg: fl
 
 
 def _camera(focal_mm: float):
-    from ...geometry.camera import Camera
 
     return Camera(focal_length_mm=focal_mm, pixel_pitch_mm=0.0022, rows=1944, cols=2592)
 
@@ -248,7 +248,6 @@ def earth_full_disc_case(family: str, rng: np.random.Generator) -> Case:
     darkens to zero at its limb and the strongest edges are the clouds' (``benchmarks/earth_full_disc.py``)."""
     if family not in EARTH_FULL_DISC_FAMILIES:
         raise ValueError(f"unknown full-disc Earth family {family!r}; one of {EARTH_FULL_DISC_FAMILIES}")
-    from ...geometry.camera import Camera
 
     rng_km = 1.5e6 * float(rng.uniform(0.97, 1.03))
     R_px = float(rng.uniform(380.0, 450.0))

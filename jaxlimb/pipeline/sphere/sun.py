@@ -1,8 +1,6 @@
-"""Fit of the limb-darkened disc of a self-luminous star (the Sun) on an annulus about a circle.
-
-The model (:data:`LIMB_DARKENED`, the quadratic limb-darkening law blurred by a Gaussian PSF, and its
-Jacobian) lives in :mod:`jaxlimb.models.limb_darkened`; its names are re-exported here for older imports.
-"""
+"""Fit of the limb-darkened disc of a self-luminous star (the Sun) on an annulus about a circle, the disc
+strategy's profile refit.  The model (:data:`~jaxlimb.models.LIMB_DARKENED`, the quadratic limb-darkening law blurred
+by a Gaussian PSF, and its Jacobian) lives in :mod:`jaxlimb.models`."""
 
 from __future__ import annotations
 
@@ -11,19 +9,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConvergenceError, LimbInputError
-from ..fitting import AbstractLimbSolver, LimbFit, NormalLM, fit
-from ..models.limb_darkened import (  # noqa: F401  (re-exported)
-    LIMB_DARKENED as LIMB_DARKENED,
-    N_TABLE as N_TABLE,
-    SUN_FIXED as SUN_FIXED,
-    U1_DEFAULT as U1_DEFAULT,
-    U2_DEFAULT as U2_DEFAULT,
-    LimbDarkenedParams as LimbDarkenedParams,
-    limb_darkened_intensity as limb_darkened_intensity,
-    limb_darkened_intensity_direct as limb_darkened_intensity_direct,
-    limb_darkening as limb_darkening,
-)
+from ...errors import ConvergenceError, LimbInputError
+from ...fitting import AbstractLimbSolver, fit, LimbFit, NormalLM
+from ...models import LIMB_DARKENED, LimbDarkenedParams, limb_darkened_intensity, limb_darkening
+from ...models.limb_darkened import SUN_FIXED, U1_DEFAULT, U2_DEFAULT
 
 #: Below this PSF sigma (px) :func:`fit_limb_darkened` refits with ``sigma`` held at 0.
 SIGMA_FLOOR = 0.03
@@ -137,17 +126,23 @@ def fit_limb_darkened(img, center_rc, radius_px: float, *, annulus_px: float | N
         res = fit(LIMB_DARKENED, coords, z, init, solver, fixed=fixed, max_steps=max_steps, throw=False)
     else:
         res = _fit_free_sigma(coords, z, init, solver, fixed, max_steps)
+    p = _checked(res)
+    idx = [res.free.index(n) for n in ("r0", "c0", "a") if n in res.free]
+    cov = np.asarray(res.covariance)[np.ix_(idx, idx)]
+    return SunLimbFit(center_rc=(float(p.r0), float(p.c0)), radius_px=float(p.a), covariance=cov, params=p, fit=res,
+                      n_pixels=int(res.n_pixels), annulus_px=h)
+
+
+def _checked(res: LimbFit) -> LimbDarkenedParams:
+    """The fit's parameters (``sigma`` as ``|sigma|``: the model depends on its square); no convergence or non-finite
+    parameters are a :class:`~jaxlimb.errors.ConvergenceError`."""
     if not bool(res.converged):
         raise ConvergenceError(f"limb-darkened disc fit ({res.solver}) did not converge: {res.message}")
     p = res.params
     vals = np.asarray(p.to_vector())
     if not np.all(np.isfinite(vals)):
         raise ConvergenceError(f"limb-darkened disc fit returned non-finite parameters {vals.tolist()}")
-    p = p.replace(sigma=abs(float(p.sigma)))
-    idx = [res.free.index(n) for n in ("r0", "c0", "a") if n in res.free]
-    cov = np.asarray(res.covariance)[np.ix_(idx, idx)]
-    return SunLimbFit(center_rc=(float(p.r0), float(p.c0)), radius_px=float(p.a), covariance=cov, params=p, fit=res,
-                      n_pixels=int(res.n_pixels), annulus_px=h)
+    return p.replace(sigma=abs(float(p.sigma)))
 
 
 def _fit_free_sigma(coords, z, init, solver, fixed: tuple[str, ...], max_steps: int):  # noqa: ANN202

@@ -1,7 +1,7 @@
 r"""Stage "body-centre mapping" of :func:`jaxlimb.pipeline.locate`: fitted limb parameters -> image of the
 body centre, radius, line of sight, range, and the Jacobian of that map (for the covariance stage).
 
-The map is exact for a sphere (:func:`jaxlimb.pipeline.sphere.sphere_from_ellipse_center`, equivalent to
+The map is exact for a sphere (:func:`jaxlimb.geometry.sphere_image.sphere_from_ellipse_center`, equivalent to
 :func:`jaxlimb.geometry.navigation.sphere_from_ellipse`): the limb of a sphere off the optical axis is an
 ellipse whose centre is not the image of the body centre.  ``radius_px`` is then the on-axis-equivalent
 radius ``f tan(alpha) = b^2/a`` and ``range_km = R / sin(alpha)``.  With lens distortion the fit is in
@@ -12,46 +12,19 @@ Jacobian is by central differences (:func:`jaxlimb.analysis.crlb.numerical_jacob
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from ..analysis.crlb import numerical_jacobian
-from ..geometry.camera import Camera
-from .frame import Frame
-from .result import EllipseResult
-from .sphere import sphere_from_ellipse_center
+from ...geometry.camera import Camera
+from ...geometry.navigation import sphere_from_ellipse
+from ...geometry.sphere_image import sphere_from_ellipse_center
+from ...numerics import numerical_jacobian
+from ..result import EllipseResult
+from ..stages import BodyCenter, Frame
 
 #: The names of the body-centre outputs of a round body.
 ROUND_OUTPUTS = ("center_r", "center_c", "radius")
-
-
-@dataclass(frozen=True)
-class BodyCenter:
-    """The body-centre mapping of one fit.
-
-    Attributes
-    ----------
-    center_rc, radius_px, ellipse, los, range_km : the reported geometry (``None`` where not measured).
-    outputs : names of the mapped quantities (``center_r``, ``center_c``, ``radius`` / ``range_km`` ...).
-    params : the fit parameters they are a function of (names of the fit's free parameters).
-    jacobian : ``(len(outputs), len(params))`` derivative of the map at the estimate.
-    model_cov : optional ``(len(outputs),)*2`` covariance of a model error added to the mapped block
-        (the unsigned centre offset of a free ellipse, :mod:`jaxlimb.pipeline.ellipsoid`).
-    extras : numbers worth reporting (the limb ellipse ...).
-    """
-
-    center_rc: tuple[float, float]
-    radius_px: float | None
-    ellipse: EllipseResult | None
-    los: tuple[float, float, float] | None
-    range_km: float | None
-    outputs: tuple[str, ...]
-    params: tuple[str, ...]
-    jacobian: np.ndarray
-    model_cov: np.ndarray | None = None
-    extras: dict[str, Any] = field(default_factory=dict)
 
 
 def _los(cam: Camera | None, center_rc) -> tuple[float, float, float] | None:
@@ -99,7 +72,6 @@ def _ellipse_axes(a: float, rho: float, theta: float) -> tuple[float, float, flo
 
 def _body_from_ellipse(pin: Camera, d: dict[str, float]) -> tuple[float, float]:
     """Body-centre image (ideal px) of a free ellipse ``(r0, c0, a, rho, theta)`` of a sphere (exact)."""
-    from ..geometry.navigation import sphere_from_ellipse
 
     a, rho, _ = _ellipse_axes(d["a"], d["rho"], 0.0)
     u, _ = sphere_from_ellipse(pin, (d["r0"], d["c0"]), (a, max(a * rho, 1e-9)), 1.0)
@@ -136,4 +108,4 @@ def free_ellipse_center(frame: Frame, fp: Any, free: tuple[str, ...]) -> BodyCen
                       numerical_jacobian(out, x0))
 
 
-__all__ = ["ROUND_OUTPUTS", "BodyCenter", "circle_center", "free_ellipse_center", "sphere_center"]
+__all__ = ["ROUND_OUTPUTS", "circle_center", "free_ellipse_center", "sphere_center"]

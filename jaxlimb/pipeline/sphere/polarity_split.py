@@ -1,6 +1,6 @@
 r"""Model error of the whole-limb fit from its two polarities: the lit limb against the dark limb.
 
-The whole-limb stage (:mod:`jaxlimb.pipeline.whole_limb`) fits one elliptical sigmoid to the lit limb (disc
+The whole-limb stage (:mod:`jaxlimb.pipeline.sphere.whole_limb`) fits one elliptical sigmoid to the lit limb (disc
 brighter than the sky) and the dark limb (disc darker than a brighter background) together.  The two see
 different profiles: a crescent brightening toward the limb, a plume or a glow beside it, a dark limb
 softened by the sky's gradient.  A profile the sigmoid does not describe moves the fitted edge, and the
@@ -27,6 +27,10 @@ from typing import Any
 
 import numpy as np
 
+from ...models import ELLIPSE
+from ..sigmoid import run_fit
+from .whole_limb import binned_limb_steps, ellipse_distance
+
 #: Fewest pixels of each polarity for the split.
 MIN_PIXELS = 50
 #: Chi-square (2 dof) of the split above which the polarities are reported as disagreeing (~ 2 sigma).
@@ -37,12 +41,10 @@ def pixel_polarity(img: np.ndarray, mask: np.ndarray | None, shape, dr: float, n
                    n_bins: int = 180, min_snr: float = 5.0) -> np.ndarray:
     """+1 (lit: disc brighter than the sky), -1 (dark) or 0 for each of ``coords``, from its angular bin's
     inner and outer levels on the annulus ``|d| <= dr`` about ``shape`` (as
-    :func:`jaxlimb.pipeline.whole_limb.select_whole_limb` classifies the bins)."""
-    from .whole_limb import _ellipse_distance, binned_limb_steps
-
+    :func:`jaxlimb.pipeline.sphere.whole_limb.select_whole_limb` classifies the bins)."""
     _, _, _, _, c, good, _ = binned_limb_steps(img, mask, shape, dr, noise, n_bins, min_snr)
     pol = np.where(good, np.sign(np.nan_to_num(c)), 0.0)
-    _, phi_p = _ellipse_distance(shape, coords)
+    _, phi_p = ellipse_distance(shape, coords)
     b = np.minimum(((phi_p + math.pi) / (2 * math.pi) * n_bins).astype(np.int64), n_bins - 1)
     return pol[b]
 
@@ -50,10 +52,7 @@ def pixel_polarity(img: np.ndarray, mask: np.ndarray | None, shape, dr: float, n
 def polarity_split(img: np.ndarray, mask: np.ndarray | None, res, shape, dr: float, noise: float, opt,
                    fixed: tuple[str, ...]) -> dict[str, Any] | None:
     """The split of the module docstring for the whole-limb fit ``res`` (a
-    :class:`~jaxlimb.pipeline.refine.RefineResult`); ``None`` when a polarity has too few pixels."""
-    from ..models import ELLIPSE
-    from .refine import _run
-
+    :class:`~jaxlimb.pipeline.stages.RefineResult`); ``None`` when a polarity has too few pixels."""
     pol = pixel_polarity(img, mask, shape, dr, noise, res.data.coords)
     held = tuple(dict.fromkeys(tuple(fixed) + ("a",)))
     out: dict[str, Any] = {}
@@ -61,7 +60,7 @@ def polarity_split(img: np.ndarray, mask: np.ndarray | None, res, shape, dr: flo
         sel = pol == s
         if np.count_nonzero(sel) < MIN_PIXELS:
             return None
-        f = _run(ELLIPSE, res.data.subset(sel), res.fit.params, opt, held)
+        f = run_fit(ELLIPSE, res.data.subset(sel), res.fit.params, opt, held)
         i = [list(f.free).index(n) for n in ("r0", "c0")]
         out[name] = (np.array([float(f.params.r0), float(f.params.c0)]), np.asarray(f.covariance)[np.ix_(i, i)],
                      int(np.count_nonzero(sel)))

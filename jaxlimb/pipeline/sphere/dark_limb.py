@@ -17,7 +17,7 @@ black sky's JPEG blocks and quantisation steps are not a limb) and their median 
 :data:`MAX_DARK_OFFSET_FRAC` of the radius), the lit-limb circle is not the body's limb: a typed failure
 (:class:`~jaxlimb.errors.DarkLimbInconsistentError`, exit 3) instead of a confident wrong answer.  The
 remedy is the prediction (``--kernels``: camera, range and the body's orientation), with which the whole
-limb, lit and dark, is fitted with the body's own shape (:mod:`jaxlimb.pipeline.whole_limb`).
+limb, lit and dark, is fitted with the body's own shape (:mod:`jaxlimb.pipeline.sphere.whole_limb`).
 """
 
 from __future__ import annotations
@@ -27,10 +27,11 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import DarkLimbInconsistentError
-from ..imaging.crop import estimate_noise
-from ..imaging.gradient import _bilinear
-from ..imaging.predicted import LimbShape, limb_edges
+from ...errors import DarkLimbInconsistentError
+from ...imaging.crop import estimate_noise
+from ...imaging.gradient import bilinear
+from ...imaging.predicted import LimbShape, limb_edges
+from ..frame import frame_mask
 
 #: Fewest dark-limb bins (of 360) for the check to apply (a disc on a black sky has none).
 MIN_DARK_BINS = 20
@@ -66,7 +67,7 @@ def _median_contrast(img: np.ndarray, pts: np.ndarray, center: tuple[float, floa
     3-6 px outside minus 3-6 px inside each edge along the radius."""
     u = pts - np.asarray(center)
     u /= np.maximum(np.linalg.norm(u, axis=1), 1e-12)[:, None]
-    side = [np.mean([_bilinear(img, *(pts + sgn * d * u).T) for d in (3.0, 4.0, 5.0, 6.0)], axis=0) for sgn in (1, -1)]
+    side = [np.mean([bilinear(img, *(pts + sgn * d * u).T) for d in (3.0, 4.0, 5.0, 6.0)], axis=0) for sgn in (1, -1)]
     return float(np.median(side[0] - side[1]))
 
 
@@ -96,7 +97,6 @@ def check_dark_limb(image: np.ndarray, center_rc, radius_px: float, mask: np.nda
 
 def check_measurement(frame: Any, meas: Any) -> Any:
     """Stage "checks" of a sphere: :func:`check_dark_limb` on the measured circle; the numbers in ``extras``."""
-    from .frame import frame_mask
 
     if meas.radius_px is None or not math.isfinite(meas.radius_px):
         return meas

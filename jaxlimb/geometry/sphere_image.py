@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import GeometryError
+from ..numerics import numerical_jacobian
 
 
 @dataclass(frozen=True)
@@ -163,8 +164,6 @@ def sphere_jacobian(focal_px: float, principal_point_rc, ellipse_center_rc, a_px
     body centre and the equivalent radius.  Step 1e-4 px: the map is smooth on the px scale,
     so the truncation error (~1e-8 relative) is far below the statistical errors.
     """
-    from ..analysis.crlb import numerical_jacobian
-
     def out(x: np.ndarray) -> np.ndarray:
         s = sphere_from_ellipse_center(focal_px, principal_point_rc, (x[0], x[1]), x[2])
         return np.array([s.body_center_rc[0], s.body_center_rc[1], s.radius_equivalent_px])
@@ -173,4 +172,36 @@ def sphere_jacobian(focal_px: float, principal_point_rc, ellipse_center_rc, a_px
     return numerical_jacobian(out, x0, 1e-4)
 
 
-__all__ = ["SphereImage", "sphere_from_ellipse_center", "sphere_jacobian"]
+def sphere_from_circle_fit(focal_px: float, principal_point_rc, center_rc, mean_radius: float,
+                           tol: float = 1e-14, max_iter: int = 60) -> SphereImage:
+    """The sphere whose image ellipse has centre ``center_rc`` and mean radius ``(a + b)/2 = mean_radius``.
+
+    1-D Newton on ``alpha`` (the centre equation gives ``theta`` in closed form), then
+    :func:`sphere_from_ellipse_center` with the matching ``a``.
+    """
+    f = float(focal_px)
+    r0, c0 = (float(v) for v in principal_point_rc)
+    k = math.hypot(float(center_rc[0]) - r0, float(center_rc[1]) - c0) / f
+
+    def mean_ab(alpha: float) -> float:
+        s = math.sin(alpha)
+        th = math.atan(_tan_theta(k, s))
+        den = math.cos(th) ** 2 - s * s
+        return 0.5 * (s * math.cos(alpha) / den + s / math.sqrt(den))
+
+    target = float(mean_radius) / f
+    alpha = math.atan(target)
+    for _ in range(max_iter):
+        h = 1e-6 * alpha
+        dm = (mean_ab(alpha + h) - mean_ab(alpha - h)) / (2 * h)
+        if not (math.isfinite(dm) and dm > 0):
+            raise GeometryError(f"no sphere has an image of mean radius {mean_radius!r} px there")
+        step = (mean_ab(alpha) - target) / dm
+        alpha -= step
+        if abs(step) <= tol * alpha:
+            break
+    a = f * _a_of_alpha(k, alpha)
+    return sphere_from_ellipse_center(f, principal_point_rc, center_rc, a)
+
+
+__all__ = ["SphereImage", "sphere_from_circle_fit", "sphere_from_ellipse_center", "sphere_jacobian"]

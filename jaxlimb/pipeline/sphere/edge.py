@@ -10,13 +10,12 @@ of the fit) is in :func:`limb_pixels`; the fits that follow only use the pixels 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from ..errors import ArcTooShortError
-from .checks import (
+from ...errors import ArcTooShortError
+from ..checks import (
     MIN_LIT_ARC_DEG,
     MIN_LIT_ARC_PROFILE_DEG,
     check_center_in_field,
@@ -27,62 +26,14 @@ from .checks import (
     jump_threshold,
     max_limb_displacement,
 )
-from .frame import Frame, arc_angles, frame_mask, min_diameter_px
-from .refine import (
-    LOGISTIC_TO_GAUSS,
-    AnnulusSelection,
-    RefineResult,
-    annulus_halfwidth,
-    fit_circle_annulus,
-    lit_halfangle,
-    select_annulus,
-)
+from ..frame import arc_angles, frame_mask, min_diameter_px
+from ..sigmoid import LOGISTIC_TO_GAUSS
+from ..stages import AnnulusSelection, EdgeFit, Frame, LimbPixels, RefineResult
+from .annulus import ANGULAR_BIN_DEG, annulus_halfwidth, ANNULUS_MIN_PX, lit_halfangle, select_annulus
+from .fits import fit_circle_annulus
 
 #: Widen the annulus when it is narrower than this many Gaussian-equivalent edge sigmas.
 EDGE_SIGMAS = 4.5
-
-
-@dataclass(frozen=True)
-class LimbPixels:
-    """The pixels of the lit limb: the annulus and the lit-side window it was cut with.
-
-    ``direction`` (unit ``(d_row, d_col)`` toward the lit side, ``None``: all round) and ``half``
-    (rad) the window; ``phase`` (rad) the phase angle used (``None``: unknown); ``dr`` the annulus
-    half-width (px); ``min_arc_deg`` the shortest lit arc accepted; ``dr_max`` the widest half-width the
-    edge fit may widen it to; ``shift`` (px) how far the annulus' middle lies outside the circle (a thin
-    crescent's band: :func:`crescent_halfwidth`, :func:`limb_pixels`).
-    """
-
-    sel: AnnulusSelection
-    dr: float
-    direction: tuple[float, float] | None
-    half: float
-    phase: float | None
-    min_arc_deg: float
-    dr_max: float = math.inf
-    shift: float = 0.0
-
-
-@dataclass(frozen=True)
-class EdgeFit:
-    """The edge fit of a round limb: the circular sigmoid on the final annulus, and how it was reached."""
-
-    circ: RefineResult
-    pixels: LimbPixels
-    widened: bool
-    recentered: bool
-    arc_deg: float
-    jump_px: float = 0.0
-    jump_limit_px: float = 0.0
-
-    @property
-    def center_rc(self) -> tuple[float, float]:
-        p = self.circ.fit.params
-        return (float(p.r0), float(p.c0))
-
-    @property
-    def radius(self) -> float:
-        return float(self.circ.fit.params.radius)
 
 
 #: Narrowest annulus half-width (px) for a thin crescent: +-3 px cover +-2.5 sigma of a 1.2 px Gaussian PSF.
@@ -91,20 +42,19 @@ CRESCENT_MIN_DR = 3.0
 CRESCENT_HALF_DEG = 40.0
 
 
-def crescent_halfwidth(phase: float | None, radius: float, dr: float, horn_margin_deg: float,
-                       min_arc_deg: float) -> float:
+def crescent_halfwidth(phase: float | None, radius: float, dr: float, min_arc_deg: float) -> float:
     """The annulus half-width (px) for a thin crescent: ``dr`` unless the lit band is too thin for it.
 
-    :func:`~jaxlimb.pipeline.refine.lit_halfangle` keeps the directions where the terminator lies at least
+    :func:`~jaxlimb.pipeline.sphere.annulus.lit_halfangle` keeps the directions where the terminator lies at least
     ``dr + 2`` px inside the limb.  A thin crescent (``R (1 - |cos phase|) < dr + 2`` at the Sun direction; e.g.
     benchmark row ``jpeg`` 5, 145 deg phase, R ~ 40 px: a 7 px thick band for a 6 px annulus) then has no
     usable direction at all although its whole lit limb is in the frame.  When the usable arc is below
     ``min_arc_deg`` the inner band is narrowed to the PSF's width: the half-width is lowered (never below ``CRESCENT_MIN_DR``) to the one for which the lit limb is
     usable over ``CRESCENT_HALF_DEG`` about the Sun direction (terminator at ``R/sqrt(cos^2 psi/cos^2 phase +
-    sin^2 psi)`` along the ray at ``psi``, :mod:`jaxlimb.pipeline.refine` rule 2)."""
+    sin^2 psi)`` along the ray at ``psi``, :mod:`jaxlimb.pipeline.sphere.annulus` rule 2)."""
     if phase is None or phase <= math.pi / 2 or dr <= CRESCENT_MIN_DR:
         return dr
-    if 2.0 * math.degrees(lit_halfangle(phase, radius, dr, horn_margin_deg)) >= min_arc_deg:
+    if 2.0 * math.degrees(lit_halfangle(phase, radius, dr)) >= min_arc_deg:
         return dr  # usable as it is (narrowing further moved benchmark row airy 1 from 0.017 to 0.069 px)
     psi = math.radians(CRESCENT_HALF_DEG)
     c2 = max(math.cos(phase) ** 2, 1e-300)
@@ -115,30 +65,29 @@ def crescent_halfwidth(phase: float | None, radius: float, dr: float, horn_margi
 def lit_window(frame: Frame, cand: Any, dr: float) -> tuple[tuple[float, float] | None, float, float | None]:
     """The lit side: ``(direction, half-angle, phase)`` from the Sun direction, else from the image."""
     prior = cand.info.get("prior")
-    opt = frame.opt
     phase = frame.phase(cand.center_rc) if frame.sun_known else (prior.phase_rad if prior is not None else None)
     direction = cand.lit_direction
     if direction is None:
         return None, math.pi, phase
     if frame.sun_known:
-        return direction, lit_halfangle(phase, cand.radius, dr, opt.horn_margin_deg), phase
+        return direction, lit_halfangle(phase, cand.radius, dr), phase
     # Sun unknown: the arc of the front end's points, but never more than the lit half-circle of the
     # phase measured on the image (more is the dark limb / terminator)
     ph_img = prior.phase_rad if prior is not None else None
-    half = min(cand.lit_halfangle + math.radians(2.0), lit_halfangle(ph_img, cand.radius, dr, opt.horn_margin_deg))
+    half = min(cand.lit_halfangle + math.radians(2.0), lit_halfangle(ph_img, cand.radius, dr))
     return direction, half, phase
 
 
 def limb_pixels(frame: Frame, cand: Any, physical_profile: bool) -> LimbPixels:
-    """Stage 3: the annulus ``r_hat +- dr`` on the lit side (:func:`~jaxlimb.pipeline.refine.select_annulus`),
+    """Stage 3: the annulus ``r_hat +- dr`` on the lit side (:func:`~jaxlimb.pipeline.sphere.annulus.select_annulus`),
     and the lit-arc check before any fit (cropped body, Sun-facing side out of the frame): on the front end's
     limb points (:func:`check_front_end_arc`), then on the annulus."""
     opt = frame.opt
-    dr = dr_in = annulus_halfwidth(cand.radius, cand.residual_rms, opt)
+    dr = dr_in = annulus_halfwidth(cand.radius, cand.residual_rms)
     min_arc = float(opt.min_lit_arc_deg) if opt.min_lit_arc_deg is not None else (
         MIN_LIT_ARC_PROFILE_DEG if physical_profile else MIN_LIT_ARC_DEG)
-    if frame.sun_known and opt.annulus_px is None:
-        dr_in = crescent_halfwidth(frame.phase(cand.center_rc), cand.radius, dr, opt.horn_margin_deg, min_arc)
+    if frame.sun_known:
+        dr_in = crescent_halfwidth(frame.phase(cand.center_rc), cand.radius, dr, min_arc)
     direction, half, phase = lit_window(frame, cand, dr_in)
     if direction is not None and (half <= 0.0 or (dr_in < dr and 2.0 * math.degrees(half) < min_arc)):
         raise ArcTooShortError(thin_crescent_message(phase, cand.radius, dr_in, half, min_arc))
@@ -146,8 +95,8 @@ def limb_pixels(frame: Frame, cand: Any, physical_profile: bool) -> LimbPixels:
     # a thin crescent: the band [r - dr_in, r + dr] (inside: the lit band; outside: the sky, always there),
     # i.e. half-width (dr_in + dr)/2 about r + (dr - dr_in)/2, never widened (the terminator would enter it)
     shift, h = 0.5 * (dr - dr_in), 0.5 * (dr + dr_in)
-    sel = select_annulus(frame.img, cand.center_rc, cand.radius + shift, h, direction, half, opt, frame_mask(frame))
-    cause = _short_annulus_cause(sel, opt, min_arc, half)
+    sel = select_annulus(frame.img, cand.center_rc, cand.radius + shift, h, direction, half, frame_mask(frame))
+    cause = _short_annulus_cause(sel, min_arc, half)
     try:
         check_lit_arc(sel.angles(), min_arc, half, cause)
     except ArcTooShortError as e:
@@ -181,11 +130,11 @@ def thin_crescent_message(phase: float | None, radius: float, dr: float, half: f
             f"the usable half-angle of the lit limb comes out {math.degrees(half):.0f} deg{arc}")
 
 
-def _short_annulus_cause(sel: AnnulusSelection, opt: Any, min_arc_deg: float, half: float) -> str | None:
+def _short_annulus_cause(sel: AnnulusSelection, min_arc_deg: float, half: float) -> str | None:
     """Why the annulus' lit arc may be short, for :func:`~jaxlimb.pipeline.checks.check_lit_arc`: ``None`` (the
     default, a cropped body) unless the angular bins with pixels in the frame span the arc needed, in which case
-    the bins were dropped for want of a lit edge at the limb (rules 3-4 of :mod:`jaxlimb.pipeline.refine`)."""
-    width = max(float(opt.angular_bin_deg), math.degrees(4.0 / max(sel.radius, 1e-9)))
+    the bins were dropped for want of a lit edge at the limb (rules 3-4 of :mod:`jaxlimb.pipeline.sphere.annulus`)."""
+    width = max(ANGULAR_BIN_DEG, math.degrees(4.0 / max(sel.radius, 1e-9)))
     in_frame = min(sel.n_bins * width, 2.0 * math.degrees(half))
     if in_frame < min(min_arc_deg, 0.9 * 2.0 * math.degrees(half)):
         return None
@@ -206,8 +155,8 @@ def check_front_end_arc(cand: Any, min_arc_deg: float, half: float) -> float | N
     passed; the circle sigmoid then wandered (no convergence in 100-150 steps, an 86 px jump at 400), so the
     frame failed as ``no_convergence`` instead of ``arc_too_short``.  On every other Moon frame of the benchmark
     the front end's points span 66 deg or more (118 deg or more outside the ``cropped`` family)."""
-    pts = getattr(cand, "points_rc", None)
-    if pts is None or len(pts) < 2:
+    pts = cand.points_rc
+    if len(pts) < 2:
         return None
     return check_lit_arc(arc_angles(np.asarray(pts, float), cand.center_rc), min_arc_deg, half)
 
@@ -215,7 +164,7 @@ def check_front_end_arc(cand: Any, min_arc_deg: float, half: float) -> float | N
 def _reselect(frame: Frame, pix: LimbPixels, circ: RefineResult, dr: float) -> tuple[LimbPixels, RefineResult]:
     p = circ.fit.params
     sel = select_annulus(frame.img, (float(p.r0), float(p.c0)), float(p.radius) + pix.shift, dr, pix.direction,
-                         pix.half, frame.opt, frame_mask(frame))
+                         pix.half, frame_mask(frame))
     pix = LimbPixels(sel, dr, pix.direction, pix.half, pix.phase, pix.min_arc_deg, pix.dr_max, pix.shift)
     return pix, fit_circle_annulus(sel, frame.opt)
 
@@ -227,9 +176,9 @@ def edge_fit(frame: Frame, pix: LimbPixels) -> EdgeFit:
     opt = frame.opt
     circ = fit_circle_annulus(pix.sel, opt)
     widened = recentered = False
-    if opt.estimate_k and opt.annulus_px is None:
+    if opt.estimate_k:
         need = EDGE_SIGMAS * LOGISTIC_TO_GAUSS / max(float(circ.fit.params.k), 1e-6)
-        cap = min(max(opt.annulus_min_px, 0.5 * pix.sel.radius), pix.dr_max)
+        cap = min(max(ANNULUS_MIN_PX, 0.5 * pix.sel.radius), pix.dr_max)
         if need > 1.05 * pix.dr and pix.dr < cap:
             pix, circ = _reselect(frame, pix, circ, min(cap, need))
             widened = True
@@ -247,7 +196,7 @@ def edge_fit(frame: Frame, pix: LimbPixels) -> EdgeFit:
 def check_edge(frame: Frame, cand: Any, edge: EdgeFit) -> EdgeFit:
     """Checks 5 (jump from the front end's circle), 1 (size), 3/4 (radius in the prior's band) and 4
     (centre in the field) on the fitted circle; returns ``edge`` with the jump and its limit."""
-    thr = jump_threshold(edge.pixels.dr, frame.opt.max_jump_px)
+    thr = jump_threshold(edge.pixels.dr)
     # a thin crescent's band lies ``shift`` outside the front end's circle: the jump is from the band's middle
     jump = check_jump(cand.center_rc, cand.radius + edge.pixels.shift, edge.center_rc, edge.radius, edge.pixels.sel.angles(), thr)
     check_size(edge.radius, frame.img.shape, min_diameter_px(frame), edge.arc_deg)
@@ -277,4 +226,4 @@ def edge_report(frame: Frame, cand: Any, edge: EdgeFit) -> dict[str, Any]:
     }
 
 
-__all__ = ["EDGE_SIGMAS", "check_front_end_arc", "edge_report", "EdgeFit", "LimbPixels", "check_edge", "edge_fit", "limb_pixels", "lit_window"]
+__all__ = ["EDGE_SIGMAS", "check_front_end_arc", "edge_report", "check_edge", "edge_fit", "limb_pixels", "lit_window"]

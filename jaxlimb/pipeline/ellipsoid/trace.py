@@ -15,13 +15,13 @@ each ray from the centre, outward, nothing brighter than the sky follows it.
 3. the inside level ``P``: the median over 2-5 px inside that foot; the ray is kept when ``P - s >= 8 sigma``
    and that interior is flat (range within ``flat_frac (P - s)``: no cloud edge within the band's depth);
 4. the limb point: the outermost crossing of ``(s + P) / 2`` (linear interpolation), the 50 % point of a
-   symmetric blurred step (the edge models' convention, :mod:`jaxlimb.pipeline.earth`).
+   symmetric blurred step (the edge models' convention, :mod:`jaxlimb.pipeline.ellipsoid`).
 
 :func:`fit_traced` fits the ellipse (shape held: ``rho, theta``) to the points with a robust (soft-L1)
 geometric cost; :func:`fit_traced_glow` adds a glow's lift of each ray's crossing, ``c / (P_ray - s)``
 (:func:`glow_lift_column`), for a glow above a cloudy limb.  The per-ray levels normalise the band's pixels for the edge and profile fits
 (:func:`normalised_band`): ``z_n = (z - s) / (P_ray - s)`` with weights ``(P_ray - s) / C_ref`` (as the
-sphere's ``normalize_levels``, :class:`jaxlimb.pipeline.refine.FitData`), i.e. an inside level that may vary
+sphere's level normalisation, :class:`jaxlimb.pipeline.stages.FitData`), i.e. an inside level that may vary
 from ray to ray, and the pixels of rejected rays (faint, or a cloud edge inside the band) left out.
 """
 
@@ -33,11 +33,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..analysis.crlb import numerical_jacobian
-from ..analysis.model_error import cluster_robust_bias_reduced, cluster_robust_covariance
-from ..errors import TooManyOutliersError
-from .earth import _band_signed
-from .refine import FitData
+from ...errors import TooManyOutliersError
+from ...geometry.conic import ellipse_signed_distance
+from .shading import RayShading, limb_normals, pixel_blur, shaded_rows
 
 
 PATCHY_TOL = 0.1
@@ -116,11 +114,11 @@ def _albedo_patchy(t: np.ndarray, y: np.ndarray) -> bool:
 
 def _ray_radius(ell: tuple, u: np.ndarray) -> np.ndarray:
     """Distance from the ellipse centre to the ellipse along unit directions ``u`` ``(n, 2)`` (two first-order
-    steps of :func:`_band_signed`)."""
+    steps of :func:`ellipse_signed_distance`)."""
     c = np.asarray(ell[0], float)
     r = np.full(u.shape[0], float(ell[1][0]))
     for _ in range(3):
-        r = r - _band_signed(c + r[:, None] * u, ell)
+        r = r - ellipse_signed_distance(c + r[:, None] * u, ell)
     return r
 
 
@@ -213,7 +211,7 @@ def trace_limb(img: np.ndarray, ell: tuple, lit_dir, half: float, search: float,
                flat_frac: float = 0.35, level: float = 0.5, shade: "RayShading | None" = None) -> TracedLimb:
     """Trace the limb along rays across the lit window about ellipse ``ell`` (module docstring); ``level``: the
     crossing's fraction of the step (0.5, the edge; others measure the step's asymmetry, see
-    :func:`jaxlimb.pipeline.ellipsoid._asymmetry`); ``shade``: test the inside's flatness on the rays divided by a
+    :func:`jaxlimb.pipeline.ellipsoid.patchy._asymmetry`); ``shade``: test the inside's flatness on the rays divided by a
     uniform disc's shading (:class:`RayShading`)."""
     angles = _ray_angles(ell, lit_dir, half)
     v, rad, u = _sample_rays(img, ell, angles, search, step)
@@ -225,78 +223,6 @@ def trace_limb(img: np.ndarray, ell: tuple, lit_dir, half: float, search: float,
     lit_angle = None if lit_dir is None else math.atan2(lit_dir[0], lit_dir[1])
     return TracedLimb((float(c[0]), float(c[1])), angles, pts, P, sky, noise, shade=shade, albedo=albedo,
                       lit_angle=lit_angle)
-
-
-SHADE_FINE = 0.05
-"""The fine grid (px) on which :func:`shading_offsets` blurs its shading model."""
-
-
-def _limb_normals(cam, ell: tuple, angles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per ray angle: the outward surface normal at the limb ``n0`` (camera frame, perpendicular to the line of sight)
-    and the unit vector ``v`` toward the observer from the centre of ellipse ``ell`` (a sphere's limb)."""
-    c = np.asarray(ell[0], float)
-    v = -np.asarray(cam.los(c), float)
-    u = np.column_stack([np.sin(angles), np.cos(angles)])
-    d3 = np.asarray(cam.los(c[None, :] + 5.0 * u), float) + v[None, :]  # each ray's image direction in 3-D
-    n0 = d3 - (d3 @ v)[:, None] * v[None, :]
-    return n0 / np.linalg.norm(n0, axis=1, keepdims=True), v
-
-
-def _pixel_blur(psf_sigma_px: float) -> float:
-    """The Gaussian sigma (px) of a PSF of ``psf_sigma_px`` sampled by square pixels (variance + 1/12)."""
-    return math.hypot(psf_sigma_px, math.sqrt(1.0 / 12.0))
-
-
-def _shaded_rows(normals: tuple, sun_dir_camera, R: float, sigma: float, L: float, xs: np.ndarray) -> np.ndarray:
-    """Rows of a uniform disc's radiance sampled at ``xs`` (px, outward from the limb) on the rays of ``normals``
-    (:func:`_limb_normals`): lunar-Lambert shading ``2L mu0/(mu0 + mu) + (1 - L) mu0`` on a sphere of radius ``R`` px
-    under the Sun ``sun_dir_camera`` (any length), blurred by a Gaussian of ``sigma`` px."""
-    from scipy.ndimage import gaussian_filter1d
-
-    n0, v = normals
-    sun = np.asarray(sun_dir_camera, float) / np.linalg.norm(sun_dir_camera)
-    xf = np.arange(xs[0] - 4.0 * sigma - 2.0, xs[-1] + 4.0 * sigma + 2.0, SHADE_FINE)
-    th = np.arccos(np.clip(1.0 - np.clip(-xf, 0.0, None) / R, -1.0, 1.0))  # the normal's tilt toward the observer
-    n = n0[:, None, :] * np.cos(th)[None, :, None] + v[None, None, :] * np.sin(th)[None, :, None]
-    mu0, mu = np.clip(n @ sun, 0.0, None), np.sin(th)[None, :]
-    shade = np.where(xf[None, :] <= 0.0, 2.0 * L * mu0 / np.maximum(mu0 + mu, 1e-9) + (1.0 - L) * mu0, 0.0)
-    prof = gaussian_filter1d(shade, sigma / SHADE_FINE, axis=1, mode="nearest")
-    return np.array([np.interp(xs, xf, p) for p in prof])
-
-
-@dataclass(frozen=True)
-class RayShading:
-    r"""A uniform disc's shading along the rays, for :func:`trace_limb`'s flatness test (step 3) on a dark limb.
-
-    Why: near zero phase a Lambert limb is dark and its radiance rises inward as ``sqrt(2u/R)`` (``mu0 ~ mu`` at depth
-    ``u``), so the 2-5 px window inside the foot spans a factor ~1.6 and fails the flatness test on every ray of a
-    uniform disc: a mottled Lambert Earth at 2 deg phase (``benchmarks/earth_mottled.py``) kept 2 of 323 rays, its
-    limb was not recognised as patchy, and the one-albedo profile answered 1.27 px off (NEES 12).  Divided by the
-    shading a uniform ray is flat again, and a cloud edge inside the window is not.  The model is
-    :func:`_shaded_rows` (lunar-Lambert ``L``; ``psf_sigma_px`` need not be the frame's: the window is 2-5 px deep,
-    where the blur hardly changes the shape), aligned on the trace's reference ellipse."""
-
-    cam: object
-    sun_dir_camera: tuple
-    L: float = 0.0
-    psf_sigma_px: float = 1.0
-
-    def rows(self, ell: tuple, angles: np.ndarray, xs: np.ndarray) -> np.ndarray:
-        """The model's radiance on each ray (``angles`` about ``ell``'s centre) at ``xs`` px outward from ``ell``,
-        blurred by the PSF and the pixel."""
-        return _shaded_rows(_limb_normals(self.cam, ell, angles), self.sun_dir_camera, float(ell[1][0]),
-                            _pixel_blur(self.psf_sigma_px), self.L, xs)
-
-    def dark_share(self, ell: tuple, angles: np.ndarray, depths: tuple[float, float] = (0.5, 4.0),
-                   flat_frac: float = 0.35) -> float:
-        """The share of the rays ``angles`` about ``ell`` on which the uniform disc's own shading, unblurred, fails
-        the plain flatness test (range over ``depths`` px inside the limb -- about the trace's window, 2-5 px inside
-        a foot 1-2 px outside the limb -- above ``flat_frac`` of the mean): how much of a low keep rate the shading
-        explains."""
-        xs = np.array([-depths[1], -depths[0]])
-        m = _shaded_rows(_limb_normals(self.cam, ell, angles), self.sun_dir_camera, float(ell[1][0]), SHADE_FINE,
-                         self.L, xs)
-        return float(np.mean(np.abs(m[:, 0] - m[:, 1]) > flat_frac * 0.5 * (m[:, 0] + m[:, 1])))
 
 
 def shading_offsets(tr: TracedLimb, ell: tuple, cam, sun_dir_camera, psf_sigma_px: float, L: float = 0.0,
@@ -314,7 +240,7 @@ def shading_offsets(tr: TracedLimb, ell: tuple, cam, sun_dir_camera, psf_sigma_p
     edge rule (:func:`_ray_edges`, flatness not tested: the ray passed it).  NaN where ``tr`` rejected the ray."""
     xs = np.arange(-search, search + 0.5 * step, step)
     sel = np.ones_like(tr.ok)  # every ray (rejected ones get NaN rows)
-    rows = _scaled_rows(tr, sel, ell, _limb_normals(cam, ell, tr.angles), sun_dir_camera, psf_sigma_px, L, xs)
+    rows = _scaled_rows(tr, sel, ell, limb_normals(cam, ell, tr.angles), sun_dir_camera, psf_sigma_px, L, xs)
     with np.errstate(all="ignore"):
         r_edge, _, _ = _ray_edges(rows, np.broadcast_to(xs, rows.shape), 0.0, tr.noise, step, np.inf)
     return np.where(tr.ok, r_edge, np.nan)
@@ -322,11 +248,11 @@ def shading_offsets(tr: TracedLimb, ell: tuple, cam, sun_dir_camera, psf_sigma_p
 
 def _scaled_rows(tr: TracedLimb, sel: np.ndarray, ell: tuple, normals: tuple, sun_dir_camera, psf_sigma_px: float,
                  L: float, xs: np.ndarray) -> np.ndarray:
-    """:func:`_shaded_rows` for the rays ``sel`` of ``tr`` (their :func:`_limb_normals` ``normals``; PSF and pixel
+    """:func:`shaded_rows` for the rays ``sel`` of ``tr`` (their :func:`limb_normals` ``normals``; PSF and pixel
     blur), each scaled so that its level about the trace's window (2-5 px inside the foot, ~1 sigma outside the limb)
     is the ray's inside level ``P - s`` (NaN rows where ``tr`` has no level)."""
-    sigma = _pixel_blur(psf_sigma_px)
-    rows = _shaded_rows(normals, sun_dir_camera, float(ell[1][0]), sigma, L, xs)
+    sigma = pixel_blur(psf_sigma_px)
+    rows = shaded_rows(normals, sun_dir_camera, float(ell[1][0]), sigma, L, xs)
     ref = np.median(rows[:, (xs >= -5.0 - sigma) & (xs <= -2.0 - sigma)], axis=1)
     with np.errstate(all="ignore"):
         gain = np.where(ref > 0, (tr.inside[sel] - tr.sky) / ref, np.nan)
@@ -364,7 +290,7 @@ def shading_sigma(img: np.ndarray, tr: TracedLimb, ell: tuple, cam, sun_dir_came
     r_obs = np.linalg.norm(tr.points[ok] - np.asarray(ell[0], float)[None, :], axis=1)
     y, rel = (v - tr.sky) / (tr.inside[ok] - tr.sky)[:, None], rad - r_obs[:, None]
     xs = np.arange(-search - 4.0, search + 4.25, 0.25)
-    normals = _limb_normals(cam, ell, ang)  # (the same for every sigma)
+    normals = limb_normals(cam, ell, ang)  # (the same for every sigma)
     cost = [_shape_misfit(y, rel, _scaled_rows(tr, ok, ell, normals, sun_dir_camera, sg, L, xs), xs, tr.noise)
             for sg in sigmas]
     return float(sigmas[int(np.argmin(cost))])
@@ -380,183 +306,4 @@ def shading_corrected(tr: TracedLimb, offsets: np.ndarray) -> TracedLimb:
     return replace(tr, points=pts, inside=inside, albedo=albedo)
 
 
-def fit_traced(tr: TracedLimb, ell: tuple, free_shape: bool = False) -> tuple:
-    """The ellipse through the traced points: ``(r0, c0, a)`` (and ``rho, theta`` when ``free_shape``) by a
-    soft-L1 geometric fit (scale 0.5 px), started at ``ell``; returns ``((r0, c0), (a, b), theta)``.  With
-    ``tr.glow_term`` (known shape only) the points' residuals include the glow's lift ``g / A_ray``
-    (:func:`glow_lift_column`, :func:`fit_traced_glow`)."""
-    from scipy.optimize import least_squares
-
-    pts = tr.points[tr.ok]
-    if pts.shape[0] < 20:
-        raise TooManyOutliersError(f"the limb trace kept {pts.shape[0]} rays with a limb against the sky (need >= 20)")
-    if tr.glow_term and not free_shape:
-        return fit_traced_glow(tr, ell)[0]
-    (r0, c0), (a, b), th = ell
-
-    def shape(x):
-        rho, t = (x[3], x[4]) if free_shape else (b / a, th)
-        return ((x[0], x[1]), (x[2], x[2] * rho), t)
-
-    x0 = [r0, c0, a] + ([b / a, th] if free_shape else [])
-    res = least_squares(lambda x: _band_signed(pts, shape(x)), x0, loss="soft_l1", f_scale=0.5, x_scale="jac")
-    (r, c), (aa, bb), t = shape(res.x)
-    return ((float(r), float(c)), (float(aa), float(bb)), float(t))
-
-
-GLOW_LIFT_Z = 4.0
-"""The z-score (cluster-robust, :func:`fit_traced_glow`) above which a patchy limb's traced points are fitted with
-the glow's lift.  Measured on ``benchmarks/families.py``'s Earth frames (truth ellipse as the trace's reference):
-``combined`` (clouds + a glow of 0.05-0.34 of the surface) z = -0.4, 3.3, 4.4, 7.2, 28, 76 (the one at -0.4 the
-faintest glow, 0.05); ``clouds`` (no glow) frames 0-16 of seed 2026 z = -2.8 ... 3.2, all below 4."""
-
-
-def glow_lift_column(tr: TracedLimb) -> np.ndarray:
-    """Per kept ray, ``1 / (P - sky)`` over its median: the shape of the outward lift of a ray's half-level crossing
-    by a glow above the limb.  A glow adds radiance ``g(x)`` of its own (the same in DN along the limb: it does not
-    depend on the surface's albedo) to a step of height ``A = P - sky``; the crossing of ``sky + A/2`` moves out by
-    ``g / |I'| ~ sqrt(2 pi) sigma g / A`` (first order), so a ray over ocean (``A`` ten times smaller than over a
-    cloud) is lifted ten times more.  Along a cloudy limb ``1/A`` varies by an order of magnitude, so the lift is
-    not the radius's constant and is estimated beside the ellipse (on a uniform limb it would be)."""
-    inv = 1.0 / np.maximum(tr.inside[tr.ok] - tr.sky, 1e-12)
-    return inv / float(np.median(inv))
-
-
-def glow_lift_columns(tr: TracedLimb, tilt: bool = True) -> np.ndarray:
-    """``(n_kept, k)``: :func:`glow_lift_column`, and with ``tilt`` (and ``tr.glow_tilt``, ``tr.lit_angle`` known) the
-    same times ``cos psi``, ``psi`` the ray's angle from the lit side's direction: a glow lit by the Sun is brighter
-    toward it, ``g (1 + t cos psi)`` (the profile's ``glow_tilt``, :mod:`jaxlimb.models.lunar_lambert`), and lifts the
-    sunward rays more, which moves the ellipse toward the Sun.  The tilt is nearly a centre shift along the Sun (the
-    two differ only by ``1 / A_ray``), so it is not fitted (:func:`fit_traced_glow`): it is marginalised in the
-    covariance (:func:`trace_model_cov`).
-
-    Why: on the full-disc Earth with clouds and a glow (``benchmarks/earth_full_disc.py`` ``combined``, held-out
-    seed 2027) the uniform lift left two frames 0.54 and 0.56 px off, both along the Sun's image direction, at centre
-    sigmas of 0.08 px (NEES 49 and 14); with the tilt marginalised, NEES 2.4 and 1.1.  Fitting the tilt instead put
-    them 0.09 px off and into a typed failure, but moved ``benchmarks/families.py``'s gibbous ``combined`` frames 2-4
-    from 0.09 / 0.20 / 0.32 px to 0.48 / 0.38 / 0.50 px.  The pipeline asks for the tilt near zero phase only
-    (:data:`jaxlimb.pipeline.ellipsoid.GLOW_TILT_MAX_PHASE_DEG`)."""
-    col = glow_lift_column(tr)
-    if not (tilt and tr.glow_tilt) or tr.lit_angle is None:
-        return col[:, None]
-    return np.column_stack([col, col * np.cos(tr.angles[tr.ok] - tr.lit_angle)])
-
-
-def _glow_residuals(tr: TracedLimb, ell: tuple, tilt: bool):
-    pts, cols = tr.points[tr.ok], glow_lift_columns(tr, tilt)
-    (_, _), (a, b), th = ell
-
-    def res(x):
-        return _band_signed(pts, ((x[0], x[1]), (x[2], x[2] * b / a), th)) - cols @ x[3:]
-
-    return res
-
-
-def fit_traced_glow(tr: TracedLimb, ell: tuple) -> tuple[tuple, float, float]:
-    """The known-shape ellipse through the traced points with the glow's lift ``c / A_ray`` (:func:`glow_lift_column`)
-    fitted beside ``(r0, c0, a)`` (soft-L1, as :func:`fit_traced`); returns the ellipse, ``c`` (px at the median ray)
-    and its z-score with the cluster-robust sigma of :func:`trace_model_cov` (10 deg clusters, CR2)."""
-    from scipy.optimize import least_squares
-
-    if int(tr.ok.sum()) < 20:
-        n = int(tr.ok.sum())
-        raise TooManyOutliersError(f"the limb trace kept {n} rays with a limb against the sky (need >= 20)")
-    (r0, c0), (a, b), th = ell
-    res = _glow_residuals(tr, ell, tilt=False)
-    x = least_squares(res, [r0, c0, a, 0.0], loss="soft_l1", f_scale=0.5, x_scale="jac").x
-    C = _cluster_cov(tr, res, x, 10.0, True)
-    z = float(x[3] / math.sqrt(C[3, 3])) if C[3, 3] > 0 else 0.0
-    return ((float(x[0]), float(x[1])), (float(x[2]), float(x[2] * b / a)), th), float(x[3]), z
-
-
-def _cluster_cov(tr: TracedLimb, res, x0: np.ndarray, bin_deg: float, bias_reduced: bool) -> np.ndarray:
-    """Cluster-robust covariance of the parameters ``x0`` of the residuals ``res`` of the kept rays (clusters of
-    ``bin_deg`` of ray angle); central-difference Jacobian."""
-    t = tr.angles[tr.ok]
-    r = res(x0)
-    J = numerical_jacobian(res, x0, 1e-3)
-    groups = np.floor((t - t.min()) / math.radians(bin_deg)).astype(int)
-    return (cluster_robust_bias_reduced if bias_reduced else cluster_robust_covariance)(J, r, groups)
-
-
-def trace_model_cov(tr: TracedLimb, ell: tuple, bin_deg: float = 10.0, bias_reduced: bool = True) -> np.ndarray:
-    """Model error of an albedo-patchy limb: the cluster-robust (sandwich) covariance of ``(r0, c0, a)`` of the
-    geometric fit of the traced points about ``ell``, clusters of ``bin_deg`` of ray angle.  Albedo structure
-    across the limb (a cloud edge 0-2 px inside it) shifts the edge of whole stretches of rays alike; the
-    pixel noise of the band fit does not see that, the spread of those stretches does.  ``(3, 3)``.
-
-    The bias-reduced sandwich (CR2, :func:`~jaxlimb.analysis.model_error.cluster_robust_bias_reduced`), not the
-    plain one: when few rays survive (a glow and motion blur over clouds, ``benchmarks/families.py`` Earth
-    ``combined`` 2: 42 of 1208 rays in 6 sectors, the end sectors' leverage 0.9) the plain sandwich's centre
-    sigma was 0.04 px for a 0.19 px error (NEES 14.7); with many well-spread sectors the two agree within 10-40 %.
-    ``bias_reduced=False``: the plain sandwich (CR1), the gate of :func:`~jaxlimb.pipeline.ellipsoid._patchy_geometry`
-    (tuned with it; its choice between the band fit and the rays is left as it was)."""
-    (r0, c0), (a, b), th = ell
-    if tr.glow_term:  # the lift (and its tilt) beside the ellipse: their uncertainty is the ellipse's too (marginal)
-        res = _glow_residuals(tr, ell, tilt=True)
-        from scipy.optimize import least_squares
-
-        k = glow_lift_columns(tr).shape[1]
-        c = least_squares(lambda y: res(np.concatenate([[r0, c0, a], y])), [0.0] * k, loss="soft_l1", f_scale=0.5).x
-        return _cluster_cov(tr, res, np.concatenate([[r0, c0, a], c]), bin_deg, bias_reduced)[:3, :3]
-    pts = tr.points[tr.ok]
-
-    def d(x):
-        return _band_signed(pts, ((x[0], x[1]), (x[2], x[2] * b / a), th))
-
-    return _cluster_cov(tr, d, np.array([r0, c0, a], float), bin_deg, bias_reduced)
-
-
-def coherent_shift_var(tr: TracedLimb, ell: tuple, bin_deg: float = 10.0, min_rays: int = 3) -> float:
-    """Variance (px^2, per axis) of the centre shift an albedo-patchy limb's bias field hides in the fit.
-
-    Clouds within a pixel of the limb move whole stretches of traced rays alike (``bin_deg`` sectors of
-    ``benchmarks/families.py``'s Earth ``clouds`` frames: -0.8 to +0.6 px).  The known-shape fit absorbs the part
-    of that field that looks like a radius (``k = 0``) or a centre shift (``k = 1``), so neither the residuals nor
-    their cluster sandwich (:func:`trace_model_cov`) can see it; they see the rest.  With no preferred
-    harmonic in an albedo field, the absorbed shift has the visible part's power: the sector means of the rays'
-    distances from ``ell`` less their fit by ``1, cos psi, sin psi`` (and the glow's lift, :func:`glow_lift_column`,
-    when ``tr.glow_term``) have mean square ``m^2`` of which the rays' own scatter contributes ``var(d) / n_sector``, and
-    ``m^2 - var(d)/n`` per axis is the hidden shift's variance.  Measured on held-out ``clouds`` frame 6
-    (40 000 km, 602 px): the ellipse 0.63 px off along the direction the sandwich gave 0.14 px (NEES 18); this
-    term is 0.28 px, and as a floor on the centre's variance (``ellipsoid_profile._with_trace_error``) it brings the
-    NEES to 4.8, while the other near cloudy frames' go 0.3-1.3 -> 0.3-0.5 (frames 0-13,
-    ``benchmarks/results/families_earth_clouds14.json``)."""
-    ok = tr.ok
-    if int(ok.sum()) < 20:
-        return 0.0
-    psi = tr.angles[ok]
-    d = _band_signed(tr.points[ok], ell)
-    cols = [np.ones_like(psi), np.cos(psi), np.sin(psi)] + ([glow_lift_column(tr)] if tr.glow_term else [])
-    A = np.column_stack(cols)  # what the fit absorbs (radius, centre, a glow's lift): the visible field is the rest
-    d = d - A @ np.linalg.lstsq(A, d, rcond=None)[0]
-    g = np.floor((psi - psi.min()) / math.radians(bin_deg)).astype(int)
-    counts = np.bincount(g)
-    sums = np.bincount(g, weights=d)
-    use = counts >= min_rays
-    if use.sum() < 2:
-        return 0.0
-    means = sums[use] / counts[use]
-    return max(float(np.mean(means**2) - np.mean(np.var(d) / counts[use])), 0.0)
-
-
-def normalised_band(img: np.ndarray, pts: np.ndarray, tr: TracedLimb) -> tuple[np.ndarray, FitData]:
-    """The band's pixels with their ray's levels (module docstring): a keep mask over ``pts`` and the
-    :class:`FitData` of the kept pixels (``z_n``, weights, ``offset = sky``, ``scale = C_ref``)."""
-    z = np.asarray(img[pts[:, 0].astype(int), pts[:, 1].astype(int)], float)
-    ang = np.arctan2(pts[:, 0] - tr.center_rc[0], pts[:, 1] - tr.center_rc[1])
-    order = np.argsort(np.mod(tr.angles, 2 * np.pi))
-    a_sorted = np.mod(tr.angles, 2 * np.pi)[order]
-    idx = np.clip(np.searchsorted(a_sorted, np.mod(ang, 2 * np.pi)), 0, a_sorted.size - 1)
-    prev = np.clip(idx - 1, 0, a_sorted.size - 1)
-    near = np.where(np.abs(a_sorted[prev] - np.mod(ang, 2 * np.pi)) < np.abs(a_sorted[idx] - np.mod(ang, 2 * np.pi)),
-                    prev, idx)
-    P = tr.inside[order][near]
-    keep = np.isfinite(P)
-    c = P[keep] - tr.sky
-    cref = float(np.median(c)) if c.size else 1.0
-    return keep, FitData(pts[keep], (z[keep] - tr.sky) / c, c / cref, tr.sky, cref)
-
-
-__all__ = ["GLOW_LIFT_Z", "TracedLimb", "coherent_shift_var", "fit_traced", "fit_traced_glow", "glow_lift_column",
-           "glow_lift_columns", "normalised_band", "trace_limb", "trace_model_cov"]
+__all__ = ["TracedLimb", "trace_limb"]

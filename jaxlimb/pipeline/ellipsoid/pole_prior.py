@@ -2,7 +2,7 @@ r"""The body centre of a spheroid whose pole is unknown, marginalised over the p
 
 With ``R_body_to_camera`` unknown the limb cone does not sign the centre offset: a spheroid and its mirror image in the
 plane of the cone axis and the cone's major axis have the same limb, with body centres ``+-gamma_off`` apart
-(:mod:`jaxlimb.pipeline.earth`, "Free ellipse").  By default the cone axis is returned and the unknown offset carried
+(:mod:`jaxlimb.pipeline.ellipsoid`, "Free ellipse").  By default the cone axis is returned and the unknown offset carried
 as a uniform error.  For a body whose equator the Sun never leaves by more than ``delta_max`` (the Earth: the
 obliquity, 23.44 deg), a known Sun direction ``s`` restricts the pole ``p`` to ``|s . p| <= sin(delta_max)``, which
 often excludes one of the mirror poles (``EllipsoidOptions.sun_declination_max_deg``).
@@ -24,9 +24,9 @@ import math
 
 import numpy as np
 
-from ..analysis.crlb import numerical_jacobian
-from ..geometry.camera import Camera
-from .earth import cone_eigen, image_ellipse_cone
+from ...geometry.camera import Camera
+from ...geometry.earth_cone import cone_eigen, image_ellipse_cone
+from ...numerics import numerical_jacobian
 
 G_FLOOR_FRAC = 0.25
 """Per-component sigma added to the fitted flattening vector's, in units of the flattening (module docstring)."""
@@ -50,7 +50,7 @@ def sphere_grid(n: int = N_POLES) -> np.ndarray:
 
 def cone_flattening(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Flattening vectors ``g`` ``(..., 2)`` and unit axes ``(..., 3)`` (``z > 0``) of limb cones ``M`` ``(..., 3, 3)``
-    (positive on the rays that hit the body, eigenvalues ``(-, -, +)``; :func:`jaxlimb.pipeline.earth.cone_eigen`);
+    (positive on the rays that hit the body, eigenvalues ``(-, -, +)``; :func:`jaxlimb.geometry.earth_cone.cone_eigen`);
     ``psi`` is measured from the camera's ``x`` axis projected on the plane normal to the cone axis."""
     _, axis, a_, b_, V = cone_eigen(M)
     return _flattening(axis, a_, b_, V[..., :, 1]), axis
@@ -67,7 +67,7 @@ def _flattening(axis: np.ndarray, a_, b_, major: np.ndarray) -> np.ndarray:
 
 def ellipse_flattening(camera: Camera, ell: tuple) -> np.ndarray:
     """``g`` of the limb cone of image ellipse ``ell = ((r0, c0), (a, b), theta)``
-    (:func:`jaxlimb.pipeline.earth.image_ellipse_cone`)."""
+    (:func:`jaxlimb.geometry.earth_cone.image_ellipse_cone`)."""
     cone = image_ellipse_cone(camera, *ell)
     return _flattening(cone.axis, *cone.semi_axes, cone.major_dir)
 
@@ -125,5 +125,5 @@ def marginal_center(camera: Camera, params, cov_geo: np.ndarray, q: np.ndarray, 
                        "chi2_min": float(chi2.min())}
 
 
-__all__ = ["FREE_ELLIPSE", "G_FLOOR_FRAC", "N_POLES", "cone_flattening", "ellipse_flattening", "marginal_center", "sphere_grid",
-           "spheroid_cones"]
+__all__ = ["FREE_ELLIPSE", "G_FLOOR_FRAC", "N_POLES", "cone_flattening", "ellipse_flattening", "marginal_center",
+           "sphere_grid", "spheroid_cones"]

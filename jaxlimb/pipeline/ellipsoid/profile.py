@@ -1,10 +1,10 @@
 r"""The profile-refit stage of the ellipsoid strategy: the edge fit's pixels refitted with the blurred
 lunar-Lambert radiance (:data:`jaxlimb.models.LIMB_PROFILE`); see "Physical limb profile" in
-:mod:`jaxlimb.pipeline.earth`.
+:mod:`jaxlimb.pipeline.ellipsoid`.
 
 Known attitude: ``theta, rho`` held at the image of the limb spheroid at the current position,
 re-predicted after the fit and the fit repeated (once is typical) while they move the ellipse by more
-than ``refit_tol_px``; free ellipse: ``theta, rho`` estimated.  ``profile="auto"`` keeps the edge fit
+than :data:`~jaxlimb.pipeline.ellipsoid.model.REFIT_TOL_PX`; free ellipse: ``theta, rho`` estimated.  ``profile="auto"`` keeps the edge fit
 (``extras["profile_rejected"]`` says why) when the fit fails, its ``L`` is outside the band of
 lunar-Lambert-like limbs, or it moves the limb by more than half the band from the edge fit.  An accepted fit is
 refitted once with a glow above the limb when a score test finds one (:func:`widen_glow_ellipsoid`).
@@ -13,24 +13,30 @@ refitted once with a glow above the limb when a score test finds one (:func:`wid
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import jax.numpy as jnp
 import numpy as np
 
-from ..errors import ConfigError, ConvergenceError, GeometryError, LimbInputError
-from ..fitting import NormalLM, fit, solver_from_name
-from ..models import ELLIPSE, ELLIPSE_RAMP, LIMB_PROFILE, PROFILE_FIXED, EllipseRampParams, LimbProfileParams, limb_profile_intensity
-from ..models import lunar_lambert_weight
-from .earth import _ell_change
-from .frame import Frame
-from .profile import l_band
-from ..models.lunar_lambert import profile_model
-from .profile_fit import _weighted_system, gaussian_sigma_of_k, profile_sun_direction, with_model_error
-from .refine import FitData, RefineResult, _pad_bucket
-
-if TYPE_CHECKING:  # pragma: no cover
-    from .ellipsoid import Ellipsoid, EllipsoidEdge
+from ...errors import ConfigError, ConvergenceError, GeometryError, LimbInputError
+from ...fitting import fit
+from ...fitting.model_error import with_model_error as widen
+from ...fitting.solvers import NormalLM, solver_from_name
+from ...geometry.conic import ellipse_change
+from ...models.ellipse_ramp import ELLIPSE_RAMP, EllipseRampParams
+from ...models.lunar_lambert import (AnisoProfileParams, GlowProfileParams, LIMB_PROFILE, LIMB_PROFILE_ANISO,
+                                     LIMB_PROFILE_GLOW, limb_profile_intensity, LimbProfileParams,
+                                     lunar_lambert_weight, MinnaertProfileParams, profile_model)
+from ...models.sigmoid import ELLIPSE
+from ..profile.fit import profile_sun_direction
+from ..profile.glow import GLOW_Z, fit_glow_tilt, glow_columns, glow_plausible, glow_start
+from ..profile.model_error import last_column_step, weighted_system, with_model_error
+from ..profile.passes import gaussian_sigma_of_k, l_band, PROFILE_HELD
+from ..profile.widen import aniso_plausible, aniso_significant, with_aniso_witness
+from ..sigmoid import pad_bucket
+from ..stages import EllipsoidEdge, FitData, Frame, RefineResult
+from .model import as_ellipse, EllipsoidModel, MAX_REFITS, position, REFIT_TOL_PX
+from .trace_fit import coherent_shift_var, trace_model_cov
 
 
 def profile_wanted(frame: Frame, interior_ramp: bool) -> bool:
@@ -47,7 +53,7 @@ def profile_wanted(frame: Frame, interior_ramp: bool) -> bool:
     return prof == "lunar-lambert" or interior_ramp
 
 
-def _start(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", pts: np.ndarray, z: np.ndarray) -> LimbProfileParams:
+def _start(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdge, pts: np.ndarray, z: np.ndarray) -> LimbProfileParams:
     """The profile's start: the edge fit's ellipse (shape predicted with a known attitude), the PSF of its
     kernel, the Sun from the hints, and the levels at their linear least-squares values for this geometry
     (the edge fit's ``ymax`` is no radiance scale when its ramp terms carry the interior)."""
@@ -55,14 +61,13 @@ def _start(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", pts: np.ndarr
     (r0, c0), (a, b), th = edge.fitted
     phase = frame.phase((r0, c0))
     sun_rc = profile_sun_direction(h.sun_dir_camera, cam, (r0, c0))  # (no threshold: phase ~ 0 keeps its side)
-    rho0, th0 = body._predicted_shape(cam, -edge.p) if not body.free and body.R is not None else (b / a, th)
+    rho0, th0 = body.predicted_shape(cam, -edge.p) if not body.free and body.R is not None else (b / a, th)
     k = float(e.k)
     sigma0 = (math.sqrt(max(1.0 / max(k, 1e-6) ** 2 - 1.0 / 12.0, 0.09)) if isinstance(e, EllipseRampParams)
               else gaussian_sigma_of_k(k))  # the ramp's kernel is a Gaussian of sigma 1/k; the ESF's a logistic
-    L = frame.opt.lunar_lambert_L
     q = LimbProfileParams(r0=r0, c0=c0, a=float(a), theta=th0, rho=rho0, sigma=sigma0, amp=1.0, ymin=0.0,
                           sun_r=sun_rc[0], sun_c=sun_rc[1], phase=phase, inv_f=1.0 / cam.focal_px,
-                          L=lunar_lambert_weight(phase) if L is None else float(L))
+                          L=lunar_lambert_weight(phase))
     F0 = np.asarray(limb_profile_intensity(q, jnp.asarray(np.asarray(pts, float))))
     (amp0, ymin0), *_ = np.linalg.lstsq(np.column_stack([F0, np.ones_like(F0)]), z, rcond=None)
     if not (math.isfinite(amp0) and amp0 > 0):
@@ -90,19 +95,18 @@ def _one_fit(frame: Frame, data: tuple, q: LimbProfileParams, fixed: tuple, i: i
     return res, q.replace(sigma=abs(float(q.sigma)))  # the model depends on sigma^2 only (|sigma| reported)
 
 
-def _passes(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", fd: FitData, band: float):  # noqa: ANN202
+def _passes(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdge, fd: FitData, band: float):  # noqa: ANN202
     """The profile fits with the shape re-predicted at each new position (module docstring)."""
-    from .ellipsoid import _as_ellipse, position
 
-    fixed = tuple(n for n in PROFILE_FIXED if not (n == "L" and frame.opt.lunar_lambert_L is None))
+    fixed = PROFILE_HELD
     if body.free:
         fixed = tuple(n for n in fixed if n not in ("theta", "rho"))
-    data = _pad_bucket(fd)
+    data = pad_bucket(fd)
     q, p, hist, res = _start(body, frame, edge, fd.coords, fd.z), edge.p, [], None
-    for i in range(body.eo.max_refits):
+    for i in range(MAX_REFITS):
         res, q = _one_fit(frame, data, q, fixed, i)
-        pf = _as_ellipse(q)
-        moved = _ell_change(edge.fitted, pf)
+        pf = as_ellipse(q)
+        moved = ellipse_change(edge.fitted, pf)
         if not moved <= 0.5 * band:  # a sub-pixel correction of the edge fit is expected
             raise GeometryError(f"the limb profile fit moved the limb by {moved:.3g} px from the edge fit "
                                 f"(more than half the band, {0.5 * band:g} px)")
@@ -111,16 +115,16 @@ def _passes(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", fd: FitData,
                      "fit_steps": int(res.n_steps)})
         if body.free:
             break
-        rho, th = body._predicted_shape(frame.cam, -p)
-        if _ell_change(pf, (pf[0], (float(q.a), float(q.a) * rho), th)) < body.eo.refit_tol_px:
+        rho, th = body.predicted_shape(frame.cam, -p)
+        if ellipse_change(pf, (pf[0], (float(q.a), float(q.a) * rho), th)) < REFIT_TOL_PX:
             break
         q = q.replace(theta=th, rho=rho)
     return res, fixed, hist
 
 
-def edge_with_model_error(edge: "EllipsoidEdge", rejected: Any = None) -> RefineResult:
+def edge_with_model_error(edge: EllipsoidEdge, rejected: Any = None) -> RefineResult:
     """The edge fit's :class:`RefineResult` with the model-error terms of
-    :func:`~jaxlimb.pipeline.profile_fit.with_model_error` (the answer when the profile is not fitted or is
+    :func:`~jaxlimb.pipeline.profile.model_error.with_model_error` (the answer when the profile is not fitted or is
     rejected: a limb the profile does not describe, e.g. Hapke's, biased 0.05-0.06 px for a noise-only sigma
     of 0.002-0.005 px on ``benchmarks/families.py``'s Earth ``hapke`` frames)."""
     model = ELLIPSE_RAMP if isinstance(edge.final.fit.params, EllipseRampParams) else ELLIPSE
@@ -138,16 +142,15 @@ def edge_with_model_error(edge: "EllipsoidEdge", rejected: Any = None) -> Refine
     return out.with_covariance(C)
 
 
-def _with_trace_error(out: RefineResult, edge: "EllipsoidEdge", replace_block: bool = False) -> RefineResult:
-    """The albedo-patchy limb's model error (:func:`~jaxlimb.pipeline.limb_trace.trace_model_cov`) added to the
+def _with_trace_error(out: RefineResult, edge: EllipsoidEdge, replace_block: bool = False) -> RefineResult:
+    """The albedo-patchy limb's model error (:func:`~jaxlimb.pipeline.ellipsoid.trace_fit.trace_model_cov`) added to the
     covariance of ``(r0, c0, a)``; ``replace_block``: the geometry is the rays' own fit
-    (:func:`~jaxlimb.pipeline.ellipsoid._ray_geometry`), so its ``(r0, c0, a)`` covariance *is* the rays'
+    (:func:`~jaxlimb.pipeline.ellipsoid.patchy.ray_geometry`), so its ``(r0, c0, a)`` covariance *is* the rays'
     cluster-robust one (residual noise and albedo bias of whole stretches of rays alike), uncorrelated with
     the band fit's other parameters.  Either way the centre's variance is then floored, in every direction, at the
-    shift the bias field hides in the fit (:func:`~jaxlimb.pipeline.limb_trace.coherent_shift_var`): a floor, not a
+    shift the bias field hides in the fit (:func:`~jaxlimb.pipeline.ellipsoid.trace_fit.coherent_shift_var`): a floor, not a
     sum, because the sandwich and the witnesses already hold the visible part of the same field (added, it turned
     ``benchmarks/families.py``'s Earth ``combined`` 2, 0.086 px off, into ``center_too_uncertain``)."""
-    from .limb_trace import coherent_shift_var, trace_model_cov
 
     free = list(out.fit.free)
     names = [n for n in ("r0", "c0", "a") if n in free]
@@ -166,9 +169,8 @@ def _with_trace_error(out: RefineResult, edge: "EllipsoidEdge", replace_block: b
 
 def floor_center_var(out: RefineResult, var: float) -> RefineResult:
     """``out`` with the covariance of its ellipse centre ``(r0, c0)`` raised to at least ``var`` (px^2) in every
-    direction: ``C + [var I - C]_+`` (:func:`jaxlimb.analysis.model_error.with_model_error`; eigenvalues below ``var``
+    direction: ``C + [var I - C]_+`` (:func:`jaxlimb.fitting.model_error.with_model_error`; eigenvalues below ``var``
     lifted to it, eigenvectors kept; the other parameters untouched)."""
-    from ..analysis.model_error import with_model_error as widen
 
     free = list(out.fit.free)
     if var <= 0.0 or not all(n in free for n in ("r0", "c0")):
@@ -179,10 +181,10 @@ def floor_center_var(out: RefineResult, var: float) -> RefineResult:
     return out.with_covariance(C)
 
 
-def _with_witness(out: RefineResult, edge: "EllipsoidEdge") -> RefineResult:
+def _with_witness(out: RefineResult, edge: EllipsoidEdge) -> RefineResult:
     """``d d^T`` added to the covariance of ``(r0, c0, a)``, ``d`` the difference between the answer and the other
-    estimate of the same patchy limb (``edge.witness``, :func:`~jaxlimb.pipeline.ellipsoid._patchy_geometry`), and
-    the traced step's asymmetry likewise (``edge.asymmetry``, :func:`~jaxlimb.pipeline.ellipsoid._asymmetry`)."""
+    estimate of the same patchy limb (``edge.witness``, :func:`~jaxlimb.pipeline.ellipsoid.patchy.patchy_geometry`), and
+    the traced step's asymmetry likewise (``edge.asymmetry``, :func:`~jaxlimb.pipeline.ellipsoid.patchy._asymmetry`)."""
     free = list(out.fit.free)
     if not all(n in free for n in ("r0", "c0", "a")):
         return out
@@ -196,21 +198,16 @@ def _with_witness(out: RefineResult, edge: "EllipsoidEdge") -> RefineResult:
     return out.with_covariance(C)
 
 
-def fit_profile_ellipsoid(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge", extras: dict[str, Any]) -> RefineResult:
+def fit_profile_ellipsoid(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdge, extras: dict[str, Any]) -> RefineResult:
     """The stage (module docstring): the profile's :class:`RefineResult`, or the edge fit's."""
     if not profile_wanted(frame, body.eo.interior_ramp):
         return edge_with_model_error(edge)
     if edge.pixels.patchy:  # the profile's one albedo is not this limb's (clouds): the per-ray step stays
         extras["profile_rejected"] = {"model": "lunar-lambert", "reason": "albedo varies along the lit limb"}
-        if edge.pixels.ray_fit:  # the geometry is the rays' (ellipsoid._ray_geometry): their covariance
+        if edge.pixels.ray_fit:  # the geometry is the rays' (ellipsoid.ray_geometry): their covariance
             return _with_witness(_with_trace_error(edge.final, edge, replace_block=True), edge)
         return _with_witness(_with_trace_error(edge_with_model_error(edge), edge), edge)
-    band = body.eo.profile_band_px if body.eo.profile_band_px is not None else body.eo.band_px
-    fd = edge.final.data
-    if band != body.eo.band_px:
-        from .ellipsoid import _band_data
-
-        fd = _band_data(frame.img, edge.fitted, band, edge.pixels)
+    band, fd = body.eo.band_px, edge.final.data
     try:
         res, fixed, hist = _passes(body, frame, edge, fd, band)
     except (ConvergenceError, GeometryError, LimbInputError) as e:
@@ -224,16 +221,15 @@ def fit_profile_ellipsoid(body: "Ellipsoid", frame: Frame, edge: "EllipsoidEdge"
         extras["profile_rejected"] = {"model": "lunar-lambert", "L": L, "allowed_L": list(band_L)}
         return edge_with_model_error(edge, res.params)
     extras["profile_fits"] = hist
-    extras["L_estimated"] = frame.opt.lunar_lambert_L is None
     rr = widen_glow_ellipsoid(frame, RefineResult(res, fd, 0, fixed))
     ra = rr if body.free else widen_aniso_ellipsoid(frame, rr)  # (a free ellipse's rho, theta are 2 psi terms too)
-    system = _weighted_system(ra, profile_model(ra.fit.params))  # (shared by both covariance terms)
+    system = weighted_system(ra, profile_model(ra.fit.params))  # (shared by both covariance terms)
     out = with_model_error(ra, system=system)
     out = out if ra is rr else with_aniso_witness(out, rr)
     return with_unresolved_glow(body, out, system)
 
 
-def with_unresolved_glow(body: "Ellipsoid", rr: RefineResult, system=None) -> RefineResult:
+def with_unresolved_glow(body: EllipsoidModel, rr: RefineResult, system=None) -> RefineResult:
     """``rr`` (a profile fit without a glow, its PSF round or smeared) with the consider covariance of a glow the
     fit did not take (``EllipsoidOptions.unresolved_glow = (g_max, H_lo, H_hi)``: brightness uniform on
     ``[0, g_max]`` in units of ``amp``, scale height uniform on ``[H_lo, H_hi]`` km): ``C + mean_k s_k^2 G_k G_k^T``
@@ -241,7 +237,7 @@ def with_unresolved_glow(body: "Ellipsoid", rr: RefineResult, system=None) -> Re
     the fit's response to the unit glow column ``c_k`` (:func:`~jaxlimb.models.lunar_lambert.glow_column`) at
     ``h_k = H_k a / R_e`` px and ``s_k = min(g_max / sqrt(3), GLOW_Z s_d,k)``: the root mean square of a glow
     uniform up to ``g_max`` or, where the data would see a smaller one, the largest the glow gate can miss
-    (:data:`~jaxlimb.pipeline.profile_fit.GLOW_Z` times ``s_d,k``, the data's own sigma of that glow with the fit's
+    (:data:`~jaxlimb.pipeline.profile.glow.GLOW_Z` times ``s_d,k``, the data's own sigma of that glow with the fit's
     parameters beside it).  The estimate is not moved.  Measured (``benchmarks/families.py``, README "Session 18"):
     held-out seed 2028 ``glow`` 1, 3, 5 (380 000 km) range z -3.5 / -2.6 / -3.5 -> -1.1 / -1.5 / -0.9, ``glow`` 2
     (40 000 km) -5.4 -> -2.9; ``own`` near frames' z within 30 % of what they were.
@@ -253,10 +249,8 @@ def with_unresolved_glow(body: "Ellipsoid", rr: RefineResult, system=None) -> Re
     faint glow the gate misses at 40 000 km does the same (held-out seed 2028 ``glow`` 2: 7 km, 0.06 of the disc,
     1.4 px; z = -5.4).  The Schmidt consider term of orbit determination (Tapley, Schutz & Born 2004, Sec. 6.3)
     carries that one-sided bias in the covariance without estimating it: a given frame's glow is unknown.
-    ``system``: ``rr``'s weighted system under its profile (:func:`~jaxlimb.pipeline.profile_fit.with_model_error`'s),
+    ``system``: ``rr``'s weighted system under its profile (:func:`~jaxlimb.pipeline.profile.model_error.with_model_error`'s),
     if formed."""
-    from ..models.lunar_lambert import GlowProfileParams, MinnaertProfileParams
-    from .profile_fit import _glow_columns
 
     p = rr.fit.params
     if body.eo.unresolved_glow is None or isinstance(p, (GlowProfileParams, MinnaertProfileParams)):
@@ -267,9 +261,9 @@ def with_unresolved_glow(body: "Ellipsoid", rr: RefineResult, system=None) -> Re
     h = H * float(p.a) / (body.equatorial_km + body.atmosphere_km)
     if g_max <= 0.0 or not np.all(h > 0.0):
         return rr
-    J, r, padded, w = _weighted_system(rr, profile_model(p)) if system is None else system
+    J, r, padded, w = weighted_system(rr, profile_model(p)) if system is None else system
     q = LimbProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()])  # (a smear's column: round)
-    cols = np.asarray(_glow_columns(q, padded, jnp.log(jnp.asarray(h))))[:, : r.size] * w
+    cols = np.asarray(glow_columns(q, padded, jnp.log(jnp.asarray(h))))[:, : r.size] * w
     C = np.array(rr.fit.covariance)
     for c in cols:
         G = np.linalg.lstsq(J, c, rcond=None)[0]
@@ -283,8 +277,7 @@ UNRESOLVED_GLOW_NODES = 4
 
 def _consider_var(J: np.ndarray, r: np.ndarray, c: np.ndarray, g_max: float) -> float:
     """``s_k^2`` of :func:`with_unresolved_glow` for the column ``c``: ``min(g_max / sqrt(3), GLOW_Z s_d)^2``, ``s_d``
-    the sigma of the column's coefficient fitted beside ``J`` (:func:`~jaxlimb.pipeline.profile_fit.last_column_step`)."""
-    from .profile_fit import GLOW_Z, last_column_step
+    the sigma of the column's coefficient fitted beside ``J`` (:func:`~jaxlimb.pipeline.profile.model_error.last_column_step`)."""
 
     _, var = last_column_step(np.concatenate([J, c[:, None]], axis=1), r)
     return min(g_max / math.sqrt(3.0), GLOW_Z * math.sqrt(max(var, 0.0))) ** 2
@@ -295,15 +288,15 @@ def _widened_fit(frame: Frame, rr: RefineResult, model: Any, start: Any, fixed: 
     chosen solver or ``NormalLM(atol=1e-7)``; not raising (the caller checks convergence)."""
     solver = None if frame.opt.solver == "lm" else solver_from_name(frame.opt.solver)
     solver = NormalLM(rtol=0.0, atol=1e-7) if solver is None else solver
-    coords, zz, w = _pad_bucket(rr.data)
+    coords, zz, w = pad_bucket(rr.data)
     return fit(model, coords, zz, start, solver, fixed=fixed, weights=w, throw=False)
 
 
 def widen_glow_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
     """The ellipsoid's profile ``rr`` refitted with a glow above the limb (:data:`~jaxlimb.models.LIMB_PROFILE_GLOW`,
     the shape ``theta, rho`` held as in ``rr``) when the score test of the sphere's
-    :func:`~jaxlimb.pipeline.profile_fit.widen_glow` asks for it (the one-step glow at a 1 px scale height positive at
-    z > :data:`~jaxlimb.pipeline.profile_fit.GLOW_Z`, the one at 0.3 px positive); a refit that does not converge,
+    :func:`~jaxlimb.pipeline.profile.glow.widen_glow` asks for it (the one-step glow at a 1 px scale height positive at
+    z > :data:`~jaxlimb.pipeline.profile.glow.GLOW_Z`, the one at 0.3 px positive); a refit that does not converge,
     or whose glow or scale height leaves the plausible range, keeps ``rr`` (its model-error terms carry the misfit).
 
     Why: an exponential glow above the Earth's limb (``benchmarks/families.py`` Earth ``glow``, 6-25 km scale height,
@@ -311,9 +304,7 @@ def widen_glow_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
     arc left the centre 0.02-0.05 px off for a 0.003-0.008 px sigma (NEES 4.5, frames up to 9.7).  The glow's
     columns are the Moon's (Sec. "Glows above the limb" of the README); the profile's geometry is the sphere's
     along each ray, as for :data:`~jaxlimb.models.LIMB_PROFILE` on the Earth (module docstring of
-    :mod:`jaxlimb.pipeline.earth`)."""
-    from ..models.lunar_lambert import LIMB_PROFILE_GLOW
-    from .profile_fit import fit_glow_tilt, glow_plausible, glow_start
+    :mod:`jaxlimb.pipeline.ellipsoid`)."""
 
     q = glow_start(rr)
     if q is None:
@@ -324,45 +315,6 @@ def widen_glow_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
     if not (glow_plausible(res.params) and float(res.params.amp) > 0 and float(res.params.a) > 0):
         return rr
     return RefineResult(res, rr.data, 0, fixed)  # the model depends on sigma^2 only (|sigma| reported)
-
-
-ANISO_MIN_FRAC = 0.12
-"""The smallest anisotropy ``hypot(s2c, s2s) / sigma_e^2`` a profile refit is kept with (:func:`widen_aniso_ellipsoid`).
-Measured on ``benchmarks/families.py``'s Earth frames (attitude known): ``motion`` 0.18-0.53 (chi^2 of ``s2c, s2s``
-660-34 000); the isotropic PSFs ``own``, ``lambert``, ``airy``, ``defocus``, ``jpeg``, ``hapke`` at most 0.077 (chi^2
-up to 75: a PSF shape the Gaussian does not match, not a smear).  Kept unconditionally, the two free terms moved
-those frames by up to 0.015 px (``lambert`` median 0.009 -> 0.015 px)."""
-ANISO_MIN_CHI2 = 13.8
-"""And significant: ``s^T C_s^-1 s`` above the chi^2(2) 99.9 % point.  The same two bounds gate the sphere's refit on
-its one-step anisotropy (:func:`jaxlimb.pipeline.profile_fit.widen_aniso`; ``benchmarks/families.py``, size over
-``sigma_e^2`` and chi^2: held-out Moon ``motion`` crescents 0.32-0.81, 237-8467; seed 2026 ``own`` 0, ``airy`` 0,
-``glow`` 0, ``hapke`` 1 at most 0.024, 7.2; seed 2028 ``own`` 0 0.019, 13.5), which keeps that refit's CPU (112 -> 148
-ms per frame when always run) off the frames without a smear."""
-
-
-def aniso_clears(frac: float, chi2: float) -> bool:
-    """An anisotropy of size ``frac`` (over ``sigma_e^2``) at ``chi2`` is kept: at least :data:`ANISO_MIN_FRAC` and
-    :data:`ANISO_MIN_CHI2`."""
-    return bool(frac >= ANISO_MIN_FRAC and chi2 >= ANISO_MIN_CHI2)
-
-
-def aniso_plausible(q: Any) -> bool:
-    """The anisotropic blur variance ``sigma^2 + 1/12 + s2c cos 2psi + s2s sin 2psi`` positive at every ``psi`` (the
-    line smears of the independent renderer, 1.5-3.5 px on a 0.5-0.8 px Gaussian, stay within half of it)."""
-    v = float(q.sigma) ** 2 + 1.0 / 12.0
-    return bool(math.hypot(float(q.s2c), float(q.s2s)) < 0.9 * v and float(q.amp) > 0 and float(q.a) > 0)
-
-
-def aniso_significant(res: Any) -> bool:
-    """The refit's anisotropy at least :data:`ANISO_MIN_FRAC` of ``sigma_e^2`` and at chi^2 >= :data:`ANISO_MIN_CHI2`."""
-    q, free = res.params, list(res.free)
-    s = np.array([float(q.s2c), float(q.s2s)])
-    idx = [free.index("s2c"), free.index("s2s")]
-    try:
-        chi2 = float(s @ np.linalg.solve(np.asarray(res.covariance)[np.ix_(idx, idx)], s))
-    except np.linalg.LinAlgError:
-        return False
-    return aniso_clears(math.hypot(*s) / (float(q.sigma) ** 2 + 1.0 / 12.0), chi2)
 
 
 def widen_aniso_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
@@ -379,7 +331,6 @@ def widen_aniso_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
     ``benchmarks/families.py`` Earth ``motion`` (6 frames, attitude known): 0.037 / 0.104 / 0.060 / 0.009 / 0.037 /
     0.052 px; the same scenes with the smear replaced by an isotropic Gaussian of the same variance
     0.010 / 0.011 / 0.005 / 0.007 / 0.006 / 0.006 px."""
-    from ..models.lunar_lambert import LIMB_PROFILE_ANISO, AnisoProfileParams
 
     p = rr.fit.params
     if type(p) is not LimbProfileParams:
@@ -391,20 +342,5 @@ def widen_aniso_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
     return RefineResult(res, rr.data, 0, rr.fixed)
 
 
-ANISO_WITNESS = 0.5
-"""The fraction of the anisotropic refit's move of ``(r0, c0, a)`` kept as model error (:func:`with_aniso_witness`)."""
-
-
-def with_aniso_witness(out: RefineResult, iso: RefineResult) -> RefineResult:
-    """``(w |d|)^2`` added to the variances of ``r0`` and ``c0`` (and ``(w d_a)^2`` to that of ``a``), ``d`` the
-    anisotropic refit's move from the isotropic profile ``iso`` and ``w`` = :data:`ANISO_WITNESS`: a line smear is not
-    a Gaussian of another variance (a 1.5-3.5 px box on a 0.5-0.8 px Gaussian), so the correction is itself uncertain,
-    and not only along its own direction.  ``benchmarks/families.py`` Earth ``motion`` frames 0-11 (seed 2026; 6-11 not
-    tuned on): the refit moved the centre 0.015-0.15 px and left 0.004-0.031 px (residual / move 0.04-0.9); frame 10
-    (moved 0.153 px along the row, left 0.021 px along the column, where its covariance is 0.003 px thin) had NEES 42
-    with the term along ``d`` only, 48 without it."""
-    return out.with_move_witness(iso, ANISO_WITNESS)
-
-
-__all__ = ["ANISO_MIN_CHI2", "ANISO_WITNESS", "with_aniso_witness", "ANISO_MIN_FRAC", "aniso_clears", "aniso_plausible", "aniso_significant", "edge_with_model_error", "fit_profile_ellipsoid", "profile_wanted", "widen_aniso_ellipsoid",
+__all__ = ["edge_with_model_error", "fit_profile_ellipsoid", "profile_wanted", "widen_aniso_ellipsoid",
            "widen_glow_ellipsoid", "with_unresolved_glow"]

@@ -3,9 +3,9 @@ r"""The profile-refit and body-centre stages of the two round bodies of :func:`j
 * **Sphere** (the Moon, Europa, any body with equal radii): after the circular sigmoid, the physical
   limb profile of a sunlit lunar-Lambert sphere (:data:`jaxlimb.models.LIMB_PROFILE`, when the Sun
   direction is known) or, with a camera, the elliptical sigmoid with the axis ratio and orientation of
-  the image of a sphere at the estimated place (:func:`~jaxlimb.pipeline.refine.fit_sphere_annulus`);
+  the image of a sphere at the estimated place (:func:`~jaxlimb.pipeline.sphere.fits.fit_sphere_annulus`);
   ``model="ellipse"``: the free elliptical sigmoid.  Then the exact sphere map of
-  :mod:`jaxlimb.pipeline.geometry`.
+  :mod:`jaxlimb.pipeline.sphere.center`.
 * **Disc** (the Sun): the blurred limb-darkened disc (:data:`jaxlimb.models.LIMB_DARKENED`) on a full
   annulus; the disc's centre is the body's (orthographic: ``(R/f)^2 ~ 1e-5``).
 """
@@ -18,17 +18,17 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ConvergenceError, SaturationWarning
-from ..fitting import solver_from_name
-from ..models import CircleParams, EllipseParams, LimbDarkenedParams, LimbProfileParams
-from .checks import MIN_LIT_ARC_DEG, check_lit_arc
-from .edge import EdgeFit
-from .frame import Frame, arc_angles, frame_mask
-from .geometry import BodyCenter, circle_center, free_ellipse_center, sphere_center
-from .profile import l_band
-from .profile_fit import fit_lunar_profile, saturation_level
-from .refine import FitData, RefineResult, fit_ellipse_annulus, fit_sphere_annulus
-from .sun_profile import fit_limb_darkened, select_sun_annulus
+from ...errors import ConvergenceError, SaturationWarning
+from ...fitting import solver_from_name
+from ...models import CircleParams, EllipseParams, LimbDarkenedParams, LimbProfileParams
+from ..checks import MIN_LIT_ARC_DEG, check_lit_arc
+from ..frame import arc_angles, frame_mask
+from ..profile.fit import fit_lunar_profile
+from ..profile.passes import l_band, saturation_level
+from ..stages import BodyCenter, EdgeFit, FitData, Frame, RefineResult
+from .center import circle_center, free_ellipse_center, sphere_center
+from .fits import fit_ellipse_annulus, fit_sphere_annulus
+from .sun import fit_limb_darkened, select_sun_annulus
 
 
 def _saturation(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> float | None:
@@ -51,7 +51,7 @@ def lunar_profile_refit(frame: Frame, edge: EdgeFit, sat: float | None, extras: 
     ``L`` is outside the band of lunar-Lambert-like limbs; ``extras["profile_rejected"]`` says why)."""
     opt = frame.opt
     try:
-        res, n_clipped = fit_lunar_profile(frame, edge.circ, sat)
+        res, n_clipped = fit_lunar_profile(frame, edge.circ.fit.params, edge.circ.data, sat)
     except ConvergenceError as e:
         if opt.profile != "auto":
             raise
