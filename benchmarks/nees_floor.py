@@ -18,7 +18,7 @@ import numpy as np
 
 def floored_nees(rec: dict, floor: float) -> float:
     """NEES of one ``ok`` record with its centre covariance floored at ``floor`` px in every direction."""
-    from jaxlimb.fitting.model_error import with_model_error
+    from jaxlimb.model_error import with_model_error
 
     C, e = np.array(rec["cov_rc"], float), np.array(rec["err_rc"], float)
     return float(e @ np.linalg.solve(with_model_error(C, floor * floor * np.eye(2)), e))

@@ -295,6 +295,7 @@ def _main(argv: Sequence[str] | None) -> int:
             needs_jax = needs_jax(args)
         with warnings.catch_warnings():
             warnings.simplefilter("default")
+            warnings.simplefilter("ignore", ResourceWarning)  # Python's own default: a file freed by an interrupt
             warnings.showwarning = _one_line_warning
             precheck = getattr(args, "precheck", None)  # cheap input checks before JAX starts (image bombs)
             if precheck is not None:

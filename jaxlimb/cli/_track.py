@@ -118,12 +118,19 @@ def _measure_fn(frames: dict[str, dict], camera, ephemeris: str | None):  # noqa
     return measure
 
 
+def measurement_namespace(args: argparse.Namespace, path: Path) -> argparse.Namespace:
+    """The settings that decide each frame's measurement (the frames file with its attitudes and hints, the camera,
+    the ephemeris), as the batch runner's namespace: their digest is every measurement record's ``run_settings``."""
+    return argparse.Namespace(command="track-measure", frames=args.frames, camera=args.camera,
+                              ephemeris=args.ephemeris, out=str(path), resume=True, workers=None, scheduler=None)
+
+
 def measure_frames(frames: list[dict], camera, args: argparse.Namespace, path: Path) -> dict[str, dict]:  # noqa: ANN001
     """Stage 1 (module docstring): the locate record of every frame, by image path."""
     from ..imaging import load_image
     from ._batch import run_frames
 
-    ns = argparse.Namespace(out=str(path), resume=True, workers=None, scheduler=None)
+    ns = measurement_namespace(args, path)
     by_image = {f["image"]: f for f in frames}
 
     def read(p: str) -> np.ndarray:

@@ -22,7 +22,7 @@ registration:
    outline, and a shift toward the Sun and a scale are nearly the same motion of it).
 
 Its covariance is the cluster-robust sandwich over 16 position-angle sectors
-(:func:`jaxlimb.fitting.model_error.sector_groups`) plus ``floor_px`` per axis, and the answer of
+(:func:`jaxlimb.model_error.sector_groups`) plus ``floor_px`` per axis, and the answer of
 :func:`.register.register_known_attitude` is the information-weighted mean of both estimates
 (:func:`combine`).
 """
@@ -32,7 +32,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from ..analysis.model_error import sector_groups
+from ..model_error import sector_groups
 
 
 def _sample(a: np.ndarray, r: np.ndarray, c: np.ndarray) -> np.ndarray:

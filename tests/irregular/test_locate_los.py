@@ -208,7 +208,7 @@ def test_photometric_mix_registers_a_lambert_body(body, phase):
 
 def test_covariance_carries_model_error_on_a_ray_traced_body(body):
     """On a ray-traced frame (smooth shading, cast shadows, Hapke, variegated albedo: what the model does
-    not assume) the reported centre sigma covers the error (the sector sandwich of analysis.model_error)."""
+    not assume) the reported centre sigma covers the error (the sector sandwich of jaxlimb.model_error)."""
     pytest.importorskip("embreex")
     from jaxlimb.render.independent import Photometry, Pinhole, Psf, Reflectance
     from jaxlimb.render.independent.mesh_rays import MeshScene, render_mesh_frame

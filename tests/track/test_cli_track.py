@@ -3,12 +3,15 @@ measurements file (the "after locate" mode: ``--resume`` measures nothing), and 
 
 from __future__ import annotations
 
+import argparse
 import json
 
 import numpy as np
 import pytest
 
 from jaxlimb.cli import main
+from jaxlimb.cli._batch import run_settings
+from jaxlimb.cli._track import measurement_namespace
 from jaxlimb.geometry.attitude import dcm_to_quat
 from jaxlimb.geometry.camera import Camera
 from jaxlimb.geometry.ephemeris import epoch_to_jd_tdb
@@ -25,17 +28,22 @@ def _write_inputs(tmp_path, n=N):
     tr = make_transfer(arc, Propagator(arc.table), n, theta, 256, 256, rng=np.random.default_rng(5))
     fr = drawn_frames(tr, nominal_noise(tr), np.random.default_rng(3))
     (tmp_path / "camera.json").write_text(json.dumps(cam.to_dict()))
-    with open(tmp_path / "frames.jsonl", "w") as ff, open(tmp_path / "m.jsonl", "w") as fm:
+    recs = []
+    with open(tmp_path / "frames.jsonl", "w") as ff:
         for k in range(n):
             img = str(tmp_path / f"f{k:03d}.png")
             names = ["center_r", "center_c", "range_km" if tr.bodies[k] == "earth" else "radius"]
             ff.write(json.dumps({"image": img, "epoch": arc.jd0 + tr.t[k] / 86400.0, "body": tr.bodies[k],
                                  "attitude": {"quaternion": dcm_to_quat(fr.C[k]).tolist()},
                                  "true_state": tr.states[k].tolist()}) + "\n")
-            rec = {"status": "ok", "image": img, "center_rc": fr.z[k, :2].tolist(),
-                   "covariance": {a: {b: float(fr.R[k][i, j]) for j, b in enumerate(names)} for i, a in enumerate(names)},
-                   ("range_km" if tr.bodies[k] == "earth" else "radius_px"): float(fr.z[k, 2])}
-            fm.write(json.dumps(rec) + "\n")
+            recs.append({"status": "ok", "image": img, "center_rc": fr.z[k, :2].tolist(),
+                         "covariance": {a: {b: float(fr.R[k][i, j]) for j, b in enumerate(names)}
+                                        for i, a in enumerate(names)},
+                         ("range_km" if tr.bodies[k] == "earth" else "radius_px"): float(fr.z[k, 2])})
+    # the records as track's measurement stage writes them: stamped with the digest of its settings
+    args = argparse.Namespace(frames=str(tmp_path / "frames.jsonl"), camera=str(tmp_path / "camera.json"), ephemeris=None)
+    settings = run_settings(measurement_namespace(args, tmp_path / "m.jsonl"))
+    (tmp_path / "m.jsonl").write_text("".join(json.dumps({**r, "run_settings": settings}) + "\n" for r in recs))
     return tmp_path
 
 

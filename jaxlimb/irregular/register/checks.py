@@ -2,7 +2,7 @@ r"""Covariance and checks of a converged registration (typed failures, CLI exit 
 
 **Covariance** ``sigma^2 (A^T A)^{-1}`` of the last linear solve, with ``sigma^2`` the residual variance,
 mapped to ``(row, col)`` by ``1/a``, plus the cluster-robust model-error term of
-:mod:`jaxlimb.analysis.model_error` over position-angle sectors (:attr:`.RegisterOptions.model_error`: an
+:mod:`jaxlimb.model_error` over position-angle sectors (:attr:`.RegisterOptions.model_error`: an
 albedo the model does not know biases the centre, and the term makes the reported sigma say so), plus a
 floor for the rendering's own quantisation.
 
@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 
 from ..._validate import check_center_sigma
-from ...analysis.model_error import cluster_robust_from_normal, positive_part, sector_groups
+from ...model_error import cluster_robust_from_normal, positive_part, sector_groups
 from ...errors import ConvergenceError, MatchError
 from .design import Solve
 from .gauss_newton import GNState, Problem

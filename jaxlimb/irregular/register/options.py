@@ -31,7 +31,7 @@ class RegisterOptions:
         Estimate the camera's Gaussian PSF before the sharp iterations and blur the model by it
         (:func:`~jaxlimb.irregular.register.gauss_newton.estimate_psf`); off: an ideal camera.
     model_error
-        The centre covariance carries the cluster-robust model-error term of :mod:`jaxlimb.analysis.model_error`
+        The centre covariance carries the cluster-robust model-error term of :mod:`jaxlimb.model_error`
         over position-angle sectors about the centre: a surface whose albedo, shading or shadows differ from the
         model's leaves residuals that follow the centre's columns, which white noise alone does not report.
     cast_shadows, coarse_cast_shadows

@@ -20,7 +20,7 @@ import numpy as np
 
 from ...errors import ConfigError, ConvergenceError, GeometryError, LimbInputError
 from ...fitting import fit
-from ...fitting.model_error import with_model_error as widen
+from ...model_error import with_model_error as widen
 from ...fitting.solvers import NormalLM, solver_from_name
 from ...geometry.conic import ellipse_change
 from ...models.ellipse_ramp import ELLIPSE_RAMP, EllipseRampParams
@@ -169,7 +169,7 @@ def _with_trace_error(out: RefineResult, edge: EllipsoidEdge, replace_block: boo
 
 def floor_center_var(out: RefineResult, var: float) -> RefineResult:
     """``out`` with the covariance of its ellipse centre ``(r0, c0)`` raised to at least ``var`` (px^2) in every
-    direction: ``C + [var I - C]_+`` (:func:`jaxlimb.fitting.model_error.with_model_error`; eigenvalues below ``var``
+    direction: ``C + [var I - C]_+`` (:func:`jaxlimb.model_error.with_model_error`; eigenvalues below ``var``
     lifted to it, eigenvectors kept; the other parameters untouched)."""
 
     free = list(out.fit.free)

@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from ...errors import TooManyOutliersError
-from ...fitting.model_error import cluster_robust_bias_reduced, cluster_robust_covariance
+from ...model_error import cluster_robust_bias_reduced, cluster_robust_covariance
 from ...geometry.conic import ellipse_signed_distance
 from ...numerics import numerical_jacobian
 from ..stages import FitData
@@ -120,7 +120,7 @@ def trace_model_cov(tr: TracedLimb, ell: tuple, bin_deg: float = 10.0, bias_redu
     across the limb (a cloud edge 0-2 px inside it) shifts the edge of whole stretches of rays alike; the
     pixel noise of the band fit does not see that, the spread of those stretches does.  ``(3, 3)``.
 
-    The bias-reduced sandwich (CR2, :func:`~jaxlimb.fitting.model_error.cluster_robust_bias_reduced`), not the
+    The bias-reduced sandwich (CR2, :func:`~jaxlimb.model_error.cluster_robust_bias_reduced`), not the
     plain one: when few rays survive (a glow and motion blur over clouds, ``benchmarks/families.py`` Earth
     ``combined`` 2: 42 of 1208 rays in 6 sectors, the end sectors' leverage 0.9) the plain sandwich's centre
     sigma was 0.04 px for a 0.19 px error (NEES 14.7); with many well-spread sectors the two agree within 10-40 %.

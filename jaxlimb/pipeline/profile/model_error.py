@@ -1,5 +1,5 @@
 """The physical profile's weighted system (Jacobian and residuals at an estimate, one compiled program per model) and
-the model-error terms it widens a fit's covariance with (:mod:`jaxlimb.fitting.model_error`): the cluster-robust
+the model-error terms it widens a fit's covariance with (:mod:`jaxlimb.model_error`): the cluster-robust
 sandwich over sectors of the limb and the split witness (Hausman 1978); the one-step score estimates of the
 widening gates."""
 
@@ -12,7 +12,7 @@ import jax
 import numpy as np
 
 from ...fitting import bucket_size
-from ...fitting.model_error import cluster_robust_covariance, hausman_term, sector_groups, with_model_error as widen
+from ...model_error import cluster_robust_covariance, hausman_term, sector_groups, with_model_error as widen
 from ...geometry.conic import ellipse_signed_distance
 from ...models import CircleParams, EllipseRampParams, LimbModel, LimbProfileParams
 from ...models.lunar_lambert import limb_geometry, profile_model
@@ -75,7 +75,7 @@ def edge_sigma(params: Any) -> float:
 def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS, model: LimbModel | None = None,
                      system=None) -> RefineResult:
     """``rr`` (a fit of ``model``, default the profile) with its covariance widened by the model-error terms
-    of :mod:`jaxlimb.fitting.model_error`: the cluster-robust term over ``n_sectors`` sectors of the limb
+    of :mod:`jaxlimb.model_error`: the cluster-robust term over ``n_sectors`` sectors of the limb
     about the fitted centre, plus the split witness (:func:`split_witness`) on the limb's geometry.  The
     noise-only covariance is kept as ``noise_covariance`` (the Cramér--Rao bound's).  Level-normalised data
     (weights): the weighted residuals and Jacobian, as the fit minimises them.
@@ -118,7 +118,7 @@ def weighted_system(rr: RefineResult, model: LimbModel):
 
 
 def split_witness(rr: RefineResult, J: np.ndarray, r: np.ndarray, s: np.ndarray) -> tuple[list[int], np.ndarray]:
-    """The specification-test term of :mod:`jaxlimb.fitting.model_error` (Hausman 1978) on the limb's
+    """The specification-test term of :mod:`jaxlimb.model_error` (Hausman 1978) on the limb's
     geometry (the free ones of ``r0, c0, a, theta, rho``): the profile refitted on the sky side and the edge
     (signed distance ``s`` to the limb above ``-c`` effective PSF sigmas) and on the edge and the disc (below
     ``+c``), ``c`` in :data:`WITNESS_CUT`; the sum of ``[d d^T - (C_sub - C)]_+`` over the subsets.  Each

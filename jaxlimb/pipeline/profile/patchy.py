@@ -12,7 +12,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ...fitting import bucket_size
-from ...fitting.model_error import sector_groups
+from ...model_error import sector_groups
 from ...geometry.sphere_image import sphere_from_ellipse_center
 from ...models import LimbModel
 from ...models.lunar_lambert import profile_model
@@ -23,7 +23,7 @@ from .passes import l_band, profile_passes, shape_change_px
 
 
 PATCHY_SECTORS = 24
-"""Sectors of equal pixel counts along the limb (:func:`jaxlimb.fitting.model_error.sector_groups`) for
+"""Sectors of equal pixel counts along the limb (:func:`jaxlimb.model_error.sector_groups`) for
 :func:`downweight_patchy_sectors`."""
 
 
