@@ -114,6 +114,18 @@ def test_papers_page_names_exist():
         assert (ROOT / script).is_file(), script
 
 
+def test_every_page_names_existing_code():
+    """A module moved or renamed leaves no page pointing at its old name."""
+    missing = []
+    for page in sorted(DOCS.rglob("*.md")):
+        for name in sorted(set(re.findall(r"`(jaxlimb(?:\.\w+)+)`", page.read_text()))):
+            try:
+                _resolve(name)
+            except (ImportError, AttributeError):
+                missing.append(f"{page.relative_to(DOCS)}: {name}")
+    assert not missing, missing
+
+
 def test_validation_tables_cite_existing_results():
     cited = set()
     for page in (DOCS / "validation").glob("*.md"):

@@ -42,7 +42,7 @@ def test_both_frames_located_against_the_spice_prediction(results):
         assert r["range_km"] == pytest.approx(pred["range_km"], rel=0.02)
         sig = np.sqrt([r["covariance"]["center_r"]["center_r"], r["covariance"]["center_c"]["center_c"]])
         # the lit and the dark limb disagree by 1-2 px (the kernels' 2002 PCK shape, the crescent's profile):
-        # that split is the centre's model error, in the covariance (pipeline.polarity_split)
+        # that split is the centre's model error, in the covariance (pipeline.sphere.polarity_split)
         split = np.array(r["extras"]["polarity_split"]["delta_rc_px"])
         assert 0.5 < np.hypot(*split) < 3.0
         assert (sig >= np.abs(split) * 0.99).all() and (sig < 2.5).all()

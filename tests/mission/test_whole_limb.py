@@ -103,7 +103,7 @@ def test_too_big_only_when_no_limb_is_visible():
 
 def test_lit_dark_split_puts_the_crescent_bias_in_the_covariance():
     """A crescent brightening toward the limb moves the lit edge ~0.35 px toward the Sun; the dark limb does not.
-    The lit/dark split (pipeline.polarity_split) puts that model error into the centre covariance."""
+    The lit/dark split (pipeline.sphere.polarity_split) puts that model error into the centre covariance."""
     img, ic = _render((250.3, 262.7), seed=1)
     m = locate(img, CAM, _hints((244.0, 270.0)))
     split = m.extras["polarity_split"]
