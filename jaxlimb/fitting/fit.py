@@ -36,7 +36,8 @@ from jaxtyping import Array, Float, Int
 from ..errors import ConvergenceError, LimbInputError
 from ..models import LimbModel, LimbParams
 from ._aot import ExportedCore, stable_ident
-from .solvers import AbstractLimbSolver, FitResult, LimbProblem, NormalLM
+from .problem import AbstractLimbSolver, FitResult, LimbProblem
+from .solvers import NormalLM
 
 _MIN_BUCKET = 256
 
