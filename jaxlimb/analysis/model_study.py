@@ -66,9 +66,8 @@ class _Padded:
 def _padded(problem: StudyProblem) -> _Padded:
     n = problem.coords.shape[0]
     w = np.ones(n) if problem.weights is None else np.asarray(problem.weights, float)
-    scale = problem.sigma / np.where(w > 0, w, 1.0)  # a weight is 1/sigma_i in units of sigma
     c_p, clean_p, w_p = pad_pixels(problem.coords, problem.clean, w, bucket_size(n))
-    _, scale_p, _ = pad_pixels(problem.coords, scale, w, bucket_size(n))
+    _, scale_p, _ = pad_pixels(problem.coords, problem.noise_scale, w, bucket_size(n))
     return _Padded(c_p, clean_p, w_p, scale_p, n)
 
 

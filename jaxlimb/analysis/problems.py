@@ -105,6 +105,12 @@ class StudyProblem:
         return np.asarray(self.model.intensity(self.truth, jnp.asarray(self.coords)))
 
     @property
+    def noise_scale(self) -> np.ndarray:
+        """The noise sigma of each pixel (DN): ``sigma / w`` (a weight is ``1/sigma_i`` in units of ``sigma``)."""
+        w = np.ones(self.coords.shape[0]) if self.weights is None else np.asarray(self.weights, float)
+        return self.sigma / np.where(w > 0, w, 1.0)
+
+    @property
     def free(self) -> tuple[str, ...]:
         return tuple(self.model.param_names[i] for i in self.model.free_indices(self.fixed))
 

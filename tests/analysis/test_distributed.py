@@ -157,7 +157,7 @@ def test_first_task_waits_for_the_preload_imports():
     """A worker's first task began while the preload thread imported ``jaxlimb.pipeline``: the two threads
     importing the package at once saw a partially initialised ``jaxlimb.geometry.ellipsoid`` (ImportError in
     2 of 3 such processes).  ``LocateTrial`` waits for the preload (:func:`dask_worker.wait_started`)."""
-    code = ("import time\nfrom jaxlimb.analysis import dask_worker as d\nfrom jaxlimb.analysis.distributed import LocateTrial\n"
+    code = ("import time\nfrom jaxlimb.analysis import dask_worker as d\nfrom jaxlimb.analysis.pipeline_study import LocateTrial\n"
             "slow = d.start_jax\nd.start_jax = lambda: (time.sleep(4.0), slow())\n"  # a preload still importing
             "d.dask_setup(None)\nLocateTrial(range_km=400000.0)._base()\n"
             "assert not d._STARTED[0].is_alive(), 'the trial ran before the preload had finished'\nprint('ok')\n")
