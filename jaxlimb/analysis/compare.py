@@ -30,6 +30,7 @@ from .._solver_names import SOLVER_NAMES
 from ..errors import LimbInputError
 from ..fitting import fit, result_names, solver_from_name
 from .model_study import error_stats, noisy_intensities, problem_crlb, seeded_fits
+from .figures import save_figure
 from .montecarlo import trial_seed
 from .problems import StudyProblem
 
@@ -230,12 +231,7 @@ def plot_compare(result: dict[str, Any], path: Any = None) -> Any:
     fig.suptitle(f"{result['problem']['label']}: {result['options']['n']} realisations, {result['devices']} device(s)",
                  fontsize=8)
     fig.tight_layout()
-    if path is not None:
-        from .._io import atomic_path
-
-        with atomic_path(str(path)) as tmp:
-            fig.savefig(tmp, format=str(path).rsplit(".", 1)[-1], dpi=110)
-        plt.close(fig)
+    save_figure(fig, path)
     return fig
 
 

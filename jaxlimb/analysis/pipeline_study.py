@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import LimbInputError
+from .figures import save_figure
 from .montecarlo import MonteCarloResult
 
 #: chi-square quantiles with 2 degrees of freedom: the 68.27 % and 95.45 % (1 and 2 sigma) ellipses.
@@ -231,12 +232,7 @@ def plot_pipeline(res: MonteCarloResult, summary: dict[str, Any], path: Any = No
     if title:
         fig.suptitle(title, fontsize=8)
     fig.tight_layout()
-    if path is not None:
-        from .._io import atomic_path
-
-        with atomic_path(str(path)) as tmp:
-            fig.savefig(tmp, format=str(path).rsplit(".", 1)[-1], dpi=110)
-        plt.close(fig)
+    save_figure(fig, path)
     return fig
 
 
