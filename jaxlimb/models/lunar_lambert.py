@@ -101,6 +101,7 @@ from ._base import LimbModel
 from .profile_params import (PHYSICAL_L, PROFILE_FIXED, AnisoProfileParams, GlowProfileParams, LimbProfileParams,
                              MinnaertProfileParams, lunar_lambert_weight)
 from .profile_radiance import (WINDOW_KEYS, aniso_terms_of, aniso_var, glow_inside, glow_outside, lit_limits,
+                               terminator_depth,
                                radiance_parts)
 from .sigmoid import ellipse_coords
 
@@ -154,6 +155,22 @@ def _window(d, R, se, lit=None, partials: bool = False):
     if lit is None:
         return v0, v1, dv0, dv1
     return lit_limits(lit[0], v0, v1, R, lit[1], lit[2], dv0, dv1)
+
+
+def window_regime(p: LimbProfileParams, rc):
+    """Which branch each pixel's window takes (an integer code): whether either end of ``R - d -+ 6 se`` is clamped at
+    the limb (``v = 0``), whether the terminator is clipped to the window and which side is lit.  The quadrature is
+    smooth in the parameters while these stay the same; where one switches, the rule (not the integral) has a kink of
+    the size of its error -- a window end reaching the limb moves its nodes as a square root -- and central
+    differences straddling it measure the kink, not the derivative (:mod:`jaxlimb.models.gradcheck`)."""
+    dr, dc, _, _, d, _, R, cpsi = limb_geometry(p, rc)
+    se = jnp.sqrt(p.sigma * p.sigma + 1.0 / 12.0 + (0.0 if not isinstance(p, AnisoProfileParams)
+                                                   else aniso_var(p, aniso_terms_of(p, dr, dc, d))))
+    u0, u1 = R - d - 6.0 * se, R - d + 6.0 * se
+    v0, v1 = jnp.sqrt(jnp.maximum(u0, 1e-12)), jnp.sqrt(jnp.maximum(u1, 1e-12))
+    vt, shallow = terminator_depth(p, R, cpsi, jnp.arctan(p.rho * p.a * p.inv_f))
+    flags = (u0 > 1e-12, u1 > 1e-12, vt < v0, vt > v1, shallow)
+    return sum(f.astype(jnp.int32) << i for i, f in enumerate(flags))
 
 
 def _blur_nodes(d, R, se, v0, v1):
@@ -462,4 +479,5 @@ __all__ = [
     "profile_integrals",
     "profile_model",
     "quadrature_nodes",
+    "window_regime",
 ]
