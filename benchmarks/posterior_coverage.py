@@ -8,7 +8,9 @@ Usage::
 Each trial renders a Moon of the family with the independent renderer (:mod:`jaxlimb.render.independent`, drawn
 from the trial's seed: range 60 000-384 400 km, phase 0-150 deg, 8 or 12 bits), runs ``locate`` with the hints a
 filter has, samples the posterior of its final fit (:func:`jaxlimb.analysis.posterior.measured_posterior`, the
-physical profile and its nuisance parameters, noise marginalised; emcee with the Laplace independence moves) and
+physical profile and its nuisance parameters, noise marginalised; emcee with the Laplace independence moves, 16
+walkers, converged when longer than 50 autocorrelation times with ``tau`` stable to 10 % between checks 50 steps
+apart: ``tau`` ~ 3 steps is estimated to a few % only, and 1 % ran chains of 850 steps for nothing) and
 records where the truth falls: the credible level of the true body centre (2-D) and apparent radius in the
 posterior, in the model-error-adjusted posterior (Shaby's open-faced sandwich to ``locate``'s covariance) and in
 ``locate``'s Gaussian.  Coverage of the 68.27 % / 95.45 % regions = the fraction of levels below them (calibrated:
@@ -50,7 +52,7 @@ class CoverageTrial:
 
         case = moon_case(self.families[i % len(self.families)], np.random.default_rng(seed))
         lf = located_fit(case.image, case.camera, case.hints)
-        opt = PosteriorOptions(n_walkers=self.walkers, moves="laplace", chunk=50, seed=seed % 2**31,
+        opt = PosteriorOptions(n_walkers=self.walkers, moves="laplace", chunk=50, tau_rtol=0.1, seed=seed % 2**31,
                                max_time_s=self.max_time_s)
         mp = measured_posterior(lf, opt)
         lv = truth_levels(mp, case.truth.body_center_rc, case.truth.apparent_radius_px)
