@@ -206,7 +206,8 @@ def _window_terms(J, J_v, S, nodes, se, s2d, v0, v1):
     sn, s = jnp.asarray(se)[..., None], s2d[..., None]
     P = J_v + J * (1.0 / v - 2.0 * v * t / sn)  # h_v / (v N)
     Q = P - s * (P * t + J * 2.0 * v / sn) / sn  # the v-derivative of the integrand of F1 + s2d dF1/dd, / (v N)
-    A, B = jnp.sum(Q * g, axis=-1), jnp.sum(Q * g * jnp.asarray(_GL_X), axis=-1)
+    Qg = jax.lax.optimization_barrier(Q * g)  # once, for both sums (each would repeat the radiance's chain)
+    A, B = jnp.sum(Qg, axis=-1), jnp.sum(Qg * jnp.asarray(_GL_X), axis=-1)
     width = v1 - v0
     S_w = S * jnp.where(width > 0, 1.0 / jnp.where(width > 0, width, 1.0), 0.0)  # (at width 0: dv0 = dv1, no term)
     return -S_w + 0.5 * (A - B), S_w + 0.5 * (A + B)

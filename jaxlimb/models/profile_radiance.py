@@ -126,6 +126,8 @@ def terminator_depth(p: LimbProfileParams, R, cpsi, alpha0, tangents: bool = Fal
             df = fp * de - da * sin_e - dg
             de = de - (df * fp - f * (alpha0 * sin_e * de - da * cos_e)) / (fp * fp)
         e = e - f / fp
+    if tangents:  # materialised: the partials' rows below would each repeat the Newton steps (XLA's loop fusion)
+        e, de = jax.lax.optimization_barrier((e, de))
     ec = jnp.clip(e, 0.0, 0.5 * math.pi)
     depth2 = R * (1.0 - jnp.sin(ec))
     vt = jnp.sqrt(jnp.maximum(depth2, 1e-12))
