@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: demo test install benchmarks figures clean
+.PHONY: demo test install benchmarks figures docs clean
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -25,6 +25,13 @@ benchmarks: $(STAMP)
 
 figures: $(STAMP)
 	$(BIN)/python paper_figures/make_all.py
+
+# The documentation site in build/site, with the notebooks executed first (their committed copies have no outputs).
+docs: $(STAMP)
+	rm -rf build/docs-executed && mkdir -p build/docs-executed/notebooks
+	$(BIN)/jupyter nbconvert --to notebook --execute --ExecutePreprocessor.timeout=600 \
+		--output-dir build/docs-executed/notebooks notebooks/*.ipynb
+	JAXLIMB_DOCS_EXECUTED=build/docs-executed $(BIN)/mkdocs build --strict
 
 clean:
 	rm -rf $(VENV) build *.egg-info

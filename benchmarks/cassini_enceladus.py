@@ -4,7 +4,7 @@ Both raw frames of ``shared/data/cassini`` (VICAR, read with rms-vicar; the seco
 missing lines, masked) are located with the mission's own kernels and nothing typed by hand:
 camera from the IK, image time from the label, predicted limb / Sun / range / orientation
 from SPICE (:mod:`jaxlimb.geometry.spice`), the whole-limb stage
-(:mod:`jaxlimb.pipeline.whole_limb`).  Reported per frame: the measured body centre and its
+(:mod:`jaxlimb.pipeline.sphere.whole_limb`).  Reported per frame: the measured body centre and its
 covariance, measured - predicted (px and microradians), the radius and range against the
 prediction, the observer position from the measurement.  Between the frames (33 s apart):
 the change of the residual against the combined sigma, and -- independent of SPICE -- the
@@ -56,7 +56,7 @@ def _one(name: str):
         "edges_from_predicted_limb": _edge_offsets(fr, _shapes(g, m)[1]),
         "ck": _ck_probe(fr, g),
         "with_iau2015_radii": _iau_shape(fr, g),
-        "extras": {k: m.extras[k] for k in ("edge_fit", "angular_bins", "sigma_center_pixel_independent_px",
+        "extras": {k: m.extras.get(k) for k in ("edge_fit", "angular_bins", "sigma_center_pixel_independent_px",
                                              "sigma_center_cluster_robust_px", "scale_vs_predicted", "polarity_split")},
     }
     return fr, g, m, res

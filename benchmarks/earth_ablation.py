@@ -14,9 +14,9 @@ JPEG step (``no_jpeg``), draws the clouds with the next seed (``reseed_clouds``)
 uniform albedo); ``a+b`` combines them.
 Reported per frame and ablation, with ``R_body_to_camera`` known: the ``locate`` centre error (px) and its NEES
 (``e^T P^-1 e``, chi-square 2 expectation), and two estimators that need no pipeline choice, the known-shape
-ellipse through the limb traced about the *true* limb ellipse (:func:`jaxlimb.pipeline.limb_trace.trace_limb`,
-:func:`~jaxlimb.pipeline.limb_trace.fit_traced`) without and with the glow's lift
-(:func:`~jaxlimb.pipeline.limb_trace.fit_traced_glow`): their ellipse-centre errors (px) show what the traced
+ellipse through the limb traced about the *true* limb ellipse (:func:`jaxlimb.pipeline.ellipsoid.trace.trace_limb`,
+:func:`~jaxlimb.pipeline.ellipsoid.trace_fit.fit_traced`) without and with the glow's lift
+(:func:`~jaxlimb.pipeline.ellipsoid.trace_fit.fit_traced_glow`): their ellipse-centre errors (px) show what the traced
 limb of that scene can give at best.  Results go to ``benchmarks/results/<out>.json`` (default
 ``earth_ablation``).
 """
@@ -31,6 +31,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from jaxlimb.pipeline.ellipsoid.trace_fit import fit_traced, fit_traced_glow
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -55,7 +57,7 @@ def truth_traced(case) -> dict[str, Any]:
     the plain known-shape fit and the one with the glow's lift (its z-score too)."""
     from jaxlimb.errors import TooManyOutliersError
     from jaxlimb.imaging import sun_direction_image
-    from jaxlimb.pipeline.limb_trace import fit_traced, fit_traced_glow, trace_limb
+    from jaxlimb.pipeline.ellipsoid.trace import trace_limb
 
     t = case.truth
     ell = (tuple(t.ellipse_center_rc), tuple(t.semi_axes_px), t.angle_rad)

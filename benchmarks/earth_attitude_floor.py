@@ -15,7 +15,7 @@ and the mirror floor (``families.pole_unknown_floor_px``: two mirror attitudes g
 The *efficient-estimator* error of a frame without the attitude is ``|o + e|`` with ``o`` the floor (a fixed offset,
 direction drawn uniformly) and ``e ~ N(0, diag(crlb_r^2, crlb_c^2))``; ``--samples`` draws per frame, pooled over the
 frames ``locate`` answers, give its median and p90: what an unbiased estimator that reaches the bound would score on
-the same frames, beside ``locate``'s own scores and issue 10's target (0.15 px).  The bound is the fitted model's:
+the same frames, beside ``locate``'s own scores and a 0.15 px target.  The bound is the fitted model's:
 exact on the ``own`` family, the noise-only part of the error on the others.  (A prior over the pole, e.g. the Sun's
 declination, is information the bound does not hold: ``benchmarks/earth_pole_prior.py``.)
 

@@ -1,4 +1,4 @@
-"""Per-ray limb estimators on cloudy Earths, measured against the true limb (issue 10, attitude known).
+"""Per-ray limb estimators on cloudy Earths, measured against the true limb (attitude known).
 
 Usage::
 
@@ -8,7 +8,7 @@ Frames: :mod:`jaxlimb.render.independent` (``benchmarks/families.py``'s Earth fr
 Rays are sampled every pixel of arc across the lit limb (30 deg off each horn) from 8 px inside to 8 px outside
 the *true* limb ellipse (0.25 px steps, bilinear), so that every ray's edge error is its estimator's own.  Per ray:
 
-* ``current``: :mod:`jaxlimb.pipeline.limb_trace`'s edge (50 % between the sky and the median level 2-5 px
+* ``current``: :mod:`jaxlimb.pipeline.ellipsoid.trace`'s edge (50 % between the sky and the median level 2-5 px
   inside the 5-sigma foot; rays with a non-flat inside left out);
 * ``step_wN``: a blurred step ``sky + A Phi(-(r - e) / sigma)`` fitted to the samples from ``N`` px inside to
   3 px outside the edge (variable projection over ``e``, ``A`` linear; ``sigma`` the one that minimises the
@@ -17,7 +17,7 @@ the *true* limb ellipse (0.25 px steps, bilinear), so that every ray's edge erro
   from the limb, ``delta = sqrt(2 d / R)``).
 
 Each set of edges is turned into a centre with the known-shape ellipse fit of
-:func:`jaxlimb.pipeline.limb_trace.fit_traced` (soft-L1); reported: the ellipse-centre error (px) with the rays
+:func:`jaxlimb.pipeline.ellipsoid.trace_fit.fit_traced` (soft-L1); reported: the ellipse-centre error (px) with the rays
 ``current`` keeps and with every ray whose step is > 8 noise sigma, and the per-10-deg-sector median edge error
 (the albedo bias along the limb).  Results: ``benchmarks/results/<out>.json``.
 """
@@ -32,6 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+from jaxlimb.pipeline.ellipsoid.trace_fit import fit_traced
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 DEFAULT_FRAMES = "clouds:0,clouds:1,clouds:2,combined:0,combined:1,combined:2"
@@ -41,7 +43,7 @@ def _rays(img, ell, lit_dir, half, search=8.0, step=0.25):
     """Samples ``(n_rays, n)`` along rays through the true limb, their angles, directions, offsets, true radii."""
     from scipy.ndimage import map_coordinates
 
-    from jaxlimb.pipeline.limb_trace import _ray_radius
+    from jaxlimb.pipeline.ellipsoid.trace import _ray_radius
 
     t0 = math.atan2(lit_dir[0], lit_dir[1])
     ang = t0 + np.linspace(-half, half, max(16, int(2 * half * ell[1][0])))
@@ -91,7 +93,7 @@ def _step_edges(v, s, sky, e0, sig, w_in, sqrt_term, w_out=3.0):
 
 def _center_error(ell, u, r_true, e, ok) -> float:
     """Ellipse-centre error (px) of the known-shape fit to the points ``r_true + e`` of the rays ``ok``."""
-    from jaxlimb.pipeline.limb_trace import TracedLimb, fit_traced
+    from jaxlimb.pipeline.ellipsoid.trace import TracedLimb
 
     c = np.asarray(ell[0], float)
     pts = c[None] + (r_true + np.nan_to_num(e))[:, None] * u
@@ -103,7 +105,7 @@ def _center_error(ell, u, r_true, e, ok) -> float:
 def measure(case) -> dict:
     """Every estimator of the module docstring on one frame."""
     from jaxlimb.imaging import sun_direction_image
-    from jaxlimb.pipeline.limb_trace import _ray_edges, _sky
+    from jaxlimb.pipeline.ellipsoid.trace import _ray_edges, _sky
 
     t = case.truth
     ell = (tuple(t.ellipse_center_rc), tuple(t.semi_axes_px), float(t.angle_rad))

@@ -9,8 +9,8 @@ Scenes: :func:`jaxlimb.render.independent.earth_full_disc_case` -- 1.5 million k
 disc 760-900 px across in a 1080^2 frame, the photometry / albedo / glow / PSF / sensor of each family of
 ``benchmarks/families.py`` that applies (``own`` lunar-Lambert, ``lambert``, ``clouds`` Lambert x ocean,
 continents and clouds, ``glow``, ``jpeg``, ``combined``).  At this phase a Lambert Earth darkens to zero
-at its limb and the strongest edges are cloud edges inside the disc: issue 10's "real Earth frames"
-(full-disc views from deep space, 1080^2, camera and range prior) stopped at Check 2 on every frame.
+at its limb and the strongest edges are cloud edges inside the disc: the hard case of real full-disc
+views from deep space (1080^2, camera and range prior), where a plain limb detector stops at Check 2.
 ``locate`` gets the camera and the hints (Sun direction, range prior 5 % off, ``atmosphere_km = 0``),
 once with ``R_body_to_camera`` and once without (``earth`` / ``earth_noR`` rows).  Reported as in
 ``benchmarks/families.py`` (centre median / p90 / max px, range error, NEES, typed failures, non-physical

@@ -7,9 +7,9 @@ Usage::
 Scene: :func:`jaxlimb.render.earth_scene` at 300 000 km (16 mm lens, 420^2 frame, the disc 155 px in radius),
 latitude 20 deg, ``AlbedoPatches(seed=K, amplitude=0.6)`` for each ``K`` of ``--seeds`` (default 4), Lambert reflectance, Gaussian PSF 0.9 px, 12 bit, 20 DN
 of extra noise; ``locate`` gets the camera, the Sun direction, a range prior 1 % off and ``R_body_to_camera``.
-Near zero phase the Lambert limb is dark and its traced rays fail the plain flatness test; until session 14 the limb
-was then not flagged patchy and the one-albedo profile answered 1.27 px off (NEES 12); the trace now tests their
-flatness divided by the shading (:class:`jaxlimb.pipeline.limb_trace.RayShading`).  Prints and writes ``benchmarks/results/<out>.json`` (default
+Near zero phase the Lambert limb is dark and its traced rays fail the plain flatness test, so a limb tested on
+flatness alone is not flagged patchy and the one-albedo profile answers far off; the trace tests their
+flatness divided by the shading (:class:`jaxlimb.pipeline.ellipsoid.shading.RayShading`).  Prints and writes ``benchmarks/results/<out>.json`` (default
 ``earth_mottled``): per phase the status, centre error, centre sigmas and NEES.
 """
 

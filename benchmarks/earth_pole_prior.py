@@ -10,7 +10,7 @@ frames) with the Sun drawn within 23.44 deg of the equator, as the real Sun is (
 ``--free-sun`` the Sun is placed freely, as in ``benchmarks/families.py``: the bound is then false for some frames).
 Each frame is measured by ``locate`` without ``R_body_to_camera`` twice: the defaults (the cone axis, the unsigned
 offset carried as a uniform error) and ``EllipsoidOptions(sun_declination_max_deg=23.44)``
-(:mod:`jaxlimb.pipeline.pole_prior`).  Prints per frame and per setting the centre error, NEES and the pole-unknown
+(:mod:`jaxlimb.pipeline.ellipsoid.pole_prior`).  Prints per frame and per setting the centre error, NEES and the pole-unknown
 floor (``benchmarks/families.py``), and writes ``benchmarks/results/<out>.json`` (default ``earth_pole_prior``, or
 ``earth_pole_prior_free_sun``).
 """
@@ -47,7 +47,7 @@ def _row(case) -> dict[str, Any]:
     from families import measure, pole_unknown_floor_px
 
     from jaxlimb.pipeline import LocateOptions
-    from jaxlimb.pipeline.earth import EllipsoidOptions
+    from jaxlimb.pipeline import EllipsoidOptions
 
     hints = {k: v for k, v in case.hints.items() if k != "R_body_to_camera"}
     bound = LocateOptions(ellipsoid=EllipsoidOptions(sun_declination_max_deg=OBLIQUITY_DEG))

@@ -15,7 +15,7 @@ navigation filter has (body, Sun direction, range prior 5 % off; for the Earth a
 ``R_body_to_camera`` known and without it (``earth`` / ``earth_noR`` rows).  An ``earth_noR`` frame also
 gets ``floor_px``: the centre error of its *true* limb ellipse mapped without the pole
 (:func:`pole_unknown_floor_px`), the error no limb-only estimator can go below without the attitude (the
-centre offset cannot be signed, :mod:`jaxlimb.pipeline.earth`, "Free ellipse").  Each body also gets an ``all``
+centre offset cannot be signed, :mod:`jaxlimb.pipeline.ellipsoid`, "Free ellipse").  Each body also gets an ``all``
 row: the families pooled.
 
 Reported per body and family: centre-of-body-image error (px) median / p90 / max, |radius
@@ -40,6 +40,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from jaxlimb.geometry.earth_cone import earth_position_from_ellipse
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -77,7 +79,7 @@ def _options(center_floor_px: float | None, unresolved_glow: bool = True):
     """``LocateOptions`` for ``--center-floor`` (``EllipsoidOptions.center_floor_px``) and ``--no-unresolved-glow``
     (``EllipsoidOptions.unresolved_glow = None``); ``None``: the defaults."""
     from jaxlimb.pipeline import LocateOptions
-    from jaxlimb.pipeline.earth import EllipsoidOptions
+    from jaxlimb.pipeline import EllipsoidOptions
 
     kw = {} if center_floor_px is None else {"center_floor_px": center_floor_px}
     if not unresolved_glow:
@@ -123,10 +125,9 @@ def _nees(m, err: np.ndarray) -> float | None:
 
 def pole_unknown_floor_px(case) -> float:
     """The centre error (px) of the frame's true limb ellipse mapped with the pole unknown (the cone axis,
-    :func:`jaxlimb.pipeline.earth.earth_position_from_ellipse` without ``pole_camera``): ``|gamma_off|`` in
+    :func:`jaxlimb.geometry.earth_cone.earth_position_from_ellipse` without ``pole_camera``): ``|gamma_off|`` in
     pixels, the unsigned centre offset of the spheroid (two mirror attitudes give the same limb and centres
     ``2 gamma_off`` apart, ``tests/pipeline_earth/test_earth_pipeline.py``), plus the mapping's own error."""
-    from jaxlimb.pipeline.earth import earth_position_from_ellipse
 
     t = case.truth
     p, _ = earth_position_from_ellipse(case.camera, t.ellipse_center_rc, t.semi_axes_px, t.angle_rad, np.zeros(3))

@@ -210,7 +210,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             ap.error(f"unknown noise {nz!r}; choose from {list(NOISES)}")
     cam = small_camera()
     configs = [(s, fe, k) for s in solvers for fe in FRONT_ENDS for k in K_MODES]
-    options = {c: LocateOptions(solver=c[0], front_end=c[1], estimate_k=(c[2] == "est"), k_fixed=3.0)
+    options = {c: LocateOptions(solver=c[0], front_end=c[1], estimate_k=(c[2] == "est"))
                for c in configs}
 
     t_all = time.perf_counter()

@@ -13,10 +13,10 @@ and the same frame + front end to the sigmoid routes:
   with ``rho, theta`` fixed from the prior geometry, then the centre offset and range iteration
   (:func:`jaxlimb.pipeline.locate`, the ellipsoid strategy);
 * ``ESF+ramp``: the same with the edge model of
-  :func:`jaxlimb.pipeline.earth.ellipse_ramp_intensity` (Gaussian kernel, interior ramp, level
+  :func:`jaxlimb.models.ellipse_ramp.ellipse_ramp_intensity` (Gaussian kernel, interior ramp, level
   varying along the limb);
-* ``profile`` (our default since issue 4): ``ESF+ramp``, then the same pixels refitted with the
-  physical lunar-Lambert limb profile (:data:`jaxlimb.pipeline.profile.LIMB_PROFILE`, ``L``
+* ``profile`` (the default of ``locate``): ``ESF+ramp``, then the same pixels refitted with the
+  physical lunar-Lambert limb profile (:data:`jaxlimb.models.lunar_lambert.LIMB_PROFILE`, ``L``
   estimated; ``LocateOptions(profile="auto")``), Earth only;
 * ``CSF`` (Moon only, whole limb): the Moon pipeline, :func:`jaxlimb.pipeline.locate.locate` with
   its defaults (the circular sigmoid, then the physical limb profile; it runs its own front end,
@@ -123,7 +123,7 @@ def run_frame(fr: Frame, n_noise: int, seed: int, reflectance: str = "lommel-see
     from jaxlimb.geometry.horizon import horizon_from_pixels
     from jaxlimb.imaging import Hints, gradient_front_end
     from jaxlimb.pipeline import LocateOptions, locate as locate_any
-    from jaxlimb.pipeline.earth import EllipsoidOptions
+    from jaxlimb.pipeline import EllipsoidOptions
 
     noisy = _noisy()
     cam, sc, frame, truth = render(fr, reflectance)

@@ -1,4 +1,4 @@
-"""The irregular-body line of sight on frames it does not assume (issue 12): own vs independent renders.
+"""The irregular-body line of sight on frames it does not assume: own vs independent renders.
 
 Every view is rendered twice from the same geometry:
 

@@ -1,4 +1,4 @@
-"""Which part of a ray-traced scene moves the attitude-known centre (issue 12): one factor changed at a time.
+"""Which part of a ray-traced scene moves the attitude-known centre: one factor changed at a time.
 
 The scenes are those of ``benchmarks/irregular_independent.py`` (same seed): its random draws are replayed
 (every view rendered again in order, since the sensor's Poisson draws consume the generator by the image's

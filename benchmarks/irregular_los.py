@@ -1,4 +1,4 @@
-"""Benchmark of the checked model-based line of sight of irregular bodies (issue 12).
+"""Benchmark of the checked model-based line of sight of irregular bodies.
 
 Independent renders (``jaxlimb.render.mesh``, Lommel-Seeliger, Gaussian noise
 ``--noise`` DN) of the shared meshes (Thebe, Eros; Phobos unless ``--quick``) and of
@@ -7,7 +7,7 @@ Gaussian random sphere, contact binary, elongated body), random attitudes (unifo
 on SO(3), so off any template grid), phases 0/30/60 deg (Sun azimuth random), a
 1024^2 camera (focal 1500 px) at 3x and 10x the body's long axis (bounding-sphere
 diameter), every other frame off-centre.  Error = distance of ``center_rc`` to the
-projection of the mesh origin (DESIGN.md).
+projection of the mesh origin (docs/design.md).
 
 Two modes of :func:`jaxlimb.irregular.locate.locate_los`:
 

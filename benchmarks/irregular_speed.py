@@ -1,4 +1,4 @@
-"""Speed of ``jaxlimb los locate`` with the attitude unknown (issue 12: <= 3 s per call, process start included).
+"""Speed of ``jaxlimb los locate`` with the attitude unknown (target: <= 3 s per call, process start included).
 
 Frames of ``benchmarks/irregular_los.py`` (same renderer, camera and noise): Thebe
 and a generated contact binary at phase 30 deg and 3x / 10x the long axis, plus Phobos
@@ -67,17 +67,17 @@ def _wall(cmd: list[str], env: dict[str, str]) -> tuple[float, float, dict | Non
 
 def _stages(img, db, cam, sun, range_km) -> dict[str, float]:
     """Wall time of each stage of the template search (same code path as ``locate_los``)."""
-    from jaxlimb.irregular.locate import LosOptions, _register_hypotheses, search_hypotheses, search_register_options
+    from jaxlimb.irregular.locate import Frame, LosOptions, register_hypotheses, search_hypotheses
     from jaxlimb.irregular.register import lit_figure
 
     o = LosOptions()
     t0 = time.perf_counter()
-    seg = lit_figure(img)
+    frame = Frame(np.asarray(img, dtype=float), lit_figure(img), cam, sun)
     t1 = time.perf_counter()
-    hyps = search_hypotheses(seg, db, cam, sun, o)
+    hyps = search_hypotheses(frame, db, o)
     t2 = time.perf_counter()
     n = min(len(hyps), o.n_verify)  # the retry set is registered only when none of these explains the frame
-    _register_hypotheses(img, db, cam, sun, seg, hyps[:n], search_register_options(o), o)
+    register_hypotheses(frame, db, hyps[:n], o)
     t3 = time.perf_counter()
     return {"segment_s": t1 - t0, "template_search_s": t2 - t1, "register_s": t3 - t2}
 

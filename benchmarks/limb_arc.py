@@ -4,7 +4,7 @@ Rendered Moons (``jaxlimb.render``, lunar-Lambert, PSF 1 px, 8 bit, 2 DN read no
 radius ~330 px in a 400x500 frame (half-diagonal 320 px) with the centre outside the frame, so that
 21-27 % of the limb is in the frame; phase 30 deg with the lit limb toward the visible arc.  Hints:
 the Moon, the Sun direction and a range prior 1 % off (the expected disc exceeds the frame, so
-``locate`` measures the arc: :func:`jaxlimb.pipeline.whole_limb.locate_arc`).  Per geometry, a
+``locate`` measures the arc: :func:`jaxlimb.pipeline.sphere.predicted.PredictedLimbSphere`).  Per geometry, a
 small Monte Carlo over noise seeds: centre error (px) against the render's truth, its scatter
 against the reported 1-sigma.
 

@@ -270,7 +270,7 @@ def monte_carlo(case: Case, n_runs: int, seed: int, progress: bool = True, senso
 
 def earth_targets(n_noise: int, seed: int, reflectance: str = "lommel-seeliger",
                   profile: str | None = None) -> list[dict[str, Any]]:
-    """The Earth targets of issue 4: centre <= 0.1 px and range <= 0.1 % (known attitude).
+    """The Earth targets: centre <= 0.1 px and range <= 0.1 % (known attitude).
 
     Earth at 380 000 km (16 mm, 340 px crop) and 40 000 km (8 mm, 1300 px), observer latitude
     0 / 30 / 60 deg, gibbous (40 deg phase); variants: ``R_body_to_camera`` known (default),

@@ -1,7 +1,7 @@
 """Mean NEES of the centre per family under candidate specification floors, from a results JSON of
 ``benchmarks/families.py`` (its ``ok`` records keep the reported 2x2 centre covariance ``cov_rc``).
 
-    python benchmarks/nees_floor.py benchmarks/results/families_earth_nofloor.json [--floors 0,0.005,0.0075,0.01]
+    python benchmarks/nees_floor.py benchmarks/results/families_earth.json [--floors 0,0.005,0.0075,0.01]
 
 Each covariance has its eigenvalues below ``floor^2`` raised to it, ``C + [floor^2 I - C]_+`` (as
 ``EllipsoidOptions.center_floor_px`` does to the ellipse centre), and the NEES ``e^T C^-1 e`` of the frame's centre error ``e`` is averaged per family.  Run it on
@@ -18,7 +18,7 @@ import numpy as np
 
 def floored_nees(rec: dict, floor: float) -> float:
     """NEES of one ``ok`` record with its centre covariance floored at ``floor`` px in every direction."""
-    from jaxlimb.analysis.model_error import with_model_error
+    from jaxlimb.model_error import with_model_error
 
     C, e = np.array(rec["cov_rc"], float), np.array(rec["err_rc"], float)
     return float(e @ np.linalg.solve(with_model_error(C, floor * floor * np.eye(2)), e))

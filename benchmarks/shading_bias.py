@@ -5,10 +5,10 @@ Usage::
     .venv/bin/python benchmarks/shading_bias.py [--families lambert,own,clouds] [--n 6] [--seed 2026] [--cache DIR]
                                                 [--L 0] [--out NAME]
 
-For each frame the limb is traced about its *true* ellipse (:func:`jaxlimb.pipeline.limb_trace.trace_limb`, the
+For each frame the limb is traced about its *true* ellipse (:func:`jaxlimb.pipeline.ellipsoid.trace.trace_limb`, the
 Sun's side, 80 deg each way, +-6 px), and the known-shape ellipse is fitted through the crossings as traced
-(``plain``) and after :func:`~jaxlimb.pipeline.limb_trace.shading_offsets` with the PSF sigma of
-:func:`~jaxlimb.pipeline.limb_trace.shading_sigma` and lunar-Lambert ``--L`` (``corrected``).  Reported: the centre
+(``plain``) and after :func:`~jaxlimb.pipeline.ellipsoid.trace.shading_offsets` with the PSF sigma of
+:func:`~jaxlimb.pipeline.ellipsoid.trace.shading_sigma` and lunar-Lambert ``--L`` (``corrected``).  Reported: the centre
 error along and across the Sun's image direction (px) and the chosen sigma.  ``--L-grid`` also reports the ``L``
 (0, 0.25, ..., 1) whose model best matches the rays.  Writes ``benchmarks/results/<out>.json`` (default
 ``shading_bias``).
@@ -23,19 +23,21 @@ from pathlib import Path
 
 import numpy as np
 
+from jaxlimb.pipeline.ellipsoid import shading, trace as lt
+from jaxlimb.pipeline.ellipsoid.trace_fit import fit_traced
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
 def _best_L(img, tr, ell, cam, sun) -> float:
     """The ``L`` (0-1 by 0.25) of the best-matching shading model, sigma chosen for each."""
-    from jaxlimb.pipeline import limb_trace as lt
 
     ok = tr.ok
     v, rad, _ = lt._sample_rays(img, ell, tr.angles[ok], 6.0, 0.5)
     r_obs = np.linalg.norm(tr.points[ok] - np.asarray(ell[0], float)[None, :], axis=1)
     y, rel = (v - tr.sky) / (tr.inside[ok] - tr.sky)[:, None], rad - r_obs[:, None]
     xs = np.arange(-10.0, 10.25, 0.25)
-    normals = lt._limb_normals(cam, ell, tr.angles[ok])
+    normals = shading.limb_normals(cam, ell, tr.angles[ok])
     costs = {(L, sg): lt._shape_misfit(y, rel, lt._scaled_rows(tr, ok, ell, normals, sun, sg, L, xs), xs, tr.noise)
              for L in (0.0, 0.25, 0.5, 0.75, 1.0) for sg in lt.SHADE_SIGMAS}
     return float(min(costs, key=costs.get)[0])
@@ -44,7 +46,7 @@ def _best_L(img, tr, ell, cam, sun) -> float:
 def measure(case, L: float, grid: bool) -> dict:
     """Plain and shading-corrected centre errors of one frame traced about its true ellipse."""
     from jaxlimb.imaging.prior import sun_direction_image
-    from jaxlimb.pipeline.limb_trace import fit_traced, shading_corrected, shading_offsets, shading_sigma, trace_limb
+    from jaxlimb.pipeline.ellipsoid.trace import shading_corrected, shading_offsets, shading_sigma, trace_limb
 
     t, cam, sun = case.truth, case.camera, case.hints["sun_dir_camera"]
     ell = (tuple(t.ellipse_center_rc), tuple(t.semi_axes_px), t.angle_rad)

@@ -1,4 +1,4 @@
-"""Solver x scenario table for the circular-sigmoid fit (the core issue's benchmark problem).
+"""Solver x scenario table for the circular-sigmoid fit.
 
 Problem: 400x400 image, circular sigmoid, radius 150 px, k = 3, ymax 200, ymin 20,
 pixels within +-6 px of the limb (~11 000), Gaussian noise sigma = 10, float64.

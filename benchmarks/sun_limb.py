@@ -1,7 +1,7 @@
 """Sigmoid ``locate`` vs the limb-darkened disc fit on the three SDO images (truth from the headers).
 
 For each image: centre error and radius error of :func:`jaxlimb.pipeline.locate` (circular
-sigmoid) and of :func:`jaxlimb.pipeline.sun_profile.fit_limb_darkened` (started from the
+sigmoid) and of :func:`jaxlimb.pipeline.sphere.sun.fit_limb_darkened` (started from the
 sigmoid's circle, or from a thresholded disc when ``locate`` fails).  Truth: the MANIFEST for
 the 512 px PNG; ``sun_truth_from_header`` (astropy.wcs, ``RSUN_OBS``) for the FITS files.
 For ``resampled_hmi.fits`` the centre is also computed with ``CROTA2`` dropped, and from
@@ -24,10 +24,10 @@ jax.config.update("jax_enable_x64", True)
 from _common import environment, save  # noqa: E402
 
 from jaxlimb._data import shared_data_dir  # noqa: E402
-from jaxlimb.imaging import hmi_512_truth, load_image  # noqa: E402
-from jaxlimb.imaging.sdo import AIA_171_FITS, HMI_512_PNG, RESAMPLED_HMI_FITS, sun_truth_from_header  # noqa: E402
+from jaxlimb.imaging.sdo import AIA_171_FITS, HMI_512_PNG, hmi_512_truth, RESAMPLED_HMI_FITS, sun_truth_from_header
+from jaxlimb.imaging.io import load_image
 from jaxlimb.pipeline import locate  # noqa: E402
-from jaxlimb.pipeline.sun_profile import fit_limb_darkened  # noqa: E402
+from jaxlimb.pipeline.sphere.sun import fit_limb_darkened
 
 
 def _nan_mask_circle(data: np.ndarray) -> dict:

@@ -1,10 +1,10 @@
-"""Warm ``locate`` per 1944x2592 Moon frame (issue 10's budget: the default path <= 150 ms after warm-up).
+"""Warm ``locate`` per 1944x2592 Moon frame (budget: the default path <= 150 ms after warm-up).
 
 Two frame sets, each timed in its own fresh process after one warm-up pass, CPU and wall time per frame:
 
 * ``default``: six frames of ``cli_speed.py``'s Moon generator (150 000 km, 45 deg, lunar-Lambert, 8 bit);
 * ``maria``: the six ``maria`` frames of ``families.py`` (independent renderer; they take the patchy-sector
-  refit, :func:`jaxlimb.pipeline.profile_fit.downweight_patchy_sectors`).
+  refit, :func:`jaxlimb.pipeline.profile.patchy.downweight_patchy_sectors`).
 
 Baseline measured in the same run: the same frames with the patchy-sector refit switched off (``--variants``),
 processes alternated so that load falls on both alike; the JSON keeps every round and the minimum.
@@ -29,7 +29,7 @@ import numpy as np, jax
 jax.config.update("jax_enable_x64", True)
 variant, frame_set, cache, bench = sys.argv[1:5]
 sys.path.insert(0, bench)
-import jaxlimb.pipeline.profile_fit as pf
+import jaxlimb.pipeline.profile.fit as pf
 if variant == "no_patchy_refit":
     pf.downweight_patchy_sectors = lambda frame, rr, solver, system=None: rr
 from jaxlimb.imaging import Hints

@@ -16,11 +16,20 @@ program is cached however small or quick to compile
 (``jax_persistent_cache_min_compile_time_secs = 0``, no minimum entry size): the pipeline is
 made of many small programs whose compilation adds up.
 
-Concurrent processes.  JAX writes a cache entry with a plain ``write_bytes``; with a size
-limit (``jax_compilation_cache_max_size``, here :data:`MAX_BYTES`) it takes a file lock
-(``filelock``) around every read and write, so a reader never sees a half-written entry, and
-evicts the least recently used entries beyond the limit.  An unreadable entry is a cache miss
-(JAX recompiles; it never fails the computation).
+Checked entries, no lock.  The compiled programs are stored by :class:`CheckedCache` (installed
+in JAX's place, same ``<key>-cache`` file names) and the exported fit cores by
+:mod:`jaxlimb.fitting._aot`, both as *sealed* entries (:func:`seal`): a header with the SHA-256 of
+the JAX and jaxlib versions and of the entry's bytes.  The seal is checked before anything is
+deserialised, so a damaged entry (a flipped bit, a truncated file, junk under an entry's name,
+another JAX's entry) never reaches XLA's deserialiser -- which can abort the process -- nor gives a
+different answer: it is deleted, the program is compiled again, and one
+:class:`~jaxlimb.errors.CacheRepairWarning` says so (once per process).  Entries are written
+atomically (a temporary renamed into place), so readers never see half an entry and no lock is
+needed: a stale or stopped lock holder cannot hold a run up.  The least recently used entries
+(file modification time, touched on every hit) are evicted beyond :data:`MAX_BYTES`; junk files
+(evicted like entries) and missing or orphan JAX ``-atime`` files do not stop it storing.  A cache
+that cannot be written (a full disk, ``JAXLIMB_CACHE`` naming a file) is bypassed with one
+warning; the run goes on without it.
 
 :class:`CompileTimer` measures the wall time spent tracing, lowering and compiling (or loading
 from the cache) inside a block, from JAX's monitoring time spans (the union of the spans, so
@@ -30,6 +39,7 @@ the compute time.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import threading
 from pathlib import Path
@@ -129,15 +139,178 @@ def enable_compile_cache(path: str | os.PathLike[str] | None = None) -> Path | N
         return None
     try:
         target.mkdir(parents=True, exist_ok=True)
-    except OSError:
-        return None
-    if not os.access(target, os.W_OK):
+        if not os.access(target, os.W_OK):
+            raise PermissionError(13, "not writable")
+    except OSError as e:
+        warn_once("cache-dir", f"the compilation cache directory {str(target)!r} cannot be used "
+                  f"({e.strerror or e}): running without it")
         return None
     jax.config.update("jax_compilation_cache_dir", str(target))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)
-    jax.config.update("jax_compilation_cache_max_size", MAX_BYTES)  # LRU eviction + file lock
+    if not _install_checked_cache(target):  # JAX's own cache then: without a size limit it takes no lock
+        jax.config.update("jax_compilation_cache_max_size", -1)
     return target
+
+
+# ----------------------------------------------------------------------------- sealed entries
+_SEAL_MAGIC = b"jaxlimb-sealed-v1\n"
+_WARNED: set[str] = set()
+
+
+def _jax_versions() -> bytes:
+    import jax
+    import jaxlib
+
+    return f"jax={jax.__version__};jaxlib={jaxlib.__version__}".encode()
+
+
+def seal(payload: bytes, versions: bytes | None = None) -> bytes:
+    """``payload`` with its seal: a magic line and the SHA-256 of ``versions`` (default: JAX's and jaxlib's)
+    and of ``payload``; :func:`unseal` gives ``payload`` back only when both match."""
+    import hashlib
+
+    v = _jax_versions() if versions is None else versions
+    return _SEAL_MAGIC + hashlib.sha256(v + b"\0" + payload).digest() + payload
+
+
+def unseal(data: bytes, versions: bytes | None = None) -> bytes | None:
+    """The payload of a sealed entry, or ``None`` when it is damaged, truncated, not sealed or sealed
+    under other versions (:func:`seal`)."""
+    import hashlib
+
+    head = len(_SEAL_MAGIC) + 32
+    if len(data) < head or not data.startswith(_SEAL_MAGIC):
+        return None
+    payload = memoryview(data)[head:]
+    v = _jax_versions() if versions is None else versions
+    if hashlib.sha256(v + b"\0" + payload).digest() != data[len(_SEAL_MAGIC) : head]:
+        return None
+    return bytes(payload)
+
+
+def warn_once(kind: str, message: str) -> None:
+    """One :class:`~jaxlimb.errors.CacheRepairWarning` per ``kind`` and process (the CLI shows it as one
+    ``jaxlimb: warning:`` line)."""
+    import warnings
+
+    from .errors import CacheRepairWarning
+
+    if kind not in _WARNED:
+        _WARNED.add(kind)
+        warnings.warn(message, CacheRepairWarning, stacklevel=3)
+
+
+def read_sealed(path: Path, what: str, versions: bytes | None = None) -> bytes | None:
+    """The checked payload of the sealed entry at ``path``; ``None`` when it is missing.  A damaged or
+    foreign entry is deleted (and said once, :func:`warn_once`); so is one that cannot be read."""
+    try:
+        data = path.read_bytes()
+    except (FileNotFoundError, NotADirectoryError):
+        return None
+    except OSError as e:
+        warn_once(what, f"{what} entry {path.name} cannot be read ({e.strerror or e}): compiled again")
+        return None
+    payload = unseal(data, versions)
+    if payload is None:
+        with contextlib.suppress(OSError):
+            path.unlink()
+        warn_once(what, f"{what} entry {path.name} failed its check (damaged, or written by other versions of "
+                  "JAX/jaxlib): deleted and compiled again")
+    return payload
+
+
+def write_sealed(path: Path, payload: bytes, what: str, versions: bytes | None = None) -> bool:
+    """Write ``payload`` sealed to ``path`` atomically; a failed write (full disk...) is said once and skipped."""
+    from ._io import atomic_open
+
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_open(path, "wb") as fh:
+            fh.write(seal(payload, versions))
+    except (OSError, ValueError) as e:  # OutputWriteError is a ValueError
+        warn_once(what + "-write", f"{what} cannot be written in {str(path.parent)!r} ({e}): running without "
+                  "storing its entries")
+        return False
+    return True
+
+
+class CheckedCache:
+    """JAX's persistent compilation cache with sealed entries, atomic writes and no lock (module docstring).
+
+    The same interface as JAX's own cache (``get``/``put``/``clear`` and ``_path``); installed by
+    :func:`enable_compile_cache`.
+    """
+
+    what = "compilation cache"
+
+    def __init__(self, path: str | os.PathLike[str], max_bytes: int = MAX_BYTES) -> None:
+        self._path = Path(path)
+        self.max_bytes = max_bytes
+        self._size: int | None = None  # bytes of entries, known after the first put
+        self._lock = threading.Lock()
+
+    def _entry(self, key: str) -> Path:
+        if not key or "/" in key or key.startswith("."):
+            raise ValueError(f"bad cache key {key!r}")
+        return self._path / f"{key}-cache"
+
+    def get(self, key: str) -> bytes | None:
+        path = self._entry(key)
+        value = read_sealed(path, self.what)
+        if value is not None:
+            with contextlib.suppress(OSError):
+                os.utime(path)  # least recently used: the modification time
+        return value
+
+    def put(self, key: str, value: bytes) -> None:
+        with self._lock:
+            if self._size is None:
+                self._size = sum(size for _, size, _ in self._entries())
+            if self._size + len(value) > self.max_bytes:
+                self._evict(self.max_bytes * 9 // 10 - len(value))
+            if write_sealed(self._entry(key), value, self.what):
+                self._size += len(value)
+
+    def _entries(self) -> list[tuple[int, int, Path]]:
+        out = []
+        for p in self._path.glob("*-cache"):
+            with contextlib.suppress(OSError):
+                st = p.stat()
+                out.append((st.st_mtime_ns, st.st_size, p))
+        return out
+
+    def _evict(self, target: int) -> None:
+        entries = sorted(self._entries())
+        total = sum(size for _, size, _ in entries)
+        for _, size, p in entries:
+            if total <= target:
+                break
+            with contextlib.suppress(OSError):
+                p.unlink()
+            total -= size
+        self._size = total
+
+    def clear(self) -> None:
+        for _, _, p in self._entries():
+            with contextlib.suppress(OSError):
+                p.unlink()
+        self._size = 0
+
+
+def _install_checked_cache(target: Path) -> bool:
+    """Put :class:`CheckedCache` in the place JAX's compiler reads and writes its entries (before the first
+    compilation); ``False`` (JAX keeps its own cache) when this JAX has no such place or is already using one."""
+    try:
+        from jax._src import compilation_cache as cc
+    except ImportError:  # pragma: no cover - another JAX layout
+        return False
+    with cc._cache_initialized_mutex:
+        if cc._cache_initialized or cc._cache is not None:
+            return isinstance(cc._cache, CheckedCache)
+        cc._cache = CheckedCache(target)  # type: ignore[assignment]
+        cc._cache_initialized = True
+    return True
 
 
 def start_jax() -> None:
@@ -201,4 +374,5 @@ class CompileTimer:
         return total
 
 
-__all__ = ["ENV_DIR", "MAX_BYTES", "CompileTimer", "cache_dir", "enable_compile_cache", "start_jax"]
+__all__ = ["ENV_DIR", "MAX_BYTES", "CheckedCache", "CompileTimer", "cache_dir", "enable_compile_cache", "read_sealed",
+           "seal", "start_jax", "unseal", "warn_once", "write_sealed"]

@@ -195,14 +195,17 @@ def output_file(path: str | os.PathLike[str], name: str, *, suffixes: Sequence[s
                 error: type[LimbInputError] = LimbInputError) -> Path:
     """Check that ``path`` can be written, before any work is done.
 
-    The path must not be a directory, its extension must be one of ``suffixes`` (when
-    given, lower-case with the dot), and its directory must exist and accept a new file.
+    The path must not be a directory nor anything else that is not a regular file (a FIFO, a
+    device), its extension must be one of ``suffixes`` (when given, lower-case with the dot),
+    and its directory must exist and accept a new file.
     """
     p = Path(path)
     if not str(path).strip():
         raise error(f"{name} is an empty path")
     if p.is_dir():
         raise error(f"{name} {str(p)!r} is a directory; give a file name")
+    if p.exists() and not p.is_file():  # a FIFO would block the writer for ever, a device swallow the result
+        raise error(f"{name} {str(p)!r} is not a regular file (a FIFO, socket or device); give a file name")
     if suffixes is not None and p.suffix.lower() not in suffixes:
         raise error(f"{name} {str(p)!r} has extension {p.suffix or '(none)'!r}; use one of {', '.join(suffixes)}")
     parent = p.parent

@@ -1,6 +1,6 @@
 """Exception hierarchy of jaxlimb.
 
-Two families, matching the command-line contract of DESIGN.md:
+Two families, matching the command-line contract of docs/design.md:
 
 * :class:`LimbInputError` (a ``ValueError``): the input is unusable -- a missing,
   corrupt, empty, wrong-shaped or non-finite image, a bad argument, a bad camera
@@ -200,6 +200,13 @@ class OutputBusyError(LimbInputError):
     check = "output_busy"
 
 
+class OutputWriteError(LimbInputError):
+    """An output could not be written whole (disk full, I/O error, quota): the run stops; what was written
+    stays whole and a many-frame ``--out`` file stays resumable (CLI exit 2)."""
+
+    check = "write_failed"
+
+
 class MatchError(CheckFailed):
     """The shape model does not explain the frame: poor residual or overlap (model-based line of sight)."""
 
@@ -218,6 +225,12 @@ class SaturationWarning(UserWarning):
     within ~0.05 px); ``extras["saturation"]`` of the measurement says how many."""
 
 
+class CacheRepairWarning(UserWarning):
+    """A cache entry (compiled program, exported fit core, template database) failed its check -- damaged,
+    truncated, or written by other versions -- and was deleted and rebuilt; or the cache was bypassed.
+    The answer is the one an undamaged cache gives."""
+
+
 __all__ = [
     "AmbiguousMatchError",
     "ArcTooShortError",
@@ -225,6 +238,7 @@ __all__ = [
     "DarkLimbInconsistentError",
     "UsageError",
     "AttitudeError",
+    "CacheRepairWarning",
     "CheckFailed",
     "ConfigError",
     "ConvergenceError",
@@ -242,6 +256,7 @@ __all__ = [
     "MeshError",
     "NoBodyError",
     "OutputBusyError",
+    "OutputWriteError",
     "PosteriorImproperError",
     "RadiusInconsistentError",
     "SaturationWarning",

@@ -16,9 +16,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 import _common
+import numpy as np
 
 
 def run(stem: str, title: str, phase_deg: float, paper_text: str, out_dir: Path, quick: bool) -> list[Path]:

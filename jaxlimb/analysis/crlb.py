@@ -39,6 +39,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import LimbInputError
+from ..fitting import bucket_size
+from ..numerics import numerical_jacobian
+from ..geometry.navigation import sphere_from_circle
 from ..models import LimbModel, LimbParams
 
 
@@ -74,8 +77,6 @@ def _padded_eval(model: LimbModel, what: str, params: LimbParams, coords: np.nda
     afterwards) means pixel sets of similar size share one compiled program: a pipeline that
     calls :func:`crlb` on every frame (whose pixel count varies by a few) does not recompile.
     """
-    from ..fitting import bucket_size
-
     n = coords.shape[0]
     size = bucket_size(n)
     if size > n:
@@ -140,20 +141,6 @@ def delta_method(cov: np.ndarray, jacobian: np.ndarray) -> np.ndarray:
     return 0.5 * (out + out.T)
 
 
-def numerical_jacobian(fn, x: np.ndarray, step: np.ndarray | float = 1e-4) -> np.ndarray:  # noqa: ANN001
-    """Central-difference Jacobian ``(m, p)`` of ``fn: (p,) -> (m,)`` at ``x`` (error ``O(step^2)``)."""
-    x = np.asarray(x, dtype=float)
-    h = np.broadcast_to(np.asarray(step, dtype=float), x.shape)
-    if np.any(h <= 0):
-        raise LimbInputError(f"`step` must be > 0, got {step!r}")
-    cols = []
-    for i in range(x.size):
-        e = np.zeros_like(x)
-        e[i] = h[i]
-        cols.append((np.atleast_1d(fn(x + e)) - np.atleast_1d(fn(x - e))) / (2.0 * h[i]))
-    return np.stack(cols, axis=-1)
-
-
 @dataclass(frozen=True)
 class LosRangeBound:
     """Line of sight and range of a sphere from a circle fit, with their delta-method covariance.
@@ -210,8 +197,6 @@ def los_range_bound(camera, center_rc, radius_px: float, cov_center_radius: np.n
     -------
     LosRangeBound
     """
-    from ..geometry.navigation import sphere_from_circle
-
     x0 = np.array([float(center_rc[0]), float(center_rc[1]), float(radius_px)])
     cov = np.asarray(cov_center_radius, dtype=float)
     if cov.shape != (3, 3):

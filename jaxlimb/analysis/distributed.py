@@ -38,6 +38,7 @@ pass ``--scheduler tcp://node:8786`` to ``jaxlimb montecarlo --pipeline`` /
 
 from __future__ import annotations
 
+import contextlib
 import math
 import uuid
 from collections.abc import Callable, Iterator, Sequence
@@ -76,9 +77,37 @@ def make_client(scheduler: str | None = None, workers: int = 2, processes: bool 
     # dashboard_address ":0": the scheduler's HTTP server (always started) on a free port, never a clash on 8787
     # worker processes: their threads share the cores; JAX starts while they register, and they exit quickly
     extra = {"env": worker_environment(workers), "preload": [WORKER_PRELOAD]} if processes else {}
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
-                           dashboard_address=":0", silence_logs=50, **extra)
-    return Client(cluster)
+    with _workers_start_quietly():
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
+                               dashboard_address=":0", silence_logs=50, **extra)
+    try:
+        return Client(cluster)
+    except BaseException:
+        cluster.close()
+        raise
+
+
+@contextlib.contextmanager
+def _workers_start_quietly() -> Iterator[None]:
+    """The worker processes started in the block get ``/dev/null`` as their stderr: a Ctrl-C that reaches them
+    while Python starts (before Dask's handlers exist) would print a traceback each; their errors reach the
+    client as task errors, and ``silence_logs`` keeps their logs quiet anyway.  This process's stderr is the
+    same again after the block."""
+    import os
+
+    try:
+        saved = os.dup(2)
+    except OSError:  # no stderr at all
+        yield
+        return
+    null = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+        os.close(null)
 
 
 def worker_environment(workers: int, cores: int | None = None) -> dict[str, str]:

@@ -32,7 +32,7 @@ Checks against the paper (each shown by a test in ``tests/analysis/test_error_pr
    underestimates ``sigma_c`` by 2.  We use the rotation-angle sigma throughout.
 5. The text lists Fig. 18's distances as 50 000, 150 000, 250 000 "and 35 000" km; the regular
    spacing says 350 000 km (a typo) -- :func:`figure18_data` uses 350 000 km.
-6. The paper's ``R_m = 1737.5`` km; DESIGN.md fixes 1737.4 km (0.006 % -- negligible).
+6. The paper's ``R_m = 1737.5`` km; docs/design.md fixes 1737.4 km (0.006 % -- negligible).
 """
 
 from __future__ import annotations
@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import GeometryError
+from ..geometry.attitude import rotation_vector_to_dcm
 from ..geometry.camera import Camera
 
 MOON_RADIUS_KM = 1737.4
@@ -213,7 +214,6 @@ def monte_carlo_center_attitude(
 ) -> np.ndarray:
     """Sample exact small rotations (per-axis ``sigma``), project the rotated LOS; return the
     ``(n, 2)`` (radial, tangential) image displacements in px (check of Eq. 39)."""
-    from ..geometry.attitude import rotation_vector_to_dcm
 
     cam = camera or Camera()
     rng = np.random.default_rng(seed)

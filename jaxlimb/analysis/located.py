@@ -23,9 +23,10 @@ from ..models import (CIRCLE, ELLIPSE, ELLIPSE_RAMP, LIMB_DARKENED, CircleParams
 from ..models.lunar_lambert import profile_model
 from ..pipeline import LimbMeasurement, locate
 from ..pipeline.bodies import body_strategy
-from ..pipeline.edge import InitialCircleOffError
-from ..pipeline.frame import arc_only, limb_predicted, other_candidates, prepare
+from ..pipeline.frame import other_candidates, prepare
 from ..pipeline.report import covariance
+from ..pipeline.sphere.edge import InitialCircleOffError
+from ..pipeline.sphere.predicted import PredictedLimbSphere
 
 #: Largest difference (px) between ``locate``'s centre and the replayed stages' before :func:`located_fit` refuses.
 AGREEMENT_PX = 1e-9
@@ -47,8 +48,9 @@ class LocatedFit:
     Attributes
     ----------
     measurement : the :class:`~jaxlimb.pipeline.LimbMeasurement` ``locate`` returned.
-    final : the final fit (the pipeline's ``RefineResult``: ``fit``, ``data``, ``fixed``).
-    geo : its body-centre mapping (the pipeline's ``BodyCenter``).
+    final : the final fit (:class:`~jaxlimb.pipeline.stages.RefineResult`: ``fit``, ``data``, ``fixed``).
+    geo : its body-centre mapping (:class:`~jaxlimb.pipeline.stages.BodyCenter`).
+    edge : the edge fit the mapping starts from (:class:`~jaxlimb.pipeline.stages.EdgeFit`).
     names, matrix : ``locate``'s covariance over the mapped quantities and the other free parameters.
     crlb : the Cramér--Rao sigmas ``locate`` reports (``None`` when not computed).
     """
@@ -61,6 +63,7 @@ class LocatedFit:
     crlb: dict[str, float] | None
     frame: Any
     body: Any
+    edge: Any
 
     @property
     def model(self) -> LimbModel:
@@ -88,17 +91,17 @@ class LocatedFit:
         """``params`` (another value of the fit's parameters) through ``locate``'s body-centre mapping:
         ``center_rc``, ``radius_px``, ``range_km``, ``los``."""
         fit = eqx.tree_at(lambda f: f.params, self.final.fit, params)
-        geo = self.body.body_center(self.frame, dataclasses.replace(self.final, fit=fit))
+        geo = self.body.body_center(self.frame, self.edge, dataclasses.replace(self.final, fit=fit))
         return {"center_rc": geo.center_rc, "radius_px": geo.radius_px, "range_km": geo.range_km, "los": geo.los}
 
 
-def _stages(frame: Any, body: Any, cand: Any) -> tuple[Any, Any]:
-    """The final fit and its body-centre mapping (``locate``'s stages 3-6)."""
+def _stages(frame: Any, body: Any, cand: Any) -> tuple[Any, Any, Any]:
+    """The edge fit, the final fit and its body-centre mapping (``locate``'s stages 3-6)."""
     pixels = body.limb_pixels(frame, cand)
     edge = body.edge_fit(frame, cand, pixels)
     extras = body.report(frame, cand, edge)
     final = body.refit(frame, cand, edge, extras)
-    return final, body.body_center(frame, final)
+    return edge, final, body.body_center(frame, edge, final)
 
 
 def located_fit(image: Any, camera: Any = None, hints: Any = None, options: Any = None) -> LocatedFit:
@@ -115,20 +118,20 @@ def located_fit(image: Any, camera: Any = None, hints: Any = None, options: Any 
     m = locate(image, camera, hints, options)
     frame = prepare(image, camera, hints, options)
     body = body_strategy(frame)
-    if body.name == "sphere" and (limb_predicted(frame) or arc_only(frame)):
+    if isinstance(body, PredictedLimbSphere):
         raise ConfigError("this frame is measured on its whole (predicted) limb or its visible arc, not by one "
                           "limb-model fit: drop `expected_center_rc` from the hints")
     frame = body.prepare(frame)
     cand = body.candidates(frame)
     try:
-        final, geo = _stages(frame, body, cand)
+        edge, final, geo = _stages(frame, body, cand)
     except InitialCircleOffError:
-        final, geo = _stages(frame, body, other_candidates(frame))
+        edge, final, geo = _stages(frame, body, other_candidates(frame))
     off = float(np.max(np.abs(np.asarray(geo.center_rc) - np.asarray(m.center_rc))))
     if not off <= AGREEMENT_PX:
         raise ConfigError(f"the stages of locate gave another centre ({off:.3g} px away): cannot study its fit")
     cov = covariance(final, geo)
-    return LocatedFit(m, final, geo, tuple(cov.names), np.asarray(cov.matrix), m.crlb, frame, body)
+    return LocatedFit(m, final, geo, tuple(cov.names), np.asarray(cov.matrix), m.crlb, frame, body, edge)
 
 
 def fit_problem(lf: LocatedFit, start_offset_px: float = 0.5) -> Any:

@@ -2,7 +2,7 @@
 
 Each sub-command lives in its own module ``jaxlimb/cli/_<name>.py`` that defines
 ``register(subparsers)``; the parser it adds sets ``func`` to a callable
-``run(args) -> int``.  This module owns the error contract of DESIGN.md:
+``run(args) -> int``.  This module owns the error contract of docs/design.md:
 
 * exit 0 on success;
 * exit 2 for unusable input (:class:`~jaxlimb.errors.LimbInputError`, bad arguments);
@@ -15,7 +15,14 @@ Each sub-command lives in its own module ``jaxlimb/cli/_<name>.py`` that defines
   ``JAXLIMB_DEBUG`` is set) and OpenCV's own ``[ WARN ]`` logging is silenced (the
   image readers report every failure themselves);
 * a closed stdout (``jaxlimb ... --json | head -c 1``) ends the command quietly
-  with exit 141 (128 + SIGPIPE, as the POSIX tools do).
+  with exit 141 (128 + SIGPIPE, as the POSIX tools do);
+* SIGINT (Ctrl-C) ends the command with one ``interrupted`` message and exit 130, SIGTERM
+  with one ``terminated`` message and exit 143 (128 + the signal); outputs stay whole and
+  resumable (files are written atomically or one whole line at a time);
+* a standard stream closed at start (``<&-``, ``2>&-``) is opened on ``/dev/null``, so no
+  file the command opens can take its place and no message fails for want of it.
+
+The exit codes and what every command guarantees are tabled in ``docs/guarantees.md``.
 """
 
 from __future__ import annotations
@@ -25,6 +32,7 @@ import contextlib
 import importlib
 import json
 import os
+import signal
 import sys
 import warnings
 from collections.abc import Callable, Iterator, Sequence
@@ -34,6 +42,7 @@ _COMMANDS = (
     "_demo",
     "_locate",
     "_navigate",
+    "_track",
     "_los",
     "_posterior",
     "_montecarlo",
@@ -71,7 +80,7 @@ def emit_json(obj: object) -> None:
 
     The output is strict JSON: a non-finite float (NaN, inf) is written as ``null``.
     """
-    print(json.dumps(finite_json(obj), allow_nan=False, default=_json_default))
+    print(json.dumps(finite_json(obj), allow_nan=False, default=json_default))
 
 
 def finite_json(obj: object) -> object:
@@ -93,7 +102,11 @@ def finite_json(obj: object) -> object:
 def warnings_to_stderr(*categories: type[Warning]) -> Iterator[None]:
     """Show warnings of ``categories`` raised in the block as one ``jaxlimb: warning: ...`` line
     each on stderr (every one, not only the first of its kind); other warnings recorded in the
-    block are not shown (the CLI prints one-line messages, never Python's warning format)."""
+    block are not shown (the CLI prints one-line messages, never Python's warning format), except a
+    cache's :class:`~jaxlimb.errors.CacheRepairWarning`, which is always shown."""
+    from ..errors import CacheRepairWarning
+
+    categories = (*categories, CacheRepairWarning)
     with warnings.catch_warnings(record=True) as caught:
         for c in categories:
             warnings.simplefilter("always", c)
@@ -136,7 +149,8 @@ def report_after_result(error: str | None) -> int:
     return 2
 
 
-def _json_default(o: object) -> object:
+def json_default(o: object) -> object:
+    """``json.dumps``'s ``default`` for the commands' output: NumPy scalars and arrays as Python values."""
     import numpy as np
 
     if isinstance(o, np.generic):
@@ -149,6 +163,49 @@ def _json_default(o: object) -> object:
 
 
 _EXIT_BROKEN_PIPE = 141  # 128 + SIGPIPE
+EXIT_INTERRUPTED = 130  # 128 + SIGINT
+EXIT_TERMINATED = 143  # 128 + SIGTERM
+
+
+class Terminated(BaseException):
+    """SIGTERM received: raised in the main thread by the CLI's handler, so ``finally`` blocks
+    (locks, partial records, Dask clusters) run as for Ctrl-C."""
+
+
+def _on_sigterm(signum: int, frame: object) -> None:
+    del signum, frame
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a second SIGTERM ends the process at once
+    raise Terminated()
+
+
+@contextlib.contextmanager
+def _sigterm_raises() -> Iterator[None]:
+    """SIGTERM raises :class:`Terminated` in the block (main thread only; the old handler is restored)."""
+    try:
+        old = signal.signal(signal.SIGTERM, _on_sigterm)
+    except ValueError:  # not the main thread: leave signals alone
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+def _reopen_closed_std_streams() -> None:
+    """Open ``/dev/null`` on a closed fd 0, 1 or 2 (and give ``sys`` a stream on it), so a file the command
+    opens never takes a standard fd, and a message to a closed stream is dropped rather than an error."""
+    for fd, name, mode in ((0, "stdin", "r"), (1, "stdout", "w"), (2, "stderr", "w")):
+        try:
+            os.fstat(fd)
+            if getattr(sys, name) is not None:
+                continue
+        except OSError:
+            got = os.open(os.devnull, os.O_RDWR)
+            if got != fd:
+                os.dup2(got, fd)
+                os.close(got)
+        setattr(sys, name, open(fd, mode, closefd=False, encoding="utf-8", errors="replace"))
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:  # noqa: ANN001
@@ -160,8 +217,10 @@ def _one_line_warning(message, category, filename, lineno, file=None, line=None)
 
 
 def _quiet_opencv() -> None:
-    """Silence OpenCV's ``[ WARN ]`` logging (it writes to the stderr fd from C++)."""
+    """Silence OpenCV's ``[ WARN ]`` logging (it writes to the stderr fd from C++), and bound the images its
+    decoders accept to :data:`jaxlimb._image_bounds.MAX_IMAGE_PIXELS` (formats whose header jaxlimb does not read)."""
     os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")  # read when cv2 is first imported
+    os.environ.setdefault("OPENCV_IO_MAX_IMAGE_PIXELS", str(1 << 28))  # = _image_bounds.MAX_IMAGE_PIXELS
     cv2 = sys.modules.get("cv2")
     if cv2 is not None:
         with contextlib.suppress(AttributeError):
@@ -184,13 +243,23 @@ def main(argv: Sequence[str] | None = None) -> int:
     (:mod:`jaxlimb._jaxcache`: ``JAXLIMB_CACHE_DIR``, ``off`` to disable).  A closed stdout
     ends the command quietly (exit 141).
     """
+    _reopen_closed_std_streams()
     _quiet_opencv()
     try:
-        code = _main(argv)
-        sys.stdout.flush()
+        with _sigterm_raises():
+            code = _main(argv)
+            sys.stdout.flush()
         return code
     except BrokenPipeError:
         return _stdout_closed()
+    except Terminated:  # after _main returned (while flushing)
+        return EXIT_TERMINATED
+    except OSError as e:  # stdout on a full device (`> /dev/full`): its last flush
+        from .._io import write_error
+
+        _report(False, "write_failed", str(write_error("<stdout>", e)))
+        _stdout_closed()
+        return 2
 
 
 def entry() -> int:
@@ -225,29 +294,50 @@ def _main(argv: Sequence[str] | None) -> int:
         needs_jax = getattr(args, "needs_jax", True)  # a sub-command may declare it runs without JAX
         if callable(needs_jax):  # ... or decide from its arguments
             needs_jax = needs_jax(args)
-        if needs_jax:
-            host_devices = getattr(args, "host_devices", None)
-            _request_host_devices(host_devices(args) if host_devices else 1)
-            _start_jax()
         with warnings.catch_warnings():
             warnings.simplefilter("default")
+            warnings.simplefilter("ignore", ResourceWarning)  # Python's own default: a file freed by an interrupt
             warnings.showwarning = _one_line_warning
+            precheck = getattr(args, "precheck", None)  # cheap input checks before JAX starts (image bombs)
+            if precheck is not None:
+                precheck(args)
+            if needs_jax:
+                host_devices = getattr(args, "host_devices", None)
+                _request_host_devices(host_devices(args) if host_devices else 1)
+                start_command_jax()
             return int(args.func(args) or 0)
     except BrokenPipeError:
         raise
+    except OSError as e:
+        from .._io import WRITE_ERRNOS, write_error
+
+        if e.errno not in WRITE_ERRNOS or os.environ.get("JAXLIMB_DEBUG"):
+            return _internal_error(want_json, e)
+        err = write_error(e.filename or "<stdout>", e)
+        _report(want_json, err.check, str(err))  # type: ignore[attr-defined]
+        return 2
     except JaxlimbError as e:
         _report(want_json, e.check, str(e))
         return e.exit_code
     except KeyboardInterrupt:
-        _report(want_json, "interrupted", "interrupted")
-        return 130
+        _report(want_json, "interrupted", "interrupted (SIGINT)")
+        _last_message()
+        return EXIT_INTERRUPTED
+    except Terminated:
+        _report(want_json, "terminated", "terminated (SIGTERM)")
+        _last_message()
+        return EXIT_TERMINATED
     except SystemExit as e:
         return int(e.code) if isinstance(e.code, int) else 2
     except Exception as e:  # last resort: never a traceback unless asked for
-        if os.environ.get("JAXLIMB_DEBUG"):
-            raise
-        _report(want_json, "internal_error", f"{type(e).__name__}: {e}")
-        return 1
+        return _internal_error(want_json, e)
+
+
+def _internal_error(want_json: bool, e: Exception) -> int:
+    if os.environ.get("JAXLIMB_DEBUG"):
+        raise e
+    _report(want_json, "internal_error", f"{type(e).__name__}: {e}")
+    return 1
 
 
 def _request_host_devices(n: int) -> None:
@@ -263,14 +353,42 @@ def _request_host_devices(n: int) -> None:
         os.environ["XLA_FLAGS"] = f"{flags} --xla_force_host_platform_device_count={n}".strip()
 
 
-def _start_jax() -> None:
+def start_command_jax() -> None:
+    """Start JAX for a command (float64, compilation cache); in the command's own process, freeze its objects."""
     from .._jaxcache import start_jax
 
     start_jax()  # LAPACK kernels before JAX (no scipy.linalg package import), float64, compilation cache
+    _check_backend()
     if _STATE.get("process"):  # the command's own process (entry): JAX's objects live until its end
         import gc
 
         gc.freeze()
+
+
+def _last_message() -> None:
+    """After the one message of an interrupted command process: nothing more on stderr (the shutdown of a
+    half-started Dask cluster, interrupted library threads).  A command run in a Python session is left alone."""
+    if not _STATE.get("process"):
+        return
+    with contextlib.suppress(OSError, ValueError, AttributeError):
+        sys.stderr.flush()
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, 2)
+        os.close(devnull)
+
+
+def _check_backend() -> None:
+    """JAX's backend starts (``JAX_PLATFORMS=cuda`` on a machine without CUDA does not): else exit 2, one line."""
+    import jax
+
+    from ..errors import ConfigError
+
+    try:
+        jax.devices()
+    except Exception as e:  # noqa: BLE001 - RuntimeError, or an AssertionError when no platform asked for exists
+        first = next((ln.strip() for ln in str(e).splitlines() if ln.strip()), "no such platform on this machine")
+        raise ConfigError(f"JAX cannot start a backend (JAX_PLATFORMS={os.environ.get('JAX_PLATFORMS', '')!r}): "
+                          f"{first}") from None
 
 
 def _report(want_json: bool, check: str, message: str) -> None:

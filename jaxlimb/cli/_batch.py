@@ -6,16 +6,26 @@ glob pattern (``'frames/*.png'``, quoted so that the shell does not expand it; s
 relative paths are taken from the current directory).  A frame named twice is processed once.
 
 Output.  One JSON object per frame and per line (JSON Lines), the command's ``--json`` object
-plus ``"image": PATH``; a frame that fails gives its error object (``{"status": "error",
-"check", "message", "image"}``) and the run goes on.  On stdout, or with ``--out FILE.jsonl``
-appended to FILE, one line per frame written with a single ``write`` on a file opened for
-appending and flushed to disk, so a crash leaves at most one partial last line.  A progress bar
-(tqdm) goes to stderr when it is a terminal, and a one-line summary at the end.
+plus ``"image": PATH`` and ``"run_settings"`` (a digest of the command, its options and the
+contents of its camera, hints, database/mesh and kernel files); a frame that fails gives its
+error object (``{"status": "error", "check", "message", "image"}``) and the run goes on.  On
+stdout, or with ``--out FILE.jsonl`` appended to FILE, each line written whole and flushed to
+disk (:func:`jaxlimb._io.append_whole`: a short write is completed, a failed one -- a full disk,
+an interrupt -- is cut back off the file, and a full disk stops the run with exit 2, check
+``write_failed``).  A progress bar (tqdm) goes to stderr when it is a terminal, and a one-line
+summary at the end.
+
+One writer.  ``--out FILE`` is locked for the whole run, resume included
+(:func:`jaxlimb._io.exclusive_output`): a second run writing the same FILE is refused at once
+(exit 2, check ``output_busy``) naming the process that holds it.  A FIFO, a device or anything
+else that is not a regular file is refused as ``--out`` before any work.
 
 Resume.  ``--resume`` (with ``--out``) skips the frames FILE already holds (any status: an
 error is an answer too, except ``internal_error``, which is retried); a partial last line left
-by a crash is cut off first.  Without ``--resume`` an existing non-empty FILE is refused
-(exit 2) rather than mixed with a new run.
+by a crash is cut off first.  FILE must have been written by the same command with the same
+settings (every record's ``run_settings``); a file of another command, camera, hints or options,
+or a line that is not such a record, is refused (exit 2) rather than mixed.  Without ``--resume``
+an existing non-empty FILE is refused (exit 2) rather than mixed with a new run.
 
 Exit code (of the frames processed by this call): 0 when every frame is ok; else the worst of
 1 (an internal error), 2 (a frame was unusable input, e.g. unreadable or wrong size) and 3 (a
@@ -34,6 +44,7 @@ from __future__ import annotations
 
 import argparse
 import glob
+import hashlib
 import json
 import os
 import sys
@@ -109,8 +120,38 @@ def expand_images(specs: Iterable[str]) -> list[str]:
 
 
 # ------------------------------------------------------------------------------------ output file
-def _done_frames(path: Path) -> set[str]:
-    """Frames already answered in ``path`` (a partial last line is cut off the file first)."""
+#: Arguments that say how a run is carried out, not what it answers (left out of ``run_settings``).
+_RUN_ONLY = frozenset({"image", "out", "resume", "workers", "scheduler", "json", "no_progress", "figure"})
+#: Files up to this size enter ``run_settings`` by content; larger ones by size and modification time.
+_HASH_CONTENT_BYTES = 64 << 20
+
+
+def run_settings(args: argparse.Namespace) -> str:
+    """Digest of what decides a run's answers: the command, its options, and the contents of the files
+    they name (camera, hints, database or mesh, kernels); 16 hex digits."""
+    items = {k: _setting(v) for k, v in sorted(vars(args).items()) if k not in _RUN_ONLY and not callable(v)}
+    return hashlib.sha256(json.dumps(items, sort_keys=True, default=repr).encode()).hexdigest()[:16]
+
+
+def _setting(value: Any) -> Any:
+    if isinstance(value, (list, tuple)):
+        return [_setting(v) for v in value]
+    if isinstance(value, str) and value and os.path.isfile(value):
+        try:
+            st = os.stat(value)
+            if st.st_size > _HASH_CONTENT_BYTES:
+                return {"file_size": st.st_size, "mtime_ns": st.st_mtime_ns}
+            return {"file_sha256": hashlib.sha256(Path(value).read_bytes()).hexdigest()}
+        except OSError:
+            return value  # unreadable: the command reports it itself
+    return value
+
+
+def _done_frames(path: Path, settings: str) -> set[str]:
+    """Frames already answered in ``path`` by a run with these ``settings`` (a partial last line is cut off
+    the file first); a file of another command or settings, or a line that is not a record, is refused."""
+    from ..errors import ConfigError
+
     if not path.exists():
         return set()
     data = path.read_bytes()
@@ -119,36 +160,52 @@ def _done_frames(path: Path) -> set[str]:
         with open(path, "r+b") as fh:
             fh.truncate(end)
     done: set[str] = set()
-    for line in data[:end].splitlines():
+    for n, line in enumerate(data[:end].splitlines(), 1):
+        if not line.strip():
+            continue
         try:
             rec = json.loads(line)
         except (json.JSONDecodeError, UnicodeDecodeError):
-            continue
-        if isinstance(rec, dict) and isinstance(rec.get("image"), str) and rec.get("check") != "internal_error":
+            rec = None
+        if not isinstance(rec, dict) or not isinstance(rec.get("image"), str):
+            raise ConfigError(f"--resume: line {n} of {str(path)!r} is not a frame record of a jaxlimb run; "
+                              "this file cannot be continued (choose a new --out)")
+        if rec.get("run_settings") != settings:
+            raise ConfigError(f"--resume: {str(path)!r} was written by another command or with other settings "
+                              "(camera, hints, options or files; line " f"{n}); continue it with the same ones, "
+                              "or choose a new --out")
+        if rec.get("check") != "internal_error":
             done.add(rec["image"])
     return done
 
 
 class _LineWriter:
-    """JSON Lines to stdout, or appended to a file one whole line per ``write`` (flushed to disk)."""
+    """JSON Lines to stdout, or appended to a file one whole line at a time (flushed to disk)."""
 
     def __init__(self, path: Path | None) -> None:
+        self._path = path
         self._fd = None if path is None else os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
 
     def write(self, rec: dict[str, Any]) -> None:
-        from . import _json_default
+        from .._io import WRITE_ERRNOS, append_whole, write_error
+        from . import json_default
 
-        line = json.dumps(rec, allow_nan=False, default=_json_default) + "\n"
+        line = json.dumps(rec, allow_nan=False, default=json_default) + "\n"
         if self._fd is None:
-            sys.stdout.write(line)
-            sys.stdout.flush()
+            try:
+                sys.stdout.write(line)
+                sys.stdout.flush()
+            except OSError as e:
+                if e.errno in WRITE_ERRNOS:
+                    raise write_error("<stdout>", e) from None
+                raise
             return
-        os.write(self._fd, line.encode())
-        os.fsync(self._fd)
+        append_whole(self._fd, line.encode(), str(self._path))
 
     def close(self) -> None:
         if self._fd is not None:
             os.close(self._fd)
+            self._fd = None
 
 
 def check_out(args: argparse.Namespace) -> Path | None:
@@ -162,6 +219,8 @@ def check_out(args: argparse.Namespace) -> Path | None:
     path = Path(args.out)
     if path.is_dir():
         raise ConfigError(f"--out {args.out!r} is a directory; give a file name (e.g. results.jsonl)")
+    if path.exists() and not path.is_file():
+        raise ConfigError(f"--out {args.out!r} is not a regular file (a FIFO, socket or device); give a file name")
     if not path.parent.is_dir():
         raise ConfigError(f"--out {args.out!r}: directory {str(path.parent)!r} does not exist")
     if path.exists() and path.stat().st_size > 0 and not args.resume:
@@ -194,10 +253,10 @@ def _frame_chunk(paths: list[str], read: Callable[[str], Any],
                  measure: Callable[[str, Any], dict[str, Any]]) -> list[tuple[dict[str, Any], int]]:
     """A Dask task: the records of a chunk of frames (the worker sets up JAX as the command does)."""
     from ..analysis.dask_worker import wait_started
-    from . import _start_jax
+    from . import start_command_jax
 
     wait_started()  # a worker's preload thread may still be importing the package
-    _start_jax()
+    start_command_jax()
     return [_one_frame(p, read, measure) for p in paths]
 
 
@@ -213,9 +272,9 @@ def _records(todo: list[str], args: argparse.Namespace, read: Callable[[str], An
     from ..analysis.distributed import close_client, make_client, map_chunks
 
     client = make_client(args.scheduler, args.workers or 2)
-    n_workers = max(1, len(client.scheduler_info().get("workers", {})))
-    size = max(1, min(16, -(-len(todo) // (4 * n_workers))))
     try:
+        n_workers = max(1, len(client.scheduler_info().get("workers", {})))
+        size = max(1, min(16, -(-len(todo) // (4 * n_workers))))
         for chunk in map_chunks(partial(_frame_chunk, read=read, measure=measure), todo, client, size):
             yield from chunk
     finally:
@@ -225,18 +284,31 @@ def _records(todo: list[str], args: argparse.Namespace, read: Callable[[str], An
 def run_frames(images: list[str], args: argparse.Namespace, read: Callable[[str], Any],
                measure: Callable[[str, Any], dict[str, Any]]) -> int:
     """Run ``measure(path, read(path))`` over the frames and stream JSON Lines (module docstring)."""
-    from tqdm.auto import tqdm
+    from .._io import exclusive_output
 
     out = check_out(args)
     paths = expand_images(images)
-    done = _done_frames(out) if (out is not None and args.resume) else set()
+    if out is None:
+        return _run_locked(paths, args, read, measure, None)
+    with exclusive_output(out):  # one writer for the whole run, the resume's reading included
+        if out.exists() and not out.is_file():  # replaced meanwhile
+            check_out(args)
+        return _run_locked(paths, args, read, measure, out)
+
+
+def _run_locked(paths: list[str], args: argparse.Namespace, read: Callable[[str], Any],
+                measure: Callable[[str, Any], dict[str, Any]], out: Path | None) -> int:
+    from tqdm.auto import tqdm
+
+    settings = run_settings(args)
+    done = _done_frames(out, settings) if (out is not None and args.resume) else set()
     todo = [p for p in paths if p not in done]
     writer = _LineWriter(out)
     worst, counts = 0, {"ok": 0, "error": 0}
     bar = tqdm(total=len(todo), unit="frame", desc="frames", file=sys.stderr, disable=None)
     try:
         for rec, code in _records(todo, args, read, measure):
-            writer.write(rec)
+            writer.write({**rec, "run_settings": settings})
             counts["ok" if code == 0 else "error"] += 1
             worst = max(worst, code, key=_SEVERITY.__getitem__)
             bar.update(1)
@@ -248,4 +320,4 @@ def run_frames(images: list[str], args: argparse.Namespace, read: Callable[[str]
     return worst
 
 
-__all__ = ["IMAGE_SUFFIXES", "add_batch_arguments", "check_out", "expand_images", "is_many", "run_frames"]
+__all__ = ["IMAGE_SUFFIXES", "add_batch_arguments", "check_out", "expand_images", "is_many", "run_frames", "run_settings"]

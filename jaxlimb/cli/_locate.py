@@ -1,15 +1,23 @@
-"""``jaxlimb locate IMAGE``: the body centre, radius, line of sight and range from one image (DESIGN.md)."""
+"""``jaxlimb locate IMAGE``: the body centre, radius, line of sight and range from one image (``docs/design.md``).
+
+The pipeline is imported when the command runs (``jaxlimb --help`` does not import JAX)."""
 
 from __future__ import annotations
 
 import argparse
+import time
 
+from .._image_bounds import check_file
+from .._jaxcache import CompileTimer
+from .._solver_names import SOLVER_NAMES
 from .._validate import Range, arg_number
+from ..errors import ConfigError, SaturationWarning
+from ..geometry.camera import Camera
+from . import _batch, emit_json, figure_path, report_after_result, try_save, warnings_to_stderr
+from ._inputs import read_frame_file, read_hints, spice_prediction, spice_report
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from .._solver_names import SOLVER_NAMES
-
     p = sub.add_parser(
         "locate",
         help="locate the Moon (or the Earth) in an image: centre, radius, LOS, range",
@@ -23,7 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "several files, a directory, a quoted glob or @LIST.txt: one JSON line per frame (see --out)")
     p.add_argument("--camera", metavar="CAMERA.json",
                    help='camera file {"focal_length_mm", "pixel_pitch_mm", "rows", "cols", "principal_point_rc"}')
-    p.add_argument("--hints", metavar="HINTS.json", help="navigation prior (DESIGN.md hints; every key optional)")
+    p.add_argument("--hints", metavar="HINTS.json", help="navigation prior (docs/design.md hints; every key optional)")
     p.add_argument("--body", metavar="NAME", default=None,
                    help="the body: moon, earth, sun (limb-darkened disc) or any body with known radii (e.g. enceladus; "
                    "SPICE PCK with --kernels, else the IAU 2015 table; hints body_radii_km override); default: the "
@@ -58,18 +66,19 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "EllipsoidOptions', 0.4,6,25; none for a body without an atmosphere)")
     p.add_argument("--figure", metavar="PATH", help="also save a picture of the fit (PNG/PDF)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    from ._batch import add_batch_arguments
+    _batch.add_batch_arguments(p)
+    p.set_defaults(func=run, precheck=_precheck)
 
-    add_batch_arguments(p)
-    p.set_defaults(func=run)
+
+def _precheck(args: argparse.Namespace) -> None:
+    """One frame: the size its header declares, checked before JAX starts (a bomb is refused in milliseconds)."""
+    if len(args.image) == 1 and not args.image[0].startswith("@") and args.out is None:
+        check_file(args.image[0])
 
 
 def _unresolved_glow(text: str):
     """``--unresolved-glow``: ``none`` or ``G_MAX,H_LO_KM,H_HI_KM``, checked by ``EllipsoidOptions`` itself."""
-    import argparse
-
-    from ..errors import ConfigError
-    from ..pipeline.earth import EllipsoidOptions
+    from ..pipeline import EllipsoidOptions
 
     if text.strip().lower() == "none":
         return None
@@ -83,75 +92,6 @@ def _unresolved_glow(text: str):
         raise argparse.ArgumentTypeError(str(e)) from None
 
 
-def _read_hints(path: str | None, body: str | None, base=None):
-    """Hints from ``path`` (its keys over ``base``'s, e.g. SPICE's), with ``--body``; unknown body -> exit 2."""
-    from dataclasses import replace
-
-    from ..imaging import Hints
-
-    hints = Hints.from_json(path) if path is not None else None
-    if base is not None:
-        given = {} if hints is None else {k: v for k, v in vars(hints).items() if v is not None}
-        hints = replace(base, **given)
-    if body is not None:
-        if hints is None:
-            hints = Hints(body=body)
-        elif hints.body is None:
-            hints = replace(hints, body=body)
-        elif hints.body != body:
-            from ..errors import ConfigError
-
-            raise ConfigError(f"--body {body} contradicts the hints' body {hints.body!r}")
-    elif hints is None:
-        hints = Hints(body="moon")
-    elif hints.body is None:
-        hints = replace(hints, body="moon")
-    _check_body(hints)
-    return hints
-
-
-def _check_body(hints) -> None:
-    """A body without radii (hints, the IAU table) is unusable input (exit 2), except the Sun/Moon/Earth paths."""
-    from ..geometry.bodies import body_from_table
-
-    if hints.body_radii_km is None:
-        body_from_table(hints.body)
-
-
-def _spice(args, meta):
-    """The SPICE prediction for the frame (``None`` without ``--kernels``)."""
-    if not args.kernels:
-        return None
-    from ..geometry.spice import spice_geometry
-
-    return spice_geometry(args.kernels, meta.image_time, args.instrument or meta.instrument_id,
-                          args.body or meta.target_name)
-
-
-def _spice_report(geom, meas) -> dict:
-    """Prediction, measured - predicted and the observer position from the measurement."""
-    from ..geometry.spice import observer_from_measurement, pointing_residual
-
-    cov = meas.covariance
-    cov_rc = None
-    if "center_r" in cov and "center_c" in cov:
-        cov_rc = [[cov["center_r"]["center_r"], cov["center_r"]["center_c"]],
-                  [cov["center_c"]["center_r"], cov["center_c"]["center_c"]]]
-    out = {"predicted": geom.to_json(), "measured_minus_predicted": pointing_residual(geom, meas.center_rc, cov_rc)}
-    if meas.los_camera is not None and meas.range_km is not None:
-        out["observer_from_measurement"] = observer_from_measurement(geom, meas.los_camera, meas.range_km)
-    return out
-
-
-def _read(path: str):
-    from ..imaging import ColourImageWarning
-    from ..imaging.formats import read_frame
-    from . import warnings_to_stderr
-
-    with warnings_to_stderr(ColourImageWarning):
-        return read_frame(path)
-
-
 def _json(meas, spice, timing: dict | None = None) -> dict:
     out = meas.to_json()
     if spice is not None:
@@ -162,20 +102,14 @@ def _json(meas, spice, timing: dict | None = None) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
-    from . import _batch
-
     images = list(args.image)
     if _batch.is_many(images, args):  # many frames: JSON Lines, one per frame (cli/_batch.py)
         if args.figure:
-            from ..errors import ConfigError
-
-            raise ConfigError("--figure saves one frame's picture: not with many frames")
-        return _batch.run_frames(images, args, _read, _frame_json(args))
-    from . import figure_path, report_after_result, try_save
-
+                    raise ConfigError("--figure saves one frame's picture: not with many frames")
+        return _batch.run_frames(images, args, read_frame_file, _frame_json(args))
     args.image = images[0]
     figure_path(args.figure, "--figure")  # before any work
-    meas, spice, image, timing = _measure(args, _read(args.image))
+    meas, spice, image, timing = _measure(args, read_frame_file(args.image))
     figure_error = None
     if args.figure:  # after the work: a failing writer must not lose the measurement
         from ..pipeline import save_locate_figure
@@ -197,9 +131,7 @@ def _frame_json(args: argparse.Namespace):  # noqa: ANN202
 def _measure(args: argparse.Namespace, frame):
     """``(measurement, SPICE report or None, image, timing)`` of one frame; ``timing`` holds the
     seconds of the measurement and ``compile_s``, the part spent compiling (0 once compiled)."""
-    import time
 
-    from .._jaxcache import CompileTimer
 
     t0 = time.perf_counter()
     with CompileTimer() as ct:
@@ -210,16 +142,12 @@ def _measure(args: argparse.Namespace, frame):
 def _measure_frame(args: argparse.Namespace, frame):
     """The CLI chooses nothing but options: :func:`jaxlimb.pipeline.locate` picks the body strategy
     from the hints' body."""
-    from ..errors import SaturationWarning
-    from ..geometry.camera import Camera
-    from ..pipeline import LocateOptions, locate
-    from ..pipeline.earth import EllipsoidOptions
-    from . import warnings_to_stderr
+    from ..pipeline import EllipsoidOptions, LocateOptions, locate
 
     image = frame.data
-    geom = _spice(args, frame.meta)
+    geom = spice_prediction(args, frame.meta)
     camera = Camera.from_json(args.camera) if args.camera is not None else (geom.camera if geom else None)
-    hints = _read_hints(args.hints, args.body.lower() if args.body else (geom.target.lower() if geom else None),
+    hints = read_hints(args.hints, args.body.lower() if args.body else (geom.target.lower() if geom else None),
                         base=geom.hints() if geom else None)
     glow = {"unresolved_glow": args.unresolved_glow} if "unresolved_glow" in vars(args) else {}  # else the library's
     ellipsoid = EllipsoidOptions(sun_declination_max_deg=args.sun_declination_max, **glow)
@@ -227,12 +155,10 @@ def _measure_frame(args: argparse.Namespace, frame):
                             solver=args.solver, estimate_k=not args.fixed_k, profile=args.profile, ellipsoid=ellipsoid)
     with warnings_to_stderr(SaturationWarning):
         meas = locate(image, camera, hints, options, mask=frame.mask_or_none)
-    return meas, (_spice_report(geom, meas) if geom is not None else None), image
+    return meas, (spice_report(geom, meas) if geom is not None else None), image
 
 
 def _print(args: argparse.Namespace, meas, spice, figure_error: str | None = None, timing: dict | None = None) -> None:
-    from . import emit_json
-
     if args.json:
         emit_json({**_json(meas, spice, timing), **({"figure_error": figure_error} if figure_error else {})})
     else:

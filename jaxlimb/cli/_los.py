@@ -7,7 +7,8 @@ Sub-commands::
                        [--no-refine] [--step-deg 3] [--pole-axis z] [--json]
 
 ``locate --mesh`` builds the template database once and caches it by mesh hash
-and settings in ``$JAXLIMB_CACHE`` (default ``~/.cache/jaxlimb``).
+and settings in ``$JAXLIMB_CACHE`` (default ``~/.cache/jaxlimb``); later calls find it
+by the mesh file's content hash without reading the mesh again.
 
 Output of ``locate --json`` (:func:`jaxlimb.irregular.locate.locate_los`)::
 
@@ -26,16 +27,21 @@ Errors follow the contract of :mod:`jaxlimb.cli` (exit 2 unusable input, 3 faile
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from .._io import exclusive_output, write_json_atomic
 from .._validate import Range, arg_number, input_file, output_file
-from ..errors import ConfigError, DatabaseError, ImageContentError, MeshError
+from ..errors import ConfigError, DatabaseError, ImageContentError, MeshError, NoBodyError
+from . import emit_json
+from ._batch import add_batch_arguments, is_many, run_frames
 
 #: ``--step-deg``: below 0.5 deg a database has > 250 000 views (> 10 min to build); above 60 no ring is left.
 STEP_DEG_RANGE = Range(0.5, 60.0)
@@ -69,8 +75,6 @@ def register(subparsers: Any) -> None:
     q.add_argument("--no-refine", action="store_true", help="the template match of Wu et al. alone: no registration, no checks")
     _add_db_options(q)
     q.add_argument("--json", action="store_true", help="print the result as one JSON object")
-    from ._batch import add_batch_arguments
-
     add_batch_arguments(q)
     q.set_defaults(func=run_locate, needs_jax=False)  # numpy + OpenCV only: no JAX start-up
 
@@ -91,7 +95,6 @@ def _db_options(args: argparse.Namespace) -> Any:
 
 
 def run_build(args: argparse.Namespace) -> int:
-    from .._io import exclusive_output
     from ..irregular.database import build_database, save_database
     from ..irregular.mesh import load_mesh
 
@@ -114,8 +117,6 @@ def run_build(args: argparse.Namespace) -> int:
         "build_seconds": round(dt, 3),
     }
     if args.json:
-        from . import emit_json
-
         emit_json(summary)
     else:
         print(f"wrote {out} ({len(db)} templates, {dt:.1f} s)")
@@ -192,22 +193,18 @@ def _locate_checked(image: np.ndarray, db: Any, camera: Any, hints: Any) -> dict
 
 
 def run_locate(args: argparse.Namespace) -> int:
-    from . import _batch
-
     # the database/mesh file is checked before any frame is read (and long before a database build)
     if args.db is not None:
         input_file(args.db, "--db", error=DatabaseError)
     else:
         input_file(args.mesh, "--mesh", error=MeshError)
     images = list(args.image)
-    if _batch.is_many(images, args):  # many frames: JSON Lines, one per frame (cli/_batch.py)
+    if is_many(images, args):  # many frames: JSON Lines, one per frame (cli/_batch.py)
         memo: dict[str, Any] = {}  # the camera and the database, loaded once for every frame
-        return _batch.run_frames(images, args, _read_image, lambda path, image: _locate_one(args, path, image, memo))
+        return run_frames(images, args, _read_image, lambda path, image: _locate_one(args, path, image, memo))
     args.image = images[0]
     out = _locate_one(args, args.image, _read_image(args.image), {})
     if args.json:
-        from . import emit_json
-
         emit_json(out)
     else:
         c, los = out["center_rc"], out["los_camera"]
@@ -219,11 +216,39 @@ def run_locate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _database_for_mesh_file(path: str, options: Any, progress: bool) -> Any:
+    """The cached template database of a shape-model file (:func:`jaxlimb.irregular.database.cached_database`).
+
+    Which cached database a file resolved to is kept under the SHA-256 of its bytes, of the mesh loader
+    (``irregular/mesh.py``) and of the settings, so that a later call loads that database without reading the
+    mesh again (importing trimesh and reading the mesh cost a ``locate --mesh`` process about 0.7 s CPU).
+    The database is verified as on any load (its stored mesh, hash and settings).
+    """
+    from ..irregular import mesh as mesh_module
+    from ..irregular.database import cache_dir, cache_path, cached_database, load_database
+
+    key = hashlib.sha256(Path(path).read_bytes())
+    key.update(Path(mesh_module.__file__).read_bytes())
+    key.update(options.to_json().encode())
+    index = cache_dir() / f"los-mesh-file-{key.hexdigest()[:32]}.json"
+    try:
+        rec = json.loads(index.read_text())
+        return load_database(cache_dir() / rec["database"], expected_mesh_hash=rec["mesh_hash"], expected_options=options)
+    except (OSError, ValueError, KeyError, TypeError, DatabaseError):
+        pass  # no record, or its database is gone or fails verification: load the mesh
+    mesh = mesh_module.load_mesh(path)
+    db = cached_database(mesh, options, progress=progress)
+    try:
+        write_json_atomic(index, {"database": cache_path(mesh, options).name, "mesh_hash": db.mesh_hash})
+    except OSError:
+        pass  # an unwritable cache: the mesh is read again next time
+    return db
+
+
 def _locate_one(args: argparse.Namespace, path: str, image: np.ndarray, memo: dict[str, Any]) -> dict[str, Any]:
     """The ``--json`` object of one frame; ``memo`` keeps the camera, hints and database between frames."""
     from ..geometry.camera import Camera
-    from ..irregular.database import cached_database, load_database
-    from ..irregular.mesh import load_mesh
+    from ..irregular.database import load_database
 
     if "camera" not in memo:
         memo["camera"] = Camera.from_json(args.camera)
@@ -232,14 +257,12 @@ def _locate_one(args: argparse.Namespace, path: str, image: np.ndarray, memo: di
     if image.shape != camera.shape:
         raise ImageContentError(f"image {path!r} has shape {image.shape}, the camera expects {camera.shape}")
     if float(image.max()) == float(image.min()):  # before any database load or build
-        from ..errors import NoBodyError
-
         raise NoBodyError(f"image {path!r} is constant (every pixel = {float(image.min()):g}): no body")
     if "db" not in memo:
         if args.db is not None:
             memo["db"] = load_database(args.db)
         else:
-            memo["db"] = cached_database(load_mesh(args.mesh), _db_options(args), progress=not args.no_progress)
+            memo["db"] = _database_for_mesh_file(args.mesh, _db_options(args), progress=not args.no_progress)
     db = memo["db"]
     t0 = time.perf_counter()
     body = _locate_unchecked(image, db, camera) if args.no_refine else _locate_checked(image, db, camera, hints)

@@ -63,6 +63,13 @@ def _compare(args: argparse.Namespace) -> int:
     return run_comparison(args, opt, standard_problem(study_options(args, 250)))
 
 
+def _batch_size(args: argparse.Namespace) -> int:
+    """``--batch`` (default 250), at most ``--n`` for a new study: a batch is compiled for its full width, so a
+    wider one only fits padding (``--n 2 --batch 100000`` would fit 100 000 members); a resumed study keeps its own."""
+    batch = 250 if args.batch is None else int(args.batch)
+    return batch if args.resume else min(batch, int(args.n))
+
+
 def run(args: argparse.Namespace) -> int:
     if args.pipeline:
         return run_pipeline(args)
@@ -80,7 +87,7 @@ def run(args: argparse.Namespace) -> int:
 
     figure_path(args.plot, "--plot")
     check_out(args)
-    opt = study_options(args, 250 if args.batch is None else args.batch)
+    opt = study_options(args, _batch_size(args))
     with warnings_to_stderr(ChunkRecomputedWarning):
         res = run_model_study(opt, solver_from_name(args.solver), progress=not args.json, out_dir=args.out)
     import jax

@@ -37,7 +37,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("image", metavar="IMAGE", help="image file (PNG, TIFF, FITS) or a .npy array")
     p.add_argument("--camera", metavar="CAMERA.json", help="camera file (enables the body centre, LOS and range)")
-    p.add_argument("--hints", metavar="HINTS.json", help="hints (DESIGN.md); the Sun direction selects the physical "
+    p.add_argument("--hints", metavar="HINTS.json", help="hints (docs/design.md); the Sun direction selects the physical "
                    "profile; --model sigmoid: expected_radius_px becomes a radius prior")
     p.add_argument("--model", choices=("locate", "sigmoid"), default="locate",
                    help="locate: the fit locate ran (default); sigmoid: the circular sigmoid (the paper's study)")
@@ -48,8 +48,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="noise treatment: sigma marginalised (default), known (--sigma; with --model locate the fit's "
                    "residual sigma), or sampled (--model sigmoid)")
     p.add_argument("--sigma", type=arg_number(POSITIVE), help="noise sd in DN for --model sigmoid --noise known (> 0)")
-    p.add_argument("--walkers", type=arg_number(_WALKERS, integer=True), default=32,
-                   help=f"emcee walkers, even, {_WALKERS} (default 32)")
+    p.add_argument("--walkers", type=_even_walkers, default=32,
+                   help=f"emcee walkers: an even integer {_WALKERS} and at least twice the sampled parameters "
+                   "(default 32)")
     p.add_argument("--moves", choices=("stretch", "laplace"), default="stretch",
                    help="emcee moves: stretch (default) or laplace (independence proposals around the fit, mixed "
                    "with stretch moves: much shorter autocorrelation for near-Gaussian posteriors)")
@@ -74,6 +75,14 @@ def _sigmoid_args(p: argparse.ArgumentParser) -> None:
     g.add_argument("--k", type=arg_number(_K), default=2.0,
                    help=f"start (or fixed) steepness k for --center-rc, 1/px {_K} (default 2)")
     g.add_argument("--fix", default="", help="comma-separated parameters held fixed, e.g. k,ymax,ymin")
+
+
+def _even_walkers(text: str) -> int:
+    """``--walkers``: an even integer in ``_WALKERS`` (argparse reports the failure, exit 2)."""
+    n = arg_number(_WALKERS, integer=True)(text)
+    if n % 2:
+        raise argparse.ArgumentTypeError(f"must be an even integer {_WALKERS}, got {text!r}")
+    return n
 
 
 def load_image_array(path: str):  # noqa: ANN201

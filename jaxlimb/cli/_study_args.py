@@ -8,7 +8,7 @@ from .._validate import Range, arg_number
 
 #: Argument ranges (exit 2 outside them); memory is estimated before allocating too.
 RANGES = {"radius": Range(5.0, 5000.0), "sigma": Range(0.0, 1e6, lo_open=True), "n": Range(2, 10_000_000),
-          "seed": Range(0, 2**32 - 1), "k": Range(0.0, 1e3, lo_open=True), "annulus": Range(0.0, 1000.0, lo_open=True),
+          "seed": Range(0, 2**32 - 1), "k": Range(0.0, 1e3, lo_open=True), "annulus": Range(0.5, 1000.0),
           "batch": Range(1, 100_000), "range_km": Range(2000.0, 1e9), "phase_deg": Range(0.0, 170.0),
           "workers": Range(1, 1024), "devices": Range(1, 256), "repeats": Range(1, 100)}
 #: The models of the standard problems (:data:`jaxlimb.analysis.problems.STUDY_MODELS`, importable without JAX).
@@ -29,7 +29,7 @@ def add_problem_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--n", type=num("n", True), default=1000, help="realisations (default 1000)")
     p.add_argument("--seed", type=num("seed", True), default=0)
     p.add_argument("--k", type=num("k"), default=3.0, help="sigmoid steepness (default 3)")
-    p.add_argument("--annulus", type=num("annulus"), default=6.0, help="half-width of the pixel band, px (default 6)")
+    p.add_argument("--annulus", type=num("annulus"), default=6.0, help=f"half-width of the pixel band, px {RANGES['annulus']} (default 6; a narrower band holds no pixel of some rows)")
     p.add_argument("--fix", default="", help="comma-separated parameters held at truth, e.g. k,ymax,ymin")
     p.add_argument("--devices", type=num("devices", True), default=None,
                    help="XLA CPU devices the batches are split over (default: one per usable core; "

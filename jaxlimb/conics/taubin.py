@@ -24,7 +24,7 @@ It always returns an ellipse (the constraint :math:`4AC - B^2 = 1`) and is meant
 as the initial conic of the Earth's elliptical sigmoid fit.
 
 All functions take points as ``(n, 2)`` arrays of ``(row, col)`` pixel
-coordinates (DESIGN.md) and are pure NumPy (fast for the few hundred to few
+coordinates (docs/design.md) and are pure NumPy (fast for the few hundred to few
 thousand candidate points of a front end).
 """
 
@@ -86,7 +86,7 @@ class EllipseFit:
         ``(a, b)`` with ``a >= b`` in pixels.
     angle_rad
         Angle of the semi-major axis measured from the ``+col`` axis toward
-        ``+row``, in ``(-pi/2, pi/2]`` (the image-plane angle of DESIGN.md's
+        ``+row``, in ``(-pi/2, pi/2]`` (the image-plane angle of docs/design.md's
         ``ellipse.angle_rad``).
     conic
         Normalised conic coefficients ``(A, B, C, D, E, F)`` of

@@ -9,6 +9,11 @@ source, the JAX version, the solver, model, free set, step limit and the argumen
 later process deserialises it (milliseconds), and its compilation hits the persistent cache.
 The result is the same program, so the same numbers.
 
+Every file is sealed (:func:`jaxlimb._jaxcache.seal`: SHA-256 of the JAX/jaxlib versions and of the
+bytes) and checked *before* it is deserialised: a damaged or foreign file never reaches
+``jax.export.deserialize`` (which can abort the process) and never changes an answer; it is
+deleted, the core is exported again, and one warning says so.
+
 Anything unexpected (an output structure that cannot be rebuilt, a failed export or read) falls
 back to plain ``jax.jit``; a tracer argument (a fit inside another ``jit``) always uses it.
 """
@@ -24,6 +29,7 @@ import jax
 import numpy as np
 
 _SOURCE: dict[str, str] = {}
+_WHAT = "exported-program cache"
 
 
 def _source_digest() -> str:
@@ -73,7 +79,9 @@ class ExportedCore:
             treedef = jax.tree_util.tree_structure(self._template(*args))
             key = hashlib.sha256(f"{_source_digest()}|{self._ident}|{sig}|{jax.config.jax_enable_x64}".encode())
             path = folder / f"{key.hexdigest()[:40]}.bin"
-            exp = self._load(path) if path.exists() else self._export(path, treedef, args)
+            exp = self._load(path) if path.exists() else None
+            if exp is None:
+                exp = self._export(path, treedef, args)
         except Exception:  # noqa: BLE001 - an optimisation: never a reason to fail a fit
             return self._jit
         if exp is None:
@@ -83,14 +91,20 @@ class ExportedCore:
 
     @staticmethod
     def _load(path: Path) -> Any:
+        from .._jaxcache import read_sealed, warn_once
+
+        payload = read_sealed(path, _WHAT)  # checked before deserialising
+        if payload is None:
+            return None
         try:
-            return jax.export.deserialize(bytearray(path.read_bytes()))
-        except Exception:  # noqa: BLE001 - a damaged entry: export again
+            return jax.export.deserialize(bytearray(payload))
+        except Exception:  # noqa: BLE001 - sealed by another jaxlimb that wrote something else: export again
             path.unlink(missing_ok=True)
+            warn_once(_WHAT, f"{_WHAT} entry {path.name} cannot be deserialised: deleted and exported again")
             return None
 
     def _export(self, path: Path, treedef: Any, args: tuple[Any, ...]) -> Any:
-        from .._io import atomic_open
+        from .._jaxcache import write_sealed
 
         seen: dict[str, Any] = {}
 
@@ -101,9 +115,7 @@ class ExportedCore:
         exp = jax.export.export(jax.jit(flat))(*args)
         if seen.get("treedef") != treedef:  # the template does not rebuild this output: no export
             return None
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_open(path, "wb") as fh:
-            fh.write(exp.serialize())
+        write_sealed(path, bytes(exp.serialize()), _WHAT)
         return exp
 
 

@@ -2,7 +2,7 @@
 
 Conventions
 -----------
-* ``C_ci`` (DESIGN.md) is the direction-cosine matrix that moves vectors from the
+* ``C_ci`` (docs/design.md) is the direction-cosine matrix that moves vectors from the
   inertial frame (ICRF/J2000) to the camera frame: ``v_c = C_ci @ v_i``.
 * Quaternions are **scalar-last** by default, ``q = [q1, q2, q3, q4] = [e sin(phi/2),
   cos(phi/2)]`` (Shuster / JPL convention, the one of Mortari's refs [16, 17]). Every

@@ -4,13 +4,13 @@ Source of the table (:data:`BODY_TABLE`): the triaxial radii of the IAU Working 
 Cartographic Coordinates and Rotational Elements, 2015 report -- B. A. Archinal et al.,
 *Celest. Mech. Dyn. Astron.* 130:22 (2018), Tables 4-6 -- as distributed by NAIF in the
 generic PCK ``pck00011.tpc`` (keywords ``BODYnnn_RADII``), with the NAIF ID code of each
-body.  Two entries follow DESIGN.md instead: the Moon's mean radius 1737.4 km (also the
+body.  Two entries follow docs/design.md instead: the Moon's mean radius 1737.4 km (also the
 IAU value) and the Earth's WGS-84 ellipsoid (6378.137 / 6356.752 km; IAU 6378.1366 /
 6356.7519).  The Sun's radius is the IAU 2015 Resolution B3 nominal value 695 700 km.
 
-Lookup order (:func:`body_radii_km`): explicit radii (hints ``body_radii_km``) win; then,
-when SPICE kernels are loaded (:mod:`jaxlimb.geometry.spice`), the kernel pool's
-``BODYnnn_RADII`` (``bodvrd``); then the table.  An unknown name raises
+Lookup order (:func:`body_radii_km`): explicit radii (hints ``body_radii_km``) win; then the table.
+With SPICE kernels loaded, :mod:`jaxlimb.geometry.spice` asks the kernel pool's ``BODYnnn_RADII``
+(``bodvrd``) first.  An unknown name raises
 :class:`~jaxlimb.errors.UnknownBodyError` (CLI exit 2) naming the known bodies.
 """
 
@@ -96,8 +96,8 @@ def body_from_table(name: str) -> Body:
     return BODY_TABLE[key]
 
 
-def body_radii_km(name: str, *, radii_km=None, use_spice: bool = False) -> tuple[float, float, float]:
-    """Radii ``(a, b, c)`` (km) of ``name``: ``radii_km`` if given, else SPICE's pool, else the table.
+def body_radii_km(name: str, *, radii_km=None) -> tuple[float, float, float]:
+    """Radii ``(a, b, c)`` (km) of ``name``: ``radii_km`` if given, else the table.
 
     Parameters
     ----------
@@ -105,24 +105,15 @@ def body_radii_km(name: str, *, radii_km=None, use_spice: bool = False) -> tuple
         Body name (case-insensitive), e.g. ``"Enceladus"``.
     radii_km
         Explicit radii (hints ``body_radii_km``): returned as given.
-    use_spice
-        Ask the SPICE kernel pool first (kernels must be loaded; see
-        :func:`jaxlimb.geometry.spice.spice_body_radii`).
 
     Raises
     ------
     UnknownBodyError
-        Neither the kernels nor the table know the body.
+        The table does not know the body.
     """
     if radii_km is not None:
         a, b, c = (float(x) for x in radii_km)
         return (a, b, c)
-    if use_spice:
-        from .spice import spice_body_radii
-
-        r = spice_body_radii(name)
-        if r is not None:
-            return r
     return body_from_table(name).radii_km
 
 

@@ -1,4 +1,4 @@
-"""Pinhole camera model and the pixel / camera-frame conventions of DESIGN.md.
+"""Pinhole camera model and the pixel / camera-frame conventions of docs/design.md.
 
 Conventions (fixed):
 
@@ -58,6 +58,7 @@ from typing import Any
 
 import numpy as np
 
+from .._io import read_json_file
 from .._validate import Range, number, vector
 from ..errors import ConfigError, GeometryError
 
@@ -121,7 +122,7 @@ class Camera:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Camera:
-        """Build from the camera-file dictionary of DESIGN.md (unknown keys are an error)."""
+        """Build from the camera-file dictionary of docs/design.md (unknown keys are an error)."""
         if not isinstance(d, dict):
             raise ConfigError(f"camera must be a JSON object, got {type(d).__name__}")
         allowed = _CAMERA_KEYS + _DISTORTION_KEYS
@@ -136,7 +137,6 @@ class Camera:
     @classmethod
     def from_json(cls, path: str | os.PathLike[str]) -> Camera:
         """Read a camera JSON file (``{"focal_length_mm", "pixel_pitch_mm", "rows", "cols", "principal_point_rc"}``)."""
-        from .._io import read_json_file
 
         return cls.from_dict(read_json_file(path, "camera file"))
 

@@ -2,7 +2,7 @@ r"""Earth centre offset and range iteration (Mortari, D'Souza & Zanetti, §IV, F
 
 The Earth is the oblate spheroid ``x^2/Re^2 + y^2/Re^2 + z^2/Rp^2 = 1`` (WGS-84,
 ``Re = 6378.137``, ``Rp = 6356.752`` km) grown by an atmosphere height ``h`` (both radii +h:
-the limb seen by the camera is the top of the bright atmosphere, DESIGN.md).  Frames: any
+the limb seen by the camera is the top of the bright atmosphere, docs/design.md).  Frames: any
 frame whose ``z`` axis is the spin axis ``pole`` (default ``[0, 0, 1]`` of J2000: the true pole
 of date is ~0.36 deg away in 2026 by precession; pass ``pole`` for better).  ``p`` is the
 observer position relative to the Earth centre (km).

@@ -5,31 +5,13 @@ Implements Sec. III (Eq. 1-9) and the centre offset of Sec. IV of
     D. Mortari, C. N. D'Souza, R. Zanetti, "Image Processing of Illuminated
     Ellipsoid", J. Spacecraft and Rockets (2016)  -- "Mortari et al. 2016".
 
-Conventions (DESIGN.md): the body-fixed frame is centred on the ellipsoid with
+Conventions (docs/design.md): the body-fixed frame is centred on the ellipsoid with
 its axes along the semi-axes ``radii = (a, b, c)`` so that the surface is
 :math:`x^T J x = 1`, :math:`J = \mathrm{diag}(a^{-2}, b^{-2}, c^{-2})` (Eq. 1).
 Positions are in km.  Images are ``[row, col]``; pixel ``(0, 0)`` is the centre
 of the top-left pixel.
 
-Homogeneous pixel order of conics
----------------------------------
-Every 3x3 pixel conic ``C`` returned here acts on **``h = [col, row, 1]``**
-(the order produced by :attr:`jaxlimb.geometry.camera.Camera.K`), i.e. a pixel
-``(row, col)`` lies on the curve when ``h^T C h = 0``.  Conics are scaled to unit
-Frobenius norm and signed so that ``h^T C h < 0`` **inside** the ellipse (on the
-body's disk) and ``> 0`` outside.  Use :func:`conic_eval` to evaluate a conic at
-``(row, col)`` points without worrying about the order.
-
-Ellipse angle convention
-------------------------
-``angle_rad`` (``theta``) is the direction of the **semi-major** axis, measured
-from the ``+col`` axis turning toward ``-row`` (i.e. counter-clockwise on the
-image as displayed, row pointing down): the major axis points along
-``(d_row, d_col) = (-sin theta, cos theta)``, and ``theta`` is reduced to
-``[0, pi)``.  This is the same convention as the ``theta`` of
-:class:`jaxlimb.models.EllipseParams` (``ellipse_coords``) with ``a`` the
-semi-major axis, so a truth ellipse can seed an elliptical-sigmoid fit directly
-(``rho = b/a``).
+Conics and the ellipse angle convention: :mod:`jaxlimb.geometry.conic`.
 """
 
 from __future__ import annotations
@@ -41,16 +23,14 @@ import numpy as np
 
 from ..errors import AttitudeError, GeometryError, LimbInputError
 from .camera import Camera
+from .conic import conic_eval, conic_to_ellipse, ellipse_points, normalise_conic
 
 __all__ = [
     "ImageConic",
     "LimbCone",
     "check_radii",
+    "check_vec3",
     "check_rotation",
-    "conic_eval",
-    "conic_to_ellipse",
-    "ellipse_points",
-    "ellipse_to_conic",
     "gamma_off",
     "image_conic",
     "limb_cone",
@@ -79,7 +59,7 @@ def check_radii(radii: object, name: str = "radii") -> np.ndarray:
     return r
 
 
-def _check_vec3(v: object, name: str) -> np.ndarray:
+def check_vec3(v: object, name: str) -> np.ndarray:
     try:
         x = np.asarray(v, dtype=float)
     except (TypeError, ValueError):
@@ -137,7 +117,7 @@ def limb_cone_matrix(radii: object, p: object) -> np.ndarray:
         Degenerate radii, or the observer inside / on the ellipsoid (:math:`p^TJp \le 1`).
     """
     r = check_radii(radii)
-    pv = _check_vec3(p, "p")
+    pv = check_vec3(p, "p")
     g = _gamma(r, pv)
     if not g > 1.0:
         raise GeometryError(
@@ -157,7 +137,7 @@ def limb_cone_matrix_camera(radii: object, center_cam: object, R_body_to_camera:
     (A q)(A q)^T - (q^T A q - 1) A`; a camera ray :math:`d` is tangent iff
     :math:`d^T M_{cam} d = 0`.
     """
-    q = _check_vec3(center_cam, "center_cam")
+    q = check_vec3(center_cam, "center_cam")
     R = check_rotation(R_body_to_camera)
     M = limb_cone_matrix(radii, -R.T @ q)
     Mc = R @ M @ R.T
@@ -245,7 +225,7 @@ def limb_cone(radii: object, p: object) -> LimbCone:
         degenerate eigen-structure (should not happen for valid inputs).
     """
     r = check_radii(radii)
-    pv = _check_vec3(p, "p")
+    pv = check_vec3(p, "p")
     M = limb_cone_matrix(r, pv)
     M = 0.5 * (M + M.T)
     lam, V = np.linalg.eigh(M)  # ascending
@@ -306,7 +286,7 @@ def gamma_off_signed(radii: object, p: object, pole: object = (0.0, 0.0, 1.0)) -
     :func:`gamma_off_direction` gives the full deviation vector.
     """
     cone = limb_cone(radii, p)
-    pole_v = _check_vec3(pole, "pole")
+    pole_v = check_vec3(pole, "pole")
     s = float(np.dot(cone.p, pole_v))
     return 0.0 if s == 0 else math.copysign(cone.gamma_off, s)
 
@@ -328,117 +308,10 @@ def gamma_off_direction(radii: object, p: object) -> np.ndarray:
 __all__ += ["gamma_off_signed", "gamma_off_direction"]
 
 
-# =============================================================================== conics
-def conic_eval(C: np.ndarray, rc: np.ndarray) -> np.ndarray:
-    """Evaluate a pixel conic (order ``[col, row, 1]``) at points ``rc`` ``(..., 2)`` given as ``(row, col)``."""
-    rc = np.asarray(rc, dtype=float)
-    c, r = rc[..., 1], rc[..., 0]
-    return (
-        C[0, 0] * c * c
-        + 2 * C[0, 1] * c * r
-        + C[1, 1] * r * r
-        + 2 * C[0, 2] * c
-        + 2 * C[1, 2] * r
-        + C[2, 2]
-    )
-
-
-def _normalise_conic(C: np.ndarray, inside_rc: tuple[float, float] | None = None) -> np.ndarray:
-    C = 0.5 * (C + C.T)
-    C = C / np.linalg.norm(C)
-    if inside_rc is not None and conic_eval(C, np.array(inside_rc)) > 0:
-        C = -C
-    return C
-
-
-def conic_to_ellipse(C: object) -> tuple[tuple[float, float], tuple[float, float], float]:
-    r"""Ellipse parameters of a pixel conic (order ``[col, row, 1]``).
-
-    Returns
-    -------
-    center_rc, semi_axes_px, angle_rad
-        Centre ``(row, col)``; semi-axes ``(a, b)`` with ``a >= b``; ``angle_rad`` in
-        ``[0, pi)``: the semi-major axis points along ``(d_row, d_col) = (-sin, cos)``
-        of it (counter-clockwise from ``+col`` as displayed; module docstring).
-
-    Derivation.  Write :math:`C = [[S, g], [g^T, F]]` with the 2x2 block
-    :math:`S` on :math:`u = (c, r)`.  The centre solves :math:`S u_0 = -g`; then
-    :math:`(u-u_0)^T S (u-u_0) = -F_0` with :math:`F_0 = F + g^T u_0`.  With
-    :math:`S = \sum_i \ell_i e_i e_i^T` the semi-axes are :math:`\sqrt{-F_0/\ell_i}`
-    along :math:`e_i` (an ellipse needs :math:`\ell_1\ell_2 > 0` and
-    :math:`F_0\ell_i < 0`).
-
-    Raises
-    ------
-    GeometryError
-        The conic is not a real, non-degenerate ellipse.
-    """
-    C = np.asarray(C, dtype=float)
-    if C.shape != (3, 3) or not np.all(np.isfinite(C)):
-        raise GeometryError(f"conic `C` must be a finite 3x3 matrix, got shape {C.shape}")
-    C = 0.5 * (C + C.T)
-    S = C[:2, :2]
-    g = C[:2, 2]
-    detS = float(np.linalg.det(S))
-    scale = float(np.max(np.abs(S)))
-    if not (scale > 0 and detS > 1e-14 * scale * scale):
-        raise GeometryError(f"conic is not an ellipse (det of the quadratic part = {detS:.3g} <= 0)")
-    u0 = np.linalg.solve(S, -g)
-    F0 = float(C[2, 2] + g @ u0)
-    ell, E = np.linalg.eigh(S)
-    if not (F0 * ell[0] < 0 and F0 * ell[1] < 0):
-        raise GeometryError("conic is an imaginary or degenerate ellipse (no real points)")
-    ax = np.sqrt(-F0 / ell)  # ell ascending in |.| if positive; handle both signs below
-    i_major = int(np.argmax(ax))
-    a, b = float(ax[i_major]), float(ax[1 - i_major])
-    dc, dr = E[0, i_major], E[1, i_major]
-    theta = math.atan2(-dr, dc) % math.pi
-    if theta >= math.pi:  # guard rounding
-        theta = 0.0
-    return (float(u0[1]), float(u0[0])), (a, b), theta
-
-
-def ellipse_to_conic(center_rc: object, semi_axes_px: object, angle_rad: float) -> np.ndarray:
-    r"""Pixel conic (order ``[col, row, 1]``, negative inside, unit Frobenius norm) of an ellipse.
-
-    With :math:`x = (c-c_0)\cos\theta - (r-r_0)\sin\theta` and
-    :math:`y = -(r-r_0)\cos\theta - (c-c_0)\sin\theta` (the frame of
-    :func:`jaxlimb.models.sigmoid.ellipse_coords`), the ellipse is
-    :math:`x^2/a^2 + y^2/b^2 - 1 = 0`.
-    """
-    r0, c0 = (float(v) for v in np.asarray(center_rc, dtype=float))
-    a, b = (float(v) for v in np.asarray(semi_axes_px, dtype=float))
-    if not (a > 0 and b > 0 and math.isfinite(a) and math.isfinite(b)):
-        raise GeometryError(f"`semi_axes_px` must be finite and > 0, got {(a, b)}")
-    ct, st = math.cos(angle_rad), math.sin(angle_rad)
-    # x = [ct, -st] . (c - c0, r - r0),  y = [-st, -ct] . (c - c0, r - r0)
-    ux = np.array([ct, -st])
-    uy = np.array([-st, -ct])
-    S = np.outer(ux, ux) / a**2 + np.outer(uy, uy) / b**2
-    u0 = np.array([c0, r0])
-    C = np.zeros((3, 3))
-    C[:2, :2] = S
-    C[:2, 2] = C[2, :2] = -S @ u0
-    C[2, 2] = u0 @ S @ u0 - 1.0
-    return C / np.linalg.norm(C)
-
-
-def ellipse_points(
-    center_rc: object, semi_axes_px: object, angle_rad: float, phi: np.ndarray
-) -> np.ndarray:
-    """Points ``(row, col)`` ``(n, 2)`` at eccentric anomalies ``phi`` (same frame as :func:`ellipse_to_conic`)."""
-    r0, c0 = (float(v) for v in np.asarray(center_rc, dtype=float))
-    a, b = (float(v) for v in np.asarray(semi_axes_px, dtype=float))
-    phi = np.asarray(phi, dtype=float)
-    x, y = a * np.cos(phi), b * np.sin(phi)
-    ct, st = math.cos(angle_rad), math.sin(angle_rad)
-    return np.stack([r0 - x * st - y * ct, c0 + x * ct - y * st], axis=-1)
-
-
 # =============================================================================== image
 def projected_center(camera: Camera, center_cam: object) -> tuple[float, float]:
     """Pinhole projection ``(row, col)`` of the body centre (not the limb-ellipse centre)."""
-    q = _check_vec3(center_cam, "center_cam")
+    q = check_vec3(center_cam, "center_cam")
     if not q[2] > 0:
         raise GeometryError(f"body centre must be in front of the camera (z > 0), got center_cam = {q.tolist()} km")
     rc = camera.project(q)
@@ -502,7 +375,7 @@ class ImageConic:
         return (r0 - hr, r0 + hr, c0 - hc, c0 + hc)
 
     def as_dict(self) -> dict[str, object]:
-        """The DESIGN.md ``ellipse`` JSON object (plus the projected body centre)."""
+        """The docs/design.md ``ellipse`` JSON object (plus the projected body centre)."""
         return {
             "center_rc": list(self.center_rc),
             "semi_axes_px": list(self.semi_axes_px),
@@ -552,7 +425,7 @@ def image_conic(
         not entirely in front of the camera (the image of the limb is then not an ellipse).
     """
     r = check_radii(radii)
-    q = _check_vec3(center_cam, "center_cam")
+    q = check_vec3(center_cam, "center_cam")
     R = np.eye(3) if R_body_to_camera is None else check_rotation(R_body_to_camera)
     if not q[2] > 0:
         raise GeometryError(f"body centre must be in front of the camera (z > 0), got center_cam = {q.tolist()} km")
@@ -560,7 +433,7 @@ def image_conic(
     Kinv = np.linalg.inv(camera.K)
     C = -(Kinv.T @ Mc @ Kinv)
     body_rc = projected_center(camera, q)
-    C = _normalise_conic(C, inside_rc=body_rc)
+    C = normalise_conic(C, inside_rc=body_rc)
     try:
         center_rc, axes, theta = conic_to_ellipse(C)
     except GeometryError as e:

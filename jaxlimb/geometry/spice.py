@@ -9,7 +9,7 @@ What is computed (CSPICE through ``spiceypy``; Acton 1996, *Planet. Space Sci.* 
 * the **camera** from the instrument kernel (IK): ``INS<id>_FOCAL_LENGTH`` (mm),
   ``INS<id>_PIXEL_SIZE`` (µm), ``INS<id>_PIXEL_SAMPLES/LINES`` and
   ``INS<id>_FOV_CENTER_PIXEL`` (sample, line; 0-based pixel centres, i.e. jaxlimb's
-  convention of DESIGN.md, (0, 0) = centre of the top-left pixel);
+  convention of docs/design.md, (0, 0) = centre of the top-left pixel);
 * the body centre in the camera frame, ``spkpos(target, et, frame, "CN+S", observer)``
   (converged Newtonian light time and stellar aberration: where the body *appears*);
 * the body orientation ``R_body_to_camera = F pxfrm2(body_frame, frame, et - lt, et)``
@@ -20,7 +20,7 @@ What is computed (CSPICE through ``spiceypy``; Acton 1996, *Planet. Space Sci.* 
   image of the body centre, with the body's radii from the kernel pool (``bodvrd``).
 
 Camera-frame convention (verify per instrument).  jaxlimb's camera frame has ``+x`` toward
-``+col`` and ``+y`` toward ``+row`` (DESIGN.md).  The instrument frame of SPICE need not:
+``+col`` and ``+y`` toward ``+row`` (docs/design.md).  The instrument frame of SPICE need not:
 the Cassini ISS IK (``cas_iss_v08.ti``) says "the CCD samples and lines increase with
 decreasing X and Y", so ``x_jaxlimb = -X_ISS``, ``y_jaxlimb = -Y_ISS``, ``z = Z``:
 ``F = diag(-1, -1, 1)`` for both ISS cameras (:data:`INSTRUMENTS`).  Checked on the
@@ -45,7 +45,10 @@ from typing import Any, Iterator, Sequence
 import numpy as np
 
 from ..errors import SpiceError
+from .bodies import body_radii_km
 from .camera import Camera
+from .ellipsoid import image_conic
+from .hints import Hints
 
 #: Camera-frame flip F (instrument frame -> jaxlimb camera frame), per SPICE instrument.
 _FLIP_ISS = ((-1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (0.0, 0.0, 1.0))
@@ -114,6 +117,7 @@ def loaded_kernels(kernels) -> Iterator[list[Path]]:
     done: list[str] = []
     try:
         for p in paths:
+            _check_kernel(sp, p)
             try:
                 sp.furnsh(str(p))
             except sp.utils.exceptions.SpiceyError as e:
@@ -124,6 +128,25 @@ def loaded_kernels(kernels) -> Iterator[list[Path]]:
         for p in reversed(done):
             with contextlib.suppress(Exception):
                 sp.unload(p)
+
+
+def _check_kernel(sp, p: Path) -> None:  # noqa: ANN001
+    """A file SPICE would accept and then ignore is refused: a kernel is a binary DAF/DAS file, or a text
+    kernel (meta-kernel included) with a ``\\begindata`` section -- CSPICE ``furnsh`` "loads" any other file
+    (a text note, a PNG) as a text kernel with nothing in it."""
+    try:
+        arch, _ = sp.getfat(str(p))
+    except sp.utils.exceptions.SpiceyError as e:
+        raise SpiceError(f"cannot read SPICE kernel {str(p)!r}: {_short(e)}") from None
+    if arch in ("DAF", "DAS"):
+        return
+    try:
+        text = p.read_bytes()
+    except OSError as e:
+        raise SpiceError(f"cannot read SPICE kernel {str(p)!r}: {e.strerror or e}") from None
+    if b"\0" in text[:4096] or b"\\begindata" not in text:
+        raise SpiceError(f"{str(p)!r} is not a SPICE kernel: neither a binary DAF/DAS kernel nor a text kernel "
+                         "with a \\begindata section (nothing would be loaded from it)")
 
 
 def _short(e: Exception) -> str:
@@ -169,7 +192,7 @@ def camera_from_ik(instrument: Instrument) -> Camera:
 # ----------------------------------------------------------------------------- geometry
 @dataclass(frozen=True)
 class SpiceGeometry:
-    """The SPICE prediction for one frame (camera frame = jaxlimb's, DESIGN.md).
+    """The SPICE prediction for one frame (camera frame = jaxlimb's, docs/design.md).
 
     Attributes
     ----------
@@ -217,9 +240,7 @@ class SpiceGeometry:
     limb: Any = field(repr=False)
 
     def hints(self, *, radius_uncertainty_frac: float = 0.05):
-        """:class:`~jaxlimb.imaging.Hints` from the prediction: body, radii, range, Sun, orientation."""
-        from ..imaging import Hints
-
+        """:class:`~jaxlimb.geometry.hints.Hints` from the prediction: body, radii, range, Sun, orientation."""
         return Hints(
             body=self.target.lower(),
             body_radii_km=self.radii_km,
@@ -238,7 +259,7 @@ class SpiceGeometry:
             "radii_km": list(self.radii_km), "sun_dir_camera": list(self.sun_dir_camera),
             "ellipse": {"center_rc": list(self.limb.center_rc), "semi_axes_px": list(self.limb.semi_axes_px),
                         "angle_rad": self.limb.angle_rad},
-            "camera": self.camera.to_dict() if hasattr(self.camera, "to_dict") else None,
+            "camera": self.camera.to_dict(),
         }
 
 
@@ -274,9 +295,6 @@ def predict_loaded(utc: str, instrument: Instrument, target: str) -> SpiceGeomet
     """:class:`SpiceGeometry` with the kernels already loaded (see :func:`spice_geometry`)."""
     import spiceypy as sp
 
-    from .bodies import body_radii_km
-    from .ellipsoid import image_conic
-
     et = _et(sp, utc)
     cam = camera_from_ik(instrument)
     frame, obs, tgt = instrument.spice_name, instrument.observer, str(target).upper()
@@ -289,7 +307,7 @@ def predict_loaded(utc: str, instrument: Instrument, target: str) -> SpiceGeomet
     sun_j, _ = _coverage(lambda: sp.spkpos("SUN", et - lt, "J2000", "CN+S", tgt), f"the Sun seen from {tgt}", utc)
     s = C @ np.asarray(sun_j, float)
     obs_j = -(C.T @ c_cam)  # the observer seen from the body along the apparent line of sight
-    radii = body_radii_km(tgt, use_spice=True)
+    radii = spice_body_radii(tgt) or body_radii_km(tgt)  # the kernels' PCK first, else the shipped table
     limb = image_conic(cam, radii, c_cam, Rb)
     rc = cam.project(c_cam)
     t3 = lambda v: tuple(float(x) for x in v)  # noqa: E731

@@ -45,13 +45,13 @@ import numpy as np
 
 from ..errors import GeometryError, LimbInputError
 from .camera import Camera
-from .ellipsoid import _check_vec3, check_radii, check_rotation
+from .ellipsoid import check_radii, check_rotation, check_vec3
 
 __all__ = ["TerminatorEllipse", "TerminatorImage", "terminator_ellipse", "terminator_image"]
 
 
 def _unit(v: object, name: str) -> np.ndarray:
-    x = _check_vec3(v, name)
+    x = check_vec3(v, name)
     n = float(np.linalg.norm(x))
     if not n > 0:
         raise LimbInputError(f"`{name}` must be a non-zero vector, got {x.tolist()}")
@@ -173,7 +173,7 @@ def terminator_image(
         ``|det H| / (|h1||h2||h3|)`` below which the terminator is treated as edge-on (``conic = None``).
     """
     r = check_radii(radii)
-    q = _check_vec3(center_cam, "center_cam")
+    q = check_vec3(center_cam, "center_cam")
     R = np.eye(3) if R_body_to_camera is None else check_rotation(R_body_to_camera)
     s_cam = _unit(sun_dir_camera, "sun_dir_camera")
     if not q[2] > 0:

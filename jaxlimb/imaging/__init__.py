@@ -11,7 +11,7 @@ Public API (all re-exported here):
 * detection: :func:`detect_body`, :class:`BodyRegion`, :class:`DetectOptions`,
   :func:`detect_cropping`, :class:`CropInfo`;
 * gradient front end (§4-5): :func:`gradient_front_end`, :class:`GradientOptions`,
-  :func:`richardson_gradient`, :func:`box_filter`, :class:`BoxFilterOptions`;
+  :func:`richardson_gradient`, :func:`box_filter`;
 * scan-line front end (illuminated-ellipsoid §IV-A, §VI): :func:`scanline_front_end`,
   :class:`ScanlineOptions`, :func:`inertia_axes`;
 * the common result: :class:`LimbCandidates`; :func:`front_end` dispatches by name.
@@ -19,7 +19,9 @@ Public API (all re-exported here):
 
 from __future__ import annotations
 
-from .boxfilter import BoxFilterOptions as BoxFilterOptions, box_filter as box_filter
+from ..errors import ConfigError
+
+from .boxfilter import box_filter as box_filter
 from .candidates import LimbCandidates as LimbCandidates, lit_arc as lit_arc
 from .crop import (
     BodyRegion as BodyRegion,
@@ -30,12 +32,11 @@ from .crop import (
     estimate_noise as estimate_noise,
 )
 from .gradient import (
-    GradientOptions as GradientOptions,
-    gradient_front_end as gradient_front_end,
     richardson_gradient as richardson_gradient,
     strongest_pixels as strongest_pixels,
     subpixel_refine as subpixel_refine,
 )
+from .gradient_front_end import GradientOptions as GradientOptions, gradient_front_end as gradient_front_end
 from .io import (
     ColourImageWarning as ColourImageWarning,
     ImageInfo as ImageInfo,
@@ -43,8 +44,8 @@ from .io import (
     read_jp2_header as read_jp2_header,
     validate_image as validate_image,
 )
+from ..geometry.hints import Hints as Hints
 from .prior import (
-    Hints as Hints,
     Prior as Prior,
     PriorOptions as PriorOptions,
     Settings as Settings,
@@ -56,12 +57,8 @@ from .prior import (
     ransac_tests as ransac_tests,
     sun_direction_image as sun_direction_image,
 )
-from .scanline import (
-    ScanlineOptions as ScanlineOptions,
-    inertia_axes as inertia_axes,
-    scan_transitions as scan_transitions,
-    scanline_front_end as scanline_front_end,
-)
+from .scanline import inertia_axes as inertia_axes, scan_transitions as scan_transitions
+from .scanline_front_end import ScanlineOptions as ScanlineOptions, scanline_front_end as scanline_front_end
 from .sdo import SunTruth as SunTruth, hmi_512_truth as hmi_512_truth, sun_truth_from_header as sun_truth_from_header
 
 
@@ -77,8 +74,6 @@ def front_end(name: str, image, prior=None, *, hints=None, camera=None, options=
     jaxlimb.errors.ConfigError
         Unknown name, options of the other front end, or bad hints.
     """
-    from ..errors import ConfigError
-
     kinds = {"gradient": (gradient_front_end, GradientOptions), "scanline": (scanline_front_end, ScanlineOptions)}
     if name not in kinds:
         raise ConfigError(f"front_end must be 'gradient' or 'scanline', got {name!r}")
@@ -92,7 +87,6 @@ def front_end(name: str, image, prior=None, *, hints=None, camera=None, options=
 
 __all__ = [
     "BodyRegion",
-    "BoxFilterOptions",
     "ColourImageWarning",
     "CropInfo",
     "DetectOptions",

@@ -37,43 +37,21 @@ Decisions (the paper is silent on these):
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
-
 import numpy as np
 
 from ..errors import ConfigError
 
 
-@dataclass(frozen=True)
-class BoxFilterOptions:
-    """Thresholds of the box-based outlier filter (§4.2, §6 of the Aerospace 2015 paper).
-
-    Attributes
-    ----------
-    eigen_ratio_max
-        Largest accepted ``lambda_min / lambda_max`` (paper: 0.3).
-    end_ratio_min
-        Smallest accepted gradient ratio of the two edge-line ends (paper: 0.6).
-    far_grey_ratio_max
-        Largest accepted grey-tone ratio of the two far pixels (paper: 0.3).
-    far_gradient_max
-        Largest accepted far-pixel gradient as a fraction of the centre's (decision: 0.5).
-    weight_floor
-        Fraction of the centre gradient subtracted from the box's gradient mass (decision: 0.2).
-    """
-
-    eigen_ratio_max: float = 0.3
-    end_ratio_min: float = 0.6
-    far_grey_ratio_max: float = 0.3
-    far_gradient_max: float = 0.5
-    weight_floor: float = 0.2
-
-    def __post_init__(self) -> None:
-        for k in ("eigen_ratio_max", "end_ratio_min", "far_grey_ratio_max", "far_gradient_max", "weight_floor"):
-            v = getattr(self, k)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and 0 <= v <= 1):
-                raise ConfigError(f"BoxFilterOptions.{k} must be in [0, 1], got {v!r}")
+#: The box's edge test (§4.2, §6 of the Aerospace 2015 paper): largest ``lambda_min / lambda_max`` (paper: 0.3) ...
+EIGEN_RATIO_MAX = 0.3
+#: ... smallest gradient ratio of the two edge-line ends (paper: 0.6) ...
+END_RATIO_MIN = 0.6
+#: ... largest grey-tone ratio of the two far pixels (paper: 0.3) ...
+FAR_GREY_RATIO_MAX = 0.3
+#: ... largest far-pixel gradient as a fraction of the centre's (decision: 0.5) ...
+FAR_GRADIENT_MAX = 0.5
+#: ... and the fraction of the centre gradient subtracted from the box's gradient mass (decision: 0.2).
+WEIGHT_FLOOR = 0.2
 
 
 def _box_ends(samp, G0, I0, g0, h, t, nrm, background):  # type: ignore[no-untyped-def]
@@ -100,7 +78,6 @@ def box_filter(
     box_size: int,
     *,
     background: float = 0.0,
-    options: BoxFilterOptions | None = None,
     valid: np.ndarray | None = None,
 ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Apply the box-based outlier filter to integer candidate pixels (vectorised).
@@ -115,8 +92,6 @@ def box_filter(
         Odd box side ``s >= 3``.
     background
         Sky level subtracted from the grey tones of the far-pixel test.
-    options
-        :class:`BoxFilterOptions`.
     valid
         Optional validity mask of the same shape (``True`` = measured pixel; module docstring).
 
@@ -126,7 +101,6 @@ def box_filter(
     diag : dict of per-point arrays: ``eigen_ratio``, ``end_ratio``,
         ``far_grad``, ``far_grey_ratio``, ``normal_rc`` ``(n, 2)``.
     """
-    opt = options or BoxFilterOptions()
     s = int(box_size)
     if s < 3 or s % 2 == 0:
         raise ConfigError(f"box_size must be an odd integer >= 3, got {box_size!r}")
@@ -145,14 +119,14 @@ def box_filter(
     pr, pc = P[:, 0], P[:, 1]
     patch = _gather_boxes(G0, pr, pc, h, V)
     g0 = G0[pr, pc].astype(np.float64)
-    w = np.maximum(patch - opt.weight_floor * g0[:, None, None], 0.0)
+    w = np.maximum(patch - WEIGHT_FLOOR * g0[:, None, None], 0.0)
     ratio, t_r, t_c = _edge_direction(w, h)
     n_r, n_c = -t_c, t_r
     samp = _box_sampler(pr, pc, h, G0.shape)
     end_ratio, far_grad, grey_ratio, i1, i2 = _box_ends(samp, G0, I0, g0, h, (t_r, t_c), (n_r, n_c), background)
-    keep = (ratio < opt.eigen_ratio_max) & (end_ratio > opt.end_ratio_min) & (grey_ratio < opt.far_grey_ratio_max)
+    keep = (ratio < EIGEN_RATIO_MAX) & (end_ratio > END_RATIO_MIN) & (grey_ratio < FAR_GREY_RATIO_MAX)
     if h >= 3:
-        keep &= far_grad < opt.far_gradient_max
+        keep &= far_grad < FAR_GRADIENT_MAX
     keep &= g0 > 0
     if V is not None:
         for dr_, dc_ in ((t_r, t_c), (-t_r, -t_c), (n_r, n_c), (-n_r, -n_c)):
@@ -233,4 +207,4 @@ def _box_sampler(pr: np.ndarray, pc: np.ndarray, h: int, shape: tuple[int, int])
 
     return samp
 
-__all__ = ["BoxFilterOptions", "box_filter"]
+__all__ = ["box_filter"]

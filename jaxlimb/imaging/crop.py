@@ -49,69 +49,40 @@ from typing import Any
 import cv2
 import numpy as np
 
-from ..errors import ConfigError, NoBodyError, TooBigError, TooSmallError, TooThinError
+from ..errors import NoBodyError, TooBigError, TooSmallError, TooThinError
+
+
+#: Largest side (px) of the block-averaged working image of :func:`detect_body`.
+WORK_SIZE = 512
+#: Gaussian blur (px of the working image) before thresholding.
+SMOOTH_SIGMA = 1.0
+#: No-body test: required ``(G_max - G_min) / sigma_smoothed``.
+SNR_MIN = 20.0
+#: Check 1: smallest extent of the lit region (full-resolution px) ...
+MIN_DIAMETER_PX = 10.0
+#: ... and the largest fraction of the frame it may cover.
+MAX_FILL_FRACTION = 0.9
+#: Check 2: smallest illumination parameter ``p_i`` measured on the image (px).  The measured thickness cannot drop
+#: below the blurred width of a line (~3.6 px for a 1 px PSF): 4 px rejects crescents thinner than ~2 px while a 6 px
+#: crescent passes.  The geometric check on the hints (``p_i`` from ``sun_dir_camera``) is the exact one.
+MIN_THICKNESS_PX = 4.0
+#: Margin (full-resolution px) added around the region for the ROI.
+MARGIN_PX = 16
+#: A variegated body (:func:`dark_surface_region`): the region above the sky by ``max(6 sigma, DARK_SURFACE_FRAC x
+#: range)`` replaces Eq. (10)'s when it is ``DARK_SURFACE_AREA_RATIO`` to ``DARK_SURFACE_MAX_RATIO`` times larger.
+DARK_SURFACE_FRAC = 0.03
+DARK_SURFACE_AREA_RATIO = 1.6
+DARK_SURFACE_MAX_RATIO = 8.0
 
 
 @dataclass(frozen=True)
 class DetectOptions:
-    """Settings of :func:`detect_body`.
+    """Settings of :func:`detect_body`: ``run_checks`` (the size and thickness checks; the no-body test always runs)
+    and ``dark_surface`` (a variegated body's region, :func:`dark_surface_region`; off above 30 deg of phase in
+    :func:`jaxlimb.pipeline.frame.candidates`).  Its numbers are the module's constants."""
 
-    Attributes
-    ----------
-    work_size
-        Largest side (px) of the block-averaged working image (>= 32).
-    smooth_sigma
-        Gaussian blur (px of the working image) before thresholding.
-    snr_min
-        No-body test: required ``(G_max - G_min) / sigma_smoothed`` (> 0).
-    min_diameter_px
-        Check 1: smallest extent of the lit region (full-resolution px).
-    max_fill_fraction
-        Check 1: largest fraction of the frame the lit region may cover.
-    min_thickness_px
-        Check 2: smallest illumination parameter ``p_i`` measured on the image (px,
-        default 4).  The measured thickness cannot drop below the blurred width of
-        a line (~3.6 px for a 1 px PSF), so crescents thinner than ~2 px read as
-        ~3.6 px: 4 px rejects them while a 6 px crescent passes.  The geometric
-        check on the hints (``p_i`` from ``sun_dir_camera``) is the exact one.
-    margin_px
-        Margin added around the region (full-resolution px) for the ROI.
-    run_checks
-        Run the size/thickness checks (the no-body test always runs).
-    dark_surface, dark_surface_frac, dark_surface_area_ratio, dark_surface_max_ratio
-        A variegated body (off with ``dark_surface = False``) (:func:`dark_surface_region`): the region above the sky by
-        ``max(6 sigma, dark_surface_frac x range)`` replaces Eq. (10)'s when it is
-        ``dark_surface_area_ratio`` to ``dark_surface_max_ratio`` times larger.
-    """
-
-    work_size: int = 512
-    smooth_sigma: float = 1.0
-    snr_min: float = 20.0
-    min_diameter_px: float = 10.0
-    max_fill_fraction: float = 0.9
-    min_thickness_px: float = 4.0
-    margin_px: int = 16
     run_checks: bool = True
     dark_surface: bool = True
-    dark_surface_frac: float = 0.03
-    dark_surface_area_ratio: float = 1.6
-    dark_surface_max_ratio: float = 8.0
-
-    def __post_init__(self) -> None:
-        if self.work_size < 32:
-            raise ConfigError(f"DetectOptions.work_size must be >= 32, got {self.work_size!r}")
-        for k in ("smooth_sigma", "snr_min", "min_diameter_px", "min_thickness_px"):
-            v = getattr(self, k)
-            if not (math.isfinite(v) and v >= 0):
-                raise ConfigError(f"DetectOptions.{k} must be a finite number >= 0, got {v!r}")
-        if not (0 < self.max_fill_fraction <= 1):
-            raise ConfigError(f"DetectOptions.max_fill_fraction must be in (0, 1], got {self.max_fill_fraction!r}")
-        if self.margin_px < 0:
-            raise ConfigError(f"DetectOptions.margin_px must be >= 0, got {self.margin_px!r}")
-        if not (0 <= self.dark_surface_frac < 0.25 and 1 <= self.dark_surface_area_ratio <= self.dark_surface_max_ratio):
-            raise ConfigError("DetectOptions.dark_surface_frac must be in [0, 0.25) and 1 <= dark_surface_area_ratio <= "
-                              f"dark_surface_max_ratio, got {self.dark_surface_frac!r}, {self.dark_surface_area_ratio!r}, "
-                              f"{self.dark_surface_max_ratio!r}")
 
 
 @dataclass(frozen=True)
@@ -308,13 +279,13 @@ def detect_body(image: np.ndarray, options: DetectOptions | None = None, *, sky_
     opt = options or DetectOptions()
     a = np.asarray(image)
     R, C = a.shape
-    f = max(1, int(math.ceil(max(R, C) / opt.work_size)))
-    sm, sigma, sig_s = _smoothed_small(a, f, opt)
+    f = max(1, int(math.ceil(max(R, C) / WORK_SIZE)))
+    sm, sigma, sig_s = _smoothed_small(a, f)
     gmin, gmax = float(sm.min()), float(sm.max())
     contrast = gmax - gmin
-    if not contrast > 0 or contrast < opt.snr_min * sig_s:
+    if not contrast > 0 or contrast < SNR_MIN * sig_s:
         raise NoBodyError(
-            f"no body in the image: smoothed grey-level range {contrast:.4g} DN is below snr_min = {opt.snr_min:g} "
+            f"no body in the image: smoothed grey-level range {contrast:.4g} DN is below {SNR_MIN:g} "
             f"x residual noise {sig_s:.3g} DN (per-pixel noise {sigma:.3g} DN)"
         )
     if sky_dn is not None:
@@ -322,9 +293,9 @@ def detect_body(image: np.ndarray, options: DetectOptions | None = None, *, sky_
     gt, dark, mask, (x, y, w, h) = _lit_region(sm, gmin, gmax, sig_s, opt, sky_dn is not None)
     full_mask = np.zeros(sm.shape, np.uint8)
     full_mask[y : y + h, x : x + w] = mask
-    shape = _region_shape(mask, x, y, f, opt)
+    shape = _region_shape(mask, x, y, f)
     touches = bool(x == 0 or y == 0 or x + w >= sm.shape[1] or y + h >= sm.shape[0])
-    m = opt.margin_px
+    m = MARGIN_PX
     r0 = max(0, y * f - m)
     r1 = min(R, (y + h) * f + m + (R - (R // f) * f))
     c0 = max(0, x * f - m)
@@ -346,7 +317,7 @@ def detect_body(image: np.ndarray, options: DetectOptions | None = None, *, sky_
         dark_surface=dark,
     )
     if opt.run_checks:
-        if region.lit_fraction > opt.max_fill_fraction and sky_dn is None:
+        if region.lit_fraction > MAX_FILL_FRACTION and sky_dn is None:
             b = border_sky(sm)
             # the sky itself is above the threshold, and below mid-range (a frame-filling body's border is
             # the body, near its peak): measure the body above the sky
@@ -355,7 +326,7 @@ def detect_body(image: np.ndarray, options: DetectOptions | None = None, *, sky_
                     return detect_body(image, options, sky_dn=b)
                 except NoBodyError:
                     pass
-        check_region(region, opt, sky_dn)
+        check_region(region, sky_dn)
     return region
 
 
@@ -371,21 +342,21 @@ def _lit_region(sm: np.ndarray, gmin: float, gmax: float, sig_s: float, opt: Det
     mask, box = _brightest_component(sm, (sm > gt).astype(np.uint8), gt)
     if sky_known or not opt.dark_surface:
         return gt, False, mask, box
-    low = sky + max(6.0 * sig_s, opt.dark_surface_frac * contrast)
-    g2, mask, box = dark_surface_region(sm, gt, low, mask, box, opt.dark_surface_area_ratio, opt.dark_surface_max_ratio)
+    low = sky + max(6.0 * sig_s, DARK_SURFACE_FRAC * contrast)
+    g2, mask, box = dark_surface_region(sm, gt, low, mask, box, DARK_SURFACE_AREA_RATIO, DARK_SURFACE_MAX_RATIO)
     return g2, g2 < gt, mask, box
 
 
-def _smoothed_small(a: np.ndarray, f: int, opt: DetectOptions) -> tuple[np.ndarray, float, float]:
+def _smoothed_small(a: np.ndarray, f: int) -> tuple[np.ndarray, float, float]:
     """The image block-averaged by ``f`` and Gaussian-smoothed, the per-pixel noise and the noise left in it."""
     small = block_average(a, f)
     sigma = estimate_noise(a)
     sig_small = sigma / f
     if f > 1 and a.dtype in (np.uint8, np.uint16):
         sig_small = math.sqrt(sig_small**2 + 1.0 / 12.0)  # rounding of the block averages
-    if opt.smooth_sigma > 0:
-        sm = cv2.GaussianBlur(small, (0, 0), opt.smooth_sigma, borderType=cv2.BORDER_REPLICATE)
-        return sm, sigma, sig_small / (2 * math.sqrt(math.pi) * opt.smooth_sigma)
+    if SMOOTH_SIGMA > 0:
+        sm = cv2.GaussianBlur(small, (0, 0), SMOOTH_SIGMA, borderType=cv2.BORDER_REPLICATE)
+        return sm, sigma, sig_small / (2 * math.sqrt(math.pi) * SMOOTH_SIGMA)
     return small, sigma, sig_small
 
 
@@ -436,7 +407,7 @@ def _brightest_component(sm: np.ndarray, binary: np.ndarray, gt: float) -> tuple
     return filled, (int(x), int(y), int(w), int(h))
 
 
-def _region_shape(mask: np.ndarray, x: int, y: int, f: int, opt: DetectOptions) -> dict[str, Any]:
+def _region_shape(mask: np.ndarray, x: int, y: int, f: int) -> dict[str, Any]:
     """Centroid, symmetry axis, eigenvalue ratio, extent along the major axis, thickness and area of the
     lit region (full-resolution pixels), as :class:`BodyRegion` fields."""
     rr, cc = np.nonzero(mask)
@@ -453,7 +424,7 @@ def _region_shape(mask: np.ndarray, x: int, y: int, f: int, opt: DetectOptions) 
     dist = cv2.distanceTransform(np.pad(mask, 1), cv2.DIST_L2, 5)
     # a band W px wide has max distance ~(W + 1)/2; the blur + 25 % threshold widen
     # an edge by ~0.67 sigma on each side (removed here)
-    inflation = 1.35 * opt.smooth_sigma if opt.smooth_sigma > 0 else 0.0
+    inflation = 1.35 * SMOOTH_SIGMA if SMOOTH_SIGMA > 0 else 0.0
     return {"centroid_rc": (rb, cb), "axis_rc": (float(minor[0]), float(minor[1])),
             "eigen_ratio": float(evals[0] / evals[1]) if evals[1] > 0 else 1.0,
             "extent_major_px": float(proj.max() - proj.min() + f),
@@ -469,23 +440,22 @@ def border_sky(sm: np.ndarray, width_frac: float = 0.02) -> float:
     return float(np.median(ring))
 
 
-def check_region(region: BodyRegion, options: DetectOptions | None = None, sky_dn: float | None = None) -> None:
+def check_region(region: BodyRegion, sky_dn: float | None = None) -> None:
     """Checks 1-2 measured on the image (see the module docstring)."""
-    opt = options or DetectOptions()
-    if region.lit_fraction > opt.max_fill_fraction:
+    if region.lit_fraction > MAX_FILL_FRACTION:
         above = "" if sky_dn is None else f" (measured above the sky level {sky_dn:.4g} DN of the frame's border)"
         raise TooBigError(
-            f"the lit region covers {100 * region.lit_fraction:.1f} % of the frame{above}, above max_fill_fraction = "
-            f"{100 * opt.max_fill_fraction:.0f} %: the body fills the image"
+            f"the lit region covers {100 * region.lit_fraction:.1f} % of the frame{above}, above "
+            f"{100 * MAX_FILL_FRACTION:.0f} %: the body fills the image"
         )
-    if region.extent_major_px < opt.min_diameter_px:
+    if region.extent_major_px < MIN_DIAMETER_PX:
         raise TooSmallError(
-            f"the lit region spans {region.extent_major_px:.3g} px, below min_diameter_px = {opt.min_diameter_px:g} px"
+            f"the lit region spans {region.extent_major_px:.3g} px, below the {MIN_DIAMETER_PX:g} px a body must span"
         )
-    if region.thickness_px < opt.min_thickness_px:
+    if region.thickness_px < MIN_THICKNESS_PX:
         raise TooThinError(
             f"the lit region is {region.thickness_px:.3g} px thick at its thickest point, below "
-            f"min_thickness_px = {opt.min_thickness_px:g} px (new moon or thin crescent)"
+            f"the {MIN_THICKNESS_PX:g} px a lit body must measure (new moon or thin crescent)"
         )
 
 

@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ImageContentError, ImageReadError, LabelError
-from .io import MIN_IMAGE_SIZE, ImageInfo, _read_fits, load_image, validate_image
+from .io import MIN_IMAGE_SIZE, ImageInfo, read_fits, load_image, validate_image
 
 #: Shortest run of fill-value pixels (along a row or a column) taken as missing data.
 MIN_FILL_RUN = 8
@@ -207,6 +207,9 @@ def _head(p: Path, n: int = 64) -> bytes:
 
 
 def _read_vicar(p: Path) -> tuple[np.ndarray, dict[str, Any]]:
+    from .._image_bounds import check_size, vicar_size
+
+    check_size(vicar_size(p), p)  # the label's size against the file and memory, before reading the data
     import vicar
 
     try:
@@ -246,8 +249,52 @@ _META_KEYS = ("IMAGE_MID_TIME", "IMAGE_TIME", "START_TIME", "SPACECRAFT_NAME", "
               "DATE-OBS")
 
 
+def _pds3_image(d, p: Path) -> None:  # noqa: ANN001
+    """A PDS3 label's layout against its data file, before any data are read: the file holds exactly
+    ``FILE_RECORDS`` x ``RECORD_BYTES`` (fixed-length records), the ``IMAGE`` object ends inside the file,
+    and its size passes :func:`jaxlimb._image_bounds.check_size`; else :class:`~jaxlimb.errors.LabelError`."""
+    from .._image_bounds import HeaderSize, check_size
+
+    def num(v: Any) -> int | None:
+        try:
+            return int(v)
+        except (TypeError, ValueError):
+            return None
+
+    img = d.metaget("IMAGE")
+    if img is None or not hasattr(img, "get"):
+        return
+    lines, samples = num(img.get("LINES")), num(img.get("LINE_SAMPLES"))
+    bits, bands = num(img.get("SAMPLE_BITS")) or 8, num(img.get("BANDS")) or 1
+    if lines is None or samples is None:
+        return
+    size = HeaderSize(lines, samples, bands, max(1, bits // 8), "PDS3")
+    check_size(size, p)
+    pointer = d.metaget("^IMAGE")
+    name, record = (pointer if isinstance(pointer, (tuple, list)) and len(pointer) == 2 else
+                    (pointer, 1) if isinstance(pointer, str) else (None, pointer))
+    data_file = p if name is None else next((f for f in p.parent.iterdir() if f.name.lower() == str(name).lower()), None)
+    record_bytes, file_records = num(d.metaget("RECORD_BYTES")), num(d.metaget("FILE_RECORDS"))
+    if data_file is None or record_bytes is None or num(record) is None:
+        return  # pdr reports a missing data file itself
+    have = data_file.stat().st_size
+    if str(d.metaget("RECORD_TYPE") or "").upper() == "FIXED_LENGTH" and file_records is not None \
+            and file_records * record_bytes != have:
+        raise LabelError(f"PDS3 label {str(p)!r}: FILE_RECORDS x RECORD_BYTES = {file_records} x {record_bytes} = "
+                         f"{file_records * record_bytes} bytes, but {data_file.name!r} holds {have}: a wrong "
+                         "RECORD_BYTES/FILE_RECORDS or a truncated file")
+    line = (num(img.get("LINE_PREFIX_BYTES")) or 0) + (num(img.get("LINE_SUFFIX_BYTES")) or 0) + samples * bits // 8
+    end = (num(record) - 1) * record_bytes + lines * bands * line  # type: ignore[operator]
+    if end > have:
+        raise LabelError(f"PDS3 label {str(p)!r}: the IMAGE object (record {record} of {record_bytes} bytes, "
+                         f"{lines} x {samples} x {bits} bits) ends at byte {end}, past the end of "
+                         f"{data_file.name!r} ({have} bytes): a wrong RECORD_BYTES or a truncated file")
+
+
 def _read_pds(p: Path) -> tuple[np.ndarray, dict[str, Any]]:
     d = _pdr_read(p)
+    if p.suffix.lower() != ".xml":
+        _pds3_image(d, p)
     image = None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -297,7 +344,7 @@ def _frame_from_file(p: Path, min_size: int) -> Frame:
     mask = np.ones(a.shape, dtype=bool)
     if info.format == "fits" and info.n_nonfinite_filled:
         # load_image already filled the NaNs with the minimum finite value (SDO: the dark off-disc corners)
-        raw, _, _ = _read_fits(p)
+        raw, _, _ = read_fits(p)
         mask = np.isfinite(np.asarray(raw, dtype=np.float64))
     return Frame(a, mask, info, meta_from_label(_fits_label(info.header)))
 

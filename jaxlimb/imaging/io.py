@@ -204,14 +204,19 @@ def _suffix(p: Path) -> str:
     return p.suffix.lower()
 
 
-def _read_fits(p: Path) -> tuple[np.ndarray, Any, int]:
+def read_fits(p: Path) -> tuple[np.ndarray, Any, int]:
+    """The image array of a FITS file (the first HDU with 2-D data), its header and the HDU's index; astropy
+    reads it (imported here: an optional, heavy dependency)."""
     from astropy.io import fits
+
+    from .._image_bounds import check_size, fits_size
 
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             with fits.open(p, memmap=False) as hdul:
                 for i, hdu in enumerate(hdul):
+                    check_size(fits_size(hdu.header, p), p)  # before its data are read or decompressed
                     data = getattr(hdu, "data", None)
                     if data is None or not isinstance(data, np.ndarray) or data.dtype.names is not None:
                         continue
@@ -219,7 +224,7 @@ def _read_fits(p: Path) -> tuple[np.ndarray, Any, int]:
                     if d.ndim == 2:
                         return np.array(d), hdu.header.copy(), i
                 raise ImageContentError(f"FITS file {str(p)!r} has no HDU holding a 2-D image")
-    except ImageContentError:
+    except (ImageContentError, ImageReadError):
         raise
     except Exception as e:  # astropy raises OSError/ValueError/TypeError on corrupt files
         raise ImageReadError(f"cannot read FITS file {str(p)!r}: {type(e).__name__}: {e}") from None
@@ -263,6 +268,9 @@ def read_jp2_header(path: str | os.PathLike[str]) -> Any:
 
 
 def _read_cv2(p: Path, kind: str) -> np.ndarray:
+    from .._image_bounds import check_size, header_size
+
+    check_size(header_size(p), p)  # the declared size, before the decoder allocates it
     if kind == "png":
         with open(p, "rb") as fh:
             head = fh.read(8)
@@ -273,7 +281,11 @@ def _read_cv2(p: Path, kind: str) -> np.ndarray:
         if tail != _PNG_IEND:
             raise ImageReadError(f"PNG file {str(p)!r} is truncated (no IEND chunk at the end)")
     buf = np.fromfile(p, dtype=np.uint8)
-    img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
+    try:
+        img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
+    except cv2.error as e:  # OpenCV's own size limit (OPENCV_IO_MAX_IMAGE_PIXELS) or a decoder assertion
+        msg = " ".join(str(e).split())[-160:]
+        raise ImageReadError(f"cannot decode image file {str(p)!r}: {msg}") from None
     if img is None and kind == "jp2":
         try:  # pragma: no cover - only when OpenCV lacks OpenJPEG
             import glymur
@@ -324,7 +336,7 @@ def load_image(
     n_filled = 0
     if suf in _FITS_SUFFIXES:
         fmt = "fits"
-        raw, header, hdu_index = _read_fits(p)
+        raw, header, hdu_index = read_fits(p)
         raw, a, n_filled = _fits_as_float(raw, p)
     else:
         fmt = {".png": "png", ".tif": "tiff", ".tiff": "tiff"}.get(suf, "jp2" if suf in _JP2_SUFFIXES else "other")

@@ -21,7 +21,7 @@ place (and, weakly, its scale) is not.  This front end uses that:
    centre and ``a`` free: in the frame :math:`x' = x,\ y' = y/\rho` the ellipse is a circle,
    fitted with Taubin's method (Aerospace 2015, Eq. 26-35) and a 3-MAD trim.
 
-The result feeds the sigmoid refinement of :mod:`jaxlimb.pipeline.whole_limb`.  With a
+The result feeds the sigmoid refinement of :mod:`jaxlimb.pipeline.sphere.whole_limb`.  With a
 short visible arc (a body larger than the frame) the held shape is what keeps the fit
 determined.
 """
@@ -32,12 +32,16 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from ..conics import fit_circle_taubin
-from ..errors import ConfigError, TooManyOutliersError
+
+from ..conics.ransac import RansacOptions, ransac_circle
+from ..conics.taubin import fit_circle_taubin
+from ..errors import ConfigError, TooBigError, TooManyOutliersError
+from ..geometry.bodies import body_radii_km
 from ..geometry.camera import Camera
+from ..geometry.ellipsoid import image_conic
+from ..geometry.hints import Hints
 from .crop import estimate_noise
-from .gradient import _bilinear
-from .prior import Hints
+from .gradient import bilinear, strongest_pixels
 
 
 @dataclass(frozen=True)
@@ -79,8 +83,6 @@ def predicted_limb(camera: Camera, hints: Hints, center_rc=None) -> LimbShape:
     ConfigError
         The hints lack the range, the radii or the centre.
     """
-    from ..geometry.bodies import body_radii_km
-    from ..geometry.ellipsoid import image_conic
 
     c = center_rc if center_rc is not None else hints.expected_center_rc
     if c is None or hints.range_prior_km is None or hints.body is None and hints.body_radii_km is None:
@@ -157,7 +159,7 @@ def limb_edges(image: np.ndarray, shape: LimbShape, *, mask: np.ndarray | None =
     (r0, r1), (c0, c1) = _window(pts, img.shape, max(int(math.ceil(4 * smooth_px)) + 2, erode + 2))
     # Gaussian of reach 4 sigma, replicated border: the same values on the window as on the frame
     sm = cv2.GaussianBlur(np.ascontiguousarray(img[r0:r1, c0:c1]), (0, 0), smooth_px, borderType=cv2.BORDER_REPLICATE)
-    prof = _bilinear(sm, pts[..., 0] - r0, pts[..., 1] - c0)
+    prof = bilinear(sm, pts[..., 0] - r0, pts[..., 1] - c0)
     d = np.gradient(prof, t, axis=1)
     bad = ~inside
     if mask is not None:  # valid pixels at least `erode` (4-connected steps) from any invalid one
@@ -259,9 +261,6 @@ def arc_center(image: np.ndarray, expected_radius_px: float, radius_uncertainty_
     TooBigError
         No arc of that radius in the frame: the body fills the image and no limb is visible.
     """
-    from ..conics import RansacOptions, ransac_circle
-    from ..errors import TooBigError
-    from .gradient import strongest_pixels
 
     img = np.asarray(image, dtype=np.float64)
     from scipy import ndimage

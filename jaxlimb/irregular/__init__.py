@@ -1,15 +1,16 @@
 """Irregular bodies: model-based line of sight (Wu, Zou, Xu and Mao).
 
-Shape model -> view sphere (Eq. 5-7) -> template silhouettes and features
-(Eq. 9-14) -> template database -> Hu-moment matching (Eq. 15-17) ->
-similarity transform to the body-centre image (Eq. 18-25) -> line of sight
-(Eq. 1-4), plus the FC/BC baselines and a soft-silhouette least-squares
-refinement (:mod:`.refine`, beyond the paper).
+Shape model (:mod:`.mesh`) -> view sphere (Eq. 5-7, :mod:`.views`) -> template silhouettes and
+features (Eq. 9-14, :mod:`.silhouette`, :mod:`.features`) -> template database (:mod:`.database`)
+-> Hu-moment matching (Eq. 15-17) and the similarity transform to the body-centre image
+(Eq. 18-25) on the rectified figure (:mod:`.matching`, :mod:`.rectify`) -> line of sight
+(Eq. 1-4); the FC/BC baselines; a local densification and soft-silhouette refinement of the
+match (:mod:`.densify`, :mod:`.refine`, beyond the paper).
 
-Beyond the paper, for frames at any phase: :func:`locate_los` (:mod:`.locate`) --
-phase-aware template search (:mod:`.phase`) and render-and-register with the attitude
-known or fitted (:mod:`.register`), with typed failures when the model does not explain
-the frame; generated test bodies in :mod:`.shapes`.
+Beyond the paper, for frames at any phase: :func:`locate_los` (:mod:`.locate`) -- phase-aware
+template search (:mod:`.phase`) and render-and-register with the attitude known or fitted
+(:mod:`.register`), with typed failures when the model does not explain the frame; generated
+test bodies in :mod:`.shapes`.
 """
 
 from .database import DatabaseOptions as DatabaseOptions
@@ -19,6 +20,8 @@ from .database import cache_path as cache_path
 from .database import cached_database as cached_database
 from .database import load_database as load_database
 from .database import save_database as save_database
+from .densify import DensifyResult as DensifyResult
+from .densify import densify_match as densify_match
 from .features import FigureFeatures as FigureFeatures
 from .features import features_from_contours as features_from_contours
 from .features import features_from_mask as features_from_mask
@@ -56,7 +59,7 @@ from .views import view_count as view_count
 
 # The refinement imports JAX and optimistix (seconds): loaded on first use only, so that
 # ``jaxlimb los locate`` (numpy + OpenCV) does not pay for them.
-_LAZY = {"DensifyResult", "RefineOptions", "RefineResult", "densify_match", "refine_center"}
+_LAZY = {"RefineOptions", "RefineResult", "refine_center"}
 
 
 def __getattr__(name: str):  # type: ignore[no-untyped-def]

@@ -32,10 +32,16 @@ file is written atomically (:func:`jaxlimb._io.atomic_open`); reading it
 verifies the zip CRCs, the checksum, the version, the shapes, the stored mesh
 against its hash and, if given, the expected mesh hash and settings.  Any
 failure raises :class:`jaxlimb.errors.DatabaseError` and nothing is returned.
+The file also records ``built_by`` (:func:`built_by`: the NumPy and OpenCV
+versions and the format that made the templates), inside the checksum; the
+cache of :func:`cached_database` rebuilds an entry built by other versions, or
+one that fails any check, and says so once (a
+:class:`~jaxlimb.errors.CacheRepairWarning`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import json
@@ -255,10 +261,18 @@ def _arrays(db: TemplateDatabase) -> dict[str, np.ndarray]:
         "mesh_vertices": np.asarray(db.mesh.vertices, dtype=np.float64),
         "mesh_faces": np.asarray(db.mesh.faces, dtype=np.int64),
         "camera": np.array([db.focal_px, db.principal_rc[0], db.principal_rc[1], db.distance_km]),
+        "built_by": np.array(built_by()),
     }
     for k in _PER_TEMPLATE:
         d[k] = np.asarray(getattr(db, k))
     return d
+
+
+def built_by() -> str:
+    """The versions a database's templates depend on: NumPy, OpenCV (the silhouettes) and the file format."""
+    import cv2
+
+    return f"numpy={np.__version__};opencv={cv2.__version__};format={FORMAT_VERSION}"
 
 
 def _checksum(arrays: dict[str, np.ndarray]) -> str:
@@ -288,6 +302,7 @@ def load_database(
     path: str | os.PathLike[str],
     expected_mesh_hash: str | None = None,
     expected_options: DatabaseOptions | None = None,
+    expected_built_by: str | None = None,
 ) -> TemplateDatabase:
     """Read and verify a database file; see the module docstring.
 
@@ -328,6 +343,9 @@ def load_database(
             f"template database {str(p)!r} was built for mesh {stored_hash[:12]}..., not for the given mesh"
             f" {expected_mesh_hash[:12]}..."
         )
+    if expected_built_by is not None and str(arrays.get("built_by", "")) != expected_built_by:
+        raise DatabaseError(f"template database {str(p)!r} was built by {str(arrays.get('built_by', 'an older jaxlimb'))}"
+                            f", not {expected_built_by}")
     if expected_options is not None and options != expected_options:
         raise DatabaseError(
             f"template database {str(p)!r} was built with settings {options.to_json()}, expected"
@@ -397,22 +415,34 @@ def cache_path(mesh: Mesh, options: DatabaseOptions) -> Path:
 def cached_database(mesh: Mesh, options: DatabaseOptions = DatabaseOptions(), progress: bool = True) -> TemplateDatabase:
     """Load the cached database for ``mesh`` and ``options``, building (and caching) it if needed.
 
-    A cached file that fails verification is rebuilt and replaced.
+    A cached file that fails verification, or was built by other versions (:func:`built_by`), is
+    deleted, rebuilt and replaced, and one warning says so; a cache that cannot be written (a full
+    disk, ``JAXLIMB_CACHE`` naming a file) is skipped with one warning.
     """
+    from .._jaxcache import warn_once
+
     p = cache_path(mesh, options)
     if p.is_file():
         try:
-            return load_database(p, expected_mesh_hash=mesh_hash(mesh), expected_options=options)
-        except DatabaseError:
-            pass  # rebuilt below
+            return load_database(p, expected_mesh_hash=mesh_hash(mesh), expected_options=options,
+                                 expected_built_by=built_by())
+        except DatabaseError as e:
+            with contextlib.suppress(OSError):
+                p.unlink()
+            warn_once("template-database-cache", f"cached template database rebuilt: {e}")
     db = build_database(mesh, options, progress=progress)
-    save_database(db, p)
+    try:
+        save_database(db, p)
+    except (OSError, ValueError) as e:  # OutputWriteError is a ValueError
+        warn_once("template-database-cache-write", f"the template database cache cannot be written ({e}): "
+                  "the database is used without being cached")
     return db
 
 
 __all__ = [
     "FORMAT_VERSION",
     "DatabaseOptions",
+    "built_by",
     "TemplateDatabase",
     "build_database",
     "cache_dir",

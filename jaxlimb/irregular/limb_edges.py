@@ -22,16 +22,17 @@ registration:
    outline, and a shift toward the Sun and a scale are nearly the same motion of it).
 
 Its covariance is the cluster-robust sandwich over 16 position-angle sectors
-(:func:`jaxlimb.analysis.model_error.sector_groups`) plus ``floor_px`` per axis, and the answer of
+(:func:`jaxlimb.model_error.sector_groups`) plus ``floor_px`` per axis, and the answer of
 :func:`.register.register_known_attitude` is the information-weighted mean of both estimates
 (:func:`combine`).
 """
 
 from __future__ import annotations
 
-
 import cv2
 import numpy as np
+
+from ..model_error import sector_groups
 
 
 def _sample(a: np.ndarray, r: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -98,8 +99,6 @@ def lit_limb_center(F, I, coverage, P_win, lit_frac: float = 0.3, half_px: float
     ``F``: the fitted model image at the centre ``P_win`` (blurred by the estimated PSF, with its background);
     ``I``: the frame; ``coverage``: the model's (blurred) coverage, all on the same window.
     """
-    from ..analysis.model_error import sector_groups
-
     pts, nv = outline_points(coverage)
     if len(pts) < min_points:
         return None

@@ -1,13 +1,14 @@
 """Checked model-based line of sight at any phase: the entry point of ``jaxlimb los locate``.
 
-Two modes (:class:`LosMode`):
+The answer is the image ``P`` of the body centre and its line of sight ``u(P)`` (Eq. 4 of Wu et al.),
+with a covariance.  Two modes (:class:`LosMode`):
 
 * ``KNOWN_ATTITUDE`` -- ``R_body_to_camera`` is known (hints, SPICE): the predicted
   lit image is rendered and registered to the frame (:mod:`.register`).
 * ``TEMPLATE_SEARCH`` -- the attitude is unknown: phase-aware template search over
-  every template and roll (:mod:`.phase`; at zero phase, or without a Sun direction,
-  the whole silhouette counts as limb), then the best ``n_verify`` distinct
-  hypotheses are each registered with the attitude fitted too.
+  every template and roll (:mod:`.phase`, the templates of Eq. 5-14; at zero phase, or
+  without a Sun direction, the whole silhouette counts as limb), then the best
+  ``n_verify`` distinct hypotheses are each registered with the attitude fitted too.
 
 Checks (typed failures, CLI exit 3): every registration checks its residual against
 the noise and the overlap of the figures (:class:`~jaxlimb.errors.MatchError`); when
@@ -26,10 +27,32 @@ from enum import Enum
 import numpy as np
 
 from ..errors import AmbiguousMatchError, CheckFailed, MatchError
+from ..imaging.prior import sun_direction_image
 from .database import TemplateDatabase
-from .phase import PhaseSearchOptions, phase_candidates
-from .register import RegisterOptions, RegisterResult, lit_figure, phase_angle_deg, register_known_attitude
+from .phase import PoseHypothesis, phase_candidates
+from .register import (
+    RegisterOptions,
+    RegisterResult,
+    complete_search_registration,
+    lit_figure,
+    phase_angle_deg,
+    register_known_attitude,
+    start_search_registration,
+)
+from .register.gauss_newton import GNState, Guard
+from .register.pyramid import PYRAMID_BLUR_PX
 from .silhouette import figure_center
+
+_MIN_PHASE_DEG = 5.0  # below this phase the lit figure is treated as the silhouette
+# standard deviation (px, per axis) added to the covariance when the attitude is fitted: its residual error (a
+# flat cost along some rotations) moves the centre by more than the noise (calibrated on
+# benchmarks/irregular_los.py --views 2: mean error^2 / trace(cov) about 1)
+_SEARCH_FLOOR_PX = 0.008
+# after the coarse stage a hypothesis whose RMS residual (fraction of the contrast) exceeds the best one's by
+# _PRUNE_RMS_FRAC, or exceeds _PRUNE_MAX_RMS_FRAC, is dropped (a correct pose: 0.001-0.04, a wrong one: 0.09-0.13)
+_PRUNE_RMS_FRAC = 0.04
+_PRUNE_MAX_RMS_FRAC = 0.1
+_SAME_CENTER_PX = 0.5  # a hypothesis whose centre lies this close to an accepted fit is the same answer
 
 
 class LosMode(str, Enum):
@@ -39,6 +62,12 @@ class LosMode(str, Enum):
     TEMPLATE_SEARCH = "template-search"
 
 
+def _search_register_options() -> RegisterOptions:
+    """The registration of a template hypothesis (attitude fitted): :attr:`LosOptions.search`'s default."""
+    return RegisterOptions(max_iterations=24, sharp_level2_iterations=6, max_excess_frac=0.06, surge_widths=(), mix_laws=2,
+                           exact_coverage=False)  # fmt: skip
+
+
 @dataclass(frozen=True)
 class LosOptions:
     """Options of :func:`locate_los`.
@@ -46,87 +75,43 @@ class LosOptions:
     Parameters
     ----------
     n_verify
-        Distinct template hypotheses registered (attitude unknown).  Each costs a few
-        coarse pyramid iterations; only the best go on at full resolution.  With 3, the
-        right pose was missing on Phobos and the contact binary at 60 deg and 3x
-        (``benchmarks/irregular_los.py``); with 10 both are found.
+        Distinct template hypotheses registered (attitude unknown).  Each costs a few coarse pyramid
+        iterations; only the best go on at full resolution (with 3 the right pose was missing on Phobos and a
+        contact binary at 60 deg, ``benchmarks/irregular_los.py``).
     n_retry
         When none of the ``n_verify`` hypotheses explains the frame, this many further ones (the next in the
-        template search's order) are registered the same way.  On a ray-traced cratered body at 60 deg phase
-        the best hypothesis within 12 deg of the attitude was the 22nd (``benchmarks/irregular_independent.py``).
-    min_phase_deg
-        Below this phase the lit figure is treated as the silhouette.
+        template search's order) are registered the same way.
     ambiguity_px, ambiguity_margin
-        Two accepted hypotheses more than ``ambiguity_px`` apart are ambiguous unless
-        the runner-up's residual excess exceeds the best one's by ``ambiguity_margin``
-        (fraction of the contrast).
-    search_max_excess_frac
-        Largest accepted residual excess (fraction of the contrast) when the attitude is
-        fitted: three free rotation angles can twist another body's model into a better
-        fit than a given attitude allows, so the acceptance is stricter than
-        ``register.max_excess_frac`` (a sphere frame against Thebe's model: 0.13-0.14;
-        correct fits in ``benchmarks/irregular_los.py``: at most 0.035).
-    search_floor_px
-        Standard deviation (px, per axis) added to the covariance when the attitude is
-        fitted: the attitude's residual error (a flat cost along some rotations) moves
-        the centre by more than the noise.  Calibrated on ``benchmarks/irregular_los.py
-        --views 2`` (36 views, all accepted; errors median 0.006, p90 0.017, max 0.045 px):
-        the mean of ``error^2 / trace(cov)`` (1 expected) is 0.89 with it, about 0.03 with
-        the 0.04 px of the slower pipeline before, and 6 % of the views fall beyond the
-        95 % bound (in-sample calibration; the errors are heavy-tailed).
-    prune_rms_frac, prune_max_rms_frac, same_center_px
-        After the coarse (pyramid) iterations of every hypothesis, one whose RMS residual
-        (fraction of the contrast) exceeds the best one's by ``prune_rms_frac``, or
-        ``prune_max_rms_frac``, is dropped, and one whose centre lies within ``same_center_px`` of an accepted fit is
-        not refined again.  On ``benchmarks/irregular_los.py`` frames the coarse residual
-        of a correct pose is 0.001-0.04 and of a wrong one 0.09-0.13.
-    sharp_level2_iterations
-        Unblurred iterations on the 2x2-averaged frame before full resolution when the
-        attitude is fitted (:class:`~.register.RegisterOptions`).
-    search_surge_widths
-        :attr:`~.register.RegisterOptions.surge_widths` when the attitude is fitted: none.  The surge columns
-        take 0.33 -> 0.11 px off a ray-traced zero-phase Eros of known attitude, but with three rotation
-        columns they made the search worse (``benchmarks/irregular_independent.py``, 24 views: median
-        0.111 -> 0.090 px, but a contact binary at 30 deg then took a pose 132 deg off, 13.8 px).
-    search_mix_laws
-        :attr:`~.register.RegisterOptions.mix_laws` when the attitude is fitted: the two laws of before.  The
-        third (Minnaert 3/4) helps a known attitude, but with three rotation columns it let the search go
-        astray (``benchmarks/irregular_independent.py --views 1``, attitude unknown, 24 views: median / p90 / max
-        0.138 / 0.371 / 0.502 -> 0.122 / 0.459 / 0.757 px).
-    search_max_iterations
-        Gauss-Newton iterations of a hypothesis (at least ``register.max_iterations``): a template
-        20-40 deg off turns by at most 3 deg per iteration, and on a ray-traced Eros at 60 deg phase
-        the one right hypothesis needed more than 16 (``benchmarks/irregular_independent.py``).
-    search_exact_coverage
-        :attr:`~.register.RegisterOptions.exact_coverage` when the attitude is fitted: off by default.  On the
-        ray-traced frames of ``benchmarks/irregular_independent.py --views 1`` it hardly moves this mode's answers
-        (24 views, median / p90 / max 0.138 / 0.371 / 0.445 -> 0.148 / 0.348 / 0.503 px; the same code without it
-        gave 0.138 / 0.371 / 0.502 in another run); on frames rendered with exact coverage
-        (``benchmarks/irregular_los.py --views 1``, 18 views) the painter's fill is 0.026 / 0.074 / 0.081 px off
-        against 0.004 / 0.010 / 0.022 with it.  Cost: Phobos at 3x its long axis, 60 deg, 2.5 -> 3.3 s CPU per
-        call in-process (2026-11-26), which would break the 3 s per ``los locate`` call; both errors are far
-        inside this mode's 0.3 px, so the speed wins.
-    register, phase
-        Options of the registration and of the template search.
+        Two accepted hypotheses more than ``ambiguity_px`` apart are ambiguous unless the runner-up's residual
+        excess exceeds the best one's by ``ambiguity_margin`` (fraction of the contrast).
+    register
+        The registration when the attitude is known.
+    search
+        The registration of each template hypothesis (attitude fitted).  Against ``register``: stricter
+        acceptance (three free rotation angles can twist another body's model into a better fit than a given
+        attitude allows), more iterations (a template 20-40 deg off turns by at most 3 deg per iteration),
+        unblurred iterations on the half-resolution frame first, and none of the surge columns, the third
+        photometric law or exact coverage (with three rotation columns the first two let the search go astray;
+        the last costs a third more time for an error far inside this mode's).
     """
 
     n_verify: int = 10
     n_retry: int = 20
-    min_phase_deg: float = 5.0
     ambiguity_px: float = 1.0
     ambiguity_margin: float = 0.01
-    search_max_excess_frac: float = 0.06
-    search_floor_px: float = 0.008
-    prune_rms_frac: float = 0.04
-    prune_max_rms_frac: float = 0.1
-    same_center_px: float = 0.5
-    sharp_level2_iterations: int = 6
-    search_surge_widths: tuple[float, ...] = ()
-    search_mix_laws: int = 2
-    search_max_iterations: int = 24
-    search_exact_coverage: bool = False
     register: RegisterOptions = field(default_factory=RegisterOptions)
-    phase: PhaseSearchOptions = field(default_factory=PhaseSearchOptions)
+    search: RegisterOptions = field(default_factory=_search_register_options)
+
+
+@dataclass(frozen=True)
+class Frame:
+    """A frame to locate the body in: the image (float), its lit figure ``(mask, threshold)``
+    (:func:`~.register.lit_figure`), the camera and the Sun direction (camera frame; ``None``: unknown)."""
+
+    image: np.ndarray
+    segmentation: tuple[np.ndarray, float]
+    camera: object
+    sun: np.ndarray | None
 
 
 @dataclass(frozen=True)
@@ -145,12 +130,11 @@ class LosResult:
         return self.fit.center_rc
 
 
-def _sun_image_direction(sun, camera, fc, options):  # type: ignore[no-untyped-def]
-    from ..imaging.prior import sun_direction_image
-
-    if sun is None or phase_angle_deg(sun, camera, fc) < options.min_phase_deg:
+def _sun_image_direction(frame: Frame, fc: np.ndarray) -> np.ndarray | None:
+    """Image-plane direction toward the Sun at the figure centre ``fc``; ``None`` at (near) zero phase."""
+    if frame.sun is None or phase_angle_deg(frame.sun, frame.camera, fc) < _MIN_PHASE_DEG:
         return None
-    s = sun_direction_image(sun, camera, fc, min_norm=1e-6)
+    s = sun_direction_image(frame.sun, frame.camera, fc, min_norm=1e-6)
     return None if s is None else np.asarray(s, dtype=float)
 
 
@@ -177,69 +161,56 @@ def locate_los(
     if R_body_to_camera is not None:
         fit = register_known_attitude(img, db.mesh, camera, R_body_to_camera, sun_dir_camera, range_km, options.register, seg)
         return LosResult(LosMode.KNOWN_ATTITUDE, fit, None, 1, 1, None)
-    hyps = search_hypotheses(seg, db, camera, sun_dir_camera, options)
-    ropts = search_register_options(options)
+    frame = Frame(img, seg, camera, sun_dir_camera)
+    hyps = search_hypotheses(frame, db, options)
     n_tried = min(len(hyps), options.n_verify)
-    fits, errors = _register_hypotheses(img, db, camera, sun_dir_camera, seg, hyps[:n_tried], ropts, options)
+    fits, errors = register_hypotheses(frame, db, hyps[:n_tried], options)
     if not fits and len(hyps) > n_tried:  # none explains the frame: the next best templates
-        fits, more = _register_hypotheses(img, db, camera, sun_dir_camera, seg, hyps[n_tried:], ropts, options)
+        fits, more = register_hypotheses(frame, db, hyps[n_tried:], options)
         errors, n_tried = errors + more, len(hyps)
     return _choose(fits, errors, n_tried, options)
 
 
-def search_hypotheses(seg, db: TemplateDatabase, camera: object, sun_dir_camera, options: LosOptions) -> list:  # type: ignore[no-untyped-def]
+def search_hypotheses(frame: Frame, db: TemplateDatabase, options: LosOptions) -> list[PoseHypothesis]:
     """The template hypotheses of the attitude-unknown search, best first (``n_verify + n_retry`` of them):
-    :func:`~.phase.phase_candidates` on the lit figure ``seg`` (:func:`~.register.lit_figure`) with the Sun's
-    image direction; at zero phase the whole silhouette is limb."""
-    s_img = _sun_image_direction(sun_dir_camera, camera, figure_center(seg[0]), options)
-    popts = options.phase
-    if s_img is None:  # zero phase: the whole silhouette is limb; any direction serves for the extents
-        popts, s_img = replace(popts, limb_cos=-2.0), np.array([1.0, 0.0])
-    n_all = options.n_verify + options.n_retry
-    return phase_candidates(seg[0], db, camera, s_img, replace(popts, n_candidates=max(popts.n_candidates, n_all)))[:n_all]
+    :func:`~.phase.phase_candidates` on the lit figure with the Sun's image direction; at zero phase the whole
+    silhouette is limb."""
+    mask = frame.segmentation[0]
+    s_img = _sun_image_direction(frame, figure_center(mask))
+    whole = s_img is None
+    if whole:  # zero phase: any direction serves for the extents
+        s_img = np.array([1.0, 0.0])
+    return phase_candidates(mask, db, frame.camera, s_img, options.n_verify + options.n_retry, whole_outline=whole)
 
 
-def search_register_options(options: LosOptions) -> RegisterOptions:
-    """The registration options of the attitude-unknown search (:class:`LosOptions`' ``search_*`` fields)."""
-    return replace(
-        options.register,
-        max_excess_frac=min(options.register.max_excess_frac, options.search_max_excess_frac),
-        sharp_level2_iterations=options.sharp_level2_iterations,
-        exact_coverage=options.search_exact_coverage,
-        surge_widths=options.search_surge_widths,
-        mix_laws=options.search_mix_laws,
-        max_iterations=max(options.register.max_iterations, options.search_max_iterations),
-    )
+def register_hypotheses(frame: Frame, db: TemplateDatabase, hyps: list[PoseHypothesis], options: LosOptions):  # type: ignore[no-untyped-def]
+    """Coarse stage for every hypothesis, then the full-resolution stage in order of the coarse residual:
+    ``(fits, errors)``, ``fits`` a list of ``(RegisterResult, template index)``.
 
-
-def _register_hypotheses(img, db, camera, sun, seg, hyps, ropts, options):  # type: ignore[no-untyped-def]
-    """Coarse stage for every hypothesis, then the full-resolution stage in order of the coarse residual.
-
-    A hypothesis is not refined further when its coarse residual exceeds the best one's
-    by ``prune_rms_frac`` (it could pass neither the residual check nor the ambiguity
-    test), or when its centre is already within ``same_center_px`` of an accepted fit
-    (the same answer: it cannot make the match ambiguous).
+    A hypothesis is not refined further when its coarse residual exceeds the best one's by
+    ``_PRUNE_RMS_FRAC`` (it could pass neither the residual check nor the ambiguity test), or when its centre
+    is already within ``_SAME_CENTER_PX`` of an accepted fit (the same answer: it cannot make the match
+    ambiguous).
     """
-    from .register import complete_search_registration, start_search_registration
-
     regs, errors = [], []
     for h in hyps:
         try:
-            regs.append((start_search_registration(img, db.mesh, camera, h.R_body_to_camera, sun, (h.center_rc, h.range_km), seg, ropts), h))
+            regs.append((start_search_registration(frame.image, db.mesh, frame.camera, h.R_body_to_camera, frame.sun,
+                                                   (h.center_rc, h.range_km), frame.segmentation, options.search), h))  # fmt: skip
         except CheckFailed as e:
             errors.append(e)
     regs.sort(key=lambda r: r[0].state.rms_frac if math.isfinite(r[0].state.rms_frac) else math.inf)
     fits: list[tuple[RegisterResult, int]] = []
-    accepted: list = []
+    accepted: list[GNState] = []
     for reg, h in regs:
-        st = reg.state
-        if st.rms_frac > min(regs[0][0].state.rms_frac + options.prune_rms_frac, options.prune_max_rms_frac):
-            errors.append(MatchError(f"coarse residual {st.rms_frac:.3f} of the contrast, the best hypothesis {regs[0][0].state.rms_frac:.3f}"))
+        st, best = reg.state, regs[0][0].state.rms_frac
+        if st.rms_frac > min(best + _PRUNE_RMS_FRAC, _PRUNE_MAX_RMS_FRAC):
+            errors.append(MatchError(f"coarse residual {st.rms_frac:.3f} of the contrast, the best hypothesis {best:.3f}"))
             continue
-        if any(float(np.linalg.norm(st.P - f.center_rc)) < options.same_center_px for f, _ in fits):
+        if any(float(np.linalg.norm(st.P - f.center_rc)) < _SAME_CENTER_PX for f, _ in fits):
             continue
         try:
-            fit = complete_search_registration(reg, _runner_up_guard(accepted, options) if accepted else None)
+            fit = complete_search_registration(reg, runner_up_guard(accepted, options) if accepted else None)
         except CheckFailed as e:
             errors.append(e)
             continue
@@ -248,26 +219,24 @@ def _register_hypotheses(img, db, camera, sun, seg, hyps, ropts, options):  # ty
     return fits, errors
 
 
-def _runner_up_guard(accepted, options):  # type: ignore[no-untyped-def]
-    """Abandon a further hypothesis that cannot change the answer (:func:`_register_hypotheses`).
+def runner_up_guard(accepted: list[GNState], options: LosOptions) -> Guard:
+    """Abandon a further hypothesis that cannot change the answer (:func:`register_hypotheses`).
 
-    ``accepted``: the :class:`~.register.GNState` of the accepted fits.  After each
-    iteration of the candidate:
+    ``accepted``: the states of the accepted fits.  After each iteration of the candidate:
 
-    * at full resolution (blur below ``2 pyramid_blur_px``), its centre within
-      ``same_center_px`` of an accepted fit: the same answer;
-    * from its second iteration on, an RMS residual (fraction of the contrast) above that
-      of every accepted fit at the same iteration (same blur; the last one for later
-      sharp iterations) by ``3 ambiguity_margin``.  On sharp iterations its residual excess
-      then exceeds theirs by more than the margin too (``excess^2 = rms^2 - noise^2`` with
-      ``excess <= rms``): it can neither win nor make the match ambiguous.
+    * at full resolution (blur below ``2 PYRAMID_BLUR_PX``), its centre within ``_SAME_CENTER_PX`` of an
+      accepted fit: the same answer;
+    * from its second iteration on, an RMS residual (fraction of the contrast) above that of every accepted
+      fit at the same iteration (same blur; the last one for later sharp iterations) by ``3 ambiguity_margin``.
+      On sharp iterations its residual excess then exceeds theirs by more than the margin too
+      (``excess^2 = rms^2 - noise^2`` with ``excess <= rms``): it can neither win nor make the match ambiguous.
     """
     count = [0]
-    full_res = 2.0 * options.register.pyramid_blur_px
+    full_res = 2.0 * PYRAMID_BLUR_PX
 
-    def guard(st, sigma) -> None:  # type: ignore[no-untyped-def]
+    def guard(st: GNState, sigma: float) -> None:
         count[0] += 1
-        if sigma < full_res and any(float(np.linalg.norm(st.P - a.P)) < options.same_center_px for a in accepted):
+        if sigma < full_res and any(float(np.linalg.norm(st.P - a.P)) < _SAME_CENTER_PX for a in accepted):
             raise MatchError("the hypothesis converges to an accepted fit")
         i = len(st.history) - 1
         ref = min(a.history[min(i, len(a.history) - 1)] for a in accepted)
@@ -294,8 +263,11 @@ def _choose(fits, errors, n_tried, options) -> LosResult:  # type: ignore[no-unt
                     f" {best.excess_frac:.3f} and {other.excess_frac:.3f}) with body centres"
                     f" {np.linalg.norm(other.center_rc - best.center_rc):.1f} px apart"
                 )
-    best = replace(best, covariance_rc=best.covariance_rc + options.search_floor_px**2 * np.eye(2))
+    best = replace(best, covariance_rc=best.covariance_rc + _SEARCH_FLOOR_PX**2 * np.eye(2))
     return LosResult(LosMode.TEMPLATE_SEARCH, best, j, n_tried, len(fits), runner)
 
 
-__all__ = ["LosMode", "LosOptions", "LosResult", "locate_los", "phase_angle_deg"]
+__all__ = [
+    "Frame", "LosMode", "LosOptions", "LosResult", "locate_los", "phase_angle_deg", "register_hypotheses", "runner_up_guard",
+    "search_hypotheses",
+]  # fmt: skip

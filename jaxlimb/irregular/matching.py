@@ -4,11 +4,8 @@ Pipeline of :func:`locate_center`:
 
 1. segment the body (:func:`~jaxlimb.irregular.silhouette.segment_body`);
 2. *rectify* the figure to a virtual camera whose boresight passes through the
-   figure centre (rotation homography ``H = K R^T K^-1``), so that a body far
-   off the optical axis is compared with the on-axis templates without the
-   1/cos^2 radial stretch of the pinhole (about 1 % at 8 deg off axis).  The
-   templates are on-axis by construction (Sec. 3.3), so this is what the
-   similarity principle of Eq. (18)-(19) silently assumes;
+   figure centre (:mod:`.rectify`), as the on-axis templates (Sec. 3.3) and the
+   similarity principle of Eq. (18)-(19) assume;
 3. features of the rectified figure (Eq. 10-14);
 4. shape distance to every template, Eq. (15), with weights Eq. (16), keep the
    ``top_k`` best;
@@ -35,7 +32,7 @@ Decisions and guards (each is tested in ``tests/irregular/test_matching.py``)
   (no reflection), which rejects the mirror-image (antipodal) template.
 * **Unstable attitude vector.**  The paper's farthest point jumps between
   distant contour points when two are almost equally far (near-symmetric
-  figures).  The rotation candidates are: every pairing of the ``n_far``
+  figures).  The rotation candidates are: every pairing of the three
   farthest distinct points of the two figures (Eq. 23 for each pair), and the
   second-moment orientation difference and that plus pi; each is scored by the
   mean distance of the transformed template contour to the observed contour
@@ -52,18 +49,11 @@ import numpy as np
 
 from ..errors import ConfigError, NoBodyError
 from .database import TemplateDatabase
-from .features import (
-    FigureFeatures,
-    central_moments,
-    elongation,
-    far_point_candidates,
-    hu_from_central,
-    log_hu,
-    orientation,
-    raw_moments_mask,
-    resample_closed,
-)
+from .features import FigureFeatures, far_point_candidates, log_hu
+from .rectify import Chamfer, apply_homography, rectified_features, rot_z_to
 from .silhouette import SegmentOptions, brightness_center, figure_center, segment_body
+
+N_FAR = 3  # farthest-point candidates per figure for the rotation (Eq. 23, guarded)
 
 
 @dataclass(frozen=True)
@@ -78,8 +68,6 @@ class MatchOptions:
         ``"inverse_range"`` (default) or ``"paper"`` (Eq. 16 literally).
     log_scale
         Compare guarded log-scaled Hu moments (default) instead of raw ones.
-    n_far
-        Farthest-point candidates per figure for the rotation.
     rectify
         Rectify off-axis figures to a virtual on-axis camera (default True).
     rotation
@@ -94,7 +82,6 @@ class MatchOptions:
     top_k: int = 8
     weights: str = "inverse_range"
     log_scale: bool = True
-    n_far: int = 3
     rectify: bool = True
     rotation: str = "guarded"
     segment: SegmentOptions = field(default_factory=SegmentOptions)
@@ -106,8 +93,6 @@ class MatchOptions:
             raise ConfigError(f"`weights` must be 'inverse_range' or 'paper', got {self.weights!r}")
         if self.rotation not in ("guarded", "paper"):
             raise ConfigError(f"`rotation` must be 'guarded' or 'paper', got {self.rotation!r}")
-        if not (isinstance(self.n_far, int) and 1 <= self.n_far <= 8):
-            raise ConfigError(f"`n_far` must be an integer in [1, 8], got {self.n_far!r}")
 
 
 @dataclass(frozen=True)
@@ -210,130 +195,6 @@ def line_of_sight(camera: object, center_rc: np.ndarray) -> np.ndarray:
     return np.asarray(camera.los(np.asarray(center_rc, dtype=float)))  # type: ignore[attr-defined]
 
 
-# --------------------------------------------------------------------------- rectification
-def _rot_z_to(u: np.ndarray) -> np.ndarray:
-    """Smallest rotation taking +z to the unit vector ``u``."""
-    z = np.array([0.0, 0.0, 1.0])
-    v = np.cross(z, u)
-    s = np.linalg.norm(v)
-    c = float(z @ u)
-    if s < 1e-15:
-        return np.eye(3)
-    vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    return np.eye(3) + vx + vx @ vx * ((1 - c) / s**2)
-
-
-def _apply_h(H: np.ndarray, rc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    rc = np.asarray(rc, dtype=float)
-    x = np.stack([rc[..., 1], rc[..., 0], np.ones(rc.shape[:-1])], axis=-1) @ H.T
-    w = x[..., 2]
-    return np.stack([x[..., 1] / w, x[..., 0] / w], axis=-1), w
-
-
-def _affine_of(H: np.ndarray, rc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Affine approximation ``x' = A x + b`` (x = (col, row)) of the homography at ``rc``."""
-    p0, _ = _apply_h(H, rc)
-    e = 0.5
-    px, _ = _apply_h(H, rc + np.array([0.0, e]))
-    py, _ = _apply_h(H, rc + np.array([e, 0.0]))
-    mx, _ = _apply_h(H, rc - np.array([0.0, e]))
-    my, _ = _apply_h(H, rc - np.array([e, 0.0]))
-    A = np.empty((2, 2))
-    A[:, 0] = (px - mx)[::-1] / (2 * e)  # d(x', y') / dx
-    A[:, 1] = (py - my)[::-1] / (2 * e)  # d(x', y') / dy
-    x0 = np.asarray(rc, dtype=float)[::-1]
-    b = p0[::-1] - A @ x0
-    return A, b
-
-
-def _affine_moments(area: float, c_xy: np.ndarray, mu: np.ndarray, A: np.ndarray, b: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """Area, centroid and central moments (``mu20..mu03``) of a figure mapped by ``x' = A x + b``.
-
-    Central moments are tensors: ``T'_ij = |det A| A_ia A_jb T_ab`` and likewise for order 3.
-    """
-    mu20, mu11, mu02, mu30, mu21, mu12, mu03 = mu
-    T2 = np.array([[mu20, mu11], [mu11, mu02]])
-    T3 = np.empty((2, 2, 2))
-    T3[0, 0, 0] = mu30
-    T3[0, 0, 1] = T3[0, 1, 0] = T3[1, 0, 0] = mu21
-    T3[0, 1, 1] = T3[1, 0, 1] = T3[1, 1, 0] = mu12
-    T3[1, 1, 1] = mu03
-    d = abs(float(np.linalg.det(A)))
-    T2n = d * A @ T2 @ A.T
-    T3n = d * np.einsum("ia,jb,kc,abc->ijk", A, A, A, T3)
-    mun = np.array([T2n[0, 0], T2n[0, 1], T2n[1, 1], T3n[0, 0, 0], T3n[0, 0, 1], T3n[0, 1, 1], T3n[1, 1, 1]])
-    return area * d, A @ c_xy + b, mun
-
-
-def _rectified_features(mask: np.ndarray, H: np.ndarray, n_contour: int) -> tuple[FigureFeatures, np.ndarray]:
-    """Features of the figure mapped by the homography ``H``.
-
-    Moments: pixel-count moments of the mask (``cv2.moments``) transformed by the
-    affine approximation of ``H`` at the figure centre (the neglected second-order
-    terms are ~ (size/f) tan(off-axis angle), below 1e-3 relative for any
-    reasonable field of view).  Contour: mapped exactly.
-    """
-    c0, r0, bw, bh = cv2.boundingRect(np.ascontiguousarray(mask, dtype=np.uint8))
-    crop = np.ascontiguousarray(mask[r0 : r0 + bh, c0 : c0 + bw], dtype=np.uint8)
-    area, xb, yb, mu = central_moments(raw_moments_mask(crop))
-    c_xy = np.array([xb + c0, yb + r0])
-    A, b = _affine_of(H, c_xy[::-1])
-    area, c, mu = _affine_moments(area, c_xy, mu, A, b)
-    contours, _ = cv2.findContours(crop, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    big = max(contours, key=lambda q: abs(cv2.contourArea(q))).reshape(-1, 2).astype(float) + np.array([c0, r0])
-    crc, _ = _apply_h(H, big[:, ::-1])
-    cxy = crc[:, ::-1]
-    feats = FigureFeatures(
-        area=area,
-        center_rc=c[::-1].copy(),
-        hu=hu_from_central(area, mu),
-        orientation=orientation(mu),
-        elongation=elongation(mu),
-        attitude_xy=far_point_candidates(cxy, c, n=1)[0],
-        contour_xy=resample_closed(cxy, n_contour) - c,
-    )
-    return feats, cxy
-
-
-class _Chamfer:
-    """Distance (px) to the observed outer contour, sampled bilinearly."""
-
-    def __init__(self, mask: np.ndarray) -> None:
-        bx, by, bw, bh = cv2.boundingRect(np.ascontiguousarray(mask, dtype=np.uint8))
-        pad = 8 + int(0.25 * max(bw, bh))
-        self.r0 = max(by - pad, 0)
-        self.c0 = max(bx - pad, 0)
-        r1 = min(by + bh - 1 + pad, mask.shape[0] - 1)
-        c1 = min(bx + bw - 1 + pad, mask.shape[1] - 1)
-        crop = np.ascontiguousarray(mask[self.r0 : r1 + 1, self.c0 : c1 + 1], dtype=np.uint8)
-        edge = np.ones_like(crop)
-        contours, _ = cv2.findContours(crop, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-        cv2.drawContours(edge, contours, -1, color=0, thickness=1)
-        self.dt32 = cv2.distanceTransform(edge, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-        self.dt = self.dt32.astype(float)
-
-    def remap(self, rc: np.ndarray) -> np.ndarray:
-        """Like ``__call__`` (without the distance outside the crop), bilinear in C (``cv2.remap``)."""
-        shp = rc.shape[:-1]
-        flat = rc.reshape(-1, shp[-1], 2)
-        mr = (flat[..., 0] - self.r0).astype(np.float32)
-        mc = (flat[..., 1] - self.c0).astype(np.float32)
-        out = cv2.remap(self.dt32, mc, mr, interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        return out.reshape(shp)
-
-    def __call__(self, rc: np.ndarray) -> np.ndarray:
-        h, w = self.dt.shape
-        r = rc[..., 0] - self.r0
-        c = rc[..., 1] - self.c0
-        rcl = np.clip(r, 0, h - 1.000001)
-        ccl = np.clip(c, 0, w - 1.000001)
-        i, j = np.floor(rcl).astype(int), np.floor(ccl).astype(int)
-        fr, fc = rcl - i, ccl - j
-        d = self.dt
-        v = (d[i, j] * (1 - fr) + d[i + 1, j] * fr) * (1 - fc) + (d[i, j + 1] * (1 - fr) + d[i + 1, j + 1] * fr) * fc
-        return v + np.hypot(r - rcl, c - ccl)  # outside the crop: add the distance to it
-
-
 def _rotation_candidates(tpl_contour: np.ndarray, tpl_orient: float, obs: FigureFeatures, obs_far: np.ndarray, n_far: int) -> np.ndarray:
     tfar = far_point_candidates(tpl_contour, np.zeros(2), n=n_far)
     th = [rotation_from_attitude(a, b) for a in tfar for b in obs_far]
@@ -348,8 +209,8 @@ def database_features(db: TemplateDatabase, options: MatchOptions) -> np.ndarray
 
 
 @dataclass
-class _Observed:
-    """The observed figure prepared for alignment (crop, rectification, features, chamfer map)."""
+class Observed:
+    """The observed figure prepared for alignment (:func:`observe`: crop, rectification, features, chamfer map)."""
 
     off: np.ndarray
     fc: np.ndarray
@@ -357,7 +218,7 @@ class _Observed:
     Hinv: np.ndarray
     obs: FigureFeatures
     obs_cxy: np.ndarray
-    chamfer: _Chamfer
+    chamfer: Chamfer
     cG: np.ndarray
 
     def score(self, conts: np.ndarray, ks: np.ndarray, theta: np.ndarray) -> np.ndarray:
@@ -367,11 +228,12 @@ class _Observed:
         kk = ks[:, None, None]
         cG = self.cG
         pts_v = np.stack([cG[1] + kk * (s * x + c * y), cG[0] + kk * (c * x - s * y)], axis=-1)  # (row, col)
-        pts, _ = _apply_h(self.Hinv, pts_v)
+        pts, _ = apply_homography(self.Hinv, pts_v)
         return self.chamfer(pts).mean(axis=-1)
 
-    def align(self, conts: np.ndarray, areas: np.ndarray, orients: np.ndarray, n_far: int) -> tuple[np.ndarray, np.ndarray]:
-        """Guarded rotation of each template (candidates, then two fine grids); returns (theta, score)."""
+    def align(self, conts: np.ndarray, areas: np.ndarray, orients: np.ndarray, n_far: int = N_FAR) -> tuple[np.ndarray, np.ndarray]:
+        """Guarded rotation of each template (candidates from the ``n_far`` farthest points, then two fine grids);
+        returns (theta, score)."""
         ks = np.sqrt(self.obs.area / np.asarray(areas, dtype=float))
         obs_far = far_point_candidates(self.obs_cxy, self.cG, n=n_far)
         cand = np.stack([_rotation_candidates(conts[i], float(orients[i]), self.obs, obs_far, n_far) for i in range(len(conts))])
@@ -391,11 +253,11 @@ class _Observed:
     def center(self, area_B: float, center_B_rc: np.ndarray, P_B_rc: np.ndarray, theta: float) -> np.ndarray:
         """Eq. (24)-(25) in the rectified frame, mapped back to image pixels."""
         P_v = similarity_center(self.obs.center_rc, self.obs.area, center_B_rc, area_B, P_B_rc, theta)
-        P, _ = _apply_h(self.Hinv, P_v)
+        P, _ = apply_homography(self.Hinv, P_v)
         return P + self.off
 
 
-def observe(mask: np.ndarray, camera: object, n_contour: int, rectify: bool = True) -> _Observed:
+def observe(mask: np.ndarray, camera: object, n_contour: int, rectify: bool = True) -> Observed:
     """Crop, rectify (module docstring, step 2) and describe an observed binary figure."""
     m_full = np.ascontiguousarray(mask, dtype=np.uint8)
     bx, by, bw, bh = cv2.boundingRect(m_full)  # (x=col, y=row, width, height), C speed
@@ -409,20 +271,20 @@ def observe(mask: np.ndarray, camera: object, n_contour: int, rectify: bool = Tr
     crop = np.ascontiguousarray(m_full[r0 : r1 + 1, c0 : c1 + 1], dtype=np.uint8)  # work in the crop
     off = np.array([r0, c0], dtype=float)
     fc = figure_center(crop) + off
-    Rv = _rot_z_to(camera.los(fc)) if rectify else np.eye(3)  # type: ignore[attr-defined]
+    Rv = rot_z_to(camera.los(fc)) if rectify else np.eye(3)  # type: ignore[attr-defined]
     K = np.array(camera.K, dtype=float)  # type: ignore[attr-defined]
     K[0, 2] -= c0
     K[1, 2] -= r0
     H = K @ Rv.T @ np.linalg.inv(K)  # crop pixel -> virtual (crop) pixel
-    obs, obs_cxy = _rectified_features(crop, H, n_contour)
-    return _Observed(
+    obs, obs_cxy = rectified_features(crop, H, n_contour)
+    return Observed(
         off=off,
         fc=fc,
         Rv=Rv,
         Hinv=np.linalg.inv(H),
         obs=obs,
         obs_cxy=obs_cxy,
-        chamfer=_Chamfer(crop),
+        chamfer=Chamfer(crop),
         cG=np.array([obs.center_rc[1], obs.center_rc[0]]),
     )
 
@@ -432,7 +294,6 @@ def locate_in_mask(
     db: TemplateDatabase,
     camera: object,
     options: MatchOptions = MatchOptions(),
-    _cache: dict | None = None,
 ) -> tuple[np.ndarray, dict]:
     """Body-centre image from a binary figure (steps 2-6 of the module docstring).
 
@@ -440,13 +301,8 @@ def locate_in_mask(
     """
     ob = observe(mask, camera, db.options.n_contour, options.rectify)
     obs, Rv, fc = ob.obs, ob.Rv, ob.fc
-    cache = _cache if _cache is not None else {}
-    key = (id(db), options.weights, options.log_scale)
-    if key not in cache:
-        feats = database_features(db, options)
-        cache.clear()
-        cache[key] = (feats, match_weights(feats, options.weights))
-    feats, w = cache[key]
+    feats = database_features(db, options)
+    w = match_weights(feats, options.weights)
     fo = log_hu(obs.hu) if options.log_scale else obs.hu
     se = shape_distance(fo, feats, w)
     k_top = min(options.top_k, se.shape[0])
@@ -460,7 +316,7 @@ def locate_in_mask(
         theta = rotation_from_attitude(db.attitude_xy[j], obs.attitude_xy)
         s_best = float(ob.score(conts[:1], np.sqrt(obs.area / db.area[[j]]), np.array([[theta]]))[0, 0])
     else:
-        th, s_all = ob.align(conts, db.area[top], db.orientation[top], options.n_far)
+        th, s_all = ob.align(conts, db.area[top], db.orientation[top])
         i = int(np.argmin(s_all))
         s_best, j, theta = float(s_all[i]), js[i], float(th[i])
     P = ob.center(db.area[j], db.center_rc[j], db.center_image_rc, theta)

@@ -17,11 +17,18 @@ Every mesh is validated before use (:func:`validate_mesh`):
 * outward normals: the signed volume ``sum(v0 . (v1 x v2)) / 6`` is positive --
   an inverted mesh (negative volume) is flipped when ``repair=True``.
 
+* a manifold surface: the faces around every vertex form one fan (two bodies
+  touching at a vertex, a "bow-tie", are refused).
+
 Open meshes are always refused: closing holes would invent geometry that moves
-the silhouette.  Failures raise :class:`jaxlimb.errors.MeshError`.
+the silhouette.  Before a file is parsed, its declared face count (OBJ ``f``
+lines, the STL/PLY/OFF headers, plate-table ``f`` lines) must be at most
+:data:`MAX_FACES` and fit the memory available; OBJ indices are 1-based, so an
+index ``0`` is refused (a reader would take it for the last vertex).  Failures
+raise :class:`jaxlimb.errors.MeshError`.
 
 Coordinates are kept exactly as in the file (km, body-fixed frame).  The body
-centre is the **origin** of these coordinates (DESIGN.md), not the volume
+centre is the **origin** of these coordinates (docs/design.md), not the volume
 centroid.  No axis is re-labelled here: which axis is the pole only matters for
 the view-sphere sampling, see :class:`jaxlimb.irregular.views.ViewSphereOptions`
 (``pole_axis``; Celestia models such as ``thebe.obj``/``phobos.obj`` are y-up).
@@ -31,6 +38,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,6 +49,12 @@ from ..errors import MeshError
 
 _TRIMESH_EXT = {".obj", ".stl", ".ply", ".off", ".glb", ".gltf"}
 _TABLE_EXT = {".tab", ".txt", ".dat"}
+#: Most faces of a shape model jaxlimb reads: a 512-px template resolves ~10^5 faces, so a finer model only
+#: costs memory and time (decimate it first).
+MAX_FACES = 1_000_000
+#: Memory per face while a mesh is read, validated and its templates built: about twice the peak measured
+#: (564-622 B/face for phobos.obj and a 327 680-face sphere: ``python benchmarks/faults.py --only mesh``).
+BYTES_PER_FACE = 1024
 
 
 @dataclass(frozen=True)
@@ -222,6 +236,52 @@ def _read_trimesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(tm.vertices, dtype=np.float64), np.asarray(tm.faces, dtype=np.int64)
 
 
+_OBJ_ZERO_INDEX = re.compile(rb"(?m)^f[ \t][^\n]*?[ \t]0(?:/|[ \t]|\r?$)")
+_PLY_FACES = re.compile(rb"(?m)^element\s+face\s+(\d+)")
+
+
+def _declared_faces(path: Path, ext: str) -> int | None:
+    """Faces a mesh file declares, from its header or its ``f`` lines, without parsing it; ``None`` if unknown.
+
+    Raises :class:`~jaxlimb.errors.MeshError` for an OBJ face with the index 0 (OBJ counts from 1).
+    """
+    size = path.stat().st_size
+    if ext == ".stl":
+        with open(path, "rb") as fh:
+            head = fh.read(84)
+        n = int.from_bytes(head[80:84], "little") if len(head) == 84 else 0
+        if size == 84 + 50 * n:
+            return n
+        return path.read_bytes().count(b"facet normal")
+    if ext == ".ply":
+        m = _PLY_FACES.search(path.read_bytes()[:65536])
+        return int(m.group(1)) if m else None
+    if ext in (".obj", *_TABLE_EXT):
+        data = path.read_bytes()
+        if ext == ".obj":
+            bad = _OBJ_ZERO_INDEX.search(data)
+            if bad:
+                line = data.count(b"\n", 0, bad.start()) + 1
+                raise MeshError(f"{path.name}: face on line {line} uses the vertex index 0; OBJ indices start at 1")
+        return data.count(b"\nf ") + data.count(b"\nf\t") + data.startswith((b"f ", b"f\t"))
+    if ext == ".off":
+        words = [w for ln in path.read_bytes()[:4096].splitlines() if not ln.strip().startswith(b"#")
+                 for w in ln.split()]
+        return int(words[2]) if len(words) > 2 and words[2].isdigit() else None
+    return None
+
+
+def _check_face_count(n: int | None, name: str) -> None:
+    from .._validate import check_memory
+
+    if n is None:
+        return
+    if n > MAX_FACES:
+        raise MeshError(f"{name} has {n} faces, more than the {MAX_FACES} jaxlimb reads; decimate it (a 512-px "
+                        "template resolves far fewer)")
+    check_memory(n * BYTES_PER_FACE, f"mesh {name} ({n} faces)", error=MeshError)
+
+
 def load_mesh(path: str | os.PathLike[str], options: MeshOptions = MeshOptions()) -> Mesh:
     """Read and validate a shape model.
 
@@ -243,6 +303,8 @@ def load_mesh(path: str | os.PathLike[str], options: MeshOptions = MeshOptions()
 
     p = input_file(path, "mesh file", error=MeshError)
     ext = p.suffix.lower()
+    if ext in _TABLE_EXT or ext in _TRIMESH_EXT:
+        _check_face_count(_declared_faces(p, ext), p.name)  # before any parsing
     if ext in _TABLE_EXT:
         v, f = _read_table(p)
     elif ext in _TRIMESH_EXT:
@@ -315,6 +377,8 @@ def validate_mesh(
             raise MeshError(f"{name}: faces are not consistently wound and could not be repaired") from None
         repairs.append("fixed inconsistent face winding")
 
+    _check_manifold_vertices(f, name)
+
     vol = signed_volume(v, f)
     if not np.isfinite(vol) or vol == 0.0:
         raise MeshError(f"{name}: mesh has zero volume")
@@ -324,6 +388,37 @@ def validate_mesh(
         f = f[:, ::-1].copy()
         repairs.append("flipped inward winding (signed volume was negative)")
     return Mesh(vertices=np.ascontiguousarray(v), faces=np.ascontiguousarray(f), repairs=tuple(repairs), source=source)
+
+
+def _check_manifold_vertices(faces: np.ndarray, name: str) -> None:
+    """Every vertex's faces form one fan (closed, consistently wound faces assumed): a vertex whose faces fall
+    in two fans joined only at it (a "bow-tie": two bodies touching at a point) is a :class:`MeshError`.
+
+    The corners ``(face, vertex)`` are joined across each shared edge; a manifold surface has one group of
+    corners per vertex (``scipy.sparse.csgraph.connected_components``).
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    m = faces.shape[0]
+    edges, adjacent = edge_faces(faces)
+    fa, fb = adjacent[:, 0], adjacent[:, 1]
+
+    def corner_of(f_idx: np.ndarray, vert: np.ndarray) -> np.ndarray:
+        return f_idx * 3 + np.argmax(faces[f_idx] == vert[:, None], axis=1)
+
+    rows = np.concatenate([corner_of(fa, edges[:, 0]), corner_of(fa, edges[:, 1])])
+    cols = np.concatenate([corner_of(fb, edges[:, 0]), corner_of(fb, edges[:, 1])])
+    graph = coo_matrix((np.ones(rows.size, dtype=np.int8), (rows, cols)), shape=(3 * m, 3 * m))
+    n_groups, label = connected_components(graph, directed=False)
+    used = np.unique(faces)
+    if n_groups != used.size:
+        vert_of_group = np.zeros(n_groups, dtype=np.int64)
+        vert_of_group[label] = faces.ravel()
+        counts = np.bincount(vert_of_group, minlength=int(faces.max()) + 1)
+        bad = np.flatnonzero(counts > 1)
+        raise MeshError(f"{name}: {bad.size} vertices (e.g. vertex {int(bad[0])}, 0-based) join separate fans of faces "
+                        "(a bow-tie: parts touching at a single vertex); the surface is not a manifold")
 
 
 def _fix_winding(faces: np.ndarray) -> np.ndarray:
@@ -382,6 +477,8 @@ def mesh_hash(mesh: Mesh) -> str:
 
 
 __all__ = [
+    "BYTES_PER_FACE",
+    "MAX_FACES",
     "Mesh",
     "MeshOptions",
     "edge_faces",

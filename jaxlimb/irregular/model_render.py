@@ -162,7 +162,7 @@ def render_window(
     if ras is None:
         return ModelImage(M, C, np.zeros((3, 2, h, w)) if jacobian else None, np.zeros((3, h, w)) if jacobian else None)
     s = -t / np.linalg.norm(t) if sun is None else np.asarray(sun, dtype=float)
-    mu0 = np.einsum("ij,j->i", ras.normals, s)  # not BLAS: see register._normal_equations
+    mu0 = np.einsum("ij,j->i", ras.normals, s)  # not BLAS: see register.design.normal_equations
     lit = shadow_fractions(mesh.vertices, mesh.faces, np.asarray(R, dtype=float).T @ s) if shadows else np.ones(F.shape[0])
     flat = shade(mu0, ras.mu, reflectance)  # per facet
     win = (slice(ras.r0, ras.r0 + ras.h), slice(ras.c0, ras.c0 + ras.w))

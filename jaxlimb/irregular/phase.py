@@ -9,15 +9,14 @@ normal ``n`` (image plane) has ``n . s > 0`` is lit (the surface normal there is
 ``(n, 0)`` in the camera frame, and ``(n, 0) . s_3d = sin(phi) n . s``); the rest
 of the silhouette is dark, and the terminator is *not* limb.
 
-Search over every template ``j`` and in-plane roll ``theta`` (grid of
-``roll_step_deg``):
+Search over every template ``j`` and in-plane roll ``theta`` (a 5 deg grid):
 
 1. rotate the template contour (Eq. 22-23's rotation) and take its extents across
    ``s`` (the limb/terminator cusps) and toward ``s`` (the sub-solar limb): for a
    convex body these are the lit figure's extents, so the ratio of the cross-Sun
    widths gives the scale ``k`` (Eq. 20) and the extents give the translation;
 2. score: mean distance (truncated) from the template's lit-limb points
-   (``n . s > limb_cos``) to the observed outline -- the terminator never enters.
+   (``n . s > 0.25``) to the observed outline -- the terminator never enters.
 
 The best distinct hypotheses are returned as poses ``(R_body_to_camera, P, D)``
 in the frame's camera, for the render-and-register stage (:mod:`.register`).
@@ -33,36 +32,15 @@ import numpy as np
 
 from .._identity_cache import IdentityCache
 from .database import TemplateDatabase
-from .matching import _Chamfer, _rot_z_to
+from .rectify import Chamfer, rot_z_to
 from .silhouette import figure_extents
 
 
-@dataclass(frozen=True)
-class PhaseSearchOptions:
-    """Options of :func:`phase_candidates`.
-
-    Parameters
-    ----------
-    roll_step_deg
-        In-plane roll grid step (deg).
-    n_points
-        Contour points per template used in the search.
-    limb_cos
-        A template point is lit limb when ``n . s`` exceeds this.
-    truncate_frac
-        Chamfer distances are truncated at this fraction of the figure size.
-    n_candidates
-        Distinct hypotheses returned.
-    chunk
-        Templates scored per vectorised block (memory).
-    """
-
-    roll_step_deg: float = 5.0
-    n_points: int = 32
-    limb_cos: float = 0.25
-    truncate_frac: float = 0.1
-    n_candidates: int = 10
-    chunk: int = 256
+_ROLL_STEP_DEG = 5.0  # in-plane roll grid step (deg)
+_N_POINTS = 32  # contour points per template used in the search
+_LIMB_COS = 0.25  # a template point is lit limb when n . s exceeds this
+_TRUNCATE_FRAC = 0.1  # chamfer distances are truncated at this fraction of the figure size
+_CHUNK = 256  # templates scored per vectorised block (memory)
 
 
 @dataclass(frozen=True)
@@ -93,7 +71,7 @@ def contour_normals(xy: np.ndarray, at: np.ndarray | None = None) -> np.ndarray:
     return nrm / np.maximum(np.linalg.norm(nrm, axis=-1, keepdims=True), 1e-12)
 
 
-def _score_block(conts, nrms, rolls, s_xy, xo, chamfer, opts, size):  # type: ignore[no-untyped-def]
+def _score_block(conts, nrms, rolls, s_xy, xo, chamfer, limb_cos, size):  # type: ignore[no-untyped-def]
     """Scores, scales and translations ``(B, T)`` for a block of templates and every roll (float32).
 
     Every rotated quantity is linear in the template's (x, y): the projections of the
@@ -125,9 +103,9 @@ def _score_block(conts, nrms, rolls, s_xy, xo, chamfer, opts, size):  # type: ig
     xyh = np.concatenate([conts, np.ones((B, n, 1), dtype=f4)], axis=-1)
     mx, my = np.matmul(xyh[None], W)  # (B, n, T) each
     n_s = np.stack([c * s_xy[0] + s * s_xy[1], c * s_xy[1] - s * s_xy[0]]).astype(f4)
-    lit = np.einsum("bik,kt->bit", nrms, n_s) > opts.limb_cos  # n . s of the rotated normals
+    lit = np.einsum("bik,kt->bit", nrms, n_s) > limb_cos  # n . s of the rotated normals
     d = cv2.remap(chamfer.dt32, mx.reshape(B * n, -1), my.reshape(B * n, -1), interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    d = np.minimum(d.reshape(mx.shape), f4(opts.truncate_frac * size))
+    d = np.minimum(d.reshape(mx.shape), f4(_TRUNCATE_FRAC * size))
     n_lit = np.maximum(np.count_nonzero(lit, axis=1), 1)
     score = np.einsum("bit,bit->bt", d, lit.astype(f4)).astype(float) / n_lit + np.where(n_lit < 3, np.inf, 0.0)
     return score, k, T
@@ -150,32 +128,34 @@ def _template_contours(db: TemplateDatabase, n_points: int) -> tuple[np.ndarray,
 
 
 def phase_candidates(
-    mask: np.ndarray, db: TemplateDatabase, camera: object, s_img_rc: np.ndarray, options: PhaseSearchOptions = PhaseSearchOptions()
+    mask: np.ndarray, db: TemplateDatabase, camera: object, s_img_rc: np.ndarray, n_candidates: int = 10, whole_outline: bool = False
 ) -> list[PoseHypothesis]:
-    """Best distinct pose hypotheses for the lit figure ``mask`` (module docstring).
+    """The ``n_candidates`` best distinct pose hypotheses for the lit figure ``mask`` (module docstring).
 
-    ``s_img_rc`` is the unit image-plane direction (row, col) toward the Sun.
+    ``s_img_rc`` is the unit image-plane direction (row, col) toward the Sun; ``whole_outline``: every
+    template point counts as lit limb (zero phase, where ``s_img_rc`` only orients the extents).
     """
     s_xy = np.array([s_img_rc[1], s_img_rc[0]], dtype=float)
     s_xy /= np.linalg.norm(s_xy)
     e = np.array([-s_xy[1], s_xy[0]])
     xo = figure_extents(mask, np.stack([e, -e, s_xy])[:, ::-1])  # axes (x, y) -> (row, col)
-    chamfer = _Chamfer(mask)
+    chamfer = Chamfer(mask)
     rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
     size = float(max(rr[-1] - rr[0], cc[-1] - cc[0]) + 1)
-    conts_all, nrms_all = _template_contours(db, options.n_points)
-    rolls = np.radians(np.arange(0.0, 360.0, options.roll_step_deg))
+    conts_all, nrms_all = _template_contours(db, _N_POINTS)
+    rolls = np.radians(np.arange(0.0, 360.0, _ROLL_STEP_DEG))
+    limb_cos = -2.0 if whole_outline else _LIMB_COS  # n . s >= -1 > -2: every point
     scores = np.empty((len(db), rolls.size))
     ks = np.empty_like(scores)
     Ts = np.empty(scores.shape + (2,))
-    for i0 in range(0, len(db), options.chunk):
-        sl = slice(i0, i0 + options.chunk)
-        scores[sl], ks[sl], Ts[sl] = _score_block(conts_all[sl], nrms_all[sl], rolls, s_xy, xo, chamfer, options, size)
-    return _hypotheses(db, camera, scores, ks, Ts, rolls, options)
+    for i0 in range(0, len(db), _CHUNK):
+        sl = slice(i0, i0 + _CHUNK)
+        scores[sl], ks[sl], Ts[sl] = _score_block(conts_all[sl], nrms_all[sl], rolls, s_xy, xo, chamfer, limb_cos, size)
+    return _hypotheses(db, camera, scores, ks, Ts, rolls, n_candidates)
 
 
-def _hypotheses(db, camera, scores, ks, Ts, rolls, options) -> list[PoseHypothesis]:  # type: ignore[no-untyped-def]
-    """The ``n_candidates`` best (template, roll) cells, at least one step apart in view and roll."""
+def _hypotheses(db, camera, scores, ks, Ts, rolls, n_candidates: int) -> list[PoseHypothesis]:  # type: ignore[no-untyped-def]
+    """The ``n_candidates`` best (template, roll) cells, at least three view-sphere steps apart in attitude."""
     flat_scores = scores.ravel()
     top = np.argpartition(flat_scores, min(20000, flat_scores.size) - 1)[:20000]  # the 20000 best, then in order
     order = top[np.lexsort((top, flat_scores[top]))]
@@ -190,7 +170,7 @@ def _hypotheses(db, camera, scores, ks, Ts, rolls, options) -> list[PoseHypothes
             continue
         taken.append(h.R_body_to_camera)
         out.append(h)
-        if len(out) >= options.n_candidates:
+        if len(out) >= n_candidates:
             break
     return out
 
@@ -207,9 +187,9 @@ def _pose_of(db, camera, j, theta, k, T_xy, score) -> PoseHypothesis:  # type: i
     P = np.array([T_xy[1] + k * (s * dx + c * dy), T_xy[0] + k * (c * dx - s * dy)])
     cR = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
     u = np.asarray(camera.los(P))  # type: ignore[attr-defined]
-    R = _rot_z_to(u) @ cR @ np.asarray(db.R_body_to_camera[j])
+    R = rot_z_to(u) @ cR @ np.asarray(db.R_body_to_camera[j])
     D = camera.focal_px * db.distance_km / (db.focal_px * k)  # type: ignore[attr-defined]
     return PoseHypothesis(j, theta, k, score, P, R, float(D))
 
 
-__all__ = ["PhaseSearchOptions", "PoseHypothesis", "contour_normals", "phase_candidates"]
+__all__ = ["PoseHypothesis", "contour_normals", "phase_candidates"]

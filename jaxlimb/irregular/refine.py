@@ -1,67 +1,33 @@
 r"""Soft-silhouette least-squares refinement of the matched pose (beyond Wu et al.).
 
-The template match (Eq. 15-25) leaves the error of the nearest template: the
-true viewpoint is up to ~half a sampling step away.  Two steps remove it.
+The template match (Eq. 15-25 of Wu et al.) leaves the error of the nearest template; after the local
+densification of the view sphere (:mod:`.densify`), the sigmoid limb model of the ellipsoid papers is
+carried over to an irregular body.  Near its outline the image is modelled as
 
-1. :func:`densify_match` -- local densification of the view sphere around the
-   matched template (3x3 grids of tilts, step/3, step/9, step/27), each
-   rendered and aligned exactly like a database template.
+.. math::  I(p) = y_{min} + (y_{max} - y_{min})\,\sigma\big(k\, d(p; \theta)\big)\,(1 + g\,\max(d, 0))
 
-2. :func:`refine_center` -- the sigmoid limb model of the ellipsoid papers
-   carried over to an irregular body.  Near its outline the image is modelled as
+where :math:`d` is the signed distance (px, positive inside) from pixel :math:`p` to the projected outline
+of the mesh at pose :math:`\theta` (:mod:`.outline`: limb pieces only) and :math:`g` a brightness slope
+inside the edge (a Lommel-Seeliger limb at phase > 0 is brightest at the very edge), fitted to the pixels
+near the outline.
 
-   .. math::  I(p) = y_{min} + (y_{max} - y_{min})\,\sigma\big(k\, d(p; \theta)\big)\,(1 + g\,\max(d, 0))
+Parameters (10): a small rotation ``omega`` (3, camera frame), the image of the body centre ``P`` (2), the
+scale (1: range ``D = D0 exp(-s)``), ``k``, ``ymax``, ``ymin``, ``g``.  The body centre is placed at
+``t = D u(P)`` (Eq. 4), so ``P`` *is* the estimate.  Rotation and scale are expressed in pixels of outline
+motion and the levels in units of the initial contrast, so every parameter is O(1).
 
-   where :math:`d` is the signed distance (px, positive inside) from pixel
-   :math:`p` to the projected outline of the mesh at pose :math:`\theta` and
-   :math:`g` a brightness slope inside the edge (a Lommel-Seeliger limb at phase
-   > 0 is brightest at the very edge).  Fitted to the pixels within ``band_px``
-   of the outline.
+Solver.  The geometry is linearised per outer iteration, ``d(p; theta) ~ d0(p) + G(p) delta`` with ``G``
+from one ``jax.jacfwd`` of the signed-distance function; the photometric model on the linearised distances
+is solved with ``optimistix.LevenbergMarquardt``; the pose is updated (step limited to half the band: a
+trust region), the outline re-extracted and the loop repeated with a band shrinking from ``_BAND_START_PX``
+to ``_BAND_PX`` (a wide band and a soft edge widen the basin of a template ~2 deg off).  Pixels whose
+residual exceeds ``_OUTLIER_SIGMA`` robust sigmas are dropped once per outer iteration.  The signed
+distance is a soft-min (scale ``_SOFT_PX``) blend of the signed distances to the four nearest pieces' lines:
+continuous across piece junctions and concave corners, where a hard nearest-piece choice flips sign.
 
-Parameters (10): a small rotation ``omega`` (3, rotation vector applied in the
-camera frame), the image of the body centre ``P`` (2: the image-plane shift),
-the scale (1: range ``D = D0 exp(-s)``), ``k``, ``ymax``, ``ymin``, ``g``.  The
-body centre is placed at ``t = D u(P)`` with ``u(P)`` the unit line of sight of
-``P`` (Eq. 4), so ``P`` *is* the estimate and the mesh origin projects exactly
-onto it.  Rotation and scale are expressed in pixels of outline motion and the
-levels in units of the initial contrast, so every parameter is O(1).
-
-Solver (a decision, for speed).  The geometry is linearised per outer iteration:
-``d(p; theta) ~ d0(p) + G(p) delta`` with ``G`` from one ``jax.jacfwd`` of the
-signed-distance function; the inner problem (photometric model on the
-linearised distances, 10 parameters) is solved with
-``optimistix.LevenbergMarquardt``; the pose is updated (step limited to half the
-band: a trust region for the linearisation), the outline re-extracted and the
-loop repeated (coarse-to-fine band, ``outer_iterations``).  Running
-optimistix's LM on the full geometric model was ~50x slower (a Jacobian of the
-geometry at every LM step).  Pixels whose residual exceeds
-``outlier_sigma`` robust sigmas are dropped once per outer iteration.
-
-Outline.  For a pose, the outline edges are the edges between a *visible* face
-and a non-visible one, visible meaning front-facing (``n.v > 0``) and, when a
-Sun direction is given, also lit (``n.s > 0``): the lit silhouette.  Edges are
-split into pieces of ``piece_px``; only pieces on the *outer* boundary of the
-(lit) figure are kept (tested on the figure rasterised at ``test_supersample``
-x).  Of those, only **limb** pieces -- whose other face is back-facing -- are
-fitted; pixels nearest to a terminator piece (other face front-facing but
-unlit) are left out, because the terminator of a Lommel-Seeliger surface is a
-soft, albedo- and slope-dependent ramp, not a sigmoid edge.  Pixels near a
-dangling piece end (a T-junction where one limb passes behind another) are
-dropped too.  Cast shadows are not modelled.
-
-Signed distance to the frozen outline: each band pixel keeps its
-``n_neighbours`` nearest pieces; the distance is a soft-min (scale
-``_SOFT_PX``) blend of the signed distances to the pieces' lines, signed by the
-outward normal (away from the third vertex of the visible face) -- continuous
-across piece junctions and concave corners, where a hard nearest-piece choice
-flips sign.
-
-Limitation: the template database holds full (zero-phase) silhouettes, so at
-large phase angles the *match* that initialises the refinement can be far off
-(the lit figure is not the silhouette); the refinement itself handles a lit
-fraction below one (see ``tests/irregular/test_refine_render.py``), given a
-starting pose within about a degree and a few pixels (e.g. a navigation
-filter's prediction, ``initial_pose_override``).
+Limitation: the template database holds full (zero-phase) silhouettes, so at large phase angles the *match*
+that initialises the refinement can be far off; the refinement itself handles a lit fraction below one
+given a starting pose within about a degree and a few pixels (``initial_pose_override``).
 """
 
 from __future__ import annotations
@@ -74,12 +40,22 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import optimistix as optx
-from scipy.spatial import cKDTree
 
-from ..errors import ConvergenceError, GeometryError
+from ..errors import ConvergenceError
 from .database import TemplateDatabase
-from .matching import LocateResult, _rot_z_to
-from .silhouette import cached_topology, outline_edges, render_silhouette, visible_faces
+from .densify import densify_match, initial_pose
+from .matching import LocateResult
+from .outline import outline_data
+from .silhouette import cached_topology
+
+_BAND_PX = 4.0  # half-width (px) of the band of pixels around the outline in the last solves
+_BAND_START_PX = 10.0  # ... in the first solve, each later one _BAND_SHRINK times the previous
+_BAND_SHRINK = 0.7
+_OUTER_ITERATIONS = 12  # outline re-extractions (each followed by a solve)
+_MAX_STEPS = 30  # Levenberg-Marquardt steps per solve
+_K_INIT = 1.0  # initial edge sharpness (1/px)
+_TOL_PX = 0.005  # the outer loop stops when the centre moves less (px)
+_OUTLIER_SIGMA = 4.0  # residuals beyond this many robust standard deviations (MAD) are dropped
 
 
 @dataclass(frozen=True)
@@ -88,55 +64,11 @@ class RefineOptions:
 
     Parameters
     ----------
-    band_px
-        Half-width of the band of pixels around the outline that enters the fit
-        (final value).
-    band_start_px, band_shrink
-        Coarse-to-fine schedule: the first solve uses a band of ``band_start_px``
-        (and ``k_init``), each later one ``band_shrink`` times the previous, down
-        to ``band_px``.  The nearest template can be ~2 deg off, which moves parts
-        of the outline by several pixels; a wide band and a soft edge widen the
-        basin of convergence, re-extracting the outline after a few steps keeps
-        the frozen outline and neighbour lists valid.
-    outer_iterations
-        Maximum number of outline re-extractions (each followed by a solve).
-    max_steps
-        Maximum Levenberg-Marquardt steps per solve.
-    n_neighbours
-        Candidate outline segments kept per pixel.
-    k_init
-        Initial edge sharpness (1/px).
-    tol_px
-        Stop the outer loop when the centre moves less than this (px).
-    piece_px
-        Outline edges are split into pieces of at most this length (px); only
-        pieces on the outer boundary are used (hidden parts of an edge at a
-        T-junction are dropped piece by piece).
-    test_supersample, test_offset_px
-        A piece is on the outer boundary when the point ``test_offset_px`` outside
-        its midpoint lies outside the figure rasterised at ``test_supersample`` x
-        resolution (folds of the surface closer than that to the outline count as
-        outline, harmlessly).
     densify_levels
-        Levels of :func:`densify_match` run before the least-squares fit (0: start
-        from the database template).
-    outlier_sigma
-        After each solve, pixels whose residual exceeds this many robust
-        standard deviations (MAD) are dropped and the solve is repeated once.
+        Levels of :func:`~.densify.densify_match` run before the least-squares fit (0: start from the
+        database template).
     """
 
-    band_px: float = 4.0
-    band_start_px: float = 10.0
-    band_shrink: float = 0.7
-    outer_iterations: int = 12
-    max_steps: int = 30
-    n_neighbours: int = 4
-    k_init: float = 1.0
-    tol_px: float = 0.005
-    piece_px: float = 2.0
-    test_supersample: int = 8
-    test_offset_px: float = 0.3
-    outlier_sigma: float = 4.0
     densify_levels: int = 3
 
 
@@ -183,110 +115,6 @@ def _rotvec(w: jnp.ndarray) -> jnp.ndarray:
     a = jnp.where(th2 < 1e-12, 1.0 - th2 / 6.0, jnp.sin(th) / th)
     b = jnp.where(th2 < 1e-12, 0.5 - th2 / 24.0, (1.0 - jnp.cos(th)) / (th2 + 1e-30))
     return jnp.eye(3) + a * K + b * (K @ K)
-
-
-@dataclass(frozen=True)
-class DensifyResult:
-    """Result of :func:`densify_match`: a locally refined template pose.
-
-    Attributes
-    ----------
-    center_rc
-        Body-centre image by Eq. (25) with the best densified template.
-    R_template
-        Body->template-camera rotation of the best densified template.
-    theta, scale, contour_mean_px
-        In-plane rotation (Eq. 23), scale (Eq. 20) and contour agreement.
-    """
-
-    center_rc: np.ndarray
-    R_template: np.ndarray
-    theta: float
-    scale: float
-    contour_mean_px: float
-
-
-def _rx(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def _ry(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
-
-
-def densify_match(
-    mask: np.ndarray, db: TemplateDatabase, camera: object, match: LocateResult, levels: int = 3, n_far: int = 3
-) -> DensifyResult:
-    """Local densification of the view sphere around the matched template (beyond Wu et al.).
-
-    The template grid leaves up to about half a step between the true viewpoint
-    and the nearest template.  Around the matched template, views tilted by
-    ``(a, b)`` about the template camera's x and y axes are rendered on a 3x3 grid
-    of spacing ``step/3``, then ``step/9``, ... (``levels`` levels); each is
-    aligned with the observed figure exactly like a database template (guarded
-    rotation, contour agreement), and the best one is kept.  Cost: ``8 levels``
-    silhouettes at template resolution.
-    """
-    from .features import features_from_contours
-    from .matching import observe
-
-    topo = cached_topology(db.mesh)
-    ob = observe(mask, camera, db.options.n_contour)
-    S = db.options.template_size_px
-    t = np.array([0.0, 0.0, db.distance_km])
-    best_R = np.asarray(db.R_body_to_camera[match.template_index])
-    best = None
-    step = math.radians(db.options.step_deg) / 3.0
-    for _level in range(levels):
-        cands, feats = [], []
-        for a in (-step, 0.0, step):
-            for b in (-step, 0.0, step):
-                R = _rx(a) @ _ry(b) @ best_R
-                _, contours = render_silhouette(topo, R, t, db.focal_px, db.principal_rc, (S, S))
-                if not contours:
-                    continue
-                cands.append(R)
-                feats.append(features_from_contours(contours, db.options.n_contour))
-        conts = np.stack([f.contour_xy for f in feats])
-        areas = np.array([f.area for f in feats])
-        orients = np.array([f.orientation for f in feats])
-        th, sc = ob.align(conts, areas, orients, n_far)
-        i = int(np.argmin(sc))
-        best_R = cands[i]
-        best = (feats[i], float(th[i]), float(sc[i]))
-        step /= 3.0
-    f, theta, score = best  # type: ignore[misc]
-    P = ob.center(f.area, f.center_rc, db.center_image_rc, theta)
-    return DensifyResult(
-        center_rc=np.asarray(P, dtype=float),
-        R_template=best_R,
-        theta=theta,
-        scale=math.sqrt(ob.obs.area / f.area),
-        contour_mean_px=score,
-    )
-
-
-def initial_pose(
-    db: TemplateDatabase, result: LocateResult, camera: object, R_template: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """Pose ``(R_body_to_camera, t_camera)`` implied by a template match.
-
-    ``R = R_P Rz(theta) R_T``: the template's body->camera rotation ``R_T``,
-    rolled by the in-plane rotation ``theta`` of Eq. (23), then turned so the
-    boresight points along the line of sight of the matched centre ``P``
-    (``R_P``: smallest rotation taking +z to ``u(P)``).  Range from the scale
-    of Eq. (20): ``D = f D_T / (f_T k_c)``.
-    """
-    j = result.template_index
-    c, s = math.cos(result.theta), math.sin(result.theta)
-    Rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    u = np.asarray(camera.los(result.center_rc))  # type: ignore[attr-defined]
-    RT = db.R_body_to_camera[j] if R_template is None else R_template
-    R = _rot_z_to(u) @ Rz @ RT
-    D = camera.focal_px * db.distance_km / (db.focal_px * result.scale)  # type: ignore[attr-defined]
-    return R, D * u
 
 
 def _sd_factory(focal: float, pp_rc: tuple[float, float]):  # type: ignore[no-untyped-def]
@@ -358,10 +186,6 @@ _SOLVERS: dict = {}
 _SOFT_PX = 0.25
 
 
-def _bucket(n: int) -> int:
-    return int(2 ** math.ceil(math.log2(max(n, 16))))
-
-
 def refine_center(
     image: np.ndarray,
     db: TemplateDatabase,
@@ -431,8 +255,8 @@ def _figure_levels(image: np.ndarray, mask: np.ndarray) -> tuple[float, float, f
     return size, lev0, lev1
 
 
-def _compiled(f: float, pp: tuple, max_steps: int):  # type: ignore[no-untyped-def]
-    """The jitted signed distances, their Jacobian and the solver, kept per camera and step budget."""
+def _compiled(f: float, pp: tuple):  # type: ignore[no-untyped-def]
+    """The jitted signed distances, their Jacobian and the solver, kept per camera."""
     key = (f, pp)
     if key not in _SOLVERS:
         if len(_SOLVERS) > 8:
@@ -440,20 +264,20 @@ def _compiled(f: float, pp: tuple, max_steps: int):  # type: ignore[no-untyped-d
         sd_fn = _sd_factory(f, pp)
         _SOLVERS[key] = (jax.jit(sd_fn), jax.jit(jax.jacfwd(sd_fn)))
     sd_jit, jac_jit = _SOLVERS[key]
-    if max_steps not in _SOLVERS:
-        _SOLVERS[max_steps] = _make_solver(max_steps)
-    return sd_jit, jac_jit, _SOLVERS[max_steps]
+    if _MAX_STEPS not in _SOLVERS:
+        _SOLVERS[_MAX_STEPS] = _make_solver(_MAX_STEPS)
+    return sd_jit, jac_jit, _SOLVERS[_MAX_STEPS]
 
 
-def _solve_robust(solve, y0, sd0, G, val, weight, lev0, lev1, options):  # type: ignore[no-untyped-def]
-    """Solve, drop the photometric outliers (> ``outlier_sigma`` MADs, if fewer than 20 %) and solve again."""
+def _solve_robust(solve, y0, sd0, G, val, weight, lev0, lev1):  # type: ignore[no-untyped-def]
+    """Solve, drop the photometric outliers (> ``_OUTLIER_SIGMA`` MADs, if fewer than 20 %) and solve again."""
     args = (sd0, G, jnp.asarray(val), jnp.asarray(weight), lev0, lev1)
     y_sol, n_steps = solve(y0, args)
     iterations = int(n_steps)
     r1 = np.asarray(_photometric_residual(y_sol, args))
     live = weight > 0
     mad = 1.4826 * float(np.median(np.abs(r1[live])))
-    bad = live & (np.abs(r1) > max(options.outlier_sigma * mad, 0.15))
+    bad = live & (np.abs(r1) > max(_OUTLIER_SIGMA * mad, 0.15))
     if 0 < bad.sum() < 0.2 * live.sum():
         weight = np.where(bad, 0.0, weight)
         args = (sd0, G, jnp.asarray(val), jnp.asarray(weight), lev0, lev1)
@@ -469,212 +293,100 @@ def _small_rotation(w: np.ndarray) -> np.ndarray:
     return np.eye(3) + (math.sin(th) / th if th > 1e-12 else 1.0) * Kx + ((1 - math.cos(th)) / th**2 if th > 1e-12 else 0.5) * Kx @ Kx
 
 
+@dataclass(frozen=True)
+class _Setup:
+    """What the outer loop does not change: mesh topology, camera, frame, Sun, figure size and levels, the
+    compiled functions and the matched centre."""
+
+    topo: object
+    camera: object
+    image: np.ndarray
+    sun: np.ndarray | None
+    size: float
+    lev0: float
+    lev1: float
+    compiled: tuple
+    P_match: np.ndarray
+
+
+@dataclass
+class _Fit:
+    """The pose and photometric parameters of the outer loop (``y``: ``k, ymax, ymin, g`` of the module docstring)."""
+
+    R: np.ndarray
+    t: np.ndarray
+    P: np.ndarray
+    D: float
+    y: tuple[float, float, float, float] = (_K_INIT, 1.0, 0.0, 0.0)
+    iterations: int = 0
+    rms: float = math.nan
+    npix: int = 0
+    sizes: tuple[int, int] = (0, 0)  # padded shapes kept: one compilation per image
+
+
+def _outer_step(su: _Setup, fit: _Fit, band: float) -> float:
+    """Extract the outline at the current pose, linearise, solve, update ``fit`` in place; the centre step (px)."""
+    sd_jit, jac_jit, solve = su.compiled
+    data = outline_data(su.topo, su.camera, su.image, fit.R, fit.t, su.sun, band, fit.sizes)
+    if data is None:
+        raise ConvergenceError("refinement: fewer than 20 limb pixels around the outline")
+    A, B, C, pix, val, nbr, weight = data
+    fit.sizes = (pix.shape[0], A.shape[0])
+    zero6 = jnp.zeros(6)
+    geo = tuple(jnp.asarray(x) for x in (A, B, C, pix, nbr, fit.R, fit.P)) + (fit.D, su.size)
+    sd0, G = sd_jit(zero6, geo), jac_jit(zero6, geo)
+    y0 = jnp.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, *fit.y])
+    y_sol, args, weight, n_it = _solve_robust(solve, y0, sd0, G, val, weight, su.lev0, su.lev1)
+    fit.iterations += n_it
+    fit.npix = int(weight.sum())
+    y = np.asarray(y_sol)
+    if not np.all(np.isfinite(y)) or not y[6] > 0:
+        raise ConvergenceError(f"refinement diverged (parameters {y.tolist()})")
+    # a linearised step must stay small: limit it to the band (trust region)
+    g = y[0:6] * min(1.0, 0.5 * band / max(float(np.max(np.abs(np.asarray(G) @ y[0:6]))), 1e-12))
+    res = np.asarray(_photometric_residual(jnp.asarray(y), args))
+    fit.rms = float(np.sqrt(np.sum(res**2) / max(fit.npix, 1))) * (su.lev1 - su.lev0)
+    fit.R = _small_rotation(g[0:3] / su.size) @ fit.R
+    P_new = fit.P + g[3:5]
+    fit.D = fit.D * math.exp(-g[5] / su.size)
+    fit.y = (float(y[6]), float(y[7]), float(y[8]), float(y[9]))
+    step = float(np.linalg.norm(P_new - fit.P))
+    fit.P = P_new
+    if np.any(np.abs(fit.P - su.P_match) > 0.25 * su.size):
+        raise ConvergenceError(f"refinement moved the centre by more than a quarter of the body size ({(fit.P - su.P_match).tolist()})")
+    fit.t = fit.D * np.asarray(su.camera.los(fit.P))  # type: ignore[attr-defined]
+    return step
+
+
 def _refine(image, db, camera, match, sun_dir_camera, options, override=None):  # type: ignore[no-untyped-def]
-    """Outer loop: extract the outline at the current pose, linearise, solve, update."""
-    topo = cached_topology(db.mesh)
-    f = float(camera.focal_px)
-    pp = tuple(float(v) for v in camera.principal_point_rc)
+    """Outer loop: extract the outline at the current pose, linearise, solve, update (coarse-to-fine band)."""
     R, t, match = _start_pose(image, db, camera, match, options, override)
     P = np.asarray(match.center_rc, dtype=float).copy()
-    P_match = P.copy()
-    D = float(np.linalg.norm(t))
     size, lev0, lev1 = _figure_levels(image, match.mask)
     sun = None if sun_dir_camera is None else np.asarray(sun_dir_camera, dtype=float)
-    k, a_max, a_min, slope = options.k_init, 1.0, 0.0, 0.0
-    sd_jit, jac_jit, solve = _compiled(f, pp, options.max_steps)
-    iterations, rms, npix = 0, math.nan, 0
-    band = max(options.band_start_px, options.band_px)
-    zero6 = jnp.zeros(6)
-    sizes = (0, 0)
-    for _outer in range(options.outer_iterations):
-        data = _outline_data(topo, R, t, f, pp, image.shape, image, sun, options, band, sizes)
-        if data is None:
-            raise ConvergenceError("refinement: fewer than 20 limb pixels around the outline")
-        A, B, C, pix, val, nbr, weight = data
-        sizes = (pix.shape[0], A.shape[0])  # keep the padded shapes: one compilation per image
-        geo = tuple(jnp.asarray(x) for x in (A, B, C, pix, nbr, R, P)) + (D, size)
-        sd0 = sd_jit(zero6, geo)
-        G = jac_jit(zero6, geo)
-        y0 = jnp.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, k, a_max, a_min, slope])
-        y_sol, args, weight, n_it = _solve_robust(solve, y0, sd0, G, val, weight, lev0, lev1, options)
-        iterations += n_it
-        npix = int(weight.sum())
-        y = np.asarray(y_sol)
-        if not np.all(np.isfinite(y)) or not y[6] > 0:
-            raise ConvergenceError(f"refinement diverged (parameters {y.tolist()})")
-        # a linearised step must stay small: limit it to the band (trust region)
-        scale_step = min(1.0, 0.5 * band / max(float(np.max(np.abs(np.asarray(G) @ y[0:6]))), 1e-12))
-        g = y[0:6] * scale_step
-        res = np.asarray(_photometric_residual(jnp.asarray(y), args))
-        rms = float(np.sqrt(np.sum(res**2) / max(npix, 1))) * (lev1 - lev0)
-        R = _small_rotation(g[0:3] / size) @ R
-        P_new = P + g[3:5]
-        D = D * math.exp(-g[5] / size)
-        k, a_max, a_min, slope = float(y[6]), float(y[7]), float(y[8]), float(y[9])
-        step = float(np.linalg.norm(P_new - P))
-        P = P_new
-        if np.any(np.abs(P - P_match) > 0.25 * size):
-            raise ConvergenceError(
-                f"refinement moved the centre by more than a quarter of the body size ({(P - P_match).tolist()})"
-            )
-        t = D * np.asarray(camera.los(P))
-        at_final = band <= options.band_px + 1e-9
-        band = max(options.band_px, band * options.band_shrink)
-        if at_final and step < options.tol_px:
+    pp = tuple(float(v) for v in camera.principal_point_rc)
+    su = _Setup(cached_topology(db.mesh), camera, image, sun, size, lev0, lev1, _compiled(float(camera.focal_px), pp), P.copy())
+    fit = _Fit(R, t, P, float(np.linalg.norm(t)))
+    band = max(_BAND_START_PX, _BAND_PX)
+    for _outer in range(_OUTER_ITERATIONS):
+        step = _outer_step(su, fit, band)
+        at_final = band <= _BAND_PX + 1e-9
+        band = max(_BAND_PX, band * _BAND_SHRINK)
+        if at_final and step < _TOL_PX:
             break
+    k, a_max, a_min, _ = fit.y
     return RefineResult(
-        center_rc=P,
-        los_camera=np.asarray(camera.los(P)),
-        R_body_to_camera=R,
-        t_camera=t,
+        center_rc=fit.P,
+        los_camera=np.asarray(camera.los(fit.P)),
+        R_body_to_camera=fit.R,
+        t_camera=fit.t,
         k=k,
         ymax=lev0 + (lev1 - lev0) * a_max,
         ymin=lev0 + (lev1 - lev0) * a_min,
-        iterations=iterations,
-        rms_residual=rms,
-        n_pixels=npix,
+        iterations=fit.iterations,
+        rms_residual=fit.rms,
+        n_pixels=fit.npix,
     )
 
 
-def _outline_pieces(rc, V, edges, third, limb, fig, lo, ss, options):  # type: ignore[no-untyped-def]
-    """Every outline edge split into pieces of <= ``piece_px`` (3-D interpolation projects onto the same
-    straight line); only the pieces on the outer boundary of the figure ``fig`` are kept.  Returns the
-    3-D end points and third vertex ``PA, PB, PC``, the image end points ``pa, pb`` and the limb flag."""
-    a2, b2 = rc[edges[:, 0]], rc[edges[:, 1]]
-    L = np.linalg.norm(b2 - a2, axis=1)
-    npieces = np.maximum(np.ceil(L / options.piece_px).astype(int), 1)
-    parent = np.repeat(np.arange(edges.shape[0]), npieces)
-    start = np.concatenate([np.arange(n) / n for n in npieces])
-    stop = np.concatenate([np.arange(1, n + 1) / n for n in npieces])
-    VA, VB = V[edges[parent, 0]], V[edges[parent, 1]]
-    PA = VA + start[:, None] * (VB - VA)
-    PB = VA + stop[:, None] * (VB - VA)
-    PC = V[third[parent]]
-    limb = limb[parent]
-    pa = a2[parent] + start[:, None] * (b2 - a2)[parent]
-    pb = a2[parent] + stop[:, None] * (b2 - a2)[parent]
-    pc = rc[third[parent]]
-    e = pb - pa
-    nrm = np.stack([-e[:, 1], e[:, 0]], axis=1)
-    side = np.sign(np.sum(nrm * (pc - pa), axis=1))
-    nrm = -side[:, None] * nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-30)
-    mid = (0.5 * (pa + pb) + options.test_offset_px * nrm - lo + 0.5) * ss - 0.5
-    ir = np.clip(np.round(mid[:, 0]).astype(int), 0, fig.shape[0] - 1)
-    ic = np.clip(np.round(mid[:, 1]).astype(int), 0, fig.shape[1] - 1)
-    outer = fig[ir, ic] == 0
-    return PA[outer], PB[outer], PC[outer], pa[outer], pb[outer], limb[outer]
-
-
-def _band_pixels(PA, PB, pa, pb, limb, lo, hi, band):  # type: ignore[no-untyped-def]
-    """Pixels within ``band`` of a limb piece, away from dangling piece ends (T-junctions, hidden cuts: no
-    sign is reliable there); with the KD tree of points sampled along the pieces (<= 0.5 px apart) and
-    each point's piece index."""
-    L = np.linalg.norm(pb - pa, axis=1)
-    ns = np.maximum(np.ceil(L / 0.5).astype(int), 1)
-    seg_id = np.repeat(np.arange(pa.shape[0]), ns + 1)
-    frac = np.concatenate([np.linspace(0.0, 1.0, n + 1) for n in ns])
-    pts = pa[seg_id] + frac[:, None] * (pb - pa)[seg_id]
-    tree = cKDTree(pts)
-    r_idx, c_idx = np.mgrid[lo[0] : hi[0] + 1, lo[1] : hi[1] + 1]
-    pix_all = np.stack([r_idx.ravel(), c_idx.ravel()], axis=1).astype(float)
-    d1, i1 = tree.query(pix_all, k=1, distance_upper_bound=band)
-    keep = np.isfinite(d1)
-    keep[keep] &= limb[seg_id[i1[keep]]]
-    ends = np.concatenate([PA, PB], axis=0)
-    _, inv, cnt = np.unique(np.round(ends, 9), axis=0, return_inverse=True, return_counts=True)
-    dangling = cnt[inv.ravel()] == 1
-    if np.any(dangling):
-        end2d = np.concatenate([pa, pb], axis=0)[dangling]
-        dd, _ = cKDTree(end2d).query(pix_all[keep], k=1)
-        kidx = np.nonzero(keep)[0]
-        keep[kidx[dd <= band]] = False
-    return pix_all[keep], tree, seg_id
-
-
-def _nearest_pieces(pix, tree, seg_id, kn: int) -> np.ndarray:  # type: ignore[no-untyped-def]
-    """The ``kn`` distinct pieces nearest each pixel, in order of proximity (the nearest repeated when fewer)."""
-    _, ik = tree.query(pix, k=min(6 * kn, tree.n))
-    segs = seg_id[np.atleast_2d(ik)]
-    first = np.ones_like(segs, dtype=bool)  # first occurrence of each piece id per row
-    for j in range(1, segs.shape[1]):
-        first[:, j] = np.all(segs[:, :j] != segs[:, j : j + 1], axis=1)
-    order = np.argsort(~first, axis=1, kind="stable")
-    ranked = np.take_along_axis(segs, order, axis=1)
-    nfirst = first.sum(axis=1)
-    nbr = ranked[:, :kn].copy()
-    short = nfirst < kn
-    if np.any(short):
-        for j in range(kn):
-            m = short & (nfirst <= j)
-            nbr[m, j] = ranked[m, 0]
-    return nbr
-
-
-def _padded(pieces, pix, val, nbr, min_sizes):  # type: ignore[no-untyped-def]
-    """Pieces and pixels padded to size buckets (fewer recompilations); padded pixels get weight 0."""
-    npx, ne = pix.shape[0], pieces[0].shape[0]
-    bp, be = max(_bucket(npx), min_sizes[0]), max(_bucket(ne), min_sizes[1])
-    pix_p = np.repeat(pix[:1], bp, axis=0)
-    pix_p[:npx] = pix
-    val_p = np.zeros(bp)
-    val_p[:npx] = val
-    nbr_p = np.zeros((bp, nbr.shape[1]), dtype=np.int64)
-    nbr_p[:npx] = nbr
-    weight = np.zeros(bp)
-    weight[:npx] = 1.0
-
-    def padv(X: np.ndarray) -> np.ndarray:
-        out = np.repeat(X[:1], be, axis=0)
-        out[:ne] = X
-        return out
-
-    return (*(padv(X) for X in pieces), pix_p, val_p, nbr_p, weight)
-
-
-def _outline_data(topo, R, t, f, pp, shape, image, sun, options, band, min_sizes=(0, 0)):  # type: ignore[no-untyped-def]
-    """Frozen outline (3-D end points), band pixels, their values and neighbour segments."""
-    cam_body = -R.T @ t
-    sun_body = None if sun is None else R.T @ sun
-    front = visible_faces(topo, cam_body)
-    flag = front if sun_body is None else front & visible_faces(topo, cam_body, sun_body)
-    edges, third = outline_edges(topo, flag)
-    # other face of each outline edge: limb if it is back-facing
-    fa, fb = topo.adjacent[:, 0], topo.adjacent[:, 1]
-    sel_a = flag[fa] & ~flag[fb]
-    sel_b = flag[fb] & ~flag[fa]
-    other = np.concatenate([fb[sel_a], fa[sel_b]])
-    limb = ~front[other]
-    V = topo.vertices
-    Xc = V @ R.T + t
-    if np.any(Xc[:, 2] <= 0):
-        raise GeometryError("refinement: part of the mesh is behind the camera")
-    rc = np.stack([pp[0] + f * Xc[:, 1] / Xc[:, 2], pp[1] + f * Xc[:, 0] / Xc[:, 2]], axis=1)
-    lo = np.floor(rc.min(axis=0)).astype(int) - int(band) - 3
-    hi = np.ceil(rc.max(axis=0)).astype(int) + int(band) + 3
-    lo = np.maximum(lo, 0)
-    hi = np.minimum(hi, np.array(shape) - 1)
-    if np.any(hi - lo < 4):
-        return None
-    win = (int(hi[0] - lo[0] + 1), int(hi[1] - lo[1] + 1))
-    ss = options.test_supersample
-    fig, _ = render_silhouette(
-        topo,
-        R,
-        t,
-        f * ss,
-        ((pp[0] - lo[0] + 0.5) * ss - 0.5, (pp[1] - lo[1] + 0.5) * ss - 0.5),
-        (win[0] * ss, win[1] * ss),
-        sun_dir_camera=None if sun is None else sun,
-    )
-    PA, PB, PC, pa, pb, limb = _outline_pieces(rc, V, edges, third, limb, fig, lo, ss, options)
-    if not np.any(limb):
-        return None
-    pix, tree, seg_id = _band_pixels(PA, PB, pa, pb, limb, lo, hi, band)
-    if pix.shape[0] < 20:
-        return None
-    nbr = _nearest_pieces(pix, tree, seg_id, options.n_neighbours)
-    val = image[pix[:, 0].astype(int), pix[:, 1].astype(int)]
-    return _padded((PA, PB, PC), pix, val, nbr, min_sizes)
-
-
-__all__ = ["DensifyResult", "RefineOptions", "RefineResult", "densify_match", "initial_pose", "refine_center"]
+__all__ = ["RefineOptions", "RefineResult", "refine_center"]

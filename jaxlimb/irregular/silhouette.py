@@ -40,7 +40,7 @@ import cv2
 import numpy as np
 
 from .._identity_cache import IdentityCache
-from ..errors import ImageContentError, NoBodyError, TooBigError, TooSmallError
+from ..errors import GeometryError, ImageContentError, NoBodyError, TooBigError, TooSmallError
 from .mesh import Mesh, edge_faces, face_normals
 
 _SHIFT = 4  # fractional bits for OpenCV drawing
@@ -163,8 +163,6 @@ def render_silhouette(
     used = np.unique(edges)
     Xc = topo.vertices[used] @ R.T + t
     if np.any(Xc[:, 2] <= 0):
-        from ..errors import GeometryError
-
         raise GeometryError("part of the mesh is behind the camera (z <= 0); move the camera away from the body")
     rc = np.empty((topo.vertices.shape[0], 2))
     rc[used, 0] = principal_rc[0] + focal_px * Xc[:, 1] / Xc[:, 2]

@@ -33,7 +33,7 @@ axes in the sampling frame::
     y_c = ( sin b,       -cos b,        0    )    (= -e_beta)
     z_c = (-sin a cos b, -sin a sin b, -cos a)    (= -e_r, toward the centre)
 
-which is right-handed (``x_c x y_c = z_c``), so it matches the DESIGN.md camera
+which is right-handed (``x_c x y_c = z_c``), so it matches the docs/design.md camera
 (+x toward +col, +y toward +row, +z boresight).
 """
 
@@ -44,6 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._validate import Range, number
 from ..errors import ConfigError
 
 _POLE_PERMUTATION = {
@@ -74,8 +75,6 @@ class ViewSphereOptions:
     rings: str = "paper"
 
     def __post_init__(self) -> None:
-        from .._validate import Range, number
-
         s = number(self.step_deg, "view sphere `step_deg`", Range(0.0, 90.0, lo_open=True))
         if self.pole_axis not in _POLE_PERMUTATION:
             raise ConfigError(f"view sphere `pole_axis` must be 'x', 'y' or 'z', got {self.pole_axis!r}")
@@ -184,7 +183,7 @@ def project_points(
     """Pinhole projection of body-frame points, Eq. (9) of Wu et al.
 
     ``X_c = R X_b + t``; ``row = rc + f y_c / z_c``, ``col = cc + f x_c / z_c``
-    (DESIGN.md convention; ``k_x = k_y = f`` in the paper's notation).
+    (docs/design.md convention; ``k_x = k_y = f`` in the paper's notation).
 
     Returns
     -------

@@ -62,7 +62,7 @@ Widened (:data:`LIMB_PROFILE_MINNAERT`, :class:`MinnaertProfileParams`): the rad
 :math:`(\mu_0\mu)^{-\kappa}`, at ``L = 0`` Minnaert's law :math:`\mu_0^k\mu^{k-1}` with :math:`k = 1 - \kappa`
 (Minnaert 1941); its rim diverges as :math:`\mu^{-\kappa}`, brighter than any lunar-Lambert rim.  The
 derivative in :math:`\kappa` is :math:`-\ln(\mu_0\mu) I`; the pipeline frees :math:`\kappa` only when a score
-test asks for it (:func:`jaxlimb.pipeline.profile_fit.widen_brightening`).
+test asks for it (:func:`jaxlimb.pipeline.profile.widen.widen_brightening`).
 
 Widened (:data:`LIMB_PROFILE_GLOW`, :class:`GlowProfileParams`): plus a glow above the limb, an optically thin
 shell whose emission falls as :math:`e^{-h/H}` with the altitude (a horizon glow of dust or an exosphere; the
@@ -70,7 +70,7 @@ shell whose emission falls as :math:`e^{-h/H}` with the altitude (a horizon glow
 limb, and times half the grazing column, :math:`\tfrac12\mathrm{erfcx}(\sqrt{u/H})`, at a depth ``u`` on the disc
 (:func:`~jaxlimb.models.profile_radiance.glow_inside`, :func:`~jaxlimb.models.profile_radiance.glow_outside`); ``H = exp(log_h)`` px.  The disc side is integrated with the
 radiance; the sky side blurred in closed form.  The pipeline adds the glow only when a score test asks for it
-(:func:`jaxlimb.pipeline.profile_fit.widen_glow`).  The shell is lit by the Sun: at the limb point of image
+(:func:`jaxlimb.pipeline.profile.glow.widen_glow`).  The shell is lit by the Sun: at the limb point of image
 position angle :math:`\psi` from the Sun's image direction the solar elevation over the tangent point is
 :math:`\sin^{-1}(\sin\alpha\cos\psi)` (phase :math:`\alpha`), so the glow is brighter toward the Sun.  To first
 order in ``cpsi`` :math:`= \cos\psi` its radiance is ``glow (1 + glow_tilt cpsi)`` (``glow_tilt`` fitted; 0 is a
@@ -82,8 +82,8 @@ Off the optical axis the limb is an ellipse (``a - b`` reaches ~5 px at the corn
 default imager for the Moon at 60 000 km): the model carries the ellipse ``(r0, c0, a, theta,
 rho)``; with a camera, ``theta`` and ``rho`` are held at the values of the image of a sphere
 at the current estimate and iterated, exactly as the sigmoid's body-centre correction
-(:func:`jaxlimb.pipeline.refine.fit_sphere_annulus`), and ``(r0, c0, a)`` map exactly to the
-body centre (:func:`jaxlimb.pipeline.sphere.sphere_from_ellipse_center`).  Without a camera
+(:func:`jaxlimb.pipeline.sphere.fits.fit_sphere_annulus`), and ``(r0, c0, a)`` map exactly to the
+body centre (:func:`jaxlimb.geometry.sphere_image.sphere_from_ellipse_center`).  Without a camera
 ``rho = 1`` (a circle of radius ``a``).
 """
 

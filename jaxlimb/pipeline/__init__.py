@@ -1,20 +1,22 @@
-"""The limb pipeline: ``locate(image, camera, hints, options)`` composing front end, refinement,
-body-centre correction and checks; the measurement types; the checks as typed errors.
+"""The limb pipeline: ``locate(image, camera, hints, options)`` composing front end, limb pixels, edge fit, profile
+refit, body-centre mapping and checks over body strategies (:mod:`jaxlimb.pipeline.stages`); the measurement
+types; the checks as typed errors.
 
 Public API::
 
-    locate(image, camera=None, hints=None, options=None) -> LimbMeasurement   (every body: sphere,
-        ellipsoid (hints body "earth"), disc (hints body "sun"); jaxlimb.pipeline.bodies)
-    LocateOptions(front_end, model, solver, estimate_k, k_fixed, annulus_px, shape, ellipsoid, ...)
+    locate(image, camera=None, hints=None, options=None) -> LimbMeasurement   (every body: sphere, a sphere whose
+        limb the hints predict, ellipsoid (hints body "earth"), disc (hints body "sun"); jaxlimb.pipeline.bodies)
+    LocateOptions(front_end, model, profile, shape, ellipsoid, gradient, scanline, ...)
     FrontEnd, LimbModelKind, Profile, BodyShape   (the options' Enums); EllipsoidOptions
     LimbMeasurement, EllipseResult           (result types, ``to_json()``)
     save_locate_figure(image, measurement, path, selected_pixels=None, truth=None)
     checks: CenterOutOfFieldError, check_jump, check_radius_prior, check_size, check_center_in_field
-    refinement: select_annulus, annulus_halfwidth, lit_halfangle, fit_circle_annulus, fit_sphere_annulus
-    sphere image: SphereImage, sphere_from_ellipse_center, sphere_from_circle_fit
-    physical limb profile: sphere_from_circle_fit (the models LIMB_PROFILE, LIMB_DARKENED, ELLIPSE_RAMP
-        live in jaxlimb.models and are re-exported here for older imports)
+    the round limb's fits: select_annulus, annulus_halfwidth, lit_halfangle, fit_circle_annulus, fit_sphere_annulus,
+        fit_ellipse_annulus, AnnulusSelection, RefineResult
     the Sun's limb-darkened disc: fit_limb_darkened, SunLimbFit
+
+Sub-packages: :mod:`~jaxlimb.pipeline.sphere` (round bodies), :mod:`~jaxlimb.pipeline.ellipsoid` (the Earth),
+:mod:`~jaxlimb.pipeline.profile` (the physical limb profile both refit with).
 """
 
 from .checks import (
@@ -25,9 +27,9 @@ from .checks import (
     check_size as check_size,
     jump_threshold as jump_threshold,
 )
+from .options import EllipsoidOptions as EllipsoidOptions
 from .figure import save_locate_figure as save_locate_figure
 from .locate import locate as locate
-from .earth import EllipsoidOptions as EllipsoidOptions
 from .options import (
     BodyShape as BodyShape,
     FrontEnd as FrontEnd,
@@ -35,49 +37,29 @@ from .options import (
     LocateOptions as LocateOptions,
     Profile as Profile,
 )
-from .refine import (
-    AnnulusSelection as AnnulusSelection,
-    RefineResult as RefineResult,
-    annulus_halfwidth as annulus_halfwidth,
+from .result import EllipseResult as EllipseResult, LimbMeasurement as LimbMeasurement
+from .sphere.annulus import annulus_halfwidth as annulus_halfwidth, lit_halfangle as lit_halfangle, select_annulus as select_annulus
+from .sphere.fits import (
     fit_circle_annulus as fit_circle_annulus,
     fit_ellipse_annulus as fit_ellipse_annulus,
     fit_sphere_annulus as fit_sphere_annulus,
-    lit_halfangle as lit_halfangle,
-    select_annulus as select_annulus,
 )
-from ..models import (
-    LIMB_DARKENED as LIMB_DARKENED,
-    LIMB_PROFILE as LIMB_PROFILE,
-    LimbDarkenedParams as LimbDarkenedParams,
-    LimbProfileParams as LimbProfileParams,
-    limb_profile_intensity as limb_profile_intensity,
-)
-from .profile import sphere_from_circle_fit as sphere_from_circle_fit
-from .sun_profile import SunLimbFit as SunLimbFit, fit_limb_darkened as fit_limb_darkened
-from .result import EllipseResult as EllipseResult, LimbMeasurement as LimbMeasurement
-from .sphere import SphereImage as SphereImage, sphere_from_ellipse_center as sphere_from_ellipse_center
+from .sphere.sun import SunLimbFit as SunLimbFit, fit_limb_darkened as fit_limb_darkened
+from .stages import AnnulusSelection as AnnulusSelection, RefineResult as RefineResult
 
 __all__ = [
-    "LIMB_DARKENED",
-    "LimbDarkenedParams",
-    "SunLimbFit",
-    "fit_limb_darkened",
-    "LIMB_PROFILE",
-    "LimbProfileParams",
-    "limb_profile_intensity",
-    "sphere_from_circle_fit",
     "AnnulusSelection",
+    "BodyShape",
     "CenterOutOfFieldError",
     "EllipseResult",
-    "LimbMeasurement",
-    "BodyShape",
     "EllipsoidOptions",
     "FrontEnd",
+    "LimbMeasurement",
     "LimbModelKind",
     "LocateOptions",
     "Profile",
     "RefineResult",
-    "SphereImage",
+    "SunLimbFit",
     "annulus_halfwidth",
     "check_center_in_field",
     "check_jump",
@@ -85,11 +67,11 @@ __all__ = [
     "check_size",
     "fit_circle_annulus",
     "fit_ellipse_annulus",
+    "fit_limb_darkened",
     "fit_sphere_annulus",
     "jump_threshold",
     "lit_halfangle",
     "locate",
     "save_locate_figure",
     "select_annulus",
-    "sphere_from_ellipse_center",
 ]

@@ -1,92 +1,33 @@
-r"""Body strategies of :func:`jaxlimb.pipeline.locate`: what differs between a sphere, a triaxial ellipsoid and a
-self-luminous disc, and nothing else.
+r"""Body strategies of :func:`jaxlimb.pipeline.locate`: what differs between a sphere, a sphere whose limb is
+predicted, a triaxial ellipsoid and a self-luminous disc, and nothing else.
 
-Each strategy supplies four stages (the rest of the pipeline is shared):
+Each strategy is a final class implementing the stages of the abstract :class:`~jaxlimb.pipeline.stages.Body`
+(the rest of the pipeline is shared); :func:`body_strategy` picks one from the options and the hints.
 
-* ``limb_pixels(frame, cand)`` -- which pixels are the lit limb (the band/selection stage);
-* ``edge_fit(frame, cand, pixels)`` -- the sigmoid edge fit and Checks 5, 1, 3/4, 4 on it;
-* ``refit(frame, cand, edge, extras)`` -- the physical profile refit (lunar-Lambert limb; limb-darkened disc);
-* ``body_center(frame, final)`` -- fitted limb -> body-centre image, radius / range, with its Jacobian.
-
-=============  ===================================  ====================================================
-strategy       bodies                               limb, profile, body centre
-=============  ===================================  ====================================================
-``Sphere``     Moon, Europa, Enceladus, any body    circle annulus; CSF; lunar-Lambert profile or the
-               with (near) equal radii              sphere-shaped ESF; exact sphere map
-``Ellipsoid``  Earth, Mars (spheroids)              band about the predicted limb ellipse (rho, theta
-                                                    from the limb cone); ESF with interior ramp;
-                                                    lunar-Lambert profile; Earth offset and range
-                                                    iteration (Mortari et al. §IV, Fig. 2)
-``Disc``       the Sun                              full annulus; CSF; limb-darkened disc; its centre
-=============  ===================================  ====================================================
+=======================  ===================================  ==========================================================
+strategy                 bodies                               limb, profile, body centre
+=======================  ===================================  ==========================================================
+``Sphere``               Moon, Europa, Enceladus, any body    circle annulus; CSF; lunar-Lambert profile or the
+                         with (near) equal radii              sphere-shaped ESF; exact sphere map
+``PredictedLimbSphere``  a body whose limb the hints predict  the whole limb, lit and dark, about the predicted
+                         (SPICE), or larger than the frame    ellipse (shape held); the visible arc of a close body
+``Ellipsoid``            Earth, Mars (spheroids)              band about the predicted limb ellipse (rho, theta
+                                                              from the limb cone); ESF with interior ramp;
+                                                              lunar-Lambert profile; Earth offset and range
+                                                              iteration (Mortari et al. §IV, Fig. 2)
+``Disc``                 the Sun                              full annulus; CSF; limb-darkened disc; its centre
+=======================  ===================================  ==========================================================
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
-
 from ..errors import ConfigError
-from .edge import EdgeFit, LimbPixels, check_edge, edge_fit, edge_report, limb_pixels
-from .frame import Frame, candidates
-from .geometry import BodyCenter
+from .ellipsoid.body import Ellipsoid
+from .frame import arc_only, limb_predicted
 from .options import BodyShape
-from .refine import RefineResult
-from .result import LimbMeasurement
-from .round_body import disc_center_of, disc_refit, sphere_center_of, sphere_refit
-
-
-@dataclass(frozen=True)
-class Sphere:
-    """A sphere (module table); ``physical``: the lunar-Lambert profile refit is tried."""
-
-    physical: bool
-    name: str = "sphere"
-
-    def prepare(self, frame: Frame) -> Frame:
-        return frame
-
-    def candidates(self, frame: Frame) -> Any:
-        return candidates(frame)
-
-    def limb_pixels(self, frame: Frame, cand: Any) -> LimbPixels:
-        return limb_pixels(frame, cand, self.physical)
-
-    def edge_fit(self, frame: Frame, cand: Any, pixels: LimbPixels) -> EdgeFit:
-        return check_edge(frame, cand, edge_fit(frame, pixels))
-
-    def refit(self, frame: Frame, cand: Any, edge: EdgeFit, extras: dict[str, Any]) -> RefineResult:
-        return sphere_refit(frame, cand, edge, self.physical, extras)
-
-    def body_center(self, frame: Frame, final: RefineResult) -> BodyCenter:
-        return sphere_center_of(frame, final)
-
-    def report(self, frame: Frame, cand: Any, edge: EdgeFit) -> dict[str, Any]:
-        return edge_report(frame, cand, edge)
-
-    def iterations(self, edge: EdgeFit, final: RefineResult) -> int:
-        return int(edge.circ.fit.n_steps) + (int(final.fit.n_steps) if final is not edge.circ else 0)
-
-    def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
-        if self.name != "sphere":
-            return meas
-        from .dark_limb import check_measurement
-
-        return check_measurement(frame, meas)
-
-
-@dataclass(frozen=True)
-class Disc(Sphere):
-    """A self-luminous limb-darkened disc (the Sun)."""
-
-    physical: bool = False
-    name: str = "disc"
-
-    def refit(self, frame: Frame, cand: Any, edge: EdgeFit, extras: dict[str, Any]) -> RefineResult:
-        return disc_refit(frame, edge, extras)
-
-    def body_center(self, frame: Frame, final: RefineResult) -> BodyCenter:
-        return disc_center_of(frame, final)
+from .sphere.body import Disc, Sphere
+from .sphere.predicted import PredictedLimbSphere
+from .stages import Body, Frame
 
 
 def _lunar_profile_wanted(frame: Frame) -> bool:
@@ -110,8 +51,10 @@ def _shape(frame: Frame) -> BodyShape:
     return BodyShape.SPHERE
 
 
-def body_strategy(frame: Frame) -> Any:
-    """The strategy for the frame: ``LocateOptions.shape``, or from the hints' body (module table)."""
+def body_strategy(frame: Frame) -> Body:
+    """The strategy for the frame: ``LocateOptions.shape``, or from the hints' body (module table); a sphere whose
+    limb the hints predict (camera, range, radii, expected centre: SPICE) is measured on its whole limb, one whose
+    expected disc exceeds the frame on its visible arc."""
     shape = _shape(frame)
     if shape == BodyShape.DISC:
         if frame.opt.profile not in ("auto", "limb-darkened"):
@@ -119,12 +62,12 @@ def body_strategy(frame: Frame) -> Any:
                               "not available for it")
         return Disc()
     if shape == BodyShape.ELLIPSOID:
-        from .ellipsoid import Ellipsoid
-
         return Ellipsoid.for_frame(frame)
     if frame.opt.profile == "limb-darkened":
         raise ConfigError("profile = 'limb-darkened' is the disc strategy's (shape = 'disc' or hints body 'sun')")
+    if limb_predicted(frame) or arc_only(frame):
+        return PredictedLimbSphere(arc=not limb_predicted(frame))
     return Sphere(physical=_lunar_profile_wanted(frame))
 
 
-__all__ = ["Disc", "Sphere", "body_strategy"]
+__all__ = ["body_strategy"]

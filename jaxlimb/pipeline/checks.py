@@ -12,7 +12,7 @@ no body    no contrast in the frame (all-black, all-    :func:`jaxlimb.imaging.d
 1/2        new moon / crescent too thin (p_i < 3 px    prior / image (``TooThinError``)
            from the hints; < 4 px measured)
 2          too few candidates after the box filter     gradient front end (``TooManyOutliersError``)
-3          too few RANSAC inliers; too many residual   front ends; :func:`jaxlimb.pipeline.refine`
+3          too few RANSAC inliers; too many residual   front ends; :func:`jaxlimb.pipeline.sphere.annulus`
            outliers in the annulus                     outlier pass (``TooManyOutliersError``)
 3/4        RANSAC / Taubin radius outside the prior    front ends (``RadiusInconsistentError``);
            band; the refined radius too                :func:`check_radius_prior`
@@ -21,7 +21,7 @@ no body    no contrast in the frame (all-black, all-    :func:`jaxlimb.imaging.d
 3/4        the lit limb arc in the frame is shorter   :func:`check_lit_arc`
            than ``MIN_LIT_ARC_DEG`` (cropped body      (:class:`~jaxlimb.errors.ArcTooShortError`)
            whose Sun-facing side is out of frame)
-5          no convergence within ``max_steps``          :func:`jaxlimb.pipeline.refine` fits
+5          no convergence within ``max_steps``          :func:`jaxlimb.pipeline.sphere.annulus` fits
                                                        (``ConvergenceError``)
 5          the fit jumped away from the Taubin circle  :func:`check_jump` (``JumpError``)
 =========  ==========================================  ==============================================
@@ -78,6 +78,12 @@ from ..errors import (ArcTooShortError, CenterTooUncertainError, CheckFailed, Ju
 MIN_LIT_ARC_DEG = 60.0
 #: Shortest lit limb arc (deg) measured with the physical limb profile (module docstring).
 MIN_LIT_ARC_PROFILE_DEG = 45.0
+#: Check 3: a pixel whose residual exceeds this many robust sigmas (1.4826 MAD) is an outlier (stars, hot pixels) ...
+OUTLIER_SIGMA = 5.0
+#: ... and more outliers than this fraction of the pixels fitted fails the check.
+MAX_OUTLIER_FRACTION = 0.2
+#: A fit whose edge blur (Gaussian PSF sigma, px) exceeds this is not a limb (:func:`check_edge_width`).
+MAX_PSF_SIGMA_PX = 5.0
 
 
 class CenterOutOfFieldError(CheckFailed):
@@ -96,9 +102,9 @@ def max_limb_displacement(center0, radius0: float, center1, radius1: float, angl
     return float(np.max(np.abs(delta)))
 
 
-def jump_threshold(dr: float, max_jump_px: float | None = None) -> float:
-    """The Check-5 threshold ``X``: ``max_jump_px`` if given, else ``max(2, dr/2)`` px."""
-    return float(max_jump_px) if max_jump_px is not None else max(2.0, 0.5 * float(dr))
+def jump_threshold(dr: float) -> float:
+    """The Check-5 threshold ``X = max(2, dr/2)`` px (module docstring)."""
+    return max(2.0, 0.5 * float(dr))
 
 
 def check_jump(center0, radius0: float, center1, radius1: float, angles: np.ndarray, threshold: float) -> float:
@@ -111,7 +117,7 @@ def check_jump(center0, radius0: float, center1, radius1: float, angles: np.ndar
         raise JumpError(
             f"Check 5: the sigmoid fit moved the limb by up to {disp:.3g} px from the front end's circle "
             f"(centre ({center0[0]:.2f}, {center0[1]:.2f}), radius {radius0:.2f}) to centre "
-            f"({center1[0]:.2f}, {center1[1]:.2f}), radius {radius1:.2f}; the limit max_jump_px is {threshold:.3g} px"
+            f"({center1[0]:.2f}, {center1[1]:.2f}), radius {radius1:.2f}; the limit is {threshold:.3g} px"
         )
     return disp
 
@@ -164,7 +170,7 @@ def check_size(radius: float, shape: tuple[int, int], min_diameter_px: float = 1
     ``arc_deg`` (the fitted arc in the frame) makes the too-big message say what is missing: a limb arc
     *is* visible, but a free circle larger than the frame through it is not checked by anything; the
     camera and a range prior fix the circle's size and the arc is then measured
-    (:func:`jaxlimb.pipeline.whole_limb.locate_arc`)."""
+    (:func:`jaxlimb.pipeline.sphere.predicted.PredictedLimbSphere`)."""
     if 2.0 * radius < min_diameter_px:
         raise TooSmallError(
             f"Check 1: measured apparent diameter {2 * radius:.3g} px is below min_diameter_px = {min_diameter_px:g} px"
@@ -231,12 +237,12 @@ def check_levels(ymax: float, ymin: float, what: str) -> None:
             f"ymin = {ymin:.6g} DN (amplitude of the wrong sign)")
 
 
-def check_edge_width(psf_sigma_px: float, max_sigma_px: float, what: str) -> None:
-    """The edge's Gaussian-equivalent PSF sigma (px) must lie in ``[0, max_sigma_px]``."""
-    if not (math.isfinite(psf_sigma_px) and 0.0 <= psf_sigma_px <= max_sigma_px):
+def check_edge_width(psf_sigma_px: float, what: str) -> None:
+    """The edge's Gaussian-equivalent PSF sigma (px) must lie in ``[0, MAX_PSF_SIGMA_PX]``."""
+    if not (math.isfinite(psf_sigma_px) and 0.0 <= psf_sigma_px <= MAX_PSF_SIGMA_PX):
         raise NonPhysicalFitError(
             f"the {what} fit's edge blur (Gaussian PSF sigma {psf_sigma_px:.4g} px) is outside the plausible range "
-            f"[0, {max_sigma_px:g}] px (LocateOptions.max_psf_sigma_px): the fit followed something else than a limb")
+            f"[0, {MAX_PSF_SIGMA_PX:g}] px: the fit followed something else than a limb")
 
 
 __all__ += ["CenterTooUncertainError", "NonPhysicalFitError", "check_center_sigma", "check_edge_width",

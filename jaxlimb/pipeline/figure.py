@@ -8,8 +8,9 @@ from typing import Any
 
 import numpy as np
 
+from .._io import atomic_path
 from ..errors import LimbInputError
-from ..geometry.ellipsoid import ellipse_points
+from ..geometry.conic import ellipse_points
 from .result import LimbMeasurement
 
 
@@ -115,8 +116,6 @@ def save_locate_figure(
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
-
-    from .._io import atomic_path
 
     img = np.asarray(image, dtype=float)
     if img.ndim != 2:

@@ -4,17 +4,23 @@ on the prior) and ``candidates`` (the front end, Checks 1-4); the typed value :c
 from __future__ import annotations
 
 import math
-
 import time
-from dataclasses import dataclass, field
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
 from ..errors import CheckFailed, ConfigError, ImageContentError, RadiusInconsistentError, TooManyOutliersError
 from ..geometry.camera import Camera
-from ..imaging import Hints, check_prior, front_end, prior_from_hints, validate_image
+from ..geometry.hints import Hints
+from ..imaging import front_end
+from ..imaging.crop import detect_body, nearest_fill
+from ..imaging.gradient_front_end import GradientOptions
+from ..imaging.io import validate_image
+from ..imaging.prior import check_prior, prior_from_hints
+from ..imaging.scanline_front_end import ScanlineOptions
 from .options import LocateOptions
+from .stages import Frame
 
 
 def as_hints(hints: Any) -> Hints | None:
@@ -33,79 +39,6 @@ def as_camera(camera: Any) -> Camera | None:
     if isinstance(camera, dict):
         return Camera.from_dict(camera)
     raise ConfigError(f"`camera` must be a jaxlimb.geometry.Camera, a dict or None, got {type(camera).__name__}")
-
-
-@dataclass(frozen=True)
-class Frame:
-    """The validated inputs of one measurement.
-
-    Attributes
-    ----------
-    img : the grey image (float or integer array, 2-D).
-    cam : the camera or ``None``; ``pin`` its pinhole part (no distortion).
-    hints, opt : the hints (or ``None``) and the options.
-    t0 : start time (``time.perf_counter``) for the timings.
-    timings : stage name -> end time, filled in as the stages run.
-    observed_cam : the camera of the observed image when a strategy resampled it onto the ideal grid
-        (``img``/``cam`` are then the resampled image and its pinhole camera).
-    mask : validity mask (``True`` = measured pixel) or ``None``; the gradient front end drops
-        candidates near invalid pixels.
-    """
-
-    img: np.ndarray
-    cam: Camera | None
-    hints: Hints | None
-    opt: LocateOptions
-    t0: float
-    timings: dict[str, float] = field(default_factory=dict)
-    observed_cam: Camera | None = None
-    mask: np.ndarray | None = None
-
-    @property
-    def pin(self) -> Camera | None:
-        c = self.cam
-        return None if c is None else Camera(c.focal_length_mm, c.pixel_pitch_mm, c.rows, c.cols, c.principal_point_rc)
-
-    @property
-    def use_camera(self) -> bool:
-        """The body-centre correction applies (a camera, and the option on)."""
-        return self.cam is not None and self.opt.body_center_correction
-
-    @property
-    def sun_known(self) -> bool:
-        return self.hints is not None and self.hints.sun_dir_camera is not None
-
-    @property
-    def body_radius_km(self) -> float | None:
-        return self.hints.radius_km() if self.hints is not None else None
-
-    def front_end_options(self, name: str | None = None) -> Any:
-        """The options of front end ``name`` (default: the chosen one); ``None`` for its defaults."""
-        name = str(self.opt.front_end) if name is None else name
-        return self.opt.gradient if name == "gradient" else self.opt.scanline
-
-    def to_observed(self, rc_ideal) -> tuple[float, float]:
-        """Ideal (pinhole) pixel -> observed pixel (through the lens distortion, if any)."""
-        if self.cam is not None and self.cam.has_distortion:
-            return tuple(float(v) for v in self.cam.distort(np.asarray(rc_ideal, float)))
-        return (float(rc_ideal[0]), float(rc_ideal[1]))
-
-    def to_ideal(self, rc: np.ndarray) -> np.ndarray:
-        """Observed pixels ``(n, 2)`` (or one) -> ideal pixels."""
-        if self.cam is not None and self.cam.has_distortion:
-            return np.asarray(self.cam.undistort(np.asarray(rc, float)))
-        return np.asarray(rc, float)
-
-    def mark(self, stage: str) -> None:
-        self.timings[stage] = time.perf_counter()
-
-    def phase(self, center_rc) -> float:
-        """Phase angle (rad) at ``center_rc`` from the hints' Sun direction (Eq. 2 of Aerospace 2015)."""
-        assert self.hints is not None and self.hints.sun_dir_camera is not None
-        s = np.asarray(self.hints.sun_dir_camera, dtype=float)
-        s = s / np.linalg.norm(s)
-        u = self.cam.los(np.asarray(center_rc, dtype=float)) if self.cam is not None else np.array([0.0, 0.0, 1.0])
-        return float(np.arccos(np.clip(-s @ u, -1.0, 1.0)))
 
 
 def prepare(image: Any, camera: Any, hints: Any, options: Any, mask: Any = None) -> Frame:
@@ -130,7 +63,8 @@ def prepare(image: Any, camera: Any, hints: Any, options: Any, mask: Any = None)
         img = fill_invalid(img, mask)
     frame = Frame(img, cam, hin, opt, t0, mask=mask)
     if hin is not None and not arc_only(frame):  # (a disc larger than the frame: its arc is measured)
-        popt = getattr(frame.front_end_options(), "prior", None)
+        fe = frame.front_end_options()
+        popt = None if fe is None else fe.prior
         pri0 = prior_from_hints(hin, cam, options=popt, check=True)
         if pri0 is not None and cam is None:
             check_prior(pri0, img.shape, popt)
@@ -174,19 +108,15 @@ def frame_mask(frame: Frame) -> np.ndarray | None:
 #: Above this phase (deg, from the hints) the front ends keep Eq. (10)'s region (:attr:`DetectOptions.dark_surface` off):
 #: the variegated-body region is for the nearly full disc (the Earth from deep space), where a Lambert limb fades
 #: to zero all round; a gibbous cloudy Earth's limb is traced against the sky downstream
-#: (:mod:`jaxlimb.pipeline.limb_trace`), whose starts were measured on Eq. (10)'s circles.
+#: (:mod:`jaxlimb.pipeline.ellipsoid.trace`), whose starts were measured on Eq. (10)'s circles.
 DARK_SURFACE_MAX_PHASE_DEG = 30.0
 
 
 def _front_end_options(frame: Frame, name: str) -> Any:
     """The options of front end ``name`` (``None``: defaults), with the variegated-body region off above
     :data:`DARK_SURFACE_MAX_PHASE_DEG` of phase."""
-    from dataclasses import replace
-
-    from ..imaging import GradientOptions, ScanlineOptions
-
     opt = frame.front_end_options(name) or (GradientOptions() if name == "gradient" else ScanlineOptions())
-    if not (frame.sun_known and getattr(opt.detect, "dark_surface", False)):
+    if not (frame.sun_known and opt.detect.dark_surface):
         return opt
     center = (0.5 * (frame.img.shape[0] - 1), 0.5 * (frame.img.shape[1] - 1))  # the phase hardly varies over a frame
     if math.degrees(frame.phase(center)) <= DARK_SURFACE_MAX_PHASE_DEG:
@@ -199,8 +129,6 @@ def _variegated(frame: Frame, name: str, mask) -> bool:  # type: ignore[no-untyp
     only then is the other front end tried.  On other frames a second front end's circle is no better founded
     than the first's refusal: the EUV Sun of ``aia_171_level1.fits`` (corona, no photospheric limb), refused by
     the gradient front end, was answered ``ok`` 1.9 px off with a 0.25 px sigma by the scan lines."""
-    from ..imaging import detect_body
-    from ..imaging.crop import nearest_fill
 
     detect = _front_end_options(frame, name).detect
     try:
@@ -253,5 +181,5 @@ def arc_angles(coords: np.ndarray, center_rc) -> np.ndarray:
     return np.arctan2(coords[:, 0] - float(center_rc[0]), coords[:, 1] - float(center_rc[1]))
 
 
-__all__ = ["Frame", "arc_angles", "as_camera", "as_hints", "candidates", "frame_mask", "limb_predicted", "min_diameter_px",
+__all__ = ["arc_angles", "as_camera", "as_hints", "candidates", "frame_mask", "limb_predicted", "min_diameter_px",
            "other_candidates", "other_front_end", "prepare"]

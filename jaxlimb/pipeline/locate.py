@@ -1,26 +1,9 @@
 r"""``locate``: image -> image of the body centre, apparent radius / limb ellipse, line of sight and range.
 
-One pipeline for every body, a short composition of stages with typed values between them
-(DESIGN.md's data flow); the body strategy (:mod:`jaxlimb.pipeline.bodies`) supplies what differs:
-
-=====================  ==========================================================  =====================
-stage                  what                                                        value
-=====================  ==========================================================  =====================
-prepare                validate image / camera / hints / options; Check 1 on the   :class:`Frame`
-                       prior from the hints (Aerospace 2015 §3)
-candidates             front end (``gradient`` or ``scanline``), Checks 1-4         front-end candidates
-limb pixels            the lit limb's pixels (annulus / band, lit-side window)     ``LimbPixels`` ...
-edge fit               sigmoid edge (CSF, Eq. 16; ESF with ramp for an ellipsoid);  ``EdgeFit`` ...
-                       Checks 3 (outliers), 5 (convergence, jump), 1, 4, lit arc
-profile refit          lunar-Lambert limb profile; limb-darkened disc (Sun)        ``RefineResult``
-body-centre mapping    limb -> body-centre image, radius / range, LOS (exact for   ``BodyCenter``
-                       a sphere; Earth offset and range iteration, Mortari §IV)
-covariance             :math:`\hat\sigma^2 (J^\top J)^{-1}` through the map: one    ``Covariance``
-                       square matrix
-checks                 a fit is physical or a failure (levels, edge blur, centre    typed errors (exit 3)
-                       sigma)
-result                 the same :class:`LimbMeasurement` for every body            ``LimbMeasurement``
-=====================  ==========================================================  =====================
+One pipeline for every body, a short composition of the stages of :mod:`jaxlimb.pipeline.stages` (prepare,
+candidates, limb pixels, edge fit, profile refit, body-centre mapping, covariance, checks, result: the Aerospace 2015
+paper's flow with Mortari et al.'s ellipsoid), typed values between them; the body strategy
+(:func:`jaxlimb.pipeline.bodies.body_strategy`) supplies what differs, and ``locate`` never asks which one it has.
 
 A camera with lens distortion: the round bodies fit ideal (undistorted) pixel coordinates and distort
 the body-centre image back; the ellipsoid resamples the frame onto the ideal grid
@@ -35,13 +18,14 @@ import numpy as np
 
 from ..errors import CheckFailed
 from ..geometry.camera import Camera
-from ..imaging import Hints
+from ..geometry.hints import Hints
 from .bodies import body_strategy
-from .edge import InitialCircleOffError
-from .frame import arc_only, limb_predicted, other_candidates, prepare
+from .frame import other_candidates, prepare
 from .options import LocateOptions
-from .report import check_physical, covariance, levels, measurement
+from .report import covariance, levels, measurement
 from .result import LimbMeasurement
+from .stages import Body, Frame
+from .sphere.edge import InitialCircleOffError
 
 
 def locate(
@@ -62,17 +46,16 @@ def locate(
         :class:`~jaxlimb.geometry.camera.Camera` (or its dict); enables the body-centre
         correction, the line of sight and the range (the ellipsoid strategy needs it).
     hints
-        :class:`~jaxlimb.imaging.Hints` (or the hints dict of DESIGN.md): body (``earth`` selects the
-        ellipsoid strategy, ``sun`` the disc), radii, range prior, Sun direction, attitude ...
+        :class:`~jaxlimb.geometry.hints.Hints` (or the hints dict of docs/design.md): body (``earth`` selects the
+        ellipsoid strategy, ``sun`` the disc), radii, range prior, Sun direction, attitude ...  With a camera and hints
+        that predict the limb of a sphere (``expected_center_rc``, ``range_prior_km``, radii: SPICE), the whole limb,
+        lit and dark, is measured (:mod:`jaxlimb.pipeline.sphere.predicted`); so is the visible arc of a sphere whose
+        expected disc exceeds the frame (camera, range, radius).
     options
         :class:`~jaxlimb.pipeline.options.LocateOptions`.
     mask
         Validity mask (``True`` = measured pixel; :class:`jaxlimb.imaging.formats.Frame`); masked
-        pixels are neither limb nor background.  With a camera and hints that predict the limb of a
-        sphere (``expected_center_rc``, ``range_prior_km``, radii: SPICE), the whole limb, lit and
-        dark, is measured by :func:`jaxlimb.pipeline.whole_limb.locate_whole_limb` instead of the
-        stages below; a sphere whose expected disc exceeds the frame (camera, range, radius) is
-        measured on its visible arc by :func:`jaxlimb.pipeline.whole_limb.locate_arc`.
+        pixels are neither limb nor background.
 
     Returns
     -------
@@ -92,22 +75,13 @@ def locate(
     """
     frame = prepare(image, camera, hints, options, mask)
     body = body_strategy(frame)
-    if body.name == "sphere" and limb_predicted(frame):
-        from .whole_limb import locate_whole_limb
-
-        return locate_whole_limb(frame.img, frame.cam, frame.hints, frame.opt, mask=mask)
-    if body.name == "sphere" and arc_only(frame):
-        # close approach: the disc exceeds the frame; the visible arc is measured (too_big only without one)
-        from .whole_limb import locate_arc
-
-        return locate_arc(frame.img, frame.cam, frame.hints, frame.opt, mask=mask)
     frame = body.prepare(frame)
     cand = body.candidates(frame)
     try:
         return _measure_or_other_front_end(frame, body, cand)
     except CheckFailed as e:
         region = cand.info.get("region")
-        if region is None or not getattr(region, "bright_sky", False):
+        if region is None or not region.bright_sky:
             raise
         raise type(e)(  # the same check, with what makes this frame hard
             f"{e} [the sky ({region.background:.4g} DN at the frame's border) is brighter than the body's shadowed "
@@ -115,8 +89,8 @@ def locate(
         ) from None
 
 
-def _measure_or_other_front_end(frame, body, cand) -> LimbMeasurement:
-    """:func:`_measure`, and on :class:`~jaxlimb.pipeline.edge.InitialCircleOffError` (the Sun-facing annulus in the
+def _measure_or_other_front_end(frame: Frame, body: Body, cand: Any) -> LimbMeasurement:
+    """:func:`_measure`, and on :class:`~jaxlimb.pipeline.sphere.edge.InitialCircleOffError` (the Sun-facing annulus in the
     frame but few of its bins with a lit edge: the front end's circle off the limb) :func:`_measure` on the other
     front end's candidates (``front_end_fallback``); the first failure stands when that one fails too."""
     try:
@@ -130,18 +104,18 @@ def _measure_or_other_front_end(frame, body, cand) -> LimbMeasurement:
             raise first from None
 
 
-def _measure(frame, body, cand) -> LimbMeasurement:
-    """Stages 3-9 of :func:`locate` (module table) on the front end's candidates."""
+def _measure(frame: Frame, body: Body, cand: Any) -> LimbMeasurement:
+    """Stages 3-9 of :func:`locate` (:mod:`jaxlimb.pipeline.stages`) on the front end's candidates."""
     pixels = body.limb_pixels(frame, cand)
     edge = body.edge_fit(frame, cand, pixels)
     extras = body.report(frame, cand, edge)
     final = body.refit(frame, cand, edge, extras)
     frame.mark("profile")
-    geo = body.body_center(frame, final)
+    geo = body.body_center(frame, edge, final)
     cov = covariance(final, geo)
     frame.mark("body_center")
     lev = levels(final)
-    check_physical(frame, lev, cov, body.name)
+    body.check(frame, lev, cov)
     return body.finish(frame, measurement(frame, cand, final, geo, cov, lev, extras, body.iterations(edge, final)))
 
 

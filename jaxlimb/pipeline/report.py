@@ -2,10 +2,10 @@ r"""The last stages of :func:`jaxlimb.pipeline.locate`, the same for every body:
 physical checks and the :class:`~jaxlimb.pipeline.result.LimbMeasurement`.
 
 Covariance.  The fit's :math:`\hat\sigma^2 (J^\top J)^{-1}` over its free parameters is propagated through the
-body-centre map (:class:`~jaxlimb.pipeline.geometry.BodyCenter`): the mapped quantities (``center_r``,
+body-centre map (:class:`~jaxlimb.pipeline.stages.BodyCenter`): the mapped quantities (``center_r``,
 ``center_c``, ``radius`` or ``range_km`` ...) replace the fit parameters they are a function of, the other
 free parameters are carried as they are.  One square matrix, reported as ``{name: {name: value}}``
-(DESIGN.md).  A model-error term of the map (the free ellipse's unsigned centre offset) is added to the
+(docs/design.md).  A model-error term of the map (the free ellipse's unsigned centre offset) is added to the
 mapped block.
 """
 
@@ -13,34 +13,18 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from ..models import CIRCLE, ELLIPSE, ELLIPSE_RAMP, CircleParams, EllipseRampParams, LimbDarkenedParams, LimbProfileParams
+from .._validate import check_center_sigma
+from ..models import (AnisoProfileParams, CIRCLE, CircleParams, ELLIPSE, ELLIPSE_RAMP, EllipseRampParams,
+                      LimbDarkenedParams, LimbProfileParams, MinnaertProfileParams)
 from ..models.lunar_lambert import glow_fields, profile_model
-from .checks import check_center_sigma, check_edge_width, check_levels
-from .frame import Frame
-from .geometry import BodyCenter
-from .refine import LOGISTIC_TO_GAUSS, RefineResult, fisher_information
+from .checks import check_edge_width, check_levels
 from .result import LimbMeasurement
-
-
-@dataclass(frozen=True)
-class Covariance:
-    """A square covariance and the names of its rows (and the Jacobian from the fit's free parameters)."""
-
-    names: list[str]
-    matrix: np.ndarray
-    jacobian: np.ndarray
-
-    def as_dict(self) -> dict[str, dict[str, float]]:
-        return {a: {b: float(self.matrix[i, j]) for j, b in enumerate(self.names)} for i, a in enumerate(self.names)}
-
-    def block(self, names: tuple[str, ...]) -> np.ndarray:
-        idx = [self.names.index(n) for n in names]
-        return self.matrix[np.ix_(idx, idx)]
+from .sigmoid import LOGISTIC_TO_GAUSS, fisher_information
+from .stages import BodyCenter, Covariance, Frame, Levels, RefineResult
 
 
 def covariance(final: RefineResult, geo: BodyCenter) -> Covariance:
@@ -63,7 +47,7 @@ def covariance(final: RefineResult, geo: BodyCenter) -> Covariance:
 def crlb(frame: Frame, final: RefineResult, cov: Covariance) -> dict[str, float] | None:
     """The Cramér--Rao bound at the estimate with :math:`\\hat\\sigma` as the noise level, propagated as the
     covariance.  Noise only: the model-error terms of the covariance (the profile's cluster-robust term,
-    :func:`~jaxlimb.pipeline.profile_fit.with_model_error`; the free ellipse's offset) are not in it.  With
+    :func:`~jaxlimb.pipeline.profile.model_error.with_model_error`; the free ellipse's offset) are not in it.  With
     unit pixel weights it is the fit's noise-only covariance :math:`\\hat\\sigma^2 (J^\\top J)^{-1}` (no second
     pass over the pixels); with the level normalisation's weights it is :func:`~jaxlimb.analysis.crlb.crlb`'s
     Fisher information with per-pixel noise ``sigma / w_i``."""
@@ -84,17 +68,6 @@ def crlb(frame: Frame, final: RefineResult, cov: Covariance) -> dict[str, float]
     return {n: float(math.sqrt(max(C[i, i], 0.0))) for i, n in enumerate(cov.names)}
 
 
-@dataclass(frozen=True)
-class Levels:
-    """The edge in the units of the result: logistic ``k``, inside/outside levels (DN) and the PSF sigma."""
-
-    k: float
-    ymax: float
-    ymin: float
-    psf_sigma_px: float
-    profile: dict[str, Any] | None
-
-
 def levels(final: RefineResult) -> Levels:
     """The fitted edge as ``k, ymax, ymin`` (the physical profiles: the logistic ``k`` equivalent to their
     Gaussian edge, ``ymin + amp`` as ``ymax``) and its PSF sigma (``sqrt((1.7/k)^2 - 1/12)`` for a logistic;
@@ -106,8 +79,8 @@ def levels(final: RefineResult) -> Levels:
         if isinstance(fp, LimbProfileParams):
             prof = {"model": "lunar-lambert", "psf_sigma_px": sig, "amp": float(fp.amp),
                     "phase_deg": math.degrees(float(fp.phase)), "L": float(fp.L),
-                    "kappa": float(getattr(fp, "kappa", 0.0)), **glow_fields(fp),
-                    **({"blur_aniso": [float(fp.s2c), float(fp.s2s)]} if hasattr(fp, "s2c") else {})}
+                    "kappa": float(fp.kappa) if isinstance(fp, MinnaertProfileParams) else 0.0, **glow_fields(fp),
+                    **({"blur_aniso": [float(fp.s2c), float(fp.s2s)]} if isinstance(fp, AnisoProfileParams) else {})}
         else:
             prof = {"model": "limb-darkened", "psf_sigma_px": sig, "amp": float(fp.amp), "u1": float(fp.u1),
                     "u2": float(fp.u2)}
@@ -125,7 +98,7 @@ def check_physical(frame: Frame, lev: Levels, cov: Covariance, what: str) -> Non
     check_levels(lev.ymax, lev.ymin, what)
     if lev.profile is not None and float(lev.profile["amp"]) <= 0:
         check_levels(lev.ymin + float(lev.profile["amp"]), lev.ymin, what)
-    check_edge_width(lev.psf_sigma_px, frame.opt.max_psf_sigma_px, what)
+    check_edge_width(lev.psf_sigma_px, what)
     if "center_r" in cov.names:
         check_center_sigma(cov.block(("center_r", "center_c")), frame.opt.max_center_sigma_px)
 
@@ -162,4 +135,4 @@ def measurement(frame: Frame, cand: Any, final: RefineResult, geo: BodyCenter, c
         selected_pixels_rc=pix)
 
 
-__all__ = ["Covariance", "Levels", "check_physical", "covariance", "crlb", "levels", "measurement", "timings"]
+__all__ = ["check_physical", "covariance", "crlb", "levels", "measurement", "timings"]

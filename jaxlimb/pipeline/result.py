@@ -1,4 +1,4 @@
-"""The measurement a limb pipeline returns (Moon, Earth, Sun...), and its JSON form (DESIGN.md contract)."""
+"""The measurement a limb pipeline returns (Moon, Earth, Sun...), and its JSON form (docs/design.md contract)."""
 
 from __future__ import annotations
 
@@ -65,7 +65,7 @@ class LimbMeasurement:
     selected_pixels_rc: Any = field(default=None, repr=False, compare=False)
 
     def to_json(self) -> dict[str, Any]:
-        """The ``--json`` success object of ``jaxlimb locate`` (DESIGN.md)."""
+        """The ``--json`` success object of ``jaxlimb locate`` (docs/design.md)."""
         out: dict[str, Any] = {"status": "ok", "center_rc": [float(v) for v in self.center_rc]}
         if self.radius_px is not None:
             out["radius_px"] = float(self.radius_px)

@@ -1,6 +1,6 @@
 r"""Scenes for the truth renderer: an ellipsoidal body, its pose, the Sun, albedo and atmosphere.
 
-Frames (DESIGN.md): camera frame ``+z`` boresight, ``+x`` toward ``+col``, ``+y``
+Frames (docs/design.md): camera frame ``+z`` boresight, ``+x`` toward ``+col``, ``+y``
 toward ``+row``.  ``R_body_to_camera`` rotates body-fixed vectors into the camera
 frame; ``center_cam`` is the body centre in the camera frame (km); the Sun
 direction is a unit vector **from the body toward the Sun**, camera frame.
@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import ConfigError, GeometryError, LimbInputError
 from ..geometry.camera import Camera
-from ..geometry.ellipsoid import _check_vec3, check_radii, check_rotation
+from ..geometry.ellipsoid import check_radii, check_rotation, check_vec3
 
 __all__ = [
     "EARTH_RADII_KM",
@@ -199,7 +199,7 @@ class Scene:
     def __post_init__(self) -> None:
         r = check_radii(self.radii, "Scene.radii")
         object.__setattr__(self, "radii", tuple(float(v) for v in r))
-        q = _check_vec3(self.center_cam, "Scene.center_cam")
+        q = check_vec3(self.center_cam, "Scene.center_cam")
         if not q[2] > 0:
             raise GeometryError(f"`Scene.center_cam` must be in front of the camera (z > 0), got {q.tolist()} km")
         if float(np.sum((q / r) ** 2)) <= 1.0:
@@ -209,7 +209,7 @@ class Scene:
         R.setflags(write=False)
         object.__setattr__(self, "R_body_to_camera", R)
         if self.sun_dir_cam is not None:
-            s = _check_vec3(self.sun_dir_cam, "Scene.sun_dir_cam")
+            s = check_vec3(self.sun_dir_cam, "Scene.sun_dir_cam")
             n = float(np.linalg.norm(s))
             if not n > 0:
                 raise LimbInputError("`Scene.sun_dir_cam` must be a non-zero vector (body -> Sun), got [0, 0, 0]")

@@ -17,6 +17,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry.conic import conic_to_ellipse
+from ..geometry.ellipsoid import ImageConic
+
 __all__ = ["limb_accuracy", "limb_strip_errors"]
 
 
@@ -47,8 +50,6 @@ def limb_strip_errors(img: np.ndarray, C: np.ndarray, row0: int = 0, col0: int =
     chord's midpoint; strips where that boundary is not at least 1 px inside the conic over the
     whole strip, or within ``margin`` px of the conic's extremes, are skipped.
     """
-    from ..geometry.ellipsoid import ImageConic, conic_to_ellipse
-
     rc, ax, th = conic_to_ellipse(C)
     bbox = ImageConic(C, rc, ax, th, rc, np.eye(3)).bbox_rc()
     e_rows = _side_errors(img, C, bbox, margin, row0, col0, rows=True)
@@ -65,8 +66,6 @@ def limb_accuracy(window, conic: np.ndarray | None = None, margin: float = 2.0) 
     (``left``/``right`` on rows, ``top``/``bottom`` on columns) -- the side means are the
     rendered limb's offsets from the conic, the quantities a limb fit would see.
     """
-    from ..geometry.ellipsoid import ImageConic, conic_to_ellipse
-
     C = window.limb.conic if conic is None else np.asarray(conic, dtype=float)
     center_rc, ax, th = conic_to_ellipse(C)
     bb = ImageConic(C, center_rc, ax, th, center_rc, np.eye(3)).bbox_rc()  # of the tested conic

@@ -1,8 +1,8 @@
-"""The cluster-robust model-error term (jaxlimb.analysis.model_error)."""
+"""The cluster-robust model-error term (jaxlimb.model_error)."""
 
 import numpy as np
 
-from jaxlimb.analysis.model_error import cluster_robust_bias_reduced, cluster_robust_covariance, sector_groups, with_model_error
+from jaxlimb.model_error import cluster_robust_bias_reduced, cluster_robust_covariance, sector_groups, with_model_error
 
 
 def _line_fit(r_extra, seed=0, n=4000, G=40):
@@ -60,7 +60,7 @@ def test_sectors_follow_the_arc_across_the_cut():
 
 
 def test_hausman_term_is_the_unexplained_part_of_a_difference():
-    from jaxlimb.analysis.model_error import hausman_term, positive_part
+    from jaxlimb.model_error import hausman_term, positive_part
 
     C = np.diag([1.0, 1.0])
     C_sub = np.diag([2.0, 2.0])
@@ -77,7 +77,7 @@ def test_split_witness_sees_a_misfit_the_same_all_along_the_limb():
     """A 1-D edge whose inner side is brighter than the model's flat top (a limb brightening the model
     has no parameter for): the sky-side subset moves the edge, the Hausman term carries it; with the
     exact model the term stays at the noise level."""
-    from jaxlimb.analysis.model_error import hausman_term
+    from jaxlimb.model_error import hausman_term
 
     def fit(y, x):
         # model: ymin + amp * step blurred (erf) at x0, linearised around x0 = 0 by Gauss-Newton (3 iters)

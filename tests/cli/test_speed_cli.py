@@ -29,8 +29,8 @@ def test_process_entry_freezes_the_collector_and_main_does_not():
     """``entry`` (the command's process) freezes JAX's objects for the garbage collector once JAX has started
     (and all at the end); :func:`main` in a session (tests, notebooks) freezes nothing."""
     code = ("import contextlib, gc, io, sys\nfrom jaxlimb import cli\n"
-            "seen = []\norig = cli._start_jax\n"
-            "cli._start_jax = lambda: (orig(), seen.append(gc.get_freeze_count()))\n"
+            "seen = []\norig = cli.start_command_jax\n"
+            "cli.start_command_jax = lambda: (orig(), seen.append(gc.get_freeze_count()))\n"
             "sys.argv = ['jaxlimb', 'montecarlo', '--n', '2', '--radius', '20', '--batch', '2', '--json']\n"
             "with contextlib.redirect_stdout(io.StringIO()):\n    code = cli.{fn}()\n"
             "print(code, seen[0] if seen else -1, gc.get_freeze_count())")

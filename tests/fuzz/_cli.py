@@ -1,4 +1,4 @@
-"""Run ``jaxlimb`` in-process and check the error contract of DESIGN.md on the result.
+"""Run ``jaxlimb`` in-process and check the error contract of docs/design.md on the result.
 
 The contract every hostile case must meet:
 

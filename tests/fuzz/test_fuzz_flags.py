@@ -170,7 +170,9 @@ def test_missing_or_unknown_arguments_exit_2(argv, inputs):
     (["posterior", "{moon.png}", "--fix", "bogus", "--json"], "--fix"),
     (["posterior", "{moon.png}", "--noise", "known", "--json"], "--sigma"),
     (["posterior", "{moon.png}", "--radius", "10", "--json"], "--center-rc"),
-    (["posterior", "{moon.png}", "--walkers", "5", "--center-rc", "60", "80", "--radius", "30", "--json"], "n_walkers"),
+    (["posterior", "{moon.png}", "--walkers", "5", "--center-rc", "60", "80", "--radius", "30", "--json"], "--walkers"),
+    # inside [4, 10000] but below the twice-the-parameters floor --help states
+    (["posterior", "{moon.png}", "--walkers", "4", "--center-rc", "60", "80", "--radius", "30", "--json"], "n_walkers"),
     (["posterior", "{moon.png}", "--center-rc", "1e5", "1e5", "--radius", "5", "--json"], "circle"),
     (["locate", "", "--json"], "IMAGE"),  # Path("") is the current directory: never a many-frame run
     (["locate", "{moon.png}", "--body", "earth", "--json"], "--camera"),

@@ -6,24 +6,14 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 from scipy.spatial.transform import Rotation
 
 from jaxlimb.errors import AttitudeError, GeometryError, LimbInputError
 from jaxlimb.geometry.camera import Camera
-from jaxlimb.geometry.ellipsoid import (
-    conic_eval,
-    conic_to_ellipse,
-    ellipse_points,
-    ellipse_to_conic,
-    gamma_off,
-    gamma_off_direction,
-    gamma_off_signed,
-    image_conic,
-    limb_cone,
-    limb_cone_matrix,
-)
+from jaxlimb.geometry.conic import conic_eval, conic_to_ellipse, ellipse_points, ellipse_to_conic
+from jaxlimb.geometry.ellipsoid import (gamma_off, gamma_off_direction, gamma_off_signed, image_conic, limb_cone,
+                                        limb_cone_matrix)
 from jaxlimb.geometry.terminator import terminator_ellipse, terminator_image
 
 EARTH = (6378.137, 6378.137, 6356.752)

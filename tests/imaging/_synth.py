@@ -7,7 +7,7 @@ then optional Gaussian blur (PSF), additive Gaussian noise, stars / hot pixels,
 and quantisation.  The Sun direction is given by the phase angle and the image
 direction ``sun_dir_rc`` (row, col) toward which the lit limb faces.
 
-Camera frame (DESIGN.md): +x -> +col, +y -> +row, +z boresight; the visible
+Camera frame (docs/design.md): +x -> +col, +y -> +row, +z boresight; the visible
 hemisphere's normal at image offset (dr, dc)/R is n = (dc/R, dr/R, -sqrt(1 - ...)).
 """
 

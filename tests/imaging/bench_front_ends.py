@@ -12,7 +12,6 @@ OpenCV's threads).
 
 from __future__ import annotations
 
-from jaxlimb._data import shared_data_dir
 import argparse
 import math
 import sys
@@ -20,6 +19,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+from jaxlimb._data import shared_data_dir
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _synth import render_disk  # noqa: E402

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from jaxlimb._data import shared_data_dir
 import numpy as np
 import pytest
 
+from jaxlimb._data import shared_data_dir
 from jaxlimb.errors import (
     ConfigError,
     ImageContentError,

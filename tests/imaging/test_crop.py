@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from jaxlimb.imaging import DetectOptions, detect_body, detect_cropping, estimate_noise
 from jaxlimb.errors import ConfigError
+from jaxlimb.imaging import DetectOptions, detect_body, detect_cropping, estimate_noise
 
 from ._synth import render_disk
 
@@ -47,8 +47,7 @@ def test_detect_body_roi_and_region_on_block_averaged_frame():
     assert reg.eigen_ratio > 0.95 and not reg.touches_border
 
 
-def test_detect_options_validation():
-    with pytest.raises(ConfigError):
-        DetectOptions(work_size=8)
-    with pytest.raises(ConfigError):
-        DetectOptions(max_fill_fraction=0.0)
+def test_detect_options_are_the_two_switches():
+    assert DetectOptions() == DetectOptions(run_checks=True, dark_surface=True)
+    with pytest.raises(TypeError):  # the detection's numbers are constants, not settings
+        DetectOptions(work_size=256)

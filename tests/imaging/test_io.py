@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from jaxlimb._data import shared_data_dir
 import math
 import warnings
 
@@ -11,6 +10,7 @@ import numpy as np
 import pytest
 from astropy.io import fits
 
+from jaxlimb._data import shared_data_dir
 from jaxlimb.errors import ConfigError, ImageContentError, ImageReadError, LimbInputError
 from jaxlimb.imaging import (
     ColourImageWarning,

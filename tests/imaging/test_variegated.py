@@ -12,6 +12,7 @@ import pytest
 
 from jaxlimb.errors import TooManyOutliersError
 from jaxlimb.imaging import detect_body, gradient_front_end
+from jaxlimb.imaging.front_end_common import check_region_inside
 
 CENTER, RADIUS = (201.3, 198.6), 150.0
 
@@ -67,7 +68,6 @@ def test_one_bright_patch_is_not_a_variegated_body():
 
 
 def test_a_circle_that_leaves_the_lit_region_outside_is_refused():
-    from jaxlimb.imaging.gradient import check_region_inside
 
     region = detect_body(cloudy_disc())
     check_region_inside(CENTER, RADIUS, region, 0.05)

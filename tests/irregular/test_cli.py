@@ -63,17 +63,28 @@ def test_build_then_locate_json(scene, capsys, tmp_path):
     assert set(res["template"]) >= {"index", "alpha_deg", "beta_deg", "rotation_deg", "scale"}
 
 
-def test_locate_with_mesh_builds_cache_once(scene, capsys, tmp_path):
+def test_locate_with_mesh_builds_cache_once(scene, capsys, tmp_path, monkeypatch):
+    """The database is built once; later calls find it by the mesh file's content without reading the mesh, and
+    a record whose database is gone falls back to reading the mesh (and building again)."""
+    import jaxlimb.irregular.mesh as mesh_module
+
     d, _ = scene
     argv = ["los", "locate", str(d / "img.png"), "--mesh", str(d / "lumpy.obj"), "--camera", str(d / "camera.json"), "--step-deg", "30", "--template-size", "128", "--json", "--no-refine"]
     code, out, err = _run(capsys, argv)
     assert code == 0, out + err
     assert "templates" in err
     cached = list((tmp_path / "cache").glob("*.npz"))
-    assert len(cached) == 1
+    assert len(cached) == 1 and len(list((tmp_path / "cache").glob("los-mesh-file-*.json"))) == 1
+    load_mesh = mesh_module.load_mesh
+    monkeypatch.setattr(mesh_module, "load_mesh", lambda *a, **k: pytest.fail("the mesh was read again"))
     code, out2, err2 = _run(capsys, argv)
-    assert code == 0 and "templates" not in err2  # no rebuild
+    assert code == 0 and "templates" not in err2, err2  # no rebuild, no mesh read
     assert json.loads(out2)["center_rc"] == json.loads(out)["center_rc"]
+    monkeypatch.setattr(mesh_module, "load_mesh", load_mesh)
+    cached[0].unlink()
+    code, out3, err3 = _run(capsys, argv)
+    assert code == 0 and "templates" in err3  # rebuilt from the mesh
+    assert json.loads(out3)["center_rc"] == json.loads(out)["center_rc"]
 
 
 @pytest.mark.parametrize(

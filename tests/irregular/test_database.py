@@ -8,7 +8,8 @@ import zipfile
 import numpy as np
 import pytest
 
-from jaxlimb.errors import DatabaseError
+from jaxlimb import _jaxcache as jaxcache
+from jaxlimb.errors import CacheRepairWarning, DatabaseError
 from jaxlimb.irregular import database as dbm
 from jaxlimb.irregular.database import (
     DatabaseOptions,
@@ -157,9 +158,11 @@ def test_cache_builds_once(tmp_path, monkeypatch, lumpy):
     other = validate_mesh(lumpy.vertices * 1.01, lumpy.faces)
     assert cache_path(other, opts) != p
     assert cache_path(lumpy, dataclasses.replace(opts, step_deg=20.0)) != p
-    # a corrupt cache file is rebuilt, not half-read
+    # a corrupt cache file is rebuilt, not half-read, and a warning says so
     p.write_bytes(b"garbage")
-    c = cached_database(lumpy, opts, progress=False)
+    monkeypatch.setattr(jaxcache, "_WARNED", set())  # said once per process: this test's own process state
+    with pytest.warns(CacheRepairWarning, match="rebuilt"):
+        c = cached_database(lumpy, opts, progress=False)
     assert len(calls) == 2 and len(c) == len(a)
 
 

@@ -90,7 +90,7 @@ def test_pedestal_under_the_whole_frame_does_not_move_the_center(body, phase):
     for frame in (img, img + 30.0):
         res = register_known_attitude(frame, body, CAM, R, sun, 1.1 * np.linalg.norm(t))
         assert np.linalg.norm(res.center_rc - truth) < 0.03
-    off = register_known_attitude(img + 30.0, body, CAM, R, sun, 1.1 * np.linalg.norm(t), RegisterOptions(pedestal_min_dark_frac=0.0))
+    off = register_known_attitude(img + 30.0, body, CAM, R, sun, 1.1 * np.linalg.norm(t), RegisterOptions(fit_pedestal=False))
     assert np.linalg.norm(off.center_rc - truth) > np.linalg.norm(res.center_rc - truth)
 
 
@@ -155,7 +155,7 @@ def test_runner_up_guard_abandons_only_hypotheses_that_cannot_change_the_answer(
     at the same iteration: abandoned; otherwise kept."""
     from types import SimpleNamespace
 
-    from jaxlimb.irregular.locate import LosOptions, _runner_up_guard
+    from jaxlimb.irregular.locate import LosOptions, runner_up_guard
 
     o = LosOptions()
     accepted = [SimpleNamespace(P=np.array([100.0, 100.0]), history=[0.02, 0.005, 0.01])]
@@ -164,7 +164,7 @@ def test_runner_up_guard_abandons_only_hypotheses_that_cannot_change_the_answer(
         st = SimpleNamespace(P=np.array(P), history=[], rms_frac=None)
         return st, rms
 
-    g = _runner_up_guard(accepted, o)
+    g = runner_up_guard(accepted, o)
     st, _ = cand(0)
     for i, (rms, sigma) in enumerate([(0.5, 8.0), (0.005 + 2.5 * o.ambiguity_margin, 4.0), (0.01 + 2.9 * o.ambiguity_margin, 0.0)]):
         st.history.append(rms)
@@ -174,7 +174,7 @@ def test_runner_up_guard_abandons_only_hypotheses_that_cannot_change_the_answer(
     st.rms_frac = 0.05
     with pytest.raises(MatchError):
         g(st, 0.0)  # 0.04 worse than the accepted fit's last residual
-    g = _runner_up_guard(accepted, o)
+    g = runner_up_guard(accepted, o)
     near = SimpleNamespace(P=np.array([100.2, 100.1]), history=[0.0], rms_frac=0.0)
     g(near, 8.0)  # blurred (pyramid) iteration: the centre is not judged yet
     with pytest.raises(MatchError):
@@ -208,7 +208,7 @@ def test_photometric_mix_registers_a_lambert_body(body, phase):
 
 def test_covariance_carries_model_error_on_a_ray_traced_body(body):
     """On a ray-traced frame (smooth shading, cast shadows, Hapke, variegated albedo: what the model does
-    not assume) the reported centre sigma covers the error (the sector sandwich of analysis.model_error)."""
+    not assume) the reported centre sigma covers the error (the sector sandwich of jaxlimb.model_error)."""
     pytest.importorskip("embreex")
     from jaxlimb.render.independent import Photometry, Pinhole, Psf, Reflectance
     from jaxlimb.render.independent.mesh_rays import MeshScene, render_mesh_frame

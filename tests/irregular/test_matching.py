@@ -96,7 +96,7 @@ def test_off_grid_better_than_fc_and_bc(thebe_db, thebe, small_camera):
 def test_off_axis_rectification(lumpy_db, lumpy):
     """A body 10 deg off axis: rectified features equal those of the same view on the axis."""
     from jaxlimb.geometry.camera import Camera
-    from jaxlimb.irregular.matching import _rectified_features, _rot_z_to
+    from jaxlimb.irregular.rectify import rectified_features, rot_z_to
     from jaxlimb.render.mesh import look_at_rotation, render_mesh
 
     cam = Camera(rows=1944, cols=2592)
@@ -104,16 +104,16 @@ def test_off_axis_rectification(lumpy_db, lumpy):
     out = render_view(lumpy, cam, d, 250.0, offset_px=(700.0, 1050.0))
     mask, _ = segment_body(out.image)
     fc = figure_center(mask)
-    Rv = _rot_z_to(cam.los(fc))
+    Rv = rot_z_to(cam.los(fc))
     H = cam.K @ Rv.T @ np.linalg.inv(cam.K)
-    rect, _ = _rectified_features(mask, H, 64)
-    flat, _ = _rectified_features(mask, np.eye(3), 64)
+    rect, _ = rectified_features(mask, H, 64)
+    flat, _ = rectified_features(mask, np.eye(3), 64)
     # the same body pose seen with the boresight on the body
     D = 2.0 * lumpy.max_radius * cam.focal_px / 250.0
     R = look_at_rotation(d)
     t = np.array([1050.0 * D / cam.focal_px, 700.0 * D / cam.focal_px, D])
     on = render_mesh(lumpy.vertices, lumpy.faces, cam, Rv.T @ R, Rv.T @ t)
-    ref, _ = _rectified_features(segment_body(on.image)[0], np.eye(3), 64)
+    ref, _ = rectified_features(segment_body(on.image)[0], np.eye(3), 64)
     assert abs(rect.area / ref.area - 1) < 0.3 * abs(flat.area / ref.area - 1)
     assert abs(rect.area / ref.area - 1) < 0.003
     e_rect = np.linalg.norm(locate_center(out.image, lumpy_db, cam).center_rc - out.center_rc)

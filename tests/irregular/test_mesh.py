@@ -140,3 +140,44 @@ def test_hash_depends_on_content():
     b = validate_mesh(v + 1e-9, f)
     assert mesh_hash(a) == mesh_hash(validate_mesh(v.copy(), f.copy()))
     assert mesh_hash(a) != mesh_hash(b)
+
+
+# --------------------------------------------------------------------------- manifold, index base, size bound
+def _two_tetrahedra_touching_at_a_vertex() -> tuple[np.ndarray, np.ndarray]:
+    """A bow-tie: two closed, outward tetrahedra that share vertex 0 and nothing else."""
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [-1, 0, 0], [0, -1, 0], [0, 0, -1]], float)
+    t1 = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    t2 = np.array([[0, 4, 5], [0, 6, 4], [0, 5, 6], [4, 6, 5]])
+    return v, np.concatenate([t1, t2])
+
+
+def test_bow_tie_vertex_is_refused_with_or_without_repair():
+    v, f = _two_tetrahedra_touching_at_a_vertex()
+    for repair in (True, False):
+        with pytest.raises(MeshError, match="vertex 0.*bow-tie"):
+            validate_mesh(v, f, MeshOptions(repair=repair))
+
+
+def test_obj_index_zero_is_refused_before_trimesh_reads_it_as_the_last_vertex(tmp_path):
+    verts, faces = _box()
+    lines = [f"v {x} {y} {z}" for x, y, z in verts] + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
+    p = tmp_path / "box.obj"
+    p.write_text("\n".join(lines) + "\n")
+    assert load_mesh(p).n_faces == len(faces)
+    lines[-1] = lines[-1].rsplit(" ", 1)[0] + " 0"
+    p.write_text("\n".join(lines) + "\n")
+    with pytest.raises(MeshError, match=f"line {len(lines)} uses the vertex index 0"):
+        load_mesh(p)
+
+
+def test_face_count_is_bounded_from_the_header_before_parsing(tmp_path, monkeypatch):
+    import jaxlimb.irregular.mesh as mesh_mod
+
+    box = trimesh.Trimesh(*_box(), process=False)
+    for fmt in ("stl", "ply", "obj", "off"):
+        p = tmp_path / f"box.{fmt}"
+        box.export(p)
+        assert mesh_mod._declared_faces(p, f".{fmt}") == len(box.faces)
+    monkeypatch.setattr(mesh_mod, "MAX_FACES", len(box.faces) - 1)
+    with pytest.raises(MeshError, match=f"{len(box.faces)} faces, more than"):
+        load_mesh(tmp_path / "box.stl")

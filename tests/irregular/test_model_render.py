@@ -10,7 +10,7 @@ import pytest
 
 from jaxlimb.geometry.camera import Camera
 from jaxlimb.irregular.model_render import attitude_columns, downsample, level_camera, render_window
-from jaxlimb.irregular.register import _rotvec_matrix
+from jaxlimb.irregular.register.gauss_newton import rotvec_matrix
 from jaxlimb.render.mesh import render_mesh
 
 CAM = Camera(focal_length_mm=30.0, pixel_pitch_mm=0.02, rows=400, cols=400)
@@ -52,7 +52,7 @@ def test_attitude_columns_agree_with_central_differences(lumpy, sigma):
     for i in range(3):
         w = np.zeros(3)
         w[i] = eps
-        p, q = (render_window(lumpy, CAM, _rotvec_matrix(s * w) @ R, t, sun, lo, hi, 4) for s in (1, -1))
+        p, q = (render_window(lumpy, CAM, rotvec_matrix(s * w) @ R, t, sun, lo, hi, 4) for s in (1, -1))
         cd = (blur(p.M - 0.05 * p.C) - blur(q.M - 0.05 * q.C)).ravel() / (2 * eps)
         corr = np.corrcoef(cd, cols[:, i])[0, 1]
         scale = float(cd @ cols[:, i]) / float(cols[:, i] @ cols[:, i])
@@ -76,20 +76,21 @@ def test_pyramid_level_is_the_box_average_of_the_fine_render(lumpy):
 
 
 def test_coarse_cast_shadows_switch_only_the_coarse_levels(lumpy):
-    """``RegisterOptions.coarse_cast_shadows=False``: no cast shadows from pyramid factor ``coarse_min_level`` on."""
-    from jaxlimb.irregular.register import RegisterOptions, _Pyramid, _render_level
+    """``RegisterOptions.coarse_cast_shadows=False``: no cast shadows from pyramid factor ``COARSE_MIN_LEVEL`` on."""
+    from jaxlimb.irregular.register import RegisterOptions
+    from jaxlimb.irregular.register.pyramid import COARSE_MIN_LEVEL, Pyramid, render_level
 
     R, t, _ = _pose(lumpy, size_px=360.0)
     sun = np.array([0.95, 0.0, 0.3]) / np.linalg.norm([0.95, 0.0, 0.3])  # ~107 deg phase: long cast shadows
-    pyr = _Pyramid(np.zeros(CAM.shape), CAM, np.ones(CAM.shape, bool))
+    pyr = Pyramid(np.zeros(CAM.shape), CAM, np.ones(CAM.shape, bool))
     P = np.array(CAM.principal_point_rc) + CAM.focal_px * t[[1, 0]] / t[2]
     base = RegisterOptions()
-    for k in (1, base.coarse_min_level):
-        M = {name: _render_level(pyr, lumpy, CAM, R, sun, P, float(np.linalg.norm(t)), k, o, False, None)[0].M
+    for k in (1, COARSE_MIN_LEVEL):
+        M = {name: render_level(pyr, lumpy, sun, o, k, (R, P, float(np.linalg.norm(t))), False, None).model.M
              for name, o in (("on", base), ("off", RegisterOptions(cast_shadows=False)),
                              ("coarse_off", RegisterOptions(coarse_cast_shadows=False)))}  # fmt: skip
         assert not np.array_equal(M["on"], M["off"])  # the pose has cast shadows
-        np.testing.assert_array_equal(M["coarse_off"], M["on"] if k < base.coarse_min_level else M["off"])
+        np.testing.assert_array_equal(M["coarse_off"], M["on"] if k < COARSE_MIN_LEVEL else M["off"])
 
 
 def test_clustered_mesh_is_coarser_and_keeps_the_outline(lumpy):

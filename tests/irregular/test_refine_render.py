@@ -10,7 +10,8 @@ from irregular_helpers import render_view
 
 from jaxlimb.errors import ConfigError, GeometryError
 from jaxlimb.irregular.matching import locate_center
-from jaxlimb.irregular.refine import RefineOptions, densify_match, refine_center
+from jaxlimb.irregular.densify import densify_match
+from jaxlimb.irregular.refine import refine_center
 from jaxlimb.render.mesh import MeshRenderOptions, look_at_rotation, render_mesh
 
 
@@ -99,8 +100,3 @@ def test_refinement_lit_silhouette_at_phase(thebe_db, thebe, small_camera):
     # as a limb, sun_dir_camera=None) ends 10.8 px off (not repeated here to save a compilation)
     assert e_lit < 0.4 * e_init
     assert lit.k > 1.0
-
-
-def test_refine_options():
-    o = RefineOptions()
-    assert o.band_px <= o.band_start_px

@@ -13,7 +13,8 @@ from jaxlimb.errors import MatchError
 from jaxlimb.geometry.camera import Camera
 from jaxlimb.irregular import locate as locate_mod
 from jaxlimb.irregular.model_render import MIX_LAWS, MixedLaw, _basis, render_window
-from jaxlimb.irregular.register import _overlap, surge_fields
+from jaxlimb.irregular.register.checks import overlap
+from jaxlimb.irregular.register.design import surge_fields
 from jaxlimb.render.mesh import shade
 
 CAM = Camera(focal_length_mm=30.0, pixel_pitch_mm=0.02, rows=400, cols=400)
@@ -87,8 +88,8 @@ def test_overlap_leaves_out_pixels_within_the_misfit_of_the_threshold():
     obs = r < 20
     model = np.clip(30.0 - 1.2 * r, 0.0, None)  # threshold 6 at r = 20; a dim, gently sloping edge
     model = model + np.where((r > 14) & (r < 26), 1.5 * np.sin(xx / 2.0), 0.0)  # a misfit of +-1.5 DN near the edge
-    tight = _overlap(obs, model.ravel(), 6.0, 0.0)
-    banded = _overlap(obs, model.ravel(), 6.0, 0.0, misfit=2.0)
+    tight = overlap(obs, model.ravel(), 6.0, 0.0)
+    banded = overlap(obs, model.ravel(), 6.0, 0.0, misfit=2.0)
     assert tight < banded and banded > 0.95
 
 
@@ -100,17 +101,17 @@ def test_next_hypotheses_are_tried_only_when_none_explains_the_frame(monkeypatch
     monkeypatch.setattr(locate_mod, "figure_center", lambda m: np.zeros(2))
     monkeypatch.setattr(locate_mod, "_sun_image_direction", lambda *a: None)
 
-    def register(img, db, camera, sun, seg, hs, ropts, options):
+    def register(frame, db, hs, options):
         calls.append([h.i for h in hs])
         return [], [MatchError("no")]
 
-    monkeypatch.setattr(locate_mod, "_register_hypotheses", register)
+    monkeypatch.setattr(locate_mod, "register_hypotheses", register)
     opts = locate_mod.LosOptions(n_verify=10, n_retry=20)
     with pytest.raises(MatchError, match="none of the 30 template hypotheses"):
         locate_mod.locate_los(np.zeros((4, 4)), SimpleNamespace(mesh=None), CAM, None, options=opts)
     assert calls == [list(range(10)), list(range(10, 30))]
     calls.clear()
-    monkeypatch.setattr(locate_mod, "_register_hypotheses", lambda *a: (calls.append(1) or ["a fit"], []))
+    monkeypatch.setattr(locate_mod, "register_hypotheses", lambda *a: (calls.append(1) or ["a fit"], []))
     monkeypatch.setattr(locate_mod, "_choose", lambda fits, errors, n_tried, options: (fits, n_tried))
     assert locate_mod.locate_los(np.zeros((4, 4)), SimpleNamespace(mesh=None), CAM, None, options=opts) == (["a fit"], 10)
     assert calls == [1]  # a fit in the first round: no second round

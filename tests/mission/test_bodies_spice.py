@@ -31,9 +31,10 @@ def test_body_table_and_overrides():
 def test_spice_radii_win_over_the_table_when_kernels_are_loaded():
     with loaded_kernels(KERNELS):
         r = spice_body_radii("ENCELADUS")
-        assert body_radii_km("enceladus", use_spice=True) == r
     assert r == pytest.approx((256.3, 247.3, 244.6))  # the Cassini PCK of the shared kernels
+    assert r != body_radii_km("enceladus")  # (the table's IAU 2015 radii)
     assert spice_body_radii("ENCELADUS") is None  # unloaded again
+    assert spice_geometry(KERNELS, T1, "ISSNA", "ENCELADUS").radii_km == r  # the prediction takes the kernels' radii
 
 
 def test_cassini_prediction_is_consistent():

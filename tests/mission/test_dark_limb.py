@@ -12,7 +12,7 @@ import pytest
 from jaxlimb._data import shared_data_dir
 from jaxlimb.cli import main
 from jaxlimb.errors import DarkLimbInconsistentError
-from jaxlimb.pipeline.dark_limb import check_dark_limb, dark_limb_offset
+from jaxlimb.pipeline.sphere.dark_limb import check_dark_limb, dark_limb_offset
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from test_whole_limb import _render  # noqa: E402

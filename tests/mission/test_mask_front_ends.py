@@ -52,10 +52,9 @@ def test_scanline_front_end_ignores_a_masked_band():
 
 def test_annulus_leaves_out_masked_pixels():
     _, b, mask, truth = _banded(0.0)
-    opt = LocateOptions()
-    sel = select_annulus(b, truth.center_rc, truth.apparent_radius_px, 4.0, None, np.pi, opt, mask)
+    sel = select_annulus(b, truth.center_rc, truth.apparent_radius_px, 4.0, None, np.pi, mask)
     assert not np.any((sel.coords[:, 0] >= BAND.start) & (sel.coords[:, 0] < BAND.stop))
-    full = select_annulus(b, truth.center_rc, truth.apparent_radius_px, 4.0, None, np.pi, opt)
+    full = select_annulus(b, truth.center_rc, truth.apparent_radius_px, 4.0, None, np.pi)
     assert full.n > sel.n
 
 

@@ -1,4 +1,4 @@
-"""The ``jaxlimb locate`` command-line contract of DESIGN.md, end to end.
+"""The ``jaxlimb locate`` command-line contract of docs/design.md, end to end.
 
 Exit 0 with one JSON object on stdout; exit 2 (unusable input) or 3 (failed check) with
 ``{"status": "error", "check": NAME, "message": TEXT}`` on stdout under ``--json``, else one

@@ -1,6 +1,6 @@
 """Thin Moon crescents: measured where the lit limb is in the frame (the annulus narrowed on the terminator side,
 the sky side always there), a typed failure that says why where the crescent is too thin; rule 4 of
-:mod:`jaxlimb.pipeline.refine` measures the edges from the limb's trend when the initial circle is off."""
+:mod:`jaxlimb.pipeline.sphere.annulus` measures the edges from the limb's trend when the initial circle is off."""
 
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from jaxlimb.errors import ArcTooShortError
-from jaxlimb.pipeline import locate, lit_halfangle
+from jaxlimb.pipeline import lit_halfangle, locate
 from jaxlimb.pipeline.checks import check_lit_arc
-from jaxlimb.pipeline.edge import CRESCENT_HALF_DEG, CRESCENT_MIN_DR, crescent_halfwidth, thin_crescent_message
-from jaxlimb.pipeline.refine import _edge_offsets
+from jaxlimb.pipeline.sphere.annulus import _edge_offsets
+from jaxlimb.pipeline.sphere.edge import CRESCENT_HALF_DEG, CRESCENT_MIN_DR, crescent_halfwidth, thin_crescent_message
 
 from ._scenes import SMALL_CAMERA, errors, scene, sun_hints
 
@@ -24,20 +24,20 @@ def _range_for_radius(radius_px: float) -> float:
 
 def test_crescent_halfwidth_narrows_only_thin_crescents():
     # gibbous, or a crescent thick enough for the 6 px annulus over 40 deg: unchanged
-    assert crescent_halfwidth(math.radians(60), 40.0, 6.0, 10.0, 45.0) == 6.0
-    assert crescent_halfwidth(math.radians(140), 200.0, 6.0, 10.0, 45.0) == 6.0
-    assert crescent_halfwidth(None, 40.0, 6.0, 10.0, 45.0) == 6.0
+    assert crescent_halfwidth(math.radians(60), 40.0, 6.0, 45.0) == 6.0
+    assert crescent_halfwidth(math.radians(140), 200.0, 6.0, 45.0) == 6.0
+    assert crescent_halfwidth(None, 40.0, 6.0, 45.0) == 6.0
     # benchmark row airy 1 (147 deg, 62 px): a 62 deg usable arc at 6 px, left as it is
-    assert 2 * math.degrees(lit_halfangle(math.radians(146.74), 62.36, 6.0, 10.0)) > 45.0
-    assert crescent_halfwidth(math.radians(146.74), 62.36, 6.0, 10.0, 45.0) == 6.0
+    assert 2 * math.degrees(lit_halfangle(math.radians(146.74), 62.36, 6.0)) > 45.0
+    assert crescent_halfwidth(math.radians(146.74), 62.36, 6.0, 45.0) == 6.0
     # jpeg row 5 of benchmarks/families.py: 145 deg, front-end radius 39 px: no usable angle at 6 px
     ph = math.radians(145.46)
-    assert lit_halfangle(ph, 39.0, 6.0, 10.0) == 0.0
-    dr = crescent_halfwidth(ph, 39.0, 6.0, 10.0, 45.0)
+    assert lit_halfangle(ph, 39.0, 6.0) == 0.0
+    dr = crescent_halfwidth(ph, 39.0, 6.0, 45.0)
     assert CRESCENT_MIN_DR <= dr < 6.0
-    assert math.degrees(lit_halfangle(ph, 39.0, dr, 10.0)) >= 30.0
+    assert math.degrees(lit_halfangle(ph, 39.0, dr)) >= 30.0
     # never below the floor
-    assert crescent_halfwidth(math.radians(170), 40.0, 6.0, 10.0, 45.0) == CRESCENT_MIN_DR
+    assert crescent_halfwidth(math.radians(170), 40.0, 6.0, 45.0) == CRESCENT_MIN_DR
     assert CRESCENT_HALF_DEG > 0
 
 

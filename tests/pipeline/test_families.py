@@ -10,10 +10,16 @@ import jax
 import numpy as np
 import pytest
 
-from jaxlimb.imaging import Hints
+from jaxlimb.geometry.conic import ellipse_signed_distance
+from jaxlimb.geometry.hints import Hints
 from jaxlimb.pipeline import locate
+from jaxlimb.pipeline.ellipsoid import edge as ellipsoid_edge, patchy as patchy_mod
+from jaxlimb.pipeline.ellipsoid.trace_fit import fit_traced
 from jaxlimb.pipeline.options import LocateOptions
-from jaxlimb.render.independent import EARTH_FAMILIES, MOON_FAMILIES, earth_case, moon_case
+from jaxlimb.pipeline.profile import fit as profile_fit, glow, patchy, widen
+from jaxlimb.pipeline.sphere import fits
+from jaxlimb.pipeline.sphere.fits import _robust_sigma, local_misfit
+from jaxlimb.render.independent.families import EARTH_FAMILIES, MOON_FAMILIES, earth_case, moon_case
 
 jax.config.update("jax_enable_x64", True)
 SEED = 2026  # the benchmark's default seed: the same frames as its rows
@@ -42,16 +48,15 @@ def test_moon_center_on_independent_scenes(family, idx, bound):
 
 def test_maria_sectors_are_down_weighted(monkeypatch):
     """A maria Moon whose albedo biased the centre by 0.115 px (benchmark row ``maria`` 0): the sectors the
-    mare crosses misfit far above the others and are down-weighted (``profile_fit.downweight_patchy_sectors``),
+    mare crosses misfit far above the others and are down-weighted (``downweight_patchy_sectors``),
     which removes most of the bias; without it the model-error term still makes the covariance cover it."""
-    import jaxlimb.pipeline.profile_fit as pf
 
     case = _moon("maria", 0)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     err, nees = _errors(case, m)
     assert err < 0.04
     assert nees < 13.8
-    monkeypatch.setattr(pf, "PATCHY_RATIO", math.inf)
+    monkeypatch.setattr(patchy, "PATCHY_RATIO", math.inf)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     err, nees = _errors(case, m)
     assert 0.08 < err < 0.2
@@ -62,15 +67,14 @@ def test_wide_maria_down_weighted_to_convergence(monkeypatch):
     """Held-out frame ``combined`` 0 of seed 2027 (``benchmarks/families.py --seed 2027``; Hapke, Airy PSF, JPEG 82,
     a 58 px Moon at 67 deg phase): three maria darken 50 deg of the lit limb about the sub-solar point to ~0.7 of the
     highlands.  With the sector weight ``ratio^-1/2`` and two passes the reweighting stopped half way (0.249 px,
-    NEES 10.6); ``ratio^-1.5`` and four passes (``profile_fit.PATCHY_POWER``, ``PATCHY_PASSES``) 0.134 px."""
-    import jaxlimb.pipeline.profile_fit as pf
+    NEES 10.6); ``ratio^-1.5`` and four passes (``PATCHY_POWER``, ``PATCHY_PASSES``) 0.134 px."""
 
     case = _moon("combined", 0, seed=2027)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     err, nees = _errors(case, m)
     assert err < 0.15
-    monkeypatch.setattr(pf, "PATCHY_POWER", 0.5)
-    monkeypatch.setattr(pf, "PATCHY_PASSES", 2)
+    monkeypatch.setattr(patchy, "PATCHY_POWER", 0.5)
+    monkeypatch.setattr(patchy, "PATCHY_PASSES", 2)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     err_before, _ = _errors(case, m)
     assert err_before > 0.2
@@ -81,7 +85,7 @@ def test_profile_keeps_the_sun_side_of_a_nearly_full_moon():
     there (the blurred 50 % level +0.03 px toward the Sun, -0.04 px away); its Sun direction was held along
     ``+row`` below a projected length of 0.02 (``sun_direction_image``'s threshold), which put the centre
     0.042 px off for a sigma of 0.008 px (NEES 26).  The motion smear was not the cause."""
-    from jaxlimb.pipeline.profile_fit import profile_sun_direction
+    from jaxlimb.pipeline.profile.fit import profile_sun_direction
 
     case = _moon("motion", 2)
     s = np.asarray(case.hints["sun_dir_camera"])
@@ -98,17 +102,16 @@ def test_patchy_reweighting_by_gauss_newton_steps_matches_the_lm_refits(monkeypa
     """The reweighted passes of ``downweight_patchy_sectors`` are Gauss--Newton steps of the weighted problem (no
     LM refit: the fallback is not taken on benchmark row ``maria`` 0); the answer and covariance are those of
     the LM refits (``_downweight_by_refits``) to 2e-4 px and 2 % in sigma."""
-    import jaxlimb.pipeline.profile_fit as pf
 
     case = _moon("maria", 0)
-    lm = pf._downweight_by_refits
+    lm = patchy._downweight_by_refits
 
     def no_refit(*a, **k):
         raise AssertionError("fell back to the LM refits")
 
-    monkeypatch.setattr(pf, "_downweight_by_refits", no_refit)
+    monkeypatch.setattr(patchy, "_downweight_by_refits", no_refit)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
-    monkeypatch.setattr(pf, "downweight_patchy_sectors", lambda frame, rr, solver, system=None: lm(frame, rr, solver))
+    monkeypatch.setattr(profile_fit, "downweight_patchy_sectors", lambda frame, rr, solver, system=None: lm(frame, rr, solver))
     m_lm = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert np.hypot(*(np.array(m.center_rc) - np.array(m_lm.center_rc))) < 2e-4
     for k in ("center_r", "center_c"):
@@ -159,10 +162,9 @@ def test_lunar_lambert_profile_is_biased_on_minnaert_and_the_witness_carries_it(
     """The same frame with the profile held to lunar-Lambert (the gate of the widening shut): the centre is
     ~0.3 px off, the same all along the limb; the sector term cannot see it, the split witness does (without
     it NEES ~ 225).  The Cramér--Rao bound stays the noise-only one."""
-    from jaxlimb.pipeline import profile_fit
 
-    monkeypatch.setattr(profile_fit, "KAPPA_GATE", math.inf)
-    monkeypatch.setattr(profile_fit, "GLOW_Z", math.inf)  # (the glow gate opens here: 0.60 px off)
+    monkeypatch.setattr(widen, "KAPPA_GATE", math.inf)
+    monkeypatch.setattr(glow, "GLOW_Z", math.inf)  # (the glow gate opens here: 0.60 px off)
     case = _moon("minnaert", 2)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     err, nees = _errors(case, m)
@@ -189,7 +191,6 @@ def test_glow_limb_is_fitted_by_the_widened_profile(monkeypatch):
     the score test opens the widened profile (lunar-Lambert plus glow), which puts the centre within 0.03 px (0.006
     measured) with a fitted glow in bounds and a covariance that covers the error; the gate held shut, the
     lunar-Lambert profile is 0.26 px off."""
-    from jaxlimb.pipeline import profile_fit
 
     case = _moon("glow", 3)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
@@ -197,7 +198,7 @@ def test_glow_limb_is_fitted_by_the_widened_profile(monkeypatch):
     prof = m.extras["profile"]
     assert err < 0.03 and nees < 13.8
     assert 0.05 < prof["glow"] < 0.5 and 0.1 < prof["glow_scale_px"] < 5.0
-    monkeypatch.setattr(profile_fit, "GLOW_Z", math.inf)
+    monkeypatch.setattr(glow, "GLOW_Z", math.inf)
     m0 = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert m0.extras["profile"]["glow"] == 0.0
     assert _errors(case, m0)[0] > 5 * err + 0.1
@@ -221,8 +222,7 @@ def test_cloudy_earth_limb_traced_against_the_sky():
     inside the disc are as strong as the limb and the limb's level changes tenfold along the arc.  The traced
     limb (outermost edge against the sky, per-ray levels) keeps the centre within 0.2 px and the range within
     0.02 % (before it: a non-physical fit, ymax = -14 000 DN); the traced points lie on the true limb."""
-    from jaxlimb.pipeline.earth import _band_signed
-    from jaxlimb.pipeline.limb_trace import fit_traced, trace_limb
+    from jaxlimb.pipeline.ellipsoid.trace import trace_limb
 
     case = _earth("clouds", 0)
     t = case.truth
@@ -238,7 +238,7 @@ def test_cloudy_earth_limb_traced_against_the_sky():
 
     lit = sun_direction_image(case.hints["sun_dir_camera"], case.camera, tuple(t.ellipse_center_rc))
     tr = trace_limb(case.image, start, tuple(lit), np.radians(60.0), 30.0)
-    d = _band_signed(tr.points[tr.ok], true_ell)
+    d = ellipse_signed_distance(tr.points[tr.ok], true_ell)
     assert tr.ok.sum() > 200 and tr.patchy()
     assert np.median(np.abs(d)) < 0.5
     e = fit_traced(tr, start)
@@ -262,16 +262,15 @@ def test_cloudy_earth_front_end_circle_on_clouds_is_not_the_start():
 def test_patchy_limb_rays_answer_when_the_band_fit_runs_after_clouds(monkeypatch):
     """Benchmark row ``clouds`` 1 (380 000 km, 127 px): the band fit of the level-normalised pixels runs 4 px
     after cloud edges, outside the traced rays' 95 % region; the rays' known-shape ellipse is the answer
-    (``ellipsoid._patchy_geometry``) and the band fit's distance to it enters the covariance.  Forcing the band
+    (``ellipsoid.patchy.patchy_geometry``) and the band fit's distance to it enters the covariance.  Forcing the band
     fit (a chi-square threshold nobody reaches) must give the old, worse answer."""
-    from jaxlimb.pipeline import ellipsoid as E
 
     case = _earth("clouds", 1)
     opts = LocateOptions(max_center_sigma_px=None)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints), opts)
     err, nees = _errors(case, m)
-    orig = E._patchy_geometry
-    monkeypatch.setattr(E, "_patchy_geometry", lambda b, f, e: orig(b, f, e, chi2=math.inf))
+    orig = patchy_mod.patchy_geometry
+    monkeypatch.setattr(ellipsoid_edge, "patchy_geometry", lambda b, f, e: orig(b, f, e, chi2=math.inf))
     m_band = locate(case.image, case.camera, Hints.from_dict(case.hints), opts)
     err_band, _ = _errors(case, m_band)
     assert err < 0.5 * err_band
@@ -331,7 +330,6 @@ def test_full_disc_glow_brighter_toward_the_sun_is_fitted_with_its_tilt(monkeypa
     glow's tilt toward the Sun fitted (``GlowProfileParams.glow_tilt``) the centre is within 0.03 px (0.015
     measured) and the tilt near the renderer's; with it held at 0 the glow fit went out of bounds and the centre
     was 0.15 px sunward for a 0.04 px sigma (0.19 px before the widened fits kept a held tilt)."""
-    import jaxlimb.pipeline.profile_fit as pf
     from jaxlimb.render.independent import EARTH_FULL_DISC_FAMILIES, earth_full_disc_case
 
     case = earth_full_disc_case("glow", np.random.default_rng([SEED, 2, EARTH_FULL_DISC_FAMILIES.index("glow"), 0]))
@@ -340,7 +338,7 @@ def test_full_disc_glow_brighter_toward_the_sun_is_fitted_with_its_tilt(monkeypa
     prof = m.extras["profile"]
     assert m.extras["model"] == "lunar_limb_glow" and 0.6 < prof["glow_tilt"] < 1.4
     assert err < 0.03 and nees < 9.2  # chi2_2 99 %
-    monkeypatch.setattr(pf, "tilt_kept", lambda q: False)  # every widened fit refitted with the tilt at 0
+    monkeypatch.setattr(glow, "tilt_kept", lambda q: False)  # every widened fit refitted with the tilt at 0
     m0 = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert m0.extras["profile"].get("glow_tilt", 0.0) == 0.0
     assert _errors(case, m0)[0] > 0.1
@@ -350,7 +348,7 @@ def test_motion_smear_is_fitted_by_the_anisotropic_profile(monkeypatch):
     """Benchmark row Earth ``motion`` 1 (380 000 km, a 0.55 px Gaussian smeared over 2.9 px): one isotropic blur put the
     centre 0.104 px off (the smear's ``cos 2psi`` pattern along the lit arc); the profile widened by an anisotropic blur
     (``ellipsoid_profile.widen_aniso_ellipsoid``) is within 0.02 px.  Without the widening, the old error is back."""
-    import jaxlimb.pipeline.ellipsoid_profile as ep
+    import jaxlimb.pipeline.ellipsoid.profile as ep
 
     case = _earth("motion", 1)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
@@ -372,7 +370,7 @@ def test_anisotropic_blur_gate_stays_shut_on_round_psfs(family, idx):
 def test_glow_crescent_keeps_the_glow_over_the_anisotropic_blur():
     """Benchmark row ``glow`` 5 (a 135 deg crescent under a glow of 0.37): the anisotropy's gate opens too (0.13 of
     ``sigma_e^2``, chi^2 66); the anisotropic refit alone put the centre 0.826 px off.  Both refits are made and the
-    one with the smaller residual RMS kept (``profile_fit.widen_aniso_or_glow``): the glow, 0.004 px."""
+    one with the smaller residual RMS kept (``widen_aniso_or_glow``): the glow, 0.004 px."""
     case = _moon("glow", 5)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     err, nees = _errors(case, m)
@@ -387,7 +385,7 @@ def test_crescent_off_the_gradient_circle_measured_by_the_scan_lines():
     ``arc_too_short``.  The Sun-facing annulus is in the frame, so the other front end is tried
     (``edge.InitialCircleOffError``, ``locate._measure_or_other_front_end``): 0.112 px, NEES 1.7."""
     from jaxlimb.errors import ArcTooShortError
-    from jaxlimb.pipeline.edge import InitialCircleOffError
+    from jaxlimb.pipeline.sphere.edge import InitialCircleOffError
 
     case = _moon("defocus", 1, seed=2027)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
@@ -402,23 +400,22 @@ def test_crescent_off_the_gradient_circle_measured_by_the_scan_lines():
 def test_moon_motion_smear_is_fitted_by_the_anisotropic_profile(monkeypatch):
     """Held-out frame ``motion`` 1 of seed 2028 (a crescent at 133 deg phase, a Gaussian smeared along a line): one
     isotropic blur put the centre 0.107 px off; the profile widened by an anisotropic blur
-    (``profile_fit.widen_aniso``, gated by the one-step score ``aniso_step``) is within 0.02 px, and its covariance
+    (``widen_aniso``, gated by the one-step score ``aniso_step``) is within 0.02 px, and its covariance
     carries half the move (``with_aniso_blur_witness``).  Without the widening the old error is back."""
-    import jaxlimb.pipeline.profile_fit as pf
 
     case = _moon("motion", 1, seed=2028)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     err, nees = _errors(case, m)
     assert "blur_aniso" in m.extras["profile"]
     assert err < 0.04 and nees < 13.8
-    monkeypatch.setattr(pf, "widen_aniso", lambda frame, rr, solver, system=None: rr)
+    monkeypatch.setattr(glow, "widen_aniso", lambda frame, rr, solver, system=None: rr)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert _errors(case, m)[0] > 0.08
 
 
 @pytest.mark.parametrize("family, idx", [("own", 0), ("airy", 0), ("glow", 0), ("hapke", 1)])
 def test_moon_anisotropic_blur_gate_stays_shut_on_round_psfs(family, idx):
-    """The anisotropy's score gate (``profile_fit.aniso_step``) on round PSFs: at most 0.024 of ``sigma_e^2`` where the
+    """The anisotropy's score gate (``aniso_step``) on round PSFs: at most 0.024 of ``sigma_e^2`` where the
     smears give 0.32-0.81 (``ANISO_MIN_FRAC`` 0.12); no refit."""
     case = _moon(family, idx)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
@@ -429,7 +426,6 @@ def test_minnaert_crescent_rim_is_not_an_outlier(monkeypatch):
     """A bright Minnaert rim on a crescent (``minnaert`` 4 of held-out seed 2028: 38 px, phase 134 deg, 8 bit) misfits
     whole bands of the sigmoid's annulus, 24 % of its pixels beyond 5 robust sigmas: Check 3 failed.  Tested about
     the bands' own medians (``refine.local_misfit``) they are no outliers; the widened profile fits the rim."""
-    import jaxlimb.pipeline.refine as rf
     from jaxlimb.errors import TooManyOutliersError
 
     case = _moon("minnaert", 4, seed=2028)
@@ -437,7 +433,7 @@ def test_minnaert_crescent_rim_is_not_an_outlier(monkeypatch):
     err, nees = _errors(case, m)
     assert err < 0.03 and nees < 13.8
     assert m.extras["profile"]["kappa"] > 0.1
-    monkeypatch.setattr(rf, "local_misfit", lambda r, coords, params: np.zeros_like(r))
+    monkeypatch.setattr(fits, "local_misfit", lambda r, coords, params: np.zeros_like(r))
     with pytest.raises(TooManyOutliersError):
         locate(case.image, case.camera, Hints.from_dict(case.hints))
 
@@ -445,7 +441,6 @@ def test_minnaert_crescent_rim_is_not_an_outlier(monkeypatch):
 def test_local_misfit_keeps_isolated_outliers():
     """``refine.local_misfit``: a band misfit is the cell median; a hot pixel stays an outlier about it."""
     from jaxlimb.models import CircleParams
-    from jaxlimb.pipeline.refine import _robust_sigma, local_misfit
 
     rng = np.random.default_rng(1)
     ang = rng.uniform(0, 2 * np.pi, 4000)
@@ -463,16 +458,15 @@ def test_local_misfit_keeps_isolated_outliers():
 def test_glow_tilt_not_asked_for_by_the_data_is_held(monkeypatch):
     """A glow on a crescent (``glow`` 5 of held-out seed 2028: phase 149 deg, the renderer's glow flat over the 92 deg
     of lit arc) fitted a tilt of 0.46 at 1.6 sigma and a glow 0.21 of ``amp`` for 0.28: 0.19 px off.  Below
-    ``profile_fit.GLOW_TILT_Z`` sigmas the tilt is held at 0 (``tilt_significant``): the glow 0.28 and the centre
+    ``GLOW_TILT_Z`` sigmas the tilt is held at 0 (``tilt_significant``): the glow 0.28 and the centre
     within 0.03 px (0.003 measured)."""
-    import jaxlimb.pipeline.profile_fit as pf
 
     case = _moon("glow", 5, seed=2028)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     err, nees = _errors(case, m)
     assert err < 0.03 and nees < 13.8
     assert m.extras["profile"]["glow_tilt"] == 0.0 and 0.25 < m.extras["profile"]["glow"] < 0.32
-    monkeypatch.setattr(pf, "GLOW_TILT_Z", 0.0)
+    monkeypatch.setattr(glow, "GLOW_TILT_Z", 0.0)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert m.extras["profile"]["glow_tilt"] > 0.2 and _errors(case, m)[0] > 0.1
 
@@ -480,15 +474,14 @@ def test_glow_tilt_not_asked_for_by_the_data_is_held(monkeypatch):
 def test_maria_reweighting_move_is_carried_in_the_covariance(monkeypatch):
     """``maria`` 2 of held-out seed 2028 (three maria across the lit limb, two near it): the sector weighting moves the
     centre 0.28 px and leaves 0.094 px across that move, where the weighted fit's sigma is 0.02 px (NEES 40).  A
-    quarter of the move in every direction (``profile_fit.with_reweighting_witness``) covers it; the Cramér--Rao bound
+    quarter of the move in every direction (``with_reweighting_witness``) covers it; the Cramér--Rao bound
     (noise only) does not change."""
-    import jaxlimb.pipeline.profile_fit as pf
 
     case = _moon("maria", 2, seed=2028)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     err, nees = _errors(case, m)
     assert 0.05 < err < 0.15 and nees < 6.0
-    monkeypatch.setattr(pf, "PATCHY_WITNESS", 0.0)
+    monkeypatch.setattr(patchy, "PATCHY_WITNESS", 0.0)
     m0 = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert _errors(case, m0)[1] > 13.8
     assert m0.crlb["center_r"] == pytest.approx(m.crlb["center_r"], rel=1e-6)
@@ -496,15 +489,14 @@ def test_maria_reweighting_move_is_carried_in_the_covariance(monkeypatch):
 
 def test_subtle_maria_sectors_are_down_weighted(monkeypatch):
     """``maria`` 4 of held-out seed 2028 (a crescent at phase 134 deg): the sectors its maria cross misfit 1.6-3 times
-    the median sector's.  Down-weighted from ``profile_fit.PATCHY_RATIO`` 1.5 the centre is 0.018 px off; from 2.0
+    the median sector's.  Down-weighted from ``PATCHY_RATIO`` 1.5 the centre is 0.018 px off; from 2.0
     (the weighting starting from fewer sectors) 0.055 px."""
-    import jaxlimb.pipeline.profile_fit as pf
 
     case = _moon("maria", 4, seed=2028)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     err, nees = _errors(case, m)
     assert err < 0.035 and nees < 13.8
-    monkeypatch.setattr(pf, "PATCHY_RATIO", 2.0)
+    monkeypatch.setattr(patchy, "PATCHY_RATIO", 2.0)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert _errors(case, m)[0] > 0.045
 
@@ -518,7 +510,7 @@ def test_unresolved_earth_glow_is_carried_in_the_range_covariance():
     gate): the limb is lifted and the range 0.09 % short.  Without the unresolved glow's consider term
     (``EllipsoidOptions.unresolved_glow = None``) it was reported at z = -3.5; with it the range's z is within 2 and
     the estimate itself is unchanged (``ellipsoid_profile.with_unresolved_glow``)."""
-    from jaxlimb.pipeline.earth import EllipsoidOptions
+    from jaxlimb.pipeline import EllipsoidOptions
 
     case = _earth("glow", 5)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
@@ -534,7 +526,7 @@ def test_unresolved_earth_glow_is_carried_in_the_range_covariance():
 def test_unresolved_glow_term_is_small_on_a_resolved_glow_free_limb():
     """At 40 000 km a 6-25 km glow is 1-5 px high and the glow gate would see all but a faint one: on a frame without
     a glow the term adds little to the range's variance (the fit's own sigma is what the data give)."""
-    from jaxlimb.pipeline.earth import EllipsoidOptions
+    from jaxlimb.pipeline import EllipsoidOptions
 
     case = _earth("own", 2)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
@@ -548,7 +540,7 @@ def test_unresolved_glow_term_is_small_on_a_resolved_glow_free_limb():
                                  (float("nan"), 6.0, 25.0), "0.4,6,25", (0.4, None, 25.0)])
 def test_unresolved_glow_option_is_checked(bad):
     from jaxlimb.errors import ConfigError
-    from jaxlimb.pipeline.earth import EllipsoidOptions
+    from jaxlimb.pipeline import EllipsoidOptions
 
     with pytest.raises(ConfigError, match="unresolved_glow"):
         EllipsoidOptions(unresolved_glow=bad)

@@ -1,4 +1,4 @@
-"""The limb traced against the sky (jaxlimb.pipeline.limb_trace) on synthetic discs with known limbs."""
+"""The limb traced against the sky (jaxlimb.pipeline.ellipsoid.trace) on synthetic discs with known limbs."""
 
 from __future__ import annotations
 
@@ -6,8 +6,11 @@ import jax
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
-from jaxlimb.pipeline.earth import _band_signed
-from jaxlimb.pipeline.limb_trace import fit_traced, normalised_band, trace_limb
+from jaxlimb.geometry.conic import ellipse_signed_distance
+from jaxlimb.pipeline.ellipsoid.patchy import GLOW_TILT_MAX_PHASE_DEG, _asymmetry, _fit_rays, _glow_tilt
+from jaxlimb.pipeline.ellipsoid.trace import trace_limb
+from jaxlimb.pipeline.ellipsoid.trace_fit import (coherent_shift_var, fit_traced, glow_lift_columns, normalised_band,
+                                                  trace_model_cov)
 
 
 def _disc(patchy: bool, seed: int = 0):
@@ -37,7 +40,7 @@ def test_uniform_disc_traced_on_its_limb():
     # the flat-inside window (2-5 px inside the 5-sigma foot) still holds the top of a sharp edge's rise on many
     # rays, which are left out (a conservative choice: deeper windows let cloud edges in, benchmarks/families.py)
     assert tr.ok.sum() > 30 and not tr.patchy()
-    assert np.median(np.abs(_band_signed(tr.points[tr.ok], truth))) < 0.1
+    assert np.median(np.abs(ellipse_signed_distance(tr.points[tr.ok], truth))) < 0.1
     e = fit_traced(tr, start)
     assert np.hypot(e[0][0] - truth[0][0], e[0][1] - truth[0][1]) < 0.05 and abs(e[1][0] - 150.0) < 0.05
 
@@ -49,7 +52,7 @@ def test_patchy_disc_outermost_edge_not_the_inner_ring():
     start = ((truth[0][0] + 6.0, truth[0][1] - 5.0), (156.0, 156.0), 0.0)
     tr = trace_limb(img, start, (1.0, 0.0), np.radians(60.0), 20.0)
     assert tr.patchy()
-    assert np.max(np.abs(_band_signed(tr.points[tr.ok], truth))) < 0.5
+    assert np.max(np.abs(ellipse_signed_distance(tr.points[tr.ok], truth))) < 0.5
     e = fit_traced(tr, start)
     assert np.hypot(e[0][0] - truth[0][0], e[0][1] - truth[0][1]) < 0.1
     pts = tr.points[tr.ok] - 3.0 * (tr.points[tr.ok] - np.array(tr.center_rc)) / 150.0  # 3 px inside the limb
@@ -61,7 +64,6 @@ def test_step_asymmetry_witness_sees_a_one_sided_glow():
     """``ellipsoid._asymmetry``: on a uniform blurred disc the ellipses through the 30 % and 70 % crossings share
     their centre (only the radius moves, by the step's width); a glow above one half of the lit arc raises the
     30 % crossings there and not the 70 % ones, and the centres part."""
-    from jaxlimb.pipeline.ellipsoid import _asymmetry
 
     img, truth = _disc(False)
     lit, half = (0.0, 1.0), np.radians(60.0)
@@ -97,7 +99,6 @@ def test_glow_lift_fitted_on_a_patchy_limb():
     """A glow lifts the half-level crossings of the dim rays ten times more than the bright ones': the plain ray fit
     is pulled 0.57 px toward the dim half; ``ellipsoid._fit_rays`` finds the lift (z ~ 10) and fits it beside the
     ellipse (centre within 0.14 px, radius within 0.11 px).  Without a glow the gate stays shut."""
-    from jaxlimb.pipeline.ellipsoid import _fit_rays
 
     for seed in (0, 1):
         img, truth = _glow_disc(5.0, seed)
@@ -121,8 +122,6 @@ def test_glow_tilt_toward_the_sun_is_in_the_covariance():
     ``glow_tilt`` the trace keeps the uniform lift alone."""
     from dataclasses import replace
 
-    from jaxlimb.pipeline.ellipsoid import _fit_rays
-    from jaxlimb.pipeline.limb_trace import glow_lift_columns, trace_model_cov
 
     for seed in (0, 2):
         img, truth = _glow_disc(5.0 / 1.5, seed, tilt=1.0)
@@ -139,7 +138,7 @@ def test_glow_tilt_toward_the_sun_is_in_the_covariance():
 def _traced(bias, noise: float, seed: int = 0):
     """A :class:`TracedLimb` on a 600 px circle's 130-deg arc, one ray per 0.1 deg: each ray's point moved
     outward by ``bias(psi)`` plus white noise of ``noise`` px."""
-    from jaxlimb.pipeline.limb_trace import TracedLimb
+    from jaxlimb.pipeline.ellipsoid.trace import TracedLimb
 
     rng = np.random.default_rng(seed)
     c, R = np.array([700.0, 1100.0]), 600.0
@@ -154,7 +153,6 @@ def test_coherent_shift_var_sees_a_coherent_bias_field_not_white_noise():
     """``coherent_shift_var``: white per-ray noise (0.3 px) gives a hidden-shift variance near 0, and so does a field the
     fit absorbs (a radius and a centre shift: ``1, cos psi, sin psi``); a bias field coherent over 40 deg of arc
     (+-0.3 px, the albedo stretches of a cloudy limb) gives about its own mean square."""
-    from jaxlimb.pipeline.limb_trace import coherent_shift_var
 
     tr, ell = _traced(lambda p: 0.0 * p, 0.3)
     assert coherent_shift_var(tr, ell) < 0.01**2 * 4
@@ -169,7 +167,7 @@ def test_fit_traced_moves_a_centre_far_from_the_origin():
     """At a 2000 px centre the ellipse frame in float32 (1e-4 px resolution) swallowed the finite-difference steps
     of the soft-L1 fit: its centre never left the start (a far cloudy Earth, ``benchmarks/families.py`` Earth
     ``clouds`` 3, stayed on a front-end circle 4 px off).  ``_band_signed`` is float64 now, whatever JAX's x64 flag."""
-    from jaxlimb.pipeline.limb_trace import TracedLimb
+    from jaxlimb.pipeline.ellipsoid.trace import TracedLimb
 
     truth = ((1697.46, 2097.64), (124.03, 122.42), 2.4)
     t = np.linspace(-1.4, 1.4, 200) + 0.6
@@ -180,8 +178,8 @@ def test_fit_traced_moves_a_centre_far_from_the_origin():
     start = ((1694.9, 2093.4), (121.5, 121.5 * truth[1][1] / truth[1][0]), truth[2])
     shifted = ((truth[0][0] + 1e-6, truth[0][1]), truth[1], truth[2])
     with jax.enable_x64(False):  # a library user who did not enable x64 (the CLI and the benchmarks do)
-        assert np.max(np.abs(_band_signed(pts, truth))) < 1e-9
-        assert np.all(_band_signed(pts, shifted) != _band_signed(pts, truth))  # resolves a micro-pixel step
+        assert np.max(np.abs(ellipse_signed_distance(pts, truth))) < 1e-9
+        assert np.all(ellipse_signed_distance(pts, shifted) != ellipse_signed_distance(pts, truth))  # resolves a micro-pixel step
         e = fit_traced(tr, start)
     assert np.hypot(e[0][0] - truth[0][0], e[0][1] - truth[0][1]) < 1e-3 and abs(e[1][0] - truth[1][0]) < 1e-3
 
@@ -193,7 +191,7 @@ def test_shading_offsets_remove_the_lambert_limbs_pull_toward_the_sun():
     profiles) takes that back."""
     from jaxlimb.geometry.camera import Camera
     from jaxlimb.imaging.prior import sun_direction_image
-    from jaxlimb.pipeline.limb_trace import shading_corrected, shading_offsets, shading_sigma
+    from jaxlimb.pipeline.ellipsoid.trace import shading_corrected, shading_offsets, shading_sigma
     from jaxlimb.render import RenderOptions, earth_scene, render_body
 
     cam = Camera(focal_length_mm=16.0, rows=420, cols=420)
@@ -235,7 +233,7 @@ def test_shading_flattened_trace_keeps_a_dark_limbs_rays_and_tells_mottled_from_
     factor ~1.6); divided by the uniform disc's shading (``RayShading``) the rays are kept, and the albedo they then
     carry is level on the uniform disc and not on a mottled one (``AlbedoPatches`` amplitude 0.6).  Measured: plain
     0 and 2 of 323 rays kept; flattened 322 and 322; albedo RMS 0.015 and 0.083."""
-    from jaxlimb.pipeline.limb_trace import RayShading
+    from jaxlimb.pipeline.ellipsoid.trace import RayShading
     from jaxlimb.render.scene import AlbedoPatches
 
     for patches, patchy in ((None, False), (AlbedoPatches(seed=4, amplitude=0.6), True)):
@@ -246,7 +244,7 @@ def test_shading_flattened_trace_keeps_a_dark_limbs_rays_and_tells_mottled_from_
         assert plain.ok.mean() < 0.05 and flat.ok.mean() > 0.9, (plain.ok.sum(), flat.ok.sum())
         assert flat.patchy() is patchy
         # the crossings' shading bias is ~0.7 px (shading_offsets takes it out)
-        assert np.median(np.abs(_band_signed(flat.points[flat.ok], ell))) < 1.5
+        assert np.median(np.abs(ellipse_signed_distance(flat.points[flat.ok], ell))) < 1.5
 
 
 def test_mottled_lambert_earth_near_zero_phase_measured_with_an_honest_covariance():
@@ -273,7 +271,7 @@ def test_albedo_patchy_weighs_the_albedo_field_against_the_ray_noise():
     (RMS 0.088 after the second-order harmonic fit) over ray noise of 0.030 is patchy -- as ``earth_mottled.py`` map 9
     at 2 deg, 0.080 over 0.033, which three times the noise called uniform -- and ray noise of 0.05 alone (RMS above
     PATCHY_ALBEDO_TOL) is not."""
-    from jaxlimb.pipeline.limb_trace import _albedo_patchy
+    from jaxlimb.pipeline.ellipsoid.trace import _albedo_patchy
 
     rng = np.random.default_rng(5)
     t = np.linspace(-np.radians(60.0), np.radians(60.0), 240)
@@ -291,7 +289,7 @@ def test_dark_share_opens_the_flattened_trace_only_near_zero_phase():
 
     from jaxlimb.geometry.camera import Camera
     from jaxlimb.imaging.prior import sun_direction_image
-    from jaxlimb.pipeline.limb_trace import RayShading
+    from jaxlimb.pipeline.ellipsoid.trace import RayShading
     from jaxlimb.render import RenderOptions, earth_scene, render_body
 
     cam = Camera(focal_length_mm=16.0, rows=420, cols=420)
@@ -310,11 +308,11 @@ def test_wide_trace_retraces_a_dark_limb_about_the_rays_own_fit():
     """The flattened trace's shading is placed on its reference ellipse: about the front end's ellipse of the mottled
     Lambert Earth at 10 deg of phase (``benchmarks/earth_mottled.py`` map 15; 0.7 px off, the radius 1.1 px short) it
     kept fewer rays than the plain trace, the plain one stood, the limb was not flagged patchy and the one-albedo
-    profile answered 1.09 px off (NEES 5.5).  ``_wide_trace`` now retraces it about the plain rays' own fit."""
+    profile answered 1.09 px off (NEES 5.5).  ``wide_trace`` now retraces it about the plain rays' own fit."""
     from jaxlimb.geometry.camera import Camera
     from jaxlimb.imaging.prior import sun_direction_image
-    from jaxlimb.pipeline.ellipsoid import _wide_trace
-    from jaxlimb.pipeline.limb_trace import RayShading
+    from jaxlimb.pipeline.ellipsoid.start import wide_trace
+    from jaxlimb.pipeline.ellipsoid.trace import RayShading
     from jaxlimb.render import RenderOptions, earth_scene, render_body
     from jaxlimb.render.scene import AlbedoPatches
 
@@ -330,7 +328,7 @@ def test_wide_trace_retraces_a_dark_limb_about_the_rays_own_fit():
     half, search = np.radians(60.0), max(12.0, 0.2 * start[1][0])
     plain = trace_limb(np.asarray(img, float), start, sd, half, search)
     about_start = trace_limb(np.asarray(img, float), start, sd, half, search, shade=shade)
-    tr = _wide_trace(np.asarray(img, float), start, sd, half, shade)
+    tr = wide_trace(np.asarray(img, float), start, sd, half, shade)
     assert about_start.ok.sum() < plain.ok.sum(), (about_start.ok.sum(), plain.ok.sum())  # measured 24 < 55
     assert tr.albedo is not None and tr.ok.sum() > 4 * plain.ok.sum() and tr.patchy(), tr.ok.sum()  # measured 270
 
@@ -339,7 +337,6 @@ def test_glow_tilt_is_asked_for_near_zero_phase_only():
     """``ellipsoid._glow_tilt``: the Sun 12 deg from behind the body on the boresight (the full disc from L1) asks for
     the glow's tilt, 45 deg (a gibbous Earth) does not, and neither does a frame without the Sun."""
     from jaxlimb.geometry.camera import Camera
-    from jaxlimb.pipeline.ellipsoid import GLOW_TILT_MAX_PHASE_DEG, _glow_tilt
     from jaxlimb.pipeline.frame import prepare
 
     cam = Camera(focal_length_mm=16.0, rows=101, cols=121)

@@ -24,7 +24,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from jaxlimb.pipeline import LocateOptions, locate
+from jaxlimb.pipeline import locate
+from jaxlimb.pipeline.options import LocateOptions
 
 from ._scenes import SMALL_CAMERA, errors, scene, sun_hints
 
@@ -165,7 +166,7 @@ def test_auto_profile_keeps_the_sigmoid_when_the_profile_fit_fails(monkeypatch):
 
     from jaxlimb.errors import ConvergenceError
 
-    loc = importlib.import_module("jaxlimb.pipeline.round_body")
+    loc = importlib.import_module("jaxlimb.pipeline.sphere.refit")
 
     def boom(*a, **k):
         raise ConvergenceError("Check 5: forced failure")

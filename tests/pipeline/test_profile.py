@@ -10,9 +10,14 @@ import numpy as np
 import pytest
 
 import jaxlimb.models.lunar_lambert as prof
+from jaxlimb.models import (
+    LIMB_PROFILE,
+    LIMB_PROFILE_MINNAERT,
+    LimbProfileParams,
+    MinnaertProfileParams,
+    limb_profile_intensity,
+)
 from jaxlimb.models.profile_radiance import glow_inside, glow_outside
-from jaxlimb.models import (LIMB_PROFILE, LIMB_PROFILE_MINNAERT, LimbProfileParams, MinnaertProfileParams,
-                            limb_profile_intensity)
 
 jax.config.update("jax_enable_x64", True)
 
@@ -122,7 +127,8 @@ def test_small_angle_series():
 def test_l_band_widens_with_the_fits_own_uncertainty():
     from types import SimpleNamespace
 
-    from jaxlimb.pipeline.profile import PHYSICAL_L, l_band
+    from jaxlimb.models.lunar_lambert import PHYSICAL_L
+    from jaxlimb.pipeline.profile.passes import l_band
 
     free = ("r0", "c0", "a", "sigma", "amp", "ymin", "L")
     cov = np.diag([1e-4] * 6 + [0.05**2])

@@ -9,19 +9,21 @@ annulus half-width (-0.05 px at 3 px, -0.49 px at 12 px) because a wider annulus
 of the bright interior in ``ymax``.  The test pins that measured bias of the sigmoid.
 
 With hints ``body = "sun"`` the default profile is the blurred limb-darkened disc
-(:mod:`jaxlimb.pipeline.sun_profile`, quadratic law, ``u1`` fitted, ``u2`` held): radius
+(:mod:`jaxlimb.pipeline.sphere.sun`, quadratic law, ``u1`` fitted, ``u2`` held): radius
 +0.039 px, centre 0.015 px -- both targets (0.1 px) met.
 """
 
 from __future__ import annotations
 
-from jaxlimb._data import shared_data_dir
-
 import numpy as np
 import pytest
 
-from jaxlimb.imaging import Hints, hmi_512_truth, load_image
-from jaxlimb.pipeline import LocateOptions, locate
+from jaxlimb._data import shared_data_dir
+from jaxlimb.geometry.hints import Hints
+from jaxlimb.imaging.io import load_image
+from jaxlimb.imaging.sdo import hmi_512_truth
+from jaxlimb.pipeline import locate
+from jaxlimb.pipeline.options import LocateOptions
 
 HMI_PNG = shared_data_dir() / "sun/2023_01_31__03_39_23_200__SDO_HMI_HMI_continuum.png"
 

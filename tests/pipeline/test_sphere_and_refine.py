@@ -9,19 +9,12 @@ import pytest
 
 from jaxlimb.errors import JumpError, RadiusInconsistentError, TooBigError, TooManyOutliersError, TooSmallError
 from jaxlimb.geometry.camera import Camera, sphere_image_ellipse
-from jaxlimb.pipeline import (
-    CenterOutOfFieldError,
-    LocateOptions,
-    annulus_halfwidth,
-    check_center_in_field,
-    check_jump,
-    check_radius_prior,
-    check_size,
-    lit_halfangle,
-    select_annulus,
-    sphere_from_ellipse_center,
-)
-from jaxlimb.pipeline.refine import fit_circle_annulus
+from jaxlimb.geometry.sphere_image import sphere_from_ellipse_center
+from jaxlimb.pipeline.checks import (CenterOutOfFieldError, check_center_in_field, check_jump, check_radius_prior,
+                                     check_size)
+from jaxlimb.pipeline.options import LocateOptions
+from jaxlimb.pipeline.sphere.annulus import annulus_halfwidth, lit_halfangle, select_annulus
+from jaxlimb.pipeline.sphere.fits import fit_circle_annulus
 
 
 @pytest.mark.parametrize("direction", [(0.0, 0.0, 1.0), (0.1, -0.08, 1.0), (0.16, 0.12, 1.0), (-0.2, 0.05, 1.0)])
@@ -42,17 +35,15 @@ def test_sphere_inverse_is_exact(direction, range_km):
 
 
 def test_annulus_halfwidth_rule():
-    opt = LocateOptions()
-    assert annulus_halfwidth(80.0, 0.1, opt) == 6.0  # floor
-    assert annulus_halfwidth(500.0, 0.1, opt) == pytest.approx(10.0)  # 2 % of r
-    assert annulus_halfwidth(80.0, 2.0, opt) == pytest.approx(8.0)  # 4 rms
-    assert annulus_halfwidth(8.0, 2.0, opt) == 6.0  # capped at max(min, r/2)
-    assert annulus_halfwidth(80.0, 0.1, LocateOptions(annulus_px=3.5)) == 3.5
+    assert annulus_halfwidth(80.0, 0.1) == 6.0  # floor
+    assert annulus_halfwidth(500.0, 0.1) == pytest.approx(10.0)  # 2 % of r
+    assert annulus_halfwidth(80.0, 2.0) == pytest.approx(8.0)  # 4 rms
+    assert annulus_halfwidth(8.0, 2.0) == 6.0  # capped at max(min, r/2)
 
 
 def test_lit_halfangle_rule():
-    assert lit_halfangle(None, 100, 6, 10) == pytest.approx(math.radians(80))
-    assert lit_halfangle(0.0, 100, 6, 10) == math.pi  # full: no dark sliver
+    assert lit_halfangle(None, 100, 6) == pytest.approx(math.radians(80))
+    assert lit_halfangle(0.0, 100, 6) == math.pi  # full: no dark sliver
     assert lit_halfangle(math.radians(60), 100, 6, 10) == pytest.approx(math.radians(80))
     # crescent: the terminator must stay dr + 2 px inside the limb
     h = lit_halfangle(math.radians(150), 100, 6, 10)
@@ -73,7 +64,7 @@ def _disk(shape=(200, 240), c=(100.3, 118.7), r=60.0, sigma=1.0, lo=10.0, hi=200
 def test_select_annulus_lit_side_and_fit():
     img = _disk()
     opt = LocateOptions()
-    sel = select_annulus(img, (100.0, 119.0), 60.5, 6.0, (0.0, 1.0), math.radians(60), opt)
+    sel = select_annulus(img, (100.0, 119.0), 60.5, 6.0, (0.0, 1.0), math.radians(60))
     ang = sel.angles()
     assert np.all(np.abs(ang) <= math.radians(60) + 1e-9)  # toward +col only
     d = np.hypot(sel.coords[:, 0] - 100.0, sel.coords[:, 1] - 119.0)
@@ -89,7 +80,7 @@ def test_select_annulus_lit_side_and_fit():
 def test_select_annulus_drops_dark_bins():
     img = _disk()
     img[:, :100] = 10.0  # the left half of the disk is dark: no edge there
-    sel = select_annulus(img, (100.3, 118.7), 60.0, 6.0, None, math.pi, LocateOptions())
+    sel = select_annulus(img, (100.3, 118.7), 60.0, 6.0, None, math.pi)
     assert np.all(sel.coords[:, 1] >= 92)  # a 5-deg bin (5 px of arc) may straddle the boundary
     assert sel.n_bins_kept < sel.n_bins
 
@@ -97,7 +88,7 @@ def test_select_annulus_drops_dark_bins():
 def test_select_annulus_outside_frame():
     img = _disk()
     with pytest.raises(TooManyOutliersError):
-        select_annulus(img, (1000.0, 1000.0), 50.0, 6.0, None, math.pi, LocateOptions())
+        select_annulus(img, (1000.0, 1000.0), 50.0, 6.0, None, math.pi)
 
 
 def test_check_functions():
@@ -120,7 +111,7 @@ def test_check_functions():
 def test_options_validation():
     from jaxlimb.errors import ConfigError
 
-    for kw in ({"front_end": "x"}, {"model": "hyperbola"}, {"solver": "nope"}, {"k_fixed": 0.0},
-               {"annulus_px": -1.0}, {"max_steps": 0}, {"horn_margin_deg": 95.0}, {"max_outlier_fraction": 2.0}):
+    for kw in ({"front_end": "x"}, {"model": "hyperbola"}, {"solver": "nope"}, {"max_steps": 0},
+               {"min_lit_arc_deg": 400.0}, {"max_center_sigma_px": -1.0}, {"ellipsoid": object()}, {"gradient": 3}):
         with pytest.raises(ConfigError):
             LocateOptions(**kw)

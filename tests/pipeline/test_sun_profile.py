@@ -1,4 +1,4 @@
-"""The limb-darkened disc model (:mod:`jaxlimb.pipeline.sun_profile`): synthetic truth, the real
+"""The limb-darkened disc model (:mod:`jaxlimb.pipeline.sphere.sun`): synthetic truth, the real
 SDO/HMI image, and the Jacobian against central differences."""
 
 from __future__ import annotations
@@ -10,13 +10,10 @@ import pytest
 from scipy import ndimage
 
 from jaxlimb._data import shared_data_dir
-from jaxlimb.imaging import hmi_512_truth, load_image
-from jaxlimb.pipeline.sun_profile import (
-    LIMB_DARKENED,
-    LimbDarkenedParams,
-    fit_limb_darkened,
-    limb_darkened_intensity_direct,
-)
+from jaxlimb.imaging.io import load_image
+from jaxlimb.imaging.sdo import hmi_512_truth
+from jaxlimb.models.limb_darkened import LIMB_DARKENED, limb_darkened_intensity_direct, LimbDarkenedParams
+from jaxlimb.pipeline.sphere.sun import fit_limb_darkened
 
 jax.config.update("jax_enable_x64", True)
 

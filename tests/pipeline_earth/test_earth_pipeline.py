@@ -9,10 +9,14 @@ import pytest
 
 from jaxlimb.errors import ConfigError, GeometryError
 from jaxlimb.geometry.camera import Camera
-from jaxlimb.geometry.earth import EARTH_EQUATORIAL_KM, EARTH_POLAR_KM, earth_radii
+from jaxlimb.geometry.earth import EARTH_EQUATORIAL_KM, EARTH_POLAR_KM, earth_radii, gamma_off
+from jaxlimb.geometry.earth_cone import earth_position_from_ellipse, image_ellipse_cone, max_gamma_off
 from jaxlimb.geometry.ellipsoid import image_conic, limb_cone, limb_cone_matrix_camera
-from jaxlimb.pipeline import LocateOptions, locate
-from jaxlimb.pipeline.earth import EllipsoidOptions, earth_position_from_ellipse, image_ellipse_cone
+from jaxlimb.pipeline import locate
+from jaxlimb.pipeline import EllipsoidOptions
+from jaxlimb.pipeline.ellipsoid.center import unsigned_offset_cov
+from jaxlimb.pipeline.options import LocateOptions
+from jaxlimb.pipeline.stages import FitData, RefineResult
 from jaxlimb.render import RenderOptions, earth_scene, render_body
 
 RADII = (EARTH_EQUATORIAL_KM, EARTH_EQUATORIAL_KM, EARTH_POLAR_KM)
@@ -186,14 +190,13 @@ def test_free_ellipse_offset_bound_covers_every_latitude():
     """Without the attitude the body centre is the limb ellipse's centre +- gamma_off along the unseen polar
     axis: the model-error term uses the largest offset over the latitude (isotropic), ~0.3 px at 40 000 km
     with 8 mm / 2.2 um, so a frame at 44 deg (0.305 px off) is within its covariance."""
-    from jaxlimb.pipeline.earth import earth_gamma_off, max_gamma_off, unsigned_offset_cov
 
     cam = Camera(focal_length_mm=8.0, pixel_pitch_mm=0.0022, rows=1944, cols=2592)
     g = max_gamma_off(40000.0, EARTH_EQUATORIAL_KM, EARTH_POLAR_KM, 0.0)
     for lat in (0.0, 20.0, 44.0, 60.0, 90.0):
         t = math.radians(lat)
         pe = 40000.0 * np.array([math.cos(t), 0.0, math.sin(t)])
-        assert abs(earth_gamma_off(pe, 0.0, equatorial_km=EARTH_EQUATORIAL_KM, polar_km=EARTH_POLAR_KM)) <= g * (1 + 1e-9)
+        assert abs(gamma_off(pe, 0.0, equatorial_km=EARTH_EQUATORIAL_KM, polar_km=EARTH_POLAR_KM)) <= g * (1 + 1e-9)
     assert 0.28 < g * cam.focal_px < 0.32
     P, _ = unsigned_offset_cov(cam, ((900.0, 1200.0), (600.0, 599.0), 0.3), 40000.0, EARTH_EQUATORIAL_KM,
                                EARTH_POLAR_KM, 0.0, 3)
@@ -251,7 +254,6 @@ def _ellipse_edge_fit():
 
     from jaxlimb.fitting import fit
     from jaxlimb.models import ELLIPSE, EllipseParams
-    from jaxlimb.pipeline.refine import FitData, RefineResult
 
     jax.config.update("jax_enable_x64", True)
     truth = EllipseParams(r0=200.3, c0=250.7, a=80.0, theta=0.3, rho=0.97, k=1.5, ymax=200.0, ymin=10.0)
@@ -268,7 +270,7 @@ def test_edge_fit_model_error_is_generic_and_keeps_the_noise_covariance():
     """``with_model_error`` on an elliptical sigmoid (the Earth's fallback when the profile is rejected): an
     exact model leaves the covariance near the noise-only one, which is kept for the CRLB."""
     from jaxlimb.models import ELLIPSE
-    from jaxlimb.pipeline.profile_fit import with_model_error
+    from jaxlimb.pipeline.profile.fit import with_model_error
 
     res, rr0 = _ellipse_edge_fit()
     out = with_model_error(rr0, model=ELLIPSE)
@@ -280,7 +282,7 @@ def test_edge_fit_model_error_is_generic_and_keeps_the_noise_covariance():
 def test_center_floor_lifts_only_the_directions_below_it():
     """``floor_center_var``: eigenvalues of the ``(r0, c0)`` block below the floor are lifted to it, the eigenvectors,
     the larger eigenvalue and the other parameters' variances kept."""
-    from jaxlimb.pipeline.ellipsoid_profile import floor_center_var
+    from jaxlimb.pipeline.ellipsoid.profile import floor_center_var
 
     res, rr0 = _ellipse_edge_fit()
     C = np.asarray(res.covariance)
@@ -298,7 +300,7 @@ def test_earth_center_sigma_has_the_specification_floor(earth_far):
     """``EllipsoidOptions.center_floor_px`` (default 0.0075 px): the reported centre sigma is never below it; with
     0 the noise and model-error terms alone (smaller on this clean own render)."""
     from jaxlimb.pipeline import LocateOptions
-    from jaxlimb.pipeline.earth import EllipsoidOptions
+    from jaxlimb.pipeline import EllipsoidOptions
 
     cam, sc, img, truth = earth_far
     sig = {}

@@ -9,8 +9,9 @@ import pytest
 
 from jaxlimb.errors import ConfigError
 from jaxlimb.geometry.camera import Camera
-from jaxlimb.pipeline import LocateOptions, locate
-from jaxlimb.pipeline.earth import EllipsoidOptions
+from jaxlimb.pipeline import locate
+from jaxlimb.pipeline import EllipsoidOptions
+from jaxlimb.pipeline.options import LocateOptions
 from jaxlimb.render import Atmosphere, RenderOptions, earth_scene, render_body
 
 

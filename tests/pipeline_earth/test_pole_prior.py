@@ -1,5 +1,5 @@
 """The Earth's centre with the pole unknown, marginalised over the poles a Sun-declination bound allows
-(jaxlimb.pipeline.pole_prior): exact geometry, no rendering."""
+(jaxlimb.pipeline.ellipsoid.pole_prior): exact geometry, no rendering."""
 
 from __future__ import annotations
 
@@ -12,9 +12,10 @@ import pytest
 from jaxlimb.errors import ConfigError
 from jaxlimb.geometry.camera import Camera
 from jaxlimb.geometry.earth import EARTH_EQUATORIAL_KM as RE, EARTH_POLAR_KM as RP
+from jaxlimb.geometry.earth_cone import earth_position_from_ellipse
 from jaxlimb.geometry.ellipsoid import image_conic
-from jaxlimb.pipeline.earth import EllipsoidOptions, earth_position_from_ellipse
-from jaxlimb.pipeline.pole_prior import cone_flattening, ellipse_flattening, marginal_center, spheroid_cones
+from jaxlimb.pipeline import EllipsoidOptions
+from jaxlimb.pipeline.ellipsoid.pole_prior import cone_flattening, ellipse_flattening, marginal_center, spheroid_cones
 
 SIN_OBLIQUITY = math.sin(math.radians(23.44))
 

@@ -12,7 +12,8 @@ from scipy.spatial.transform import Rotation
 
 from jaxlimb.errors import ConfigError, GeometryError, LimbInputError
 from jaxlimb.geometry.camera import Camera
-from jaxlimb.geometry.ellipsoid import conic_eval, ellipse_to_conic, image_conic
+from jaxlimb.geometry.conic import conic_eval, ellipse_to_conic
+from jaxlimb.geometry.ellipsoid import image_conic
 from jaxlimb.render import (
     AlbedoPatches,
     Atmosphere,

@@ -59,7 +59,7 @@ class Priors:
 
 
 def priors_from_hints(hints: Mapping[str, Any], model: LimbModel, default_frac: float = 0.1) -> Priors:
-    """Priors a navigation filter supplies through the hints (DESIGN.md, HINTS).
+    """Priors a navigation filter supplies through the hints (docs/design.md, HINTS).
 
     ``expected_radius_px`` with ``expected_radius_uncertainty_frac`` (default
     ``default_frac``) becomes a Gaussian prior on ``radius`` (circle) or ``a`` (ellipse)

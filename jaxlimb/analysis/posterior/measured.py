@@ -7,7 +7,7 @@ by default the physical lunar-Lambert profile with its widenings --, pixels, wei
 marginalised (Jeffreys) or known (``sigma``).  That posterior knows the pixel noise only.  On a scene the model does
 not describe exactly (another reflectance law, albedo spots, another PSF) the data carry a model error the
 likelihood does not, and its credible regions are too small by the ratio ``locate``'s covariance already accounts
-for (the cluster-robust and specification terms of :mod:`jaxlimb.analysis.model_error`).  The *adjusted* posterior is
+for (the cluster-robust and specification terms of :mod:`jaxlimb.model_error`).  The *adjusted* posterior is
 the open-faced sandwich of Shaby (2014, J. Comput. Graph. Stat. 23(3), 853-876): every sample moved to
 :math:`\hat\theta + \Omega(\theta - \hat\theta)` with :math:`\Omega = C^{1/2}\Sigma^{-1/2}` (symmetric square roots),
 ``C`` ``locate``'s covariance of the fit's parameters and :math:`\Sigma` the samples' covariance: the posterior's

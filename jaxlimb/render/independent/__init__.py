@@ -14,7 +14,7 @@ Public API::
     earth_full_disc_case(family, rng) -> Case   # EARTH_FULL_DISC_FAMILIES (deep space, EPIC-like)
     Body, Pinhole, limb_truth, cast         # geometry
     Surface, render_radiance                # blurred, pixel-integrated radiance
-    Photometry, Reflectance, MariaMap, EarthMap, Psf, PsfKind, Glow, SensorSpec, digitise
+    Photometry, Reflectance, MariaMap, SpotsMap, EarthMap, Psf, PsfKind, Glow, SensorSpec, digitise
 """
 
 from .families import ABLATIONS, EARTH_FAMILIES, EARTH_FULL_DISC_FAMILIES, MOON_FAMILIES, Case, earth_case, earth_full_disc_case, moon_case
@@ -22,8 +22,8 @@ from .geometry import Body, LimbTruth, Pinhole, cast, limb_truth
 from .optics import Glow, Psf, PsfKind
 from .raster import Surface, render_radiance
 from .sensor import SensorSpec, digitise
-from .surface import EarthMap, MariaMap, Photometry, Reflectance
+from .surface import EarthMap, MariaMap, Photometry, Reflectance, SpotsMap
 
 __all__ = ["ABLATIONS", "EARTH_FAMILIES", "EARTH_FULL_DISC_FAMILIES", "MOON_FAMILIES", "Body", "Case", "EarthMap", "Glow", "LimbTruth", "MariaMap",
-           "Photometry", "Pinhole", "Psf", "PsfKind", "Reflectance", "SensorSpec", "Surface", "cast", "digitise",
+           "Photometry", "Pinhole", "Psf", "PsfKind", "Reflectance", "SensorSpec", "SpotsMap", "Surface", "cast", "digitise",
            "earth_case", "earth_full_disc_case", "limb_truth", "moon_case", "render_radiance"]

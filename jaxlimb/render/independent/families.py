@@ -27,6 +27,8 @@ family                    what differs from ``own``
 ``stars``                 40 stars, 80 hot pixels
 ``cropped``               Moon: centre beyond a frame edge by up to half a radius
 ``combined``              Hapke/clouds + maria + any PSF + glow (Earth) + JPEG half the time
+``spots``                 albedo varying everywhere: ~80 overlapping Gaussian spots 9-26 deg FWHM, 15-35 %
+                          deep, times a +-4 % gradient (:class:`SpotsMap`); Earth: on Lambert
 ========================  ===========================================================
 
 Ablations (:func:`earth_case`'s ``ablate``): the same scene with one component of the draw replaced, every random
@@ -55,17 +57,19 @@ from typing import Any
 
 import numpy as np
 
+from ...geometry.camera import Camera
 from .geometry import Body, LimbTruth, Pinhole, limb_truth
 from .optics import Glow, Psf, PsfKind
 from .raster import Surface, render_radiance
 from .sensor import SensorSpec, digitise
-from .surface import EarthMap, MariaMap, Photometry, Reflectance
+from .surface import EarthMap, MariaMap, Photometry, Reflectance, SpotsMap
 
 MOON_RADIUS_KM = 1737.4
 WGS84_KM = (6378.137, 6378.137, 6356.752)
 MOON_FAMILIES = ("own", "hapke", "minnaert", "ls_surge", "maria", "glow", "airy", "defocus", "motion", "jpeg",
-                 "stars", "cropped", "combined")
-EARTH_FAMILIES = ("own", "lambert", "clouds", "glow", "hapke", "airy", "defocus", "motion", "jpeg", "combined")
+                 "stars", "cropped", "combined", "spots")
+EARTH_FAMILIES = ("own", "lambert", "clouds", "glow", "hapke", "airy", "defocus", "motion", "jpeg", "combined",
+                  "spots")
 ABLATIONS = ("psf_core", "psf_round", "no_glow", "no_jpeg", "reseed_clouds", "no_clouds")
 _READ_E = 157.0  # read noise (e-): 2 DN at 8 bits
 
@@ -114,7 +118,6 @@ def earth_attitude(u: np.ndarray, north: np.ndarray, lat_deg: float, lon_deg: fl
 
 
 def _camera(focal_mm: float):
-    from ...geometry.camera import Camera
 
     return Camera(focal_length_mm=focal_mm, pixel_pitch_mm=0.0022, rows=1944, cols=2592)
 
@@ -142,6 +145,8 @@ def _psf(rng: np.random.Generator, family: str) -> Psf:
 def _photometry(rng: np.random.Generator, family: str, body: str) -> Photometry:
     law = {"hapke": Reflectance.HAPKE, "minnaert": Reflectance.MINNAERT, "ls_surge": Reflectance.LOMMEL_SEELIGER_SURGE,
            "lambert": Reflectance.LAMBERT, "clouds": Reflectance.LAMBERT}.get(family, Reflectance.LUNAR_LAMBERT)
+    if family == "spots" and body == "earth":
+        law = Reflectance.LAMBERT
     if family == "combined":
         law = Reflectance.HAPKE if body == "moon" else Reflectance.LAMBERT
     return Photometry(law=law, minnaert_k=float(rng.uniform(0.55, 0.95)), w=float(rng.uniform(0.15, 0.35)),
@@ -187,6 +192,7 @@ def moon_case(family: str, rng: np.random.Generator) -> Case:
     Rm = random_rotation(rng)
     body = Body((MOON_RADIUS_KM,) * 3, rng_km * u, Rm, s)
     albedo = _maria(rng, pin, u, Rm, sun_angle, rng_km) if family in ("maria", "combined") else None
+    albedo = SpotsMap.draw(rng) if family == "spots" else albedo
     glow = Glow(float(rng.uniform(2.0, 15.0)), float(rng.uniform(0.03, 0.4))) if family == "glow" else None
     surf = Surface(_photometry(rng, family, "moon"), albedo if albedo is not None else Surface().albedo, glow)
     psf = _psf(rng, family)
@@ -248,7 +254,6 @@ def earth_full_disc_case(family: str, rng: np.random.Generator) -> Case:
     darkens to zero at its limb and the strongest edges are the clouds' (``benchmarks/earth_full_disc.py``)."""
     if family not in EARTH_FULL_DISC_FAMILIES:
         raise ValueError(f"unknown full-disc Earth family {family!r}; one of {EARTH_FULL_DISC_FAMILIES}")
-    from ...geometry.camera import Camera
 
     rng_km = 1.5e6 * float(rng.uniform(0.97, 1.03))
     R_px = float(rng.uniform(380.0, 450.0))
@@ -287,6 +292,7 @@ def _earth_frame(family: str, rng: np.random.Generator, cam, pin, pose, geometry
     if albedo is not None and "reseed_clouds" in ablate:
         albedo = EarthMap(seed=(albedo.seed + 1) % 2**31)
     albedo = None if "no_clouds" in ablate else albedo
+    albedo = SpotsMap.draw(rng) if family == "spots" else albedo
     glow = (Glow(float(rng.uniform(6.0, 25.0)), float(rng.uniform(0.03, 0.4)))
             if family in ("glow", "combined") else None)
     glow = None if "no_glow" in ablate else glow
@@ -309,3 +315,47 @@ def _finish(body, surf, pin, psf, spec, rng, cam, hints, meta) -> Case:
     window = (int(nz[0][0]), int(nz[0][-1]), int(nz[1][0]), int(nz[1][-1])) if nz[0].size else (0, 0, 0, 0)
     img = digitise(rad, spec, rng, window)
     return Case(img, limb_truth(body, pin), cam, hints, meta)
+
+
+#: Albedo maps of :func:`albedo_case`: none (uniform), ``spots`` (:class:`SpotsMap`), ``maria`` (flat caps,
+#: :class:`MariaMap` drawn as the ``maria`` family draws them), ``earthmap`` (:class:`EarthMap`, no cloud heights).
+ALBEDO_KINDS = ("uniform", "spots", "maria", "earthmap")
+
+
+def albedo_case(body: str, range_km: float, phase_deg: float, albedo: str, albedo_seed: int, noise_seed: int,
+                geometry_seed: int = 0) -> Case:
+    """One scene with the albedo map swapped and everything else held: the same geometry (``geometry_seed``: the
+    body's position in the frame, its rotation, the Sun's image direction), PSF (Gaussian 0.9 px), sensor (12 bits)
+    and noise draw (``noise_seed``) for every ``albedo`` of :data:`ALBEDO_KINDS` and ``albedo_seed`` (the map's
+    draw).  Moon: lunar-Lambert; Earth: Lambert with its WGS-84 limb, attitude in the hints.  What an
+    albedo-invariance benchmark needs (``benchmarks/albedo_invariance.py``)."""
+    if albedo not in ALBEDO_KINDS:
+        raise ValueError(f"unknown albedo {albedo!r}; one of {ALBEDO_KINDS}")
+    g = np.random.default_rng([geometry_seed, 7])
+    radii = (MOON_RADIUS_KM,) * 3 if body == "moon" else WGS84_KM
+    cam = _camera(16.0 if body == "moon" else (8.0 if range_km < 100000.0 else 16.0))
+    pin = Pinhole.from_camera(cam)
+    R_px = pin.focal_px * math.tan(math.asin(radii[0] / range_km))
+    rc = _center(g, pin, R_px, False)
+    u = pin.los(rc)
+    sun_angle = float(g.uniform(0, 360))
+    s = sun_for_phase(u, image_direction(pin, u, sun_angle), phase_deg)
+    if body == "moon":
+        R = random_rotation(g)
+    else:
+        R = earth_attitude(u, image_direction(pin, u, float(g.uniform(0, 360))), float(g.uniform(-60, 60)),
+                           float(g.uniform(-180, 180)))
+    a = np.random.default_rng([albedo_seed, 11])
+    amap = {"uniform": lambda: None, "spots": lambda: SpotsMap.draw(a),
+            "maria": lambda: _maria(a, pin, u, R, sun_angle, range_km),
+            "earthmap": lambda: EarthMap(seed=int(a.integers(2**31)))}[albedo]()
+    law = Reflectance.LUNAR_LAMBERT if body == "moon" else Reflectance.LAMBERT
+    surf = Surface(Photometry(law=law), amap if amap is not None else Surface().albedo, None)
+    spec = SensorSpec(bits=12, read_noise_dn=_READ_E / (20000.0 / 4095), background_dn=40.0 / (20000.0 / 4095))
+    hints: dict = {"body": body, "sun_dir_camera": [float(v) for v in s], "range_prior_km": range_km * 1.03}
+    if body == "earth":
+        hints.update({"R_body_to_camera": R.tolist(), "atmosphere_km": 0.0})
+    meta = {"family": f"albedo-{albedo}", "body": body, "range_km": range_km, "phase_deg": phase_deg,
+            "albedo_seed": albedo_seed, "noise_seed": noise_seed, "geometry_seed": geometry_seed}
+    return _finish(Body(radii, range_km * u, R, s), surf, pin, Psf(kind=PsfKind.GAUSSIAN, sigma=0.9), spec,
+                   np.random.default_rng([noise_seed, 13]), cam, hints, meta)

@@ -1,7 +1,7 @@
 r"""Pinhole rays, ray--ellipsoid intersection and the exact truth of the independent renderer.
 
 Written without :mod:`jaxlimb.geometry` or :mod:`jaxlimb.render` so that a shared mistake
-cannot hide in both the estimator and its validation.  Conventions (DESIGN.md): pixel
+cannot hide in both the estimator and its validation.  Conventions (docs/design.md): pixel
 ``(row, col)``, ``(0, 0)`` the centre of the top-left pixel; camera frame ``+z`` boresight,
 ``+x`` toward ``+col``, ``+y`` toward ``+row``; ``R_body_to_camera`` maps body-fixed vectors
 to the camera frame; the Sun direction points from the body toward the Sun.

@@ -17,10 +17,10 @@ the model the registration fits (:mod:`jaxlimb.irregular.model_render`).  Here:
 * **albedo**: variegated, ``1 + depth * noise(u)`` with :class:`~.surface.ValueNoise` on the
   body-fixed direction of the hit point;
 * **optics and sensor**: the independent PSFs (Gaussian, Airy, defocus, motion) integrated over
-  each pixel (:func:`~.raster._pixel_kernel`), then :func:`~.sensor.digitise` (photon and read
+  each pixel (:func:`~.raster.pixel_kernel`), then :func:`~.sensor.digitise` (photon and read
   noise, 8 or 12 bits, stars, hot pixels, JPEG).
 
-Truth: the image of the mesh origin (the body centre, DESIGN.md) through the pinhole,
+Truth: the image of the mesh origin (the body centre, docs/design.md) through the pinhole,
 :meth:`~.geometry.Pinhole.project` of ``t``.  Pixel ``(0, 0)`` is the centre of the top-left pixel.
 
 :func:`cratered_body` makes shapes unlike :mod:`jaxlimb.irregular.shapes`' radius functions:
@@ -36,7 +36,7 @@ import numpy as np
 from scipy.signal import fftconvolve
 
 from .optics import Psf
-from .raster import _pixel_kernel
+from .raster import pixel_kernel
 from .sensor import SensorSpec, digitise
 from .surface import Photometry, ValueNoise
 
@@ -148,7 +148,7 @@ def render_radiance(scene: MeshScene, pin, supersample: int = 3, seed: int = 0) 
     pix = vals.reshape(r1 - r0, c1 - c0, supersample * supersample).mean(axis=2)
     img = np.zeros((pin.rows, pin.cols))
     big = np.pad(pix, E)
-    blurred = fftconvolve(big, _pixel_kernel(scene.psf), mode="same")
+    blurred = fftconvolve(big, pixel_kernel(scene.psf), mode="same")
     R0, C0 = r0 - E, c0 - E
     rs, cs = max(R0, 0), max(C0, 0)
     re, ce = min(R0 + big.shape[0], pin.rows), min(C0 + big.shape[1], pin.cols)

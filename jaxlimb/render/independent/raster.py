@@ -127,7 +127,7 @@ def render_radiance(body: Body, surf: Surface, pin: Pinhole, psf: Psf, band_px: 
     img = np.zeros((pin.rows, pin.cols))
     R, C = _sample_grid(r0, r1, c0, c1, 2)
     coarse = _bin(radiance(body, surf, R, C), 2)
-    kpix = _pixel_kernel(psf)
+    kpix = pixel_kernel(psf)
     img[r0:r1, c0:c1] = fftconvolve(np.pad(coarse, E), kpix, mode="same")[E:-E, E:-E]
     band = band_px if band_px is not None else 6.0 + E + min(glow_px, 60.0)
     Kf = psf.kernel(_FINE)
@@ -147,7 +147,7 @@ def render_radiance(body: Body, surf: Surface, pin: Pinhole, psf: Psf, band_px: 
     return img
 
 
-def _pixel_kernel(psf: Psf) -> np.ndarray:
+def pixel_kernel(psf: Psf) -> np.ndarray:
     """The PSF convolved with the pixel box, sampled at whole-pixel offsets (for pass 1):
     the PSF averaged over 8x8 points of each pixel."""
     E = psf.extent_px()

@@ -16,8 +16,10 @@ cosines, :math:`g` the phase angle at the surface point; 0 where :math:`\mu_0 \l
   :math:`P(g) = (1-b^2)/(1 - 2b\cos g + b^2)^{3/2}` (back-scattering for ``b > 0``).
 
 Albedo maps are functions of the body-fixed unit direction: ``MariaMap`` (smooth dark caps,
-the lunar maria: depth 15-35 % below the highlands, 9-26 deg across), ``EarthMap`` (oceans,
-continents and clouds from 3-D value noise: bright, textured, with features crossing the limb).
+the lunar maria: depth 15-35 % below the highlands, 9-26 deg across), ``SpotsMap`` (overlapping
+Gaussian spots over the whole body and a large-scale gradient: the albedo varies everywhere, across
+the limb as well as along it), ``EarthMap`` (oceans, continents and clouds from 3-D value noise:
+bright, textured, with features crossing the limb).
 """
 
 from __future__ import annotations
@@ -108,6 +110,42 @@ class MariaMap:
         taper = 0.5 * (1.0 + np.cos(np.pi * x))
         dark = np.clip(taper * np.asarray(self.depths, float), 0.0, None)
         return 1.0 - np.max(dark, axis=-1)
+
+
+@dataclass(frozen=True, eq=False)
+class SpotsMap:
+    """Overlapping smooth spots with Gaussian profiles over the whole body, times a linear gradient.
+
+    ``albedo(u) = (1 + gradient . u) * prod_k (1 - depth_k exp(-angle_k^2 / (2 s_k^2)))`` with
+    ``angle_k`` the angle from spot ``k``'s centre and ``s_k = fwhm_k / 2.3548``: no flat plateau anywhere,
+    so the albedo changes across a limb window as well as along the limb."""
+
+    centers: np.ndarray
+    fwhm_deg: np.ndarray
+    depths: np.ndarray
+    gradient: np.ndarray
+
+    @classmethod
+    def draw(cls, rng: np.random.Generator, n: int = 80, fwhm_deg: tuple[float, float] = (9.0, 26.0),
+             depth: tuple[float, float] = (0.15, 0.35), gradient: float = 0.04) -> "SpotsMap":
+        """``n`` spots with uniform centres on the sphere, FWHM and depth uniform in the given ranges, and a
+        gradient of amplitude ``gradient`` along a uniform direction."""
+        c = rng.normal(size=(n, 3))
+        g = rng.normal(size=3)
+        return cls(c / np.linalg.norm(c, axis=1, keepdims=True), rng.uniform(*fwhm_deg, n), rng.uniform(*depth, n),
+                   gradient * g / np.linalg.norm(g))
+
+    def __call__(self, u: np.ndarray) -> np.ndarray:
+        un = u / np.linalg.norm(u, axis=-1, keepdims=True)
+        flat = un.reshape(-1, 3)
+        s = np.radians(np.asarray(self.fwhm_deg, float)) / 2.3548
+        cosang = flat @ np.asarray(self.centers, float).T  # (m, n)
+        spots = np.ones(flat.shape[0])
+        for k in range(cosang.shape[1]):  # only where a spot reaches (beyond 6 s its dip is below 2e-8)
+            near = np.nonzero(cosang[:, k] > math.cos(min(6.0 * s[k], math.pi)))[0]
+            ang = np.arccos(np.clip(cosang[near, k], -1.0, 1.0))
+            spots[near] *= 1.0 - self.depths[k] * np.exp(-0.5 * (ang / s[k]) ** 2)
+        return ((1.0 + flat @ np.asarray(self.gradient, float)) * spots).reshape(un.shape[:-1])
 
 
 @dataclass(frozen=True, eq=False)

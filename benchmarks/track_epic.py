@@ -1,0 +1,85 @@
+"""DSCOVR's position from each real EPIC frame against the position in its metadata.
+
+Per frame (``../shared/data/epic/``): ``locate`` with the frame's camera and hints gives the Earth's range ``D``
+and its centre; the metadata's attitude quaternion (``q0..q3``, scalar last: it maps the J2000 direction from
+DSCOVR to the Earth onto the instrument's ``+x`` axis) gives the boresight in J2000, ``b = A(q)^T e_x``; the L1B
+product centres the Earth on the boresight (to about 2 px, ``product_center_quality_px``), so the position is
+``r = -D b`` with the measured centre's offset from the principal point (``|d|/f`` rad, direction unknown: the
+L1B image's roll is not in the metadata) counted as a lateral error.  Sigma: the range's from ``locate``, the
+lateral one ``D sqrt(sigma_att^2 + (|d| / f)^2 + (quality / f)^2)``, ``sigma_att`` = ``--attitude-sigma-rad``
+(default 2e-5 rad: the published quaternion's 5 decimals).  A frame ``locate`` refuses is reported with its
+check.
+
+``python benchmarks/track_epic.py`` -> ``benchmarks/results/track_epic.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import environment, save  # noqa: E402
+
+DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "epic"
+
+
+def one_frame(stem: Path, att_sigma: float) -> dict:
+    from jaxlimb.errors import JaxlimbError
+    from jaxlimb.geometry.attitude import quat_to_dcm
+    from jaxlimb.geometry.camera import Camera
+    from jaxlimb.imaging import Hints, load_image
+    from jaxlimb.pipeline import locate
+
+    meta = json.loads(Path(f"{stem}.metadata.json").read_text())
+    em = meta["epic_metadata"]
+    p = em["dscovr_j2000_position"]
+    r_meta = np.array([p["x"], p["y"], p["z"]])
+    q = em["attitude_quaternions"]
+    qv = np.array([q["q0"], q["q1"], q["q2"], q["q3"]])
+    b = quat_to_dcm(qv / np.linalg.norm(qv), order="xyzw").T @ np.array([1.0, 0.0, 0.0])
+    out = {"frame": stem.name, "date": em["date"], "metadata_position_km": r_meta.tolist(),
+           "boresight_vs_metadata_rad": float(np.arccos(np.clip(-b @ r_meta / np.linalg.norm(r_meta), -1, 1)))}
+    cam = Camera.from_json(f"{stem}.camera.json")
+    try:
+        m = locate(load_image(f"{stem}.png")[0], cam, Hints.from_json(f"{stem}.hints.json"))
+    except JaxlimbError as e:
+        return {**out, "status": "error", "check": e.check, "message": " ".join(str(e).split())}
+    D = float(m.range_km)
+    off = float(np.hypot(*(np.asarray(m.center_rc) - np.asarray(cam.principal_point_rc)))) / cam.focal_px
+    qual = float(meta.get("product_center_quality_px", 2.0)) / cam.focal_px
+    s_lat = D * float(np.sqrt(att_sigma**2 + off**2 + qual**2))
+    s_rng = float(np.sqrt(m.covariance["range_km"]["range_km"]))
+    r = -D * b
+    e = r - r_meta
+    e_rng = float(e @ b * -1)
+    e_lat = float(np.linalg.norm(e + e_rng * b))
+    return {**out, "status": "ok", "position_km": r.tolist(), "range_km": D, "sigma_range_km": s_rng,
+            "sigma_lateral_km": s_lat, "error_range_km": e_rng, "error_lateral_km": e_lat,
+            "within_3_sigma": bool(abs(e_rng) <= 3 * s_rng and e_lat <= 3 * s_lat * np.sqrt(2))}
+
+
+def main(argv: list[str] | None = None) -> int:
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--attitude-sigma-rad", type=float, default=2e-5)
+    a = ap.parse_args(argv)
+    frames = [one_frame(p.with_suffix("").with_suffix(""), a.attitude_sigma_rad)
+              for p in sorted(DATA.resolve().glob("*.metadata.json"))]
+    ok = [f for f in frames if f["status"] == "ok"]
+    out = {"environment": environment(), "attitude_sigma_rad": a.attitude_sigma_rad, "frames": frames,
+           "measured": len(ok), "within_3_sigma": sum(f["within_3_sigma"] for f in ok)}
+    for f in frames:
+        print(f["frame"], f["status"], f.get("check", ""), f.get("error_range_km", ""), f.get("sigma_range_km", ""))
+    print(save("track_epic", out))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

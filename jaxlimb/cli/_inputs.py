@@ -1,0 +1,73 @@
+"""The inputs of ``jaxlimb locate`` and ``jaxlimb navigate``: the hints with ``--body``, a frame read from its file,
+the SPICE prediction of a labelled frame (``--kernels``) and its report beside the measurement.
+
+The image readers and SPICE are imported when a command runs (``jaxlimb --help`` imports neither)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from ..errors import ConfigError
+from ..geometry.bodies import body_from_table
+from ..geometry.hints import Hints
+
+
+def read_hints(path: str | None, body: str | None, base: Hints | None = None) -> Hints:
+    """Hints from ``path`` (its keys over ``base``'s, e.g. SPICE's), with ``--body`` (default the Moon); a body
+    without radii (hints, the IAU table) is unusable input (exit 2)."""
+    hints = Hints.from_json(path) if path is not None else None
+    if base is not None:
+        given = {} if hints is None else {k: v for k, v in vars(hints).items() if v is not None}
+        hints = replace(base, **given)
+    if body is not None:
+        if hints is None:
+            hints = Hints(body=body)
+        elif hints.body is None:
+            hints = replace(hints, body=body)
+        elif hints.body != body:
+            raise ConfigError(f"--body {body} contradicts the hints' body {hints.body!r}")
+    elif hints is None:
+        hints = Hints(body="moon")
+    elif hints.body is None:
+        hints = replace(hints, body="moon")
+    if hints.body_radii_km is None:
+        body_from_table(hints.body)
+    return hints
+
+
+def read_frame_file(path: str):  # noqa: ANN201
+    """The :class:`~jaxlimb.imaging.formats.Frame` of ``path`` (a colour image's warning on stderr)."""
+    from ..imaging import ColourImageWarning
+    from ..imaging.formats import read_frame
+    from . import warnings_to_stderr
+
+    with warnings_to_stderr(ColourImageWarning):
+        return read_frame(path)
+
+
+def spice_prediction(args, meta):  # noqa: ANN001, ANN201
+    """The SPICE prediction for the frame (``None`` without ``--kernels``)."""
+    if not args.kernels:
+        return None
+    from ..geometry.spice import spice_geometry
+
+    return spice_geometry(args.kernels, meta.image_time, args.instrument or meta.instrument_id,
+                          args.body or meta.target_name)
+
+
+def spice_report(geom, meas) -> dict:  # noqa: ANN001
+    """Prediction, measured - predicted and the observer position from the measurement."""
+    from ..geometry.spice import observer_from_measurement, pointing_residual
+
+    cov = meas.covariance
+    cov_rc = None
+    if "center_r" in cov and "center_c" in cov:
+        cov_rc = [[cov["center_r"]["center_r"], cov["center_r"]["center_c"]],
+                  [cov["center_c"]["center_r"], cov["center_c"]["center_c"]]]
+    out = {"predicted": geom.to_json(), "measured_minus_predicted": pointing_residual(geom, meas.center_rc, cov_rc)}
+    if meas.los_camera is not None and meas.range_km is not None:
+        out["observer_from_measurement"] = observer_from_measurement(geom, meas.los_camera, meas.range_km)
+    return out
+
+
+__all__ = ["read_frame_file", "read_hints", "spice_prediction", "spice_report"]

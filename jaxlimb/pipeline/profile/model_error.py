@@ -1,0 +1,175 @@
+"""The physical profile's weighted system (Jacobian and residuals at an estimate, one compiled program per model) and
+the model-error terms it widens a fit's covariance with (:mod:`jaxlimb.model_error`): the cluster-robust
+sandwich over sectors of the limb and the split witness (Hausman 1978); the one-step score estimates of the
+widening gates."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import jax
+import numpy as np
+
+from ...fitting import bucket_size
+from ...model_error import cluster_robust_covariance, hausman_term, sector_groups, with_model_error as widen
+from ...geometry.conic import ellipse_signed_distance
+from ...models import CircleParams, EllipseRampParams, LimbModel, LimbProfileParams
+from ...models.lunar_lambert import limb_geometry, profile_model
+from ..sigmoid import LOGISTIC_TO_GAUSS
+from ..stages import RefineResult
+
+
+MODEL_ERROR_SECTORS = 24
+"""Angular sectors of the cluster-robust model-error term (:func:`with_model_error`)."""
+
+
+WITNESS_CUT: tuple[float, ...] = (1.0, 2.0)
+"""The splits of :func:`split_witness`: for each ``c``, the pixels outside ``-c`` effective PSF sigmas of the
+limb (the sky side and the edge) and those inside ``+c`` (the edge and the disc).  Measured on
+``benchmarks/families.py`` (Moon, 3 frames each; centre NEES with 2.0 alone / 1.0 and 2.0): Minnaert 2.3 /
+1.1, glow 33 / 20, own 1.9 / 1.3."""
+
+
+_GEOMETRIC = ("r0", "c0", "a", "theta", "rho")
+
+
+_COLUMNS: dict[str, Any] = {}
+
+
+def columns(model: LimbModel):
+    """``model``'s jitted ``(intensity, columns)`` (one compiled program per model)."""
+    if model.name not in _COLUMNS:
+        _COLUMNS[model.name] = jax.jit(model.intensity_and_jacobian_columns)
+    return _COLUMNS[model.name]
+
+
+@jax.jit
+def _signed_profile(p, rc):
+    g = limb_geometry(p, rc)
+    return g[4] - g[6]
+
+
+def signed_distance(params: Any, coords: np.ndarray, padded: np.ndarray) -> np.ndarray:
+    """Signed distance (px, positive outside) of the pixels to the fitted limb: the profile's own radius in
+    each pixel's direction; the ellipse (first order) of an elliptical sigmoid/ramp; the circle's radius."""
+    if isinstance(params, LimbProfileParams):
+        return np.asarray(_signed_profile(params, padded))[: coords.shape[0]]
+    c = np.asarray(coords, float)
+    if not isinstance(params, CircleParams):  # an elliptical sigmoid or ramp
+        a = float(params.a)
+        ell = ((float(params.r0), float(params.c0)), (a, a * float(params.rho)), float(params.theta))
+        return ellipse_signed_distance(c, ell)
+    return np.hypot(c[:, 0] - float(params.r0), c[:, 1] - float(params.c0)) - float(params.radius)
+
+
+def edge_sigma(params: Any) -> float:
+    """The effective (pixel box included) Gaussian sigma of the fitted edge: ``sqrt(sigma^2 + 1/12)`` for the
+    profile, ``1/k`` for the ramp's kernel, ``LOGISTIC_TO_GAUSS / k`` for a logistic."""
+    if isinstance(params, LimbProfileParams):
+        return math.sqrt(float(params.sigma) ** 2 + 1.0 / 12.0)
+    k = abs(float(params.k))
+    return (1.0 if isinstance(params, EllipseRampParams) else LOGISTIC_TO_GAUSS) / max(k, 1e-6)
+
+
+def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS, model: LimbModel | None = None,
+                     system=None) -> RefineResult:
+    """``rr`` (a fit of ``model``, default the profile) with its covariance widened by the model-error terms
+    of :mod:`jaxlimb.model_error`: the cluster-robust term over ``n_sectors`` sectors of the limb
+    about the fitted centre, plus the split witness (:func:`split_witness`) on the limb's geometry.  The
+    noise-only covariance is kept as ``noise_covariance`` (the Cramér--Rao bound's).  Level-normalised data
+    (weights): the weighted residuals and Jacobian, as the fit minimises them.
+
+    Why: an albedo that varies along and across the limb (maria, clouds), another reflectance
+    law, a glow or a PSF of another shape bias the centre by more than the noise-only sigma
+    (maria Moons: up to 0.1 px for a reported 0.005-0.01 px; ``benchmarks/families.py``: centre
+    NEES 129 -> ~4 with the sector term).  A misfit the same all along the limb (Minnaert's limb
+    brightening: 0.3-0.4 px for a reported 0.02 px) leaves no sector structure; the split witness sees
+    it (the sky-side fit moves 0.2-0.25 px of the 0.3-0.4 px).  ``system``: ``rr``'s :func:`weighted_system` under
+    ``model``, if already formed."""
+
+    model = profile_model(rr.fit.params) if model is None else model
+    fit = rr.fit
+    coords = np.asarray(rr.data.coords, float)
+    J, r, padded, _ = weighted_system(rr, model) if system is None else system
+    groups = sector_groups(coords, (float(fit.params.r0), float(fit.params.c0)), n_sectors)
+    C0 = np.asarray(fit.covariance)
+    C = widen(C0, cluster_robust_covariance(J, r, groups))
+    idx, W = split_witness(rr, J, r, signed_distance(fit.params, coords, padded))
+    C[np.ix_(idx, idx)] += W
+    return rr.with_covariance(C, noise_covariance=C0)
+
+
+def weighted_system(rr: RefineResult, model: LimbModel):
+    """The weighted Jacobian (free parameters of ``rr.fit``) and residuals of ``rr`` under ``model``, the padded
+    device coordinates (one program per bucket) and the pixel weights."""
+
+    fit = rr.fit
+    coords = np.asarray(rr.data.coords, float)
+    n = coords.shape[0]
+    padded = np.concatenate([coords, np.repeat(coords[:1], bucket_size(n) - n, axis=0)])  # no recompiles
+    padded = jax.device_put(padded)  # host data: no identity program per shape
+    f, cols = columns(model)(fit.params, padded)
+    names = model.param_names
+    w = np.ones(n) if rr.data.weights is None else np.asarray(rr.data.weights, float)
+    J = np.stack([np.asarray(cols[names.index(k)])[:n] for k in fit.free], axis=1) * w[:, None]
+    r = (np.asarray(rr.data.z, float) - np.asarray(f)[:n]) * w
+    return J, r, padded, w
+
+
+def split_witness(rr: RefineResult, J: np.ndarray, r: np.ndarray, s: np.ndarray) -> tuple[list[int], np.ndarray]:
+    """The specification-test term of :mod:`jaxlimb.model_error` (Hausman 1978) on the limb's
+    geometry (the free ones of ``r0, c0, a, theta, rho``): the profile refitted on the sky side and the edge
+    (signed distance ``s`` to the limb above ``-c`` effective PSF sigmas) and on the edge and the disc (below
+    ``+c``), ``c`` in :data:`WITNESS_CUT`; the sum of ``[d d^T - (C_sub - C)]_+`` over the subsets.  Each
+    refit is one Gauss--Newton step from the full fit's answer with its Jacobian ``J`` and residuals ``r`` (no
+    new model evaluation; the step is the subset fit to first order).  Returns the indices of those parameters among
+    ``rr.fit.free`` and the term (no contribution from a subset of fewer than 50 pixels).
+
+    Measured (``benchmarks/families.py`` Minnaert frames, centre errors 0.03 / 0.41 / 0.34 px): the sky-side
+    fit moves by 0.028 / 0.32 / 0.26 px toward the truth; own-family frames move by 0.00-0.04 px."""
+
+    fit = rr.fit
+    free = list(fit.free)
+    idx = [free.index(nm) for nm in _GEOMETRIC if nm in free]
+    W = np.zeros((len(idx), len(idx)))
+    C = np.asarray(fit.covariance)[np.ix_(idx, idx)]
+    se = edge_sigma(fit.params)
+    q = J.shape[1]
+    for keep in [m for c in WITNESS_CUT for m in (s > -c * se, s < c * se)]:
+        nk = int(np.count_nonzero(keep))
+        if nk < max(50, 2 * q) or nk == s.size:
+            continue
+        Jk, rk = J[keep], r[keep]
+        A_inv = np.linalg.pinv(Jk.T @ Jk)
+        step = A_inv @ (Jk.T @ rk)
+        s2 = float(np.sum((rk - Jk @ step) ** 2)) / (nk - q)
+        W += hausman_term(step[idx], s2 * A_inv[np.ix_(idx, idx)], C)
+    return idx, W
+
+
+def last_step(X: np.ndarray, r: np.ndarray) -> tuple[float, float]:
+    """The last component of the least-squares step ``X^+ r`` and its z-score (0, 0 with too few rows)."""
+    if X.shape[0] < max(50, 2 * X.shape[1]):
+        return 0.0, 0.0
+    step, var = last_column_step(X, r)
+    return step, step / math.sqrt(max(var, 1e-300))
+
+
+def trailing_step(X: np.ndarray, r: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The last ``k`` components of the least-squares step ``X^+ r`` (the last ``k`` columns' coefficients with the
+    others fitted beside them) and their ``(k, k)`` covariance from the residual scatter (``s^2 [(X^T X)^-1]``'s
+    trailing block)."""
+    A_inv = np.linalg.pinv(X.T @ X)
+    step = A_inv @ (X.T @ r)
+    s2 = float(np.sum((r - X @ step) ** 2)) / max(X.shape[0] - X.shape[1], 1)
+    return step[-k:], s2 * A_inv[-k:, -k:]
+
+
+def last_column_step(X: np.ndarray, r: np.ndarray) -> tuple[float, float]:
+    """:func:`trailing_step` of the last column alone: its coefficient and its variance."""
+    step, var = trailing_step(X, r, 1)
+    return float(step[0]), float(var[0, 0])
+
+
+__all__ = ["MODEL_ERROR_SECTORS", "WITNESS_CUT", "columns", "edge_sigma", "last_column_step", "last_step", "signed_distance", "split_witness", "trailing_step", "weighted_system", "with_model_error"]

@@ -1,0 +1,85 @@
+"""The physical limb profile's fit passes (the sphere's image shape iterated with a camera), its start's PSF from a
+sigmoid's steepness, a frame's clip level, and the accepted range of the fitted lunar-Lambert weight ``L``.  The
+model (:data:`~jaxlimb.models.LIMB_PROFILE`, its Jacobian) lives in :mod:`jaxlimb.models`."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...fitting import NormalLM
+from ...geometry.sphere_image import sphere_from_circle_fit, sphere_from_ellipse_center
+from ...models import LIMB_PROFILE, LimbModel, LimbProfileParams, PROFILE_FIXED
+from ...models.lunar_lambert import PHYSICAL_L
+from ..sigmoid import LOGISTIC_TO_GAUSS, run_fit
+from ..stages import FitData, Frame
+
+
+#: The profile's parameters held in its fit: the Sun's image direction, the phase and ``1/f`` (from the hints and the
+#: camera); the lunar-Lambert weight ``L`` is estimated, from McEwen's ``L(phase)``: it adapts the profile to Lambert
+#: (0) ... Lommel-Seeliger (1) limbs.
+PROFILE_HELD = tuple(n for n in PROFILE_FIXED if n != "L")
+
+
+def l_band(fit) -> tuple[float, float]:
+    """The accepted range of ``L`` for ``fit`` (a :class:`~jaxlimb.fitting.LimbFit` of :data:`LIMB_PROFILE`):
+    :data:`PHYSICAL_L` widened by 3 sigma of ``L`` when ``L`` was estimated."""
+    if "L" not in fit.free:
+        return (-math.inf, math.inf)
+    i = list(fit.free).index("L")
+    s = float(np.sqrt(max(float(np.asarray(fit.covariance)[i, i]), 0.0)))
+    return (PHYSICAL_L[0] - 3.0 * s, PHYSICAL_L[1] + 3.0 * s)
+
+
+__all__ = ["l_band"]
+
+
+def saturation_level(img: np.ndarray) -> float | None:
+    """The clip level of ``img`` if it has one: its maximum when >= 20 pixels sit exactly on it
+    (noise never makes a plateau; clipping, including 12-bit data in 16-bit words, does)."""
+    m = float(np.max(img))
+    return m if np.count_nonzero(img == m) >= 20 else None
+
+
+def gaussian_sigma_of_k(k: float) -> float:
+    """The PSF sigma (px, pixel box removed) of a blurred edge whose logistic steepness is ``k``:
+    ``sqrt((LOGISTIC_TO_GAUSS / k)^2 - 1/12)``, at least 0.3 px."""
+    s_e = LOGISTIC_TO_GAUSS / max(float(k), 1e-6)
+    return math.sqrt(max(s_e * s_e - 1.0 / 12.0, 0.09))
+
+
+def profile_passes(frame: Frame, data: FitData, start: LimbProfileParams, center, radius, fixed, solver,
+                    model: LimbModel = LIMB_PROFILE):
+    """The profile fit (``center``/``radius``: the circle to start the sphere's shape from; ``None``:
+    from ``start``).  With a camera, the sphere's ellipse shape is held fixed and iterated.  The shape
+    (``a - b`` ~ 5 px at the corner of the default imager for a 210 px Moon) changes by ~0.006 px per px
+    of centre shift, so a second pass is run only when the shape at the fitted centre differs from the
+    one fitted by more than 1e-3 px anywhere on the limb; it starts at the answer, without coarse phase."""
+    opt = frame.opt
+    if not frame.use_camera:
+        return run_fit(model, data, start, opt, fixed, solver), None
+    f, pp = frame.cam.focal_px, frame.cam.principal_point_rc
+    q = start
+    if center is not None:
+        sph = sphere_from_circle_fit(f, pp, center, radius)
+        q = start.replace(a=sph.a, theta=sph.angle_rad, rho=sph.rho)
+    res = sph = None
+    for i in range(2):
+        s_i = solver if (i == 0 or solver is None) else NormalLM(rtol=0.0, atol=1e-5, coarse_stride=1)
+        res = run_fit(model, data, q, opt, fixed, s_i)
+        q = res.params
+        sph = sphere_from_ellipse_center(f, pp, (float(q.r0), float(q.c0)), float(q.a))
+        if shape_change_px(q, sph) < 1e-3:
+            break
+        q = q.replace(theta=float(sph.angle_rad), rho=float(sph.rho))
+    return res, sph
+
+
+def shape_change_px(q: LimbProfileParams, sph) -> float:
+    """Largest radial change (px) of the limb ellipse of ``q`` if its axis ratio and orientation
+    were those of ``sph`` (same ``a``): ``|d(a - b)| + (a - b) |d theta|``."""
+    a = float(q.a)
+    dab = abs(a * (1.0 - float(q.rho)) - a * (1.0 - float(sph.rho)))
+    dth = abs(math.remainder(float(q.theta) - float(sph.angle_rad), math.pi))
+    return dab + a * abs(1.0 - float(sph.rho)) * dth

@@ -1,0 +1,159 @@
+r"""The profile-refit and body-centre stages of the two round bodies of :func:`jaxlimb.pipeline.locate`.
+
+* **Sphere** (the Moon, Europa, any body with equal radii): after the circular sigmoid, the physical
+  limb profile of a sunlit lunar-Lambert sphere (:data:`jaxlimb.models.LIMB_PROFILE`, when the Sun
+  direction is known) or, with a camera, the elliptical sigmoid with the axis ratio and orientation of
+  the image of a sphere at the estimated place (:func:`~jaxlimb.pipeline.sphere.fits.fit_sphere_annulus`);
+  ``model="ellipse"``: the free elliptical sigmoid.  Then the exact sphere map of
+  :mod:`jaxlimb.pipeline.sphere.center`.
+* **Disc** (the Sun): the blurred limb-darkened disc (:data:`jaxlimb.models.LIMB_DARKENED`) on a full
+  annulus; the disc's centre is the body's (orthographic: ``(R/f)^2 ~ 1e-5``).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from typing import Any
+
+import numpy as np
+
+from ...errors import ConvergenceError, SaturationWarning
+from ...fitting import solver_from_name
+from ...models import CircleParams, EllipseParams, LimbDarkenedParams, LimbProfileParams
+from ..checks import MIN_LIT_ARC_DEG, check_lit_arc
+from ..frame import arc_angles, frame_mask
+from ..profile.fit import fit_lunar_profile
+from ..profile.passes import l_band, saturation_level
+from ..stages import BodyCenter, EdgeFit, FitData, Frame, RefineResult
+from .center import circle_center, free_ellipse_center, sphere_center
+from .fits import fit_ellipse_annulus, fit_sphere_annulus
+from .sun import fit_limb_darkened, select_sun_annulus
+
+
+def _saturation(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> float | None:
+    """The image's clip level; warn when >= 20 pixels of the limb annulus sit on it."""
+    img, circ = frame.img, edge.circ
+    sat = saturation_level(img)
+    z_ann = circ.data.z if circ.data.weights is None else img[circ.coords[:, 0].astype(np.int64),
+                                                                circ.coords[:, 1].astype(np.int64)]
+    n_sat = int(np.count_nonzero(np.asarray(z_ann) >= sat)) if sat is not None else 0
+    if n_sat >= 20:
+        extras["saturation"] = {"level": sat, "n_clipped_in_annulus": n_sat, "n_annulus": int(len(z_ann))}
+        warnings.warn(SaturationWarning(
+            f"{n_sat} of the {len(z_ann)} pixels of the limb annulus are clipped at {sat:g}: the radius (range) may be "
+            "biased outward by up to ~1 px; expose shorter"), stacklevel=4)
+    return sat
+
+
+def lunar_profile_refit(frame: Frame, edge: EdgeFit, sat: float | None, extras: dict[str, Any]) -> RefineResult | None:
+    """The physical profile on the edge fit's pixels, or ``None`` (``profile="auto"``: it failed or its
+    ``L`` is outside the band of lunar-Lambert-like limbs; ``extras["profile_rejected"]`` says why)."""
+    opt = frame.opt
+    try:
+        res, n_clipped = fit_lunar_profile(frame, edge.circ.fit.params, edge.circ.data, sat)
+    except ConvergenceError as e:
+        if opt.profile != "auto":
+            raise
+        extras["profile_rejected"] = {"model": "lunar-lambert", "reason": str(e)}
+        return None
+    if n_clipped and "saturation" in extras:
+        extras["saturation"]["n_left_out_of_profile_fit"] = n_clipped
+    band = l_band(res.fit)
+    L = float(res.fit.params.L)
+    if opt.profile == "auto" and not band[0] <= L <= band[1]:
+        # the limb is not lunar-Lambert-like (e.g. a flat disc): keep the sigmoid, say why
+        extras["profile_rejected"] = {"model": "lunar-lambert", "L": L, "allowed_L": list(band)}
+        return None
+    return res
+
+
+def sphere_refit(frame: Frame, cand: Any, edge: EdgeFit, physical: bool, extras: dict[str, Any]) -> RefineResult:
+    """Stage "profile refit" of a sphere (module docstring)."""
+    opt, circ = frame.opt, edge.circ
+    sat = _saturation(frame, edge, extras)
+    final = lunar_profile_refit(frame, edge, sat, extras) if physical else None
+    if physical and final is None and opt.min_lit_arc_deg is None:
+        # back on the sigmoid: its own (longer) shortest arc applies
+        check_lit_arc(arc_angles(circ.coords, edge.center_rc), MIN_LIT_ARC_DEG, edge.pixels.half)
+    if final is None and frame.use_camera:
+        cam = frame.cam
+        assert cam is not None
+        fitp = circ.fit.params
+        data = circ.data.with_coords(cam.undistort(circ.coords)) if cam.has_distortion else circ.data
+        c_id = frame.to_ideal(np.array([float(fitp.r0), float(fitp.c0)]))
+        final = fit_sphere_annulus(data, fitp.replace(r0=float(c_id[0]), c0=float(c_id[1])), cam.focal_px,
+                                   cam.principal_point_rc, opt)
+    final = final if final is not None else circ
+    if opt.model == "ellipse":
+        final = fit_ellipse_annulus(final.data, _ellipse_start(final, edge, cand), opt)
+    extras["n_outliers"] += int(final.n_outliers) if final is not circ else 0
+    return final
+
+
+def _ellipse_start(final: RefineResult, edge: EdgeFit, cand: Any) -> EllipseParams:
+    """Start of the free ESF: the sphere-constrained ESF's ellipse (camera), else the CSF circle with the
+    orientation of an algebraic ellipse fit of the front end's points."""
+    q = final.fit.params
+    if isinstance(q, EllipseParams):
+        return EllipseParams(r0=q.r0, c0=q.c0, a=q.a, theta=q.theta, rho=min(float(q.rho), 0.999), k=q.k,
+                             ymax=q.ymax, ymin=q.ymin)
+    p = edge.circ.fit.params
+    return EllipseParams(r0=p.r0, c0=p.c0, a=p.radius, theta=_orientation(cand.points_rc), rho=0.995, k=p.k, ymax=p.ymax,
+                         ymin=p.ymin)
+
+
+def _orientation(points_rc: Any) -> float:
+    """``theta`` from :func:`cv2.fitEllipse` of the front end's limb points when near-circular (ratio > 0.8),
+    else 0 (``rho`` starts at 0.995: at exactly 1 the orientation column of the Jacobian vanishes)."""
+    pts = np.asarray(points_rc, dtype=np.float32)
+    if pts.shape[0] < 5:
+        return 0.0
+    import cv2
+
+    try:
+        (_, _), (w, h), ang = cv2.fitEllipse(pts[:, ::-1].copy())
+    except cv2.error:  # pragma: no cover
+        return 0.0
+    if min(w, h) <= 0.8 * max(w, h):
+        return 0.0
+    # OpenCV: angle (deg) of the `w` axis from +x (col) toward +y (row); ours from +col toward -row
+    major_deg = ang if w >= h else ang + 90.0
+    return math.radians(-major_deg) % math.pi
+
+
+def sphere_center_of(frame: Frame, final: RefineResult) -> BodyCenter:
+    """Stage "body-centre mapping" of a sphere: by the kind of the final fit."""
+    fp = final.fit.params
+    free = tuple(final.fit.free)
+    if isinstance(fp, CircleParams):
+        return circle_center(frame, (fp.r0, fp.c0), float(fp.radius), ("r0", "c0", "radius"))
+    if frame.opt.model == "ellipse":
+        return free_ellipse_center(frame, fp, free)
+    x0 = np.array([float(fp.r0), float(fp.c0), float(fp.a)])
+    if isinstance(fp, LimbProfileParams) and not frame.use_camera:
+        return circle_center(frame, x0[:2], x0[2])
+    return sphere_center(frame, x0, ("r0", "c0", "a"))
+
+
+def disc_refit(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> RefineResult:
+    """Stage "profile refit" of a self-luminous disc: the limb-darkened disc on a full annulus."""
+    opt = frame.opt
+    _saturation(frame, edge, extras)
+    mask = frame_mask(frame)
+    # invalid pixels (mask) become NaN: the disc fit ignores non-finite pixels (neither limb nor sky)
+    img = frame.img if mask is None else np.where(mask, np.asarray(frame.img, float), np.nan)
+    sun = fit_limb_darkened(img, edge.center_rc, edge.radius,
+                            solver=None if opt.solver == "lm" else solver_from_name(opt.solver))
+    coords, z = select_sun_annulus(img, edge.center_rc, edge.radius, sun.annulus_px)
+    held = tuple(n for n in LimbDarkenedParams.field_names() if n not in sun.fit.free)
+    return RefineResult(sun.fit, FitData(coords, z, None, 0.0, 1.0), 0, held)
+
+
+def disc_center_of(frame: Frame, final: RefineResult) -> BodyCenter:
+    """Stage "body-centre mapping" of a disc: its centre, the line of sight, the range from the radius."""
+    fp = final.fit.params
+    return circle_center(frame, (fp.r0, fp.c0), float(fp.a), range_from_radius=True)
+
+
+__all__ = ["disc_center_of", "disc_refit", "lunar_profile_refit", "sphere_center_of", "sphere_refit"]

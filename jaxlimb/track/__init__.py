@@ -1,0 +1,33 @@
+"""From a sequence of frames to a trajectory: dynamics, filter, smoother, batch fit, camera self-calibration.
+
+Public API::
+
+    make_arc(jd_first, jd_last) -> Arc          # reference epoch + the Moon and Sun tabulated from DE421
+    Propagator(arc.table)                       # diffrax dynamics; step_with_stm: STM by jax.jacfwd
+    Frames, frames_from_records, predict        # measurements (locate's centre + radius/range) and their model
+    run_filter(frames, prop, x0, P0, t0) -> FilterResult     # EKF with NIS gating + RTS smoother
+    fit_arc(frames, prop, t0, x_guess, calibrate=...) -> ArcFit   # batch least squares (+ self-calibration)
+    track(frames, prop, calibrate=...) -> TrackResult       # initial orbit, batch, filter, smoother in one call
+    consistency: nees, average_band, posterior_crlb; report: epoch_records, plot_track
+    make_transfer, drawn_frames                 # a cislunar transfer to test them on
+"""
+
+from .batch import ArcFit as ArcFit, Observability as Observability, fit_arc as fit_arc, observability as observability
+from .dynamics import Arc as Arc, BodyTable as BodyTable, Propagator as Propagator, acceleration as acceleration, make_arc as make_arc
+from .filter import FilterResult as FilterResult, gate_threshold as gate_threshold, run_filter as run_filter
+from .measurement import (
+    CAMERA_PARAMS as CAMERA_PARAMS,
+    Frames as Frames,
+    camera_theta as camera_theta,
+    frames_from_records as frames_from_records,
+    predict as predict,
+    single_frame_position as single_frame_position,
+)
+from .consistency import average_band as average_band, nees as nees, posterior_crlb as posterior_crlb
+from .report import epoch_records as epoch_records, plot_track as plot_track
+from .sequence import TrackResult as TrackResult, initial_guess as initial_guess, track as track
+from .scenario import Transfer as Transfer, drawn_frames as drawn_frames, make_transfer as make_transfer, nominal_noise as nominal_noise
+
+__all__ = ["CAMERA_PARAMS", "Arc", "ArcFit", "BodyTable", "FilterResult", "Frames", "Observability", "Propagator",
+           "TrackResult", "Transfer", "average_band", "epoch_records", "initial_guess", "nees", "plot_track", "posterior_crlb", "track", "acceleration", "camera_theta", "drawn_frames", "fit_arc", "frames_from_records", "gate_threshold",
+           "make_arc", "make_transfer", "nominal_noise", "observability", "predict", "run_filter", "single_frame_position"]
