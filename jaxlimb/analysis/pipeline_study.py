@@ -34,6 +34,15 @@ CHI2_2 = {"68": -2.0 * math.log(1.0 - 0.6827), "95": -2.0 * math.log(1.0 - 0.954
 _BASE: dict[Any, Any] = {}  # per worker process: the noise-free frame of each LocateTrial
 
 
+@dataclass(frozen=True)
+class TrialTruth:
+    """What a trial's numbers are measured against: the body centre's image, the apparent radius, the range."""
+
+    body_center_rc: tuple[float, float]
+    apparent_radius_px: float
+    range_km: float
+
+
 def measurement_errors(m: Any, truth: Any) -> dict[str, float]:
     """The numbers of one trial (module docstring) from a :class:`~jaxlimb.pipeline.LimbMeasurement` ``m`` and the
     render's truth (``body_center_rc``, ``apparent_radius_px``, ``range_km``)."""
@@ -104,7 +113,8 @@ class LocateTrial:
                                                                  bit_depth=None, noise=False), seed=0)
             base = np.asarray(clean) * (255.0 * 0.8 / float(np.max(clean)))
             hints = Hints(body="moon", sun_dir_camera=tuple(float(v) for v in truth.sun_dir_cam))
-            _BASE[self] = (base, truth, hints, cam)
+            rc = tuple(float(v) for v in truth.center_rc)
+            _BASE[self] = (base, TrialTruth(rc, float(truth.apparent_radius_px), float(truth.range_km)), hints, cam)
         return _BASE[self]
 
     def __call__(self, seed: int, i: int) -> dict[str, float]:
@@ -236,4 +246,4 @@ def plot_pipeline(res: MonteCarloResult, summary: dict[str, Any], path: Any = No
     return fig
 
 
-__all__ = ["CHI2_2", "FamilyTrial", "LocateTrial", "measurement_errors", "pipeline_summary", "plot_pipeline"]
+__all__ = ["CHI2_2", "FamilyTrial", "LocateTrial", "TrialTruth", "measurement_errors", "pipeline_summary", "plot_pipeline"]

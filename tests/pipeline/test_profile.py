@@ -17,7 +17,7 @@ from jaxlimb.models import (
     MinnaertProfileParams,
     limb_profile_intensity,
 )
-from jaxlimb.models.profile_radiance import glow_inside, glow_outside
+from jaxlimb.models.profile_radiance import cos_sin_small, glow_inside, glow_outside
 
 jax.config.update("jax_enable_x64", True)
 
@@ -117,10 +117,10 @@ def test_quadrature_is_converged(phase_deg, sigma, kappa):
 
 def test_small_angle_series():
     x = jnp.linspace(-0.2, 0.2, 1001)
-    c, s = prof._cos_sin_small(x, jnp.asarray(True))
+    c, s = cos_sin_small(x, jnp.asarray(True))
     np.testing.assert_allclose(np.asarray(c), np.cos(np.asarray(x)), rtol=0, atol=2e-16)
     np.testing.assert_allclose(np.asarray(s), np.sin(np.asarray(x)), rtol=0, atol=2e-16)
-    c, s = prof._cos_sin_small(jnp.asarray([1.0]), jnp.asarray(False))
+    c, s = cos_sin_small(jnp.asarray([1.0]), jnp.asarray(False))
     assert float(c[0]) == pytest.approx(math.cos(1.0), abs=1e-16)
 
 
