@@ -41,7 +41,7 @@ import numpy as np  # noqa: E402
 
 from _common import environment, save  # noqa: E402
 from _scipy_numpy import fit_circle_scipy  # noqa: E402
-from jaxlimb.analysis.model_study import ModelStudyOptions, _noisy_jit, model_problem  # noqa: E402
+from jaxlimb.analysis.model_study import ModelStudyOptions, model_problem, noisy_intensities  # noqa: E402
 from jaxlimb.analysis.montecarlo import load_monte_carlo  # noqa: E402
 from jaxlimb.fitting import ScipyLeastSquares, fit  # noqa: E402
 
@@ -71,7 +71,7 @@ def main(argv: list[str] | None = None) -> dict:
     model, truth, init, coords, _ = model_problem(opt)
     clean = np.asarray(model.intensity(truth, jnp.asarray(coords)))
     m = min(args.n_scipy, args.n)
-    z = np.asarray(_noisy_jit(jnp.asarray(study.seeds[:m], dtype=jnp.int64), jnp.asarray(clean), opt.sigma))
+    z = noisy_intensities(study.seeds[:m], clean, opt.sigma)
     x0 = np.asarray(init.to_vector())
     t0, c0 = time.perf_counter(), time.process_time()
     sp = [fit_circle_scipy(coords, zi, x0) for zi in z]

@@ -13,7 +13,7 @@ runs the chunk's trials on a worker and writes ``chunk_NNNNNN.npz`` atomically i
 
 JAX inside a worker.  Each worker process imports JAX once, enables float64 and the persistent
 compilation cache (:mod:`jaxlimb._jaxcache`), and keeps its compiled programs and the trial's
-constant inputs (e.g. the noise-free rendered frame of :class:`LocateTrial`) between tasks; a
+constant inputs (e.g. the noise-free rendered frame of :class:`~jaxlimb.analysis.pipeline_study.LocateTrial`) between tasks; a
 worker on a machine with several devices can still spread a batched fit over them with
 :func:`jaxlimb.analysis.sharding.sharded_fit_batch`.
 
@@ -27,7 +27,7 @@ or connects to a running scheduler (``scheduler="tcp://host:8786"``).  On a SLUR
                            job_extra_directives=["--partition=compute"])
     cluster.scale(jobs=10)                       # 10 SLURM jobs x 2 workers
     client = Client(cluster)
-    run_monte_carlo_distributed(LocateTrial(...), MonteCarloOptions(..., out_dir="/shared/mc"), client)
+    run_monte_carlo_distributed(FamilyTrial(...), MonteCarloOptions(..., out_dir="/shared/mc"), client)
 
 or start ``dask scheduler`` on one node and ``dask worker tcp://node:8786 --preload
 jaxlimb.analysis.dask_worker`` on the others (:mod:`jaxlimb.analysis.dask_worker`: JAX started while the
@@ -42,10 +42,9 @@ import contextlib
 import math
 import uuid
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
-import numpy as np
 
 from ..errors import ConfigError, LimbInputError
 from .montecarlo import MonteCarloOptions, MonteCarloResult, prepare_study, run_chunk_to_file, run_monte_carlo
@@ -161,7 +160,7 @@ def run_monte_carlo_distributed(trial: Callable[..., Any], options: MonteCarloOp
     """:func:`~jaxlimb.analysis.montecarlo.run_monte_carlo` with one Dask task per missing chunk.
 
     ``options.out_dir`` is required (the chunk files are the results).  ``trial`` must be
-    picklable (a module-level function or a dataclass like :class:`LocateTrial`).  Returns
+    picklable (a module-level function or a dataclass like :class:`~jaxlimb.analysis.pipeline_study.LocateTrial`).  Returns
     the same :class:`~jaxlimb.analysis.montecarlo.MonteCarloResult` as an in-process run.
     """
     from dask.distributed import as_completed
@@ -208,66 +207,6 @@ def map_chunks(fn: Callable[[list[Any]], Any], items: Sequence[Any], client: Any
             f.cancel()
 
 
-# ============================================================================ full-pipeline trial
-_BASE: dict[Any, Any] = {}  # per worker process: the noise-free frame of each LocateTrial
-
-
-@dataclass(frozen=True)
-class LocateTrial:
-    """One trial of the full-pipeline Monte Carlo: a rendered Moon + noise through ``locate``.
-
-    The Moon is rendered once per process without noise (lunar-Lambert, PSF 1 px) and scaled
-    to 80 % of the 8-bit range; trial ``seed`` adds Gaussian noise of ``sigma_dn``, rounds and
-    clips to 8 bits, and runs :func:`jaxlimb.pipeline.locate` with the Sun direction as hint
-    (``benchmarks/locate_montecarlo.py``'s setting).  Returns the errors against the render's
-    truth: ``row``, ``col``, ``radius`` (px) and the solver's ``iterations``.  A
-    :class:`~jaxlimb.errors.JaxlimbError` (a failed check) is a failed trial.
-    """
-
-    camera: Any = None
-    """A :class:`~jaxlimb.geometry.camera.Camera` (default: ``Camera.default()``, 1944x2592)."""
-    range_km: float = 150_000.0
-    phase_deg: float = 45.0
-    sigma_dn: float = 10.0
-    profile: str = "sigmoid"
-
-    def _base(self) -> tuple[np.ndarray, Any, Any, Any]:
-        if self not in _BASE:
-            from .dask_worker import wait_started
-
-            wait_started()  # a worker's preload thread may still be importing the package
-            from .._jaxcache import start_jax
-
-            start_jax()
-            from ..geometry.camera import Camera
-            from ..imaging import Hints
-            from ..render import RenderOptions, moon_scene, render_body
-
-            cam = self.camera if self.camera is not None else Camera.default()
-            center = (cam.rows * 0.46, cam.cols * 0.54)
-            scene = moon_scene(self.range_km, self.phase_deg, center_rc=center, camera=cam, sun_angle_deg=30.0)
-            clean, truth = render_body(scene, cam, RenderOptions(reflectance="lunar-lambert", psf_sigma_px=1.0,
-                                                                 bit_depth=None, noise=False), seed=0)
-            base = np.asarray(clean) * (255.0 * 0.8 / float(np.max(clean)))
-            hints = Hints(body="moon", sun_dir_camera=tuple(float(v) for v in truth.sun_dir_cam))
-            _BASE[self] = (base, truth, hints, cam)
-        return _BASE[self]
-
-    def __call__(self, seed: int, i: int) -> dict[str, float]:
-        from ..pipeline import LocateOptions, locate
-
-        del i
-        base, truth, hints, cam = self._base()
-        img = np.random.default_rng(seed).standard_normal(base.shape)  # in place below: the same values as
-        img *= self.sigma_dn  # clip(round(base + sigma * noise)), without four 40 MB temporaries
-        img += base
-        np.round(img, out=img)
-        np.clip(img, 0, 255, out=img)
-        m = locate(img, cam, hints, LocateOptions(compute_crlb=False, keep_pixels=False, profile=self.profile))
-        return {"row": m.center_rc[0] - truth.center_rc[0], "col": m.center_rc[1] - truth.center_rc[1],
-                "radius": m.radius_px - truth.apparent_radius_px, "iterations": float(m.iterations)}
-
-
 TASKS_PER_WORKER = 16
 """Tasks per worker of :func:`default_chunk`: the workers finish within about one chunk of each other (the
 last chunks are handed out as workers free up), so smaller chunks leave less idle time at the end; a
@@ -280,5 +219,5 @@ def default_chunk(n: int, workers: int) -> int:
     return max(1, min(50, math.ceil(n / (TASKS_PER_WORKER * max(workers, 1)))))
 
 
-__all__ = ["LocateTrial", "chunked", "close_client", "default_chunk", "make_client", "map_chunks",
+__all__ = ["chunked", "close_client", "default_chunk", "make_client", "map_chunks",
            "run_monte_carlo_distributed"]

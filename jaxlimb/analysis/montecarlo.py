@@ -31,8 +31,8 @@ during analysis" (STYLE.md Sec. 7); any other exception stops the run.
 Statistics (:meth:`MonteCarloResult.stats`): per key, over the successful trials, the
 error ``value - truth`` (truth 0 when the trial returns errors itself): RMS, bias, sd,
 percentiles, and RMS/CRLB when a bound is given; :meth:`MonteCarloResult.histogram` for
-iteration counts.  Plots: :func:`plot_errors` (error histograms with the CRLB Gaussian)
-and :func:`plot_rms_vs_crlb`.
+iteration counts.  Plots: :mod:`jaxlimb.analysis.figures` (error histograms with the CRLB Gaussian,
+RMS against the CRLB).
 
 Example::
 
@@ -368,23 +368,24 @@ def run_monte_carlo(trial: Callable[..., Mapping[str, Any]], options: MonteCarlo
         chunks.append(data)
         bar.update(int(data["index"].size))
     bar.close()
+    idx = np.concatenate([d["index"] for d in chunks])
+    if opt.shard[1] == 1 and not np.array_equal(idx, np.arange(opt.n_trials)):
+        raise ConfigError("chunk files do not cover the trials 0..n-1 in order: the output directory is corrupt")
+    return _assemble(chunks, opt, time.perf_counter() - t0, run, skipped)
+
+
+def _assemble(chunks: list[dict[str, np.ndarray]], opt: MonteCarloOptions, wall_s: float, run: int,
+              skipped: int) -> MonteCarloResult:
+    """The chunks' columns concatenated in trial order (a key missing from a chunk: NaN there)."""
     keys: list[str] = []
     for d in chunks:
         keys += [k for k in d if k.startswith("v_") and k not in keys]
-    n = opt.n_trials
-    values = {k[2:]: np.concatenate([d.get(k, np.full(d["index"].size, np.nan)) for d in chunks]) for k in keys}
-    idx = np.concatenate([d["index"] for d in chunks])
-    if opt.shard[1] == 1 and not np.array_equal(idx, np.arange(n)):
-        raise ConfigError("chunk files do not cover the trials 0..n-1 in order: the output directory is corrupt")
     return MonteCarloResult(
-        values=values,
+        values={k[2:]: np.concatenate([d.get(k, np.full(d["index"].size, np.nan)) for d in chunks]) for k in keys},
         ok=np.concatenate([d["ok"] for d in chunks]).astype(bool),
         error=np.concatenate([d["error"] for d in chunks]),
         seeds=np.concatenate([d["seed"] for d in chunks]),
-        wall_s=time.perf_counter() - t0,
-        chunks_run=run,
-        chunks_skipped=skipped,
-        options=opt,
+        wall_s=wall_s, chunks_run=run, chunks_skipped=skipped, options=opt,
     )
 
 
@@ -437,90 +438,7 @@ def load_monte_carlo(out_dir: str | Path) -> MonteCarloResult:
     chunks = [_load_chunk(p) for p in sorted(out_dir.glob("chunk_*.npz"))]  # names sort in trial order
     if not chunks:
         raise ConfigError(f"no chunk files in {str(out_dir)!r}")
-    keys: list[str] = []
-    for d in chunks:
-        keys += [k for k in d if k.startswith("v_") and k not in keys]
-    return MonteCarloResult(
-        values={k[2:]: np.concatenate([d.get(k, np.full(d["index"].size, np.nan)) for d in chunks]) for k in keys},
-        ok=np.concatenate([d["ok"] for d in chunks]).astype(bool),
-        error=np.concatenate([d["error"] for d in chunks]),
-        seeds=np.concatenate([d["seed"] for d in chunks]),
-        wall_s=0.0, chunks_run=0, chunks_skipped=len(chunks), options=opt,
-    )
-
-
-# =============================================================================== plots
-def plot_errors(result: MonteCarloResult, keys: Sequence[str], truth: Mapping[str, float] | None = None,
-                crlb: Mapping[str, float] | None = None, path: str | Path | None = None, bins: int = 40,
-                title: str | None = None) -> Any:
-    """Histograms of the errors of ``keys`` with the CRLB Gaussian ``N(0, crlb^2)`` overlaid."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    truth = truth or {}
-    crlb = crlb or {}
-    fig, axes = plt.subplots(1, len(keys), figsize=(3.2 * len(keys), 2.8), squeeze=False)
-    st = result.stats(truth, crlb, keys)
-    for ax, k in zip(axes[0], keys):
-        v = result.values[k][result.ok]
-        e = v[np.isfinite(v)] - float(truth.get(k, 0.0))
-        ax.hist(e, bins=bins, density=True, color="0.6", label="Monte Carlo")
-        if k in crlb:
-            x = np.linspace(e.min(), e.max(), 200)
-            s = float(crlb[k])
-            ax.plot(x, np.exp(-0.5 * (x / s) ** 2) / (s * math.sqrt(2 * math.pi)), "C0", label="CRLB")
-        p = st["params"][k]
-        txt = f"RMS {p['rms']:.3g}\nbias {p['bias']:.2g}"
-        if "rms_over_crlb" in p:
-            txt += f"\nRMS/CRLB {p['rms_over_crlb']:.3f}"
-        ax.text(0.02, 0.97, txt, transform=ax.transAxes, va="top", fontsize=7)
-        ax.set_xlabel(f"{k} error")
-    axes[0][0].legend(fontsize=7, loc="upper right")
-    if title:
-        fig.suptitle(title, fontsize=9)
-    fig.tight_layout()
-    _save(fig, path)
-    return fig
-
-
-def plot_rms_vs_crlb(points: Sequence[Mapping[str, float]], path: str | Path | None = None, xlabel: str = "CRLB",
-                     ylabel: str = "Monte-Carlo RMS", title: str | None = None) -> Any:
-    """Scatter of RMS against CRLB (``[{"crlb", "rms", "label"}]``, log-log) with the line RMS = CRLB."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(3.6, 3.4))
-    c = np.array([p["crlb"] for p in points], dtype=float)
-    r = np.array([p["rms"] for p in points], dtype=float)
-    ax.loglog(c, r, "o", ms=4)
-    for p in points:
-        if p.get("label"):
-            ax.annotate(str(p["label"]), (p["crlb"], p["rms"]), fontsize=6, xytext=(3, 3), textcoords="offset points")
-    lo, hi = min(c.min(), r.min()) / 1.5, max(c.max(), r.max()) * 1.5
-    ax.plot([lo, hi], [lo, hi], "k--", lw=0.8, label="RMS = CRLB")
-    ax.set(xlabel=xlabel, ylabel=ylabel, xlim=(lo, hi), ylim=(lo, hi))
-    ax.legend(fontsize=7)
-    if title:
-        ax.set_title(title, fontsize=9)
-    fig.tight_layout()
-    _save(fig, path)
-    return fig
-
-
-def _save(fig: Any, path: str | Path | None) -> None:
-    if path is None:
-        return
-    import matplotlib.pyplot as plt
-
-    from .._io import atomic_path
-
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format=str(path).rsplit(".", 1)[-1], dpi=110)
-    plt.close(fig)
+    return _assemble(chunks, opt, 0.0, 0, len(chunks))
 
 
 def stats_json(result: MonteCarloResult, **kw: Any) -> dict[str, Any]:
@@ -536,10 +454,8 @@ __all__ = [
     "MonteCarloOptions",
     "MonteCarloResult",
     "load_monte_carlo",
-    "plot_errors",
     "prepare_study",
     "run_chunk_to_file",
-    "plot_rms_vs_crlb",
     "run_monte_carlo",
     "stats_json",
     "study_chunk_size",

@@ -3,7 +3,7 @@ r"""Scale-out of batched limb fits over JAX devices (sharding).
 :func:`sharded_fit_batch` is :func:`jaxlimb.fitting.fit_batch` with the batch split over
 all local devices: the padded problem arrays are placed with a
 ``NamedSharding(Mesh(devices, ("batch",)), PartitionSpec("batch"))`` and the fit core runs
-under ``jax.shard_map``, so each device fits its own members one after another
+under ``jax.shard_map`` (:func:`per_device`: any solver, optimistix's too), so each device fits its own members one after another
 (``jax.lax.map``, as ``fit_batch(strategy="map")``) with no communication between
 devices.  The batch is padded to a multiple of the device count with copies of its first
 member, which are dropped from the result.  Results equal :func:`fit_batch`'s to rounding.
@@ -38,7 +38,7 @@ data, so it is the single-host building block).
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import jax
@@ -53,20 +53,52 @@ from ..models import LimbModel, LimbParams
 _CACHE: dict[Any, Any] = {}
 
 
+def per_device(run: Callable[..., Any], example_args: Sequence[Any], batched: Sequence[bool],
+               devices: Sequence[jax.Device] | None = None) -> Callable[..., Any]:
+    """``run`` over a batch split across devices: each device runs it on its own share, without communication.
+
+    ``run(*args)`` maps a batch (the leading axis of the ``batched`` arguments) to results with the same
+    leading axis; ``example_args`` (arrays or ``jax.ShapeDtypeStruct``) fix the shapes of the *whole* batch,
+    whose length must be a multiple of the device count.  Returns a jitted function of the whole batch (one
+    compiled program for all devices; ``jax.jit(run)`` on one device).
+
+    How.  ``run`` is traced on one device's share *outside* any mesh (``jax.make_jaxpr``) and its program
+    replayed inside ``jax.shard_map`` (``jax.core.eval_jaxpr``).  Traced inside the shard map, every shape
+    a library computes with ``jax.eval_shape`` carries the mesh's sharding while the ones it builds by hand
+    do not, and lineax's operator checks compare the two: optimistix's solvers then fail with "Incompatible
+    linear operator structures" (lineax issue 185); the replayed program is the same computation.
+    """
+    mesh = local_mesh(devices)
+    n_dev = mesh.devices.size
+    if n_dev == 1:
+        return jax.jit(run)
+    share = []
+    for a, b in zip(example_args, batched):
+        shape = tuple(np.shape(a))
+        if b and shape[0] % n_dev:
+            raise LimbInputError(f"a batch of {shape[0]} cannot be split evenly over {n_dev} devices")
+        share.append(jax.ShapeDtypeStruct((shape[0] // n_dev, *shape[1:]) if b else shape, a.dtype))
+    closed, out_shape = jax.make_jaxpr(run, return_shape=True)(*share)
+    treedef = jax.tree_util.tree_structure(out_shape)
+
+    def replay(*args: Any) -> Any:
+        return jax.tree_util.tree_unflatten(treedef, jax.core.eval_jaxpr(closed.jaxpr, closed.consts, *args))
+
+    specs = tuple(PartitionSpec("batch") if b else PartitionSpec() for b in batched)
+    return jax.jit(jax.shard_map(replay, mesh=mesh, in_specs=specs, out_specs=PartitionSpec("batch"),
+                                 check_vma=False))  # solver loops start from replicated constants
+
+
 def _sharded_core(solver: AbstractLimbSolver, model: LimbModel, free_idx: tuple[int, ...], analytic: bool,
-                  max_steps: int, mesh: Mesh):  # noqa: ANN202
-    key = (solver, model.name, free_idx, analytic, max_steps, tuple(d.id for d in mesh.devices.flat))
-    if key in _CACHE:
-        return _CACHE[key]
-    spec = PartitionSpec("batch")
+                  max_steps: int, mesh: Mesh, args: Sequence[Any]):  # noqa: ANN202
+    key = (solver, model.name, free_idx, analytic, max_steps, tuple(d.id for d in mesh.devices.flat),
+           tuple(np.shape(a) for a in args))
+    if key not in _CACHE:
+        def per_member(theta: jax.Array, coords: jax.Array, z: jax.Array, w: jax.Array) -> LimbFit:
+            return batch_core(solver, LimbProblem(model, free_idx, analytic, theta, coords, z, w), max_steps)
 
-    def per_device(theta: jax.Array, coords: jax.Array, z: jax.Array, w: jax.Array) -> LimbFit:
-        return batch_core(solver, LimbProblem(model, free_idx, analytic, theta, coords, z, w), max_steps)
-
-    fn = jax.jit(jax.shard_map(per_device, mesh=mesh, in_specs=(spec, spec, spec, spec), out_specs=spec,
-                                check_vma=False))  # solver loops start from replicated constants
-    _CACHE[key] = fn
-    return fn
+        _CACHE[key] = per_device(per_member, args, (True,) * 4, list(mesh.devices.flat))
+    return _CACHE[key]
 
 
 def local_mesh(devices: Sequence[jax.Device] | None = None) -> Mesh:
@@ -117,7 +149,7 @@ def sharded_fit_batch(
         coords_, z_, w_, theta = rep(coords_), rep(z_), rep(w_), rep(theta)
     sharding = NamedSharding(mesh, PartitionSpec("batch"))
     args = [jax.device_put(jnp.asarray(a), sharding) for a in (theta, coords_, z_, w_)]
-    res = _sharded_core(solver, model, free_idx, analytic, max_steps, mesh)(*args)
+    res = _sharded_core(solver, model, free_idx, analytic, max_steps, mesh, args)(*args)
     if pad:
         res = jax.tree_util.tree_map(lambda a: a[:b], res)
     return res
@@ -144,4 +176,4 @@ def sharding_speedup(model: LimbModel, coords: Any, z: Any, init: LimbParams, so
     return out
 
 
-__all__ = ["local_mesh", "sharded_fit_batch", "sharding_speedup"]
+__all__ = ["local_mesh", "per_device", "sharded_fit_batch", "sharding_speedup"]

@@ -46,6 +46,7 @@ _COMMANDS = (
     "_los",
     "_posterior",
     "_montecarlo",
+    "_compare",
     "_gradcheck",
     "_figures",
 )

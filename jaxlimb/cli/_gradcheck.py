@@ -24,18 +24,19 @@ def register(sub: argparse._SubParsersAction) -> None:
         "gradcheck",
         help="check every limb model's analytic Jacobian against autodiff and central differences",
         description="Compare the analytic Jacobians of the limb models (linear, circular and elliptical "
-        "sigmoids, Eq. 14, 17, Sec. V-C; the elliptical ramp; the lunar-Lambert limb profile; the "
-        "limb-darkened disc) with jax.jacfwd and central differences at random parameter points.  Exit 0 "
-        "when every check passes, 3 otherwise, 2 for bad arguments.",
+        "sigmoids, Eq. 14, 17, Sec. V-C; the elliptical ramp; the lunar-Lambert limb profile and its widened "
+        "variants; the limb-darkened disc) with jax.jacfwd of the intensity as computed (the same quadrature "
+        "nodes) and with central differences, at random parameter points.  Exit 0 when every check passes, 3 "
+        "otherwise, 2 for bad arguments.",
     )
     p.add_argument("--n-points", type=arg_number(N_POINTS_RANGE, integer=True), default=100,
                    help=f"random parameter points per model, integer {N_POINTS_RANGE} (default 100)")
     p.add_argument("--seed", type=arg_number(SEED_RANGE, integer=True), default=0,
                    help=f"random seed, integer {SEED_RANGE} (default 0)")
     p.add_argument("--tol", type=arg_number(TOL_RANGE), default=None,
-                   help=f"fail (exit 3) if any max_rel_err exceeds this, {TOL_RANGE} (default: each model's own "
-                   "tolerance, jaxlimb.models.gradcheck.SPECS: 1e-9; 1e-8 the ramp; 1e-7 the tabulated limb-darkened disc; "
-                   "1e-6 the quadrature of the lunar-Lambert profile)")
+                   help=f"fail (exit 3) if any max_rel_err exceeds this, {TOL_RANGE} (default 1e-9 for every model: the "
+                   "analytic Jacobians are the derivatives of the intensities as computed, the physical profiles' "
+                   "quadrature included)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 

@@ -12,11 +12,14 @@ from .fit import (
     pack_pixels as pack_pixels,
     pad_pixels as pad_pixels,
 )
-from .solvers import (
-    SOLVERS as SOLVERS,
+from .problem import (
     AbstractLimbSolver as AbstractLimbSolver,
     FitResult as FitResult,
     LimbProblem as LimbProblem,
+    result_names as result_names,
+)
+from .solvers import (
+    SOLVERS as SOLVERS,
     NormalLM as NormalLM,
     PaperGaussNewton as PaperGaussNewton,
     ScipyLeastSquares as ScipyLeastSquares,
@@ -26,7 +29,7 @@ from .solvers import (
 
 def __getattr__(name: str):  # noqa: ANN202
     """``Optimistix``, ``optimistix_normal_lm``, ``MarquardtCholeskyDescent``: imported on first use
-    (:mod:`jaxlimb.fitting._optx`; the default path never imports optimistix)."""
+    (:mod:`jaxlimb.fitting.optimistix_solvers`; the default path never imports optimistix)."""
     if name in ("Optimistix", "optimistix_normal_lm", "MarquardtCholeskyDescent"):
         return getattr(solvers, name)  # the lazy attributes of jaxlimb.fitting.solvers
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -36,7 +36,8 @@ from jaxtyping import Array, Float, Int
 from ..errors import ConvergenceError, LimbInputError
 from ..models import LimbModel, LimbParams
 from ._aot import ExportedCore, stable_ident
-from .solvers import AbstractLimbSolver, FitResult, LimbProblem, NormalLM
+from .problem import AbstractLimbSolver, FitResult, LimbProblem
+from .solvers import NormalLM
 
 _MIN_BUCKET = 256
 
@@ -378,15 +379,15 @@ def fit(
     throw: bool = True,
     held: Sequence[str] | None = None,
 ) -> LimbFit:
-    """Fit a sigmoid limb model to pixel intensities.
+    """Fit a limb model to pixel intensities.
 
     Parameters
     ----------
-    model : :data:`~jaxlimb.models.CIRCLE`, :data:`~jaxlimb.models.ELLIPSE` or :data:`~jaxlimb.models.LINEAR`.
+    model : any limb model of :mod:`jaxlimb.models` (the sigmoids ``CIRCLE``, ``ELLIPSE``, ``LINEAR``, ...).
     coords : pixel coordinates ``(n, 2)`` as ``(row, col)`` (``(n,)`` for the linear model).
     z : observed intensities ``(n,)``.
     init : initial guess (a parameter container of the model); fixed parameters are held at its values.
-    solver : a solver object (default :class:`~jaxlimb.fitting.solvers.NormalLM`).
+    solver : a solver object (default :class:`~jaxlimb.fitting.solvers.NormalLM`; :data:`~jaxlimb.fitting.SOLVERS`).
     fixed : names of parameters to hold fixed, e.g. ``("k", "ymax", "ymin")``.
     weights : optional per-pixel weights ``(n,)`` (``1/sigma_i``; 0 drops a pixel).
     analytic : use the paper's analytic Jacobian (default) or autodiff.
@@ -419,16 +420,21 @@ def fit(
     mask = None if held is None else _to_device(_held_mask(model, free_idx, held))
     coords_, z_, w_ = pad_pixels(coords_, z_, w_, bucket_size(z_.shape[0]))
     problem = LimbProblem(model, free_idx, analytic, *(_to_device(a) for a in (theta, coords_, z_, w_)), mask)
-    if solver.jittable:
-        res = _core_jit(solver, problem, max_steps)
-        if held:
-            res = _without_held(res, held)
-    else:
-        y, n_steps, result = solver.solve(problem, jnp.asarray(theta[list(free_idx)]), max_steps)
-        res = _make_fit_jit(problem, y, n_steps, result, solver.name)
+    res = _solve(solver, problem, max_steps, held)
     if throw and not bool(res.converged):
         raise ConvergenceError(f"{solver.name} did not converge after {int(res.n_steps)} steps: {res.message}")
     return res
+
+
+def _solve(solver: AbstractLimbSolver, problem: LimbProblem, max_steps: int, held: Sequence[str] | None) -> LimbFit:
+    """One fit of ``problem``: the compiled core (a masked fit reported over its estimated parameters), or the
+    solver's own loop for a non-jittable solver."""
+    if solver.jittable:
+        res = _core_jit(solver, problem, max_steps)
+        return _without_held(res, held) if held else res
+    y0 = _to_device(np.asarray(problem.theta0)[list(problem.free_idx)])  # on the host: no gather program
+    y, n_steps, result = solver.solve(problem, y0, max_steps)
+    return _make_fit_jit(problem, y, n_steps, result, solver.name)
 
 
 def fit_batch(

@@ -32,7 +32,6 @@ against SciPy's QR-based MINPACK to 1e-6 px.
 
 from __future__ import annotations
 
-import abc
 from collections.abc import Callable
 from typing import Any, ClassVar
 
@@ -40,153 +39,9 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import Array, Bool, Float, Int
+from jaxtyping import Array
 
-from ..models import LimbModel
-from ._problem import expand, jacobian_fn, residual_fn
-
-
-class FitResult(eqx.Enumeration):  # type: ignore[misc]
-    """Outcome of a fit: the names of optimistix's results plus the limb-specific failures.
-
-    Its own enumeration (not a subclass of ``optimistix.RESULTS``), so that the default path
-    does not import optimistix; :class:`~jaxlimb.fitting._optx.Optimistix` maps optimistix's
-    results onto it by name (:func:`~jaxlimb.fitting._optx.fit_result`).
-    """
-
-    successful = ""
-    max_steps_reached = "The maximum number of solver steps was reached. Try increasing `max_steps`."
-    singular = "A linear solve returned non-finite output (a singular or near-singular system)."
-    breakdown = "An iterative linear solve broke down."
-    stagnation = "An iterative linear solve stagnated."
-    conlim = "The condition number of the linear system exceeded the solver's limit."
-    nonfinite_input = "A linear solve received non-finite input."
-    nonlinear_max_steps_reached = "The maximum number of steps was reached in the nonlinear solver."
-    nonlinear_divergence = "The nonlinear solve diverged."
-    solver_failed = "The optimistix solver reported a failure that has no name here."
-
-    diverged = (
-        "The fit diverged (non-finite parameters, or radius / semi-axis / k left the "
-        "admissible range > 0). Start closer to the limb (e.g. from a Taubin circle) "
-        "or use a damped solver (NormalLM, LevenbergMarquardt, Dogleg)."
-    )
-
-
-# ============================================================================ problem
-class LimbProblem(eqx.Module):
-    """A limb least-squares problem (one image, or one member of a vmapped batch).
-
-    Attributes
-    ----------
-    model : the sigmoid model (static).
-    free_idx : indices of the free parameters in the model's parameter vector (static).
-    analytic : use the paper's analytic Jacobian (True) or autodiff (False) (static).
-    theta0 : full parameter vector; its fixed entries are held, its free ones are the start.
-    coords : pixel coordinates, ``(n, 2)`` ``(row, col)`` (or ``(n,)`` for the linear model).
-    z : observed intensities ``(n,)``.
-    w : per-pixel weights ``(n,)``: 1 for data, 0 for padding (or 1/sigma_i).
-    mask : optional 0/1 flags of the free parameters ``(q,)``: a 0 holds that parameter at its
-        start for this problem only (its Jacobian row and step are zero, its diagonal of
-        :math:`J^\top J` is 1: the normal equations of the other parameters are those of the
-        problem without it), so that fits which differ only in what they hold share one compiled
-        program.  ``None``: every free parameter is estimated.
-    """
-
-    model: LimbModel = eqx.field(static=True)
-    free_idx: tuple[int, ...] = eqx.field(static=True)
-    analytic: bool = eqx.field(static=True)
-    theta0: Float[Array, " p"]
-    coords: Array
-    z: Float[Array, " n"]
-    w: Float[Array, " n"]
-    mask: Float[Array, " q"] | None = None
-
-    @property
-    def args(self) -> tuple[Array, Array, Array, Array]:
-        return (self.theta0, self.coords, self.z, self.w)
-
-    @property
-    def residual(self) -> Callable[[Array, Any], Array]:
-        return residual_fn(self.model, self.free_idx, self.analytic)
-
-    def jacobian(self, y: Array) -> Float[Array, "n q"]:
-        """Weighted Jacobian of the residuals w.r.t. the free parameters."""
-        jf = jacobian_fn(self.model, self.analytic)
-        full = jf(expand(self.theta0, self.free_idx, y), self.coords)
-        return self.w[:, None] * full[:, jnp.asarray(self.free_idx)]
-
-    def normal_equations(self, y: Array) -> tuple[Array, Array, Array]:
-        """``(J^T J, J^T r, r^T r)`` over the free parameters in one fused pass.
-
-        The Jacobian is built transposed, ``(q, n)``, which on CPU is ~2x
-        faster than the ``(n, q)`` layout for these reductions.
-        """
-        theta = expand(self.theta0, self.free_idx, y)
-        params = self.model.params_type.from_vector(theta)
-        if self.analytic:
-            f, cols = self.model.intensity_and_jacobian_columns(params, self.coords)
-            r = self.w * (f - self.z)
-            jt = jnp.stack([cols[i] for i in self.free_idx], axis=0) * self.w
-        else:
-            r = self.w * (self.model.intensity(params, self.coords) - self.z)
-            jt = self.jacobian(y).T
-        if self.mask is None:
-            return jt @ jt.T, jt @ r, r @ r
-        on = self.mask > 0
-        jt = jnp.where(on[:, None], jt, 0.0)  # a held parameter's row: exactly 0 (even if not finite)
-        return jt @ jt.T + jnp.diag(jnp.where(on, 0.0, 1.0)), jt @ r, r @ r
-
-    @property
-    def n_free(self) -> Any:
-        """Number of estimated parameters (``q``, or the count of the mask's ones)."""
-        return len(self.free_idx) if self.mask is None else jnp.sum(self.mask > 0)
-
-    def estimated(self, y: Array) -> Array:
-        """``y`` with its held entries (``mask`` 0) set to 0: the scale of the convergence test."""
-        return y if self.mask is None else jnp.where(self.mask > 0, y, 0.0)
-
-    def admissible(self, y: Array) -> Bool[Array, ""]:
-        """Finite, and every scale parameter (radius, a, k, rho) strictly positive."""
-        theta = expand(self.theta0, self.free_idx, y)
-        ok = jnp.all(jnp.isfinite(theta))
-        for i, name in enumerate(self.model.param_names):
-            if name in _POSITIVE:
-                ok = ok & (theta[i] > 0)
-        return ok
-
-
-_POSITIVE = frozenset({"radius", "a", "k", "rho"})
-
-
-# ============================================================================ base
-class AbstractLimbSolver(eqx.Module):
-    """Base class of the solvers behind :func:`jaxlimb.fitting.fit`."""
-
-    jittable: ClassVar[bool] = True
-    masks: ClassVar[bool] = False
-    """Whether :meth:`solve` honours :class:`LimbProblem`'s ``mask`` and takes ``max_steps`` as an array."""
-
-    @abc.abstractmethod
-    def solve(
-        self, problem: LimbProblem, y0: Float[Array, " q"], max_steps: int
-    ) -> tuple[Float[Array, " q"], Int[Array, ""], FitResult]:
-        """Return ``(y, n_steps, result)`` for the free parameters."""
-
-    @property
-    def name(self) -> str:
-        return type(self).__name__
-
-
-def _finish(problem: LimbProblem, y: Array, result: FitResult) -> FitResult:
-    return FitResult.where(
-        (result == FitResult.successful) & ~problem.admissible(y), FitResult.diverged, result
-    )
-
-
-def _coarse(problem: LimbProblem, k: int) -> LimbProblem:
-    """Every ``k``-th pixel of ``problem`` (the coarse phase of coarse-to-fine)."""
-    return LimbProblem(problem.model, problem.free_idx, problem.analytic, problem.theta0,
-                       problem.coords[::k], problem.z[::k], problem.w[::k], problem.mask)
+from .problem import AbstractLimbSolver, FitResult, LimbProblem, coarse_problem, finish_result
 
 
 class NormalLM(AbstractLimbSolver):
@@ -239,7 +94,7 @@ class NormalLM(AbstractLimbSolver):
         n_pix = problem.z.shape[-1]
         if self.coarse_stride > 1 and n_pix >= self.coarse_min_pixels:
             k = self.coarse_stride
-            coarse = _coarse(problem, k)
+            coarse = coarse_problem(problem, k)
             y_c, n_c, done_c, stuck_c, _ = self._lm_loop(coarse, y0, max_steps, self.coarse_tol_px, 0.0)
             y0 = jnp.where(done_c & ~stuck_c, y_c, y0)  # a failed coarse phase starts the fine one afresh
             steps = n_c
@@ -247,7 +102,7 @@ class NormalLM(AbstractLimbSolver):
         result = FitResult.where(
             done, FitResult.successful, FitResult.where(stuck, FitResult.diverged, FitResult.max_steps_reached)
         )
-        return y, steps + n, _finish(problem, y, result), normal
+        return y, steps + n, finish_result(problem, y, result), normal
 
     def _lm_loop(self, problem: LimbProblem, y0: Array, max_steps: int, atol: float, rtol: float):  # noqa: ANN202
         dtype = y0.dtype
@@ -300,12 +155,12 @@ _LAZY = frozenset({"Optimistix", "optimistix_normal_lm", "MarquardtCholeskyDesce
 
 
 def __getattr__(name: str) -> Any:
-    """The optimistix solvers live in :mod:`jaxlimb.fitting._optx`, imported on first use (PEP 562):
+    """The optimistix solvers live in :mod:`jaxlimb.fitting.optimistix_solvers`, imported on first use (PEP 562):
     the default path (:class:`NormalLM`) never pays for importing optimistix and lineax."""
     if name in _LAZY:
-        from . import _optx
+        from . import optimistix_solvers
 
-        return getattr(_optx, name)
+        return getattr(optimistix_solvers, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
@@ -313,7 +168,7 @@ def _optx_solver(kind: str) -> Callable[[], AbstractLimbSolver]:
     def make() -> AbstractLimbSolver:
         import optimistix as optx
 
-        from ._optx import OPTX_ATOL, OPTX_RTOL, Optimistix
+        from .optimistix_solvers import OPTX_ATOL, OPTX_RTOL, Optimistix
 
         return Optimistix(getattr(optx, kind)(rtol=OPTX_RTOL, atol=OPTX_ATOL))
 
@@ -321,7 +176,7 @@ def _optx_solver(kind: str) -> Callable[[], AbstractLimbSolver]:
 
 
 def _optimistix_normal_lm() -> AbstractLimbSolver:
-    from ._optx import optimistix_normal_lm
+    from .optimistix_solvers import optimistix_normal_lm
 
     return optimistix_normal_lm()
 

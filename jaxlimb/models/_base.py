@@ -42,7 +42,7 @@ class LimbParams(eqx.Module):
         """Inverse of :meth:`to_vector`."""
         n = len(cls.field_names())
         if isinstance(v, np.ndarray):  # host values: one transfer per field, no program per shape
-            return cls(*[jax.device_put(np.ascontiguousarray(v[..., i])) for i in range(n)])
+            return cls(*[jax.device_put(np.array(v[..., i])) for i in range(n)])  # (a copy: 0-d stays 0-d)
         v = jnp.asarray(v)
         return cls(*[v[..., i] for i in range(n)])
 

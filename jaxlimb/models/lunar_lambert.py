@@ -33,17 +33,30 @@ direction (1-D: ``R >> sigma``): with the depth :math:`u' = R - d' = v^2`,
 
 by 20-point Gauss-Legendre quadrature, :math:`v_{0,1} = \sqrt{\max(0, R - d \mp 6\sigma_e)}`
 (the substitution removes the square-root behaviour of :math:`\mu` at the limb; the window is cut to
-its lit side of the terminator, :func:`_lit_limits`), and
+its lit side of the terminator, :func:`~jaxlimb.models.profile_radiance.lit_limits`), and
 :math:`\sigma_e^2 = \sigma^2 + 1/12` (pixel integration as a box), plus the first-order
 curvature term of the 2-D blur, :math:`\sigma_e^2/(2d)\,\partial f/\partial d` (without it the
 radius of a 33 px Moon came out 0.01-0.024 px short; with it |bias| <= 0.008 px from 33 to 210 px,
 ``benchmarks/locate_accuracy.py`` bias study).  Parameters
 ``(r0, c0, a, sigma, amp, ymin)`` are estimated; ``theta, rho`` (limb ellipse shape),
 ``sun_r, sun_c`` (unit image direction of the Sun), ``phase`` (rad), ``inv_f`` (1/focal px;
-0 = orthographic) and ``L`` are held fixed (``fixed=PROFILE_FIXED``).  The Jacobian is computed in
-the same pass as the intensity, by differentiating under the integral (13 columns for about
-three times the cost of the intensity; ``jax.jacfwd`` took 13 times) and is checked against
-``jax.jacfwd``.
+0 = orthographic) and ``L`` are held fixed (``fixed=PROFILE_FIXED``).
+
+Jacobian.  The columns are computed in the same pass as the intensity (13 columns for about three times the
+cost of the intensity; ``jax.jacfwd`` took 13 times) and are the derivative of the quadrature *as computed*
+(the same nodes and weights): the integrand differentiated at fixed nodes, plus the move of the nodes with the
+window's ends :math:`v_{0,1}`, which depend on ``d``, ``R``, :math:`\sigma_e` and, through the terminator's cut,
+on :math:`\cos\psi'`, :math:`\alpha_0` and the phase.  For :math:`Q = (v_1 - v_0)\sum_i w_i h(v_i)` with
+:math:`v_i = v_0 (1 - x_i)/2 + v_1 (1 + x_i)/2`,
+
+.. math:: \frac{\partial Q}{\partial v_1} = \sum_i w_i h_i + (v_1 - v_0)\sum_i w_i h'(v_i)\frac{1 + x_i}{2},
+          \qquad
+          \frac{\partial Q}{\partial v_0} = -\sum_i w_i h_i + (v_1 - v_0)\sum_i w_i h'(v_i)\frac{1 - x_i}{2}
+
+(:func:`_window_terms`; for the exact integral these are :math:`\pm h(v_{1,0})`, ~0 six sigma out in the
+Gaussian and at the terminator, where the radiance vanishes: the integrand differentiated under the integral
+alone differs from ``jax.jacfwd`` by the rule's error, ~5e-4 of a column at 20 nodes).  ``jaxlimb gradcheck``
+checks the columns against ``jax.jacfwd`` of the intensity at the fits' 20 nodes.
 
 Widened (:data:`LIMB_PROFILE_MINNAERT`, :class:`MinnaertProfileParams`): the radiance times
 :math:`(\mu_0\mu)^{-\kappa}`, at ``L = 0`` Minnaert's law :math:`\mu_0^k\mu^{k-1}` with :math:`k = 1 - \kappa`
@@ -55,7 +68,7 @@ Widened (:data:`LIMB_PROFILE_GLOW`, :class:`GlowProfileParams`): plus a glow abo
 shell whose emission falls as :math:`e^{-h/H}` with the altitude (a horizon glow of dust or an exosphere; the
 ``glow`` family of :mod:`jaxlimb.render.independent`): ``glow`` times :math:`e^{-s/H}` at a distance ``s`` above the
 limb, and times half the grazing column, :math:`\tfrac12\mathrm{erfcx}(\sqrt{u/H})`, at a depth ``u`` on the disc
-(:func:`_glow_inside`, :func:`_glow_outside`); ``H = exp(log_h)`` px.  The disc side is integrated with the
+(:func:`~jaxlimb.models.profile_radiance.glow_inside`, :func:`~jaxlimb.models.profile_radiance.glow_outside`); ``H = exp(log_h)`` px.  The disc side is integrated with the
 radiance; the sky side blurred in closed form.  The pipeline adds the glow only when a score test asks for it
 (:func:`jaxlimb.pipeline.profile.glow.widen_glow`).  The shell is lit by the Sun: at the limb point of image
 position angle :math:`\psi` from the Sun's image direction the solar elevation over the tangent point is
@@ -83,9 +96,13 @@ from contextlib import contextmanager
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jaxtyping import ArrayLike
 
-from ._base import LimbModel, LimbParams
+from ._base import LimbModel
+from .profile_params import (PHYSICAL_L, PROFILE_FIXED, AnisoProfileParams, GlowProfileParams, LimbProfileParams,
+                             MinnaertProfileParams, lunar_lambert_weight)
+from .profile_radiance import (WINDOW_KEYS, aniso_terms_of, aniso_var, glow_inside, glow_outside, lit_limits,
+                               terminator_depth,
+                               radiance_parts)
 from .sigmoid import ellipse_coords
 
 #: Gauss-Legendre nodes of the blur integral (module docstring).
@@ -95,12 +112,8 @@ _GL_X, _GL_W = np.polynomial.legendre.leggauss(N_NODES)
 
 @contextmanager
 def quadrature_nodes(n: int) -> Iterator[None]:
-    """Evaluate the profile with an ``n``-node rule inside the block (functions traced inside it).
-
-    The analytic Jacobian is the derivative of the *integral*; ``jax.jacfwd`` and central
-    differences differentiate the *rule*.  They agree to the rule's error on the derivative
-    (~5e-4 of a column's scale at 20 nodes, ~1e-6 at 64), so checks of the formulas use more nodes.
-    """
+    """Evaluate the profile with an ``n``-node rule inside the block (functions traced inside it): to measure the
+    rule's error against the integral (the Jacobian is the derivative of whichever rule is used)."""
     global _GL_X, _GL_W
     old = _GL_X, _GL_W
     _GL_X, _GL_W = np.polynomial.legendre.leggauss(int(n))
@@ -108,168 +121,6 @@ def quadrature_nodes(n: int) -> Iterator[None]:
         yield
     finally:
         _GL_X, _GL_W = old
-PROFILE_FIXED = ("theta", "rho", "sun_r", "sun_c", "phase", "inv_f", "L")
-
-
-class LimbProfileParams(LimbParams):
-    """Parameters of :func:`limb_profile_intensity` (module docstring).
-
-    ``r0, c0, a, theta, rho`` are the limb ellipse as in :class:`jaxlimb.models.EllipseParams`
-    (``rho = 1``: a circle of radius ``a``); ``sigma`` the Gaussian PSF (px); ``amp``, ``ymin``
-    the radiance scale and the sky level; ``sun_r, sun_c, phase, inv_f, L`` fixed geometry.
-    """
-
-    r0: ArrayLike
-    c0: ArrayLike
-    a: ArrayLike
-    theta: ArrayLike
-    rho: ArrayLike
-    sigma: ArrayLike
-    amp: ArrayLike
-    ymin: ArrayLike
-    sun_r: ArrayLike
-    sun_c: ArrayLike
-    phase: ArrayLike
-    inv_f: ArrayLike
-    L: ArrayLike
-
-
-class MinnaertProfileParams(LimbProfileParams):
-    """:class:`LimbProfileParams` and ``kappa``, the limb-brightening exponent of
-    :data:`LIMB_PROFILE_MINNAERT`: the lunar-Lambert radiance times ``(mu0 mu)^-kappa`` (at ``L = 0``
-    Minnaert's law ``mu0^k mu^(k-1)``, Minnaert 1941, with ``k = 1 - kappa``)."""
-
-    kappa: ArrayLike
-
-
-class GlowProfileParams(LimbProfileParams):
-    """:class:`LimbProfileParams` and an exponential glow above the limb (:data:`LIMB_PROFILE_GLOW`):
-    ``glow``, its radiance just above the limb in units of ``amp`` where the limb's normal is square to the Sun's
-    image direction, ``log_h``, the log of its scale height (px), and ``glow_tilt``, its linear change with the
-    cosine ``cpsi`` of the angle between the limb's normal and the Sun's image direction: the glow's radiance is
-    ``glow (1 + glow_tilt cpsi)`` (module docstring)."""
-
-    glow: ArrayLike
-    log_h: ArrayLike
-    glow_tilt: ArrayLike = 0.0
-
-
-class AnisoProfileParams(LimbProfileParams):
-    """:class:`LimbProfileParams` and an anisotropic blur (:data:`LIMB_PROFILE_ANISO`): ``s2c, s2s`` (px^2), the
-    cos 2psi and sin 2psi terms of the blur variance across the limb, ``sigma_e^2(psi) = sigma^2 + 1/12 + s2c cos 2psi
-    + s2s sin 2psi`` with ``psi`` the angle of the ray from the centre (the limb normal's, from ``+col`` toward
-    ``-row``).  A line smear of length ``l`` at angle ``phi`` adds ``l^2/12 cos^2(psi - phi)`` to a Gaussian's
-    variance across an edge: ``l^2/24 (1 + cos 2(psi - phi))``, the mean in ``sigma^2``, the rest in ``s2c, s2s``."""
-
-    s2c: ArrayLike
-    s2s: ArrayLike
-
-
-def _cos_sin_small(x, small):
-    """``(cos x, sin x)``; by Taylor series (to 1e-16 for ``|x| <= 0.2``) when ``small`` (a
-    scalar: the body's angular radius, which bounds ``|x|``, is below 0.2 rad), else
-    ``jnp.cos``, ``jnp.sin`` (the series is ~5x cheaper)."""
-
-    def series(x):
-        x2 = x * x
-        c = 1.0 - x2 / 2.0 * (1.0 - x2 / 12.0 * (1.0 - x2 / 30.0 * (1.0 - x2 / 56.0 * (1.0 - x2 / 90.0))))
-        s = x * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0 * (1.0 - x2 / 72.0 * (1.0 - x2 / 110.0)))))
-        return c, s
-
-    return jax.lax.cond(small, series, lambda x: (jnp.cos(x), jnp.sin(x)), x)
-
-
-def _radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = True):
-    """Radiance and its partial derivatives at depth ``v**2`` below the limb (module docstring).
-
-    With ``q = 1 - v^2/R`` the emission cosine is computed as ``mu = v sqrt((1 + q)/R)``
-    (no cancellation in ``1 - q^2`` at the limb).  Returns ``I`` and, at fixed ``v``,
-    ``dI/dR``, ``dI/dcpsi``, ``dI/dalpha0``, ``dI/dphase``, ``dI/dL``, ``dI/dkappa``.
-    ``brightened``: with the limb brightening ``(mu0 mu)^-p.kappa`` (:class:`MinnaertProfileParams`);
-    ``dI/dkappa`` is returned in either case (at ``kappa = 0`` without it).  A separate model and not a
-    parameter held at 0: on CPU the brightening's terms cost the one-pass Jacobian 2.5-3x (XLA repeats
-    them in every column's reduction; a ``lax.cond`` on ``kappa = 0`` did not help).
-    """
-    v2 = v * v
-    inv_R = 1.0 / R
-    q = jnp.clip(1.0 - v2 * inv_R, 0.0, 1.0)
-    rt = jnp.sqrt((1.0 + q) * inv_R)
-    mu = v * rt
-    q_R = v2 * inv_R * inv_R
-    mu_R = -v * q * inv_R / (R * rt)
-    beta = q * alpha0
-    cb, sb = _cos_sin_small(beta, jnp.abs(alpha0) <= 0.2)
-    s_em = q * cb - mu * sb  # sin(e - beta)
-    c_em = mu * cb + q * sb  # cos(e - beta)
-    sph, cph = jnp.sin(p.phase), jnp.cos(p.phase)
-    a_s = sph * cpsi
-    mu0 = s_em * a_s + c_em * cph
-    lit = mu0 > 0
-    m0 = jnp.where(lit, mu0, 0.0)
-    inv_den = 1.0 / jnp.where(lit, m0 + mu, 1.0)
-    two_L = 2.0 * p.L
-    ratio = m0 * inv_den  # mu0 / (mu0 + mu)
-    # (mu0 mu)^-kappa: Minnaert's limb brightening (L = 0: mu0^k mu^(k-1) with k = 1 - kappa); 1 at kappa = 0
-    log_mm = jnp.log(jnp.where(lit & (mu > 0), m0 * mu, 1.0))
-    kappa = p.kappa if brightened else 0.0
-    brighten = jnp.exp(-kappa * log_mm) if brightened else 1.0
-    I = (two_L * ratio + (1.0 - p.L) * m0) * brighten
-    # d/dmu0 of the brightened law: its lunar-Lambert part minus kappa I / mu0 (ratio / mu0 = inv_den)
-    I_mu0 = jnp.where(lit, (two_L * (mu * inv_den - kappa) * inv_den + (1.0 - p.L) * (1.0 - kappa)) * brighten, 0.0)
-    I_mu = -two_L * ratio * inv_den * brighten
-    # d mu0 / d beta, / d R (fixed v), / d cpsi, / d phase
-    mu0_beta = -c_em * a_s + s_em * cph
-    s_R = q_R * cb - mu_R * sb
-    c_R = mu_R * cb + q_R * sb
-    mu0_R = s_R * a_s + c_R * cph + mu0_beta * q_R * alpha0
-    # the mu part of d(mu^-kappa)/dR at fixed v: -kappa I (mu_R / mu), mu_R / mu = -q / (R (1 + q)) (finite at the limb)
-    I_R = I_mu0 * mu0_R + I_mu * mu_R
-    if brightened:
-        I_R = I_R + kappa * I * q / (R * (1.0 + q))
-    I_cpsi = I_mu0 * s_em * sph
-    I_a0 = I_mu0 * mu0_beta * q
-    I_ph = I_mu0 * (s_em * cph * cpsi - c_em * sph)
-    I_L = (2.0 * ratio - m0) * brighten
-    I_k = -log_mm * I
-    return I, I_R, I_cpsi, I_a0, I_ph, I_L, I_k
-
-
-def _terminator_depth(p: LimbProfileParams, R, cpsi, alpha0):
-    """``v_t``, the root of the depth where the ray meets the terminator (``mu0 = 0``), and which side is lit.
-
-    ``mu0 = sin(g) sin(phase) cpsi + cos(g) cos(phase)`` with ``g = e - beta = e - alpha0 sin e`` (module
-    docstring) vanishes at ``g_t = atan(-cos(phase) / (sin(phase) cpsi))`` in ``(-pi/2, pi/2]``; ``e_t`` from
-    two Newton steps on ``e - alpha0 sin e = g_t`` from ``g_t + alpha0 sin g_t`` (one left ``v_t`` off by
-    O(alpha0^4) rad, and the columns 3e-4 from autodiff at a 0.21 rad body's horn), then ``v_t^2 = R (1 - sin e_t)``.
-    Also returns whether the shallow side (``g > g_t``) is the lit one: ``d mu0 / dg`` at the unwrapped root
-    ``atan2(-cos(phase), sin(phase) cpsi)`` is ``sqrt(a_s^2 + cos^2 phase) > 0``, and it changes sign when the
-    root is shifted by pi into ``(-pi/2, pi/2]``.  A root beyond the centre (``g_t < 0``) gives ``v_t`` at the
-    centre, one beyond the limb ``v_t = 0``: the caller's clip to the window then keeps all or none of it.
-    """
-    theta = jnp.arctan2(-jnp.cos(p.phase), jnp.sin(p.phase) * cpsi)
-    wrapped = (theta > 0.5 * math.pi) | (theta <= -0.5 * math.pi)
-    g = jnp.where(theta > 0.5 * math.pi, theta - math.pi, jnp.where(theta <= -0.5 * math.pi, theta + math.pi, theta))
-    e = g + alpha0 * jnp.sin(g)
-    for _ in range(2):  # error O(alpha0^8) rad: the cut must sit on the terminator (the columns have no boundary term)
-        e = e - (e - alpha0 * jnp.sin(e) - g) / (1.0 - alpha0 * jnp.cos(e))
-    return jnp.sqrt(jnp.maximum(R * (1.0 - jnp.sin(jnp.clip(e, 0.0, 0.5 * math.pi))), 1e-12)), ~wrapped  # (as v0, v1)
-
-
-def _lit_limits(p: LimbProfileParams, v0, v1, R, cpsi, alpha0):
-    """The blur integral's limits cut to the lit part of ``[v0, v1]``.
-
-    The radiance is 0 beyond the terminator and its slope jumps there; a Gauss-Legendre rule across that
-    kink converges slowly (at a 117 deg crescent's horn, 20 nodes put the intensity 0.17 DN of 217 off and
-    the columns of the rule, which ``jax.jacfwd`` differentiates, several % off at 64 nodes), while on the lit
-    segment alone the integrand is smooth.  The cut's own derivative term is the integrand at the terminator,
-    which is 0, so the columns of :func:`_profile_integrals` need no boundary term.  A ray meets the
-    terminator at most once (``mu0`` is a sinusoid in ``e - beta``, which spans less than pi).
-    """
-    # g = e - beta falls monotonically with depth (dg/de = 1 - alpha0 cos e > 0): the shallow side of v_t is
-    # [v0, v_t], the deep side [v_t, v1]
-    vt, shallow_lit = _terminator_depth(p, R, cpsi, alpha0)
-    vt = jnp.clip(vt, v0, v1)
-    return jnp.where(shallow_lit, v0, vt), jnp.where(shallow_lit, vt, v1)
 
 
 def limb_geometry(p: LimbProfileParams, rc):
@@ -289,93 +140,49 @@ def limb_geometry(p: LimbProfileParams, rc):
     return dr, dc, x, y, d, beta, R, cpsi
 
 
-_INV_SQRT_PI = 1.0 / math.sqrt(math.pi)
+def _window(d, R, se, lit=None, partials: bool = False):
+    """The blur integral's window in ``v`` (depth ``v^2``): ``R - d -+ 6 se``; ``lit = (p, cpsi, alpha0)``: cut to its
+    lit side of the terminator (:func:`~jaxlimb.models.profile_radiance.lit_limits`), for the radiance; ``None`` for
+    the glow, which the terminator does not bound.  With ``partials`` also the ends' partials over
+    :data:`~jaxlimb.models.profile_radiance.WINDOW_KEYS`, ``(6, n)``."""
+    u0, u1 = R - d - 6.0 * se, R - d + 6.0 * se
+    v0, v1 = jnp.sqrt(jnp.maximum(u0, 1e-12)), jnp.sqrt(jnp.maximum(u1, 1e-12))
+    if not partials:
+        return (v0, v1) if lit is None else lit_limits(lit[0], v0, v1, R, lit[1], lit[2])
+    shape = (len(WINDOW_KEYS),) + (1,) * jnp.ndim(u0)  # partials over WINDOW_KEYS, stacked: (6, n)
+    dv0 = jnp.where(u0 > 1e-12, 0.5 / v0, 0.0) * jnp.array([-1.0, 1.0, -6.0, 0.0, 0.0, 0.0]).reshape(shape)
+    dv1 = jnp.where(u1 > 1e-12, 0.5 / v1, 0.0) * jnp.array([-1.0, 1.0, 6.0, 0.0, 0.0, 0.0]).reshape(shape)
+    if lit is None:
+        return v0, v1, dv0, dv1
+    return lit_limits(lit[0], v0, v1, R, lit[1], lit[2], dv0, dv1)
 
 
-def _erfcx(x):
-    """``exp(x^2) erfc(x)`` (``jax.scipy.special.erfcx``), finite for any real ``x``."""
-    return jax.scipy.special.erfcx(x)
+def window_regime(p: LimbProfileParams, rc):
+    """Which branch each pixel's window takes (an integer code): whether either end of ``R - d -+ 6 se`` is clamped at
+    the limb (``v = 0``), whether the terminator is clipped to the window and which side is lit.  The quadrature is
+    smooth in the parameters while these stay the same; where one switches, the rule (not the integral) has a kink of
+    the size of its error -- a window end reaching the limb moves its nodes as a square root -- and central
+    differences straddling it measure the kink, not the derivative (:mod:`jaxlimb.models.gradcheck`)."""
+    dr, dc, _, _, d, _, R, cpsi = limb_geometry(p, rc)
+    se = jnp.sqrt(p.sigma * p.sigma + 1.0 / 12.0 + (0.0 if not isinstance(p, AnisoProfileParams)
+                                                   else aniso_var(p, aniso_terms_of(p, dr, dc, d))))
+    u0, u1 = R - d - 6.0 * se, R - d + 6.0 * se
+    v0, v1 = jnp.sqrt(jnp.maximum(u0, 1e-12)), jnp.sqrt(jnp.maximum(u1, 1e-12))
+    vt, shallow = terminator_depth(p, R, cpsi, jnp.arctan(p.rho * p.a * p.inv_f))
+    flags = (u0 > 1e-12, u1 > 1e-12, vt < v0, vt > v1, shallow)
+    return sum(f.astype(jnp.int32) << i for i, f in enumerate(flags))
 
 
-def _glow_inside(p: GlowProfileParams, v):
-    r"""The glow's radiance (units of ``amp``) at depth ``u = v^2`` inside the limb and its ``log_h`` derivative.
-
-    An optically thin shell whose emission falls as :math:`e^{-h/H}` with the altitude ``h`` (the glow of
-    :mod:`jaxlimb.render.independent.optics`, a dust or exosphere horizon glow): seen on the disc at depth ``u``
-    below the limb the ray leaves the surface at the emission cosine :math:`\mu = \sqrt{2u/R}` and climbs
-    :math:`h \approx \mu t + t^2/2R` along its length ``t``; its column over the grazing column
-    :math:`\sqrt{2\pi R H}` (which sets ``glow``) is, with :math:`x = \sqrt{u/H}` (Chapman 1931's grazing
-    integral, the half of a ray in front of the surface),
-
-    .. math:: \frac{1}{\sqrt{2\pi RH}}\int_0^\infty e^{-(\mu t + t^2/2R)/H}\,dt = \tfrac12\,\mathrm{erfcx}(x),
-
-    1/2 at the limb, :math:`\sqrt{H/4\pi u}` deep inside.  ``d erfcx(x)/dx = 2x erfcx(x) - 2/sqrt(pi)``,
-    ``dx/dlog_h = -x/2``."""
-    x = v * jnp.exp(-0.5 * p.log_h)
-    ex = _erfcx(x)
-    G = 0.5 * ex
-    G_lh = -0.5 * x * (x * ex - _INV_SQRT_PI)
-    return G, G_lh
-
-
-def _glow_outside(p: GlowProfileParams, s, se, d, derivatives: bool):
-    r"""The blurred glow above the limb (units of ``amp`` per unit ``glow``) at signed distance ``s = d - R``
-    (px, positive outside) and, if asked, its partials in ``d``, ``R``, ``se`` and ``log_h``.
-
-    The radiance :math:`e^{-s'/H}` for :math:`s' > 0` (the miss column of the shell,
-    :math:`2p K_1(p/H) e^{p/H} e^{-(p-R)/H}`, over the grazing one, to :math:`O(s/R)`) convolved with the
-    Gaussian :math:`N(\cdot;\sigma_e)`: completing the square,
-
-    .. math:: E(s) = \int_0^\infty e^{-t/H} N(s - t)\,dt = e^{\sigma_e^2/2H^2 - s/H}\,
-              \Phi\big(s/\sigma_e - \sigma_e/H\big),
-
-    evaluated as ``exp(a - s/H + log Phi(w))`` (no overflow for ``H << se``).  Derivatives in closed form:
-    :math:`E' = N - E/H`, :math:`E'' = N' - E'/H` (``N' = -s N / se^2``), :math:`\partial_{\sigma_e} E = \sigma_e E''`
-    (the heat equation), :math:`H\,\partial_H E = (s E + \sigma_e^2 E')/H`.  As the profile
-    (:func:`_profile_integrals`), the 2-D blur adds the curvature term :math:`\sigma_e^2/(2d)\,E'`.
-    """
-    H = jnp.exp(p.log_h)
-    inv_H = 1.0 / H
-    w = s / se - se * inv_H
-    E = jnp.exp(0.5 * (se * inv_H) ** 2 - s * inv_H + jax.scipy.special.log_ndtr(w))
-    N = jnp.exp(-0.5 * (s / se) ** 2) / (se * math.sqrt(2.0 * math.pi))
-    E1 = N - E * inv_H
-    k = se * se / (2.0 * d)
-    G = E + k * E1
-    if not derivatives:
-        return G, None
-    N1 = -s / (se * se) * N
-    N2 = (s * s / se**4 - 1.0 / (se * se)) * N
-    E2 = N1 - E1 * inv_H
-    E3 = N2 - E2 * inv_H
-    E_lh = (s * E + se * se * E1) * inv_H
-    E1_lh = (E + s * E1 + se * se * E2) * inv_H  # d/ds of E_lh
-    parts = {
-        "G_d": E1 + k * (E2 - E1 / d),
-        "G_R": -(E1 + k * E2),
-        "G_se": se * E2 + k * se * E3 + se / d * E1,
-        "G_lh": E_lh + k * E1_lh,
-    }
-    return G, parts
-
-
-def _blur_nodes(d, R, se, lit=None):
-    """The quadrature of the radial blur (module docstring): nodes ``v`` (depth ``v^2``) ``(n, nodes)``, the
-    Gaussian's argument ``t = (d - R + v^2) / se`` and the weights ``g`` (Gaussian x ``2v dv`` x rule weights).
-    ``lit = (p, cpsi, alpha0)``: the window cut to its lit side of the terminator (:func:`_lit_limits`), for
-    the radiance; ``None`` for the glow, which the terminator does not bound."""
-    v0 = jnp.sqrt(jnp.maximum(R - d - 6.0 * se, 1e-12))
-    v1 = jnp.sqrt(jnp.maximum(R - d + 6.0 * se, 1e-12))
-    if lit is not None:
-        v0, v1 = _lit_limits(lit[0], v0, v1, R, lit[1], lit[2])
-    xg = jnp.asarray(_GL_X)
+def _blur_nodes(d, R, se, v0, v1):
+    """The quadrature of the radial blur (module docstring) on ``[v0, v1]``: nodes ``v`` ``(n, nodes)``, the
+    Gaussian's argument ``t = (d - R + v^2) / se``, its density ``gauss`` and the weights ``g`` (the density x
+    ``2v dv`` x the rule's weights)."""
     half = 0.5 * (v1 - v0)
-    w = jnp.asarray(_GL_W) * (2.0 * half)[..., None]
-    v = half[..., None] * (xg + 1.0) + v0[..., None]  # (n, nodes)
+    v = half[..., None] * (jnp.asarray(_GL_X) + 1.0) + v0[..., None]  # (n, nodes)
     sn = jnp.asarray(se)[..., None]  # one sigma_e per pixel (AnisoProfileParams) or one for all
     t = (d[..., None] - R[..., None] + v * v) / sn  # (d - d') / se
-    g = jnp.exp(-0.5 * t * t) * (v * w / (sn * math.sqrt(2 * math.pi)))  # Gaussian x 2v dv / 2 ... x weights
-    return v, t, g
+    gauss = jnp.exp(-0.5 * t * t) / (sn * math.sqrt(2 * math.pi))
+    return v, t, gauss, gauss * v * (jnp.asarray(_GL_W) * (2.0 * half)[..., None])
 
 
 def _blur_moments(J, t, g, se, second: bool):
@@ -389,46 +196,59 @@ def _blur_moments(J, t, g, se, second: bool):
             -jnp.sum(J * t * (t * t - 3.0) * g, axis=-1) / (se * se))
 
 
-def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brightened: bool = True,
-                       glowing: bool = False, s2=None):
-    """The blurred profile ``F`` (module docstring) and, if asked, its partials.
+def _window_terms(J, J_v, S, nodes, se, s2d, v0, v1):
+    """``d(F1 + s2d dF1/dd)/dv0`` and ``/dv1`` of the blur of ``J`` (``J_v``: its derivative in ``v``; ``S``: that blur,
+    ``F1 + s2d dF1/dd``) on ``nodes``: the quadrature's change with its ends (module docstring).  With ``N`` the
+    Gaussian density, ``F1 = (v1 - v0) sum_i w_i h_i`` for ``h = J v N``, and ``dF1/dd`` the same sum of
+    ``-h t / se``; ``d(v N)/dv = v N (1/v - 2 v t / se)``, so every sum is one of the blur's weights ``g`` times a
+    factor (the form of the other columns' sums)."""
+    v, t, g = nodes[0], nodes[1], nodes[3]
+    sn, s = jnp.asarray(se)[..., None], s2d[..., None]
+    P = J_v + J * (1.0 / v - 2.0 * v * t / sn)  # h_v / (v N)
+    Q = P - s * (P * t + J * 2.0 * v / sn) / sn  # the v-derivative of the integrand of F1 + s2d dF1/dd, / (v N)
+    Qg = jax.lax.optimization_barrier(Q * g)  # once, for both sums (each would repeat the radiance's chain)
+    A, B = jnp.sum(Qg, axis=-1), jnp.sum(Qg * jnp.asarray(_GL_X), axis=-1)
+    width = v1 - v0
+    S_w = S * jnp.where(width > 0, 1.0 / jnp.where(width > 0, width, 1.0), 0.0)  # (at width 0: dv0 = dv1, no term)
+    return -S_w + 0.5 * (A - B), S_w + 0.5 * (A + B)
 
-    ``F = F1 + sigma_e^2 / (2 d) dF1/dd``: the 1-D radial blur ``F1`` plus the first-order
-    curvature term of the 2-D blur of a round edge (the ``(1/r) d/dr`` part of the Laplacian:
-    the blurred disc's edge moves inward by ``sigma_e^2 / 2R``, 0.02 px for ``R = 33 px``,
-    ``sigma = 1.2 px``).  Partials ``F_d, F_R`` (at fixed ``d``/``R``), ``F_cpsi, F_se, F_a0,
-    F_ph, F_L``: the integrands differentiated under the integral; the limits sit 6 sigma out
-    in the Gaussian, so their own derivative terms are below 1e-8 of ``F``'s and are dropped.
-    ``brightened``: as :func:`_radiance_parts`.  ``glowing`` (:class:`GlowProfileParams`): plus ``p.glow``
-    times the glow on the disc side (:func:`_glow_inside`, in the integrand) and above the limb
-    (:func:`_glow_outside`, closed form); partials ``F_glow``, ``F_lh``.  ``s2``: the per-pixel anisotropic
-    variance of :class:`AnisoProfileParams` (:func:`_aniso_terms`), added to ``sigma_e^2``.
-    """
-    alpha0 = jnp.arctan(p.rho * p.a * p.inv_f)
-    se = jnp.sqrt(p.sigma * p.sigma + 1.0 / 12.0 + (0.0 if s2 is None else s2))
-    v, t, g = _blur_nodes(d, R, se, (p, cpsi, alpha0))
-    I, I_R, I_cpsi, I_a0, I_ph, I_L, I_k = _radiance_parts(p, v, R[..., None], cpsi[..., None], alpha0, brightened)
-    tg = t * g / jnp.asarray(se)[..., None]  # -dg/dd
-    F1, F1_d, F1_dd, F1_dse = _blur_moments(I, t, g, se, derivatives)
-    if glowing:  # the glow seen on the disc, on its own (uncut) nodes: independent of R, alpha0, phase, L
-        gl = p.glow * (1.0 + p.glow_tilt * cpsi)  # the glow at this position angle (GlowProfileParams)
-        vg, t_gl, g_gl = _blur_nodes(d, R, se)
-        tg_gl = t_gl * g_gl / jnp.asarray(se)[..., None]
-        I_gl, I_lh = _glow_inside(p, vg)
-        I_lh = gl[..., None] * I_lh
-        G1, G1_d, G1_dd, G1_dse = _blur_moments(I_gl, t_gl, g_gl, se, derivatives)
-        F1, F1_d = F1 + gl * G1, F1_d + gl * G1_d
-    s2d = se * se / (2.0 * d)
-    F = F1 + s2d * F1_d
-    if glowing:
-        Go, Po = _glow_outside(p, d - R, se, d, derivatives)
-        F = F + gl * Go
+
+def _add_window(parts: dict, terms, dv0, dv1, scale=1.0, keys: int = len(WINDOW_KEYS)) -> None:
+    """``parts["F_<key>"] += scale (D0 dv0/dkey + D1 dv1/dkey)`` for the first ``keys`` of the window's keys
+    (``terms = (D0, D1)``, ``dv0, dv1``: ``(6, n)``)."""
+    for i, k in enumerate(WINDOW_KEYS[:keys]):
+        name = "F_a0" if k == "a0" else ("F_ph" if k == "ph" else f"F_{k}")
+        parts[name] = parts[name] + scale * (terms[0] * dv0[i] + terms[1] * dv1[i])
+
+
+def _glow_integrals(p: GlowProfileParams, d, R, se, cpsi, s2d, derivatives: bool) -> dict:
+    """The glow's part of the blurred profile (times its radiance ``gl`` at this position angle): on the disc by the
+    quadrature on the uncut window, above the limb in closed form; with ``derivatives`` its partials' pieces."""
+    gl = p.glow * (1.0 + p.glow_tilt * cpsi)  # the glow at this position angle (GlowProfileParams)
+    win = _window(d, R, se, None, derivatives)
+    nodes = _blur_nodes(d, R, se, win[0], win[1])
+    t, g = nodes[1], nodes[3]
+    inside = glow_inside(p, nodes[0], node=derivatives)
+    G1, G1_d, G1_dd, G1_dse = _blur_moments(inside[0], t, g, se, derivatives)
+    Go, Po = glow_outside(p, d - R, se, d, derivatives)
+    out = {"gl": gl, "F1": gl * G1, "F1_d": gl * G1_d, "F": gl * Go}
     if not derivatives:
-        return F, None
-    if glowing:
-        F1_dd, F1_dse = F1_dd + gl * G1_dd, F1_dse + gl * G1_dse
+        return out
+    tg = t * g / jnp.asarray(se)[..., None]
+    lh, lh_d = jnp.sum(inside[1] * g, axis=-1), -jnp.sum(inside[1] * tg, axis=-1)
+    out.update(F1_dd=gl * G1_dd, F1_dse=gl * G1_dse, unit=G1 + s2d * G1_d + Go, F_lh=gl * (lh + s2d * lh_d + Po["G_lh"]),
+               Po=Po, terms=_window_terms(inside[0], inside[2], G1 + s2d * G1_d, nodes, se, s2d, win[0], win[1]), dv0=win[2], dv1=win[3])
+    return out
 
-    def pair(J, g=g, tg=tg):  # (integral of J g, of -J tg): a partial of F1 and the matching partial of F1_d
+
+def _radiance_partials(rad, nodes, se, s2d, d, F1_d, F1_dd, F1_dse) -> dict:
+    """The partials of ``F = F1 + s2d dF1/dd`` at fixed nodes (the integrands differentiated; module docstring of
+    :func:`profile_integrals`)."""
+    _, I_R, I_cpsi, I_a0, I_ph, I_L, I_k, _ = rad
+    t, g = nodes[1], nodes[3]
+    tg = t * g / jnp.asarray(se)[..., None]  # -dg/dd
+
+    def pair(J):  # (integral of J g, of -J tg): a partial of F1 and the matching partial of F1_d
         return jnp.sum(J * g, axis=-1), -jnp.sum(J * tg, axis=-1)
 
     F1_R, F1_dR = pair(I_R)
@@ -437,53 +257,72 @@ def _profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brig
     F1_ph, F1_dph = pair(I_ph)
     F1_L, F1_dL = pair(I_L)
     F1_k, F1_dk = pair(I_k)
-    F1_se = F1_dd * se
-    parts = {
+    return {
         "F_d": F1_d + s2d * (F1_dd - F1_d / d),
         "F_R": (-F1_d + F1_R) + s2d * (-F1_dd + F1_dR),
         "F_cpsi": F1_cp + s2d * F1_dcp,
-        "F_se": F1_se + s2d * F1_dse + se / d * F1_d,
+        "F_se": F1_dd * se + s2d * F1_dse + se / d * F1_d,  # dg/dse = se d^2g/dd^2 (the heat equation)
         "F_a0": F1_a0 + s2d * F1_da0,
         "F_ph": F1_ph + s2d * F1_dph,
         "F_L": F1_L + s2d * F1_dL,
         "F_k": F1_k + s2d * F1_dk,
-        "alpha0": alpha0,
-        "se": se,
     }
-    if glowing:
-        F1_g, F1_dg = pair(I_gl, g_gl, tg_gl)
-        F1_lh, F1_dlh = pair(I_lh, g_gl, tg_gl)
-        unit = F1_g + s2d * F1_dg + Go  # the blurred glow of unit radiance
-        parts["F_glow"] = (1.0 + p.glow_tilt * cpsi) * unit
-        parts["F_tilt"] = p.glow * cpsi * unit
-        parts["F_cpsi"] = parts["F_cpsi"] + p.glow * p.glow_tilt * unit
-        parts["F_lh"] = F1_lh + s2d * F1_dlh + gl * Po["G_lh"]
-        parts["F_d"] = parts["F_d"] + gl * Po["G_d"]
-        parts["F_R"] = parts["F_R"] + gl * Po["G_R"]
-        parts["F_se"] = parts["F_se"] + gl * Po["G_se"]
-    return F, parts
 
 
-def _aniso_terms(dr, dc, d):
-    """``cos 2psi, sin 2psi`` of the ray ``(dr, dc)`` (length ``d``; ``psi`` from ``+col`` toward ``-row``) and their
-    partials in ``r0, c0`` (``dr = r - r0``): ``(C, S, C_r0, C_c0, S_r0, S_c0)``."""
-    d4 = d * d * d * d
-    dif = dc * dc - dr * dr
-    return (dif / (d * d), -2.0 * dr * dc / (d * d), 4.0 * dr * dc * dc / d4, -4.0 * dc * dr * dr / d4,
-            2.0 * dc * dif / d4, -2.0 * dr * dif / d4)
+def profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brightened: bool = True,
+                      glowing: bool = False, s2=None, window: bool = True):
+    """The blurred profile ``F`` (module docstring) and, if asked, its partials.
+
+    ``F = F1 + sigma_e^2 / (2 d) dF1/dd``: the 1-D radial blur ``F1`` plus the first-order
+    curvature term of the 2-D blur of a round edge (the ``(1/r) d/dr`` part of the Laplacian:
+    the blurred disc's edge moves inward by ``sigma_e^2 / 2R``, 0.02 px for ``R = 33 px``,
+    ``sigma = 1.2 px``).  Partials ``F_d, F_R`` (at fixed ``d``/``R``), ``F_cpsi, F_se, F_a0,
+    F_ph, F_L, F_k``: the integrands differentiated at fixed nodes plus the move of the nodes with the window's
+    ends (:func:`_window_terms`).  ``brightened``: as :func:`~jaxlimb.models.profile_radiance.radiance_parts`.
+    ``glowing`` (:class:`GlowProfileParams`): plus ``p.glow`` times the glow on the disc side (in the integrand) and
+    above the limb (closed form); partials ``F_glow``, ``F_tilt``, ``F_lh``.  ``s2``: the per-pixel anisotropic
+    variance of :class:`AnisoProfileParams`, added to ``sigma_e^2``.  ``window=False``: without the window's terms
+    (for a column that does not need them: ``F_k``).
+    """
+    alpha0 = jnp.arctan(p.rho * p.a * p.inv_f)
+    se = jnp.sqrt(p.sigma * p.sigma + 1.0 / 12.0 + (0.0 if s2 is None else s2))
+    win = _window(d, R, se, (p, cpsi, alpha0), derivatives and window)
+    if derivatives and window:
+        win = jax.lax.optimization_barrier(win)  # the ends' partials: once per pixel, not once per column
+    nodes = _blur_nodes(d, R, se, win[0], win[1])
+    rad = radiance_parts(p, nodes[0], R[..., None], cpsi[..., None], alpha0, brightened)
+    F1, F1_d, F1_dd, F1_dse = _blur_moments(rad[0], nodes[1], nodes[3], se, derivatives)
+    s2d = se * se / (2.0 * d)
+    S = F1 + s2d * F1_d  # the radiance's part of F
+    glow = _glow_integrals(p, d, R, se, cpsi, s2d, derivatives) if glowing else None
+    if glow is not None:
+        F1, F1_d = F1 + glow["F1"], F1_d + glow["F1_d"]
+    F = F1 + s2d * F1_d + (glow["F"] if glow is not None else 0.0)
+    if not derivatives:
+        return F, None
+    if glow is not None:
+        F1_dd, F1_dse = F1_dd + glow["F1_dd"], F1_dse + glow["F1_dse"]
+    parts = _radiance_partials(rad, nodes, se, s2d, d, F1_d, F1_dd, F1_dse)
+    if window:
+        _add_window(parts, _window_terms(rad[0], rad[7], S, nodes, se, s2d, win[0], win[1]), win[2], win[3])
+    if glow is not None:
+        _add_glow(parts, glow, p, cpsi)
+    # computed once per pixel and read by every column (XLA would repeat the window's terms in each column's fusion)
+    return jax.lax.optimization_barrier((F, {**parts, "alpha0": alpha0, "se": se}))
 
 
-def _aniso_var(p: LimbProfileParams, terms):
-    """The anisotropic part of the blur variance of :class:`AnisoProfileParams` per pixel from its
-    :func:`_aniso_terms` (``None`` for the other profiles, ``terms`` then ``None``)."""
-    if terms is None:
-        return None
-    return p.s2c * terms[0] + p.s2s * terms[1]
-
-
-def _aniso_terms_of(p: LimbProfileParams, dr, dc, d):
-    """:func:`_aniso_terms` for :class:`AnisoProfileParams`, ``None`` for the other profiles."""
-    return _aniso_terms(dr, dc, d) if isinstance(p, AnisoProfileParams) else None
+def _add_glow(parts: dict, glow: dict, p: GlowProfileParams, cpsi) -> None:
+    """The glow's terms of the partials (:func:`_glow_integrals`): its own columns, its closed form's partials,
+    its dependence on ``cpsi`` and its window's ends."""
+    gl, unit, Po = glow["gl"], glow["unit"], glow["Po"]
+    parts["F_glow"] = (1.0 + p.glow_tilt * cpsi) * unit
+    parts["F_tilt"] = p.glow * cpsi * unit
+    parts["F_cpsi"] = parts["F_cpsi"] + p.glow * p.glow_tilt * unit
+    parts["F_lh"] = glow["F_lh"]
+    parts["F_d"] = parts["F_d"] + gl * Po["G_d"]
+    parts["F_R"] = parts["F_R"] + gl * Po["G_R"]
+    parts["F_se"] = parts["F_se"] + gl * Po["G_se"]
+    _add_window(parts, glow["terms"], glow["dv0"], glow["dv1"], scale=gl, keys=3)  # the uncut window: d, R, se
 
 
 def limb_profile_intensity(p: LimbProfileParams, rc):
@@ -494,8 +333,8 @@ def limb_profile_intensity(p: LimbProfileParams, rc):
     :func:`jaxlimb.models.ellipse_coords`); the circle formulas apply with that ``R``.
     """
     dr, dc, _, _, d, _, R, cpsi = limb_geometry(p, rc)
-    F, _ = _profile_integrals(p, d, R, cpsi, False, isinstance(p, MinnaertProfileParams),
-                              isinstance(p, GlowProfileParams), _aniso_var(p, _aniso_terms_of(p, dr, dc, d)))
+    F, _ = profile_integrals(p, d, R, cpsi, False, isinstance(p, MinnaertProfileParams),
+                              isinstance(p, GlowProfileParams), aniso_var(p, aniso_terms_of(p, dr, dc, d)))
     return p.ymin + p.amp * F
 
 
@@ -505,12 +344,12 @@ def brightening_column(p: LimbProfileParams, rc):
     profile ``p`` toward Minnaert-like limb brightening, for a score test (the whole brightened Jacobian
     costs 2.5x the profile's; this column alone, about one intensity)."""
     _, _, _, _, d, _, R, cpsi = limb_geometry(p, rc)
-    _, P = _profile_integrals(p, d, R, cpsi, True, False)
+    _, P = profile_integrals(p, d, R, cpsi, True, False, window=False)
     return p.amp * P["F_k"]
 
 
 def _profile_value_and_columns(p: LimbProfileParams, rc):
-    """Intensity and all 13 Jacobian columns from one pass (derivatives under the integral).
+    """Intensity and all Jacobian columns from one pass (the quadrature's derivative; module docstring).
 
     The chain rule from the per-pixel quantities ``(d, R, cpsi, se, alpha0)`` to the
     parameters is written out; checked against ``jax.jacfwd`` of :func:`limb_profile_intensity`
@@ -519,8 +358,8 @@ def _profile_value_and_columns(p: LimbProfileParams, rc):
     dr, dc, x, y, d, beta, R, cpsi = limb_geometry(p, rc)
     brightened = isinstance(p, MinnaertProfileParams)
     glowing = isinstance(p, GlowProfileParams)
-    aniso = _aniso_terms_of(p, dr, dc, d)
-    F, P = _profile_integrals(p, d, R, cpsi, True, brightened, glowing, _aniso_var(p, aniso))
+    aniso = aniso_terms_of(p, dr, dc, d)
+    F, P = profile_integrals(p, d, R, cpsi, True, brightened, glowing, aniso_var(p, aniso))
     A = p.amp
     ct, st = jnp.cos(p.theta), jnp.sin(p.theta)
     # d/dr0, d/dc0 of d, beta, R, cpsi
@@ -609,10 +448,9 @@ def glow_column(p: LimbProfileParams, rc, log_h):
 
 def _glow_unit(p: GlowProfileParams, d, R, se):
     """The blurred glow of unit ``glow`` (both sides of the limb, curvature term included)."""
-    v, t, g = _blur_nodes(d, R, se)
-    G_in, _ = _glow_inside(p, v)
-    F1, F1_d, _, _ = _blur_moments(G_in, t, g, se, False)
-    return F1 + se * se / (2.0 * d) * F1_d + _glow_outside(p, d - R, se, d, False)[0]
+    nodes = _blur_nodes(d, R, se, *_window(d, R, se))
+    F1, F1_d, _, _ = _blur_moments(glow_inside(p, nodes[0])[0], nodes[1], nodes[3], se, False)
+    return F1 + se * se / (2.0 * d) * F1_d + glow_outside(p, d - R, se, d, False)[0]
 
 
 def glow_fields(p: LimbProfileParams) -> dict[str, float]:
@@ -621,20 +459,6 @@ def glow_fields(p: LimbProfileParams) -> dict[str, float]:
     if not isinstance(p, GlowProfileParams):
         return {"glow": 0.0}
     return {"glow": float(p.glow), "glow_scale_px": math.exp(float(p.log_h)), "glow_tilt": float(p.glow_tilt)}
-
-
-PHYSICAL_L = (-0.1, 1.1)
-"""Lunar-Lambert weights ``L`` a fitted profile may take under ``profile="auto"``: ``[0, 1]`` with a
-margin, widened by 3 of the fit's own sigma of ``L`` (a 33 px Moon with 10 DN of noise fits a
-Lommel-Seeliger limb, ``L = 1``, at 1.13 now and then)."""
-
-
-def lunar_lambert_weight(phase_rad: float, coeffs=(-0.019, 2.42e-4, -1.46e-6)) -> float:
-    """McEwen's ``L(alpha)`` (alpha in degrees, clipped to [0, 1])."""
-    a = math.degrees(phase_rad)
-    A, B, C = coeffs
-    return float(min(1.0, max(0.0, 1.0 + A * a + B * a * a + C * a**3)))
-
 
 __all__ = [
     "LIMB_PROFILE",
@@ -648,10 +472,13 @@ __all__ = [
     "brightening_column",
     "glow_column",
     "glow_fields",
+    "limb_geometry",
     "PHYSICAL_L",
     "PROFILE_FIXED",
     "limb_profile_intensity",
     "lunar_lambert_weight",
+    "profile_integrals",
     "profile_model",
     "quadrature_nodes",
+    "window_regime",
 ]

@@ -82,7 +82,7 @@ def test_killed_pipeline_run_resumed_gives_the_same_result_file(tmp_path):
     summary = json.loads(r.stdout)
     assert summary["chunks_resumed"] >= 2 and summary["chunks_run"] + summary["chunks_resumed"] == 6
     assert (out / "result.json").read_bytes() == (ref / "result.json").read_bytes()
-    assert summary["n_ok"] == 6 and summary["error_px"]["row"]["rms"] < 0.2
+    assert summary["n_ok"] == 6 and summary["summary"]["all"]["row"]["rms"] < 0.2
 
 
 def test_worker_environment_shares_the_cores(monkeypatch):
@@ -134,21 +134,22 @@ def test_resume_keeps_the_chunks_of_the_study_whatever_the_workers(tmp_path):
 
     from jaxlimb.analysis.distributed import default_chunk
     from jaxlimb.analysis.montecarlo import prepare_study, study_chunk_size
-    from jaxlimb.cli._mc_pipeline import _study
+    from jaxlimb.cli._mc_pipeline import study
     from jaxlimb.geometry.camera import Camera
 
     cam = Camera.from_dict(SMALL_CAMERA)
     out = tmp_path / "study"
-    args = dict(range_km=30000.0, phase_deg=30.0, sigma=10.0, n=200, seed=4, out=str(out), json=True, batch=None)
-    _, started = _study(argparse.Namespace(**args, workers=2, resume=False), cam)
+    args = dict(range_km=30000.0, phase_deg=30.0, sigma=10.0, n=200, seed=4, out=str(out), json=True, batch=None,
+                families=None, body="moon", profile=None)
+    _, started, _ = study(argparse.Namespace(**args, workers=2, resume=False), cam)
     prepare_study(started)  # writes the manifest
     assert study_chunk_size(out) == started.chunk_size == default_chunk(200, 2)
     for w in (None, 1, 3):
         assert default_chunk(200, w or 1) != started.chunk_size
-        _, resumed = _study(argparse.Namespace(**args, workers=w, resume=True), cam)
+        _, resumed, _ = study(argparse.Namespace(**args, workers=w, resume=True), cam)
         assert resumed.chunk_size == started.chunk_size
         assert prepare_study(resumed) == list(range(started.n_chunks))  # accepted as the same study
-    _, explicit = _study(argparse.Namespace(**{**args, "batch": 7}, workers=1, resume=True), cam)
+    _, explicit, _ = study(argparse.Namespace(**{**args, "batch": 7}, workers=1, resume=True), cam)
     assert explicit.chunk_size == 7  # --batch still wins (and a mismatch is then refused by the manifest)
     assert study_chunk_size(tmp_path / "none") is None
 
@@ -157,7 +158,7 @@ def test_first_task_waits_for_the_preload_imports():
     """A worker's first task began while the preload thread imported ``jaxlimb.pipeline``: the two threads
     importing the package at once saw a partially initialised ``jaxlimb.geometry.ellipsoid`` (ImportError in
     2 of 3 such processes).  ``LocateTrial`` waits for the preload (:func:`dask_worker.wait_started`)."""
-    code = ("import time\nfrom jaxlimb.analysis import dask_worker as d\nfrom jaxlimb.analysis.distributed import LocateTrial\n"
+    code = ("import time\nfrom jaxlimb.analysis import dask_worker as d\nfrom jaxlimb.analysis.pipeline_study import LocateTrial\n"
             "slow = d.start_jax\nd.start_jax = lambda: (time.sleep(4.0), slow())\n"  # a preload still importing
             "d.dask_setup(None)\nLocateTrial(range_km=400000.0)._base()\n"
             "assert not d._STARTED[0].is_alive(), 'the trial ran before the preload had finished'\nprint('ok')\n")

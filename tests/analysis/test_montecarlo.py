@@ -7,11 +7,10 @@ import json
 import numpy as np
 import pytest
 
+from jaxlimb.analysis.figures import plot_errors, plot_rms_vs_crlb
 from jaxlimb.analysis.montecarlo import (
     MonteCarloOptions,
     load_monte_carlo,
-    plot_errors,
-    plot_rms_vs_crlb,
     run_monte_carlo,
     stats_json,
     trial_seed,

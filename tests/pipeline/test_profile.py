@@ -9,9 +9,15 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxlimb.models.lunar_lambert import (LIMB_PROFILE, LIMB_PROFILE_MINNAERT, LimbProfileParams,
-                                          MinnaertProfileParams, limb_profile_intensity)
 import jaxlimb.models.lunar_lambert as prof
+from jaxlimb.models import (
+    LIMB_PROFILE,
+    LIMB_PROFILE_MINNAERT,
+    LimbProfileParams,
+    MinnaertProfileParams,
+    limb_profile_intensity,
+)
+from jaxlimb.models.profile_radiance import cos_sin_small, glow_inside, glow_outside
 
 jax.config.update("jax_enable_x64", True)
 
@@ -111,10 +117,10 @@ def test_quadrature_is_converged(phase_deg, sigma, kappa):
 
 def test_small_angle_series():
     x = jnp.linspace(-0.2, 0.2, 1001)
-    c, s = prof._cos_sin_small(x, jnp.asarray(True))
+    c, s = cos_sin_small(x, jnp.asarray(True))
     np.testing.assert_allclose(np.asarray(c), np.cos(np.asarray(x)), rtol=0, atol=2e-16)
     np.testing.assert_allclose(np.asarray(s), np.sin(np.asarray(x)), rtol=0, atol=2e-16)
-    c, s = prof._cos_sin_small(jnp.asarray([1.0]), jnp.asarray(False))
+    c, s = cos_sin_small(jnp.asarray([1.0]), jnp.asarray(False))
     assert float(c[0]) == pytest.approx(math.cos(1.0), abs=1e-16)
 
 
@@ -164,7 +170,7 @@ def test_glow_above_the_limb_is_the_blurred_exponential(h, se):
     for s in (-4.0 * se, -1.0, 0.0, 0.4, 2.0, 6.0 * se):
         num = integrate.quad(lambda t: math.exp(-t / h - 0.5 * ((s - t) / se) ** 2) / (se * math.sqrt(2 * math.pi)),
                              0.0, 60.0 * h + 20.0 * se, points=[max(s, 0.0)], limit=200)[0]
-        got = float(prof._glow_outside(p, jnp.asarray(s), se, 1e15, False)[0])
+        got = float(glow_outside(p, jnp.asarray(s), se, 1e15, False)[0])
         assert got == pytest.approx(num, rel=1e-8, abs=1e-13)
 
 
@@ -176,7 +182,7 @@ def test_glow_on_the_disc_is_half_the_grazing_column(h, radius, depth):
 
     mu = math.sqrt(2.0 * depth / radius)
     num = integrate.quad(lambda t: math.exp(-(mu * t + t * t / (2 * radius)) / h), 0.0, np.inf)[0]
-    got = float(prof._glow_inside(_glow_params(1.0, h), jnp.asarray(math.sqrt(depth)))[0])
+    got = float(glow_inside(_glow_params(1.0, h), jnp.asarray(math.sqrt(depth)))[0])
     assert got == pytest.approx(num / math.sqrt(2 * math.pi * radius * h), rel=1e-10)
 
 

@@ -19,8 +19,7 @@ import lineax as lx
 import optimistix as optx
 from jaxtyping import Array, Float, PyTree, Scalar
 
-from ._problem import fused_residual_fn
-from .solvers import AbstractLimbSolver, FitResult, _coarse, _finish
+from .problem import AbstractLimbSolver, FitResult, coarse_problem, finish_result, fused_residual_fn
 
 OPTX_RTOL = 1e-10
 OPTX_ATOL = 1e-6
@@ -42,7 +41,7 @@ class Optimistix(AbstractLimbSolver):
     """Any optimistix least-squares solver or minimiser, given what the default solver has.
 
     With ``fused=True`` (default) and the analytic Jacobian, the residual handed to optimistix
-    is :func:`~jaxlimb.fitting._problem.fused_residual_fn`: a ``jax.custom_jvp`` whose primal
+    is :func:`~jaxlimb.fitting.problem.fused_residual_fn`: a ``jax.custom_jvp`` whose primal
     pass computes the intensities and the Jacobian columns together, so optimistix's
     ``jax.linearize`` gets the paper's Jacobian as one ``(n, q)`` matrix instead of tracing the
     model.  With ``normal=True`` (default) the linear solver of the solver's descent
@@ -89,7 +88,7 @@ class Optimistix(AbstractLimbSolver):
         solver = self.configured()
         y0, steps = self._coarse_phase(residual, solver, problem, y0, max_steps)
         sol = optx.least_squares(residual, solver, y0, args=problem.args, max_steps=max_steps, throw=False)
-        return sol.value, steps + sol.stats["num_steps"], _finish(problem, sol.value, fit_result(sol.result))
+        return sol.value, steps + sol.stats["num_steps"], finish_result(problem, sol.value, fit_result(sol.result))
 
     def _coarse_phase(self, residual, solver, problem, y0, max_steps):  # type: ignore[no-untyped-def]
         """:class:`NormalLM`'s coarse-to-fine start: the same solver on every ``coarse_stride``-th pixel.
@@ -104,7 +103,7 @@ class Optimistix(AbstractLimbSolver):
         if self.coarse_stride <= 1 or n_pix < self.coarse_min_pixels or not hasattr(solver, "atol"):
             return y0, jnp.asarray(0)
         loose = eqx.tree_at(lambda s: (s.rtol, s.atol), solver, (1e-6, self.coarse_tol_px))
-        coarse = _coarse(problem, self.coarse_stride)
+        coarse = coarse_problem(problem, self.coarse_stride)
         sol = optx.least_squares(residual, loose, y0, args=coarse.args, max_steps=max_steps, throw=False)
         ok = (sol.result == optx.RESULTS.successful) & coarse.admissible(sol.value)
         return jnp.where(ok, sol.value, y0), sol.stats["num_steps"]

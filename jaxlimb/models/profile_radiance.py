@@ -1,0 +1,256 @@
+r"""The pieces of the physical limb profile (:mod:`jaxlimb.models.lunar_lambert`) evaluated at one depth: the
+lunar-Lambert radiance and its partial derivatives, the terminator's depth along a ray and the window of the blur
+integral cut to its lit side (both with their partial derivatives), the glow above the limb and the anisotropic
+blur's angular terms.
+
+The derivatives are those of the functions as written (the quadrature of :mod:`jaxlimb.models.lunar_lambert`
+moves its nodes with the window's ends, so its exact Jacobian needs the radiance's derivative in the depth and the
+ends' derivatives in every per-pixel quantity: :func:`radiance_parts`' ``I_v``, :func:`lit_limits`' partials).
+"""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+
+from .profile_params import AnisoProfileParams, GlowProfileParams, LimbProfileParams
+
+#: The per-pixel quantities the window's ends depend on: distance ``d``, limb radius ``R``, blur ``se``, the
+#: cosine ``cpsi`` toward the Sun, the angular radius ``a0`` and the phase ``ph``.
+WINDOW_KEYS = ("d", "R", "se", "cpsi", "a0", "ph")
+
+def cos_sin_small(x, small):
+    """``(cos x, sin x)``; by Taylor series (to 1e-16 for ``|x| <= 0.2``) when ``small`` (a
+    scalar: the body's angular radius, which bounds ``|x|``, is below 0.2 rad), else
+    ``jnp.cos``, ``jnp.sin`` (the series is ~5x cheaper)."""
+
+    def series(x):
+        x2 = x * x
+        c = 1.0 - x2 / 2.0 * (1.0 - x2 / 12.0 * (1.0 - x2 / 30.0 * (1.0 - x2 / 56.0 * (1.0 - x2 / 90.0))))
+        s = x * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0 * (1.0 - x2 / 72.0 * (1.0 - x2 / 110.0)))))
+        return c, s
+
+    return jax.lax.cond(small, series, lambda x: (jnp.cos(x), jnp.sin(x)), x)
+
+
+def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = True):
+    """Radiance and its partial derivatives at depth ``v**2`` below the limb (module docstring of
+    :mod:`jaxlimb.models.lunar_lambert`).
+
+    With ``q = 1 - v^2/R`` the emission cosine is computed as ``mu = v sqrt((1 + q)/R)``
+    (no cancellation in ``1 - q^2`` at the limb).  Returns ``I`` and, at fixed ``v``,
+    ``dI/dR``, ``dI/dcpsi``, ``dI/dalpha0``, ``dI/dphase``, ``dI/dL``, ``dI/dkappa``, and ``dI/dv`` at fixed ``R``
+    (the move of a quadrature node).  ``brightened``: with the limb brightening ``(mu0 mu)^-p.kappa``
+    (:class:`MinnaertProfileParams`); ``dI/dkappa`` is returned in either case (at ``kappa = 0`` without it).  A
+    separate model and not a parameter held at 0: on CPU the brightening's terms cost the one-pass Jacobian 2.5-3x
+    (XLA repeats them in every column's reduction; a ``lax.cond`` on ``kappa = 0`` did not help).
+    """
+    v2 = v * v
+    inv_R = 1.0 / R
+    q = jnp.clip(1.0 - v2 * inv_R, 0.0, 1.0)
+    rt = jnp.sqrt((1.0 + q) * inv_R)
+    mu = v * rt
+    cb, sb = cos_sin_small(q * alpha0, jnp.abs(alpha0) <= 0.2)  # beta = q alpha0
+    s_em = q * cb - mu * sb  # sin(e - beta)
+    c_em = mu * cb + q * sb  # cos(e - beta)
+    sph, cph = jnp.sin(p.phase), jnp.cos(p.phase)
+    a_s = sph * cpsi
+    mu0 = s_em * a_s + c_em * cph
+    lit = mu0 > 0
+    m0 = jnp.where(lit, mu0, 0.0)
+    inv_den = 1.0 / jnp.where(lit, m0 + mu, 1.0)
+    two_L = 2.0 * p.L
+    ratio = m0 * inv_den  # mu0 / (mu0 + mu)
+    # (mu0 mu)^-kappa: Minnaert's limb brightening (L = 0: mu0^k mu^(k-1) with k = 1 - kappa); 1 at kappa = 0
+    log_mm = jnp.log(jnp.where(lit & (mu > 0), m0 * mu, 1.0))
+    kappa = p.kappa if brightened else 0.0
+    brighten = jnp.exp(-kappa * log_mm) if brightened else 1.0
+    I = (two_L * ratio + (1.0 - p.L) * m0) * brighten
+    # d/dmu0 of the brightened law: its lunar-Lambert part minus kappa I / mu0 (ratio / mu0 = inv_den)
+    I_mu0 = jnp.where(lit, (two_L * (mu * inv_den - kappa) * inv_den + (1.0 - p.L) * (1.0 - kappa)) * brighten, 0.0)
+    I_mu = -two_L * ratio * inv_den * brighten
+    mu0_beta = -c_em * a_s + s_em * cph  # d mu0 / d beta
+    q_R = v2 * inv_R * inv_R
+    mu_R = -v * q * inv_R / (R * rt)
+    s_R = q_R * cb - mu_R * sb
+    c_R = mu_R * cb + q_R * sb
+    mu0_R = s_R * a_s + c_R * cph + mu0_beta * q_R * alpha0
+    # the mu part of d(mu^-kappa)/dR at fixed v: -kappa I (mu_R / mu), mu_R / mu = -q / (R (1 + q)) (finite at the limb)
+    I_R = I_mu0 * mu0_R + I_mu * mu_R
+    if brightened:
+        I_R = I_R + kappa * I * q / (R * (1.0 + q))
+    # at fixed R along v: q_v = -2 v / R, mu_v = 2 q / (R rt) (d rt / dv = q_v / (2 R rt)), beta_v = q_v alpha0
+    q_v = -2.0 * v * inv_R
+    mu_v = 2.0 * q * inv_R / rt
+    mu0_v = (q_v * cb - mu_v * sb) * a_s + (mu_v * cb + q_v * sb) * cph + mu0_beta * q_v * alpha0
+    I_v = I_mu0 * mu0_v + I_mu * mu_v
+    if brightened:  # the mu part of d(mu^-kappa)/dv: -kappa I mu_v / mu, mu_v / mu = 2 q / (v (1 + q))
+        I_v = I_v - kappa * I * 2.0 * q / (v * (1.0 + q))
+    I_cpsi = I_mu0 * s_em * sph
+    I_a0 = I_mu0 * mu0_beta * q
+    I_ph = I_mu0 * (s_em * cph * cpsi - c_em * sph)
+    I_L = (2.0 * ratio - m0) * brighten
+    I_k = -log_mm * I
+    return I, I_R, I_cpsi, I_a0, I_ph, I_L, I_k, I_v
+
+
+def terminator_depth(p: LimbProfileParams, R, cpsi, alpha0, tangents: bool = False):
+    """``v_t``, the root of the depth where the ray meets the terminator (``mu0 = 0``), and which side is lit.
+
+    ``mu0 = sin(g) sin(phase) cpsi + cos(g) cos(phase)`` with ``g = e - beta = e - alpha0 sin e`` (module
+    docstring) vanishes at ``g_t = atan(-cos(phase) / (sin(phase) cpsi))`` in ``(-pi/2, pi/2]``; ``e_t`` from
+    two Newton steps on ``e - alpha0 sin e = g_t`` from ``g_t + alpha0 sin g_t`` (one left ``v_t`` off by
+    O(alpha0^4) rad, and the columns 3e-4 from autodiff at a 0.21 rad body's horn), then ``v_t^2 = R (1 - sin e_t)``.
+    Also returns whether the shallow side (``g > g_t``) is the lit one: ``d mu0 / dg`` at the unwrapped root
+    ``atan2(-cos(phase), sin(phase) cpsi)`` is ``sqrt(a_s^2 + cos^2 phase) > 0``, and it changes sign when the
+    root is shifted by pi into ``(-pi/2, pi/2]``.  A root beyond the centre (``g_t < 0``) gives ``v_t`` at the
+    centre, one beyond the limb ``v_t = 0``: the caller's clip to the window then keeps all or none of it.
+    With ``tangents``, also ``d v_t`` over :data:`WINDOW_KEYS`, ``(6, n)`` (the Newton steps differentiated).
+    """
+    sph, cph = jnp.sin(p.phase), jnp.cos(p.phase)
+    theta = jnp.arctan2(-cph, sph * cpsi)
+    wrapped = (theta > 0.5 * math.pi) | (theta <= -0.5 * math.pi)
+    g = jnp.where(theta > 0.5 * math.pi, theta - math.pi, jnp.where(theta <= -0.5 * math.pi, theta + math.pi, theta))
+    e = g + alpha0 * jnp.sin(g)
+    # tangents along (cpsi, a0, ph): d theta (the shift by pi is a constant) and d alpha0
+    den = (sph * cpsi) ** 2 + cph * cph
+    dg = jnp.stack([sph * cph / den, jnp.zeros_like(den), cpsi / den])
+    da = jnp.array([0.0, 1.0, 0.0]).reshape((3,) + (1,) * jnp.ndim(e))
+    de = dg * (1.0 + alpha0 * jnp.cos(g)) + da * jnp.sin(g)
+    for _ in range(2):  # error O(alpha0^8) rad: the cut must sit on the terminator
+        sin_e, cos_e = jnp.sin(e), jnp.cos(e)
+        f, fp = e - alpha0 * sin_e - g, 1.0 - alpha0 * cos_e
+        if tangents:
+            df = fp * de - da * sin_e - dg
+            de = de - (df * fp - f * (alpha0 * sin_e * de - da * cos_e)) / (fp * fp)
+        e = e - f / fp
+    if tangents:  # materialised: the partials' rows below would each repeat the Newton steps (XLA's loop fusion)
+        e, de = jax.lax.optimization_barrier((e, de))
+    ec = jnp.clip(e, 0.0, 0.5 * math.pi)
+    depth2 = R * (1.0 - jnp.sin(ec))
+    vt = jnp.sqrt(jnp.maximum(depth2, 1e-12))
+    if not tangents:
+        return vt, ~wrapped  # (as v0, v1)
+    half_inv = jnp.where(depth2 > 1e-12, 0.5 / vt, 0.0)
+    d_e = half_inv * (-R * jnp.cos(ec)) * jnp.where((e > 0.0) & (e < 0.5 * math.pi), de, 0.0)  # (cpsi, a0, ph)
+    zero = jnp.zeros_like(vt)
+    return vt, ~wrapped, jnp.stack([zero, half_inv * (1.0 - jnp.sin(ec)), zero, d_e[0], d_e[1], d_e[2]])
+
+
+def lit_limits(p: LimbProfileParams, v0, v1, R, cpsi, alpha0, dv0=None, dv1=None):
+    """The blur integral's limits cut to the lit part of ``[v0, v1]``; with the limits' partials ``dv0, dv1``
+    (``(6, n)`` over :data:`WINDOW_KEYS`) also the cut limits' partials.
+
+    The radiance is 0 beyond the terminator and its slope jumps there; a Gauss-Legendre rule across that
+    kink converges slowly (at a 117 deg crescent's horn, 20 nodes put the intensity 0.17 DN of 217 off and
+    the columns of the rule several % off at 64 nodes), while on the lit segment alone the integrand is smooth.
+    A ray meets the terminator at most once (``mu0`` is a sinusoid in ``e - beta``, which spans less than pi).
+    """
+    # g = e - beta falls monotonically with depth (dg/de = 1 - alpha0 cos e > 0): the shallow side of v_t is
+    # [v0, v_t], the deep side [v_t, v1]
+    if dv0 is None:
+        vt, shallow_lit = terminator_depth(p, R, cpsi, alpha0)
+        vt = jnp.clip(vt, v0, v1)
+        return jnp.where(shallow_lit, v0, vt), jnp.where(shallow_lit, vt, v1)
+    # materialised: XLA would otherwise repeat the Newton steps in the fusion of every partial that reads them
+    vt, shallow_lit, dvt = jax.lax.optimization_barrier(terminator_depth(p, R, cpsi, alpha0, tangents=True))
+    dvt = jnp.where(vt < v0, dv0, jnp.where(vt > v1, dv1, dvt))
+    vt = jnp.clip(vt, v0, v1)
+    return (jnp.where(shallow_lit, v0, vt), jnp.where(shallow_lit, vt, v1), jnp.where(shallow_lit, dv0, dvt),
+            jnp.where(shallow_lit, dvt, dv1))
+
+
+_INV_SQRT_PI = 1.0 / math.sqrt(math.pi)
+
+
+def _erfcx(x):
+    """``exp(x^2) erfc(x)`` (``jax.scipy.special.erfcx``), finite for any real ``x``."""
+    return jax.scipy.special.erfcx(x)
+
+
+def glow_inside(p: GlowProfileParams, v, node: bool = False):
+    r"""The glow's radiance (units of ``amp``) at depth ``u = v^2`` inside the limb and its ``log_h`` derivative.
+
+    An optically thin shell whose emission falls as :math:`e^{-h/H}` with the altitude ``h`` (the glow of
+    :mod:`jaxlimb.render.independent.optics`, a dust or exosphere horizon glow): seen on the disc at depth ``u``
+    below the limb the ray leaves the surface at the emission cosine :math:`\mu = \sqrt{2u/R}` and climbs
+    :math:`h \approx \mu t + t^2/2R` along its length ``t``; its column over the grazing column
+    :math:`\sqrt{2\pi R H}` (which sets ``glow``) is, with :math:`x = \sqrt{u/H}` (Chapman 1931's grazing
+    integral, the half of a ray in front of the surface),
+
+    .. math:: \frac{1}{\sqrt{2\pi RH}}\int_0^\infty e^{-(\mu t + t^2/2R)/H}\,dt = \tfrac12\,\mathrm{erfcx}(x),
+
+    1/2 at the limb, :math:`\sqrt{H/4\pi u}` deep inside.  ``d erfcx(x)/dx = 2x erfcx(x) - 2/sqrt(pi)``,
+    ``dx/dlog_h = -x/2``; with ``node``, also the derivative in ``v`` (``dx/dv = x / v``)."""
+    x = v * jnp.exp(-0.5 * p.log_h)
+    ex = _erfcx(x)
+    G = 0.5 * ex
+    G_lh = -0.5 * x * (x * ex - _INV_SQRT_PI)
+    if not node:
+        return G, G_lh
+    return G, G_lh, (x * ex - _INV_SQRT_PI) * jnp.exp(-0.5 * p.log_h)
+
+
+def glow_outside(p: GlowProfileParams, s, se, d, derivatives: bool):
+    r"""The blurred glow above the limb (units of ``amp`` per unit ``glow``) at signed distance ``s = d - R``
+    (px, positive outside) and, if asked, its partials in ``d``, ``R``, ``se`` and ``log_h``.
+
+    The radiance :math:`e^{-s'/H}` for :math:`s' > 0` (the miss column of the shell,
+    :math:`2p K_1(p/H) e^{p/H} e^{-(p-R)/H}`, over the grazing one, to :math:`O(s/R)`) convolved with the
+    Gaussian :math:`N(\cdot;\sigma_e)`: completing the square,
+
+    .. math:: E(s) = \int_0^\infty e^{-t/H} N(s - t)\,dt = e^{\sigma_e^2/2H^2 - s/H}\,
+              \Phi\big(s/\sigma_e - \sigma_e/H\big),
+
+    evaluated as ``exp(a - s/H + log Phi(w))`` (no overflow for ``H << se``).  Derivatives in closed form:
+    :math:`E' = N - E/H`, :math:`E'' = N' - E'/H` (``N' = -s N / se^2``), :math:`\partial_{\sigma_e} E = \sigma_e E''`
+    (the heat equation), :math:`H\,\partial_H E = (s E + \sigma_e^2 E')/H`.  As the profile
+    (:func:`jaxlimb.models.lunar_lambert.profile_integrals`), the 2-D blur adds the curvature term :math:`\sigma_e^2/(2d)\,E'`.
+    """
+    H = jnp.exp(p.log_h)
+    inv_H = 1.0 / H
+    w = s / se - se * inv_H
+    E = jnp.exp(0.5 * (se * inv_H) ** 2 - s * inv_H + jax.scipy.special.log_ndtr(w))
+    N = jnp.exp(-0.5 * (s / se) ** 2) / (se * math.sqrt(2.0 * math.pi))
+    E1 = N - E * inv_H
+    k = se * se / (2.0 * d)
+    G = E + k * E1
+    if not derivatives:
+        return G, None
+    N1 = -s / (se * se) * N
+    N2 = (s * s / se**4 - 1.0 / (se * se)) * N
+    E2 = N1 - E1 * inv_H
+    E3 = N2 - E2 * inv_H
+    E_lh = (s * E + se * se * E1) * inv_H
+    E1_lh = (E + s * E1 + se * se * E2) * inv_H  # d/ds of E_lh
+    parts = {
+        "G_d": E1 + k * (E2 - E1 / d),
+        "G_R": -(E1 + k * E2),
+        "G_se": se * E2 + k * se * E3 + se / d * E1,
+        "G_lh": E_lh + k * E1_lh,
+    }
+    return G, parts
+
+
+def aniso_terms(dr, dc, d):
+    """``cos 2psi, sin 2psi`` of the ray ``(dr, dc)`` (length ``d``; ``psi`` from ``+col`` toward ``-row``) and their
+    partials in ``r0, c0`` (``dr = r - r0``): ``(C, S, C_r0, C_c0, S_r0, S_c0)``."""
+    d4 = d * d * d * d
+    dif = dc * dc - dr * dr
+    return (dif / (d * d), -2.0 * dr * dc / (d * d), 4.0 * dr * dc * dc / d4, -4.0 * dc * dr * dr / d4,
+            2.0 * dc * dif / d4, -2.0 * dr * dif / d4)
+
+
+def aniso_var(p: LimbProfileParams, terms):
+    """The anisotropic part of the blur variance of :class:`AnisoProfileParams` per pixel from its
+    :func:`aniso_terms` (``None`` for the other profiles, ``terms`` then ``None``)."""
+    if terms is None:
+        return None
+    return p.s2c * terms[0] + p.s2s * terms[1]
+
+
+def aniso_terms_of(p: LimbProfileParams, dr, dc, d):
+    """:func:`aniso_terms` for :class:`AnisoProfileParams`, ``None`` for the other profiles."""
+    return aniso_terms(dr, dc, d) if isinstance(p, AnisoProfileParams) else None
