@@ -1,4 +1,4 @@
-"""One validation layer for every value that enters jaxlimb from outside (issue 14).
+"""One validation layer for every value that enters jaxlimb from outside.
 
 Numbers, vectors, input and output paths and memory budgets are checked here, by the
 library's constructors (:class:`~jaxlimb.geometry.camera.Camera`,

@@ -66,7 +66,7 @@ def per_device(run: Callable[..., Any], example_args: Sequence[Any], batched: Se
     replayed inside ``jax.shard_map`` (``jax.core.eval_jaxpr``).  Traced inside the shard map, every shape
     a library computes with ``jax.eval_shape`` carries the mesh's sharding while the ones it builds by hand
     do not, and lineax's operator checks compare the two: optimistix's solvers then fail with "Incompatible
-    linear operator structures" (lineax issue 185); the replayed program is the same computation.
+    linear operator structures" (a lineax limitation, github.com/patrick-kidger/lineax/issues/185); the replayed program is the same computation.
     """
     mesh = local_mesh(devices)
     n_dev = mesh.devices.size

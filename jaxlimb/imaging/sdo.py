@@ -91,7 +91,7 @@ def sun_truth_from_header(header: Any, *, rows_flipped: bool = False, n_limb: in
     ignore_rotation
         Map with ``CROTA2`` set to 0.  ``resampled_hmi.fits`` (``CROTA2 = 179.93``) is a resampled product whose
         pixels no longer carry that rotation: its disc, its NaN mask and the limb fit agree with the centre this gives,
-        0.30 px from the rotated WCS's (``benchmarks/sun_limb.py``, README "Session 16").
+        0.30 px from the rotated WCS's (``benchmarks/sun_limb.py``).
 
     Raises
     ------

@@ -1,4 +1,4 @@
-"""Dask scale-out (issue 13 item 5): chunks as tasks, atomic chunk files, kill + resume = uninterrupted."""
+"""Dask scale-out: chunks as tasks, atomic chunk files, kill + resume = uninterrupted."""
 
 from __future__ import annotations
 

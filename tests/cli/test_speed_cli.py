@@ -1,4 +1,4 @@
-"""Compile once (persistent cache, lazy imports) and the resumable Monte-Carlo command (issue 13)."""
+"""Compile once (persistent cache, lazy imports) and the resumable Monte-Carlo command."""
 
 from __future__ import annotations
 

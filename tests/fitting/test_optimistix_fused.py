@@ -1,4 +1,4 @@
-"""optimistix solvers with the fused analytic Jacobian and the normal-equations solve (issue 13)."""
+"""optimistix solvers with the fused analytic Jacobian and the normal-equations solve."""
 
 import lineax as lx
 import numpy as np

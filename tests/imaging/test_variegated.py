@@ -1,4 +1,4 @@
-"""A variegated body at low phase (issue 10, the full-disc Earth): bright clouds on a dark disc whose Lambert
+"""A variegated body at low phase: bright clouds on a dark disc whose Lambert
 limb darkens to zero.  Eq. (10)'s threshold finds the clouds, the strongest gradients are their edges; the
 detection, both front ends and the pipeline's front-end fallback must still find the limb."""
 

@@ -1,4 +1,4 @@
-"""``jaxlimb los build-db`` / ``jaxlimb los locate`` and the error contract (issue 5, item 8)."""
+"""``jaxlimb los build-db`` / ``jaxlimb los locate`` and the error contract."""
 
 from __future__ import annotations
 
@@ -139,7 +139,7 @@ def test_missing_arguments_exit_2(capsys):
 
 
 def test_locate_many_frames_loads_the_database_once(scene, capsys, tmp_path):
-    """Many frames (issue 13): one JSON line per frame; a wrong-size frame is an error line, the run goes on."""
+    """Many frames: one JSON line per frame; a wrong-size frame is an error line, the run goes on."""
     d, truth = scene
     db = tmp_path / "db.npz"
     assert cli.main(["los", "build-db", str(d / "lumpy.obj"), "--step-deg", "30", "--template-size", "128", "--out", str(db), "--no-progress"]) == 0
@@ -157,7 +157,7 @@ def test_locate_many_frames_loads_the_database_once(scene, capsys, tmp_path):
 
 
 def test_locate_checked_modes_and_wrong_body(scene, capsys, tmp_path):
-    """Issue 12/14: attitude known -> render-and-register; another body's frame -> a typed failure (exit 3)."""
+    """Attitude known -> render-and-register; another body's frame -> a typed failure (exit 3)."""
     from irregular_helpers import lumpy_ellipsoid
 
     from jaxlimb.geometry.camera import Camera
@@ -196,7 +196,7 @@ def test_locate_checked_modes_and_wrong_body(scene, capsys, tmp_path):
 
 
 def test_locate_process_never_starts_jax(scene, capsys, tmp_path):
-    """``los locate`` is numpy + OpenCV only (issue 12: <= 3 s per call): a whole checked call in a fresh
+    """``los locate`` is numpy + OpenCV only (<= 3 s per call): a whole checked call in a fresh
     process imports neither JAX nor the limb pipeline (which pulls JAX in: 0.8 s of a 3 s call)."""
     import os
     import subprocess

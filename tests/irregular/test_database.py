@@ -1,4 +1,4 @@
-"""Template database: content, atomic versioned file, refusal of bad files (issue 5, item 4)."""
+"""Template database: content, atomic versioned file, refusal of bad files."""
 
 from __future__ import annotations
 

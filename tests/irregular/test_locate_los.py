@@ -1,4 +1,4 @@
-"""Checked model-based line of sight (issue 12): render-and-register, phase-aware search, typed failures."""
+"""Checked model-based line of sight: render-and-register, phase-aware search, typed failures."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Mesh reading, validation and repair (issue 5, item 1)."""
+"""Mesh reading, validation and repair."""
 
 from __future__ import annotations
 

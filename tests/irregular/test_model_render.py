@@ -1,4 +1,4 @@
-"""Model images of render-and-register (issue 12 speed): attitude columns from one render, pyramid levels."""
+"""Model images of render-and-register: attitude columns from one render, pyramid levels."""
 
 from __future__ import annotations
 

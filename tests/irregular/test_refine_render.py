@@ -1,4 +1,4 @@
-"""Mesh renderer and the soft-silhouette refinement (issue 5, item 7)."""
+"""Mesh renderer and the soft-silhouette refinement."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Registration on surfaces the model does not assume (issue 12): the smooth-shading column of the fitted mix,
+"""Registration on surfaces the model does not assume: the smooth-shading column of the fitted mix,
 the opposition-surge columns, the IoU band, the second round of template hypotheses."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Silhouettes, contours and features (issue 5, item 3; Eq. 10-14 of Wu et al.)."""
+"""Silhouettes, contours and features (Eq. 10-14 of Wu et al.)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""View sphere, camera transform and projection (issue 5, item 2; Eq. 5-7, 9 of Wu et al.)."""
+"""View sphere, camera transform and projection (Eq. 5-7, 9 of Wu et al.)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Check "dark limb": a lit-limb circle the visible dark limb contradicts is a typed failure (issue 11)."""
+"""Check "dark limb": a lit-limb circle the visible dark limb contradicts is a typed failure."""
 
 import contextlib
 import io

@@ -1,4 +1,4 @@
-"""The validity mask in every front end: masked pixels are neither limb nor background (issue 11)."""
+"""The validity mask in every front end: masked pixels are neither limb nor background."""
 
 import sys
 from pathlib import Path

@@ -1,4 +1,4 @@
-"""``jaxlimb navigate --kernels``: the same SPICE hints as ``locate``, the observer relative to the body (issue 11)."""
+"""``jaxlimb navigate --kernels``: the same SPICE hints as ``locate``, the observer relative to the body."""
 
 import contextlib
 import io

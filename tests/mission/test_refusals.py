@@ -1,4 +1,4 @@
-"""The Mimas and Voyager frames that are refused: a correct, explained typed refusal (issue 11)."""
+"""The Mimas and Voyager frames that are refused: a correct, explained typed refusal."""
 
 import contextlib
 import io

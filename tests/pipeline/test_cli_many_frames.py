@@ -1,4 +1,4 @@
-"""``jaxlimb locate`` on many frames: JSON Lines, per-frame errors, --out/--resume (issue 13 item 2)."""
+"""``jaxlimb locate`` on many frames: JSON Lines, per-frame errors, --out/--resume."""
 
 from __future__ import annotations
 

@@ -205,7 +205,7 @@ def test_free_ellipse_offset_bound_covers_every_latitude():
 
 @pytest.mark.parametrize("lat_deg, off_axis", [(35.0, (0.0, 0.0)), (50.0, (0.08, -0.05)), (15.0, (-0.1, 0.12))])
 def test_pole_unknown_limb_cannot_sign_the_center_offset(lat_deg, off_axis):
-    """Why issue 10's attitude-unknown Earth target (0.15 px median) has a floor on near frames: the mirror image
+    """Why the attitude-unknown Earth target (0.15 px median) has a floor on near frames: the mirror image
     of the spheroid through a principal plane of its limb cone (one that contains the cone's axis) is another
     Earth (same radii, a proper attitude) with the *same* limb cone, hence the same image ellipse, perspective and
     off-axis view included, yet its centre images ``2 |gamma_off|`` away.  Nothing measured on the limb tells the

@@ -1,4 +1,4 @@
-"""Earth pipeline with the physical limb profile (issue 4): accuracy on renders, fallbacks, glow."""
+"""Earth pipeline with the physical limb profile: accuracy on renders, fallbacks, glow."""
 
 from __future__ import annotations
 
@@ -49,8 +49,8 @@ def _far(reflectance="lommel-seeliger", atmosphere=None, seed=11):
 def test_profile_removes_limb_brightening_bias_at_40000km(earth_near):
     """Default (auto): the profile; centre to 0.01 px, range to 0.005 %, error consistent with the covariance.
 
-    The sigmoid on the same frame is 0.057 px / -0.017 % off (the bias of issue 4); with the noise-only
-    covariance that was NEES ~230, its model-error terms (split witness, issue 10) now carry it: its
+    The sigmoid on the same frame is 0.057 px / -0.017 % off (the sigmoid's bias); with the noise-only
+    covariance that was NEES ~230, its model-error terms (split witness) now carry it: its
     covariance is honest, and wider than the profile's.
     """
     cam, sc, img, truth = earth_near

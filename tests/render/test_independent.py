@@ -178,3 +178,27 @@ def test_earth_ablations_keep_every_draw_and_replace_one_component():
     assert set(ABLATIONS) == {"psf_core", "psf_round", "no_glow", "no_jpeg", "reseed_clouds", "no_clouds"}
     with pytest.raises(ValueError, match="unknown ablations"):
         draw(("no_such_thing",))
+
+
+def test_spots_map_varies_everywhere_within_its_bounds():
+    """The ``spots`` albedo: no flat plateau (it changes across a limb window of a few degrees almost everywhere),
+    dips of at most the drawn depths, the gradient bounded."""
+    from jaxlimb.render.independent import SpotsMap
+
+    m = SpotsMap.draw(np.random.default_rng(3))
+    u = np.random.default_rng(4).normal(size=(4000, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    a = m(u)
+    assert a.min() > 0.0 and a.max() <= 1.04 + 1e-12
+    v = u + 0.09 * np.cross(u, [0.0, 0.0, 1.0])  # ~5 deg away (away from the poles)
+    change = np.abs(m(v) - a)
+    assert np.mean(change > 0.005) > 0.5  # the albedo changes across a limb window on most of the body
+    assert m(u.reshape(40, 100, 3)).shape == (40, 100)
+
+
+def test_albedo_case_refuses_an_unknown_map():
+    from jaxlimb.render.independent.families import ALBEDO_KINDS, albedo_case
+
+    assert "spots" in ALBEDO_KINDS and "uniform" in ALBEDO_KINDS
+    with pytest.raises(ValueError, match="unknown albedo"):
+        albedo_case("moon", 150_000.0, 45.0, "stripes", 1, 0)

@@ -238,7 +238,7 @@ def with_unresolved_glow(body: EllipsoidModel, rr: RefineResult, system=None) ->
     ``h_k = H_k a / R_e`` px and ``s_k = min(g_max / sqrt(3), GLOW_Z s_d,k)``: the root mean square of a glow
     uniform up to ``g_max`` or, where the data would see a smaller one, the largest the glow gate can miss
     (:data:`~jaxlimb.pipeline.profile.glow.GLOW_Z` times ``s_d,k``, the data's own sigma of that glow with the fit's
-    parameters beside it).  The estimate is not moved.  Measured (``benchmarks/families.py``, README "Session 18"):
+    parameters beside it).  The estimate is not moved.  Measured (``benchmarks/families.py``):
     held-out seed 2028 ``glow`` 1, 3, 5 (380 000 km) range z -3.5 / -2.6 / -3.5 -> -1.1 / -1.5 / -0.9, ``glow`` 2
     (40 000 km) -5.4 -> -2.9; ``own`` near frames' z within 30 % of what they were.
 
