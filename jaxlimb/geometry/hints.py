@@ -4,7 +4,9 @@ Sun direction, attitude, predicted centre.  Every field is optional; a bad value
 
 from __future__ import annotations
 
+import difflib
 import os
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -12,7 +14,7 @@ import numpy as np
 
 from .._io import read_json_file
 from .._validate import Range, matrix, number, vector
-from ..errors import ConfigError
+from ..errors import ConfigError, HintsKeyWarning
 from .bodies import BODY_TABLE
 
 _HINT_KEYS = (
@@ -123,9 +125,15 @@ class Hints:
     # ------------------------------------------------------------------ constructors
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Hints:
-        """Build from the hints JSON object (unknown keys ignored; bad values -> ConfigError naming the key)."""
+        """Build from the hints JSON object (bad values -> ConfigError naming the key).  Unknown keys are ignored
+        (docs/design.md); one that resembles a known key is named in a :class:`~jaxlimb.errors.HintsKeyWarning`."""
         if not isinstance(d, dict):
             raise ConfigError(f"hints must be a JSON object, got {type(d).__name__}")
+        for k in sorted(set(d) - set(_HINT_KEYS)):
+            near = [h for h in _HINT_KEYS if h.startswith(str(k))] or difflib.get_close_matches(str(k), _HINT_KEYS, 1, 0.7)
+            if near:
+                warnings.warn(f"hints key {k!r} is not known and is ignored; did you mean {near[0]!r}?",
+                              HintsKeyWarning, stacklevel=2)
         return cls(**{k: d[k] for k in _HINT_KEYS if k in d and d[k] is not None})
 
     @classmethod

@@ -1,0 +1,39 @@
+"""Hints keys: an unknown key is ignored (docs/design.md); one that resembles a known key is named in a warning."""
+
+from __future__ import annotations
+
+import json
+import warnings
+
+import pytest
+
+from jaxlimb.errors import HintsKeyWarning
+from jaxlimb.geometry.hints import Hints
+
+
+def test_a_misspelt_key_is_named_with_the_key_it_resembles():
+    with pytest.warns(HintsKeyWarning, match="'sun_dir'.*did you mean 'sun_dir_camera'"):
+        h = Hints.from_dict({"body": "moon", "sun_dir": [1.0, 0.0, 0.0]})
+    assert h.sun_dir_camera is None and h.body == "moon"
+
+
+def test_a_foreign_key_is_ignored_silently():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert Hints.from_dict({"body": "moon", "filter_epoch_label": "k=12"}).body == "moon"
+
+
+def test_cli_prints_the_warning_on_one_line(tmp_path, capsys):
+    from jaxlimb.cli import main
+
+    import cv2
+    import numpy as np
+
+    y, x = np.mgrid[:96, :96]
+    disc = 5.0 + 200.0 / (1.0 + np.exp(np.hypot(y - 50.0, x - 45.0) - 30.0))
+    cv2.imwrite(str(tmp_path / "img.png"), disc.astype(np.uint8))
+    (tmp_path / "h.json").write_text(json.dumps({"body": "moon", "range_prior": 3.0e5}))
+    code = main(["locate", str(tmp_path / "img.png"), "--hints", str(tmp_path / "h.json")])
+    err = capsys.readouterr().err.splitlines()
+    assert code == 0, err
+    assert err[0] == "jaxlimb: warning: hints key 'range_prior' is not known and is ignored; did you mean 'range_prior_km'?"
