@@ -67,7 +67,10 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .. import __version__
+
     parser = _Parser(prog="jaxlimb", description="Limb-based optical navigation with differentiable JAX models.")
+    parser.add_argument("--version", action="version", version=f"jaxlimb {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
     for name in _COMMANDS:

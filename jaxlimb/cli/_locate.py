@@ -20,17 +20,19 @@ from ._inputs import read_frame_file, read_hints, spice_prediction, spice_report
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "locate",
-        help="locate the Moon (or the Earth) in an image: centre, radius, LOS, range",
-        description="Find the limb of the body in IMAGE (8/16-bit grey PNG/TIFF, colour converted to grey, "
-        "or FITS), fit the sigmoid limb model and report the image of the body centre, the apparent radius, "
-        "the covariance and, with a camera, the line of sight and the range.  Exit 0 on success, 2 for "
+        help="locate a body (Moon, Earth, Sun, any sphere or spheroid) in an image: centre, radius, LOS, range",
+        description="Find the limb of the body in IMAGE, fit its limb model (the physical lunar-Lambert profile "
+        "when the Sun direction is known, else the sigmoid; the limb-darkened disc for the Sun; the limb ellipse "
+        "of a spheroid such as the Earth) and report the image of the body centre, the apparent radius, the "
+        "covariance, the checks and, with a camera, the line of sight and the range.  Exit 0 on success, 2 for "
         "unusable input, 3 when a check fails.",
     )
     p.add_argument("image", metavar="IMAGE", nargs="+",
                    help="image file: VICAR, PDS3 (.IMG/.LBL), PDS4 (.xml), FITS, PNG, TIFF, JPEG, JPEG 2000; "
                    "several files, a directory, a quoted glob or @LIST.txt: one JSON line per frame (see --out)")
     p.add_argument("--camera", metavar="CAMERA.json",
-                   help='camera file {"focal_length_mm", "pixel_pitch_mm", "rows", "cols", "principal_point_rc"}')
+                   help="camera file: focal length, pixel pitch, size, principal point, optional distortion "
+                   "(docs/formats.md)")
     p.add_argument("--hints", metavar="HINTS.json", help="navigation prior (docs/design.md hints; every key optional)")
     p.add_argument("--body", metavar="NAME", default=None,
                    help="the body: moon, earth, sun (limb-darkened disc) or any body with known radii (e.g. enceladus; "
@@ -51,10 +53,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--fixed-k", action="store_true",
                    help="hold k = 3 and ymax/ymin at the annulus edge means (illuminated-ellipsoid paper, Table 1)")
     p.add_argument("--profile", choices=("auto", "sigmoid", "lunar-lambert", "limb-darkened"), default="auto",
-                   help="limb profile: auto (default: the physical lunar-Lambert limb when the hints give "
-                   "sun_dir_camera, which removes the sigmoid's 0.1-0.6 px limb bias; else the sigmoid), "
-                   "the limb-darkened disc for --body sun; else the sigmoid), sigmoid (the papers' model), "
-                   "lunar-lambert or limb-darkened")
+                   help="limb profile.  auto (default): the physical lunar-Lambert limb when the hints give "
+                   "sun_dir_camera (it removes the sigmoid's 0.1-0.6 px limb bias), the limb-darkened disc for "
+                   "--body sun, else the sigmoid; sigmoid: the papers' model; lunar-lambert; limb-darkened")
     p.add_argument("--sun-declination-max", type=arg_number(Range(0.0, 90.0)), metavar="DEG", default=None,
                    help="Earth (or spheroid) without R_body_to_camera, Sun known: the largest angle (0-90 deg) of the "
                    "Sun from the body's equator (the Earth: 23.44); the centre is marginalised over the poles it "

@@ -49,18 +49,27 @@ TEMPLATE_SIZE_RANGE = Range(32, 4096)
 
 
 def register(subparsers: Any) -> None:
-    p = subparsers.add_parser("los", help="model-based line of sight of an irregular body (Wu et al.)")
+    p = subparsers.add_parser("los", help="model-based line of sight of an irregular body (Wu et al.)",
+                              description="Line of sight of an irregular body from its shape model (Wu et al.): "
+                              "build-db renders a template database of views; locate matches a frame against it "
+                              "(and, with the attitude known, registers a render of the model) and reports the image "
+                              "of the body centre, the line of sight and the range.")
     sub = p.add_subparsers(dest="los_command", metavar="SUBCOMMAND", parser_class=type(p))
     sub.required = True
 
-    b = sub.add_parser("build-db", help="build a template database from a shape model")
+    b = sub.add_parser("build-db", help="build a template database from a shape model",
+                       description="Render the shape model (OBJ, PLY, STL, OFF) from views over the sphere and store "
+                       "their silhouettes and features in one versioned database file (written atomically).")
     b.add_argument("mesh", metavar="MESH", help="shape model (.obj, .stl, .ply or a v/f .tab plate table)")
     b.add_argument("--out", required=True, metavar="DB", help="output database file (.npz)")
     _add_db_options(b)
     b.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     b.set_defaults(func=run_build, needs_jax=False)
 
-    q = sub.add_parser("locate", help="locate the image of the body centre and the line of sight")
+    q = sub.add_parser("locate", help="locate the image of the body centre and the line of sight",
+                       description="Match the frame's silhouette against the database (or a shape model, --mesh) and "
+                       "report the image of the body centre, the line of sight and its covariance.  Exit 0 on "
+                       "success, 2 for unusable input, 3 when a check fails.")
     q.add_argument("image", metavar="IMAGE", nargs="+", help="grey image (PNG/TIFF/FITS); several files, a "
                    "directory, a quoted glob or @LIST.txt: one JSON line per frame (see --out)")
     src = q.add_mutually_exclusive_group(required=True)

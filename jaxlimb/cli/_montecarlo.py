@@ -22,7 +22,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "(jaxlimb compare).  --pipeline: rendered frames through locate (its defaults), on Dask workers.",
     )
     add_problem_args(p)
-    p.add_argument("--solver", choices=sorted(SOLVER_NAMES), default="lm")
+    p.add_argument("--solver", choices=sorted(SOLVER_NAMES), default="lm", help="least-squares solver (default lm)")
     p.add_argument("--solvers", default=None, help="compare these solvers (comma-separated, or all) on the same "
                    "realisations: the table of jaxlimb compare")
     p.add_argument("--batch", type=num("batch", True), default=None,

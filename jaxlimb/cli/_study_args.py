@@ -27,7 +27,7 @@ def add_problem_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--radius", type=num("radius"), default=150.0, help="radius / semi-axis a in px (default 150)")
     p.add_argument("--sigma", type=num("sigma"), default=10.0, help="Gaussian noise in DN (default 10)")
     p.add_argument("--n", type=num("n", True), default=1000, help="realisations (default 1000)")
-    p.add_argument("--seed", type=num("seed", True), default=0)
+    p.add_argument("--seed", type=num("seed", True), default=0, help="seed of the noise realisations (default 0)")
     p.add_argument("--k", type=num("k"), default=3.0, help="sigmoid steepness (default 3)")
     p.add_argument("--annulus", type=num("annulus"), default=6.0, help=f"half-width of the pixel band, px {RANGES['annulus']} (default 6; a narrower band holds no pixel of some rows)")
     p.add_argument("--fix", default="", help="comma-separated parameters held at truth, e.g. k,ymax,ymin")

@@ -41,7 +41,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "iterated EKF with NIS gating, RTS smoother, batch least squares of the arc (optionally with the camera). "
         "Exit 0 on success, 2 for unusable input, 3 when too few frames were measured or the fit failed.")
     p.add_argument("--frames", required=True, metavar="FRAMES.jsonl", help="one frame per line (module docstring)")
-    p.add_argument("--camera", required=True, metavar="CAMERA.json", help="camera file (DESIGN.md)")
+    p.add_argument("--camera", required=True, metavar="CAMERA.json", help="camera file (docs/formats.md)")
     p.add_argument("--measurements", metavar="FILE.jsonl", default=None,
                    help="per-frame locate records (appended; default: OUT with .locate.jsonl, else a temporary file)")
     p.add_argument("--resume", action="store_true", help="reuse the frames --measurements already holds")
