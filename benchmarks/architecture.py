@@ -19,7 +19,7 @@ from collections import defaultdict
 #: The layers, bottom first; a module's layer is that of its first package under ``jaxlimb``
 #: (the top-level modules ``errors``, ``numerics``, ``_validate``, ``_io`` ... are the core).
 LAYERS = (("core",), ("models", "geometry", "conics"), ("fitting",), ("imaging", "render"), ("pipeline",),
-          ("analysis", "irregular"), ("cli",))
+          ("analysis", "irregular", "track"), ("cli",))
 #: Function-local imports allowed: optional or heavy third-party dependencies imported where they are used.
 HEAVY = {"matplotlib", "dask", "distributed", "emcee", "corner", "spiceypy", "trimesh", "embreex", "skyfield",
          "astropy", "pdr", "vicar", "cv2", "scipy", "tqdm", "filelock", "PIL", "imageio", "tifffile", "hypothesis",

@@ -158,9 +158,9 @@ def __getattr__(name: str) -> Any:
     """The optimistix solvers live in :mod:`jaxlimb.fitting.optimistix_solvers`, imported on first use (PEP 562):
     the default path (:class:`NormalLM`) never pays for importing optimistix and lineax."""
     if name in _LAZY:
-        from . import optimistix_solvers
+        import importlib
 
-        return getattr(optimistix_solvers, name)
+        return getattr(importlib.import_module(".optimistix_solvers", __package__), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
