@@ -207,48 +207,26 @@ def build_database(mesh: Mesh, options: DatabaseOptions = DatabaseOptions(), pro
     focal, pp, distance = _template_camera(mesh, options)
     S = options.template_size_px
     alpha, beta, R = template_rotations(options.view_sphere)
-    n = alpha.shape[0]
-    nc = options.n_contour
-    area = np.empty(n)
-    center = np.empty((n, 2))
-    hu = np.empty((n, 7))
-    orient = np.empty(n)
-    elong = np.empty(n)
-    att = np.empty((n, 2))
-    cont = np.empty((n, nc, 2), dtype=np.float32)
-    t = np.array([0.0, 0.0, distance])
-    for i in tqdm(range(n), desc="templates", unit="view", disable=not progress, mininterval=0.5):
-        _, contours = render_silhouette(topo, R[i], t, focal, pp, (S, S))
-        if not contours:
-            raise DatabaseError(f"template {i} (alpha={alpha[i]:.4f}, beta={beta[i]:.4f}) has an empty figure")
-        f = features_from_contours(contours, nc)
-        area[i], center[i], hu[i], orient[i], elong[i], att[i] = (
-            f.area,
-            f.center_rc,
-            f.hu,
-            f.orientation,
-            f.elongation,
-            f.attitude_xy,
-        )
-        cont[i] = f.contour_xy
+    f = [_template_features(topo, R[i], np.array([0.0, 0.0, distance]), focal, pp, S, options.n_contour,
+                            (alpha[i], beta[i], i))
+         for i in tqdm(range(alpha.shape[0]), desc="templates", unit="view", disable=not progress, mininterval=0.5)]
     return TemplateDatabase(
-        options=options,
-        mesh=mesh,
-        mesh_hash=mesh_hash(mesh),
-        focal_px=float(focal),
-        principal_rc=(float(pp[0]), float(pp[1])),
-        distance_km=float(distance),
-        alpha=alpha,
-        beta=beta,
-        R_body_to_camera=R,
-        area=area,
-        center_rc=center,
-        hu=hu,
-        orientation=orient,
-        elongation=elong,
-        attitude_xy=att,
-        contour_xy=cont,
+        options=options, mesh=mesh, mesh_hash=mesh_hash(mesh), focal_px=float(focal),
+        principal_rc=(float(pp[0]), float(pp[1])), distance_km=float(distance), alpha=alpha, beta=beta,
+        R_body_to_camera=R, area=np.array([x.area for x in f], float), center_rc=np.array([x.center_rc for x in f], float),
+        hu=np.array([x.hu for x in f], float), orientation=np.array([x.orientation for x in f], float),
+        elongation=np.array([x.elongation for x in f], float), attitude_xy=np.array([x.attitude_xy for x in f], float),
+        contour_xy=np.array([x.contour_xy for x in f], dtype=np.float32),
     )
+
+
+def _template_features(topo, R, t, focal, pp, S: int, n_contour: int, where: tuple):  # type: ignore[no-untyped-def]
+    """The features of one template's silhouette (an empty figure is a DatabaseError naming the view)."""
+    _, contours = render_silhouette(topo, R, t, focal, pp, (S, S))
+    if not contours:
+        a, b, i = where
+        raise DatabaseError(f"template {i} (alpha={a:.4f}, beta={b:.4f}) has an empty figure")
+    return features_from_contours(contours, n_contour)
 
 
 # --------------------------------------------------------------------------- file I/O
@@ -315,14 +293,7 @@ def load_database(
     from .._validate import input_file
 
     p = input_file(path, "template database", error=DatabaseError)
-    try:
-        with open(p, "rb") as fh, np.load(fh, allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}  # reads (and CRC-checks) every member
-    except (zipfile.BadZipFile, OSError, ValueError, EOFError, KeyError, zipfile.LargeZipFile) as e:
-        raise DatabaseError(f"template database {str(p)!r} is corrupt or truncated: {type(e).__name__}: {e}") from None
-    except Exception as e:  # zlib.error and friends
-        raise DatabaseError(f"template database {str(p)!r} cannot be read: {type(e).__name__}: {e}") from None
-    arrays = _upgrade(arrays, p)
+    arrays = _upgrade(_read_arrays(p), p)
     need = {"magic", "format_version", "settings_json", "mesh_hash", "mesh_vertices", "mesh_faces", "camera", "checksum"}
     missing = sorted((need | set(_PER_TEMPLATE)) - set(arrays))
     if missing:
@@ -338,6 +309,35 @@ def load_database(
         raise DatabaseError(f"template database {str(p)!r} holds an invalid mesh: {e}") from None
     if mesh_hash(mesh) != stored_hash:
         raise DatabaseError(f"template database {str(p)!r}: stored mesh does not match its hash")
+    _check_expected(p, arrays, options, expected_mesh_hash, expected_options, expected_built_by)
+    _check_template_arrays(p, arrays, options)
+    cam = arrays["camera"]
+    return TemplateDatabase(
+        options=options,
+        mesh=mesh,
+        mesh_hash=stored_hash,
+        focal_px=float(cam[0]),
+        principal_rc=(float(cam[1]), float(cam[2])),
+        distance_km=float(cam[3]),
+        **{k: arrays[k] for k in _PER_TEMPLATE},
+    )
+
+
+def _read_arrays(p: Path) -> dict:
+    """Every array of the file (reading each member checks its CRC); a damaged file is a DatabaseError."""
+    try:
+        with open(p, "rb") as fh, np.load(fh, allow_pickle=False) as z:
+            return {k: z[k] for k in z.files}
+    except (zipfile.BadZipFile, OSError, ValueError, EOFError, KeyError, zipfile.LargeZipFile) as e:
+        raise DatabaseError(f"template database {str(p)!r} is corrupt or truncated: {type(e).__name__}: {e}") from None
+    except Exception as e:  # zlib.error and friends
+        raise DatabaseError(f"template database {str(p)!r} cannot be read: {type(e).__name__}: {e}") from None
+
+
+def _check_expected(p: Path, arrays: dict, options: DatabaseOptions, expected_mesh_hash: str | None,
+                    expected_options: DatabaseOptions | None, expected_built_by: str | None) -> None:
+    """The mesh, builder and settings the caller expects."""
+    stored_hash = str(arrays["mesh_hash"])
     if expected_mesh_hash is not None and stored_hash != expected_mesh_hash:
         raise DatabaseError(
             f"template database {str(p)!r} was built for mesh {stored_hash[:12]}..., not for the given mesh"
@@ -351,18 +351,14 @@ def load_database(
             f"template database {str(p)!r} was built with settings {options.to_json()}, expected"
             f" {expected_options.to_json()}"
         )
+
+
+def _check_template_arrays(p: Path, arrays: dict, options: DatabaseOptions) -> None:
+    """Every per-template array has the shape of ``n`` templates and finite values; the camera is valid."""
     n = arrays["alpha"].shape[0]
     shapes = {
-        "alpha": (n,),
-        "beta": (n,),
-        "R_body_to_camera": (n, 3, 3),
-        "area": (n,),
-        "center_rc": (n, 2),
-        "hu": (n, 7),
-        "orientation": (n,),
-        "elongation": (n,),
-        "attitude_xy": (n, 2),
-        "contour_xy": (n, options.n_contour, 2),
+        "alpha": (n,), "beta": (n,), "R_body_to_camera": (n, 3, 3), "area": (n,), "center_rc": (n, 2), "hu": (n, 7),
+        "orientation": (n,), "elongation": (n,), "attitude_xy": (n, 2), "contour_xy": (n, options.n_contour, 2),
     }
     for k, shp in shapes.items():
         if arrays[k].shape != shp or not np.all(np.isfinite(arrays[k])):
@@ -370,15 +366,6 @@ def load_database(
     cam = arrays["camera"]
     if n < 2 or cam.shape != (4,) or not np.all(np.isfinite(cam)) or not np.all(arrays["area"] > 0):
         raise DatabaseError(f"template database {str(p)!r} holds invalid template data")
-    return TemplateDatabase(
-        options=options,
-        mesh=mesh,
-        mesh_hash=stored_hash,
-        focal_px=float(cam[0]),
-        principal_rc=(float(cam[1]), float(cam[2])),
-        distance_km=float(cam[3]),
-        **{k: arrays[k] for k in _PER_TEMPLATE},
-    )
 
 
 def _upgrade(arrays: dict, p: Path) -> dict:

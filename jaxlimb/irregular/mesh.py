@@ -322,6 +322,35 @@ def validate_mesh(
     Unused vertices are kept (they never affect a silhouette).
     """
     name = source or "mesh"
+    v, f = _checked_arrays(vertices, faces, name)
+    repairs: list[str] = []
+    f = _without_degenerate_faces(v, f, options, name, repairs)
+    _check_closed(v.shape[0], f, name)
+    try:  # consistent winding?
+        edge_faces(f)
+    except MeshError:
+        if not options.repair:
+            raise MeshError(f"{name}: faces are not consistently wound") from None
+        f = _fix_winding(f)
+        try:
+            edge_faces(f)
+        except MeshError:
+            raise MeshError(f"{name}: faces are not consistently wound and could not be repaired") from None
+        repairs.append("fixed inconsistent face winding")
+    _check_manifold_vertices(f, name)
+    vol = signed_volume(v, f)
+    if not np.isfinite(vol) or vol == 0.0:
+        raise MeshError(f"{name}: mesh has zero volume")
+    if vol < 0:
+        if not options.repair:
+            raise MeshError(f"{name}: faces are wound inward (signed volume {vol:.6g} < 0)")
+        f = f[:, ::-1].copy()
+        repairs.append("flipped inward winding (signed volume was negative)")
+    return Mesh(vertices=np.ascontiguousarray(v), faces=np.ascontiguousarray(f), repairs=tuple(repairs), source=source)
+
+
+def _checked_arrays(vertices: np.ndarray, faces: np.ndarray, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices ``(N >= 4, 3)`` finite float64, faces ``(M >= 4, 3)`` int64 indices into them."""
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces)
     if v.ndim != 2 or v.shape[1] != 3 or v.shape[0] < 4:
@@ -338,56 +367,34 @@ def validate_mesh(
             f"{name}: face indices must lie in [0, {v.shape[0] - 1}], got [{int(f.min())}, {int(f.max())}]"
             " (plate tables use 0-based indices)"
         )
-    repairs: list[str] = []
+    return v, f
 
-    # degenerate faces
+
+def _without_degenerate_faces(v: np.ndarray, f: np.ndarray, options: MeshOptions, name: str,
+                              repairs: list[str]) -> np.ndarray:
+    """Faces of zero area or with a repeated vertex dropped (``options.repair``) or refused."""
     area = 0.5 * np.linalg.norm(face_normals(v, f, normalize=False), axis=1)
     repeated = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
     degenerate = repeated | (area <= options.degenerate_rel_area * max(float(area.mean()), 1e-300))
-    if degenerate.any():
-        if not options.repair:
-            raise MeshError(f"{name}: {int(degenerate.sum())} degenerate faces (zero area or repeated vertex)")
-        f = f[~degenerate]
-        repairs.append(f"dropped {int(degenerate.sum())} degenerate faces")
-        if f.shape[0] < 4:
-            raise MeshError(f"{name}: fewer than 4 faces left after dropping degenerate faces")
+    if not degenerate.any():
+        return f
+    if not options.repair:
+        raise MeshError(f"{name}: {int(degenerate.sum())} degenerate faces (zero area or repeated vertex)")
+    repairs.append(f"dropped {int(degenerate.sum())} degenerate faces")
+    if int((~degenerate).sum()) < 4:
+        raise MeshError(f"{name}: fewer than 4 faces left after dropping degenerate faces")
+    return f[~degenerate]
 
-    # closed?
-    n = v.shape[0]
+
+def _check_closed(n: int, f: np.ndarray, name: str) -> None:
+    """Every edge shared by exactly two faces (a watertight surface)."""
     und = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
     _, counts = np.unique(und[:, 0] * n + und[:, 1], return_counts=True)
     if np.any(counts != 2):
-        n_open = int((counts == 1).sum())
-        n_multi = int((counts > 2).sum())
         raise MeshError(
-            f"{name}: mesh is not closed (watertight): {n_open} boundary edges, {n_multi} edges shared by more "
-            "than two faces; silhouettes need a closed surface"
+            f"{name}: mesh is not closed (watertight): {int((counts == 1).sum())} boundary edges, "
+            f"{int((counts > 2).sum())} edges shared by more than two faces; silhouettes need a closed surface"
         )
-
-    # consistent winding?
-    try:
-        edge_faces(f)
-    except MeshError:
-        if not options.repair:
-            raise MeshError(f"{name}: faces are not consistently wound") from None
-        f = _fix_winding(f)
-        try:
-            edge_faces(f)
-        except MeshError:
-            raise MeshError(f"{name}: faces are not consistently wound and could not be repaired") from None
-        repairs.append("fixed inconsistent face winding")
-
-    _check_manifold_vertices(f, name)
-
-    vol = signed_volume(v, f)
-    if not np.isfinite(vol) or vol == 0.0:
-        raise MeshError(f"{name}: mesh has zero volume")
-    if vol < 0:
-        if not options.repair:
-            raise MeshError(f"{name}: faces are wound inward (signed volume {vol:.6g} < 0)")
-        f = f[:, ::-1].copy()
-        repairs.append("flipped inward winding (signed volume was negative)")
-    return Mesh(vertices=np.ascontiguousarray(v), faces=np.ascontiguousarray(f), repairs=tuple(repairs), source=source)
 
 
 def _check_manifold_vertices(faces: np.ndarray, name: str) -> None:
