@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import difflib
 import math
 import numbers
 import os
@@ -138,6 +139,13 @@ def real_array(value: Any, name: str, *, error: type[LimbInputError] = ConfigErr
         return np.asarray(out, dtype=float)
     except ValueError:  # ragged
         raise error(f"{name} must be a rectangular array of numbers, got {value!r}") from None
+
+
+def near_key(name: str, known: Sequence[str]) -> str | None:
+    """The known key ``name`` most likely misspells (a known key it begins, or a close match), else ``None``."""
+    starts = [k for k in known if k.startswith(str(name))]
+    close = difflib.get_close_matches(str(name), list(known), 1, 0.7)
+    return starts[0] if starts else (close[0] if close else None)
 
 
 def arg_number(rng: Range = ANY, *, integer: bool = False) -> Callable[[str], Any]:
@@ -307,6 +315,7 @@ def check_center_sigma(cov_rc: np.ndarray, tol_px: float | None) -> float:
 
 
 __all__ = [
+    "near_key",
     "ANY",
     "FIGURE_SUFFIXES",
     "NON_NEGATIVE",

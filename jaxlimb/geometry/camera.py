@@ -59,7 +59,7 @@ from typing import Any
 import numpy as np
 
 from .._io import read_json_file
-from .._validate import Range, number, vector
+from .._validate import Range, near_key, number, vector
 from ..errors import ConfigError, GeometryError
 
 _CAMERA_KEYS = ("focal_length_mm", "pixel_pitch_mm", "rows", "cols", "principal_point_rc")
@@ -128,7 +128,10 @@ class Camera:
         allowed = _CAMERA_KEYS + _DISTORTION_KEYS
         unknown = sorted(set(d) - set(allowed))
         if unknown:
-            raise ConfigError(f"camera has unknown keys {unknown}; allowed: {list(allowed)}")
+            near = {k: near_key(k, allowed) for k in unknown}
+            hint = "; ".join(f"{k!r}: did you mean {v!r}?" for k, v in near.items() if v)
+            raise ConfigError(f"camera has unknown keys {unknown}" + (f" ({hint})" if hint else "")
+                              + f"; allowed: {list(allowed)}")
         missing = [k for k in ("focal_length_mm", "pixel_pitch_mm", "rows", "cols") if k not in d]
         if missing:
             raise ConfigError(f"camera is missing keys {missing}")

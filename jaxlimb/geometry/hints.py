@@ -4,7 +4,6 @@ Sun direction, attitude, predicted centre.  Every field is optional; a bad value
 
 from __future__ import annotations
 
-import difflib
 import os
 import warnings
 from dataclasses import dataclass
@@ -13,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from .._io import read_json_file
-from .._validate import Range, matrix, number, vector
+from .._validate import Range, matrix, near_key, number, vector
 from ..errors import ConfigError, HintsKeyWarning
 from .bodies import BODY_TABLE
 
@@ -129,10 +128,13 @@ class Hints:
         (docs/design.md); one that resembles a known key is named in a :class:`~jaxlimb.errors.HintsKeyWarning`."""
         if not isinstance(d, dict):
             raise ConfigError(f"hints must be a JSON object, got {type(d).__name__}")
+        if d and not set(d) & set(_HINT_KEYS) and {"focal_length_mm", "pixel_pitch_mm"} <= set(d):
+            raise ConfigError("the hints hold a camera's keys (focal_length_mm, pixel_pitch_mm): this is a camera "
+                              "file; pass it as the camera")
         for k in sorted(set(d) - set(_HINT_KEYS)):
-            near = [h for h in _HINT_KEYS if h.startswith(str(k))] or difflib.get_close_matches(str(k), _HINT_KEYS, 1, 0.7)
+            near = near_key(k, _HINT_KEYS)
             if near:
-                warnings.warn(f"hints key {k!r} is not known and is ignored; did you mean {near[0]!r}?",
+                warnings.warn(f"hints key {k!r} is not known and is ignored; did you mean {near!r}?",
                               HintsKeyWarning, stacklevel=2)
         return cls(**{k: d[k] for k in _HINT_KEYS if k in d and d[k] is not None})
 

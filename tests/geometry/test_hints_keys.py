@@ -37,3 +37,18 @@ def test_cli_prints_the_warning_on_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.splitlines()
     assert code == 0, err
     assert err[0] == "jaxlimb: warning: hints key 'range_prior' is not known and is ignored; did you mean 'range_prior_km'?"
+
+
+def test_a_camera_file_given_as_hints_is_refused():
+    from jaxlimb.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="camera file"):
+        Hints.from_dict({"focal_length_mm": 16.0, "pixel_pitch_mm": 0.0022, "rows": 1944, "cols": 2592})
+
+
+def test_a_misspelt_camera_key_is_an_error_naming_the_key_it_resembles():
+    from jaxlimb.errors import ConfigError
+    from jaxlimb.geometry.camera import Camera
+
+    with pytest.raises(ConfigError, match="'focal_length': did you mean 'focal_length_mm'"):
+        Camera.from_dict({"focal_length": 16.0, "pixel_pitch_mm": 0.0022, "rows": 1944, "cols": 2592})
