@@ -84,6 +84,24 @@ def is_many(images: list[str], args: argparse.Namespace) -> bool:
     return spec.startswith("@") or Path(spec).is_dir() or (glob.has_magic(spec) and not Path(spec).exists())
 
 
+def one_per_frame(paths: list[str]) -> list[str]:
+    """One file per frame: a detached PDS3 label (``X.LBL``) beside its image (``X.IMG``) is read with the image,
+    and a PDS4 label (``X.xml``) names its data files (``X.IMG``, ``X.dat`` ...): the pair is one frame."""
+    stems: dict[tuple[str, str], set[str]] = {}
+    for p in paths:
+        q = Path(p)
+        stems.setdefault((str(q.parent), q.stem.lower()), set()).add(q.suffix.lower())
+
+    def keep(p: str) -> bool:
+        q = Path(p)
+        sfx = stems[(str(q.parent), q.stem.lower())]
+        if ".xml" in sfx:
+            return q.suffix.lower() == ".xml"
+        return not (q.suffix.lower() == ".lbl" and ".img" in sfx)
+
+    return [p for p in paths if keep(p)]
+
+
 def expand_images(specs: Iterable[str]) -> list[str]:
     """The image paths named by ``specs`` (module docstring), in order, without repeats.
 
@@ -106,12 +124,12 @@ def expand_images(specs: Iterable[str]) -> list[str]:
             found = sorted(str(p) for p in Path(spec).iterdir() if p.is_file() and p.suffix.lower() in IMAGE_SUFFIXES)
             if not found:
                 raise ConfigError(f"directory {spec!r} holds no image files ({', '.join(sorted(IMAGE_SUFFIXES))})")
-            out += found
+            out += one_per_frame(found)
         elif glob.has_magic(spec) and not Path(spec).exists():
             found = sorted(glob.glob(spec))
             if not found:
                 raise ConfigError(f"pattern {spec!r} matches no file")
-            out += found
+            out += one_per_frame(found)
         else:
             out.append(spec)
     if not out:
@@ -320,4 +338,4 @@ def _run_locked(paths: list[str], args: argparse.Namespace, read: Callable[[str]
     return worst
 
 
-__all__ = ["IMAGE_SUFFIXES", "add_batch_arguments", "check_out", "expand_images", "is_many", "run_frames", "run_settings"]
+__all__ = ["IMAGE_SUFFIXES", "add_batch_arguments", "check_out", "expand_images", "is_many", "one_per_frame", "run_frames", "run_settings"]

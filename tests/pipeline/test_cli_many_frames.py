@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -114,3 +115,14 @@ def test_frames_on_a_dask_scheduler_equal_in_process(frames, capsys):
     assert [r["image"] for r in recs[:3]] == [r["image"] for r in ref]  # in order
     assert [r["center_rc"] for r in recs[:3]] == [r["center_rc"] for r in ref]
     assert recs[3]["status"] == "error"
+
+
+def test_a_label_and_its_image_are_one_frame(tmp_path):
+    """A directory of PDS3 pairs (``X.IMG`` + detached ``X.LBL``) and a PDS4 label with its data: one frame each."""
+    from jaxlimb.cli._batch import expand_images
+
+    for name in ("a.IMG", "a.LBL", "b.img", "c.LBL", "d.xml", "d.img", "e.png"):
+        (tmp_path / name).write_bytes(b"x")
+    got = [Path(p).name for p in expand_images([str(tmp_path)])]
+    assert got == ["a.IMG", "b.img", "c.LBL", "d.xml", "e.png"]
+    assert [Path(p).name for p in expand_images([str(tmp_path / "a.*")])] == ["a.IMG"]
