@@ -56,9 +56,10 @@ def run_fit(model, data: FitData, init, options: LocateOptions, fixed, solver=No
               weights=w,
               max_steps=options.max_steps, throw=False)
     if not bool(res.converged):
+        reason = res.message.split(" Try increasing")[0]  # the solver's advice names an argument locate sets itself
         raise ConvergenceError(
-            f"Check 5: the {model.name} sigmoid fit ({res.solver}) did not converge within max_steps = "
-            f"{options.max_steps} iterations: {res.message}"
+            f"Check 5: the {model.name} sigmoid fit ({res.solver}) did not converge within {options.max_steps} "
+            f"iterations: {reason}"
         )
     p = res.params
     vals = np.array([float(getattr(p, n)) for n in model.param_names])
