@@ -17,6 +17,9 @@ from .._validate import Range, arg_number
 TOL_RANGE = Range(0.0, 1.0, lo_open=True)
 N_POINTS_RANGE = Range(1, 10_000)
 SEED_RANGE = Range(0, 2**32 - 1)
+#: The models' names (:data:`jaxlimb.models.gradcheck.GRADCHECK_MODELS`; written here: ``--help`` imports no JAX).
+MODEL_NAMES = ("linear", "circle", "ellipse", "ellipse_ramp", "lunar_limb", "limb_darkened", "lunar_limb_minnaert",
+               "lunar_limb_glow", "lunar_limb_aniso")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -37,6 +40,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"fail (exit 3) if any max_rel_err exceeds this, {TOL_RANGE} (default 1e-9 for every model: the "
                    "analytic Jacobians are the derivatives of the intensities as computed, the physical profiles' "
                    "quadrature included)")
+    p.add_argument("--model", action="append", choices=MODEL_NAMES, default=None, metavar="NAME",
+                   help=f"check only this model (repeatable; default every model): {', '.join(MODEL_NAMES)}")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 
@@ -56,7 +61,8 @@ def run(args: argparse.Namespace) -> int:
     from ..models.gradcheck import report, run_gradcheck
     from . import emit_json
 
-    checks = run_gradcheck(n_points=args.n_points, seed=args.seed)
+    checks = run_gradcheck(n_points=args.n_points, seed=args.seed,
+                           models=None if args.model is None else tuple(args.model))
     message = _failure(checks, args.tol)
     if args.json:
         head = ({"status": "ok"} if message is None else

@@ -6,14 +6,18 @@ from jaxlimb.cli import main
 
 
 def test_gradcheck_json(capsys):
-    assert main(["gradcheck", "--n-points", "10", "--json"]) == 0
-    out = json.loads(capsys.readouterr().out)
+    """The command's JSON on two models (every model at 1e-9: tests/models/test_physical_models.py and
+    test_gradcheck.py); the command knows every model of the registry."""
+    from jaxlimb.cli._gradcheck import MODEL_NAMES
     from jaxlimb.models import ALL_MODELS
 
-    assert len(out["checks"]) == sum(len(m.param_names) for m in ALL_MODELS.values())  # one per column
-    assert {c["model"] for c in out["checks"]} == set(ALL_MODELS)
+    assert set(MODEL_NAMES) == set(ALL_MODELS)
+    assert main(["gradcheck", "--n-points", "4", "--model", "circle", "--model", "lunar_limb", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert len(out["checks"]) == sum(len(ALL_MODELS[m].param_names) for m in ("circle", "lunar_limb"))  # one per column
+    assert {c["model"] for c in out["checks"]} == {"circle", "lunar_limb"}
     for c in out["checks"]:
-        assert c["n_points"] == 10 and c["passed"] and c["max_rel_err"] <= c["tol"]
+        assert c["n_points"] == 4 and c["passed"] and c["max_rel_err"] <= c["tol"]
 
 
 def test_montecarlo_json(capsys):
