@@ -142,9 +142,11 @@ def real_array(value: Any, name: str, *, error: type[LimbInputError] = ConfigErr
 
 
 def near_key(name: str, known: Sequence[str]) -> str | None:
-    """The known key ``name`` most likely misspells (a known key it begins, or a close match), else ``None``."""
-    starts = [k for k in known if k.startswith(str(name))]
-    close = difflib.get_close_matches(str(name), list(known), 1, 0.7)
+    """The known key ``name`` most likely misspells (a known key it begins, with at least 4 characters and 40 % of
+    that key, or a close match), else ``None``."""
+    name = str(name)
+    starts = [k for k in known if k.startswith(name) and len(name) >= max(4, 0.4 * len(k))]
+    close = difflib.get_close_matches(name, list(known), 1, 0.7)
     return starts[0] if starts else (close[0] if close else None)
 
 

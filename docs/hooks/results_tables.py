@@ -150,6 +150,28 @@ def locate_accuracy(rel: str = "locate_accuracy.json") -> str:
 
 
 @renderer
+def albedo_invariance(rel: str = "albedo_invariance.json") -> str:
+    """The same scene under noise draws (uniform albedo) and under albedo draws (one noise draw)."""
+    d = load(rel)
+    rows = []
+    for s in d["scenes"]:
+        n, a = s["noise"], s["albedo"]
+        rows.append([
+            f"{s['body']}, {s['range_km']:,.0f} km, {s['phase_deg']:.0f}°",
+            f"{f(n.get('mean_error_px'))} / {f(n.get('spread_px'))} / {f(n.get('mean_nees'), 1)}",
+            f"{a['n_ok']}/{a['n']}",
+            f"{f(a.get('median_error_px'))} / {f(a.get('p90_error_px'))}",
+            f"{f(a.get('mean_error_px'))} / {f(a.get('spread_px'))} / {f(a.get('mean_nees'), 1)}",
+            f(s.get("spread_ratio"), 1), failures(a.get("failures")),
+        ])
+    head = ["scene", "noise only: mean error / spread (px) / NEES", "albedo draws ok",
+            "albedo: centre error median / p90 (px)", "albedo: mean error / spread (px) / NEES",
+            "spread ratio albedo / noise", "typed failures"]
+    return (table(head, rows) + source(rel, d)
+            + f"*{d['noise_draws']} noise draws, {d['albedo_draws']} albedo draws per scene.*\n")
+
+
+@renderer
 def navigate_e2e(rel: str = "navigate_e2e.json") -> str:
     d = load(rel)
     rows = []
