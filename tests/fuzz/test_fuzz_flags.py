@@ -168,7 +168,7 @@ def test_missing_or_unknown_arguments_exit_2(argv, inputs):
     (["montecarlo", "--model", "ellipse", "--fix", "r0,c0,a,theta,k,ymax,ymin", "--json"], "--fix"),
     (["montecarlo", "--resume", "--json"], "--resume"),
     (["posterior", "{moon.png}", "--fix", "bogus", "--json"], "--fix"),
-    (["posterior", "{moon.png}", "--noise", "known", "--json"], "--sigma"),
+    (["posterior", "{moon.png}", "--model", "sigmoid", "--noise", "known", "--json"], "--sigma"),
     (["posterior", "{moon.png}", "--radius", "10", "--json"], "--center-rc"),
     (["posterior", "{moon.png}", "--walkers", "5", "--center-rc", "60", "80", "--radius", "30", "--json"], "--walkers"),
     # inside [4, 10000] but below the twice-the-parameters floor --help states
