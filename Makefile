@@ -18,7 +18,7 @@ demo: $(STAMP)
 	$(BIN)/jaxlimb demo
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q --durations=15 tests
+	$(BIN)/python -m pytest -q -n 2 --dist worksteal --durations=15 tests
 
 benchmarks: $(STAMP)
 	$(BIN)/python benchmarks/solvers.py

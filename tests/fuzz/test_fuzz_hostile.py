@@ -156,7 +156,8 @@ def test_resume_refuses_a_file_of_another_camera_command_or_garbage(inputs, tmp_
 def test_montecarlo_annulus_and_batch_bounds_are_the_enforced_ones():
     import argparse
 
-    from jaxlimb.cli._montecarlo import RANGES, _batch_size
+    from jaxlimb.cli._montecarlo import _batch_size
+    from jaxlimb.cli._study_args import RANGES
 
     res = run_cli(["montecarlo", "--annulus", "5e-324", "--json"])  # inside (0, 1000]: LinAlgError, exit 1
     assert_refused(res, 2, "--annulus", check="bad_arguments")
