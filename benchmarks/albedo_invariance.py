@@ -92,7 +92,10 @@ def run_scene(body: str, range_km: float, phase_deg: float, n_noise: int, n_draw
 
 
 def main(argv: list[str] | None = None) -> dict:
+    import jax
     from tqdm import tqdm
+
+    jax.config.update("jax_enable_x64", True)  # estimation runs in float64
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--noise", type=int, default=8, help="noise draws of the uniform-albedo scene (default 8)")
