@@ -131,7 +131,7 @@ class Hints:
         if d and not set(d) & set(_HINT_KEYS) and {"focal_length_mm", "pixel_pitch_mm"} <= set(d):
             raise ConfigError("the hints hold a camera's keys (focal_length_mm, pixel_pitch_mm): this is a camera "
                               "file; pass it as the camera")
-        for k in sorted(set(d) - set(_HINT_KEYS)):
+        for k in sorted(set(d) - set(_HINT_KEYS), key=str):
             near = near_key(k, _HINT_KEYS)
             if near:
                 warnings.warn(f"hints key {k!r} is not known and is ignored; did you mean {near!r}?",
