@@ -35,22 +35,19 @@ SCENES = (("moon", 150_000.0, 45.0), ("moon", 380_000.0, 90.0), ("earth", 40_000
 
 
 def _measure(case) -> dict:  # type: ignore[no-untyped-def]
+    from jaxlimb.analysis.pipeline_study import measurement_errors
     from jaxlimb.errors import CheckFailed
     from jaxlimb.geometry.hints import Hints
     from jaxlimb.pipeline import locate
 
-    truth = np.asarray(case.truth.body_center_rc, float)
     try:
         m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     except CheckFailed as e:
         return {"status": "failed", "check": e.check}
-    e = np.asarray(m.center_rc, float) - truth
-    c = m.covariance
-    P = np.array([[c["center_r"]["center_r"], c["center_r"]["center_c"]],
-                  [c["center_c"]["center_r"], c["center_c"]["center_c"]]], float)
-    crlb = None if m.crlb is None else [m.crlb.get("center_r"), m.crlb.get("center_c")]
-    return {"status": "ok", "error_rc": e.tolist(), "error_px": float(np.hypot(*e)),
-            "sigma_rc": np.sqrt(np.diag(P)).tolist(), "nees": float(e @ np.linalg.solve(P, e)), "crlb_rc": crlb}
+    r = measurement_errors(m, case.truth)  # the pipeline study's numbers of one answer
+    crlb = [r["crlb_row"], r["crlb_col"]] if "crlb_row" in r else None
+    return {"status": "ok", "error_rc": [r["row"], r["col"]], "error_px": float(np.hypot(r["row"], r["col"])),
+            "sigma_rc": [r["sigma_row"], r["sigma_col"]], "nees": r["nees"], "crlb_rc": crlb}
 
 
 def _summary(rows: list[dict]) -> dict:
