@@ -21,15 +21,36 @@ from .trace_fit import GLOW_LIFT_Z, fit_traced, fit_traced_glow, trace_model_cov
 
 def ray_geometry(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdge, passes: int = 2) -> EllipsoidEdge:
     """An albedo-patchy limb's geometry from its rays, not from the band fit (attitude known): the known-shape
-    ellipse through the traced limb points (:func:`~jaxlimb.pipeline.ellipsoid.trace_fit.fit_traced`, soft-L1), the rays
-    re-sampled about it and the shape re-predicted at its position, ``passes`` times, starting from the traced
-    start ellipse.  Why: the band fit of the level-normalised pixels pulls ``(r0, c0, a)`` with the cloud edges
-    0-5 px inside the limb that survive the per-ray flatness test (``benchmarks/families.py`` Earth ``clouds``
-    frame 1, 127 px: the band fit 4.2 px off, its traced start 0.8 px), while the ray fit weighs each ray's
-    limb point once.  The edge fit's other parameters (levels, kernel) are kept; its ``(r0, c0, a)`` covariance
-    is replaced by the rays' cluster-robust one in the refit stage
-    (:func:`~jaxlimb.pipeline.ellipsoid.profile.fit_profile_ellipsoid`).  Returns the edge with its
-    ``pixels.trace`` the last trace."""
+    ellipse through the traced limb points (:func:`~jaxlimb.pipeline.ellipsoid.trace_fit.fit_traced`, soft-L1), the
+    rays re-sampled about it and the shape re-predicted at its position, ``passes`` times, starting from the traced
+    start ellipse.  Why: the band fit of the level-normalised pixels is pulled by the cloud edges a few px inside
+    the limb that survive the per-ray flatness test, while the ray fit weighs each ray's limb point once.  The edge
+    fit's other parameters (levels, kernel) are kept; its ``(r0, c0, a)`` covariance is replaced by the rays'
+    cluster-robust one in the refit stage (:func:`~jaxlimb.pipeline.ellipsoid.profile.fit_profile_ellipsoid`).
+
+    Parameters
+    ----------
+    body : EllipsoidModel
+        The body (attitude known: ``rho, theta`` predicted).
+    frame : Frame
+        The prepared frame (image, camera, Sun direction for the shading correction).
+    edge : EllipsoidEdge
+        The band fit, whose ``pixels.trace`` is the traced start.
+    passes : int
+        Number of trace-and-fit passes.
+
+    Returns
+    -------
+    EllipsoidEdge
+        The edge answering the rays' ellipse and position, with ``pixels.trace`` the last trace
+        (``ray_fit=True``) and ``shading_shift`` the move ``(d_r0, d_c0, d_a)`` (px) of the shading
+        correction (``None`` when none was made).
+
+    Raises
+    ------
+    TooManyOutliersError
+        Too few rays with a limb against the sky.
+    """
 
     pix, cam = edge.pixels, frame.cam
     search = max(6.0, 2.0 * body.eo.band_px)
@@ -124,14 +145,37 @@ def _fit_rays(tr: Any, ell: tuple, glow_tilt: bool = False) -> tuple[Any, tuple]
 
 
 def patchy_geometry(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdge, chi2: float = 5.99) -> EllipsoidEdge:
-    """An albedo-patchy limb (attitude known) measured twice: the band fit of the level-normalised pixels (``edge``) and
-    the known-shape ellipse through the traced rays (:func:`ray_geometry`). The band fit is kept unless its centre lies
-    outside the rays' 95 % region (``d^T C_rays^-1 d > chi2`` on ``(r0, c0)``, ``C_rays`` the rays' cluster-robust
-    covariance, :func:`~jaxlimb.pipeline.ellipsoid.trace_fit.trace_model_cov`): then the band fit ran after cloud edges
-    (``benchmarks/families.py`` Earth ``clouds`` frame 1: 4.2 px off, the rays 1.4 px) and the rays' ellipse is the
-    answer; so it is when the band fit did not converge (no witness then). Either way the other estimate's
-    ``(r0, c0, a)`` is kept as ``witness``: two models of the same limb, their difference is model error (added to the
-    covariance by :func:`~jaxlimb.pipeline.ellipsoid.profile.fit_profile_ellipsoid`, as a rejected profile's is)."""
+    """An albedo-patchy limb (attitude known) measured twice: the band fit of the level-normalised pixels (``edge``)
+    and the known-shape ellipse through the traced rays (:func:`ray_geometry`).  The band fit is kept unless its
+    centre lies outside the rays' 95 % region (``d^T C_rays^-1 d > chi2`` on ``(r0, c0)``, ``C_rays`` the rays'
+    cluster-robust covariance, :func:`~jaxlimb.pipeline.ellipsoid.trace_fit.trace_model_cov`), when the band fit
+    followed cloud edges, or the rays fitted a glow's lift; the rays' ellipse answers then, and when the band fit did
+    not converge (no witness then).  Either way the other estimate's ``(r0, c0, a)`` is kept as ``witness``: two
+    models of the same limb, their difference is model error (added to the covariance by
+    :func:`~jaxlimb.pipeline.ellipsoid.profile.fit_profile_ellipsoid`, as a rejected profile's is).
+
+    Parameters
+    ----------
+    body : EllipsoidModel
+        The body (attitude known).
+    frame : Frame
+        The prepared frame.
+    edge : EllipsoidEdge
+        The band fit (``band_converged`` says whether it converged).
+    chi2 : float
+        The chi-square bound with 2 degrees of freedom (5.99: 95 %).
+
+    Returns
+    -------
+    EllipsoidEdge
+        The band fit (shifted by the rays' shading correction) or the rays' fit, with ``witness`` (px) and the
+        traced step's ``asymmetry`` ``(d_r0, d_c0, 0)`` (px, ``None`` when it could not be measured).
+
+    Raises
+    ------
+    TooManyOutliersError
+        Too few rays and no converged band fit.
+    """
 
     try:
         rays = ray_geometry(body, frame, edge)
