@@ -72,15 +72,41 @@ def with_reweighting_witness(out: RefineResult, unweighted: RefineResult) -> Ref
 
     Why: the weights remove the sectors a mare crosses, not the mare's whole pull (its edge's taper in the sectors
     kept, the arc left), and the model-error terms of the weighted fit see only what is left of the residuals.
-    Held-out ``maria`` 2 of seed 2028 (``benchmarks/families.py``: three maria across the lit limb and two more
-    near it; any subset of them 0.003-0.024 px): moved 0.28 px, left 0.094 px across the move for a sigma of
-    0.015-0.022 px (NEES 40).  The same in every direction: what is left is not along the move (as
-    :func:`jaxlimb.pipeline.profile.widen.with_aniso_witness`); the noise-only covariance is kept."""
+    The same in every direction: what is left is not along the move (as
+    :func:`jaxlimb.pipeline.profile.widen.with_aniso_witness`); the noise-only covariance is kept.
+
+    Parameters
+    ----------
+    out : RefineResult
+        The reweighted fit (with its model-error terms).
+    unweighted : RefineResult
+        The fit before the reweighting.
+
+    Returns
+    -------
+    RefineResult
+        ``out`` with the widened covariance (unchanged unless ``r0, c0, a`` are all free).
+    """
     return out.with_move_witness(unweighted, PATCHY_WITNESS)
 
 
 def sector_misfit(r: np.ndarray, groups: np.ndarray, n_sectors: int) -> np.ndarray:
-    """Each sector's mean squared residual over the median sector's (sectors with no pixel: 0)."""
+    """Each sector's mean squared residual over the median sector's (sectors with no pixel: 0).
+
+    Parameters
+    ----------
+    r : np.ndarray (n,)
+        Residuals of the pixels.
+    groups : np.ndarray (n,) of int
+        Each pixel's sector (:func:`jaxlimb.model_error.sector_groups`).
+    n_sectors : int
+        Number of sectors.
+
+    Returns
+    -------
+    np.ndarray (n_sectors,)
+        The ratios.
+    """
     counts = np.bincount(groups, minlength=n_sectors)
     ms = np.bincount(groups, weights=r * r, minlength=n_sectors) / np.maximum(counts, 1)
     return ms / max(float(np.median(ms[counts > 0])), 1e-300)
@@ -89,22 +115,35 @@ def sector_misfit(r: np.ndarray, groups: np.ndarray, n_sectors: int) -> np.ndarr
 def downweight_patchy_sectors(frame: Frame, rr: RefineResult, solver, system=None) -> RefineResult:
     """``rr`` refitted with the sectors of the limb whose residuals are far above the others' down-weighted
     (weight ``ratio^-PATCHY_POWER`` of :func:`sector_misfit` above :data:`PATCHY_RATIO`; an M-estimator whose unit is
-    the sector, Huber 1981 Sec. 7); ``rr`` itself when no sector is.
+    the sector, Huber 1981 Sec. 7).
 
     Why: the profile assumes one albedo along the lit limb.  A mare crossing the limb changes the profile's
     *radial* shape within a pixel or two of the edge (5 deg of surface from the limb is 0.4 px in the image),
-    which an amplitude along the limb cannot follow (measured: it did not help), and pulls the centre by up
-    to 0.11 px.  The sectors it crosses misfit far above the noise.  Measured on the independent maria frames
-    (``benchmarks/families.py``): centre median / max 0.048 / 0.115 -> 0.023 / 0.043 px, ``combined`` (Hapke,
-    maria, any PSF, JPEG) 0.078 / 0.100 -> 0.015 / 0.093 px.
+    which an amplitude along the limb cannot follow, and pulls the centre by a tenth of a pixel.  The sectors it
+    crosses misfit far above the noise.
 
     How: each of the :data:`PATCHY_PASSES` reweighted fits is :data:`PATCHY_GN_STEPS` Gauss--Newton steps of the
     weighted problem from the previous answer (Nocedal & Wright 2006, Eq. 10.23), with the Jacobian the profile's
     one-pass columns give beside the intensity: the reweighting moves the answer by hundredths of a pixel, where
-    the problem is linear.  Measured on the 12 maria and combined frames: the centres of the full LM refits to
-    <= 1e-4 px and their NEES to 0.05, for a third of their CPU.  A step that is not finite or raises the
-    weighted residual sum, or an answer whose sphere shape has moved by 1e-3 px, falls back to the LM refits
-    (:func:`_downweight_by_refits`).  ``system``: ``rr``'s :func:`weighted_system` under the profile, if formed.
+    the problem is linear.  A step that is not finite or raises the weighted residual sum, or an answer whose sphere
+    shape has moved by 1e-3 px, falls back to full LM refits.
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame (camera, options).
+    rr : RefineResult
+        The unweighted profile fit.
+    solver : solver or None
+        The solver of the fallback refits.
+    system : tuple or None
+        ``rr``'s :func:`~jaxlimb.pipeline.profile.model_error.weighted_system` under the profile, if formed.
+
+    Returns
+    -------
+    RefineResult
+        The reweighted fit (its weights in ``data.weights``); ``rr`` itself when no sector is down-weighted or its
+        ``L`` is outside :func:`~jaxlimb.pipeline.profile.passes.l_band`.
     """
     if not _l_described(rr):  # a limb the profile does not describe: no sector weighting can make it one
         return rr
@@ -143,7 +182,22 @@ def _l_described(rr: RefineResult) -> bool:
 
 def patchy_weights(coords: np.ndarray, p, r: np.ndarray) -> np.ndarray | None:
     """Per-pixel weights of one pass of :func:`downweight_patchy_sectors`: ``ratio^-PATCHY_POWER`` in the sectors about
-    ``p``'s centre whose :func:`sector_misfit` ratio exceeds :data:`PATCHY_RATIO`, 1 elsewhere; ``None`` when none does."""
+    ``p``'s centre whose :func:`sector_misfit` ratio exceeds :data:`PATCHY_RATIO`, 1 elsewhere.
+
+    Parameters
+    ----------
+    coords : np.ndarray (n, 2)
+        The pixels ``(row, col)``.
+    p : LimbProfileParams
+        The current answer (its centre ``r0, c0`` defines the sectors).
+    r : np.ndarray (n,)
+        The unweighted residuals at ``p``.
+
+    Returns
+    -------
+    np.ndarray (n,) or None
+        The weights; ``None`` when no sector exceeds the ratio.
+    """
     groups = sector_groups(coords, (float(p.r0), float(p.c0)), PATCHY_SECTORS)
     ratio = sector_misfit(r, groups, PATCHY_SECTORS)
     if not np.any(ratio > PATCHY_RATIO):
