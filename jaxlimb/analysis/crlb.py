@@ -124,8 +124,8 @@ def crlb(model: LimbModel, coords: np.ndarray, truth: LimbParams, sigma: float, 
          fixed: Sequence[str] = (), poisson_gain: float | None = None) -> CramerRao:
     """Cramér--Rao bound of the free parameters of ``model`` for these pixels and noise.
 
-    The Fisher information ``F = J^T diag(1/var) J`` from the paper's analytic Jacobian at the truth (Eq. 14,
-    17, Sec. V-C of Mortari et al. 2016; module docstring) and its inverse.
+    The Fisher information ``F = J^T diag(1/var) J`` from the model's Jacobian at the truth (for the sigmoids
+    the paper's analytic one: Eq. 14, 17, Sec. V-C of Mortari et al. 2016; module docstring) and its inverse.
 
     Parameters
     ----------

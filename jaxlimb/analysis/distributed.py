@@ -76,6 +76,8 @@ def make_client(scheduler: str | None = None, workers: int = 2, processes: bool 
     ------
     ConfigError
         ``dask.distributed`` is not installed, or the scheduler cannot be reached.
+    LimbInputError
+        ``workers`` is not an integer >= 1.
     """
     try:
         from dask.distributed import Client, LocalCluster

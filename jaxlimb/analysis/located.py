@@ -109,8 +109,8 @@ class LocatedFit:
         Returns
         -------
         dict
-            ``center_rc`` (body centre, (row, col) px), ``radius_px``, ``range_km`` and ``los`` (camera frame)
-            as ``locate`` would report them for this fit.
+            ``center_rc`` (body centre, (row, col) px), ``radius_px``, ``range_km`` and ``los`` (unit vector to the
+            body centre, camera frame) as ``locate`` would report them for this fit (``None`` where not measured).
         """
         fit = eqx.tree_at(lambda f: f.params, self.final.fit, params)
         geo = self.body.body_center(self.frame, self.edge, dataclasses.replace(self.final, fit=fit))

@@ -60,7 +60,7 @@ def noisy_intensities(seeds: np.ndarray, clean: np.ndarray, scale: np.ndarray | 
     Returns
     -------
     np.ndarray (B, N)
-        One noisy realisation per seed; the same seed gives the same row as inside the compiled program.
+        One noisy realisation per seed.
     """
     scale = np.broadcast_to(np.asarray(scale, float), np.shape(clean))
     return np.asarray(_noisy_jit(jnp.asarray(seeds, dtype=jnp.int64), jnp.asarray(clean), jnp.asarray(scale)))

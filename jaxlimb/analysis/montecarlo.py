@@ -2,34 +2,50 @@ r"""A Monte-Carlo engine for whole pipelines: seeded, chunked, resumable, stream
 
 A study is a user function run ``n_trials`` times:
 
-* ``trial(seed, i) -> {name: number}`` (one trial: e.g. render a frame with noise seed ``seed``, run
-  :func:`jaxlimb.pipeline.locate`, return the errors), or
-* with ``batched=True``, ``trial(seeds, indices) -> {name: (b,) array}`` (a whole chunk at once: e.g. ``b`` noise
-  realisations fitted by :func:`jaxlimb.fitting.fit_batch` or :func:`jaxlimb.analysis.sharding.sharded_fit_batch`).
+* ``trial(seed, i) -> {name: number}`` (one trial: e.g. render a frame with noise seed
+  ``seed``, run :func:`jaxlimb.pipeline.locate`, return the errors), or
+* with ``batched=True``, ``trial(seeds, indices) -> {name: (b,) array}`` (a whole chunk at
+  once: e.g. ``b`` noise realisations fitted by :func:`jaxlimb.fitting.fit_batch` or
+  :func:`jaxlimb.analysis.sharding.sharded_fit_batch`).
 
-Seeding.  Trial ``i`` of a study with seed ``s`` receives ``trial_seed(s, i)``, a 63-bit integer from
-``numpy.random.SeedSequence(s, spawn_key=(i,))``: statistically independent streams, and trial ``i``'s result does
-not depend on the chunk size, on the order in which chunks run, or on a resume.  Use it as
-``np.random.default_rng(seed)`` or ``jax.random.key(seed)``.
+Seeding.  Trial ``i`` of a study with seed ``s`` receives ``trial_seed(s, i)``, a 63-bit
+integer from ``numpy.random.SeedSequence(s, spawn_key=(i,))``: statistically independent
+streams, and trial ``i``'s result does not depend on the chunk size, on the order in which
+chunks run, or on a resume.  Use it as ``np.random.default_rng(seed)`` or
+``jax.random.key(seed)``.
 
-Chunks and files.  Trials run in chunks of ``chunk_size``; each finished chunk is written atomically
-(:func:`jaxlimb._io.atomic_path`: a temporary file renamed into place) to ``out_dir/chunk_NNNNNN.npz`` with the trial
-indices, seeds, a success flag, the error name of failed trials and one column per returned key.
-``out_dir/manifest.json`` records the study (name, seed, ``n_trials``, ``chunk_size``).  A rerun with the same
-settings skips the chunks already on disk, so an interrupted run loses only the chunk in progress; a chunk file that
-cannot be read back (truncated by a crash of the disk or the machine, corrupted) is computed again with a
-:class:`ChunkRecomputedWarning` naming the file (:func:`load_monte_carlo` raises a
-:class:`~jaxlimb.errors.ConfigError` naming it); a rerun with *different* settings into the same directory is refused.
-Failures: a trial that raises a :class:`~jaxlimb.errors.JaxlimbError` is recorded as failed (``ok=False``,
-``error=<check name>``, NaN values) -- "save on failure and filter during analysis" (STYLE.md Sec. 7); any other
-exception stops the run.
+Chunks and files.  Trials run in chunks of ``chunk_size``; each finished chunk is written
+atomically (:func:`jaxlimb._io.atomic_path`: a temporary file renamed into place) to
+``out_dir/chunk_NNNNNN.npz`` with the trial indices, seeds, a success flag, the error
+name of failed trials and one column per returned key.  ``out_dir/manifest.json`` records
+the study (name, seed, ``n_trials``, ``chunk_size``).  A rerun with the same settings
+skips the chunks already on disk, so an interrupted run loses only the chunk in
+progress; a chunk file that cannot be read back (truncated by a crash of the disk or the
+machine, corrupted) is computed again with a :class:`ChunkRecomputedWarning` naming the file
+(:func:`load_monte_carlo` raises a :class:`~jaxlimb.errors.ConfigError` naming it); a rerun with
+*different* settings into the same directory is refused.
+Failures: a trial that raises a :class:`~jaxlimb.errors.JaxlimbError` is recorded as
+failed (``ok=False``, ``error=<check name>``, NaN values) -- "save on failure and filter
+during analysis" (STYLE.md Sec. 7); any other exception stops the run.
 
-Statistics (:meth:`MonteCarloResult.stats`): per key, over the successful trials, the error ``value - truth`` (truth 0
-when the trial returns errors itself): RMS, bias, sd, percentiles, and RMS/CRLB when a bound is given;
-:meth:`MonteCarloResult.histogram` for iteration counts.  Plots: :mod:`jaxlimb.analysis.figures` (error histograms
-with the CRLB Gaussian, RMS against the CRLB).  Example: :func:`run_monte_carlo`; a whole-pipeline trial:
-:mod:`jaxlimb.analysis.pipeline_study`.  Scale-out: :mod:`jaxlimb.analysis.sharding` (one batch over all local
-devices, and the multi-host path) and :mod:`jaxlimb.analysis.distributed` (Dask).
+Statistics (:meth:`MonteCarloResult.stats`): per key, over the successful trials, the
+error ``value - truth`` (truth 0 when the trial returns errors itself): RMS, bias, sd,
+percentiles, and RMS/CRLB when a bound is given; :meth:`MonteCarloResult.histogram` for
+iteration counts.  Plots: :mod:`jaxlimb.analysis.figures` (error histograms with the CRLB Gaussian,
+RMS against the CRLB).
+
+Example::
+
+    def trial(seed, i):                       # one rendered frame through the pipeline
+        image, truth = render_body(moon_scene(60000.0, 30.0), cam, RenderOptions(), seed=seed)
+        m = locate(image, cam, {"body": "moon"})
+        return {"row": m.center_rc[0] - truth.center_rc[0], "iterations": m.iterations}
+
+    res = run_monte_carlo(trial, MonteCarloOptions(n_trials=1000, chunk_size=50, out_dir="mc/run1"))
+    res.stats(crlb={"row": 0.01})["params"]["row"]["rms_over_crlb"]
+
+Scale-out: see :mod:`jaxlimb.analysis.sharding` (one batch over all local devices, and
+the multi-host path).
 """
 
 from __future__ import annotations

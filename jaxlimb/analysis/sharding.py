@@ -183,7 +183,7 @@ def sharded_fit_batch(
     weights : array (B, N), optional
         Per-pixel weights (zero marks padding); default all 1.
     analytic : bool
-        Use the model's analytic Jacobian (else ``jax.jacfwd``).
+        Use the model's analytic Jacobian (else automatic differentiation).
     max_steps : int
         Iteration limit per member.
     devices : sequence of jax.Device, optional

@@ -159,8 +159,11 @@ def measured_posterior(lf: LocatedFit, options: PosteriorOptions | None = None, 
 
     Raises
     ------
-    NoBodyError, PosteriorImproperError
-        As :func:`~jaxlimb.analysis.posterior.sample_posterior`.
+    PosteriorImproperError
+        emcee cannot move the ensemble, or the posterior is improper
+        (:func:`~jaxlimb.analysis.posterior.check_posterior`).
+    ConvergenceError
+        The walkers cannot be placed (the log-posterior is -inf around the estimate).
     """
     data, fixed = lf.data, tuple(lf.final.fixed)
     lp = log_posterior(lf.model, data.coords, data.z, lf.params, fixed=fixed, noise=noise,
