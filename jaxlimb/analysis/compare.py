@@ -69,8 +69,26 @@ class CompareOptions:
 
 def interleaved_timings(calls: dict[str, Callable[[int], Any]], n_blocks: int, repeats: int
                         ) -> tuple[dict[str, list[tuple[float, float]]], dict[str, list[Any]]]:
-    """Time ``calls[name](block)`` for every block, the names taking turns in a rotating order, ``repeats`` times
-    each: ``({name: [(wall_s, cpu_s), ...]}, {name: [result of the first repeat of each block]})``."""
+    """Time ``calls[name](block)`` for every block, the names taking turns in a rotating order, ``repeats`` times each.
+
+    Block ``b`` starts with name ``b mod len(calls)``, so a burst of load on a shared machine hits every call alike.
+
+    Parameters
+    ----------
+    calls : dict of str to callable
+        ``calls[name](block_index)``: the work to time, already compiled.
+    n_blocks : int
+        Number of blocks (``0 .. n_blocks - 1``).
+    repeats : int
+        Timings of each block per name.
+
+    Returns
+    -------
+    times : dict of str to list of (float, float)
+        ``(wall_s, cpu_s)`` of every call, blocks in order and repeats within a block.
+    results : dict of str to list
+        The result of the first repeat of each block.
+    """
     names = list(calls)
     times: dict[str, list[tuple[float, float]]] = {n: [] for n in names}
     out: dict[str, list[Any]] = {n: [] for n in names}
@@ -148,8 +166,21 @@ def _build(problem: StudyProblem, opt: CompareOptions, blocks: list[np.ndarray])
 def compare_solvers(problem: StudyProblem, options: CompareOptions | None = None) -> dict[str, Any]:
     """Fit ``options.n`` realisations of ``problem`` with every solver of ``options`` (module docstring).
 
-    Returns the JSON-ready comparison: ``rows`` (one per solver, in ``options.solvers`` order) and the problem,
-    the CRLB, the devices and the machine's load.
+    Parameters
+    ----------
+    problem : StudyProblem
+        The limb problem (:func:`jaxlimb.analysis.problems.standard_problem` or
+        :func:`~jaxlimb.analysis.problems.model_problem`).
+    options : CompareOptions, optional
+        Solvers, number of realisations, seed, chunking and mode; default ``CompareOptions()``.
+
+    Returns
+    -------
+    dict
+        JSON-ready: ``rows`` (one per solver, in ``options.solvers`` order: success rate, failures, iterations,
+        ms/fit wall and CPU with quartiles, ``compile_s``, per-parameter bias/RMS/RMS-over-CRLB,
+        ``max_abs_diff_vs_first_px``), ``problem``, ``crlb``, ``options``, ``devices``, ``loadavg`` (1/5/15 min
+        before and after) and ``wall_s``.
     """
     opt = options or CompareOptions()
     t_start = time.perf_counter()
@@ -190,7 +221,21 @@ def _fmt(v: Any, spec: str, width: int) -> str:
 
 
 def compare_table(result: dict[str, Any], params: Sequence[str] | None = None) -> str:
-    """The comparison as a text table (ms/fit: median of the interleaved timings, wall and CPU)."""
+    """The comparison as a text table (ms/fit: median of the interleaved timings, wall and CPU).
+
+    Parameters
+    ----------
+    result : dict
+        The output of :func:`compare_solvers`.
+    params : sequence of str, optional
+        Parameters whose RMS/CRLB are shown; default the free geometric ones (``r0``, ``c0``, ``radius``, ``a``,
+        ``xt``), else the first three free.
+
+    Returns
+    -------
+    str
+        One header line and one line per solver.
+    """
     free = list(params or [p for p in result["problem"]["free"] if p in ("r0", "c0", "radius", "a", "xt")]
                 or result["problem"]["free"][:3])
     head = (f"{'solver':>15} {'ok':>6} {'iter':>6} {'ms/fit':>8} {'CPU ms':>8} {'x first':>7} {'compile s':>9} "
@@ -206,7 +251,20 @@ def compare_table(result: dict[str, Any], params: Sequence[str] | None = None) -
 
 
 def plot_compare(result: dict[str, Any], path: Any = None) -> Any:
-    """ms/fit (median and quartiles of the interleaved timings, wall and CPU) and RMS/CRLB per solver."""
+    """ms/fit (median and quartiles of the interleaved timings, wall and CPU) and RMS/CRLB per solver.
+
+    Parameters
+    ----------
+    result : dict
+        The output of :func:`compare_solvers`.
+    path : str or Path, optional
+        Where to write the figure (:func:`~jaxlimb.analysis.figures.save_figure`); ``None`` writes nothing.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Two panels sharing the solver axis.
+    """
     import matplotlib
 
     matplotlib.use("Agg", force=False)

@@ -44,7 +44,13 @@ def _start_quietly() -> None:
 
 
 def dask_setup(worker: Any) -> None:
-    """Start :func:`start_jax` in a daemon thread (the worker's event loop is not held up)."""
+    """Start :func:`start_jax` in a daemon thread (the worker's event loop is not held up).
+
+    Parameters
+    ----------
+    worker : distributed.Worker
+        The registering worker (Dask's preload hook; unused).
+    """
     del worker
     if not _STARTED:
         t = threading.Thread(target=_start_quietly, name="jaxlimb-start-jax", daemon=True)
@@ -54,14 +60,26 @@ def dask_setup(worker: Any) -> None:
 
 def wait_started(timeout: float | None = None) -> None:
     """Wait until :func:`dask_setup`'s start thread has finished its imports (at once where none was started,
-    e.g. outside a worker, or from that thread itself)."""
+    e.g. outside a worker, or from that thread itself).
+
+    Parameters
+    ----------
+    timeout : float, optional
+        Longest wait in seconds; ``None`` waits until the imports are done.
+    """
     for t in _STARTED:
         if t is not threading.current_thread():
             t.join(timeout)
 
 
 def dask_teardown(worker: Any) -> None:
-    """Freeze the collector's objects: the worker process then exits without walking them."""
+    """Freeze the collector's objects: the worker process then exits without walking them.
+
+    Parameters
+    ----------
+    worker : distributed.Worker
+        The closing worker (Dask's preload hook; unused).
+    """
     del worker
     gc.freeze()
 
