@@ -97,10 +97,14 @@ def max_limb_displacement(center0, radius0: float, center1, radius1: float, angl
 
     Parameters
     ----------
-    center0, radius0 : (float, float), float
-        The front end's (Taubin) circle: centre ``(row, col)`` and radius (px).
-    center1, radius1 : (float, float), float
-        The fitted circle.
+    center0 : (float, float)
+        Centre ``(row, col)`` of the front end's (Taubin) circle (px).
+    radius0 : float
+        Its radius (px).
+    center1 : (float, float)
+        Centre of the fitted circle (px).
+    radius1 : float
+        Its radius (px).
     angles : np.ndarray (n,)
         Polar angles (rad, ``atan2(d_row, d_col)``) of the fitted pixels.
 
@@ -139,10 +143,14 @@ def check_jump(center0, radius0: float, center1, radius1: float, angles: np.ndar
 
     Parameters
     ----------
-    center0, radius0 : (float, float), float
-        The front end's circle: centre ``(row, col)`` and radius (px).
-    center1, radius1 : (float, float), float
-        The fitted circle.
+    center0 : (float, float)
+        Centre ``(row, col)`` of the front end's circle (px).
+    radius0 : float
+        Its radius (px).
+    center1 : (float, float)
+        Centre of the fitted circle (px).
+    radius1 : float
+        Its radius (px).
     angles : np.ndarray (n,)
         Polar angles (rad) of the fitted pixels (:func:`max_limb_displacement`).
     threshold : float

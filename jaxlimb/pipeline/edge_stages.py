@@ -321,4 +321,5 @@ class PredictedEdge:
     noise: float
 
 
-__all__ = ["AnnulusSelection", "EdgeFit", "EllipsePixels", "EllipsoidEdge", "FitData", "LimbPixels", "PredictedCandidates", "PredictedEdge", "PredictedPixels", "RefineResult"]
+__all__ = ["AnnulusSelection", "EdgeFit", "EllipsePixels", "EllipsoidEdge", "FitData", "LimbPixels", "PredictedCandidates",
+           "PredictedEdge", "PredictedPixels", "RefineResult"]

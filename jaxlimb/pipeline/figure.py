@@ -99,21 +99,21 @@ def save_locate_figure(
 ) -> None:
     """Save a PNG/PDF picture of ``measurement`` on ``image`` (matplotlib, Agg; atomic write).
 
-    Left: the body (limb box + 10 % margin) with the fitted pixels, limb and centre (red) and the truth (cyan);
-    right: a 30 x 30 px zoom on the limb point farthest in the lit direction.  A non-2-D ``image`` raises
-    :class:`~jaxlimb.errors.LimbInputError`.
+    Left: the body, fitted pixels, limb and centre (red), truth (cyan), titled ``title`` (default: centre, radius,
+    error); right: 30 x 30 px of the lit limb.  A non-2-D ``image``: :class:`~jaxlimb.errors.LimbInputError`.
 
     Parameters
     ----------
-    image, measurement : np.ndarray (rows, cols), LimbMeasurement
+    image : np.ndarray (rows, cols)
+    measurement : LimbMeasurement
     path : str or os.PathLike
         Output file; its suffix picks the format (default PNG).
     selected_pixels : np.ndarray (n, 2), optional
         Fitted pixels ``(row, col)``; default ``measurement.selected_pixels_rc``.
     truth : RenderTruth, SunTruth or dict, optional
         True limb and centre (a dict needs ``center_rc`` and ``radius_px``).
-    title, dpi : str or None, int
-        The left panel's title (default: centre, radius, error) and the resolution.
+    title : str, optional
+    dpi : int
     """
     import matplotlib
 

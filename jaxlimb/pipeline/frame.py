@@ -81,8 +81,8 @@ def prepare(image: Any, camera: Any, hints: Any, options: Any, mask: Any = None)
     ----------
     image : array_like
         2-D grey image ``[row, col]``.
-    camera, hints : Camera, Hints, their dicts or None
-        As :func:`jaxlimb.pipeline.locate.locate` takes them.
+    camera : Camera, dict or None
+    hints : Hints, dict or None
     options : LocateOptions or None
         ``None``: the defaults.
     mask : np.ndarray of bool, optional

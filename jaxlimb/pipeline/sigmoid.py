@@ -53,8 +53,12 @@ def pad_bucket(data: FitData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
     Returns
     -------
-    coords, z, weights : np.ndarray (m, 2), (m,), (m,)
-        The padded pixels ``(row, col)``, intensities and weights (0 on the padding), ``m >= n``.
+    coords : np.ndarray (m, 2)
+        The pixels ``(row, col)`` padded to ``m >= n``.
+    z : np.ndarray (m,)
+        Their intensities.
+    weights : np.ndarray (m,)
+        Their weights, 0 on the padding.
     """
     n = data.z.shape[0]
     size = max(4096, bucket_size(n))

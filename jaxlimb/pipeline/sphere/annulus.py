@@ -142,10 +142,10 @@ def select_annulus(
     Parameters
     ----------
     image : np.ndarray (rows, cols)
-    center_rc, radius : (float, float), float
-        The initial circle (px).
-    dr : float
-        Annulus half-width (px).
+    center_rc : (float, float)
+        Centre ``(row, col)`` of the initial circle (px).
+    radius, dr : float
+        Its radius and the annulus half-width (px).
     direction : (float, float) or None
         Unit ``(d_row, d_col)`` toward the lit side; ``None``: all round.
     halfangle : float
@@ -333,7 +333,8 @@ def bin_median(bins: np.ndarray, values: np.ndarray, nb: int) -> tuple[np.ndarra
 
     Returns
     -------
-    median, counts : np.ndarray (nb,), np.ndarray of int (nb,)
+    median : np.ndarray (nb,)
+    counts : np.ndarray of int (nb,)
     """
     counts = np.bincount(bins, minlength=nb)
     med = np.full(nb, np.nan)

@@ -56,8 +56,10 @@ def initial_levels(sel: AnnulusSelection, data: FitData, options: LocateOptions)
 
     Returns
     -------
-    k, ymax, ymin : float
-        Steepness (1/px) and levels in the units of ``data.z``.
+    k : float
+        Steepness (1/px).
+    ymax, ymin : float
+        Inside and outside levels, in the units of ``data.z``.
     """
     if options.estimate_k:
         if data.weights is not None:
