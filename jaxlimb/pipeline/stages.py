@@ -22,7 +22,8 @@ result                 the same measurement for every body                      
 
 A body strategy (:class:`Body`) supplies the stages that differ between bodies; every strategy is a final class
 (:mod:`jaxlimb.pipeline.sphere`, :mod:`jaxlimb.pipeline.ellipsoid`), chosen by :func:`jaxlimb.pipeline.bodies.body_strategy`.
-The values of the limb-pixel and edge-fit stages are defined in :mod:`jaxlimb.pipeline.edge_stages` and re-exported here.
+The values of the limb-pixel and edge-fit stages are defined in :mod:`jaxlimb.pipeline.edge_stages` and
+re-exported here.
 """
 
 from __future__ import annotations

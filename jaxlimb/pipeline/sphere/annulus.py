@@ -201,8 +201,8 @@ def _mid_direction(ang: np.ndarray) -> tuple[float, float] | None:
 NEAR_SKY_PX = 1.5
 """Where a validity mask leaves an angular bin fewer than two pixels in the annulus's outer half (a product whose
 off-body pixels are blanked 1-2 px outside the limb, ``resampled_hmi.fits``), its sky level is taken from its valid
-pixels this far (px) or farther outside the limb.  Without a mask nothing changes (a bin cut by the frame's border
-is dropped as before)."""
+pixels this far (px) or farther outside the limb.  Without a mask the rule does not apply (a bin cut by the frame's
+border is dropped)."""
 
 
 def _outer_pixels(dsel: np.ndarray, bins: np.ndarray, nb: int, radius: float, dr: float, masked: bool) -> np.ndarray:
@@ -295,10 +295,10 @@ def _edge_offsets(e_b: np.ndarray, ok: np.ndarray, nb: int, tol: float = 0.75, n
     from all ``ok`` bins), and then its 75th percentile residual: the initial circle of a crescent or a cropped
     limb is often off by 1-3 px (a Taubin circle through a short noisy arc), and its ``e_b`` then trend with the
     angle across the arc; measured against a constant, more than half of such an arc lies :data:`MAX_EDGE_OFFSET_PX`
-    inward and was dropped (benchmark row ``cropped`` 0: 149 deg phase, 25 of ~100 deg of lit limb kept).
+    inward and would be dropped (benchmark row ``cropped`` 0: 149 deg phase, 25 of ~100 deg of lit limb kept).
     Fewer than 6 bins, a third or less of them inward of the 75th percentile by ``tol``, or a trend ``hypot(b, c)``
-    within ``tol`` (a good initial circle): the constant of the 75th percentile alone, as before (a terminator or
-    dark limb entering at the ends of the arc is a minority of the bins; the trend fit moved the centre of
+    within ``tol`` (a good initial circle): the constant of the 75th percentile alone (a terminator or dark limb
+    entering at the ends of the arc is a minority of the bins; there the trend fit would take the centre error of
     benchmark row ``combined`` 3 from 0.016 to 0.026 px without need)."""
     idx = np.nonzero(ok)[0]
     off = np.full(nb, np.nan)

@@ -6,7 +6,7 @@ sky) and the dark arc (disc darker than the sky).  The lit-limb stages of :func:
 (front end, annulus on the lit side, circular sigmoid; Aerospace 2015 §4-6) fit a circle to the lit arc
 only.  On a short arc the circle's radius and centre trade off (Christian & Robinson's short-arc
 geometry), and a limb that is not a circle -- a triaxial body (Enceladus' 256 x 247 x 245 km image to a
-limb ~4 % out of round) -- biases both: the issue's 304.6 px circle, ~15 px outside the dark disc
+limb ~4 % out of round) -- biases both: on a Cassini frame, a 304.6 px circle ~15 px outside the dark disc
 opposite the crescent, with a centre sigma of 0.1 px.
 
 The check searches the edge of largest |gradient| along the normals of the fitted circle

@@ -71,7 +71,7 @@ def crescent_halfwidth(phase: float | None, radius: float, dr: float, min_arc_de
     if phase is None or phase <= math.pi / 2 or dr <= CRESCENT_MIN_DR:
         return dr
     if 2.0 * math.degrees(lit_halfangle(phase, radius, dr)) >= min_arc_deg:
-        return dr  # usable as it is (narrowing further moved benchmark row airy 1 from 0.017 to 0.069 px)
+        return dr  # usable as it is (narrowing further takes benchmark row airy 1 from 0.017 to 0.069 px)
     psi = math.radians(CRESCENT_HALF_DEG)
     c2 = max(math.cos(phase) ** 2, 1e-300)
     thick = radius * (1.0 - 1.0 / math.sqrt(math.cos(psi) ** 2 / c2 + math.sin(psi) ** 2))
