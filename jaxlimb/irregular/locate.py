@@ -149,12 +149,67 @@ def locate_los(
 ) -> LosResult:
     """Body-centre image and line of sight of an irregular body, checked (module docstring).
 
+    The image ``P`` of the body centre is measured by registering the rendered shape model to the frame
+    (:mod:`jaxlimb.irregular.register`); its line of sight is ``u(P)`` of Eq. 4 of Wu et al.
+
+    Parameters
+    ----------
+    image : np.ndarray (rows, cols)
+        Grey frame indexed ``[row, col]`` (any numeric type; used as float).
+    db : TemplateDatabase
+        Template database of the shape model (:func:`~jaxlimb.irregular.database.build_database`); with a known
+        attitude only its ``mesh`` is used.
+    camera : Camera
+        Pinhole camera of the frame (:class:`~jaxlimb.geometry.camera.Camera`).
+    sun_dir_camera : np.ndarray (3,), optional
+        Unit vector from the body toward the Sun, camera frame.  ``None`` (or a phase below 5 deg): the whole
+        silhouette counts as limb in the template search, zero phase in the registration.
+    R_body_to_camera : np.ndarray (3, 3), optional
+        Attitude taking body-fixed vectors to the camera frame.  Given: ``KNOWN_ATTITUDE`` mode; ``None``:
+        ``TEMPLATE_SEARCH`` (the attitude is fitted too).
+    range_km : float, optional
+        Range prior (km), a starting value of the known-attitude registration; ``None``: from the figure's size.
+    options : LosOptions
+        Search and registration settings.
+
+    Returns
+    -------
+    LosResult
+        The chosen registration (``fit``: centre ``center_rc`` in px ``(row, col)``, its 2x2 covariance,
+        ``los_camera``, ``range_km``), the mode, the template index and how many hypotheses were tried and accepted.
+
     Raises
     ------
     NoBodyError, TooSmallError, TooBigError
         From the segmentation.
     MatchError, AmbiguousMatchError, ConvergenceError
         No hypothesis explains the frame, or two explain it with centres apart.
+
+    Examples
+    --------
+    A generated body 100 px across on a 200 x 200 frame at 30 deg phase, with a coarse 15-degree database of
+    128-px templates (a few seconds; real databases use 3-degree steps and 512-px templates):
+
+    >>> import numpy as np
+    >>> from jaxlimb.geometry.camera import Camera
+    >>> from jaxlimb.irregular.database import DatabaseOptions, build_database
+    >>> from jaxlimb.irregular.shapes import gaussian_sphere
+    >>> from jaxlimb.render.mesh import look_at_rotation, render_mesh
+    >>> mesh = gaussian_sphere(seed=1, radius_km=10.0, subdivisions=3)
+    >>> db = build_database(mesh, DatabaseOptions(step_deg=15.0, template_size_px=128), progress=False)
+    >>> cam = Camera(focal_length_mm=16.0, pixel_pitch_mm=2.2e-3, rows=200, cols=200)
+    >>> R = look_at_rotation([0.3, -0.5, 0.8])
+    >>> t = np.array([0.0, 0.0, 2.0 * mesh.max_radius * cam.focal_px / 100.0])  # body centre, camera frame (km)
+    >>> sun = np.array([0.5, 0.0, -0.866])  # 30 deg phase
+    >>> frame = render_mesh(mesh.vertices, mesh.faces, cam, R, t, sun)  # frame.center_rc: the true centre
+    >>> known = locate_los(frame.image, db, cam, sun, R_body_to_camera=R)
+    >>> known.mode.value, bool(np.linalg.norm(known.center_rc - frame.center_rc) < 0.05)
+    ('known-attitude', True)
+    >>> found = locate_los(frame.image, db, cam, sun)  # attitude unknown: template search
+    >>> found.mode.value, bool(np.linalg.norm(found.center_rc - frame.center_rc) < 0.1)
+    ('template-search', True)
+    >>> found.fit.los_camera.shape
+    (3,)
     """
     img = np.asarray(image, dtype=float)
     seg = lit_figure(img)
@@ -174,7 +229,22 @@ def locate_los(
 def search_hypotheses(frame: Frame, db: TemplateDatabase, options: LosOptions) -> list[PoseHypothesis]:
     """The template hypotheses of the attitude-unknown search, best first (``n_verify + n_retry`` of them):
     :func:`~.phase.phase_candidates` on the lit figure with the Sun's image direction; at zero phase the whole
-    silhouette is limb."""
+    silhouette is limb.
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame, its lit figure, camera and Sun direction.
+    db : TemplateDatabase
+        Templates searched.
+    options : LosOptions
+        ``n_verify`` and ``n_retry`` set how many hypotheses are returned.
+
+    Returns
+    -------
+    list of PoseHypothesis
+        Template index, attitude, centre image (px) and range of each hypothesis, best match first.
+    """
     mask = frame.segmentation[0]
     s_img = _sun_image_direction(frame, figure_center(mask))
     whole = s_img is None
@@ -184,13 +254,30 @@ def search_hypotheses(frame: Frame, db: TemplateDatabase, options: LosOptions) -
 
 
 def register_hypotheses(frame: Frame, db: TemplateDatabase, hyps: list[PoseHypothesis], options: LosOptions):  # type: ignore[no-untyped-def]
-    """Coarse stage for every hypothesis, then the full-resolution stage in order of the coarse residual:
-    ``(fits, errors)``, ``fits`` a list of ``(RegisterResult, template index)``.
+    """Coarse stage for every hypothesis, then the full-resolution stage in order of the coarse residual.
 
     A hypothesis is not refined further when its coarse residual exceeds the best one's by
     ``_PRUNE_RMS_FRAC`` (it could pass neither the residual check nor the ambiguity test), or when its centre
     is already within ``_SAME_CENTER_PX`` of an accepted fit (the same answer: it cannot make the match
     ambiguous).
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame, its lit figure, camera and Sun direction.
+    db : TemplateDatabase
+        Database whose ``mesh`` is registered.
+    hyps : list of PoseHypothesis
+        Starting poses, from :func:`search_hypotheses`.
+    options : LosOptions
+        ``search`` registration settings and the ambiguity margin of :func:`runner_up_guard`.
+
+    Returns
+    -------
+    fits : list of (RegisterResult, int)
+        Each accepted registration with its template index, in order of the coarse residual.
+    errors : list of CheckFailed
+        Why each rejected hypothesis failed.
     """
     regs, errors = [], []
     for h in hyps:
@@ -222,7 +309,7 @@ def register_hypotheses(frame: Frame, db: TemplateDatabase, hyps: list[PoseHypot
 def runner_up_guard(accepted: list[GNState], options: LosOptions) -> Guard:
     """Abandon a further hypothesis that cannot change the answer (:func:`register_hypotheses`).
 
-    ``accepted``: the states of the accepted fits.  After each iteration of the candidate:
+    After each iteration of the candidate:
 
     * at full resolution (blur below ``2 PYRAMID_BLUR_PX``), its centre within ``_SAME_CENTER_PX`` of an
       accepted fit: the same answer;
@@ -230,6 +317,19 @@ def runner_up_guard(accepted: list[GNState], options: LosOptions) -> Guard:
       fit at the same iteration (same blur; the last one for later sharp iterations) by ``3 ambiguity_margin``.
       On sharp iterations its residual excess then exceeds theirs by more than the margin too
       (``excess^2 = rms^2 - noise^2`` with ``excess <= rms``): it can neither win nor make the match ambiguous.
+
+    Parameters
+    ----------
+    accepted : list of GNState
+        The Gauss-Newton states of the accepted fits (their ``history`` of RMS residuals).
+    options : LosOptions
+        ``ambiguity_margin``.
+
+    Returns
+    -------
+    Guard
+        ``guard(state, sigma)``, called after each iteration; raises :class:`~jaxlimb.errors.MatchError` to
+        abandon the candidate.
     """
     count = [0]
     full_res = 2.0 * PYRAMID_BLUR_PX
