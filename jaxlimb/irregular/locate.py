@@ -139,77 +139,51 @@ def _sun_image_direction(frame: Frame, fc: np.ndarray) -> np.ndarray | None:
 
 
 def locate_los(
-    image: np.ndarray,
-    db: TemplateDatabase,
-    camera: object,
-    sun_dir_camera: np.ndarray | None = None,
-    R_body_to_camera: np.ndarray | None = None,
-    range_km: float | None = None,
-    options: LosOptions = LosOptions(),
-) -> LosResult:
-    """Body-centre image and line of sight of an irregular body, checked (module docstring).
-
-    The image ``P`` of the body centre is measured by registering the rendered shape model to the frame
-    (:mod:`jaxlimb.irregular.register`); its line of sight is ``u(P)`` of Eq. 4 of Wu et al.
+    image: np.ndarray, db: TemplateDatabase, camera: object, sun_dir_camera: np.ndarray | None = None,
+    R_body_to_camera: np.ndarray | None = None, range_km: float | None = None, options: LosOptions = LosOptions(),
+) -> LosResult:  # fmt: skip
+    """Body-centre image ``P`` and line of sight ``u(P)`` (Eq. 4 of Wu et al.) of an irregular body, checked.
 
     Parameters
     ----------
     image : np.ndarray (rows, cols)
-        Grey frame indexed ``[row, col]`` (any numeric type; used as float).
+        Grey frame indexed ``[row, col]``.
     db : TemplateDatabase
-        Template database of the shape model (:func:`~jaxlimb.irregular.database.build_database`); with a known
-        attitude only its ``mesh`` is used.
+        Templates of the shape model (:func:`~.database.build_database`); a known attitude uses only ``db.mesh``.
     camera : Camera
-        Pinhole camera of the frame (:class:`~jaxlimb.geometry.camera.Camera`).
+        Pinhole camera of the frame.
     sun_dir_camera : np.ndarray (3,), optional
-        Unit vector from the body toward the Sun, camera frame.  ``None`` (or a phase below 5 deg): the whole
-        silhouette counts as limb in the template search, zero phase in the registration.
+        Unit vector from the body toward the Sun, camera frame; ``None``: zero phase (the silhouette is all limb).
     R_body_to_camera : np.ndarray (3, 3), optional
-        Attitude taking body-fixed vectors to the camera frame.  Given: ``KNOWN_ATTITUDE`` mode; ``None``:
-        ``TEMPLATE_SEARCH`` (the attitude is fitted too).
+        Known attitude (body-fixed to camera): ``KNOWN_ATTITUDE``; ``None``: ``TEMPLATE_SEARCH`` (module docstring).
     range_km : float, optional
-        Range prior (km), a starting value of the known-attitude registration; ``None``: from the figure's size.
+        Range prior (km), the start of a known-attitude registration; ``None``: from the figure's size.
     options : LosOptions
         Search and registration settings.
 
     Returns
     -------
     LosResult
-        The chosen registration (``fit``: centre ``center_rc`` in px ``(row, col)``, its 2x2 covariance,
-        ``los_camera``, ``range_km``), the mode, the template index and how many hypotheses were tried and accepted.
+        ``fit``: centre ``center_rc`` (px, ``(row, col)``), its 2x2 ``covariance_rc``, ``los_camera``, ``range_km``.
 
     Raises
     ------
-    NoBodyError, TooSmallError, TooBigError
-        From the segmentation.
-    MatchError, AmbiguousMatchError, ConvergenceError
-        No hypothesis explains the frame, or two explain it with centres apart.
+    NoBodyError, TooSmallError, TooBigError, MatchError, AmbiguousMatchError, ConvergenceError
+        No usable figure; no hypothesis explains the frame, or two explain it with centres apart.
 
     Examples
     --------
-    A generated body 100 px across on a 200 x 200 frame at 30 deg phase, with a coarse 15-degree database of
-    128-px templates (a few seconds; real databases use 3-degree steps and 512-px templates):
-
-    >>> import numpy as np
     >>> from jaxlimb.geometry.camera import Camera
-    >>> from jaxlimb.irregular.database import DatabaseOptions, build_database
+    >>> from jaxlimb.irregular import DatabaseOptions, build_database
     >>> from jaxlimb.irregular.shapes import gaussian_sphere
     >>> from jaxlimb.render.mesh import look_at_rotation, render_mesh
     >>> mesh = gaussian_sphere(seed=1, radius_km=10.0, subdivisions=3)
-    >>> db = build_database(mesh, DatabaseOptions(step_deg=15.0, template_size_px=128), progress=False)
-    >>> cam = Camera(focal_length_mm=16.0, pixel_pitch_mm=2.2e-3, rows=200, cols=200)
-    >>> R = look_at_rotation([0.3, -0.5, 0.8])
-    >>> t = np.array([0.0, 0.0, 2.0 * mesh.max_radius * cam.focal_px / 100.0])  # body centre, camera frame (km)
-    >>> sun = np.array([0.5, 0.0, -0.866])  # 30 deg phase
-    >>> frame = render_mesh(mesh.vertices, mesh.faces, cam, R, t, sun)  # frame.center_rc: the true centre
-    >>> known = locate_los(frame.image, db, cam, sun, R_body_to_camera=R)
-    >>> known.mode.value, bool(np.linalg.norm(known.center_rc - frame.center_rc) < 0.05)
-    ('known-attitude', True)
-    >>> found = locate_los(frame.image, db, cam, sun)  # attitude unknown: template search
-    >>> found.mode.value, bool(np.linalg.norm(found.center_rc - frame.center_rc) < 0.1)
-    ('template-search', True)
-    >>> found.fit.los_camera.shape
-    (3,)
+    >>> db = build_database(mesh, DatabaseOptions(step_deg=15.0, template_size_px=128), progress=False)  # coarse
+    >>> cam, R, sun = Camera(rows=200, cols=200), look_at_rotation([0.3, -0.5, 0.8]), np.array([0.5, 0.0, -0.866])
+    >>> frame = render_mesh(mesh.vertices, mesh.faces, cam, R, [0, 0, mesh.max_radius * cam.focal_px / 50], sun)  # 100 px
+    >>> fits = [locate_los(frame.image, db, cam, sun, R_known) for R_known in (R, None)]  # attitude known, then searched
+    >>> [(f.mode.value, bool(np.linalg.norm(f.center_rc - frame.center_rc) < 0.1)) for f in fits]  # true centre: 0.1 px
+    [('known-attitude', True), ('template-search', True)]
     """
     img = np.asarray(image, dtype=float)
     seg = lit_figure(img)
