@@ -35,7 +35,7 @@ def rot_z_to(u: np.ndarray) -> np.ndarray:
     Returns
     -------
     np.ndarray (3, 3)
-        ``R`` with ``R @ [0, 0, 1] = u`` (Rodrigues' formula about ``z x u``); identity when ``u`` is +z.
+        ``R`` with ``R @ [0, 0, 1] = u`` (Rodrigues' formula about ``z x u``); identity when ``u`` is along z.
     """
     z = np.array([0.0, 0.0, 1.0])
     v = np.cross(z, u)

@@ -179,7 +179,7 @@ def generate_shape(family: ShapeFamily | str, seed: int = 0) -> Mesh:
     Returns
     -------
     Mesh
-        About 10 km across, the default size of the family's generator.
+        At the family's default size (10 km: mean radius of the Gaussian sphere, long axis of the others).
     """
     return _MAKERS[ShapeFamily(family)](seed=seed)
 

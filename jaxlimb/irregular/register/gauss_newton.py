@@ -124,7 +124,7 @@ def initial_mix(options: RegisterOptions, phase_deg: float = 0.0) -> np.ndarray 
     Returns
     -------
     np.ndarray or None
-        Zeros, one per mixed law plus the smooth-shading term (pure Lommel-Seeliger); ``None``: not fitted.
+        Zeros (the base reflectance alone), one per mixed law plus the smooth-shading term; ``None``: not fitted.
     """
     if not options.fit_photometry:
         return None
