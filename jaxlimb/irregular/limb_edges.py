@@ -156,8 +156,8 @@ def lit_limb_center(F, I, coverage, P_win, lit_frac: float = 0.3, half_px: float
     P_win : np.ndarray (2,)
         Body-centre image, window pixels (row, col).
     lit_frac, half_px, n_sectors, min_points : float, float, int, int
-        Lit-limb level (fraction of the body's contrast: 95th percentile minus the sky), profile half-length (px), sectors of
-        the sandwich and the fewest usable edge points.
+        Lit-limb level (fraction of the body's contrast: 95th percentile minus the sky), profile half-length
+        (px), sectors of the sandwich and the fewest usable edge points.
 
     Returns
     -------
