@@ -372,7 +372,7 @@ def aniso_terms(dr, dc, d):
 
 
 def aniso_var(p: LimbProfileParams, terms):
-    """The anisotropic part of the blur variance of :class:`AnisoProfileParams` per pixel from its
+    r"""The anisotropic part of the blur variance of :class:`AnisoProfileParams` per pixel from its
     :func:`aniso_terms` (``None`` for the other profiles, ``terms`` then ``None``).
 
     Parameters

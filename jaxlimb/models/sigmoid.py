@@ -367,7 +367,7 @@ def ellipse_coords(p: EllipseParams, rc: Float[Array, "n 2"]) -> tuple[Array, Ar
 
 
 def ellipse_points(p: EllipseParams, phi: Float[Array, " m"]) -> Float[Array, "m 2"]:
-    """Points ``(row, col)`` on the ellipse at eccentric anomalies ``phi`` (inverse transform, Eq. 20).
+    r"""Points ``(row, col)`` on the ellipse at eccentric anomalies ``phi`` (inverse transform, Eq. 20).
 
     Parameters
     ----------
