@@ -1,7 +1,7 @@
 r"""The pieces of the physical limb profile (:mod:`jaxlimb.models.lunar_lambert`) evaluated at one depth: the
 lunar-Lambert radiance and its partial derivatives, the terminator's depth along a ray and the window of the blur
 integral cut to its lit side (both with their partial derivatives), the glow above the limb and the anisotropic
-blur's angular terms.
+blur's angular terms; and per pixel, its geometry relative to the limb ellipse and the branch its window takes.
 
 The derivatives are those of the functions as written (the quadrature of :mod:`jaxlimb.models.lunar_lambert`
 moves its nodes with the window's ends, so its exact Jacobian needs the radiance's derivative in the depth and the
@@ -16,6 +16,7 @@ import jax
 import jax.numpy as jnp
 
 from .profile_params import AnisoProfileParams, GlowProfileParams, LimbProfileParams
+from .sigmoid import ellipse_coords
 
 #: The per-pixel quantities the window's ends depend on: distance ``d``, limb radius ``R``, blur ``se``, the
 #: cosine ``cpsi`` toward the Sun, the angular radius ``a0`` and the phase ``ph``.
@@ -162,7 +163,7 @@ def terminator_depth(p: LimbProfileParams, R, cpsi, alpha0, tangents: bool = Fal
     vt : jax.Array (n,)
         Square root of the terminator's depth below the limb (px^1/2).
     shallow_lit : jax.Array (n,) of bool
-        Whether the side above the terminator (``v < v_t``) is the lit one.
+        Whether the shallow side of the terminator (``v < v_t``, toward the limb) is the lit one.
     dvt : jax.Array (6, n)
         Only with ``tangents``: the partials of ``vt`` over :data:`WINDOW_KEYS`.
     """
@@ -238,6 +239,65 @@ def lit_limits(p: LimbProfileParams, v0, v1, R, cpsi, alpha0, dv0=None, dv1=None
     vt = jnp.clip(vt, v0, v1)
     return (jnp.where(shallow_lit, v0, vt), jnp.where(shallow_lit, vt, v1), jnp.where(shallow_lit, dv0, dvt),
             jnp.where(shallow_lit, dvt, dv1))
+
+
+def limb_geometry(p: LimbProfileParams, rc):
+    """``(dr, dc, x, y, d, beta, R, cpsi)`` of the pixels ``rc``: offsets from the centre, ellipse-frame
+    coordinates, distance ``d`` from the centre, the limb's radius ``R`` in the pixel's direction and the
+    cosine of its angle from the Sun's image direction (module docstring of :mod:`jaxlimb.models.lunar_lambert`).
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        Supplies the ellipse ``(r0, c0, a, theta, rho)`` and the Sun's unit image direction ``(sun_r, sun_c)``.
+    rc : jax.Array (n, 2)
+        Pixel coordinates as ``(row, col)``.
+
+    Returns
+    -------
+    tuple of 8 jax.Array (n,)
+        ``(dr, dc, x, y, d, beta, R, cpsi)``; lengths in px.
+    """
+    rc = jnp.asarray(rc)
+    dr = rc[..., 0] - p.r0
+    dc = rc[..., 1] - p.c0
+    x, y = ellipse_coords(p, rc)
+    d2 = dr * dr + dc * dc
+    d = jnp.sqrt(jnp.where(d2 > 0, d2, 1.0))
+    b2 = p.rho * p.rho * x * x + y * y
+    beta = jnp.sqrt(jnp.where(b2 > 0, b2, 1.0))
+    R = p.rho * p.a * d / beta
+    cpsi = (dr * p.sun_r + dc * p.sun_c) / d
+    return dr, dc, x, y, d, beta, R, cpsi
+
+
+def window_regime(p: LimbProfileParams, rc):
+    """Which branch each pixel's window takes (an integer code): whether either end of ``R - d -+ 6 se`` is clamped at
+    the limb (``v = 0``), whether the terminator is clipped to the window and which side is lit.  The quadrature is
+    smooth in the parameters while these stay the same; where one switches, the rule (not the integral) has a kink of
+    the size of its error -- a window end reaching the limb moves its nodes as a square root -- and central
+    differences straddling it measure the kink, not the derivative (:mod:`jaxlimb.models.gradcheck`).
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        The profile's parameters (any of its variants).
+    rc : jax.Array (n, 2)
+        Pixel coordinates as ``(row, col)``.
+
+    Returns
+    -------
+    jax.Array (n,) of int32
+        Five bit flags per pixel; two pixels share a branch when their codes are equal.
+    """
+    dr, dc, _, _, d, _, R, cpsi = limb_geometry(p, rc)
+    se = jnp.sqrt(p.sigma * p.sigma + 1.0 / 12.0 + (0.0 if not isinstance(p, AnisoProfileParams)
+                                                   else aniso_var(p, aniso_terms_of(p, dr, dc, d))))
+    u0, u1 = R - d - 6.0 * se, R - d + 6.0 * se
+    v0, v1 = jnp.sqrt(jnp.maximum(u0, 1e-12)), jnp.sqrt(jnp.maximum(u1, 1e-12))
+    vt, shallow = terminator_depth(p, R, cpsi, jnp.arctan(p.rho * p.a * p.inv_f))
+    flags = (u0 > 1e-12, u1 > 1e-12, vt < v0, vt > v1, shallow)
+    return sum(f.astype(jnp.int32) << i for i, f in enumerate(flags))
 
 
 _INV_SQRT_PI = 1.0 / math.sqrt(math.pi)
