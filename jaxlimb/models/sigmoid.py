@@ -124,7 +124,7 @@ def linear_intensity(p: LinearParams, x: Float[Array, " n"]) -> Float[Array, " n
     >>> import numpy as np
     >>> from jaxlimb.models import LinearParams, linear_intensity
     >>> p = LinearParams(xt=50.0, k=0.5, ymax=150.0, ymin=20.0)
-    >>> np.round(np.asarray(linear_intensity(p, np.array([40.0, 50.0, 60.0]))), 2)
+    >>> np.round(np.asarray(linear_intensity(p, np.array([40.0, 50.0, 60.0])), dtype=float), 2)
     array([149.13,  85.  ,  20.87])
     """
     x = jnp.asarray(x)
@@ -220,7 +220,7 @@ def circle_intensity(p: CircleParams, rc: Float[Array, "n 2"]) -> Float[Array, "
     >>> from jaxlimb.models import CircleParams, circle_intensity
     >>> p = CircleParams(r0=100.0, c0=120.0, radius=30.0, k=2.0, ymax=200.0, ymin=10.0)
     >>> rc = np.array([[100.0, 120.0], [100.0, 150.0], [100.0, 151.0]])
-    >>> np.round(np.asarray(circle_intensity(p, rc)), 2)
+    >>> np.round(np.asarray(circle_intensity(p, rc), dtype=float), 2)
     array([200.  , 105.  ,  32.65])
     """
     rc = jnp.asarray(rc)
@@ -419,7 +419,7 @@ def ellipse_intensity(p: EllipseParams, rc: Float[Array, "n 2"]) -> Float[Array,
     >>> from jaxlimb.models import EllipseParams, ellipse_intensity
     >>> p = EllipseParams(r0=100.0, c0=120.0, a=40.0, theta=0.0, rho=0.75, k=2.0, ymax=200.0, ymin=10.0)
     >>> rc = np.array([[100.0, 120.0], [100.0, 160.0], [70.0, 120.0], [60.0, 120.0]])
-    >>> np.round(np.asarray(ellipse_intensity(p, rc)), 2)
+    >>> np.round(np.asarray(ellipse_intensity(p, rc), dtype=float), 2)
     array([200., 105., 105.,  10.])
     """
     x, y = ellipse_coords(p, rc)
