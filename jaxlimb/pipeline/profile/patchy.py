@@ -191,8 +191,9 @@ def patchy_weights(coords: np.ndarray, p, r: np.ndarray) -> np.ndarray | None:
 
 
 PATCHY_GN_STEPS = 2
-"""Gauss--Newton steps per reweighted pass of :func:`downweight_patchy_sectors` (one left the centre up to
-5e-4 px from the LM refit's on the maria frames, two within 1e-4 px)."""
+"""Gauss--Newton steps per reweighted pass of :func:`downweight_patchy_sectors`: the reweighting moves the answer by
+hundredths of a pixel, where the problem is nearly linear and two steps reach the LM refit's answer
+(``docs/validation/constants.md#patchy_gn_steps``)."""
 
 
 def _unweighted_system(model: LimbModel, rr: RefineResult, padded=None):
