@@ -137,11 +137,11 @@ def worker_environment(workers: int, cores: int | None = None) -> dict[str, str]
     ``OMP``/``OPENBLAS``/``MKL_NUM_THREADS`` = 1); with more cores per worker the libraries keep
     their defaults.
 
-    Dask's nanny sets ``MALLOC_TRIM_THRESHOLD_=65536`` for its workers (its memory accounting); that
-    also fixes glibc's mmap threshold at 128 KiB, so every array of a full frame is mapped, zero-filled
-    and unmapped again: a full-pipeline trial on a 1944x2592 frame took 0.135 s instead of 0.108 s in
-    one process (0.144-0.150 vs 0.125-0.130 s in a worker).  The workers get ``MALLOC_MMAP_THRESHOLD_``
-    = 64 MiB and ``MALLOC_TRIM_THRESHOLD_`` = 128 MiB instead (a worker keeps up to ~200 MB more).
+    Dask's nanny sets ``MALLOC_TRIM_THRESHOLD_=65536`` for its workers (its memory accounting); setting
+    it also fixes glibc's mmap threshold at its 128 KiB default (the threshold no longer adapts,
+    ``mallopt(3)``), so every array of a full frame is mapped, zero-filled and unmapped again on every
+    trial.  The workers get ``MALLOC_MMAP_THRESHOLD_`` = 64 MiB and ``MALLOC_TRIM_THRESHOLD_`` = 128 MiB
+    instead: a full frame's buffers are reused, at the cost of a worker keeping up to ~200 MB more.
     A variable the user set is kept (the ``MALLOC_`` ones passed on explicitly).
 
     Parameters
@@ -293,9 +293,9 @@ def map_chunks(fn: Callable[[list[Any]], Any], items: Sequence[Any], client: Any
 
 TASKS_PER_WORKER = 16
 """Tasks per worker of :func:`default_chunk`: the workers finish within about one chunk of each other (the
-last chunks are handed out as workers free up), so smaller chunks leave less idle time at the end; a
-task's own cost (scheduling, the chunk file) is ~10 ms (measured: 200 one-trial tasks of full 1944x2592
-frames 35.1 s, 8 tasks of 25 trials 33.1 s, one worker) against ~1.1 s for 7 full-frame trials."""
+last chunks are handed out as workers free up), so smaller chunks leave less idle time at the end, while a
+task's own cost (scheduling, the chunk file) is small against a full-frame trial's
+(``docs/validation/constants.md#tasks_per_worker``)."""
 
 
 def default_chunk(n: int, workers: int) -> int:

@@ -101,9 +101,9 @@ class RayShading:
 
     Why: near zero phase a Lambert limb is dark and its radiance rises inward as ``sqrt(2u/R)`` (``mu0 ~ mu`` at depth
     ``u``), so the 2-5 px window inside the foot spans a factor ~1.6 and fails the flatness test on every ray of a
-    uniform disc: a mottled Lambert Earth at 2 deg phase (``benchmarks/earth_mottled.py``) kept 2 of 323 rays, its
-    limb was not recognised as patchy, and the one-albedo profile answered 1.27 px off (NEES 12).  Divided by the
-    shading a uniform ray is flat again, and a cloud edge inside the window is not.  The model is
+    uniform disc: a mottled limb is then not recognised as patchy, and the one-albedo profile answers far off
+    (``docs/validation/constants.md#glow-and-shading``).  Divided by the shading a uniform ray is flat again, and a
+    cloud edge inside the window is not.  The model is
     :func:`shaded_rows` (lunar-Lambert ``L``; ``psf_sigma_px`` need not be the frame's: the window is 2-5 px deep,
     where the blur hardly changes the shape), aligned on the trace's reference ellipse."""
 

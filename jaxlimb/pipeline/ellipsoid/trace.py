@@ -2,9 +2,8 @@ r"""The limb as the boundary against space: the outermost edge along rays from t
 
 A cloudy Earth has interior albedo edges (cloud against ocean: albedo 0.75 against 0.06) as strong as the
 limb, and its limb's brightness changes by an order of magnitude along the arc (a cloud over the limb, then
-ocean).  A gradient front end takes cloud edges for limb points (its circle was 7-19 px off on
-:mod:`jaxlimb.render.independent`'s ``clouds`` frames) and a band fit with one inside level is pulled by
-them.  What tells the limb from every cloud edge is that it is the *last* transition before the sky: along
+ocean).  A gradient front end takes cloud edges for limb points, and a band fit with one inside level is
+pulled by them.  What tells the limb from every cloud edge is that it is the *last* transition before the sky: along
 each ray from the centre, outward, nothing brighter than the sky follows it.
 
 :func:`trace_limb` samples rays across the lit window (one per px of arc) from ``search`` px inside to
@@ -97,7 +96,9 @@ class TracedLimb:
 
 
 PATCHY_ALBEDO_TOL = 0.04
-"""RMS (of ``log``) of the albedo along a shading-flattened trace's rays above which the limb is patchy."""
+"""RMS (of ``log``) of the albedo along a shading-flattened trace's rays above which the limb is patchy: a uniform
+disc keeps it near the ray noise, an albedo map well above it.  Tuned on the mottled Earths of
+``benchmarks/earth_mottled.py`` (``docs/validation/constants.md#patchy_albedo_tol``)."""
 
 
 def _harmonic_rms(t: np.ndarray, y: np.ndarray) -> float:
@@ -113,9 +114,7 @@ def _albedo_patchy(t: np.ndarray, y: np.ndarray) -> bool:
     when its RMS about the second-order harmonic fit exceeds both :data:`PATCHY_ALBEDO_TOL` and twice the ray
     noise (from neighbouring rays' differences, which an albedo map that changes slowly along the limb leaves out;
     pure noise gives an RMS of about the noise).  ``log P`` would not do: the shading makes it vary along a dark limb
-    (``benchmarks/earth_mottled.py`` at 2 deg phase: RMS 0.042 for the uniform disc, 0.094 for map 4; the albedo's
-    0.015 and 0.083, ray noise 0.012 and 0.017).  Map 9, traced about the start ellipse: 0.080 for a noise of 0.033
-    (three times the noise called it uniform, and the one-albedo profile answered 1.5 px off, NEES 12)."""
+    as much as an albedo map does (``docs/validation/constants.md#patchy_albedo_tol``)."""
     noise = 1.4826 * float(np.median(np.abs(np.diff(y)))) / math.sqrt(2.0)
     return _harmonic_rms(t, y) > max(PATCHY_ALBEDO_TOL, 2.0 * noise)
 
@@ -190,9 +189,9 @@ def _ray_edges(v: np.ndarray, rad: np.ndarray, sky: float, noise: float, step: f
     """Steps 2-4 of the module docstring on every ray: the limb's radius along the ray and the inside level; with
     ``shade_rows`` (a uniform disc's radiance on the same samples, :class:`RayShading`) the flatness of step 3 is
     tested on the samples divided by it, and the third value is each ray's albedo (the window's median of that
-    ratio; ``None`` without ``shade_rows``).  (Tried: the level 2-5 px inside the half crossing, iterated from the
-    foot, so that a bright glow's foot does not set it: on the ``clouds`` frames it climbed onto cloud edges inside
-    the ocean limb, centres 0.6-2.9 px off instead of 0.1-0.5 px.)"""
+    ratio; ``None`` without ``shade_rows``).  The inside level is read below the outer foot, not iterated from the
+    half crossing: iterated, it climbs onto cloud edges inside an ocean limb
+    (``docs/validation/constants.md#ray-levels``)."""
     m = v.shape[1]
     vv = np.where(np.isfinite(v), v, sky)
     bright = vv > sky + 5.0 * noise

@@ -60,9 +60,9 @@ def fit_traced(tr: TracedLimb, ell: tuple, free_shape: bool = False) -> tuple:
 
 GLOW_LIFT_Z = 4.0
 """The z-score (cluster-robust, :func:`fit_traced_glow`) above which a patchy limb's traced points are fitted with
-the glow's lift.  Measured on ``benchmarks/families.py``'s Earth frames (truth ellipse as the trace's reference):
-``combined`` (clouds + a glow of 0.05-0.34 of the surface) z = -0.4, 3.3, 4.4, 7.2, 28, 76 (the one at -0.4 the
-faintest glow, 0.05); ``clouds`` (no glow) frames 0-16 of seed 2026 z = -2.8 ... 3.2, all below 4."""
+the glow's lift.  Cloud edges alone lift some rays and not others, at random along the arc; a glow lifts the dim
+rays systematically.  A threshold tuned on the project's cloudy Earths with and without a glow
+(``docs/validation/constants.md#glow_lift_z``)."""
 
 
 def glow_lift_column(tr: TracedLimb) -> np.ndarray:

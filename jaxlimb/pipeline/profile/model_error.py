@@ -26,9 +26,9 @@ MODEL_ERROR_SECTORS = 24
 
 WITNESS_CUT: tuple[float, ...] = (1.0, 2.0)
 """The splits of :func:`split_witness`: for each ``c``, the pixels outside ``-c`` effective PSF sigmas of the
-limb (the sky side and the edge) and those inside ``+c`` (the edge and the disc).  Measured on
-``benchmarks/families.py`` (Moon, 3 frames each; centre NEES with 2.0 alone / 1.0 and 2.0): Minnaert 2.3 /
-1.1, glow 33 / 20, own 1.9 / 1.3."""
+limb (the sky side and the edge) and those inside ``+c`` (the edge and the disc).  Two cuts see a model error
+that lives at one depth of the profile (a glow, a rim) better than one; tuned on the project's scene families
+(``docs/validation/constants.md#witness_cut``)."""
 
 
 _GEOMETRIC = ("r0", "c0", "a", "theta", "rho")

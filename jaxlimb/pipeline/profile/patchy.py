@@ -28,41 +28,28 @@ PATCHY_SECTORS = 24
 
 
 PATCHY_RATIO = 1.5
-"""A sector whose mean squared residual exceeds this multiple of the median sector's is down-weighted.
-Measured (``benchmarks/families.py``, Moon, 6 frames per family, fit of main 002f51e): 2-60 in the sectors a
-mare crosses (4-6 such sectors on 5 of the 6 maria frames), at most 1.6 on uniform-albedo lunar-Lambert,
-Minnaert, glow, Airy, defocus, JPEG and star frames; 2.0-3.1 in 1-3 sectors of one Hapke, one
-Lommel-Seeliger, two motion-smeared and one JPEG frame, whose answers moved by at most 0.007 px.
-2.0 until held-out seed 2028 (n 6): its maria 3 and 4 are subtle (ratios 1.6-3.0 in the sectors the maria cross),
-the maria median 0.054 px (frames 0 / 4 0.148 / 0.055); with 1.5 0.036 (0.083 / 0.018; frame 2 0.094 -> 0.119, its
-covariance covering it, :func:`with_reweighting_witness`).  On the tuning seeds (with the glow's tilt test and the
-witness): seed 2026 combined max 0.093 -> 0.044, jpeg max 0.114 -> 0.101, minnaert 3 0.012 -> 0.027; seed 2027
-combined median / max 0.037 / 0.136 -> 0.027 / 0.106, maria 0.019 / 0.034 -> 0.017 / 0.027, own 2 0.029 -> 0.014,
-cropped 0 0.107 -> 0.119.  Checked on held-out seed 2029 (n 4): maria / combined median 0.033 / 0.045 -> 0.026 /
-0.031, other families unchanged but glow 0 0.023 -> 0.031."""
+"""A sector whose mean squared residual exceeds this multiple of the median sector's is down-weighted.  A mare
+crossing the limb makes its sectors misfit many times the median, a uniform-albedo limb keeps them near it; the
+threshold sits between the two and was tuned on the project's scene families
+(``docs/validation/constants.md#patchy_ratio``)."""
 
 
 PATCHY_PASSES = 4
-"""Reweighted passes (each from the previous answer, the weights from its residuals).  Two passes with the weight
-``ratio^-1/2`` stopped half way on wide maria: held-out frames (``benchmarks/families.py --seed 2027/2028``) combined 0
-(three maria over 50 deg of the lit limb about the sub-solar point) 0.249 px, maria 0 of seed 2028 0.309 px; with
-:data:`PATCHY_POWER` 1.5 and 4 passes 0.134 / 0.142 px (8 passes: the same to 1e-3 px)."""
+"""Reweighted passes (each from the previous answer, the weights from its residuals: iteratively reweighted least
+squares, Huber 1981 Sec. 7).  A wide mare pulls the first answer, so the first weights underrate its sectors'
+misfit; a few passes let the weights settle (``docs/validation/constants.md#patchy_passes``)."""
 
 
 PATCHY_POWER = 1.5
 """A down-weighted sector's residual weight is ``ratio^-PATCHY_POWER`` (its weight in the normal equations
-``ratio^-3``, :func:`patchy_weights`).  Measured on the held-out maria / combined frames above (4 passes): power 0.5
-0.207 / 0.046 / 0.027 px (combined 0, maria 2 and 0 of seed 2027), 1.0 0.146 / 0.028 / 0.020, 1.5 0.134 / 0.027 /
-0.010, 2.0 0.132 / -, maria 1 of seed 2028 0.036 -> 0.012 (1.5) / 0.011 (2.0)."""
+``ratio^-3``, :func:`patchy_weights`): the more a sector misfits, the less it counts.  Tuned on the project's maria
+frames (``docs/validation/constants.md#patchy_passes``)."""
 
 
 PATCHY_WITNESS = 0.25
-"""The fraction of the reweighting's move (:func:`with_reweighting_witness`) carried as the centre's and radius' sigma.
-Chosen on seeds 2026 and 2027 of ``benchmarks/families.py`` (``maria`` and ``combined``, 18 reweighted frames): the
-centre error left over the move 0.02-1.8, median 0.22.  Mean centre NEES with 0 / 0.25 / 0.5 (recomputed from the
-records' covariances): seed 2026 maria 1.19 / 0.83 / 0.65, combined 2.07 / 1.20 / 1.11, seed 2027 maria 1.68 / 0.83 /
-0.50, combined 2.22 / 0.40 / 0.20; held-out seed 2028 (n 6) maria 8.57 / 1.70, combined 1.98 / 0.47, seed 2029 (n 4)
-maria 2.27 / 0.83, combined 1.31 / 1.28.  The term was looked for after seed 2028's maria 2 (below)."""
+"""The fraction of the reweighting's move (:func:`with_reweighting_witness`) carried as the centre's and radius' sigma:
+what the weights leave of a mare's pull scales with what they removed.  Tuned on the project's maria and combined
+frames by the centre NEES (``docs/validation/constants.md#patchy_witness``)."""
 
 
 def with_reweighting_witness(out: RefineResult, unweighted: RefineResult) -> RefineResult:
@@ -170,10 +157,8 @@ def downweight_patchy_sectors(frame: Frame, rr: RefineResult, solver, system=Non
 
 def _l_described(rr: RefineResult) -> bool:
     """Whether the unweighted fit ``rr`` has its ``L`` within :func:`~jaxlimb.pipeline.profile.passes.l_band` (always, with
-    ``L`` held).  The band widens by 3 sigma of ``L``, and down-weighting sectors raises that sigma: on a flat 8-bit
-    own render (``tests/pipeline/test_cli_locate.py``'s Moon, 30 000 km, phase 30 deg) the fit with ``L`` 1.51 outside
-    its band was rejected and the edge fit answered 0.007 px; down-weighted by ``ratio^-1.5`` it came back with ``L``
-    1.26-1.41 inside its widened band and the centre 0.23 px off."""
+    ``L`` held).  The band widens by 3 sigma of ``L``, and down-weighting sectors raises that sigma: a fit the profile
+    does not describe must not be let back in by its own reweighting (``docs/validation/constants.md#l-band``)."""
     if "L" not in rr.fit.free:
         return True
     lo, hi = l_band(rr.fit)
@@ -206,8 +191,9 @@ def patchy_weights(coords: np.ndarray, p, r: np.ndarray) -> np.ndarray | None:
 
 
 PATCHY_GN_STEPS = 2
-"""Gauss--Newton steps per reweighted pass of :func:`downweight_patchy_sectors` (one left the centre up to
-5e-4 px from the LM refit's on the maria frames, two within 1e-4 px)."""
+"""Gauss--Newton steps per reweighted pass of :func:`downweight_patchy_sectors`: the reweighting moves the answer by
+hundredths of a pixel, where the problem is nearly linear and two steps reach the LM refit's answer
+(``docs/validation/constants.md#patchy_gn_steps``)."""
 
 
 def _unweighted_system(model: LimbModel, rr: RefineResult, padded=None):

@@ -117,9 +117,8 @@ def with_aniso_blur_witness(out: RefineResult, iso: RefineResult) -> RefineResul
 
 KAPPA_GATE = 0.04
 """The one-step estimate of the limb-brightening exponent ``kappa`` (:func:`brightening_step`) above which the
-profile is refitted with ``kappa`` free.  Measured (``benchmarks/families.py``, Moon, 6 frames each, the fit with
-``kappa`` always free): Minnaert limbs (``kappa = 1 - k`` = 0.05-0.45) gave 0.056-0.39; lunar-Lambert, Hapke,
-Lommel-Seeliger with surge, maria and ``combined`` gave -0.15 to 0.021."""
+profile is refitted with ``kappa`` free.  A threshold tuned on the project's scene families: Minnaert limbs lie
+above it, the lunar-Lambert, Hapke, Lommel-Seeliger and maria limbs below (``docs/validation/constants.md#kappa_gate``)."""
 
 
 KAPPA_DISC_CUT = 1.0
@@ -129,9 +128,8 @@ KAPPA_DISC_CUT = 1.0
 KAPPA_DISC_RATIO = 0.5
 """The disc side's step must be at least this fraction of the step on all pixels.  A Minnaert rim brightens the
 disc for pixels inward (``mu^-kappa``, ``mu = sqrt(2 depth / R)``); a glow above the limb or a PSF's wings only
-the edge and the sky.  Measured (``benchmarks/families.py``, Moon, 6 frames each; disc-side / all-pixel step):
-Minnaert 0.76-1.06; glow -0.06-0.27 (all-pixel steps up to 0.33: the widened fit moved the centre 0.2 px
-*away* from the truth there); Airy -2.0 (one frame with an all-pixel step of 0.17)."""
+the edge and the sky, and a ``kappa`` fitted to those moves the centre away from the truth.  Tuned on the
+project's scene families (``docs/validation/constants.md#kappa_disc_ratio``)."""
 
 
 KAPPA_MAX = 0.6
@@ -209,18 +207,15 @@ def widen_brightening(frame: Frame, rr: RefineResult, solver, system=None) -> Re
 
 ANISO_MIN_FRAC = 0.12
 """The smallest anisotropy ``hypot(s2c, s2s) / sigma_e^2`` a profile refit is kept with (:func:`widen_aniso_ellipsoid`).
-Measured on ``benchmarks/families.py``'s Earth frames (attitude known): ``motion`` 0.18-0.53 (chi^2 of ``s2c, s2s``
-660-34 000); the isotropic PSFs ``own``, ``lambert``, ``airy``, ``defocus``, ``jpeg``, ``hapke`` at most 0.077 (chi^2
-up to 75: a PSF shape the Gaussian does not match, not a smear).  Kept unconditionally, the two free terms moved
-those frames by up to 0.015 px (``lambert`` median 0.009 -> 0.015 px)."""
+A motion smear is anisotropic by a large fraction of the blur; an isotropic PSF the Gaussian does not match leaves a
+small, sometimes significant, anisotropy whose two free terms only move the centre.  Tuned on the project's Earth
+frames (``docs/validation/constants.md#aniso_min``)."""
 
 
 ANISO_MIN_CHI2 = 13.8
 """And significant: ``s^T C_s^-1 s`` above the chi^2(2) 99.9 % point.  The same two bounds gate the sphere's refit on
-its one-step anisotropy (:func:`jaxlimb.pipeline.profile.widen.widen_aniso`; ``benchmarks/families.py``, size over
-``sigma_e^2`` and chi^2: held-out Moon ``motion`` crescents 0.32-0.81, 237-8467; seed 2026 ``own`` 0, ``airy`` 0,
-``glow`` 0, ``hapke`` 1 at most 0.024, 7.2; seed 2028 ``own`` 0 0.019, 13.5), which keeps that refit's CPU (112 -> 148
-ms per frame when always run) off the frames without a smear."""
+its one-step anisotropy (:func:`jaxlimb.pipeline.profile.widen.widen_aniso`), which keeps that refit's CPU off the
+frames without a smear (``docs/validation/constants.md#aniso_min``)."""
 
 
 def aniso_clears(frac: float, chi2: float) -> bool:
