@@ -39,6 +39,7 @@ def test_site_builds_strict(tmp_path):
     for command in ("jaxlimb locate", "jaxlimb navigate", "jaxlimb los build-db", "jaxlimb los locate",
                     "jaxlimb posterior", "jaxlimb montecarlo", "jaxlimb gradcheck", "jaxlimb figures", "--kernels"):
         assert command in cli, f"the CLI reference lacks {command}"
+    assert "JAXLIMB_PROGRESS" in cli and "--quiet" in cli  # the top-level help's epilog, the progress rule
     formats = (site / "formats" / "index.html").read_text()
     for name in ("camera", "hints", "result"):  # the tables generated from the package's schemas, and the schemas
         assert f"jaxlimb/schemas/{name}.schema.json" in formats
