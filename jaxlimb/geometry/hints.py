@@ -117,10 +117,10 @@ class Hints:
         known key is named in a :class:`~jaxlimb.errors.HintsKeyWarning`.  A camera file is refused."""
         if not isinstance(d, dict):
             raise ConfigError(f"hints must be a JSON object, got {type(d).__name__}")
-        known = schema_keys("hints")
-        if d and not set(d) & set(known) and len(set(d) & set(schema_keys("camera"))) >= 2:
-            raise ConfigError(f"the hints hold a camera's keys ({', '.join(k for k in d if k in schema_keys('camera'))}): "
-                              "this is a camera file; pass it as the camera")
+        known, camera_keys = schema_keys("hints"), [k for k in d if k in schema_keys("camera")]
+        if d and not set(d) & set(known) and len(camera_keys) >= 2:
+            raise ConfigError(f"the hints hold a camera's keys ({', '.join(camera_keys)}): this is a camera file; "
+                              "pass it as the camera")
         for k in sorted(set(d) - set(known), key=str):
             near = near_key(k, known)
             if near:

@@ -68,7 +68,8 @@ def test_help_says_where_progress_goes(capsys):
     with pytest.raises(SystemExit):
         build_parser().parse_args(["--help"])
     text = " ".join(capsys.readouterr().out.split())
-    for words in ("--quiet", "progress bars on stderr when stderr is a terminal, also with --json", "JAXLIMB_PROGRESS=1"):
+    for words in ("--quiet", "progress bars on stderr when stderr is a terminal, also with --json",
+                  "JAXLIMB_PROGRESS=1"):
         assert words in text
 
 
