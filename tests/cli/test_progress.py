@@ -83,3 +83,13 @@ def test_json_keeps_stdout_clean_while_progress_goes_to_stderr(monkeypatch, caps
     assert len(lines) == 1 and json.loads(lines[0])["status"] == "ok"  # the result alone
     assert ("trial" in err and "8/8" in err) is not quiet, err
     assert "Traceback" not in err
+
+
+def test_quiet_is_not_a_run_setting_of_resume():
+    """``--out F --resume`` accepts a file written with or without ``--quiet`` (it changes no answer)."""
+    from jaxlimb.cli._batch import run_settings
+
+    args = build_parser().parse_args(["locate", "a.png", "b.png", "--out", "f.jsonl"])
+    quiet = build_parser().parse_args(["locate", "a.png", "b.png", "--out", "f.jsonl", "--quiet"])
+    assert args.quiet is False and quiet.quiet is True
+    assert run_settings(args) == run_settings(quiet)
