@@ -25,6 +25,7 @@ from typing import Any
 
 import jax
 import numpy as np
+from tqdm.auto import tqdm
 
 from .._solver_names import SOLVER_NAMES
 from ..errors import LimbInputError
@@ -67,7 +68,7 @@ class CompareOptions:
             raise LimbInputError(f"`mode` must be 'batch' or 'single', got {self.mode!r}")
 
 
-def interleaved_timings(calls: dict[str, Callable[[int], Any]], n_blocks: int, repeats: int
+def interleaved_timings(calls: dict[str, Callable[[int], Any]], n_blocks: int, repeats: int, progress: bool = False
                         ) -> tuple[dict[str, list[tuple[float, float]]], dict[str, list[Any]]]:
     """Time ``calls[name](block)`` for every block, the names taking turns in a rotating order, ``repeats`` times each.
 
@@ -81,6 +82,8 @@ def interleaved_timings(calls: dict[str, Callable[[int], Any]], n_blocks: int, r
         Number of blocks (``0 .. n_blocks - 1``).
     repeats : int
         Timings of each block per name.
+    progress : bool, optional
+        Draw a bar of the blocks (tqdm, on stderr).
 
     Returns
     -------
@@ -92,7 +95,7 @@ def interleaved_timings(calls: dict[str, Callable[[int], Any]], n_blocks: int, r
     names = list(calls)
     times: dict[str, list[tuple[float, float]]] = {n: [] for n in names}
     out: dict[str, list[Any]] = {n: [] for n in names}
-    for b in range(n_blocks):
+    for b in tqdm(range(n_blocks), desc="chunks", unit="chunk", disable=not progress):
         order = names[b % len(names):] + names[: b % len(names)]
         for r in range(repeats):
             for name in order:
@@ -163,7 +166,8 @@ def _build(problem: StudyProblem, opt: CompareOptions, blocks: list[np.ndarray])
     return calls, compile_s
 
 
-def compare_solvers(problem: StudyProblem, options: CompareOptions | None = None) -> dict[str, Any]:
+def compare_solvers(problem: StudyProblem, options: CompareOptions | None = None, progress: bool = False
+                    ) -> dict[str, Any]:
     """Fit ``options.n`` realisations of ``problem`` with every solver of ``options`` (module docstring).
 
     Parameters
@@ -173,6 +177,8 @@ def compare_solvers(problem: StudyProblem, options: CompareOptions | None = None
         :func:`~jaxlimb.analysis.problems.model_problem`).
     options : CompareOptions, optional
         Solvers, number of realisations, seed, chunking and mode; default ``CompareOptions()``.
+    progress : bool, optional
+        Draw a bar of the timed chunks (tqdm, on stderr).
 
     Returns
     -------
@@ -189,7 +195,7 @@ def compare_solvers(problem: StudyProblem, options: CompareOptions | None = None
     seeds = np.array([trial_seed(opt.seed, i) for i in range(opt.n)], dtype=np.int64)
     blocks = [seeds[i : i + opt.chunk] for i in range(0, opt.n, opt.chunk)]
     calls, compile_s = _build(problem, opt, blocks)
-    times, outs = interleaved_timings(calls, len(blocks), opt.repeats)
+    times, outs = interleaved_timings(calls, len(blocks), opt.repeats, progress)
     rows = []
     sizes = [b.size for b in blocks]
     ref = None
