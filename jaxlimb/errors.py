@@ -225,11 +225,6 @@ class SaturationWarning(UserWarning):
     within ~0.05 px); ``extras["saturation"]`` of the measurement says how many."""
 
 
-class HintsKeyWarning(UserWarning):
-    """A hints key the package does not know but that is close to one it knows (a misspelling such as
-    ``sun_dir``): ignored, as every unknown hints key is (docs/design.md), and named with the key it resembles."""
-
-
 class CacheRepairWarning(UserWarning):
     """A cache entry (compiled program, exported fit core, template database) failed its check -- damaged,
     truncated, or written by other versions -- and was deleted and rebuilt; or the cache was bypassed.
@@ -245,7 +240,6 @@ __all__ = [
     "AttitudeError",
     "CacheRepairWarning",
     "CheckFailed",
-    "HintsKeyWarning",
     "ConfigError",
     "ConvergenceError",
     "DatabaseError",

@@ -143,11 +143,10 @@ def warnings_to_stderr(*categories: type[Warning]) -> Iterator[None]:
     """Show warnings of ``categories`` raised in the block as one ``jaxlimb: warning: ...`` line
     each on stderr (every one, not only the first of its kind); other warnings recorded in the
     block are not shown (the CLI prints one-line messages, never Python's warning format), except a
-    cache's :class:`~jaxlimb.errors.CacheRepairWarning` and a misspelt hints key's
-    :class:`~jaxlimb.errors.HintsKeyWarning`, which are always shown."""
-    from ..errors import CacheRepairWarning, HintsKeyWarning
+    cache's :class:`~jaxlimb.errors.CacheRepairWarning`, which is always shown."""
+    from ..errors import CacheRepairWarning
 
-    categories = (*categories, CacheRepairWarning, HintsKeyWarning)
+    categories = (*categories, CacheRepairWarning)
     with warnings.catch_warnings(record=True) as caught:
         for c in categories:
             warnings.simplefilter("always", c)

@@ -5,7 +5,6 @@ Sun direction, attitude, predicted centre.  Every field is optional; a bad value
 from __future__ import annotations
 
 import os
-import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -14,7 +13,7 @@ import numpy as np
 from .._io import read_json_file
 from .._schema import explain, schema_keys
 from .._validate import Range, matrix, near_key, number, vector
-from ..errors import ConfigError, HintsKeyWarning
+from ..errors import ConfigError
 from .bodies import BODY_TABLE
 
 
@@ -113,19 +112,20 @@ class Hints:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Hints:
         """Build from the hints JSON object (``jaxlimb/schemas/hints.schema.json``; a wrong type or range is a
-        ConfigError naming the key).  Unknown keys are ignored (a filter may carry its own); one that resembles a
-        known key is named in a :class:`~jaxlimb.errors.HintsKeyWarning`.  A camera file is refused."""
+        ConfigError naming the key).  Unknown keys are ignored (a filter may carry its own) unless one resembles a
+        known key: a misspelling (``sun_dir``) is a ConfigError naming the key it resembles, since ignoring it would
+        silently drop a hint.  A camera file is refused."""
         if not isinstance(d, dict):
             raise ConfigError(f"hints must be a JSON object, got {type(d).__name__}")
         known, camera_keys = schema_keys("hints"), [k for k in d if k in schema_keys("camera")]
         if d and not set(d) & set(known) and len(camera_keys) >= 2:
             raise ConfigError(f"the hints hold a camera's keys ({', '.join(camera_keys)}): this is a camera file; "
                               "pass it as the camera")
-        for k in sorted(set(d) - set(known), key=str):
-            near = near_key(k, known)
-            if near:
-                warnings.warn(f"hints key {k!r} is not known and is ignored; did you mean {near!r}?",
-                              HintsKeyWarning, stacklevel=2)
+        misspelt = {k: near_key(k, known) for k in sorted(set(d) - set(known), key=str)}
+        misspelt = {k: near for k, near in misspelt.items() if near}
+        if misspelt:
+            raise ConfigError("hints have unknown keys " + ", ".join(f"{k!r} (did you mean {near!r}?)"
+                                                                      for k, near in misspelt.items()))
         try:
             return cls(**{k: d[k] for k in known if k in d and d[k] is not None})
         except ConfigError as e:  # the schema's message, with the key path, when the file breaks the schema

@@ -18,7 +18,7 @@ from jsonschema import Draft202012Validator
 
 from jaxlimb._schema import SCHEMA_NAMES, load_schema, schema_keys, validate
 from jaxlimb.cli import main
-from jaxlimb.errors import ConfigError, HintsKeyWarning
+from jaxlimb.errors import ConfigError
 from jaxlimb.geometry.camera import Camera
 from jaxlimb.geometry.hints import Hints
 
@@ -153,9 +153,9 @@ def test_hints_errors_name_the_key_path(bad, message):
     assert message in str(e.value)
 
 
-def test_hints_null_is_absent_and_an_unknown_key_is_ignored_with_a_warning_if_it_resembles_one():
+def test_hints_null_is_absent_and_an_unknown_key_is_ignored_unless_it_resembles_one():
     assert Hints.from_dict({"range_prior_km": None, "filter_state": [1, 2]}) == Hints()
-    with pytest.warns(HintsKeyWarning, match="'expected_radius' .* did you mean 'expected_radius_px'"):
+    with pytest.raises(ConfigError, match="'expected_radius' \\(did you mean 'expected_radius_px'\\?\\)"):
         Hints.from_dict({"expected_radius": 30.0})
     with warnings.catch_warnings():
         warnings.simplefilter("error")

@@ -1,4 +1,4 @@
-"""Hints keys: an unknown key is ignored (docs/design.md); one that resembles a known key is named in a warning."""
+"""Hints keys: an unknown key is ignored (docs/design.md); one that resembles a known key is an error naming it."""
 
 from __future__ import annotations
 
@@ -7,14 +7,13 @@ import warnings
 
 import pytest
 
-from jaxlimb.errors import HintsKeyWarning
+from jaxlimb.errors import ConfigError
 from jaxlimb.geometry.hints import Hints
 
 
 def test_a_misspelt_key_is_named_with_the_key_it_resembles():
-    with pytest.warns(HintsKeyWarning, match="'sun_dir'.*did you mean 'sun_dir_camera'"):
-        h = Hints.from_dict({"body": "moon", "sun_dir": [1.0, 0.0, 0.0]})
-    assert h.sun_dir_camera is None and h.body == "moon"
+    with pytest.raises(ConfigError, match="'sun_dir' \\(did you mean 'sun_dir_camera'\\?\\)"):
+        Hints.from_dict({"body": "moon", "sun_dir": [1.0, 0.0, 0.0]})
 
 
 def test_a_foreign_key_is_ignored_silently():
@@ -23,7 +22,7 @@ def test_a_foreign_key_is_ignored_silently():
         assert Hints.from_dict({"body": "moon", "filter_epoch_label": "k=12"}).body == "moon"
 
 
-def test_cli_prints_the_warning_on_one_line(tmp_path, capsys):
+def test_cli_refuses_the_misspelt_key_on_one_line_with_exit_2(tmp_path, capsys):
     from jaxlimb.cli import main
 
     import cv2
@@ -35,8 +34,8 @@ def test_cli_prints_the_warning_on_one_line(tmp_path, capsys):
     (tmp_path / "h.json").write_text(json.dumps({"body": "moon", "range_prior": 3.0e5}))
     code = main(["locate", str(tmp_path / "img.png"), "--hints", str(tmp_path / "h.json")])
     err = capsys.readouterr().err.splitlines()
-    assert code == 0, err
-    assert err[0] == "jaxlimb: warning: hints key 'range_prior' is not known and is ignored; did you mean 'range_prior_km'?"
+    assert code == 2, err
+    assert err == ["jaxlimb: error: hints have unknown keys 'range_prior' (did you mean 'range_prior_km'?)"]
 
 
 def test_a_camera_file_given_as_hints_is_refused():
