@@ -6,6 +6,8 @@
 * ``<!-- api: jaxlimb.PACKAGE -->`` becomes the mkdocstrings directive for the package's public names: its
   ``__all__``, else the names it re-exports (``from .mod import X as X``) and defines.
 * ``<!-- results: NAME ARG... -->`` becomes a table read from ``benchmarks/results/`` (``results_tables.py``).
+* ``<!-- schema: NAME -->`` becomes the key table and the text of ``jaxlimb/schemas/NAME.schema.json``
+  (``schema_tables.py``).
 * The notebooks of ``notebooks/`` are pages under ``notebooks/``.  They are committed without outputs; set
   ``JAXLIMB_DOCS_EXECUTED=DIR`` to render executed copies from ``DIR/notebooks/`` instead (``make docs``
   executes them with nbconvert into ``build/docs-executed/notebooks/`` first).
@@ -33,10 +35,19 @@ NOTEBOOKS = ROOT / "notebooks"
 OPTIONAL_PAGES = ("design.md", "guarantees.md", "track.md")
 log = logging.getLogger("mkdocs.hooks.jaxlimb")
 
-_spec = importlib.util.spec_from_file_location("jaxlimb_results_tables", Path(__file__).with_name("results_tables.py"))
-results_tables = importlib.util.module_from_spec(_spec)
-sys.modules[_spec.name] = results_tables
-_spec.loader.exec_module(results_tables)
+
+
+def _load_sibling(module: str, file: str):  # noqa: ANN202
+    """A module of this folder (MkDocs loads a hook by path: its folder is not importable)."""
+    spec = importlib.util.spec_from_file_location(module, Path(__file__).with_name(file))
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+results_tables = _load_sibling("jaxlimb_results_tables", "results_tables.py")
+schema_tables = _load_sibling("jaxlimb_schema_tables", "schema_tables.py")
 
 
 # ----------------------------------------------------------------------------------------- pages others write
@@ -88,6 +99,7 @@ _OPTIONAL_LINK = re.compile(r"\[([^\]]+)\]\((?:\.\./)*(" + "|".join(map(re.escap
 
 
 _API = re.compile(r"<!--\s*api:\s*([\w.]+)\s*-->")
+_SCHEMA = re.compile(r"<!--\s*schema:\s*(\w+)\s*-->")
 
 
 def on_page_markdown(markdown, page, config, files):
@@ -105,6 +117,13 @@ def on_page_markdown(markdown, page, config, files):
             raise PluginError(f"{page.file.src_uri}: {e}") from None
 
     markdown = _RESULTS.sub(_table, markdown)
+
+    def _schema(m: re.Match) -> str:
+        if m.group(1) not in schema_tables.names():
+            raise PluginError(f"{page.file.src_uri}: unknown schema {m.group(1)!r}; known: {schema_tables.names()}")
+        return schema_tables.render(m.group(1))
+
+    markdown = _SCHEMA.sub(_schema, markdown)
     missing = _missing_optional(config)
     if missing:
         markdown = _OPTIONAL_LINK.sub(lambda m: m.group(1) if m.group(2) in missing else m.group(0), markdown)
@@ -170,6 +189,8 @@ def _command_md(path: str, parser: argparse.ArgumentParser, summary: str, level:
     rows = _option_rows(parser)
     if rows:
         out += ["| argument | meaning |", "|---|---|"] + [f"| {a} | {b} |" for a, b in rows] + [""]
+    if parser.epilog:
+        out += [_escape(parser.epilog), ""]
     subs = _subcommands(parser)
     if subs:
         out += ["| sub-command | what it does |", "|---|---|"]

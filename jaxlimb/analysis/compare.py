@@ -25,6 +25,7 @@ from typing import Any
 
 import jax
 import numpy as np
+from tqdm.auto import tqdm
 
 from .._solver_names import SOLVER_NAMES
 from ..errors import LimbInputError
@@ -67,14 +68,34 @@ class CompareOptions:
             raise LimbInputError(f"`mode` must be 'batch' or 'single', got {self.mode!r}")
 
 
-def interleaved_timings(calls: dict[str, Callable[[int], Any]], n_blocks: int, repeats: int
+def interleaved_timings(calls: dict[str, Callable[[int], Any]], n_blocks: int, repeats: int, progress: bool = False
                         ) -> tuple[dict[str, list[tuple[float, float]]], dict[str, list[Any]]]:
-    """Time ``calls[name](block)`` for every block, the names taking turns in a rotating order, ``repeats`` times
-    each: ``({name: [(wall_s, cpu_s), ...]}, {name: [result of the first repeat of each block]})``."""
+    """Time ``calls[name](block)`` for every block, the names taking turns in a rotating order, ``repeats`` times each.
+
+    Block ``b`` starts with name ``b mod len(calls)``, so a burst of load on a shared machine hits every call alike.
+
+    Parameters
+    ----------
+    calls : dict of str to callable
+        ``calls[name](block_index)``: the work to time, already compiled.
+    n_blocks : int
+        Number of blocks (``0 .. n_blocks - 1``).
+    repeats : int
+        Timings of each block per name.
+    progress : bool, optional
+        Draw a bar of the blocks (tqdm, on stderr).
+
+    Returns
+    -------
+    times : dict of str to list of (float, float)
+        ``(wall_s, cpu_s)`` of every call, blocks in order and repeats within a block.
+    results : dict of str to list
+        The result of the first repeat of each block.
+    """
     names = list(calls)
     times: dict[str, list[tuple[float, float]]] = {n: [] for n in names}
     out: dict[str, list[Any]] = {n: [] for n in names}
-    for b in range(n_blocks):
+    for b in tqdm(range(n_blocks), desc="chunks", unit="chunk", disable=not progress):
         order = names[b % len(names):] + names[: b % len(names)]
         for r in range(repeats):
             for name in order:
@@ -145,11 +166,27 @@ def _build(problem: StudyProblem, opt: CompareOptions, blocks: list[np.ndarray])
     return calls, compile_s
 
 
-def compare_solvers(problem: StudyProblem, options: CompareOptions | None = None) -> dict[str, Any]:
+def compare_solvers(problem: StudyProblem, options: CompareOptions | None = None, progress: bool = False
+                    ) -> dict[str, Any]:
     """Fit ``options.n`` realisations of ``problem`` with every solver of ``options`` (module docstring).
 
-    Returns the JSON-ready comparison: ``rows`` (one per solver, in ``options.solvers`` order) and the problem,
-    the CRLB, the devices and the machine's load.
+    Parameters
+    ----------
+    problem : StudyProblem
+        The limb problem (:func:`jaxlimb.analysis.problems.standard_problem` or
+        :func:`~jaxlimb.analysis.problems.model_problem`).
+    options : CompareOptions, optional
+        Solvers, number of realisations, seed, chunking and mode; default ``CompareOptions()``.
+    progress : bool, optional
+        Draw a bar of the timed chunks (tqdm, on stderr).
+
+    Returns
+    -------
+    dict
+        JSON-ready: ``rows`` (one per solver, in ``options.solvers`` order: success rate, failures, iterations,
+        ms/fit wall and CPU with quartiles, ``compile_s``, per-parameter bias/RMS/RMS-over-CRLB,
+        ``max_abs_diff_vs_first_px``), ``problem``, ``crlb``, ``options``, ``devices``, ``loadavg`` (1/5/15 min
+        before and after) and ``wall_s``.
     """
     opt = options or CompareOptions()
     t_start = time.perf_counter()
@@ -158,7 +195,7 @@ def compare_solvers(problem: StudyProblem, options: CompareOptions | None = None
     seeds = np.array([trial_seed(opt.seed, i) for i in range(opt.n)], dtype=np.int64)
     blocks = [seeds[i : i + opt.chunk] for i in range(0, opt.n, opt.chunk)]
     calls, compile_s = _build(problem, opt, blocks)
-    times, outs = interleaved_timings(calls, len(blocks), opt.repeats)
+    times, outs = interleaved_timings(calls, len(blocks), opt.repeats, progress)
     rows = []
     sizes = [b.size for b in blocks]
     ref = None
@@ -190,7 +227,21 @@ def _fmt(v: Any, spec: str, width: int) -> str:
 
 
 def compare_table(result: dict[str, Any], params: Sequence[str] | None = None) -> str:
-    """The comparison as a text table (ms/fit: median of the interleaved timings, wall and CPU)."""
+    """The comparison as a text table (ms/fit: median of the interleaved timings, wall and CPU).
+
+    Parameters
+    ----------
+    result : dict
+        The output of :func:`compare_solvers`.
+    params : sequence of str, optional
+        Parameters whose RMS/CRLB are shown; default the free geometric ones (``r0``, ``c0``, ``radius``, ``a``,
+        ``xt``), else the first three free.
+
+    Returns
+    -------
+    str
+        One header line and one line per solver.
+    """
     free = list(params or [p for p in result["problem"]["free"] if p in ("r0", "c0", "radius", "a", "xt")]
                 or result["problem"]["free"][:3])
     head = (f"{'solver':>15} {'ok':>6} {'iter':>6} {'ms/fit':>8} {'CPU ms':>8} {'x first':>7} {'compile s':>9} "
@@ -206,7 +257,20 @@ def compare_table(result: dict[str, Any], params: Sequence[str] | None = None) -
 
 
 def plot_compare(result: dict[str, Any], path: Any = None) -> Any:
-    """ms/fit (median and quartiles of the interleaved timings, wall and CPU) and RMS/CRLB per solver."""
+    """ms/fit (median and quartiles of the interleaved timings, wall and CPU) and RMS/CRLB per solver.
+
+    Parameters
+    ----------
+    result : dict
+        The output of :func:`compare_solvers`.
+    path : str or Path, optional
+        Where to write the figure (:func:`~jaxlimb.analysis.figures.save_figure`); ``None`` writes nothing.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Two panels sharing the solver axis.
+    """
     import matplotlib
 
     matplotlib.use("Agg", force=False)

@@ -60,7 +60,31 @@ class CramerRao:
 
 def pixel_variance(model: LimbModel, coords: np.ndarray, truth: LimbParams, sigma: float,
                    poisson_gain: float | None = None) -> np.ndarray:
-    """Per-pixel noise variance: read noise ``sigma**2`` plus shot noise ``f / gain`` if given."""
+    """Per-pixel noise variance: read noise ``sigma**2`` plus shot noise ``f / gain`` if given.
+
+    Parameters
+    ----------
+    model : LimbModel
+        The limb model (its intensity at ``truth`` is the expected signal ``f``).
+    coords : np.ndarray (n, 2)
+        Pixels as (row, col) (``(n,)`` for the linear model).
+    truth : LimbParams
+        True parameters.
+    sigma : float
+        Read-noise standard deviation (DN).
+    poisson_gain : float, optional
+        Gain ``g`` in DN per electron: adds the shot noise ``max(f, 0) / g``; ``None`` for read noise alone.
+
+    Returns
+    -------
+    np.ndarray (n,)
+        Noise variance of each pixel (DN^2).
+
+    Raises
+    ------
+    LimbInputError
+        ``poisson_gain`` <= 0.
+    """
     var = np.full(np.shape(coords)[0], float(sigma) ** 2)
     if poisson_gain is not None:
         if poisson_gain <= 0:
@@ -98,7 +122,51 @@ _EVAL = {"intensity": eqx.filter_jit(_eval_intensity), "jacobian": eqx.filter_ji
 
 def crlb(model: LimbModel, coords: np.ndarray, truth: LimbParams, sigma: float, *,
          fixed: Sequence[str] = (), poisson_gain: float | None = None) -> CramerRao:
-    """Cramér--Rao bound of the free parameters of ``model`` for these pixels and noise."""
+    """Cramér--Rao bound of the free parameters of ``model`` for these pixels and noise.
+
+    The Fisher information ``F = J^T diag(1/var) J`` from the model's Jacobian at the truth (for the sigmoids
+    the paper's analytic one: Eq. 14, 17, Sec. V-C of Mortari et al. 2016; module docstring) and its inverse.
+
+    Parameters
+    ----------
+    model : LimbModel
+        The limb model, e.g. ``CIRCLE`` (Eq. 16), ``ELLIPSE``, ``LINEAR``.
+    coords : np.ndarray (n, 2)
+        Pixels as (row, col) (``(n,)`` for the linear model).
+    truth : LimbParams
+        True parameters, where the Jacobian is evaluated.
+    sigma : float
+        Read-noise standard deviation of every pixel (DN), finite and > 0.
+    fixed : sequence of str
+        Parameters held known (not estimated): their rows and columns leave the Fisher matrix.
+    poisson_gain : float, optional
+        Gain in DN per electron, to add shot noise (:func:`pixel_variance`).
+
+    Returns
+    -------
+    CramerRao
+        ``free`` names, ``fisher`` and ``covariance`` ``(p, p)``; ``std`` the 1-sigma bounds in the parameters'
+        units (px for centre and radius).
+
+    Raises
+    ------
+    LimbInputError
+        ``sigma`` not finite and > 0, or ``poisson_gain`` <= 0.
+
+    Examples
+    --------
+    The package's standard problem: a circular sigmoid of radius 150 px, ``k = 3``, 200 / 20 DN, noise
+    10 DN, the pixels within 6 px of the limb:
+
+    >>> import jax
+    >>> jax.config.update("jax_enable_x64", True)
+    >>> from jaxlimb.analysis.posterior import synthetic_circle
+    >>> from jaxlimb.models import CIRCLE
+    >>> limb = synthetic_circle(radius=150.0, k=3.0, ymax=200.0, ymin=20.0, sigma=10.0)
+    >>> bound = crlb(CIRCLE, limb.coords, limb.truth, 10.0)
+    >>> {n: round(s, 4) for n, s in bound.std.items()}
+    {'r0': 0.0036, 'c0': 0.0036, 'radius': 0.0028, 'k': 0.0218, 'ymax': 0.1508, 'ymin': 0.1474}
+    """
     if not (np.isfinite(sigma) and sigma > 0):
         raise LimbInputError(f"`sigma` must be a finite number > 0, got {sigma!r}")
     free_idx = model.free_indices(fixed)
@@ -117,12 +185,15 @@ def delta_method(cov: np.ndarray, jacobian: np.ndarray) -> np.ndarray:
 
     Parameters
     ----------
-    cov : ``(p, p)`` symmetric covariance of the parameters.
-    jacobian : ``(m, p)`` Jacobian of the derived quantities (``(p,)`` for a scalar ``g``).
+    cov : np.ndarray (p, p)
+        Symmetric covariance of the parameters.
+    jacobian : np.ndarray (m, p)
+        Jacobian of the derived quantities (``(p,)`` for a scalar ``g``).
 
     Returns
     -------
-    ``(m, m)`` covariance (``(1, 1)`` for a scalar ``g``).
+    np.ndarray (m, m)
+        Covariance of ``g``, symmetrised (``(1, 1)`` for a scalar ``g``).
 
     Raises
     ------
@@ -169,6 +240,14 @@ class LosRangeBound:
         return float(np.sqrt(np.trace(self.covariance[:3, :3])))
 
     def as_dict(self) -> dict[str, object]:
+        """JSON-ready: the LOS, the range, their sigmas and the covariance.
+
+        Returns
+        -------
+        dict
+            ``los_camera`` (unit vector, camera frame), ``range_km``, ``sigma_range_km``, ``sigma_los_rad``,
+            ``sigma_los_arcsec`` and ``covariance`` (4 x 4 nested lists).
+        """
         return {
             "los_camera": self.los_camera.tolist(),
             "range_km": self.range_km,
@@ -185,17 +264,30 @@ def los_range_bound(camera, center_rc, radius_px: float, cov_center_radius: np.n
 
     Parameters
     ----------
-    camera : a :class:`~jaxlimb.geometry.camera.Camera` (pinhole).
-    center_rc, radius_px : the fitted circle (image of the limb).
-    cov_center_radius : ``(3, 3)`` covariance of ``(r0, c0, radius)`` -- the CRLB
-        (:func:`crlb` ``.covariance`` restricted to these) or a fit's Laplace covariance.
-    body_radius_km : radius of the sphere.
-    step_px : central-difference step (px); the map is smooth on the pixel scale, so the
-        truncation error ``O(step^2)`` is far below the rounding of ``sphere_from_circle``.
+    camera : Camera
+        The pinhole camera (:class:`~jaxlimb.geometry.camera.Camera`).
+    center_rc : tuple of float
+        Centre of the fitted circle (the image of the limb), (row, col) px.
+    radius_px : float
+        Its radius (px).
+    cov_center_radius : np.ndarray (3, 3)
+        Covariance of ``(r0, c0, radius)`` (px^2): the CRLB (:func:`crlb` ``.covariance`` restricted to these)
+        or a fit's Laplace covariance.
+    body_radius_km : float
+        Radius of the sphere (km).
+    step_px : float
+        Central-difference step (px); the map is smooth on the pixel scale, so the truncation error
+        ``O(step^2)`` is far below the rounding of ``sphere_from_circle``.
 
     Returns
     -------
     LosRangeBound
+        LOS (camera frame), range (km), their ``(4, 4)`` covariance and the ``(4, 3)`` Jacobian.
+
+    Raises
+    ------
+    LimbInputError
+        ``cov_center_radius`` is not ``(3, 3)``.
     """
     x0 = np.array([float(center_rc[0]), float(center_rc[1]), float(radius_px)])
     cov = np.asarray(cov_center_radius, dtype=float)
@@ -217,6 +309,27 @@ def crlb_los_range(bound: CramerRao, truth: LimbParams, camera, body_radius_km: 
     ``r0``, ``c0`` and ``radius`` must be free in ``bound``; the other parameters (``k``,
     ``ymax``, ``ymin``) enter through the correlations already folded into
     ``bound.covariance``.
+
+    Parameters
+    ----------
+    bound : CramerRao
+        The bound of a circle model (:func:`crlb` with ``CIRCLE``).
+    truth : LimbParams
+        The true circle (``r0``, ``c0``, ``radius`` in px), where the mapping is linearised.
+    camera : Camera
+        The pinhole camera.
+    body_radius_km : float
+        Radius of the sphere (km).
+
+    Returns
+    -------
+    LosRangeBound
+        The bound on the LOS (camera frame) and the range (km).
+
+    Raises
+    ------
+    LimbInputError
+        ``r0``, ``c0`` or ``radius`` is not free in ``bound``.
     """
     need = ("r0", "c0", "radius")
     missing = [n for n in need if n not in bound.free]

@@ -7,14 +7,13 @@ cluster started by hand pass it to each worker::
 
 * ``dask_setup``: a background thread imports JAX and the locate pipeline, switches on float64 and
   the persistent compilation cache (:mod:`jaxlimb._jaxcache`) while the worker connects to the
-  scheduler and waits for its first task (~1 s of imports no longer on the first task's path).
-  A task must call :func:`wait_started` before it imports the package: two threads importing
-  interdependent modules at once can see a partially initialised module (measured: ``ImportError:
-  cannot import name 'ImageConic' from partially initialized module`` in 2 of 3 workers whose first
-  task began while this thread imported ``jaxlimb.pipeline``).
+  scheduler and waits for its first task, so that the imports are off the first task's path.
+  A task must call :func:`wait_started` before it imports the package: Python's import lock is per
+  module, so two threads importing interdependent modules at once can see a partially initialised
+  module (``ImportError: cannot import name ... from partially initialized module``).
 * ``dask_teardown``: ``gc.freeze()`` before the worker process ends, so the interpreter's shutdown
-  does not walk JAX's ~10^6 objects (0.4-0.6 s per process measured on a 2-core CPU, paid by the
-  client's ``close`` as it waits for its workers; see :func:`jaxlimb.cli.entry`).
+  does not walk JAX's ~10^6 objects, a time the client's ``close`` pays as it waits for its workers
+  (see :func:`jaxlimb.cli.entry`).
 """
 
 from __future__ import annotations
@@ -44,7 +43,13 @@ def _start_quietly() -> None:
 
 
 def dask_setup(worker: Any) -> None:
-    """Start :func:`start_jax` in a daemon thread (the worker's event loop is not held up)."""
+    """Start :func:`start_jax` in a daemon thread (the worker's event loop is not held up).
+
+    Parameters
+    ----------
+    worker : distributed.Worker
+        The registering worker (Dask's preload hook; unused).
+    """
     del worker
     if not _STARTED:
         t = threading.Thread(target=_start_quietly, name="jaxlimb-start-jax", daemon=True)
@@ -54,14 +59,26 @@ def dask_setup(worker: Any) -> None:
 
 def wait_started(timeout: float | None = None) -> None:
     """Wait until :func:`dask_setup`'s start thread has finished its imports (at once where none was started,
-    e.g. outside a worker, or from that thread itself)."""
+    e.g. outside a worker, or from that thread itself).
+
+    Parameters
+    ----------
+    timeout : float, optional
+        Longest wait in seconds; ``None`` waits until the imports are done.
+    """
     for t in _STARTED:
         if t is not threading.current_thread():
             t.join(timeout)
 
 
 def dask_teardown(worker: Any) -> None:
-    """Freeze the collector's objects: the worker process then exits without walking them."""
+    """Freeze the collector's objects: the worker process then exits without walking them.
+
+    Parameters
+    ----------
+    worker : distributed.Worker
+        The closing worker (Dask's preload hook; unused).
+    """
     del worker
     gc.freeze()
 

@@ -58,10 +58,26 @@ WORKER_PRELOAD = "jaxlimb.analysis.dask_worker"
 def make_client(scheduler: str | None = None, workers: int = 2, processes: bool = True) -> Any:
     """A ``dask.distributed.Client``: to ``scheduler`` if given, else on a new ``LocalCluster``.
 
+    Parameters
+    ----------
+    scheduler : str, optional
+        Address of a running scheduler, e.g. ``"tcp://host:8786"``.
+    workers : int
+        Worker processes of the ``LocalCluster`` (one thread each); ignored with ``scheduler``.
+    processes : bool
+        Workers as processes (with :func:`worker_environment` and the :data:`WORKER_PRELOAD`), else threads.
+
+    Returns
+    -------
+    dask.distributed.Client
+        Close it with :func:`close_client`.
+
     Raises
     ------
     ConfigError
         ``dask.distributed`` is not installed, or the scheduler cannot be reached.
+    LimbInputError
+        ``workers`` is not an integer >= 1.
     """
     try:
         from dask.distributed import Client, LocalCluster
@@ -121,12 +137,24 @@ def worker_environment(workers: int, cores: int | None = None) -> dict[str, str]
     ``OMP``/``OPENBLAS``/``MKL_NUM_THREADS`` = 1); with more cores per worker the libraries keep
     their defaults.
 
-    Dask's nanny sets ``MALLOC_TRIM_THRESHOLD_=65536`` for its workers (its memory accounting); that
-    also fixes glibc's mmap threshold at 128 KiB, so every array of a full frame is mapped, zero-filled
-    and unmapped again: a full-pipeline trial on a 1944x2592 frame took 0.135 s instead of 0.108 s in
-    one process (0.144-0.150 vs 0.125-0.130 s in a worker).  The workers get ``MALLOC_MMAP_THRESHOLD_``
-    = 64 MiB and ``MALLOC_TRIM_THRESHOLD_`` = 128 MiB instead (a worker keeps up to ~200 MB more).
+    Dask's nanny sets ``MALLOC_TRIM_THRESHOLD_=65536`` for its workers (its memory accounting); setting
+    it also fixes glibc's mmap threshold at its 128 KiB default (the threshold no longer adapts,
+    ``mallopt(3)``), so every array of a full frame is mapped, zero-filled and unmapped again on every
+    trial.  The workers get ``MALLOC_MMAP_THRESHOLD_`` = 64 MiB and ``MALLOC_TRIM_THRESHOLD_`` = 128 MiB
+    instead: a full frame's buffers are reused, at the cost of a worker keeping up to ~200 MB more.
     A variable the user set is kept (the ``MALLOC_`` ones passed on explicitly).
+
+    Parameters
+    ----------
+    workers : int
+        Worker processes sharing the machine.
+    cores : int, optional
+        Usable cores; default the process's CPU affinity (``jaxlimb._jaxcache.usable_cores``).
+
+    Returns
+    -------
+    dict of str to str
+        Environment variables to set in each worker.
     """
     import os
 
@@ -148,7 +176,13 @@ def worker_environment(workers: int, cores: int | None = None) -> dict[str, str]
 
 
 def close_client(client: Any) -> None:
-    """Close ``client`` and the ``LocalCluster`` it started (a remote scheduler is left running)."""
+    """Close ``client`` and the ``LocalCluster`` it started (a remote scheduler is left running).
+
+    Parameters
+    ----------
+    client : dask.distributed.Client
+        A client of :func:`make_client`.
+    """
     cluster = getattr(client, "cluster", None)
     client.close()
     if cluster is not None:
@@ -159,9 +193,29 @@ def run_monte_carlo_distributed(trial: Callable[..., Any], options: MonteCarloOp
                                 progress: bool = True) -> MonteCarloResult:
     """:func:`~jaxlimb.analysis.montecarlo.run_monte_carlo` with one Dask task per missing chunk.
 
-    ``options.out_dir`` is required (the chunk files are the results).  ``trial`` must be
-    picklable (a module-level function or a dataclass like :class:`~jaxlimb.analysis.pipeline_study.LocateTrial`).  Returns
-    the same :class:`~jaxlimb.analysis.montecarlo.MonteCarloResult` as an in-process run.
+    Parameters
+    ----------
+    trial : callable
+        As for :func:`~jaxlimb.analysis.montecarlo.run_monte_carlo`, and picklable (a module-level function or a
+        dataclass like :class:`~jaxlimb.analysis.pipeline_study.LocateTrial`).
+    options : MonteCarloOptions
+        The study; ``out_dir`` is required (the chunk files are the results) and must be visible to every worker.
+    client : dask.distributed.Client
+        Where the chunk tasks run.
+    progress : bool
+        Show a progress bar over the chunks.
+
+    Returns
+    -------
+    MonteCarloResult
+        The same as an in-process run's, with ``chunks_run`` the tasks submitted now.
+
+    Raises
+    ------
+    LimbInputError
+        ``options.out_dir`` is ``None``.
+    ConfigError
+        ``out_dir`` holds another study.
     """
     from dask.distributed import as_completed
     from tqdm.auto import tqdm
@@ -187,7 +241,20 @@ def run_monte_carlo_distributed(trial: Callable[..., Any], options: MonteCarloOp
 
 
 def chunked(items: Sequence[Any], size: int) -> Iterator[list[Any]]:
-    """``items`` in consecutive lists of at most ``size``."""
+    """``items`` in consecutive lists of at most ``size``.
+
+    Parameters
+    ----------
+    items : sequence
+        What to cut.
+    size : int
+        Largest list length.
+
+    Yields
+    ------
+    list
+        The next consecutive slice of ``items``.
+    """
     for i in range(0, len(items), size):
         yield list(items[i : i + size])
 
@@ -197,6 +264,23 @@ def map_chunks(fn: Callable[[list[Any]], Any], items: Sequence[Any], client: Any
 
     The frame-archive path of ``jaxlimb locate ... --workers N``: the caller writes each
     chunk's records as soon as it arrives (in order, so an interrupted run resumes cleanly).
+
+    Parameters
+    ----------
+    fn : callable
+        ``fn(list) -> result``, picklable.
+    items : sequence
+        The work items (e.g. frame paths).
+    client : dask.distributed.Client
+        Where the tasks run.
+    chunk_size : int
+        Items per task.
+
+    Yields
+    ------
+    object
+        ``fn(chunk)`` of each chunk, in order; a task's error is raised here, and the remaining tasks are
+        cancelled when the generator is closed.
     """
     futures = [client.submit(fn, ch, pure=False) for ch in chunked(items, chunk_size)]
     try:
@@ -209,13 +293,26 @@ def map_chunks(fn: Callable[[list[Any]], Any], items: Sequence[Any], client: Any
 
 TASKS_PER_WORKER = 16
 """Tasks per worker of :func:`default_chunk`: the workers finish within about one chunk of each other (the
-last chunks are handed out as workers free up), so smaller chunks leave less idle time at the end; a
-task's own cost (scheduling, the chunk file) is ~10 ms (measured: 200 one-trial tasks of full 1944x2592
-frames 35.1 s, 8 tasks of 25 trials 33.1 s, one worker) against ~1.1 s for 7 full-frame trials."""
+last chunks are handed out as workers free up), so smaller chunks leave less idle time at the end, while a
+task's own cost (scheduling, the chunk file) is small against a full-frame trial's
+(``docs/validation/constants.md#tasks_per_worker``)."""
 
 
 def default_chunk(n: int, workers: int) -> int:
-    """A chunk size giving each worker about :data:`TASKS_PER_WORKER` tasks (at least 1, at most 50 trials)."""
+    """A chunk size giving each worker about :data:`TASKS_PER_WORKER` tasks (at least 1, at most 50 trials).
+
+    Parameters
+    ----------
+    n : int
+        Trials of the study.
+    workers : int
+        Dask workers.
+
+    Returns
+    -------
+    int
+        Trials per chunk.
+    """
     return max(1, min(50, math.ceil(n / (TASKS_PER_WORKER * max(workers, 1)))))
 
 

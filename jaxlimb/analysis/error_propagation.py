@@ -63,13 +63,48 @@ def _check_range(D, R) -> np.ndarray:
 
 
 def radius_px(range_km, camera: Camera | None = None, body_radius_km: float = MOON_RADIUS_KM):
-    """Eq. 36: apparent radius ``r = f_px R / sqrt(D^2 - R^2)`` (px) on the boresight."""
+    """Eq. 36: apparent radius ``r = f_px R / sqrt(D^2 - R^2)`` (px) on the boresight.
+
+    Parameters
+    ----------
+    range_km : float or np.ndarray
+        Range ``D`` from the camera to the body centre (km), greater than ``body_radius_km``.
+    camera : Camera, optional
+        Gives ``f_px`` (focal length over pixel pitch); default ``Camera()``, the papers' 16 mm / 2.2 um.
+    body_radius_km : float
+        Radius ``R`` of the spherical body (km); default the Moon's.
+
+    Returns
+    -------
+    float or np.ndarray
+        Apparent radius ``r`` (px), the shape of ``range_km``.
+
+    Raises
+    ------
+    GeometryError
+        ``range_km`` not finite or not beyond the body radius.
+    """
     D = _check_range(range_km, body_radius_km)
     return _fpx(camera) * body_radius_km / np.sqrt(D**2 - body_radius_km**2)
 
 
 def range_from_radius(radius, camera: Camera | None = None, body_radius_km: float = MOON_RADIUS_KM):
-    """Inverse of Eq. 36: ``D = R sqrt(1 + f_px^2 / r^2)`` (= ``R / sin(atan(r/f_px))``)."""
+    """Inverse of Eq. 36: ``D = R sqrt(1 + f_px^2 / r^2)`` (= ``R / sin(atan(r/f_px))``).
+
+    Parameters
+    ----------
+    radius : float or np.ndarray
+        Apparent radius ``r`` (px), > 0.
+    camera : Camera, optional
+        Gives ``f_px``; default ``Camera()``.
+    body_radius_km : float
+        Radius ``R`` of the spherical body (km).
+
+    Returns
+    -------
+    float or np.ndarray
+        Range ``D`` to the body centre (km), the shape of ``radius``.
+    """
     r = np.asarray(radius, dtype=float)
     if np.any(~np.isfinite(r)) or np.any(r <= 0):
         raise GeometryError(f"`radius` must be finite and > 0 px, got {r.tolist()}")
@@ -77,14 +112,49 @@ def range_from_radius(radius, camera: Camera | None = None, body_radius_km: floa
 
 
 def radius_sigma_from_range_sigma(range_km, sigma_range_km, camera: Camera | None = None, body_radius_km: float = MOON_RADIUS_KM):
-    """Eq. 37: ``sigma_r = f_px D R / (D^2 - R^2)^{3/2} sigma_D`` (px)."""
+    """Eq. 37: ``sigma_r = f_px D R / (D^2 - R^2)^{3/2} sigma_D`` (px).
+
+    Parameters
+    ----------
+    range_km : float or np.ndarray
+        Range ``D`` to the body centre (km).
+    sigma_range_km : float or np.ndarray
+        Range standard deviation ``sigma_D`` (km); broadcast against ``range_km``.
+    camera : Camera, optional
+        Gives ``f_px``; default ``Camera()``.
+    body_radius_km : float
+        Radius ``R`` of the spherical body (km).
+
+    Returns
+    -------
+    float or np.ndarray
+        Apparent-radius standard deviation ``sigma_r`` (px), to first order.
+    """
     D = _check_range(range_km, body_radius_km)
     R = body_radius_km
     return _fpx(camera) * D * R / (D**2 - R**2) ** 1.5 * np.asarray(sigma_range_km, dtype=float)
 
 
 def range_sigma_from_radius_sigma(range_km, sigma_radius_px, camera: Camera | None = None, body_radius_km: float = MOON_RADIUS_KM):
-    """Eq. 38: ``sigma_D = (D^2 - R^2)^{3/2} / (f_px D R) sigma_r`` (km), first order."""
+    """Eq. 38: ``sigma_D = (D^2 - R^2)^{3/2} / (f_px D R) sigma_r`` (km), first order.
+
+    Parameters
+    ----------
+    range_km : float or np.ndarray
+        Range ``D`` to the body centre (km).
+    sigma_radius_px : float or np.ndarray
+        Apparent-radius standard deviation ``sigma_r`` (px); broadcast against ``range_km``.
+    camera : Camera, optional
+        Gives ``f_px``; default ``Camera()``.
+    body_radius_km : float
+        Radius ``R`` of the spherical body (km).
+
+    Returns
+    -------
+    float or np.ndarray
+        Range standard deviation ``sigma_D`` (km); :func:`monte_carlo_range_sigma` shows where first order
+        falls short.
+    """
     D = _check_range(range_km, body_radius_km)
     R = body_radius_km
     return (D**2 - R**2) ** 1.5 / (_fpx(camera) * D * R) * np.asarray(sigma_radius_px, dtype=float)
@@ -93,9 +163,21 @@ def range_sigma_from_radius_sigma(range_km, sigma_radius_px, camera: Camera | No
 def center_sigma_from_attitude(theta_rad, sigma_angle_rad, camera: Camera | None = None):
     """Eq. 39 (radial): ``sigma_c = f_px sigma_theta / cos^2(theta)`` (px).
 
-    ``theta`` is the angle of the body centre from the boresight; ``sigma_angle_rad`` the
-    per-axis rotation-angle error (use :func:`angle_sigma_from_quaternion_sigma` for a
-    quaternion sigma).
+    Parameters
+    ----------
+    theta_rad : float or np.ndarray
+        Angle of the body centre from the boresight (radians), in ``(-pi/2, pi/2)``.
+    sigma_angle_rad : float or np.ndarray
+        Per-axis rotation-angle error of the attitude (radians); for a quaternion sigma use
+        :func:`angle_sigma_from_quaternion_sigma`.
+    camera : Camera, optional
+        Gives ``f_px``; default ``Camera()``.
+
+    Returns
+    -------
+    float or np.ndarray
+        Radial standard deviation of the centre in the image (px); the tangential one is
+        ``f_px sigma / cos(theta)`` (:func:`center_covariance_from_attitude`).
     """
     th = np.asarray(theta_rad, dtype=float)
     if np.any(np.abs(th) >= np.pi / 2):
@@ -110,6 +192,20 @@ def center_covariance_from_attitude(theta_rad: float, sigma_angle_rad: float, ca
     ``dphi x u``: about y (perpendicular to boresight and LOS) changes ``t`` -> radial
     ``f dphi_y / cos^2 t``; about z moves it tangentially by ``f tan(t) dphi_z``; about x moves
     ``y/z`` by ``dphi_x`` -> tangential ``f dphi_x``.  Hence ``var_tan = f^2 s^2 (1 + tan^2 t)``.
+
+    Parameters
+    ----------
+    theta_rad : float
+        Angle of the body centre from the boresight (radians).
+    sigma_angle_rad : float
+        Per-axis rotation-angle error of the attitude (radians).
+    camera : Camera, optional
+        Gives ``f_px``; default ``Camera()``.
+
+    Returns
+    -------
+    np.ndarray (2, 2)
+        Diagonal covariance (px^2): radial ``(f_px s / cos^2 t)^2`` (Eq. 39), tangential ``(f_px s / cos t)^2``.
     """
     f = _fpx(camera)
     c = np.cos(float(theta_rad))
@@ -117,16 +213,41 @@ def center_covariance_from_attitude(theta_rad: float, sigma_angle_rad: float, ca
 
 
 def angle_sigma_from_quaternion_sigma(sigma_q: float) -> float:
-    """Per-axis rotation-angle sigma of a per-axis quaternion vector-part sigma: ``2 sigma_q``."""
+    """Per-axis rotation-angle sigma of a per-axis quaternion vector-part sigma: ``2 sigma_q``.
+
+    Parameters
+    ----------
+    sigma_q : float
+        Standard deviation of each component of the quaternion's vector part (check 4 of the module docstring).
+
+    Returns
+    -------
+    float
+        Rotation-angle standard deviation (radians), ``2 sigma_q``.
+    """
     return 2.0 * float(sigma_q)
 
 
 def range_sigma_from_position_sigma(sigma_position_km: float, model: str = "gaussian") -> float:
     """Range sigma implied by an isotropic position error (see check 2 of the module docstring).
 
-    ``model``: ``"gaussian"`` (per-axis ``sigma``: ``sigma_D = sigma``), ``"sphere"``
-    (``sigma * û``, ``û`` uniform on the unit sphere: ``sigma/sqrt(3)``), ``"ball"`` (``sigma * û``,
-    ``û`` uniform in the unit ball: ``sigma/sqrt(5)``).
+    Parameters
+    ----------
+    sigma_position_km : float
+        Scale ``sigma`` of the position error (km).
+    model : {"gaussian", "sphere", "ball"}
+        ``"gaussian"``: per-axis standard deviation ``sigma``; ``"sphere"``: ``sigma * û`` with ``û`` uniform on
+        the unit sphere; ``"ball"``: ``û`` uniform in the unit ball.
+
+    Returns
+    -------
+    float
+        Range standard deviation (km): ``sigma``, ``sigma/sqrt(3)`` or ``sigma/sqrt(5)``.
+
+    Raises
+    ------
+    GeometryError
+        An unknown ``model``.
     """
     s = float(sigma_position_km)
     if model == "gaussian":
@@ -159,7 +280,23 @@ def figure18_data(
     """Eq. 38 on a grid: Moon-distance error vs radius error for the four distances of Fig. 18.
 
     Also usable as "sigma_D vs distance for a given sigma_r" by passing a dense
-    ``distances_km`` and a single ``sigma_r_px``.  Default camera: the papers' 16 mm / 2.2 um.
+    ``distances_km`` and a single ``sigma_r_px``.
+
+    Parameters
+    ----------
+    sigma_r_px : np.ndarray (m,)
+        Apparent-radius standard deviations (px), finite and >= 0.
+    distances_km : sequence of float (k,)
+        Ranges to the Moon centre (km); default 50 000 to 350 000 km (module docstring, check 5).
+    camera : Camera, optional
+        Gives ``f_px``; default ``Camera()``, the papers' 16 mm / 2.2 um.
+    body_radius_km : float
+        Radius of the spherical body (km).
+
+    Returns
+    -------
+    Figure18
+        ``sigma_D_km`` of shape ``(k, m)``, with the apparent radius at each distance.
     """
     D = _check_range(np.atleast_1d(distances_km), body_radius_km)
     s = np.atleast_1d(np.asarray(sigma_r_px, dtype=float))
@@ -194,7 +331,33 @@ def monte_carlo_range_sigma(
     camera: Camera | None = None,
     body_radius_km: float = MOON_RADIUS_KM,
 ) -> RangeMonteCarlo:
-    """Sample the apparent radius, invert Eq. 36 exactly, compare to Eq. 38."""
+    """Sample the apparent radius, invert Eq. 36 exactly, compare to Eq. 38.
+
+    Parameters
+    ----------
+    range_km : float
+        True range to the body centre (km).
+    sigma_radius_px : float
+        Standard deviation of the Gaussian error added to the exact apparent radius (px).
+    n_trials : int
+        Number of samples.
+    seed : int
+        Seed of ``numpy.random.default_rng``.
+    camera : Camera, optional
+        Gives ``f_px``; default ``Camera()``.
+    body_radius_km : float
+        Radius of the spherical body (km).
+
+    Returns
+    -------
+    RangeMonteCarlo
+        Sample standard deviation and bias of the inverted range (km) beside the Eq. 38 sigma.
+
+    Raises
+    ------
+    GeometryError
+        A drawn radius is not positive (``sigma_radius_px`` too large for this range).
+    """
     rng = np.random.default_rng(seed)
     r0 = float(radius_px(range_km, camera, body_radius_km))
     r = r0 + sigma_radius_px * rng.standard_normal(n_trials)
@@ -212,8 +375,26 @@ def monte_carlo_range_sigma(
 def monte_carlo_center_attitude(
     theta_rad: float, sigma_angle_rad: float, n_trials: int = 20_000, seed: int = 0, camera: Camera | None = None
 ) -> np.ndarray:
-    """Sample exact small rotations (per-axis ``sigma``), project the rotated LOS; return the
-    ``(n, 2)`` (radial, tangential) image displacements in px (check of Eq. 39)."""
+    """Sample exact small rotations (per-axis ``sigma``) and project the rotated LOS (check of Eq. 39).
+
+    Parameters
+    ----------
+    theta_rad : float
+        Angle of the body centre from the boresight (radians), radial along camera ``+x``.
+    sigma_angle_rad : float
+        Per-axis standard deviation of the rotation vector (radians).
+    n_trials : int
+        Number of sampled rotations.
+    seed : int
+        Seed of ``numpy.random.default_rng``.
+    camera : Camera, optional
+        Gives ``f_px``; default ``Camera()``.
+
+    Returns
+    -------
+    np.ndarray (n_trials, 2)
+        (radial, tangential) image displacements of the centre (px).
+    """
 
     cam = camera or Camera()
     rng = np.random.default_rng(seed)

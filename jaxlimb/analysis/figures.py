@@ -16,7 +16,30 @@ from .montecarlo import MonteCarloResult
 def plot_errors(result: MonteCarloResult, keys: Sequence[str], truth: Mapping[str, float] | None = None,
                 crlb: Mapping[str, float] | None = None, path: str | Path | None = None, bins: int = 40,
                 title: str | None = None) -> Any:
-    """Histograms of the errors of ``keys`` with the CRLB Gaussian ``N(0, crlb^2)`` overlaid."""
+    """Histograms of the errors of ``keys`` with the CRLB Gaussian ``N(0, crlb^2)`` overlaid.
+
+    Parameters
+    ----------
+    result : MonteCarloResult
+        The study; only its successful trials are plotted.
+    keys : sequence of str
+        Keys of ``result.values``, one panel each.
+    truth : mapping of str to float, optional
+        True value per key (error = value - truth; default 0: the trial returned errors).
+    crlb : mapping of str to float, optional
+        Cramér--Rao 1-sigma bound per key, in the key's unit; keys without one get no curve.
+    path : str or Path, optional
+        Where to write the figure (:func:`save_figure`); ``None`` writes nothing.
+    bins : int
+        Histogram bins.
+    title : str, optional
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (closed when written to ``path``).
+    """
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -50,7 +73,22 @@ def plot_errors(result: MonteCarloResult, keys: Sequence[str], truth: Mapping[st
 
 def plot_rms_vs_crlb(points: Sequence[Mapping[str, float]], path: str | Path | None = None, xlabel: str = "CRLB",
                      ylabel: str = "Monte-Carlo RMS", title: str | None = None) -> Any:
-    """Scatter of RMS against CRLB (``[{"crlb", "rms", "label"}]``, log-log) with the line RMS = CRLB."""
+    """Scatter of RMS against CRLB (log-log) with the line RMS = CRLB.
+
+    Parameters
+    ----------
+    points : sequence of mapping
+        One ``{"crlb": float, "rms": float, "label": str}`` per point (``label`` optional), same unit.
+    path : str or Path, optional
+        Where to write the figure (:func:`save_figure`); ``None`` writes nothing.
+    xlabel, ylabel, title : str
+        Axis labels and an optional title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (closed when written to ``path``).
+    """
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -75,7 +113,17 @@ def plot_rms_vs_crlb(points: Sequence[Mapping[str, float]], path: str | Path | N
 
 
 def save_figure(fig: Any, path: str | Path | None, dpi: int = 110) -> None:
-    """Write ``fig`` to ``path`` atomically (the format from its suffix) and close it; nothing for ``None``."""
+    """Write ``fig`` to ``path`` atomically (the format from its suffix) and close it; nothing for ``None``.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure to write.
+    path : str or Path or None
+        Destination; its suffix (``.png``, ``.pdf``, ...) names the format.
+    dpi : int
+        Resolution of raster formats.
+    """
     if path is None:
         return
     import matplotlib.pyplot as plt

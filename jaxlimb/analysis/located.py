@@ -33,7 +33,18 @@ AGREEMENT_PX = 1e-9
 
 
 def model_of(params: LimbParams) -> LimbModel:
-    """The limb model whose parameters ``params`` are (every model ``locate`` fits)."""
+    """The limb model whose parameters ``params`` are (every model ``locate`` fits).
+
+    Parameters
+    ----------
+    params : LimbParams
+        Circle, ellipse, elliptical-ramp, limb-darkened or limb-profile parameters.
+
+    Returns
+    -------
+    LimbModel
+        The model of that parameter type (for a profile, the one of its reflectance law).
+    """
     if isinstance(params, LimbProfileParams):
         return profile_model(params)
     table = {CircleParams: CIRCLE, EllipseParams: ELLIPSE, EllipseRampParams: ELLIPSE_RAMP,
@@ -88,8 +99,19 @@ class LocatedFit:
         return float(np.sqrt(max(float(self.final.fit.sigma2), 1e-300)))
 
     def mapped(self, params: LimbParams) -> dict[str, Any]:
-        """``params`` (another value of the fit's parameters) through ``locate``'s body-centre mapping:
-        ``center_rc``, ``radius_px``, ``range_km``, ``los``."""
+        """``params`` (another value of the fit's parameters) through ``locate``'s body-centre mapping.
+
+        Parameters
+        ----------
+        params : LimbParams
+            Parameters of the fit's model, e.g. a posterior sample.
+
+        Returns
+        -------
+        dict
+            ``center_rc`` (body centre, (row, col) px), ``radius_px``, ``range_km`` and ``los`` (unit vector to the
+            body centre, camera frame) as ``locate`` would report them for this fit (``None`` where not measured).
+        """
         fit = eqx.tree_at(lambda f: f.params, self.final.fit, params)
         geo = self.body.body_center(self.frame, self.edge, dataclasses.replace(self.final, fit=fit))
         return {"center_rc": geo.center_rc, "radius_px": geo.radius_px, "range_km": geo.range_km, "los": geo.los}
@@ -106,6 +128,16 @@ def _stages(frame: Any, body: Any, cand: Any) -> tuple[Any, Any, Any]:
 
 def located_fit(image: Any, camera: Any = None, hints: Any = None, options: Any = None) -> LocatedFit:
     """``locate(image, camera, hints, options)`` and the final fit behind it (module docstring).
+
+    Parameters
+    ----------
+    image, camera, hints, options
+        As :func:`~jaxlimb.pipeline.locate`.
+
+    Returns
+    -------
+    LocatedFit
+        ``locate``'s measurement, the final fit, its body-centre mapping and covariance.
 
     Raises
     ------
@@ -135,9 +167,22 @@ def located_fit(image: Any, camera: Any = None, hints: Any = None, options: Any 
 
 
 def fit_problem(lf: LocatedFit, start_offset_px: float = 0.5) -> Any:
-    """The fit ``locate`` ran as a :class:`~jaxlimb.analysis.problems.StudyProblem`: its model, pixels, weights
-    and held parameters, the truth at its answer and the noise at its residual sigma (a parametric bootstrap
-    of the fit), the start ``start_offset_px`` off in the centre and the size."""
+    """The fit ``locate`` ran as a :class:`~jaxlimb.analysis.problems.StudyProblem` (a parametric bootstrap of it).
+
+    Parameters
+    ----------
+    lf : LocatedFit
+        From :func:`located_fit`.
+    start_offset_px : float
+        Distance of the start's centre from the answer (px, split evenly over row and col); the size (``radius``
+        or ``a``) starts off by the same.
+
+    Returns
+    -------
+    StudyProblem
+        The fit's model, pixels, weights and held parameters, the truth at its answer and the noise at its
+        residual sigma.
+    """
     from .problems import StudyProblem
 
     p = lf.params

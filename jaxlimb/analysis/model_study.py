@@ -46,8 +46,22 @@ _noisy_jit = jax.jit(_noisy)
 
 
 def noisy_intensities(seeds: np.ndarray, clean: np.ndarray, scale: np.ndarray | float) -> np.ndarray:
-    """The realisations ``(B, N)`` of :func:`seeded_fits`: ``clean + scale * N(0, 1)`` drawn from ``jax.random.key(seed)``
-    (``scale``: the noise sigma, per pixel or one for all)."""
+    """The realisations of :func:`seeded_fits`: ``clean + scale * N(0, 1)`` drawn from ``jax.random.key(seed)``.
+
+    Parameters
+    ----------
+    seeds : np.ndarray (B,) of int
+        One seed per realisation (:func:`~jaxlimb.analysis.montecarlo.trial_seed`).
+    clean : np.ndarray (N,)
+        Noise-free intensities (DN).
+    scale : np.ndarray (N,) or float
+        Noise standard deviation (DN), per pixel or one for all.
+
+    Returns
+    -------
+    np.ndarray (B, N)
+        One noisy realisation per seed.
+    """
     scale = np.broadcast_to(np.asarray(scale, float), np.shape(clean))
     return np.asarray(_noisy_jit(jnp.asarray(seeds, dtype=jnp.int64), jnp.asarray(clean), jnp.asarray(scale)))
 
@@ -120,8 +134,24 @@ class SeededFits:
 
 
 def seeded_fits(problem: StudyProblem, solver: AbstractLimbSolver, batch: int, max_steps: int = 256) -> SeededFits:
-    """Compile the study program of ``problem`` for ``solver`` (module docstring), ``batch`` realisations per call
-    (rounded up to a multiple of the devices); non-jittable solvers fit one realisation after another."""
+    """Compile the study program of ``problem`` for ``solver`` (module docstring).
+
+    Parameters
+    ----------
+    problem : StudyProblem
+        Pixels, truth, start and noise of the study.
+    solver : AbstractLimbSolver
+        The solver; a non-jittable one (SciPy) fits one realisation after another instead.
+    batch : int
+        Realisations per compiled call, rounded up to a multiple of the local devices.
+    max_steps : int
+        Iteration limit of each fit.
+
+    Returns
+    -------
+    SeededFits
+        ``fits(seeds) -> {"params" (b, p), "converged", "n_steps", "result"}``.
+    """
     pad = _padded(problem)
     shared = tuple(jax.device_put(a) for a in (np.asarray(problem.init.to_vector()), pad.coords, pad.w, pad.clean,
                                                pad.scale))
@@ -150,14 +180,41 @@ def _batch_trial(fits: SeededFits, names: Sequence[str]) -> Callable[[np.ndarray
 
 
 def study_name(opt: ModelStudyOptions, solver: AbstractLimbSolver) -> str:
-    """The study's identity in an output directory's manifest (a resume must match it)."""
+    """The study's identity in an output directory's manifest (a resume must match it).
+
+    Parameters
+    ----------
+    opt : ModelStudyOptions
+        The study; ``n``, ``seed`` and ``batch`` are left out (the engine's manifest records them).
+    solver : AbstractLimbSolver
+        The solver, by its name.
+
+    Returns
+    -------
+    str
+        ``"model-study-"`` and 12 hex digits of a SHA-1 of the settings.
+    """
     d = {k: v for k, v in asdict(opt).items() if k not in ("n", "seed", "batch")}
     key = json.dumps({**d, "solver": solver.name}, sort_keys=True, default=list)
     return f"model-study-{hashlib.sha1(key.encode()).hexdigest()[:12]}"
 
 
 def problem_crlb(problem: StudyProblem) -> dict[str, float]:
-    """The Cramér--Rao bound (1 sigma) of the free parameters at the truth, with the realisations' noise."""
+    """The Cramér--Rao bound (1 sigma) of the free parameters at the truth, with the realisations' noise.
+
+    With weights, the Fisher matrix is ``(J w/sigma)^T (J w/sigma)`` (pixel noise ``sigma / w``), as in
+    :func:`~jaxlimb.analysis.crlb.crlb`.
+
+    Parameters
+    ----------
+    problem : StudyProblem
+        Model, truth, pixels, fixed parameters, noise ``sigma`` (DN) and optional weights.
+
+    Returns
+    -------
+    dict of str to float
+        1-sigma bound per free parameter, in the parameter's unit (px for centre and radius).
+    """
     if problem.weights is None:
         return crlb(problem.model, problem.coords, problem.truth, problem.sigma, fixed=problem.fixed).std
     free_idx = list(problem.model.free_indices(problem.fixed))
@@ -168,7 +225,24 @@ def problem_crlb(problem: StudyProblem) -> dict[str, float]:
 
 
 def error_stats(values: np.ndarray, ok: np.ndarray, truth: float, bound: float) -> dict[str, float]:
-    """RMS, bias and RMS/CRLB of the converged ``values`` about ``truth``."""
+    """RMS, bias and RMS/CRLB of the converged ``values`` about ``truth``.
+
+    Parameters
+    ----------
+    values : np.ndarray (n,)
+        Estimates of one parameter.
+    ok : np.ndarray (n,) of bool
+        Converged fits; non-finite values are dropped as well.
+    truth : float
+        The true value.
+    bound : float
+        Its Cramér--Rao 1-sigma bound.
+
+    Returns
+    -------
+    dict
+        ``rms``, ``bias``, ``rms_over_crlb`` (NaN when nothing converged) and the count ``n``.
+    """
     e = values[ok & np.isfinite(values)] - truth
     if e.size == 0:
         return {"rms": float("nan"), "bias": float("nan"), "rms_over_crlb": float("nan"), "n": 0}
@@ -184,6 +258,28 @@ def run_model_study(opt: ModelStudyOptions, solver: AbstractLimbSolver | None = 
     ``compile_s`` is the time spent tracing and compiling the program (or loading it from the persistent
     cache), before the trials; ``fit_s`` the wall time of the fits alone and ``fit_cpu_s`` their CPU time
     (less sensitive to a loaded machine); ``wall_s`` everything.
+
+    Parameters
+    ----------
+    opt : ModelStudyOptions
+        The study (:func:`~jaxlimb.analysis.problems.standard_problem`, ``n``, ``seed``, ``batch``).
+    solver : AbstractLimbSolver, optional
+        Default :class:`~jaxlimb.fitting.NormalLM`.
+    progress : bool
+        Show the engine's progress bar.
+    out_dir : str, optional
+        Directory of the chunk files (resumable); ``None`` keeps everything in memory.
+
+    Returns
+    -------
+    dict
+        ``rms``, ``bias``, ``crlb`` and ``rms_over_crlb`` per free parameter, ``converged`` of ``n``, iteration
+        mean and max, the timings above, ``chunks_run``/``chunks_resumed``, ``n_pixels``, ``solver``, ``options``.
+
+    Raises
+    ------
+    LimbInputError
+        The study would not fit in the machine's memory.
     """
     from .._validate import check_memory
 
@@ -218,7 +314,20 @@ def run_model_study(opt: ModelStudyOptions, solver: AbstractLimbSolver | None = 
 
 
 def study_table(result: dict[str, object], params: Sequence[str] | None = None) -> str:
-    """A small text table of RMS, bias, CRLB and RMS/CRLB."""
+    """A small text table of RMS, bias, CRLB and RMS/CRLB.
+
+    Parameters
+    ----------
+    result : dict
+        The output of :func:`run_model_study`.
+    params : sequence of str, optional
+        Rows to show; default every free parameter.
+
+    Returns
+    -------
+    str
+        A header line and one line per parameter.
+    """
     rms, bias, bound = result["rms"], result["bias"], result["crlb"]  # type: ignore[index]
     names = list(params or rms)  # type: ignore[arg-type]
     lines = [f"{'param':>8} {'RMS':>11} {'bias':>11} {'CRLB':>11} {'RMS/CRLB':>9}"]

@@ -51,12 +51,11 @@ the multi-host path).
 from __future__ import annotations
 
 import json
-import math
 import time
 import warnings
 import zipfile
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -65,53 +64,25 @@ from tqdm.auto import tqdm
 
 from .._io import atomic_open, write_json_atomic
 from ..errors import ConfigError, JaxlimbError, LimbInputError
+from .montecarlo_data import MonteCarloOptions, MonteCarloResult
 
 _MANIFEST = "manifest.json"
 _VERSION = 1
 
 
-@dataclass(frozen=True)
-class MonteCarloOptions:
-    """Settings of :func:`run_monte_carlo`."""
-
-    n_trials: int
-    """Number of trials (>= 1)."""
-    chunk_size: int = 100
-    """Trials per chunk (the unit of checkpointing and of a batched call)."""
-    seed: int = 0
-    """Study seed; trial ``i`` gets ``trial_seed(seed, i)``."""
-    out_dir: str | None = None
-    """Directory for chunk files and the manifest (``None``: keep everything in memory)."""
-    name: str = "montecarlo"
-    """Study name (stored in the manifest; a resume must match it)."""
-    progress: bool = True
-    """Show a tqdm progress bar."""
-    batched: bool = False
-    """``trial`` takes whole chunks: ``trial(seeds (b,), indices (b,)) -> {key: (b,)}``."""
-    shard: tuple[int, int] = (0, 1)
-    """``(p, P)``: this process computes only the chunks ``c`` with ``c % P == p`` (multi-host or
-    multi-process runs into one shared ``out_dir``; other processes' chunks are read if present)."""
-
-    def __post_init__(self) -> None:
-        p_, n_ = self.shard
-        if not (isinstance(p_, (int, np.integer)) and isinstance(n_, (int, np.integer)) and 0 <= p_ < n_):
-            raise LimbInputError(f"`shard` must be (p, P) with 0 <= p < P, got {self.shard!r}")
-        if n_ > 1 and self.out_dir is None:
-            raise LimbInputError("`shard` with P > 1 needs a shared `out_dir`")
-        for nm in ("n_trials", "chunk_size"):
-            v = getattr(self, nm)
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-                raise LimbInputError(f"`{nm}` must be an integer >= 1, got {v!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
-            raise LimbInputError(f"`seed` must be an integer >= 0, got {self.seed!r}")
-
-    @property
-    def n_chunks(self) -> int:
-        return math.ceil(self.n_trials / self.chunk_size)
-
-
 def trial_seed(seed: int, i: int) -> int:
-    """The seed of trial ``i`` of a study seeded with ``seed`` (independent of chunking)."""
+    """The seed of trial ``i`` of a study seeded with ``seed`` (independent of chunking).
+
+    Parameters
+    ----------
+    seed, i : int
+        The study's seed and the trial index.
+
+    Returns
+    -------
+    int
+        63 bits, from ``numpy.random.SeedSequence(seed, spawn_key=(i,))``.
+    """
     ss = np.random.SeedSequence(int(seed), spawn_key=(int(i),))
     return int(ss.generate_state(1, dtype=np.uint64)[0] >> np.uint64(1))
 
@@ -131,6 +102,16 @@ def study_chunk_size(out_dir: str | Path) -> int | None:
     A resumed study must keep its chunks: a default chunk size that depends on the number of
     workers (:func:`jaxlimb.analysis.distributed.default_chunk`) would otherwise refuse to resume a
     study started with another number of workers.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        The study's directory.
+
+    Returns
+    -------
+    int or None
+        Trials per chunk recorded in ``out_dir/manifest.json``.
     """
     try:
         return int(json.loads((Path(out_dir) / _MANIFEST).read_text())["chunk_size"])
@@ -248,78 +229,6 @@ def _resume_chunk(path: Path, expected: np.ndarray) -> dict[str, np.ndarray] | N
     return data
 
 
-@dataclass(frozen=True)
-class MonteCarloResult:
-    """All trials of a study, in trial order.
-
-    Attributes
-    ----------
-    values : ``{key: (n,) float}`` the numbers each trial returned (NaN if missing/failed).
-    ok : ``(n,)`` success flags.
-    error : ``(n,)`` error names of the failed trials ("" for successes).
-    seeds : ``(n,)`` per-trial seeds.
-    wall_s : wall time of this call (skipped chunks cost nothing).
-    (With ``shard=(p, P)``, P > 1, only the chunks available to this process are included;
-    read the whole study with :func:`load_monte_carlo` once every process has finished.)
-    chunks_run, chunks_skipped : chunks computed now / found on disk.
-    """
-
-    values: dict[str, np.ndarray]
-    ok: np.ndarray
-    error: np.ndarray
-    seeds: np.ndarray
-    wall_s: float
-    chunks_run: int
-    chunks_skipped: int
-    options: MonteCarloOptions
-
-    @property
-    def n(self) -> int:
-        return int(self.ok.size)
-
-    def stats(self, truth: Mapping[str, float] | None = None, crlb: Mapping[str, float] | None = None,
-              keys: Sequence[str] | None = None, percentiles: Sequence[float] = (2.5, 16, 50, 84, 97.5)) -> dict[str, Any]:
-        """Error statistics over the successful trials.
-
-        ``error = value - truth[key]`` (``truth`` default 0: the trial returned errors).
-        Per key: ``rms``, ``bias``, ``std``, ``max_abs``, ``percentiles`` of the error,
-        ``crlb`` and ``rms_over_crlb`` (if ``crlb`` has the key), and the count of finite values.
-        """
-        truth = truth or {}
-        crlb = crlb or {}
-        keys = list(keys) if keys is not None else list(self.values)
-        out: dict[str, Any] = {"n": self.n, "n_ok": int(self.ok.sum()), "failures": self.failure_counts(), "params": {}}
-        for k in keys:
-            if k not in self.values:
-                raise LimbInputError(f"no trial returned {k!r}; keys are {sorted(self.values)}")
-            v = self.values[k][self.ok]
-            e = v[np.isfinite(v)] - float(truth.get(k, 0.0))
-            if e.size == 0:
-                out["params"][k] = {"n": 0}
-                continue
-            rms = float(np.sqrt(np.mean(e**2)))
-            d: dict[str, Any] = {
-                "n": int(e.size), "rms": rms, "bias": float(e.mean()),
-                "std": float(e.std(ddof=1)) if e.size > 1 else 0.0, "max_abs": float(np.abs(e).max()),
-                "bias_se": float(e.std(ddof=1) / math.sqrt(e.size)) if e.size > 1 else None,
-                "percentiles": {str(p): float(np.percentile(e, p)) for p in percentiles},
-            }
-            if k in crlb and crlb[k]:
-                d["crlb"] = float(crlb[k])
-                d["rms_over_crlb"] = rms / float(crlb[k])
-            out["params"][k] = d
-        return out
-
-    def failure_counts(self) -> dict[str, int]:
-        names, counts = np.unique(self.error[~self.ok], return_counts=True)
-        return {str(a): int(b) for a, b in zip(names, counts)}
-
-    def histogram(self, key: str = "n_steps") -> dict[int, int]:
-        """Counts of each integer value of ``key`` (e.g. iterations) over the successful trials."""
-        v = self.values[key][self.ok]
-        v = v[np.isfinite(v)].astype(int)
-        vals, counts = np.unique(v, return_counts=True)
-        return {int(a): int(b) for a, b in zip(vals, counts)}
 
 
 def run_monte_carlo(trial: Callable[..., Mapping[str, Any]], options: MonteCarloOptions) -> MonteCarloResult:
@@ -327,12 +236,16 @@ def run_monte_carlo(trial: Callable[..., Mapping[str, Any]], options: MonteCarlo
 
     Parameters
     ----------
-    trial : ``trial(seed, i) -> {key: number}`` (or the batched form, ``options.batched``).
-    options : :class:`MonteCarloOptions`.
+    trial : callable
+        ``trial(seed, i) -> {key: number}``, or with ``options.batched``
+        ``trial(seeds (b,), indices (b,)) -> {key: (b,) array}``; a key ``"ok"`` flags the trial's own failures.
+    options : MonteCarloOptions
+        Number of trials, chunk size, seed, output directory, sharding.
 
     Returns
     -------
     MonteCarloResult
+        Every trial (of this process's shard and the chunks on disk), in trial order.
 
     Raises
     ------
@@ -340,6 +253,22 @@ def run_monte_carlo(trial: Callable[..., Mapping[str, Any]], options: MonteCarlo
         ``out_dir`` holds a different study.
     LimbInputError
         A batched trial returned arrays of the wrong shape, or a reserved key.
+
+    Examples
+    --------
+    Each trial returns the error of a mean of 100 draws of ``N(0, 1)`` (sd 0.1); 40 trials in chunks of 10:
+
+    >>> import tempfile
+    >>> def trial(seed, i):
+    ...     return {"mean": np.random.default_rng(seed).normal(0.0, 1.0, 100).mean()}
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     opt = MonteCarloOptions(n_trials=40, chunk_size=10, out_dir=d, progress=False)
+    ...     res = run_monte_carlo(trial, opt)
+    ...     again = run_monte_carlo(trial, opt)  # a rerun reads the finished chunks back
+    >>> res.chunks_run, again.chunks_skipped, int(res.ok.sum())
+    (4, 4, 40)
+    >>> round(res.stats(crlb={"mean": 0.1})["params"]["mean"]["rms_over_crlb"], 2)
+    1.07
     """
     opt = options
     out_dir = Path(opt.out_dir) if opt.out_dir is not None else None
@@ -400,6 +329,16 @@ def prepare_study(options: MonteCarloOptions) -> list[int]:
     The first half of a distributed run (:mod:`jaxlimb.analysis.distributed`): each listed
     chunk is then one task, :func:`run_chunk_to_file`.  A chunk file that cannot be read back
     is listed again (with a :class:`ChunkRecomputedWarning` naming it).
+
+    Parameters
+    ----------
+    options : MonteCarloOptions
+        The study; ``out_dir`` is required.
+
+    Returns
+    -------
+    list of int
+        Indices of the chunks to compute.
     """
     if options.out_dir is None:
         raise LimbInputError("a distributed study needs `out_dir` (the chunks are its results)")
@@ -420,6 +359,20 @@ def run_chunk_to_file(trial: Callable[..., Any], options: MonteCarloOptions, c: 
 
     The unit of work of a distributed run: a task killed before the rename leaves nothing
     (the temporary file is removed or ignored), a finished one is never computed again.
+
+    Parameters
+    ----------
+    trial : callable
+        As :func:`run_monte_carlo`; picklable for a Dask task.
+    options : MonteCarloOptions
+        The study; ``out_dir`` set.
+    c : int
+        Chunk index (trials ``c * chunk_size`` onward).
+
+    Returns
+    -------
+    str
+        Path of the chunk file written.
     """
     path = _chunk_path(Path(options.out_dir), c)  # type: ignore[arg-type]
     _write_chunk(path, _run_chunk(trial, options, c))
@@ -427,7 +380,23 @@ def run_chunk_to_file(trial: Callable[..., Any], options: MonteCarloOptions, c: 
 
 
 def load_monte_carlo(out_dir: str | Path) -> MonteCarloResult:
-    """Read a finished (or partial: only the finished chunks) study back from ``out_dir``."""
+    """Read a finished (or partial: only the finished chunks) study back from ``out_dir``.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        The study's directory (its ``manifest.json`` and ``chunk_*.npz`` files).
+
+    Returns
+    -------
+    MonteCarloResult
+        The trials of the chunks on disk, in trial order (``wall_s`` 0).
+
+    Raises
+    ------
+    ConfigError
+        No readable manifest, no chunk file, or an unreadable chunk file.
+    """
     out_dir = Path(out_dir)
     try:
         man = json.loads((out_dir / _MANIFEST).read_text())
@@ -442,7 +411,20 @@ def load_monte_carlo(out_dir: str | Path) -> MonteCarloResult:
 
 
 def stats_json(result: MonteCarloResult, **kw: Any) -> dict[str, Any]:
-    """``result.stats(**kw)`` plus the options and timing, JSON-ready."""
+    """``result.stats(**kw)`` plus the options and timing, JSON-ready.
+
+    Parameters
+    ----------
+    result : MonteCarloResult
+        The study.
+    **kw
+        Arguments of :meth:`MonteCarloResult.stats` (``truth``, ``crlb``, ``keys``, ``percentiles``).
+
+    Returns
+    -------
+    dict
+        The statistics with ``options`` (the study's settings) and ``wall_s``.
+    """
     out = result.stats(**kw)
     out["options"] = asdict(result.options)
     out["wall_s"] = result.wall_s

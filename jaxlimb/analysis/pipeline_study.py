@@ -44,8 +44,22 @@ class TrialTruth:
 
 
 def measurement_errors(m: Any, truth: Any) -> dict[str, float]:
-    """The numbers of one trial (module docstring) from a :class:`~jaxlimb.pipeline.LimbMeasurement` ``m`` and the
-    render's truth (``body_center_rc``, ``apparent_radius_px``, ``range_km``)."""
+    """The numbers of one trial (module docstring) from ``locate``'s answer and the render's truth.
+
+    Parameters
+    ----------
+    m : LimbMeasurement
+        ``locate``'s answer.
+    truth : TrialTruth or LimbTruth
+        Anything with ``body_center_rc`` ((row, col) px), ``apparent_radius_px`` and ``range_km``.
+
+    Returns
+    -------
+    dict of str to float
+        ``row``, ``col`` errors (px) and ``iterations``; when reported: ``sigma_row``, ``sigma_col`` and the centre
+        ``nees``; ``radius`` error and ``sigma_radius`` (px); ``range_pct`` error and ``range_z``; ``crlb_row``,
+        ``crlb_col``, ``crlb_radius``.
+    """
     e = np.asarray(m.center_rc, float) - np.asarray(truth.body_center_rc, float)
     c = m.covariance
     out = {"row": float(e[0]), "col": float(e[1]), "iterations": float(m.iterations)}
@@ -151,7 +165,20 @@ class FamilyTrial:
             raise LimbInputError(f"unknown {self.body} families {bad}; choose from {list(known)}")
 
     def case(self, seed: int, i: int) -> Any:
-        """The rendered frame of trial ``i`` (:class:`jaxlimb.render.independent.Case`)."""
+        """The rendered frame of trial ``i`` (:class:`jaxlimb.render.independent.Case`).
+
+        Parameters
+        ----------
+        seed : int
+            The trial's seed (draws the frame of the family).
+        i : int
+            Trial index; picks the family ``families[i % len(families)]``.
+
+        Returns
+        -------
+        jaxlimb.render.independent.Case
+            Image, camera, hints and truth of the frame.
+        """
         from .dask_worker import wait_started
 
         wait_started()
@@ -198,8 +225,22 @@ def _group_stats(values: dict[str, np.ndarray], ok: np.ndarray) -> dict[str, Any
 
 
 def pipeline_summary(res: MonteCarloResult, families: tuple[str, ...] | None = None) -> dict[str, Any]:
-    """:func:`_group_stats` of every family (``families``: the names of the ``family`` values) and of all trials;
-    failures by check."""
+    """Per family and over all trials: the statistics of the module docstring and the failures by check.
+
+    Parameters
+    ----------
+    res : MonteCarloResult
+        A study of :class:`LocateTrial` or :class:`FamilyTrial`.
+    families : tuple of str, optional
+        Names of the trials' ``family`` values (index ``j`` names value ``j``); ``None``: all trials only.
+
+    Returns
+    -------
+    dict
+        ``{"all": {...}, family: {...}}``, each with ``n``, ``n_ok``, bias/RMS of ``row``, ``col``, ``radius``,
+        ``range_pct``, the mean reported sigmas and CRLB, ``nees_mean``, ``nees_median``, ``coverage`` of the
+        68 % / 95 % ellipses, ``range_nees_mean`` and ``failures``.
+    """
     out: dict[str, Any] = {"all": {**_group_stats(res.values, res.ok), "failures": res.failure_counts()}}
     if families:
         fam = res.values.get("family", np.full(res.n, np.nan))
@@ -215,7 +256,23 @@ def pipeline_summary(res: MonteCarloResult, families: tuple[str, ...] | None = N
 def plot_pipeline(res: MonteCarloResult, summary: dict[str, Any], path: Any = None, title: str | None = None) -> Any:
     """Centre errors normalised by the reported sigmas (``e_row / sigma_row`` against ``e_col / sigma_col``) with
     the 68 % / 95 % circles, and per family the coverage of the reported ellipses (grey: 68 +- 7 %, 95 +- 4 %)
-    and the mean NEES."""
+    and the mean NEES.
+
+    Parameters
+    ----------
+    res : MonteCarloResult
+        The study.
+    summary : dict
+        Its :func:`pipeline_summary`.
+    path : str or Path, optional
+        Where to write the figure (:func:`~jaxlimb.analysis.figures.save_figure`); ``None`` writes nothing.
+    title : str, optional
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     import matplotlib
 
     matplotlib.use("Agg", force=False)

@@ -116,10 +116,23 @@ class StudyProblem:
 
 
 def estimated_nbytes(opt: ModelStudyOptions) -> float:
-    """Peak memory (bytes) of a study of ``opt``: the pixel grid of :func:`standard_problem` (about six
-    float64 images) and the fit of one realisation (the compiled program maps over a batch one member at a
-    time: data, residuals and the Jacobian of the ``2 pi radius x 2 annulus`` band pixels, padded to the next
-    bucket, x4 for the solver's temporaries; x20 quadrature nodes for the physical profiles)."""
+    """Peak memory (bytes) of a study of ``opt``, estimated before running it.
+
+    The pixel grid of :func:`standard_problem` (about six float64 images) and the fit of one realisation (the
+    compiled program maps over a batch one member at a time: data, residuals and the Jacobian of the
+    ``2 pi radius x 2 annulus`` band pixels, padded to the next bucket, x4 for the solver's temporaries; x20
+    quadrature nodes for the physical profiles).
+
+    Parameters
+    ----------
+    opt : ModelStudyOptions
+        The study (model, image shape, radius, annulus, batch).
+
+    Returns
+    -------
+    float
+        Estimated peak memory in bytes.
+    """
     rows, cols = opt.shape
     n_pix = 1.5 * 2.0 * math.pi * opt.radius * 2.0 * opt.annulus
     n_par = len(_MODELS[opt.model].param_names)
@@ -207,7 +220,19 @@ _BUILDERS = {"linear": _linear_problem, "circle": _sigmoid_problem, "ellipse": _
 
 
 def standard_problem(opt: ModelStudyOptions) -> StudyProblem:
-    """The study problem of ``opt`` (module docstring)."""
+    """The study problem of ``opt`` (module docstring).
+
+    Parameters
+    ----------
+    opt : ModelStudyOptions
+        Model, image shape, limb geometry, noise, band half-width, start offset and fixed parameters.
+
+    Returns
+    -------
+    StudyProblem
+        The truth, the start, the band pixels ``(n, 2)`` as (row, col) (``(n,)`` columns for ``linear``), the
+        fixed parameters (``opt.fixed`` with :data:`ALWAYS_FIXED`) and ``sigma`` (DN).
+    """
     truth, init, coords = _BUILDERS[opt.model](opt)
     fixed = tuple(sorted(set(opt.fixed) | set(ALWAYS_FIXED.get(opt.model, ()))))
     return StudyProblem(_MODELS[opt.model], truth, init, coords, fixed, float(opt.sigma),
@@ -215,7 +240,23 @@ def standard_problem(opt: ModelStudyOptions) -> StudyProblem:
 
 
 def model_problem(opt: ModelStudyOptions) -> tuple[LimbModel, LimbParams, LimbParams, np.ndarray, tuple[str, ...]]:
-    """:func:`standard_problem` as ``(model, truth, init, coords, fixed)``."""
+    """:func:`standard_problem` as ``(model, truth, init, coords, fixed)``.
+
+    Parameters
+    ----------
+    opt : ModelStudyOptions
+        The study.
+
+    Returns
+    -------
+    model : LimbModel
+    truth, init : LimbParams
+        True parameters and the start of every fit.
+    coords : np.ndarray (n, 2)
+        Band pixels as (row, col) (``(n,)`` columns for ``linear``).
+    fixed : tuple of str
+        Parameters held at the truth.
+    """
     p = standard_problem(opt)
     return p.model, p.truth, p.init, p.coords, p.fixed
 

@@ -67,6 +67,27 @@ def per_device(run: Callable[..., Any], example_args: Sequence[Any], batched: Se
     a library computes with ``jax.eval_shape`` carries the mesh's sharding while the ones it builds by hand
     do not, and lineax's operator checks compare the two: optimistix's solvers then fail with "Incompatible
     linear operator structures" (a lineax limitation, github.com/patrick-kidger/lineax/issues/185); the replayed program is the same computation.
+
+    Parameters
+    ----------
+    run : callable
+        ``run(*args)``: a batch (leading axis of the ``batched`` arguments) to results with that leading axis.
+    example_args : sequence of array or jax.ShapeDtypeStruct
+        Shapes and dtypes of the whole batch's arguments.
+    batched : sequence of bool
+        Per argument: split along its leading axis (True) or replicated on every device (False).
+    devices : sequence of jax.Device, optional
+        Default ``jax.local_devices()``.
+
+    Returns
+    -------
+    callable
+        A jitted function of the whole batch.
+
+    Raises
+    ------
+    LimbInputError
+        A batched argument whose length is not a multiple of the device count.
     """
     mesh = local_mesh(devices)
     n_dev = mesh.devices.size
@@ -102,7 +123,23 @@ def _sharded_core(solver: AbstractLimbSolver, model: LimbModel, free_idx: tuple[
 
 
 def local_mesh(devices: Sequence[jax.Device] | None = None) -> Mesh:
-    """A 1-D ``("batch",)`` mesh over ``devices`` (default: ``jax.local_devices()``)."""
+    """A 1-D ``("batch",)`` mesh over ``devices`` (default: ``jax.local_devices()``).
+
+    Parameters
+    ----------
+    devices : sequence of jax.Device, optional
+        The devices, in mesh order.
+
+    Returns
+    -------
+    jax.sharding.Mesh
+        One axis named ``"batch"``.
+
+    Raises
+    ------
+    LimbInputError
+        ``devices`` is empty.
+    """
     devs = list(devices) if devices is not None else jax.local_devices()
     if not devs:
         raise LimbInputError("`devices` is empty")
@@ -128,6 +165,34 @@ def sharded_fit_batch(
     ``z`` ``(B, N)``, ``init`` with ``(B,)`` fields), plus ``devices`` (default: all local
     devices).  The returned arrays are sharded over the devices along the batch axis
     (``np.asarray`` gathers them).  Never raises on non-convergence.
+
+    Parameters
+    ----------
+    model : LimbModel
+        The limb model of every member.
+    coords : array (B, N, 2)
+        Pixels as (row, col) per member (``(B, N)`` for the linear model).
+    z : array (B, N)
+        Intensities per member.
+    init : LimbParams
+        Start of every member, ``(B,)`` arrays in each field.
+    solver : AbstractLimbSolver, optional
+        A jittable solver; default :class:`~jaxlimb.fitting.NormalLM`.
+    fixed : sequence of str
+        Parameters held at their ``init`` values.
+    weights : array (B, N), optional
+        Per-pixel weights (zero marks padding); default all 1.
+    analytic : bool
+        Use the model's analytic Jacobian (else automatic differentiation).
+    max_steps : int
+        Iteration limit per member.
+    devices : sequence of jax.Device, optional
+        Default all local devices.
+
+    Returns
+    -------
+    LimbFit
+        Batched fit, ``(B,)`` leading axis on every field; check ``converged`` per member.
 
     Raises
     ------
@@ -159,8 +224,19 @@ def sharding_speedup(model: LimbModel, coords: Any, z: Any, init: LimbParams, so
                      *, fixed: Sequence[str] = (), repeats: int = 3) -> dict[str, float]:
     """Time :func:`sharded_fit_batch` on all local devices against one device (best of ``repeats``).
 
-    Both are compiled before timing.  Returns ``{"n_devices", "one_device_s",
-    "all_devices_s", "speedup", "batch"}``.
+    Both are compiled before timing.
+
+    Parameters
+    ----------
+    model, coords, z, init, solver, fixed
+        As :func:`sharded_fit_batch`.
+    repeats : int
+        Timed runs per configuration; the best counts.
+
+    Returns
+    -------
+    dict of str to float
+        ``n_devices``, ``batch``, ``one_device_s``, ``all_devices_s`` (seconds) and ``speedup`` (their ratio).
     """
     devs = jax.local_devices()
     out: dict[str, float] = {"n_devices": float(len(devs)), "batch": float(np.shape(z)[0])}

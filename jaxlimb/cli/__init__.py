@@ -69,13 +69,50 @@ class _Parser(argparse.ArgumentParser):
 def build_parser() -> argparse.ArgumentParser:
     from .. import __version__
 
-    parser = _Parser(prog="jaxlimb", description="Limb-based optical navigation with differentiable JAX models.")
+    parser = _Parser(prog="jaxlimb", description="Limb-based optical navigation with differentiable JAX models.",
+                     epilog=PROGRESS_HELP)
     parser.add_argument("--version", action="version", version=f"jaxlimb {__version__}")
+    parser.add_argument("-q", "--quiet", action="store_true", help=_QUIET_HELP)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
     for name in _COMMANDS:
         importlib.import_module(f"{__name__}.{name}").register(sub)
+    _add_quiet(sub)
     return parser
+
+
+PROGRESS_HELP = ("Progress: the long commands (locate and los locate on many frames, los build-db, montecarlo, "
+                 "posterior, compare, track) draw progress bars on stderr when stderr is a terminal, also with "
+                 "--json (stdout carries only the result); --quiet (before or after the command) silences them; "
+                 "JAXLIMB_PROGRESS=1 draws them also when stderr is not a terminal (a log file), "
+                 "JAXLIMB_PROGRESS=0 never.")
+_QUIET_HELP = "no progress bars on stderr (messages, warnings and errors are still printed)"
+
+
+def _add_quiet(sub: argparse._SubParsersAction) -> None:
+    """``--quiet`` on every sub-command too (``jaxlimb locate ... --quiet``); its default is left to the top level."""
+    for p in sub.choices.values():
+        nested = [a for a in p._actions if isinstance(a, argparse._SubParsersAction)]
+        if nested:
+            _add_quiet(nested[0])
+        elif not any("--quiet" in a.option_strings for a in p._actions):
+            p.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS, help=_QUIET_HELP)
+
+
+def show_progress(args: argparse.Namespace) -> bool:
+    """Whether a command draws progress bars (on stderr): never with ``--quiet``; else ``JAXLIMB_PROGRESS=1``
+    always and ``0`` never; else only when stderr is a terminal -- a bar in a log file or a pipe is noise."""
+    if getattr(args, "quiet", False):
+        return False
+    forced = os.environ.get("JAXLIMB_PROGRESS", "").strip().lower()
+    if forced in ("1", "yes", "on", "always"):
+        return True
+    if forced in ("0", "no", "off", "never"):
+        return False
+    try:
+        return sys.stderr is not None and sys.stderr.isatty()
+    except (AttributeError, ValueError, OSError):  # a closed or replaced stream
+        return False
 
 
 def emit_json(obj: object) -> None:

@@ -12,8 +12,8 @@ error object (``{"status": "error", "check", "message", "image"}``) and the run 
 stdout, or with ``--out FILE.jsonl`` appended to FILE, each line written whole and flushed to
 disk (:func:`jaxlimb._io.append_whole`: a short write is completed, a failed one -- a full disk,
 an interrupt -- is cut back off the file, and a full disk stops the run with exit 2, check
-``write_failed``).  A progress bar (tqdm) goes to stderr when it is a terminal, and a one-line
-summary at the end.
+``write_failed``).  A progress bar (tqdm) goes to stderr (:func:`jaxlimb.cli.show_progress`: when it is a terminal,
+unless ``--quiet``), and a one-line summary at the end.
 
 One writer.  ``--out FILE`` is locked for the whole run, resume included
 (:func:`jaxlimb._io.exclusive_output`): a second run writing the same FILE is refused at once
@@ -139,7 +139,8 @@ def expand_images(specs: Iterable[str]) -> list[str]:
 
 # ------------------------------------------------------------------------------------ output file
 #: Arguments that say how a run is carried out, not what it answers (left out of ``run_settings``).
-_RUN_ONLY = frozenset({"image", "out", "resume", "workers", "scheduler", "json", "no_progress", "figure"})
+_RUN_ONLY = frozenset({"image", "out", "resume", "workers", "scheduler", "json", "no_progress", "quiet",
+                       "figure"})
 #: Files up to this size enter ``run_settings`` by content; larger ones by size and modification time.
 _HASH_CONTENT_BYTES = 64 << 20
 
@@ -318,12 +319,14 @@ def _run_locked(paths: list[str], args: argparse.Namespace, read: Callable[[str]
                 measure: Callable[[str, Any], dict[str, Any]], out: Path | None) -> int:
     from tqdm.auto import tqdm
 
+    from . import show_progress
+
     settings = run_settings(args)
     done = _done_frames(out, settings) if (out is not None and args.resume) else set()
     todo = [p for p in paths if p not in done]
     writer = _LineWriter(out)
     worst, counts = 0, {"ok": 0, "error": 0}
-    bar = tqdm(total=len(todo), unit="frame", desc="frames", file=sys.stderr, disable=None)
+    bar = tqdm(total=len(todo), unit="frame", desc="frames", file=sys.stderr, disable=not show_progress(args))
     try:
         for rec, code in _records(todo, args, read, measure):
             writer.write({**rec, "run_settings": settings})

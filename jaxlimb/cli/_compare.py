@@ -93,9 +93,9 @@ def run_comparison(args: argparse.Namespace, opt, problem, extra: dict | None = 
     """Compare the solvers of ``opt`` on ``problem``; print, write and plot as ``args`` ask."""
     from .._io import write_json_atomic
     from ..analysis.compare import compare_solvers, compare_table, plot_compare
-    from . import emit_json, finite_json, report_after_result, try_save
+    from . import emit_json, finite_json, report_after_result, show_progress, try_save
 
-    res = compare_solvers(problem, opt)
+    res = compare_solvers(problem, opt, progress=show_progress(args))
     if extra:
         res["source"] = extra
     if args.out:

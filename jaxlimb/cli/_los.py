@@ -40,7 +40,7 @@ import numpy as np
 from .._io import exclusive_output, write_json_atomic
 from .._validate import Range, arg_number, input_file, output_file
 from ..errors import ConfigError, DatabaseError, ImageContentError, MeshError, NoBodyError
-from . import emit_json
+from . import emit_json, show_progress
 from ._batch import add_batch_arguments, is_many, run_frames
 
 #: ``--step-deg``: below 0.5 deg a database has > 250 000 views (> 10 min to build); above 60 no ring is left.
@@ -94,7 +94,7 @@ def _add_db_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--pole-axis", choices=("x", "y", "z"), default="z", help="mesh axis used as the sampling pole")
     p.add_argument("--template-size", type=arg_number(TEMPLATE_SIZE_RANGE, integer=True), default=512,
                    help=f"template image side, px, integer {TEMPLATE_SIZE_RANGE} (default 512)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar (as --quiet)")
 
 
 def _db_options(args: argparse.Namespace) -> Any:
@@ -113,7 +113,7 @@ def run_build(args: argparse.Namespace) -> int:
     mesh = load_mesh(args.mesh)
     with exclusive_output(target):  # a second build of the same --out is refused; stale temporaries removed
         t0 = time.perf_counter()
-        db = build_database(mesh, opts, progress=not args.no_progress)
+        db = build_database(mesh, opts, progress=show_progress(args) and not args.no_progress)
         dt = time.perf_counter() - t0
         out = save_database(db, target)
     summary = {
@@ -271,7 +271,7 @@ def _locate_one(args: argparse.Namespace, path: str, image: np.ndarray, memo: di
         if args.db is not None:
             memo["db"] = load_database(args.db)
         else:
-            memo["db"] = _database_for_mesh_file(args.mesh, _db_options(args), progress=not args.no_progress)
+            memo["db"] = _database_for_mesh_file(args.mesh, _db_options(args), progress=show_progress(args) and not args.no_progress)
     db = memo["db"]
     t0 = time.perf_counter()
     body = _locate_unchecked(image, db, camera) if args.no_refine else _locate_checked(image, db, camera, hints)

@@ -62,6 +62,7 @@ def study(args: argparse.Namespace, camera: Any) -> tuple[Any, Any, tuple[str, .
     from ..analysis.distributed import default_chunk
     from ..analysis.montecarlo import MonteCarloOptions, study_chunk_size
     from ..analysis.pipeline_study import FamilyTrial, LocateTrial
+    from . import show_progress
 
     families = _families(args)
     profile = getattr(args, "profile", None)
@@ -80,7 +81,7 @@ def study(args: argparse.Namespace, camera: Any) -> tuple[Any, Any, tuple[str, .
         chunk = default_chunk(args.n, args.workers or 1)
     key = hashlib.sha1(json.dumps(ident, sort_keys=True).encode()).hexdigest()[:12]
     opt = MonteCarloOptions(n_trials=args.n, chunk_size=chunk, seed=args.seed, out_dir=args.out,
-                            name=f"pipeline-{key}", progress=not args.json)
+                            name=f"pipeline-{key}", progress=show_progress(args))
     return trial, opt, families
 
 
@@ -97,7 +98,7 @@ def _summary(res: Any, args: argparse.Namespace, camera: Any, families: tuple[st
 
 def _run(trial: Any, opt: Any, args: argparse.Namespace) -> Any:
     from ..analysis.montecarlo import ChunkRecomputedWarning, run_monte_carlo
-    from . import warnings_to_stderr
+    from . import show_progress, warnings_to_stderr
 
     with warnings_to_stderr(ChunkRecomputedWarning):
         if args.workers is None and args.scheduler is None:
@@ -106,7 +107,7 @@ def _run(trial: Any, opt: Any, args: argparse.Namespace) -> Any:
 
         client = make_client(args.scheduler, args.workers or 2)
         try:
-            return run_monte_carlo_distributed(trial, opt, client, progress=not args.json)
+            return run_monte_carlo_distributed(trial, opt, client, progress=show_progress(args))
         finally:
             close_client(client)
 

@@ -83,13 +83,13 @@ def run(args: argparse.Namespace) -> int:
     from ..analysis.model_study import run_model_study, study_table
     from ..analysis.montecarlo import ChunkRecomputedWarning
     from ..fitting import solver_from_name
-    from . import emit_json, figure_path, report_after_result, warnings_to_stderr
+    from . import emit_json, figure_path, report_after_result, show_progress, warnings_to_stderr
 
     figure_path(args.plot, "--plot")
     check_out(args)
     opt = study_options(args, _batch_size(args))
     with warnings_to_stderr(ChunkRecomputedWarning):
-        res = run_model_study(opt, solver_from_name(args.solver), progress=not args.json, out_dir=args.out)
+        res = run_model_study(opt, solver_from_name(args.solver), progress=show_progress(args), out_dir=args.out)
     import jax
 
     res["devices"] = jax.local_device_count()

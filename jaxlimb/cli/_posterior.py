@@ -163,11 +163,11 @@ def _run_located(args: argparse.Namespace, opt, image, camera, hints: dict) -> d
     from ..analysis.located import located_fit
     from ..analysis.posterior import measured_posterior, plot_measured
     from ..pipeline import LocateOptions
-    from . import try_save
+    from . import show_progress, try_save
 
     options = LocateOptions() if args.profile is None else LocateOptions(profile=args.profile)
     lf = located_fit(image, camera, hints or {"body": "moon"}, options)
-    mp = measured_posterior(lf, opt, noise=args.noise, progress=not args.json)
+    mp = measured_posterior(lf, opt, noise=args.noise, progress=show_progress(args))
     out = {"status": "ok", "n_pixels": int(lf.data.coords.shape[0]), "noise": args.noise, "sigma_hat": lf.sigma,
            "locate": {"center_rc": list(lf.measurement.center_rc), "radius_px": lf.measurement.radius_px,
                       "range_km": lf.measurement.range_km, "crlb": lf.crlb}, **mp.summary()}

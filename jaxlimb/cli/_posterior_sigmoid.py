@@ -89,13 +89,13 @@ def run_sigmoid(args: argparse.Namespace, opt, image, camera, hints: dict, fixed
                                       sample_posterior)
     from ..fitting import fit
     from ..models import CIRCLE
-    from . import try_save
+    from . import show_progress, try_save
 
     rc, z, init, source = _pixels(args, image, camera, hints)
     f = fit(CIRCLE, rc, z, init, fixed=fixed)
     priors = priors_from_hints(hints, CIRCLE) if hints else Priors()
     lp = log_posterior(CIRCLE, rc, z, f.params, fixed=fixed, noise=args.noise, sigma=args.sigma, priors=priors)
-    post = sample_posterior(lp, f, options=opt, progress=not args.json)  # quality-checked (exit 3 on pure noise)
+    post = sample_posterior(lp, f, options=opt, progress=show_progress(args))  # quality-checked (exit 3 on pure noise)
     sigma_hat = math.sqrt(float(f.sigma2))
     bound = crlb(CIRCLE, rc, f.params, args.sigma if args.noise == "known" else sigma_hat, fixed=fixed)
     out: dict = {"status": "ok", "model": "circle", "source": source, "n_pixels": int(z.size), "fixed": list(fixed),

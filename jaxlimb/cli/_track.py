@@ -122,7 +122,8 @@ def measurement_namespace(args: argparse.Namespace, path: Path) -> argparse.Name
     """The settings that decide each frame's measurement (the frames file with its attitudes and hints, the camera,
     the ephemeris), as the batch runner's namespace: their digest is every measurement record's ``run_settings``."""
     return argparse.Namespace(command="track-measure", frames=args.frames, camera=args.camera,
-                              ephemeris=args.ephemeris, out=str(path), resume=True, workers=None, scheduler=None)
+                              ephemeris=args.ephemeris, out=str(path), resume=True, workers=None, scheduler=None,
+                              quiet=getattr(args, "quiet", False))
 
 
 def measure_frames(frames: list[dict], camera, args: argparse.Namespace, path: Path) -> dict[str, dict]:  # noqa: ANN001

@@ -5,13 +5,11 @@ from .fit import (
     batch_core as batch_core,
     batch_problem as batch_problem,
     PrecisionWarning as PrecisionWarning,
-    bucket_size as bucket_size,
     compile_count as compile_count,
     fit as fit,
     fit_batch as fit_batch,
-    pack_pixels as pack_pixels,
-    pad_pixels as pad_pixels,
 )
+from .pixels import bucket_size as bucket_size, pack_pixels as pack_pixels, pad_pixels as pad_pixels
 from .problem import (
     AbstractLimbSolver as AbstractLimbSolver,
     FitResult as FitResult,

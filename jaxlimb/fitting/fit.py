@@ -22,7 +22,6 @@ can report success while its centre is off by ~1e-3 px from rounding alone.
 
 from __future__ import annotations
 
-import math
 import warnings
 from collections.abc import Sequence
 from typing import Any
@@ -36,10 +35,9 @@ from jaxtyping import Array, Float, Int
 from ..errors import ConvergenceError, LimbInputError
 from ..models import LimbModel, LimbParams
 from ._aot import ExportedCore, stable_ident
+from .pixels import bucket_size, pad_pixels, validate_inputs
 from .problem import AbstractLimbSolver, FitResult, LimbProblem
 from .solvers import NormalLM
-
-_MIN_BUCKET = 256
 
 
 class PrecisionWarning(UserWarning):
@@ -91,7 +89,13 @@ class LimbFit(eqx.Module):
         return {n: d[..., i] for i, n in enumerate(self.free)}
 
     def covariance_dict(self) -> dict[str, dict[str, float]]:
-        """The covariance as nested ``{row: {col: value}}`` (scalar fits only)."""
+        """The covariance as nested ``{row: {col: value}}`` (scalar fits only).
+
+        Returns
+        -------
+        dict of str to dict of str to float
+            ``cov[a][b]`` for the free parameters ``a``, ``b`` (units: theirs, e.g. px^2 for the centre).
+        """
         c = np.asarray(self.covariance)
         return {a: {b: float(c[i, j]) for j, b in enumerate(self.free)} for i, a in enumerate(self.free)}
 
@@ -102,102 +106,6 @@ class LimbFit(eqx.Module):
 
 def _message(result: FitResult) -> str:
     return FitResult[result] if np.ndim(result._value) == 0 else "batched result"
-
-
-# ============================================================================ buckets
-def bucket_size(n: int) -> int:
-    """Padded length for ``n`` pixels: the next of 256, 384, 512, 768, 1024, 1536, ...
-
-    Buckets grow by factors of 1.5 and 4/3 alternately, so padding wastes at
-    most 50 % and the number of distinct compiled shapes stays logarithmic.
-    """
-    if n <= _MIN_BUCKET:
-        return _MIN_BUCKET
-    k = math.floor(math.log2(n))
-    for b in (1 << k, 3 << (k - 1), 1 << (k + 1)):
-        if b >= n:
-            return b
-    return 1 << (k + 1)  # pragma: no cover
-
-
-def pad_pixels(coords: np.ndarray, z: np.ndarray, w: np.ndarray, size: int) -> tuple[np.ndarray, ...]:
-    """Pad one pixel set to ``size`` with zero-weight copies of its first pixel."""
-    n = z.shape[0]
-    if n > size:
-        raise LimbInputError(f"cannot pad {n} pixels into a bucket of {size}")
-    pad = size - n
-    if pad == 0:
-        return coords, z, w
-    coords_p = np.concatenate([coords, np.repeat(coords[:1], pad, axis=0)], axis=0)
-    z_p = np.concatenate([z, np.repeat(z[:1], pad)])
-    w_p = np.concatenate([w, np.zeros(pad, dtype=w.dtype)])
-    return coords_p, z_p, w_p
-
-
-def pack_pixels(
-    coords: Sequence[np.ndarray], z: Sequence[np.ndarray], weights: Sequence[np.ndarray] | None = None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Stack pixel sets of different sizes into one padded batch ``(B, N, ...)`` with weights.
-
-    ``N`` is the bucket of the largest set, so batches of similar images share a
-    compiled program.
-    """
-    if len(coords) != len(z) or len(coords) == 0:
-        raise LimbInputError(f"`coords` and `z` must be non-empty and of equal length, got {len(coords)} and {len(z)}")
-    ws = weights if weights is not None else [np.ones(len(zi)) for zi in z]
-    size = bucket_size(max(len(zi) for zi in z))
-    out = [pad_pixels(np.asarray(c, float), np.asarray(zi, float), np.asarray(wi, float), size) for c, zi, wi in zip(coords, z, ws)]
-    return tuple(np.stack([o[i] for o in out]) for i in range(3))  # type: ignore[return-value]
-
-
-# ============================================================================ validation
-def _validate(
-    model: LimbModel, coords: Any, z: Any, init: LimbParams, fixed: Sequence[str], weights: Any, batched: bool
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, tuple[int, ...]]:
-    if not isinstance(init, model.params_type):
-        raise LimbInputError(
-            f"`init` must be a {model.params_type.__name__} for the {model.name!r} model, got {type(init).__name__}"
-        )
-    unknown = sorted(set(fixed) - set(model.param_names))
-    if unknown:
-        raise LimbInputError(f"`fixed` names unknown parameters {unknown}; the {model.name!r} model has {list(model.param_names)}")
-    free_idx = model.free_indices(fixed)
-    if not free_idx:
-        raise LimbInputError("`fixed` holds every parameter: nothing to estimate")
-    coords = np.asarray(coords, dtype=float)
-    z = np.asarray(z, dtype=float)
-    lead = 1 if batched else 0
-    want_coords_nd = lead + (1 if model.name == "linear" else 2)
-    if coords.ndim != want_coords_nd or (model.name != "linear" and coords.shape[-1] != 2):
-        shape = "(n,)" if model.name == "linear" else "(n, 2) as (row, col)"
-        raise LimbInputError(f"`coords` must have shape {'(B, ' if batched else ''}{shape[1:] if batched else shape}, got {coords.shape}")
-    n_shape = coords.shape[: lead + 1]
-    if z.shape != n_shape:
-        raise LimbInputError(f"`z` must have shape {n_shape} to match `coords`, got {z.shape}")
-    if z.shape[-1] == 0:
-        raise LimbInputError("`z` is empty: no pixels to fit")
-    w = np.ones_like(z) if weights is None else np.asarray(weights, dtype=float)
-    if w.shape != z.shape:
-        raise LimbInputError(f"`weights` must have shape {z.shape}, got {w.shape}")
-    for name, arr in (("coords", coords), ("z", z), ("weights", w)):
-        if not np.all(np.isfinite(arr)):
-            bad = np.argwhere(~np.isfinite(arr))[0]
-            raise LimbInputError(f"`{name}` has a non-finite value {float(arr[tuple(bad)])!r} at index {tuple(int(b) for b in bad)}")
-    if np.any(w < 0):
-        raise LimbInputError(f"`weights` must be >= 0, got min {float(w.min())!r}")
-    n_used = (w > 0).sum(axis=-1)
-    q = len(free_idx)
-    if np.any(n_used <= q):
-        raise LimbInputError(f"need more pixels than free parameters ({q}), got {int(np.min(n_used))}")
-    theta = np.stack([np.asarray(getattr(init, n), dtype=float) for n in model.param_names], axis=-1)
-    if theta.shape[-1:] != (len(model.param_names),) or (batched and theta.shape[0] != z.shape[0]):
-        raise LimbInputError(f"`init` has shape {theta.shape[:-1]} but the data have batch shape {z.shape[:-1]}")
-    if not np.all(np.isfinite(theta)):
-        raise LimbInputError(f"`init` has non-finite values: {init}")
-    for i, name in enumerate(model.param_names):
-        if name in ("radius", "a", "k", "rho") and np.any(theta[..., i] <= 0):
-            raise LimbInputError(f"`init.{name}` must be > 0, got {float(np.min(theta[..., i]))!r}")
-    return coords, z, w, theta, free_idx
 
 
 def _check_precision() -> None:
@@ -215,7 +123,13 @@ _TRACES = {"fit": 0}
 
 
 def compile_count() -> int:
-    """How many times the jitted fit core has been traced (== compiled) in this process."""
+    """How many times the jitted fit core has been traced (== compiled) in this process.
+
+    Returns
+    -------
+    int
+        The count since the process started.
+    """
     return _TRACES["fit"]
 
 
@@ -230,7 +144,22 @@ def _core(solver: AbstractLimbSolver, problem: LimbProblem, max_steps: int) -> L
 
 def fit_core(solver: AbstractLimbSolver, problem: LimbProblem, max_steps: int = 256) -> LimbFit:
     """The un-jitted single-fit core of :func:`fit`: for programs that build their problems inside
-    ``jax.jit`` (e.g. the Monte-Carlo study, :func:`jaxlimb.analysis.model_study._program`)."""
+    ``jax.jit`` (e.g. the Monte-Carlo study, :func:`jaxlimb.analysis.model_study._program`).
+
+    Parameters
+    ----------
+    solver : AbstractLimbSolver
+        A jittable solver.
+    problem : LimbProblem
+        The problem, pixels already padded (:func:`pad_pixels`).
+    max_steps : int
+        Iteration limit.
+
+    Returns
+    -------
+    LimbFit
+        The fit; never raises on non-convergence (check ``result``).
+    """
     return _core(solver, problem, max_steps)
 
 
@@ -312,6 +241,20 @@ def batch_core(solver: AbstractLimbSolver, problem: LimbProblem, max_steps: int)
 
     The building block of :func:`fit_batch` (``strategy="map"``) and of
     :func:`jaxlimb.analysis.sharding.sharded_fit_batch` (one call per device).
+
+    Parameters
+    ----------
+    solver : AbstractLimbSolver
+        A jittable solver.
+    problem : LimbProblem
+        A batched problem: every array field has a leading batch axis (:func:`batch_problem`).
+    max_steps : int
+        Iteration limit of each member.
+
+    Returns
+    -------
+    LimbFit
+        The fits, fields with a leading batch axis ``(B, ...)``.
     """
     dyn, static = eqx.partition(problem, eqx.is_array)
     return jax.lax.map(lambda d: _core(solver, eqx.combine(d, static), max_steps), dyn)
@@ -333,8 +276,24 @@ def batch_problem(
     model: LimbModel, coords: Any, z: Any, init: LimbParams, *, fixed: Sequence[str] = (),
     weights: Any = None, analytic: bool = True,
 ) -> LimbProblem:
-    """Validate a batch and pad its pixel axis to the bucket size: the :class:`LimbProblem` of :func:`fit_batch`."""
-    coords_, z_, w_, theta, free_idx = _validate(model, coords, z, init, fixed, weights, batched=True)
+    """Validate a batch and pad its pixel axis to the bucket size: the :class:`LimbProblem` of :func:`fit_batch`.
+
+    Parameters
+    ----------
+    model, coords, z, init, fixed, weights, analytic
+        As :func:`fit_batch`.
+
+    Returns
+    -------
+    LimbProblem
+        The batched problem, arrays ``(B, ...)`` on the device.
+
+    Raises
+    ------
+    LimbInputError
+        As :func:`fit`.
+    """
+    coords_, z_, w_, theta, free_idx = validate_inputs(model, coords, z, init, fixed, weights, batched=True)
     size = bucket_size(z_.shape[1])
     if size != z_.shape[1]:
         packed = [pad_pixels(c, zi, wi, size) for c, zi, wi in zip(coords_, z_, w_)]
@@ -411,12 +370,30 @@ def fit(
         Non-finite values, empty or too few pixels, wrong shapes, ``radius``/``a``/``k`` <= 0.
     ConvergenceError
         The solver did not converge (``throw=True``).
+
+    Examples
+    --------
+    A circular sigmoid (Eq. 16 of Mortari et al.) with 2 DN of noise on a 64 x 64 image, all six parameters free:
+
+    >>> import jax
+    >>> jax.config.update("jax_enable_x64", True)
+    >>> import numpy as np
+    >>> from jaxlimb.fitting import fit
+    >>> from jaxlimb.models import CIRCLE, CircleParams
+    >>> rc = np.argwhere(np.ones((64, 64))).astype(float)  # (row, col) of every pixel
+    >>> d = np.hypot(rc[:, 0] - 31.3, rc[:, 1] - 30.6)
+    >>> z = 10.0 + 190.0 / (1.0 + np.exp(2.0 * (d - 20.0))) + np.random.default_rng(0).normal(0.0, 2.0, len(d))
+    >>> res = fit(CIRCLE, rc, z, CircleParams(r0=32.0, c0=32.0, radius=18.0, k=1.0, ymax=180.0, ymin=20.0))
+    >>> print(bool(res.converged), np.round([res.params.r0, res.params.c0, res.params.radius], 3))
+    True [31.301 30.594 20.001]
+    >>> print(round(float(res.std["r0"]), 4))  # 1-sigma of the centre's row (px)
+    0.0023
     """
     _check_precision()
     solver = NormalLM() if solver is None else solver
     if held is not None and not (solver.masks and solver.jittable):
         fixed, held = (*fixed, *held), None
-    coords_, z_, w_, theta, free_idx = _validate(model, coords, z, init, fixed, weights, batched=False)
+    coords_, z_, w_, theta, free_idx = validate_inputs(model, coords, z, init, fixed, weights, batched=False)
     mask = None if held is None else _to_device(_held_mask(model, free_idx, held))
     coords_, z_, w_ = pad_pixels(coords_, z_, w_, bucket_size(z_.shape[0]))
     problem = LimbProblem(model, free_idx, analytic, *(_to_device(a) for a in (theta, coords_, z_, w_)), mask)
@@ -464,6 +441,31 @@ def fit_batch(
     ``strategy="vmap"`` vectorises the members (``jax.vmap``; the while loop
     then runs every member to the slowest one's count): the choice for GPUs.
     Measured in ``benchmarks/solvers.py``.
+
+    Parameters
+    ----------
+    model, solver, fixed, analytic, max_steps
+        As :func:`fit`.
+    coords : array_like (B, N, 2)
+        Pixel coordinates ``(row, col)`` of each member (``(B, N)`` for the linear model).
+    z : array_like (B, N)
+        Observed intensities.
+    init : LimbParams
+        Initial guesses, a ``(B,)`` array in each field.
+    weights : array_like (B, N), optional
+        Per-pixel weights; 0 marks padding.
+    strategy : {"map", "vmap"}
+        How the members run (see above).
+
+    Returns
+    -------
+    LimbFit
+        The fits, fields with a leading batch axis ``(B, ...)``.
+
+    Raises
+    ------
+    LimbInputError
+        Invalid input (as :func:`fit`), an unknown ``strategy`` or a solver that is not jittable.
     """
     if strategy not in _core_batch_jit:
         raise LimbInputError(f"`strategy` must be one of {sorted(_core_batch_jit)}, got {strategy!r}")

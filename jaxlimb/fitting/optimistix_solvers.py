@@ -76,13 +76,40 @@ class Optimistix(AbstractLimbSolver):
         return type(self.solver).__name__
 
     def configured(self) -> optx.AbstractLeastSquaresSolver | optx.AbstractMinimiser:
-        """The optimistix solver as run: with the normal-equations linear solve if ``normal``."""
+        """The optimistix solver as run: with the normal-equations linear solve if ``normal``.
+
+        Returns
+        -------
+        optimistix.AbstractLeastSquaresSolver or optimistix.AbstractMinimiser
+            ``solver``, its descent's linear solver replaced by ``lineax.Normal(lineax.Cholesky())`` when ``normal``
+            and the descent has one.
+        """
         descent = getattr(self.solver, "descent", None)
         if not self.normal or not isinstance(getattr(descent, "linear_solver", None), lx.AbstractLinearSolver):
             return self.solver
         return eqx.tree_at(lambda s: s.descent.linear_solver, self.solver, lx.Normal(lx.Cholesky()))
 
     def solve(self, problem, y0, max_steps):  # type: ignore[no-untyped-def]
+        """Run ``optimistix.least_squares`` (after the coarse phase) with ``throw=False``.
+
+        Parameters
+        ----------
+        problem : LimbProblem
+            The problem.
+        y0 : jax.Array (q,)
+            Start of the free parameters.
+        max_steps : int
+            Iteration limit of each phase.
+
+        Returns
+        -------
+        y : jax.Array (q,)
+            The estimate.
+        n_steps : jax.Array () of int
+            Steps of both phases.
+        result : FitResult
+            optimistix's outcome by name (:func:`fit_result`), ``diverged`` at an inadmissible point.
+        """
         residual = (fused_residual_fn(problem.model, problem.free_idx) if self.fused and problem.analytic
                     else problem.residual)
         solver = self.configured()
@@ -113,6 +140,16 @@ def fit_result(result: Any) -> FitResult:
     """An optimistix (or lineax) result as a :class:`FitResult` of the same name (jittable).
 
     A name :class:`FitResult` does not have becomes ``solver_failed``: never ``successful``.
+
+    Parameters
+    ----------
+    result : optimistix.RESULTS
+        The outcome of an optimistix solve (scalar or batched).
+
+    Returns
+    -------
+    FitResult
+        The outcome of the same name.
     """
     out = FitResult.solver_failed
     for name in optx.RESULTS._name_to_item:  # every result optimistix can return
@@ -137,15 +174,61 @@ class MarquardtCholeskyDescent(optx.AbstractDescent):  # type: ignore[misc]
     lambda0: float = 1e-3
 
     def init(self, y, f_info_struct):  # type: ignore[no-untyped-def]
+        """Zero normal equations (optimistix's ``AbstractDescent.init``).
+
+        Parameters
+        ----------
+        y : jax.Array (q,)
+            The start (sets the size and dtype).
+        f_info_struct : optimistix.FunctionInfo
+            Structure of the function information (not used).
+
+        Returns
+        -------
+        _NormalState
+            ``J^T J = 0`` ``(q, q)``, ``J^T r = 0`` ``(q,)``.
+        """
         q = y.shape[0]
         return _NormalState(jnp.zeros((q, q), y.dtype), jnp.zeros((q,), y.dtype))
 
     def query(self, y, f_info, state):  # type: ignore[no-untyped-def]
+        r"""Form the normal equations at an accepted point (``AbstractDescent.query``).
+
+        Parameters
+        ----------
+        y : jax.Array (q,)
+            The accepted point (not used).
+        f_info : optimistix.FunctionInfo.ResidualJac
+            Residual and Jacobian operator there.
+        state : _NormalState
+            The previous state (not used).
+
+        Returns
+        -------
+        _NormalState
+            :math:`J^\top J` and :math:`J^\top r`, the Jacobian materialised once.
+        """
         del y, state
         jac = f_info.jac.as_matrix()
         return _NormalState(jac.T @ jac, jac.T @ f_info.residual)
 
     def step(self, step_size, state):  # type: ignore[no-untyped-def]
+        r"""The damped step for a trust-region size (``AbstractDescent.step``).
+
+        Parameters
+        ----------
+        step_size : jax.Array ()
+            The search's step size ``s``; the damping is :math:`\lambda = \lambda_0 / s`.
+        state : _NormalState
+            The normal equations of :meth:`query`.
+
+        Returns
+        -------
+        delta : jax.Array (q,)
+            The step (0 if the solve is not finite).
+        result : optimistix.RESULTS
+            ``successful``, or ``singular`` when the Cholesky solve is not finite.
+        """
         tiny = jnp.finfo(state.jtr.dtype).tiny
         lam = self.lambda0 / jnp.maximum(step_size, tiny)
         d = jnp.diagonal(state.jtj)
@@ -168,7 +251,20 @@ class _NormalLMCore(optx.AbstractGaussNewton):  # type: ignore[misc]
 
 
 def optimistix_normal_lm(rtol: float = 1e-10, atol: float = 1e-10, lambda0: float = 1e-3) -> Optimistix:
-    """:class:`MarquardtCholeskyDescent` run by optimistix's ``AbstractGaussNewton`` + ``ClassicalTrustRegion``."""
+    """:class:`MarquardtCholeskyDescent` run by optimistix's ``AbstractGaussNewton`` + ``ClassicalTrustRegion``.
+
+    Parameters
+    ----------
+    rtol, atol : float
+        optimistix's relative and absolute tolerances (its Cauchy test on steps and residuals).
+    lambda0 : float
+        Damping at unit trust-region step size.
+
+    Returns
+    -------
+    Optimistix
+        The solver, ready for :func:`~jaxlimb.fitting.fit`.
+    """
     core = _NormalLMCore(
         rtol=rtol,
         atol=atol,

@@ -33,7 +33,21 @@ from ..models import LimbModel
 
 
 def model_fn(model: LimbModel, analytic: bool) -> Callable[[Array, Array], Array]:
-    """``f(theta_vector, coords) -> intensities``; with the analytic Jacobian as its JVP if asked."""
+    """``f(theta_vector, coords) -> intensities``; with the analytic Jacobian as its JVP if asked.
+
+    Parameters
+    ----------
+    model : LimbModel
+        The limb model.
+    analytic : bool
+        Wrap the intensity in a :func:`jax.custom_jvp` whose tangent is ``model.jacobian`` (the paper's
+        derivatives); ``False``: autodiff traces the intensity.
+
+    Returns
+    -------
+    callable
+        ``f(theta, coords) -> (n,)``, ``theta`` the full parameter vector ``(p,)`` in field order.
+    """
     ptype = model.params_type
 
     def f(theta: Array, coords: Array) -> Array:
@@ -58,7 +72,20 @@ def model_fn(model: LimbModel, analytic: bool) -> Callable[[Array, Array], Array
 
 
 def jacobian_fn(model: LimbModel, analytic: bool) -> Callable[[Array, Array], Array]:
-    """``J(theta_vector, coords) -> (n, p)``: analytic (paper) or ``jax.jacfwd``."""
+    """``J(theta_vector, coords) -> (n, p)``: analytic (paper) or ``jax.jacfwd``.
+
+    Parameters
+    ----------
+    model : LimbModel
+        The limb model.
+    analytic : bool
+        ``model.jacobian`` (the paper's derivatives) or ``jax.jacfwd`` of the intensity.
+
+    Returns
+    -------
+    callable
+        ``J(theta, coords) -> (n, p)``, columns in field order.
+    """
     ptype = model.params_type
     if analytic:
         return lambda theta, coords: model.jacobian(ptype.from_vector(theta), coords)
@@ -67,12 +94,42 @@ def jacobian_fn(model: LimbModel, analytic: bool) -> Callable[[Array, Array], Ar
 
 
 def expand(theta0: Float[Array, " p"], free_idx: tuple[int, ...], y: Float[Array, " q"]) -> Array:
-    """Full parameter vector: ``theta0`` with the free entries set to ``y``."""
+    """Full parameter vector: ``theta0`` with the free entries set to ``y``.
+
+    Parameters
+    ----------
+    theta0 : jax.Array (p,)
+        Full parameter vector (the fixed entries are kept).
+    free_idx : tuple of int
+        Indices of the free parameters.
+    y : jax.Array (q,)
+        Values of the free parameters, in the order of ``free_idx``.
+
+    Returns
+    -------
+    jax.Array (p,)
+        The full vector.
+    """
     return theta0.at[jnp.asarray(free_idx)].set(y)
 
 
 def residual_fn(model: LimbModel, free_idx: tuple[int, ...], analytic: bool):  # noqa: ANN201
-    """``residual(y, args) -> (n,)`` with ``args = (theta0, coords, z, w)``."""
+    r"""``residual(y, args) -> (n,)`` with ``args = (theta0, coords, z, w)``.
+
+    Parameters
+    ----------
+    model : LimbModel
+        The limb model.
+    free_idx : tuple of int
+        Indices of the free parameters.
+    analytic : bool
+        As :func:`model_fn`.
+
+    Returns
+    -------
+    callable
+        ``residual(y, args)``: the weighted residuals :math:`w_i (f(\theta(y), x_i) - z_i)`, ``(n,)``.
+    """
     f = model_fn(model, analytic)
 
     def residual(y: Array, args: tuple[Array, Array, Array, Array]) -> Array:
@@ -92,6 +149,18 @@ def fused_residual_fn(model: LimbModel, free_idx: tuple[int, ...]):  # noqa: ANN
     ``jax.linearize`` (how optimistix's Gauss--Newton family builds its Jacobian operator) the
     columns are computed once per point and the linear map is a ``(n, q)`` matrix product --
     no trace through the model's formulas.
+
+    Parameters
+    ----------
+    model : LimbModel
+        The limb model (its analytic columns are used).
+    free_idx : tuple of int
+        Indices of the free parameters.
+
+    Returns
+    -------
+    callable
+        ``residual(y, args) -> (n,)``, ``args = (theta0, coords, z, w)``.
     """
     ptype = model.params_type
 
@@ -143,7 +212,7 @@ class FitResult(eqx.Enumeration):  # type: ignore[misc]
 
 
 class LimbProblem(eqx.Module):
-    """A limb least-squares problem (one image, or one member of a vmapped batch).
+    r"""A limb least-squares problem (one image, or one member of a vmapped batch).
 
     Attributes
     ----------
@@ -179,16 +248,41 @@ class LimbProblem(eqx.Module):
         return residual_fn(self.model, self.free_idx, self.analytic)
 
     def jacobian(self, y: Array) -> Float[Array, "n q"]:
-        """Weighted Jacobian of the residuals w.r.t. the free parameters."""
+        r"""Weighted Jacobian of the residuals w.r.t. the free parameters.
+
+        Parameters
+        ----------
+        y : jax.Array (q,)
+            Free parameters.
+
+        Returns
+        -------
+        jax.Array (n, q)
+            :math:`w_i\,\partial f_i/\partial y_j`.
+        """
         jf = jacobian_fn(self.model, self.analytic)
         full = jf(expand(self.theta0, self.free_idx, y), self.coords)
         return self.w[:, None] * full[:, jnp.asarray(self.free_idx)]
 
     def normal_equations(self, y: Array) -> tuple[Array, Array, Array]:
-        """``(J^T J, J^T r, r^T r)`` over the free parameters in one fused pass.
+        r"""``(J^T J, J^T r, r^T r)`` over the free parameters in one fused pass.
 
         The Jacobian is built transposed, ``(q, n)``, which on CPU is ~2x
         faster than the ``(n, q)`` layout for these reductions.
+
+        Parameters
+        ----------
+        y : jax.Array (q,)
+            Free parameters.
+
+        Returns
+        -------
+        jtj : jax.Array (q, q)
+            :math:`J^\top J` (a held parameter's row and column are those of the identity).
+        jtr : jax.Array (q,)
+            :math:`J^\top r`.
+        rss : jax.Array ()
+            :math:`r^\top r`, the weighted residual sum of squares.
         """
         theta = expand(self.theta0, self.free_idx, y)
         params = self.model.params_type.from_vector(theta)
@@ -211,11 +305,33 @@ class LimbProblem(eqx.Module):
         return len(self.free_idx) if self.mask is None else jnp.sum(self.mask > 0)
 
     def estimated(self, y: Array) -> Array:
-        """``y`` with its held entries (``mask`` 0) set to 0: the scale of the convergence test."""
+        """``y`` with its held entries (``mask`` 0) set to 0: the scale of the convergence test.
+
+        Parameters
+        ----------
+        y : jax.Array (q,)
+            Free parameters.
+
+        Returns
+        -------
+        jax.Array (q,)
+            ``y``, held entries zeroed.
+        """
         return y if self.mask is None else jnp.where(self.mask > 0, y, 0.0)
 
     def admissible(self, y: Array) -> Bool[Array, ""]:
-        """Finite, and every scale parameter (radius, a, k, rho) strictly positive."""
+        """Finite, and every scale parameter (radius, a, k, rho) strictly positive.
+
+        Parameters
+        ----------
+        y : jax.Array (q,)
+            Free parameters.
+
+        Returns
+        -------
+        jax.Array () of bool
+            Whether the full parameter vector is admissible.
+        """
         theta = expand(self.theta0, self.free_idx, y)
         ok = jnp.all(jnp.isfinite(theta))
         for i, name in enumerate(self.model.param_names):
@@ -238,7 +354,26 @@ class AbstractLimbSolver(eqx.Module):
     def solve(
         self, problem: LimbProblem, y0: Float[Array, " q"], max_steps: int
     ) -> tuple[Float[Array, " q"], Int[Array, ""], FitResult]:
-        """Return ``(y, n_steps, result)`` for the free parameters."""
+        """Solve the least-squares problem for the free parameters.
+
+        Parameters
+        ----------
+        problem : LimbProblem
+            The problem.
+        y0 : jax.Array (q,)
+            Start of the free parameters.
+        max_steps : int
+            Iteration limit (a scalar array for solvers with :attr:`masks`).
+
+        Returns
+        -------
+        y : jax.Array (q,)
+            The estimate.
+        n_steps : jax.Array () of int
+            Iterations taken.
+        result : FitResult
+            ``successful`` only if converged to an admissible point.
+        """
 
     @property
     def name(self) -> str:
@@ -246,20 +381,59 @@ class AbstractLimbSolver(eqx.Module):
 
 
 def finish_result(problem: LimbProblem, y: Array, result: FitResult) -> FitResult:
-    """``result``, or ``diverged`` where a solver reports success at an inadmissible point."""
+    """``result``, or ``diverged`` where a solver reports success at an inadmissible point.
+
+    Parameters
+    ----------
+    problem : LimbProblem
+        The problem that was solved.
+    y : jax.Array (q,)
+        The solver's answer.
+    result : FitResult
+        The solver's own outcome.
+
+    Returns
+    -------
+    FitResult
+        The outcome to report.
+    """
     return FitResult.where(
         (result == FitResult.successful) & ~problem.admissible(y), FitResult.diverged, result
     )
 
 
 def coarse_problem(problem: LimbProblem, k: int) -> LimbProblem:
-    """Every ``k``-th pixel of ``problem`` (the coarse phase of coarse-to-fine)."""
+    """Every ``k``-th pixel of ``problem`` (the coarse phase of coarse-to-fine).
+
+    Parameters
+    ----------
+    problem : LimbProblem
+        The full problem.
+    k : int
+        Stride over the pixels.
+
+    Returns
+    -------
+    LimbProblem
+        The same problem on ``ceil(n / k)`` pixels.
+    """
     return LimbProblem(problem.model, problem.free_idx, problem.analytic, problem.theta0,
                        problem.coords[::k], problem.z[::k], problem.w[::k], problem.mask)
 
 
 def result_names(result: FitResult | Any) -> list[str]:
-    """The names (``"successful"``, ``"diverged"``, ...) of a batch of :class:`FitResult` values (or of their codes)."""
+    """The names (``"successful"``, ``"diverged"``, ...) of a batch of :class:`FitResult` values (or of their codes).
+
+    Parameters
+    ----------
+    result : FitResult or array_like of int
+        One or a batch of results, or their integer codes.
+
+    Returns
+    -------
+    list of str
+        One name per member (``"unknown"`` for a code that is not a :class:`FitResult`).
+    """
     codes = np.atleast_1d(np.asarray(getattr(result, "_value", result)))
     names = {int(np.asarray(item._value)): name for name, item in FitResult._name_to_item.items()}
     return [names.get(int(c), "unknown") for c in codes]

@@ -77,6 +77,26 @@ class NormalLM(AbstractLimbSolver):
     coarse_min_pixels: int = 1024
 
     def solve(self, problem, y0, max_steps):  # type: ignore[no-untyped-def]
+        """Run the iteration (:meth:`solve_normal` without the normal equations).
+
+        Parameters
+        ----------
+        problem : LimbProblem
+            The problem (its ``mask`` is honoured).
+        y0 : jax.Array (q,)
+            Start of the free parameters.
+        max_steps : int or jax.Array ()
+            Iteration limit (coarse and fine phases each).
+
+        Returns
+        -------
+        y : jax.Array (q,)
+            The estimate.
+        n_steps : jax.Array () of int
+            Iterations of both phases.
+        result : FitResult
+            ``successful``, ``max_steps_reached`` or ``diverged``.
+        """
         y, n, result, _ = self.solve_normal(problem, y0, max_steps)
         return y, n, result
 
@@ -89,6 +109,22 @@ class NormalLM(AbstractLimbSolver):
         pixels to the full tolerance.  The answer is the full-data least-squares
         minimum either way (the final convergence test is on all pixels); the
         coarse phase only makes the early, far-from-converged iterations cheaper.
+
+        Parameters
+        ----------
+        problem : LimbProblem
+            The problem (its ``mask`` is honoured).
+        y0 : jax.Array (q,)
+            Start of the free parameters.
+        max_steps : int or jax.Array ()
+            Iteration limit (coarse and fine phases each).
+
+        Returns
+        -------
+        y, n_steps, result
+            As :meth:`solve`.
+        normal : tuple of jax.Array
+            ``(J^T J, J^T r, r^T r)`` at ``y`` (:meth:`~jaxlimb.fitting.LimbProblem.normal_equations`).
         """
         steps = jnp.asarray(0)
         n_pix = problem.z.shape[-1]
@@ -202,10 +238,50 @@ class PaperGaussNewton(AbstractLimbSolver):
     atol: float = 1e-10
 
     def solve(self, problem, y0, max_steps):  # type: ignore[no-untyped-def]
+        """Run Eq. (15) from ``y0`` (:meth:`solve_with_history` without the iterates).
+
+        Parameters
+        ----------
+        problem : LimbProblem
+            The problem.
+        y0 : jax.Array (q,)
+            Start of the free parameters.
+        max_steps : int
+            Iteration limit.
+
+        Returns
+        -------
+        y : jax.Array (q,)
+            The estimate (the last admissible iterate).
+        n_steps : jax.Array () of int
+            Iterations taken.
+        result : FitResult
+            ``successful``, ``max_steps_reached`` or ``diverged`` (an inadmissible step).
+        """
         y, n, result, _ = self.solve_with_history(problem, y0, max_steps, keep=False)
         return y, n, result
 
     def solve_with_history(self, problem: LimbProblem, y0: Array, max_steps: int, keep: bool = True):  # noqa: ANN201
+        """As :meth:`solve`, also returning the iterates (the paper's Table 1).
+
+        Parameters
+        ----------
+        problem : LimbProblem
+            The problem.
+        y0 : jax.Array (q,)
+            Start of the free parameters.
+        max_steps : int
+            Iteration limit (a Python int: it sizes the history).
+        keep : bool
+            Record the iterates; ``False`` keeps only ``y0``.
+
+        Returns
+        -------
+        y, n_steps, result
+            As :meth:`solve`.
+        history : jax.Array (max_steps + 1, q)
+            ``y0`` and the iterates, NaN after the last (``(1, q)`` without ``keep``).
+        """
         def body(carry):  # type: ignore[no-untyped-def]
             y, n, _, hist, bad = carry
             jtj, jtr, _ = problem.normal_equations(y)
@@ -247,6 +323,26 @@ class ScipyLeastSquares(AbstractLimbSolver):
     gtol: float = 1e-12
 
     def solve(self, problem, y0, max_steps):  # type: ignore[no-untyped-def]
+        """Run :func:`scipy.optimize.least_squares` from ``y0`` (on the host, not jittable).
+
+        Parameters
+        ----------
+        problem : LimbProblem
+            The problem.
+        y0 : jax.Array (q,)
+            Start of the free parameters.
+        max_steps : int
+            Iteration limit; SciPy's ``max_nfev`` is ``max_steps (q + 1)`` for ``method="lm"``.
+
+        Returns
+        -------
+        y : jax.Array (q,)
+            The estimate.
+        n_steps : jax.Array () of int
+            Jacobian evaluations (function evaluations if SciPy does not report them).
+        result : FitResult
+            ``successful`` (converged and admissible), ``max_steps_reached`` or ``diverged``.
+        """
         from scipy.optimize import least_squares
 
         res_j, jac_j, ok_j = _scipy_callables(problem)
@@ -306,7 +402,23 @@ SOLVERS: dict[str, Callable[[], AbstractLimbSolver]] = {
 
 
 def solver_from_name(name: str) -> AbstractLimbSolver:
-    """The solver registered under ``name`` (see :data:`SOLVERS`)."""
+    """The solver registered under ``name`` (see :data:`SOLVERS`).
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`SOLVERS` (``"lm"``, ``"optx-lm"``, ``"paper"``, ``"scipy"``, ...).
+
+    Returns
+    -------
+    AbstractLimbSolver
+        A new solver with its default settings.
+
+    Raises
+    ------
+    LimbInputError
+        ``name`` is not registered.
+    """
     from ..errors import LimbInputError
 
     try:

@@ -59,10 +59,11 @@ from typing import Any
 import numpy as np
 
 from .._io import read_json_file
-from .._validate import Range, near_key, number, vector
+from .._schema import check_keys, explain
+from .._validate import Range, number, vector
 from ..errors import ConfigError, GeometryError
 
-_CAMERA_KEYS = ("focal_length_mm", "pixel_pitch_mm", "rows", "cols", "principal_point_rc")
+#: The Brown--Conrady coefficients, in the order of :attr:`Camera.distortion`.
 _DISTORTION_KEYS = ("k1", "k2", "k3", "p1", "p2")
 #: Largest image side accepted (px): beyond any detector, and a bound on every allocation sized by a camera.
 _MAX_SIDE_PX = 100_000
@@ -122,20 +123,16 @@ class Camera:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Camera:
-        """Build from the camera-file dictionary of docs/design.md (unknown keys are an error)."""
+        """Build from the camera-file dictionary (``jaxlimb/schemas/camera.schema.json``): an unknown key, a missing
+        one, a wrong type or range is a :class:`~jaxlimb.errors.ConfigError` naming the key (an unknown key with
+        the known key it most likely misspells)."""
         if not isinstance(d, dict):
             raise ConfigError(f"camera must be a JSON object, got {type(d).__name__}")
-        allowed = _CAMERA_KEYS + _DISTORTION_KEYS
-        unknown = sorted(set(d) - set(allowed))
-        if unknown:
-            near = {k: near_key(k, allowed) for k in unknown}
-            hint = "; ".join(f"{k!r}: did you mean {v!r}?" for k, v in near.items() if v)
-            raise ConfigError(f"camera has unknown keys {unknown}" + (f" ({hint})" if hint else "")
-                              + f"; allowed: {list(allowed)}")
-        missing = [k for k in ("focal_length_mm", "pixel_pitch_mm", "rows", "cols") if k not in d]
-        if missing:
-            raise ConfigError(f"camera is missing keys {missing}")
-        return cls(**d)
+        check_keys(d, "camera", "camera")
+        try:
+            return cls(**d)
+        except ConfigError as e:  # the schema's message, with the key path, when the file breaks the schema
+            explain(d, "camera", "camera", e)
 
     @classmethod
     def from_json(cls, path: str | os.PathLike[str]) -> Camera:

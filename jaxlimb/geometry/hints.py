@@ -12,22 +12,10 @@ from typing import Any
 import numpy as np
 
 from .._io import read_json_file
+from .._schema import explain, schema_keys
 from .._validate import Range, matrix, near_key, number, vector
 from ..errors import ConfigError, HintsKeyWarning
 from .bodies import BODY_TABLE
-
-_HINT_KEYS = (
-    "body",
-    "body_radii_km",
-    "expected_radius_px",
-    "expected_radius_uncertainty_frac",
-    "range_prior_km",
-    "sun_dir_camera",
-    "atmosphere_km",
-    "bit_depth",
-    "R_body_to_camera",
-    "expected_center_rc",
-)
 
 
 def _num(key: str, v: Any, *, lo: float | None = None, hi: float | None = None, lo_open: bool = False) -> float:
@@ -124,19 +112,24 @@ class Hints:
     # ------------------------------------------------------------------ constructors
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Hints:
-        """Build from the hints JSON object (bad values -> ConfigError naming the key).  Unknown keys are ignored
-        (docs/design.md); one that resembles a known key is named in a :class:`~jaxlimb.errors.HintsKeyWarning`."""
+        """Build from the hints JSON object (``jaxlimb/schemas/hints.schema.json``; a wrong type or range is a
+        ConfigError naming the key).  Unknown keys are ignored (a filter may carry its own); one that resembles a
+        known key is named in a :class:`~jaxlimb.errors.HintsKeyWarning`.  A camera file is refused."""
         if not isinstance(d, dict):
             raise ConfigError(f"hints must be a JSON object, got {type(d).__name__}")
-        if d and not set(d) & set(_HINT_KEYS) and {"focal_length_mm", "pixel_pitch_mm"} <= set(d):
-            raise ConfigError("the hints hold a camera's keys (focal_length_mm, pixel_pitch_mm): this is a camera "
-                              "file; pass it as the camera")
-        for k in sorted(set(d) - set(_HINT_KEYS), key=str):
-            near = near_key(k, _HINT_KEYS)
+        known, camera_keys = schema_keys("hints"), [k for k in d if k in schema_keys("camera")]
+        if d and not set(d) & set(known) and len(camera_keys) >= 2:
+            raise ConfigError(f"the hints hold a camera's keys ({', '.join(camera_keys)}): this is a camera file; "
+                              "pass it as the camera")
+        for k in sorted(set(d) - set(known), key=str):
+            near = near_key(k, known)
             if near:
                 warnings.warn(f"hints key {k!r} is not known and is ignored; did you mean {near!r}?",
                               HintsKeyWarning, stacklevel=2)
-        return cls(**{k: d[k] for k in _HINT_KEYS if k in d and d[k] is not None})
+        try:
+            return cls(**{k: d[k] for k in known if k in d and d[k] is not None})
+        except ConfigError as e:  # the schema's message, with the key path, when the file breaks the schema
+            explain(d, "hints", "hints", e)
 
     @classmethod
     def from_json(cls, path: str | os.PathLike[str]) -> Hints:

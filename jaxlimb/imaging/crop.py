@@ -368,9 +368,9 @@ def dark_surface_region(sm: np.ndarray, gt: float, low: float, mask: np.ndarray,
     bank, its outline cloud edges (independent EPIC-like renders, benchmarks/earth_full_disc.py).  When the
     region above ``low`` (a few sigma, or a few percent of the range, above the sky) is ``area_ratio`` to
     ``max_ratio`` times larger and holds at least ``min_patches`` separate regions above ``gt`` (cloud banks), it
-    is the body: ``(low, its mask, its box)``; else ``(gt, mask, box)`` unchanged (full-disc Earths: 1.9-4.0
-    times, 22-30 patches; a region many times larger is a halo, e.g. the EUV corona of
-    ``aia_171_level1.fits``, 11.7 times; a thin crescent's faint horns enlarge its one patch).  A Moon's maria
+    is the body: ``(low, its mask, its box)``; else ``(gt, mask, box)`` unchanged (a region many times larger is
+    a halo, e.g. the EUV corona of an AIA 171 frame; a thin crescent's faint horns enlarge its one patch; the
+    bounds are tuned, ``docs/validation/constants.md#dark_surface``).  A Moon's maria
     (15-35 % below the highlands) or the glow of a limb never double the region; the earthshine of a crescent's
     night side (~0.1 % of the lit side) stays below ``low``."""
     if not low < gt:

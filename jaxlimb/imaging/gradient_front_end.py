@@ -34,7 +34,7 @@ Decisions:
   projected Sun direction are dropped and Taubin refitted (:func:`_lit_side_only`): there
   the edge is the terminator, up to ``R (1 - cos phase)`` inside the limb, and when the
   Sun-facing side of a cropped body is outside the frame those points dominate the
-  circle (measured: radius 16 px short on a 120 px Moon at 31 deg phase).
+  circle and shorten its radius.
 * Check 4 ("radius inconsistent with the expected value") uses the prior's band
   (:attr:`~jaxlimb.imaging.prior.Prior.radius_range`: ``p_r (1 -/+ 3 u)`` for
   hints; for a prior measured on the image see

@@ -25,18 +25,14 @@ Decisions
 * The validated mesh itself is stored in the file (a few MB at most), so the
   database alone supports the refinement of :mod:`.refine`.
 
-File format (``.npz``, ``FORMAT_VERSION``): arrays ``format_version``,
-``settings_json``, ``mesh_hash``, ``mesh_vertices``, ``mesh_faces``, the
-per-template arrays, and ``checksum`` -- a SHA-256 over every other array.  The
-file is written atomically (:func:`jaxlimb._io.atomic_open`); reading it
-verifies the zip CRCs, the checksum, the version, the shapes, the stored mesh
-against its hash and, if given, the expected mesh hash and settings.  Any
-failure raises :class:`jaxlimb.errors.DatabaseError` and nothing is returned.
-The file also records ``built_by`` (:func:`built_by`: the NumPy and OpenCV
-versions and the format that made the templates), inside the checksum; the
-cache of :func:`cached_database` rebuilds an entry built by other versions, or
-one that fails any check, and says so once (a
-:class:`~jaxlimb.errors.CacheRepairWarning`).
+File format (``.npz``, ``FORMAT_VERSION``): arrays ``format_version``, ``settings_json``, ``mesh_hash``,
+``mesh_vertices``, ``mesh_faces``, the per-template arrays, and ``checksum`` -- a SHA-256 over every other
+array. The file is written atomically (:func:`jaxlimb._io.atomic_open`); reading it verifies the zip CRCs, the
+checksum, the version, the shapes, the stored mesh against its hash and, if given, the expected mesh hash and
+settings. Any failure raises :class:`jaxlimb.errors.DatabaseError` and nothing is returned. The file also
+records ``built_by`` (:func:`built_by`: the NumPy and OpenCV versions and the format that made the templates),
+inside the checksum; the cache of :func:`cached_database` rebuilds an entry built by other versions, or one that
+fails any check, and says so once (a :class:`~jaxlimb.errors.CacheRepairWarning`).
 """
 
 from __future__ import annotations
@@ -65,18 +61,8 @@ FORMAT_VERSION = 2
 _OLD_NAMES = {1: {"centre_rc": "center_rc"}}
 _MAGIC = "jaxlimb-template-db"
 
-_PER_TEMPLATE = (
-    "alpha",
-    "beta",
-    "R_body_to_camera",
-    "area",
-    "center_rc",
-    "hu",
-    "orientation",
-    "elongation",
-    "attitude_xy",
-    "contour_xy",
-)
+_PER_TEMPLATE = ("alpha", "beta", "R_body_to_camera", "area", "center_rc", "hu", "orientation", "elongation", "attitude_xy",
+                 "contour_xy")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -120,10 +106,27 @@ class DatabaseOptions:
         return ViewSphereOptions(self.step_deg, self.pole_axis, self.rings)
 
     def to_json(self) -> str:
+        """The settings as canonical JSON (sorted keys), as stored in the file and hashed into the cache name.
+
+        Returns
+        -------
+        str
+        """
         return json.dumps(dataclasses.asdict(self), sort_keys=True)
 
     @classmethod
     def from_json(cls, text: str) -> DatabaseOptions:
+        """Settings from :meth:`to_json`'s text (validated like any :class:`DatabaseOptions`).
+
+        Parameters
+        ----------
+        text : str
+            A JSON object of the fields.
+
+        Returns
+        -------
+        DatabaseOptions
+        """
         d = json.loads(text)
         if not isinstance(d, dict):
             raise ValueError("settings are not a JSON object")
@@ -179,7 +182,17 @@ def _template_camera(mesh: Mesh, options: DatabaseOptions) -> tuple[float, tuple
 
 def estimated_nbytes(options: DatabaseOptions) -> float:
     """Memory (bytes) a build with ``options`` needs: the per-template arrays, held about
-    three times (the arrays, their copy for the file, the checksum pass), and the template image."""
+    three times (the arrays, their copy for the file, the checksum pass), and the template image.
+
+    Parameters
+    ----------
+    options : DatabaseOptions
+        View-sphere step, rings, contour points and template size.
+
+    Returns
+    -------
+    float
+    """
     per_template = 8 * (2 + 9 + 1 + 2 + 7 + 1 + 1 + 2) + 4 * 2 * options.n_contour
     n = view_count(options.step_deg, options.rings)
     return 3.0 * n * per_template + 32.0 * options.template_size_px**2
@@ -196,6 +209,11 @@ def build_database(mesh: Mesh, options: DatabaseOptions = DatabaseOptions(), pro
         Database settings.
     progress
         Show a tqdm progress bar (on stderr).
+
+    Returns
+    -------
+    TemplateDatabase
+        The features of one template per viewpoint (Eq. 5-14) with the mesh and settings.
     """
     from tqdm import tqdm
 
@@ -247,7 +265,13 @@ def _arrays(db: TemplateDatabase) -> dict[str, np.ndarray]:
 
 
 def built_by() -> str:
-    """The versions a database's templates depend on: NumPy, OpenCV (the silhouettes) and the file format."""
+    """The versions a database's templates depend on: NumPy, OpenCV (the silhouettes) and the file format.
+
+    Returns
+    -------
+    str
+        ``"numpy=...;opencv=...;format=N"``.
+    """
     import cv2
 
     return f"numpy={np.__version__};opencv={cv2.__version__};format={FORMAT_VERSION}"
@@ -267,7 +291,20 @@ def _checksum(arrays: dict[str, np.ndarray]) -> str:
 
 
 def save_database(db: TemplateDatabase, path: str | os.PathLike[str]) -> Path:
-    """Write ``db`` to ``path`` (``.npz``) atomically; returns the path."""
+    """Write ``db`` to ``path`` (``.npz``, format of the module docstring) atomically.
+
+    Parameters
+    ----------
+    db : TemplateDatabase
+        The database.
+    path : str or os.PathLike
+        Output file.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     p = Path(path)
     arrays = _arrays(db)
     arrays["checksum"] = np.array(_checksum(arrays))
@@ -277,18 +314,27 @@ def save_database(db: TemplateDatabase, path: str | os.PathLike[str]) -> Path:
 
 
 def load_database(
-    path: str | os.PathLike[str],
-    expected_mesh_hash: str | None = None,
-    expected_options: DatabaseOptions | None = None,
+    path: str | os.PathLike[str], expected_mesh_hash: str | None = None, expected_options: DatabaseOptions | None = None,
     expected_built_by: str | None = None,
-) -> TemplateDatabase:
+) -> TemplateDatabase:  # fmt: skip
     """Read and verify a database file; see the module docstring.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A file written by :func:`save_database`.
+    expected_mesh_hash, expected_options, expected_built_by : optional
+        If given, the file must hold this mesh (:func:`~.mesh.mesh_hash`), settings and :func:`built_by`.
+
+    Returns
+    -------
+    TemplateDatabase
 
     Raises
     ------
     DatabaseError
-        Missing, truncated or corrupt file, other format version, checksum or
-        mesh-hash mismatch, or other mesh / settings than expected.
+        Missing, truncated or corrupt file, other format version, checksum or mesh-hash mismatch, or other
+        mesh / settings / builder than expected.
     """
     from .._validate import input_file
 
@@ -313,14 +359,9 @@ def load_database(
     _check_template_arrays(p, arrays, options)
     cam = arrays["camera"]
     return TemplateDatabase(
-        options=options,
-        mesh=mesh,
-        mesh_hash=stored_hash,
-        focal_px=float(cam[0]),
-        principal_rc=(float(cam[1]), float(cam[2])),
-        distance_km=float(cam[3]),
-        **{k: arrays[k] for k in _PER_TEMPLATE},
-    )
+        options=options, mesh=mesh, mesh_hash=stored_hash, focal_px=float(cam[0]), principal_rc=(float(cam[1]), float(cam[2])),
+        distance_km=float(cam[3]), **{k: arrays[k] for k in _PER_TEMPLATE},
+    )  # fmt: skip
 
 
 def _read_arrays(p: Path) -> dict:
@@ -388,13 +429,31 @@ def _upgrade(arrays: dict, p: Path) -> dict:
 
 
 def cache_dir() -> Path:
-    """Database cache directory: ``$JAXLIMB_CACHE`` or ``~/.cache/jaxlimb``."""
+    """Database cache directory: ``$JAXLIMB_CACHE`` or ``~/.cache/jaxlimb``.
+
+    Returns
+    -------
+    Path
+    """
     env = os.environ.get("JAXLIMB_CACHE")
     return Path(env) if env else Path.home() / ".cache" / "jaxlimb"
 
 
 def cache_path(mesh: Mesh, options: DatabaseOptions) -> Path:
-    """Cache file name for a mesh and settings (both hashed into the name)."""
+    """Cache file name for a mesh and settings (both hashed into the name).
+
+    Parameters
+    ----------
+    mesh : Mesh
+        The shape model.
+    options : DatabaseOptions
+        The settings.
+
+    Returns
+    -------
+    Path
+        ``cache_dir() / los-templates-v{FORMAT_VERSION}-{mesh hash}-{settings hash}.npz``.
+    """
     sh = hashlib.sha256(options.to_json().encode()).hexdigest()[:12]
     return cache_dir() / f"los-templates-v{FORMAT_VERSION}-{mesh_hash(mesh)[:16]}-{sh}.npz"
 
@@ -405,6 +464,15 @@ def cached_database(mesh: Mesh, options: DatabaseOptions = DatabaseOptions(), pr
     A cached file that fails verification, or was built by other versions (:func:`built_by`), is
     deleted, rebuilt and replaced, and one warning says so; a cache that cannot be written (a full
     disk, ``JAXLIMB_CACHE`` naming a file) is skipped with one warning.
+
+    Parameters
+    ----------
+    mesh, options, progress
+        As :func:`build_database`.
+
+    Returns
+    -------
+    TemplateDatabase
     """
     from .._jaxcache import warn_once
 
@@ -427,14 +495,6 @@ def cached_database(mesh: Mesh, options: DatabaseOptions = DatabaseOptions(), pr
 
 
 __all__ = [
-    "FORMAT_VERSION",
-    "DatabaseOptions",
-    "built_by",
-    "TemplateDatabase",
-    "build_database",
-    "cache_dir",
-    "cache_path",
-    "cached_database",
-    "load_database",
-    "save_database",
-]
+    "FORMAT_VERSION", "DatabaseOptions", "built_by", "TemplateDatabase", "build_database", "cache_dir", "cache_path",
+    "cached_database", "load_database", "save_database",
+]  # fmt: skip

@@ -54,13 +54,27 @@ def _ry(a: float) -> np.ndarray:
 def densify_match(mask: np.ndarray, db: TemplateDatabase, camera: object, match: LocateResult, levels: int = 3) -> DensifyResult:
     """Local densification of the view sphere around the matched template (beyond Wu et al.).
 
-    The template grid leaves up to about half a step between the true viewpoint
-    and the nearest template.  Around the matched template, views tilted by
-    ``(a, b)`` about the template camera's x and y axes are rendered on a 3x3 grid
-    of spacing ``step/3``, then ``step/9``, ... (``levels`` levels); each is
-    aligned with the observed figure exactly like a database template (guarded
-    rotation, contour agreement), and the best one is kept.  Cost: ``8 levels``
-    silhouettes at template resolution.
+    The template grid leaves up to about half a step between the true viewpoint and the nearest template.
+    Around the matched template, views tilted by ``(a, b)`` about the template camera's x and y axes are rendered
+    on a 3x3 grid of spacing ``step/3``, then ``step/9``, ... (``levels`` levels); each is aligned with the
+    observed figure exactly like a database template (guarded rotation, contour agreement), and the best one is
+    kept.  Cost: ``9 levels`` silhouettes at template resolution.
+
+    Parameters
+    ----------
+    mask, camera
+        Observed figure (binary, frame pixels) and the frame's camera.
+    db : TemplateDatabase
+        Database the match came from (mesh, template camera, step).
+    match : LocateResult
+        The template match (:func:`~.matching.locate_center`).
+    levels : int
+        Refinement levels, each dividing the tilt step by 3.
+
+    Returns
+    -------
+    DensifyResult
+        Centre image (Eq. 25), rotation, scale and contour agreement of the best densified template.
     """
     topo = cached_topology(db.mesh)
     ob = observe(mask, camera, db.options.n_contour)
@@ -108,6 +122,24 @@ def initial_pose(
     boresight points along the line of sight of the matched centre ``P``
     (``R_P``: smallest rotation taking +z to ``u(P)``).  Range from the scale
     of Eq. (20): ``D = f D_T / (f_T k_c)``.
+
+    Parameters
+    ----------
+    db : TemplateDatabase
+        Database the match came from.
+    result : LocateResult
+        The match: template index, ``theta``, scale and centre ``center_rc`` (px).
+    camera : Camera
+        Camera of the frame.
+    R_template : np.ndarray (3, 3), optional
+        Template rotation to use instead of the database's (e.g. :attr:`DensifyResult.R_template`).
+
+    Returns
+    -------
+    R_body_to_camera : np.ndarray (3, 3)
+        Attitude, body-fixed to camera frame.
+    t_camera : np.ndarray (3,)
+        Body centre in the camera frame, km.
     """
     j = result.template_index
     c, s = math.cos(result.theta), math.sin(result.theta)

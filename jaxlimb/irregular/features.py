@@ -47,18 +47,39 @@ HU_FLOORS = np.array([1e-3, 1e-5, 1e-6, 1e-7, 1e-12, 1e-9, 1e-12])
 
 
 def raw_moments_mask(mask: np.ndarray) -> np.ndarray:
-    """Raw moments ``m_pq`` (p+q <= 3) of a binary mask, ``x = col``, ``y = row``."""
+    """Raw moments ``m_pq`` (p+q <= 3) of a binary mask, ``x = col``, ``y = row``.
+
+    Parameters
+    ----------
+    mask : np.ndarray (rows, cols)
+        Binary figure (non-zero inside).
+
+    Returns
+    -------
+    np.ndarray (10,)
+        ``m00, m10, m01, m20, m11, m02, m30, m21, m12, m03`` (pixel-centre sums).
+    """
     m = cv2.moments(np.ascontiguousarray(mask, dtype=np.uint8), binaryImage=True)
     return np.array([m[k] for k in _RAW])
 
 
 def raw_moments_polygon(xy: np.ndarray) -> np.ndarray:
-    """Exact raw moments ``m_pq`` (p+q <= 3) of a closed simple polygon ``(n, 2)`` in ``(x, y)``.
+    """Exact raw moments ``m_pq`` (p+q <= 3) of a closed simple polygon in ``(x, y)``.
 
     Green's theorem per edge ``i -> i+1`` with ``a_i = x_i y_{i+1} - x_{i+1} y_i``
     (Eq. 14 of Wu et al. is ``m00 = sum(a)/2`` up to the orientation sign).
     The result is for a counter-clockwise orientation in the (x, y) plane, i.e. the
     sign is normalised so that ``m00 > 0``.
+
+    Parameters
+    ----------
+    xy : np.ndarray (n, 2)
+        Polygon vertices ``(x=col, y=row)``, px, either orientation.
+
+    Returns
+    -------
+    np.ndarray (10,)
+        ``m00, m10, m01, m20, m11, m02, m30, m21, m12, m03``.
     """
     p = np.asarray(xy, dtype=float).reshape(-1, 2)
     x0, y0 = p[:, 0], p[:, 1]
@@ -81,7 +102,24 @@ def raw_moments_polygon(xy: np.ndarray) -> np.ndarray:
 def central_moments(raw: np.ndarray) -> tuple[float, float, float, np.ndarray]:
     """Area, centroid and central moments from raw moments.
 
-    Returns ``(area, xbar, ybar, mu)`` with ``mu = [mu20, mu11, mu02, mu30, mu21, mu12, mu03]``.
+    Parameters
+    ----------
+    raw : np.ndarray (10,)
+        Raw moments in the order of :func:`raw_moments_mask`.
+
+    Returns
+    -------
+    area : float
+        ``m00`` (px^2).
+    xbar, ybar : float
+        Centroid ``(x=col, y=row)``, px.
+    mu : np.ndarray (7,)
+        ``mu20, mu11, mu02, mu30, mu21, mu12, mu03``.
+
+    Raises
+    ------
+    ValueError
+        The area is not positive.
     """
     m00, m10, m01, m20, m11, m02, m30, m21, m12, m03 = raw
     if not m00 > 0:
@@ -101,6 +139,18 @@ def hu_from_central(area: float, mu: np.ndarray) -> np.ndarray:
     """Hu's seven invariants, Eq. (10)-(11), from normalised central moments, Eq. (13).
 
     ``eta_pq = mu_pq / area^((p+q+2)/2)`` (the binary figure, grey value 1 inside).
+
+    Parameters
+    ----------
+    area : float
+        ``m00`` (px^2).
+    mu : np.ndarray (7,)
+        Central moments of :func:`central_moments`.
+
+    Returns
+    -------
+    np.ndarray (7,)
+        ``h1 .. h7``; invariant to translation, scale and rotation, ``h7`` changes sign under reflection.
     """
     mu20, mu11, mu02, mu30, mu21, mu12, mu03 = mu
     n2 = area**2.0
@@ -122,7 +172,16 @@ def hu_from_central(area: float, mu: np.ndarray) -> np.ndarray:
 def log_hu(hu: np.ndarray, floors: np.ndarray = HU_FLOORS) -> np.ndarray:
     """Guarded, log-scaled Hu moments ``sign(h) log10(1 + |h|/floor)`` (keeps h7's sign).
 
-    Works on ``(..., 7)`` arrays.
+    Parameters
+    ----------
+    hu : np.ndarray (..., 7)
+        Hu moments.
+    floors : np.ndarray (7,)
+        Magnitude below which each moment is scaled linearly (module docstring).
+
+    Returns
+    -------
+    np.ndarray (..., 7)
     """
     h = np.asarray(hu, dtype=float)
     return np.sign(h) * np.log10(1.0 + np.abs(h) / floors)
@@ -132,18 +191,52 @@ def orientation(mu: np.ndarray) -> float:
     """Second-moment orientation ``0.5 atan2(2 mu11, mu20 - mu02)`` (rad, x=col, y=row).
 
     Defined modulo pi; meaningless when ``mu20 ~ mu02`` and ``mu11 ~ 0``.
+
+    Parameters
+    ----------
+    mu : np.ndarray (7,)
+        Central moments (the first three are used).
+
+    Returns
+    -------
+    float
+        Angle of the major axis from +x toward +y, rad.
     """
     return 0.5 * math.atan2(2.0 * mu[1], mu[0] - mu[2])
 
 
 def elongation(mu: np.ndarray) -> float:
-    """``(l1 - l2) / (l1 + l2)`` of the second-moment matrix: 0 for isotropic figures."""
+    """``(l1 - l2) / (l1 + l2)`` of the second-moment matrix: 0 for isotropic figures.
+
+    Parameters
+    ----------
+    mu : np.ndarray (7,)
+        Central moments (the first three are used).
+
+    Returns
+    -------
+    float
+        In [0, 1].
+    """
     mu20, mu11, mu02 = mu[:3]
     return float(math.hypot(mu20 - mu02, 2 * mu11) / max(mu20 + mu02, 1e-300))
 
 
 def resample_closed(xy: np.ndarray, n: int) -> np.ndarray:
-    """Resample a closed polyline ``(m, 2)`` to ``n`` points equally spaced in arc length."""
+    """Resample a closed polyline to ``n`` points equally spaced in arc length.
+
+    Parameters
+    ----------
+    xy : np.ndarray (m, 2)
+        Closed polyline (the last point joins the first).
+    n : int
+        Points returned.
+
+    Returns
+    -------
+    np.ndarray (n, 2)
+        Starting at ``xy[0]``; ``n`` copies of it for a polyline of zero length.
+    """
     p = np.asarray(xy, dtype=float).reshape(-1, 2)
     q = np.vstack([p, p[:1]])
     seg = np.hypot(*np.diff(q, axis=0).T)
@@ -160,7 +253,23 @@ def far_point_candidates(
     """Up to ``n`` contour points farthest from the centre, at least ``min_sep_rad`` apart in angle.
 
     The first one is the paper's attitude point ``F`` (Eq. 18); the others are
-    alternatives for near-symmetric figures.  Returns ``(k, 2)`` vectors ``F - C``.
+    alternatives for near-symmetric figures.
+
+    Parameters
+    ----------
+    contour_xy : np.ndarray (m, 2)
+        Contour points ``(x, y)``.
+    center_xy : np.ndarray (2,)
+        Figure centre ``C`` ``(x, y)``.
+    n : int
+        Most points returned.
+    min_sep_rad : float
+        Smallest angle about ``C`` between two returned points, rad.
+
+    Returns
+    -------
+    np.ndarray (k, 2)
+        Vectors ``F - C``, farthest first, ``k <= n``.
     """
     d = np.asarray(contour_xy, dtype=float) - center_xy
     r = np.hypot(d[:, 0], d[:, 1])
@@ -207,7 +316,21 @@ class FigureFeatures:
 
 
 def features_from_raw(raw: np.ndarray, contour_xy: np.ndarray, n_contour: int = 128) -> FigureFeatures:
-    """Assemble :class:`FigureFeatures` from raw moments and the outer contour ``(x, y)``."""
+    """Assemble :class:`FigureFeatures` from raw moments and the outer contour ``(x, y)``.
+
+    Parameters
+    ----------
+    raw : np.ndarray (10,)
+        Raw moments of the figure.
+    contour_xy : np.ndarray (m, 2)
+        Its outer contour ``(x=col, y=row)``.
+    n_contour : int
+        Points of the stored, resampled contour.
+
+    Returns
+    -------
+    FigureFeatures
+    """
     area, xb, yb, mu = central_moments(raw)
     c = np.array([xb, yb])
     cont = resample_closed(contour_xy, n_contour) - c
@@ -224,7 +347,22 @@ def features_from_raw(raw: np.ndarray, contour_xy: np.ndarray, n_contour: int = 
 
 
 def largest_contour(contours: list[np.ndarray]) -> np.ndarray:
-    """The external contour of largest area, as ``(n, 2)`` float ``(x, y)``."""
+    """The external contour of largest area, as ``(n, 2)`` float ``(x, y)``.
+
+    Parameters
+    ----------
+    contours : list of np.ndarray
+        Contours as returned by ``cv2.findContours``.
+
+    Returns
+    -------
+    np.ndarray (n, 2)
+
+    Raises
+    ------
+    ValueError
+        No contour.
+    """
     if not contours:
         raise ValueError("no contour")
     polys = [np.asarray(c, dtype=float).reshape(-1, 2) for c in contours]
@@ -233,7 +371,19 @@ def largest_contour(contours: list[np.ndarray]) -> np.ndarray:
 
 
 def features_from_contours(contours: list[np.ndarray], n_contour: int = 128) -> FigureFeatures:
-    """Features of a template figure from its external contour(s) (polygon moments)."""
+    """Features of a template figure from its external contour(s) (polygon moments).
+
+    Parameters
+    ----------
+    contours : list of np.ndarray
+        External contours ``(x, y)``; moments are summed over all of them (pieces of one figure).
+    n_contour : int
+        Points of the stored contour (the largest one, resampled).
+
+    Returns
+    -------
+    FigureFeatures
+    """
     raw = np.zeros(10)
     for cnt in contours:
         xy = cnt.reshape(-1, 2).astype(float)
@@ -243,7 +393,19 @@ def features_from_contours(contours: list[np.ndarray], n_contour: int = 128) -> 
 
 
 def features_from_mask(mask: np.ndarray, n_contour: int = 128) -> FigureFeatures:
-    """Features of an observed binary figure (pixel-count moments, traced contour)."""
+    """Features of an observed binary figure (pixel-count moments, traced contour).
+
+    Parameters
+    ----------
+    mask : np.ndarray (rows, cols)
+        Binary figure.
+    n_contour : int
+        Points of the stored contour.
+
+    Returns
+    -------
+    FigureFeatures
+    """
     m8 = np.ascontiguousarray(mask, dtype=np.uint8)
     contours, _ = cv2.findContours(m8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     return features_from_raw(raw_moments_mask(m8), largest_contour(list(contours)), n_contour)

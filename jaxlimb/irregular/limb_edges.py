@@ -42,7 +42,18 @@ def _sample(a: np.ndarray, r: np.ndarray, c: np.ndarray) -> np.ndarray:
 
 
 def outline_points(coverage: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(points, outward unit normals)`` (row, col; window pixels) along the outer contours of ``coverage > 1/2``."""
+    """Points and outward unit normals along the outer contours of ``coverage > 1/2``.
+
+    Parameters
+    ----------
+    coverage : np.ndarray (h, w)
+        Model coverage in the window (0..1).
+
+    Returns
+    -------
+    points, normals : np.ndarray (n, 2)
+        Contour pixels and outward unit normals (from the blurred coverage's gradient), (row, col) window pixels.
+    """
     contours, _ = cv2.findContours((coverage > 0.5).astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     if not contours:
         return np.zeros((0, 2)), np.zeros((0, 2))
@@ -55,8 +66,26 @@ def outline_points(coverage: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def profile_shifts(F: np.ndarray, I: np.ndarray, pts, nv, lit_level: float, half_px: float = 5.0, ds: float = 0.5):  # type: ignore[no-untyped-def]
-    """Step 2 of the module docstring: ``(d, keep)``, the shift (px, along the outward normal) of the frame's edge
-    over the model's at each kept point, for the points whose model profile rises by ``lit_level`` inside."""
+    """Step 2 of the module docstring: the shift of the frame's edge over the model's along each normal.
+
+    Parameters
+    ----------
+    F, I : np.ndarray (h, w)
+        Fitted model image and frame on the window.
+    pts, nv : np.ndarray (n, 2)
+        Outline points and outward unit normals (:func:`outline_points`).
+    lit_level : float
+        Rise (DN) of the model profile inside the outline that marks a lit limb point.
+    half_px, ds : float
+        Half-length of the profiles and their sampling step, px.
+
+    Returns
+    -------
+    d : np.ndarray (k,)
+        Shift (px, along the outward normal) of the frame's edge over the model's at each kept point.
+    keep : np.ndarray (k,) of int
+        Indices of those points in ``pts``.
+    """
     s = np.arange(-half_px, half_px + 1e-9, ds)
     R = pts[:, :1] + s[None] * nv[:, :1]
     C = pts[:, 1:] + s[None] * nv[:, 1:]
@@ -77,7 +106,28 @@ def profile_shifts(F: np.ndarray, I: np.ndarray, pts, nv, lit_level: float, half
 
 
 def robust_shift(d: np.ndarray, X: np.ndarray, groups: np.ndarray, n_groups: int, huber: float = 1.5):  # type: ignore[no-untyped-def]
-    """Step 3: ``(delta, sandwich covariance, robust sigma of the residuals)`` of ``d ~ X delta`` (Huber IRLS)."""
+    """Step 3: the centre shift ``delta`` from ``d ~ X delta`` by Huber IRLS, with its sandwich covariance.
+
+    Parameters
+    ----------
+    d : np.ndarray (k,)
+        Edge shifts (px).
+    X : np.ndarray (k, 2)
+        Outward normals of the edge points.
+    groups, n_groups : np.ndarray (k,) of int, int
+        Position-angle sector of each point and the number of sectors (the clusters of the sandwich).
+    huber : float
+        Huber threshold in robust sigmas.
+
+    Returns
+    -------
+    delta : np.ndarray (2,)
+        Centre shift, px (row, col).
+    cov : np.ndarray (2, 2)
+        Cluster-robust sandwich covariance, px^2.
+    sigma : float
+        Robust (MAD) sigma of the residuals, px.
+    """
     w = np.ones(len(d))
     for _ in range(10):
         sol = np.linalg.lstsq(X * np.sqrt(w)[:, None], d * np.sqrt(w), rcond=None)[0]
@@ -93,11 +143,27 @@ def robust_shift(d: np.ndarray, X: np.ndarray, groups: np.ndarray, n_groups: int
 
 def lit_limb_center(F, I, coverage, P_win, lit_frac: float = 0.3, half_px: float = 5.0, n_sectors: int = 16,
                     min_points: int = 30):  # type: ignore[no-untyped-def]  # fmt: skip
-    """The module docstring's estimate: ``(P, covariance, scatter_px, n_points)`` in window pixels, or ``None``
-    with fewer than ``min_points`` usable edge points.
+    """The module docstring's estimate of the centre from the lit limb's edge positions.
 
-    ``F``: the fitted model image at the centre ``P_win`` (blurred by the estimated PSF, with its background);
-    ``I``: the frame; ``coverage``: the model's (blurred) coverage, all on the same window.
+    Parameters
+    ----------
+    F : np.ndarray (h, w)
+        The fitted model image at the centre ``P_win`` (blurred by the estimated PSF, with its background).
+    I : np.ndarray (h, w)
+        The frame on the same window.
+    coverage : np.ndarray (h, w)
+        The model's (blurred) coverage.
+    P_win : np.ndarray (2,)
+        Body-centre image, window pixels (row, col).
+    lit_frac, half_px, n_sectors, min_points : float, float, int, int
+        Lit-limb level (fraction of the body's contrast: 95th percentile minus the sky), profile half-length
+        (px), sectors of the sandwich and the fewest usable edge points.
+
+    Returns
+    -------
+    tuple or None
+        ``(P, covariance, scatter_px, n_points)``: centre (window pixels), its 2x2 covariance (px^2), the robust
+        scatter of the edge shifts (px) and the points used; ``None`` with fewer than ``min_points``.
     """
     pts, nv = outline_points(coverage)
     if len(pts) < min_points:
@@ -115,7 +181,22 @@ def lit_limb_center(F, I, coverage, P_win, lit_frac: float = 0.3, half_px: float
 
 
 def combine(P1, C1, P2, C2):  # type: ignore[no-untyped-def]
-    """Information-weighted mean of two estimates and its covariance."""
+    """Information-weighted mean of two estimates and its covariance.
+
+    Parameters
+    ----------
+    P1, C1 : np.ndarray (n,), (n, n)
+        First estimate and its covariance.
+    P2, C2 : np.ndarray (n,), (n, n)
+        Second estimate and its covariance.
+
+    Returns
+    -------
+    P : np.ndarray (n,)
+        ``C (C1^-1 P1 + C2^-1 P2)``.
+    C : np.ndarray (n, n)
+        ``(C1^-1 + C2^-1)^-1``.
+    """
     W1, W2 = np.linalg.inv(C1), np.linalg.inv(C2)
     C = np.linalg.inv(W1 + W2)
     return C @ (W1 @ P1 + W2 @ P2), C

@@ -139,22 +139,51 @@ def _sun_image_direction(frame: Frame, fc: np.ndarray) -> np.ndarray | None:
 
 
 def locate_los(
-    image: np.ndarray,
-    db: TemplateDatabase,
-    camera: object,
-    sun_dir_camera: np.ndarray | None = None,
-    R_body_to_camera: np.ndarray | None = None,
-    range_km: float | None = None,
-    options: LosOptions = LosOptions(),
-) -> LosResult:
-    """Body-centre image and line of sight of an irregular body, checked (module docstring).
+    image: np.ndarray, db: TemplateDatabase, camera: object, sun_dir_camera: np.ndarray | None = None,
+    R_body_to_camera: np.ndarray | None = None, range_km: float | None = None, options: LosOptions = LosOptions(),
+) -> LosResult:  # fmt: skip
+    """Body-centre image ``P`` and line of sight ``u(P)`` (Eq. 4 of Wu et al.) of an irregular body, checked.
+
+    Parameters
+    ----------
+    image : np.ndarray (rows, cols)
+        Grey frame indexed ``[row, col]``.
+    db : TemplateDatabase
+        Templates of the shape model (:func:`~.database.build_database`); a known attitude uses only ``db.mesh``.
+    camera : Camera
+        Pinhole camera of the frame.
+    sun_dir_camera : np.ndarray (3,), optional
+        Unit vector from the body toward the Sun, camera frame; ``None``: zero phase (the silhouette is all limb).
+    R_body_to_camera : np.ndarray (3, 3), optional
+        Known attitude (body-fixed to camera): ``KNOWN_ATTITUDE``; ``None``: ``TEMPLATE_SEARCH`` (module docstring).
+    range_km : float, optional
+        Range prior (km), the start of a known-attitude registration; ``None``: from the figure's size.
+    options : LosOptions
+        Search and registration settings.
+
+    Returns
+    -------
+    LosResult
+        ``fit``: centre ``center_rc`` (px, ``(row, col)``), its 2x2 ``covariance_rc``, ``los_camera``, ``range_km``.
 
     Raises
     ------
-    NoBodyError, TooSmallError, TooBigError
-        From the segmentation.
-    MatchError, AmbiguousMatchError, ConvergenceError
-        No hypothesis explains the frame, or two explain it with centres apart.
+    NoBodyError, TooSmallError, TooBigError, MatchError, AmbiguousMatchError, ConvergenceError
+        No usable figure; no hypothesis explains the frame, or two explain it with centres apart.
+
+    Examples
+    --------
+    >>> from jaxlimb.geometry.camera import Camera
+    >>> from jaxlimb.irregular import DatabaseOptions, build_database
+    >>> from jaxlimb.irregular.shapes import gaussian_sphere
+    >>> from jaxlimb.render.mesh import look_at_rotation, render_mesh
+    >>> mesh = gaussian_sphere(seed=1, radius_km=10.0, subdivisions=3)
+    >>> db = build_database(mesh, DatabaseOptions(step_deg=15.0, template_size_px=128), progress=False)  # coarse
+    >>> cam, R, sun = Camera(rows=200, cols=200), look_at_rotation([0.3, -0.5, 0.8]), np.array([0.5, 0.0, -0.866])
+    >>> frame = render_mesh(mesh.vertices, mesh.faces, cam, R, [0, 0, mesh.max_radius * cam.focal_px / 50], sun)  # 100 px
+    >>> fits = [locate_los(frame.image, db, cam, sun, R_known) for R_known in (R, None)]  # attitude known, then searched
+    >>> [(f.mode.value, bool(np.linalg.norm(f.center_rc - frame.center_rc) < 0.1)) for f in fits]  # true centre: 0.1 px
+    [('known-attitude', True), ('template-search', True)]
     """
     img = np.asarray(image, dtype=float)
     seg = lit_figure(img)
@@ -174,7 +203,22 @@ def locate_los(
 def search_hypotheses(frame: Frame, db: TemplateDatabase, options: LosOptions) -> list[PoseHypothesis]:
     """The template hypotheses of the attitude-unknown search, best first (``n_verify + n_retry`` of them):
     :func:`~.phase.phase_candidates` on the lit figure with the Sun's image direction; at zero phase the whole
-    silhouette is limb."""
+    silhouette is limb.
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame, its lit figure, camera and Sun direction.
+    db : TemplateDatabase
+        Templates searched.
+    options : LosOptions
+        ``n_verify`` and ``n_retry`` set how many hypotheses are returned.
+
+    Returns
+    -------
+    list of PoseHypothesis
+        Template index, attitude, centre image (px) and range of each hypothesis, best match first.
+    """
     mask = frame.segmentation[0]
     s_img = _sun_image_direction(frame, figure_center(mask))
     whole = s_img is None
@@ -184,13 +228,30 @@ def search_hypotheses(frame: Frame, db: TemplateDatabase, options: LosOptions) -
 
 
 def register_hypotheses(frame: Frame, db: TemplateDatabase, hyps: list[PoseHypothesis], options: LosOptions):  # type: ignore[no-untyped-def]
-    """Coarse stage for every hypothesis, then the full-resolution stage in order of the coarse residual:
-    ``(fits, errors)``, ``fits`` a list of ``(RegisterResult, template index)``.
+    """Coarse stage for every hypothesis, then the full-resolution stage in order of the coarse residual.
 
     A hypothesis is not refined further when its coarse residual exceeds the best one's by
     ``_PRUNE_RMS_FRAC`` (it could pass neither the residual check nor the ambiguity test), or when its centre
     is already within ``_SAME_CENTER_PX`` of an accepted fit (the same answer: it cannot make the match
     ambiguous).
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame, its lit figure, camera and Sun direction.
+    db : TemplateDatabase
+        Database whose ``mesh`` is registered.
+    hyps : list of PoseHypothesis
+        Starting poses, from :func:`search_hypotheses`.
+    options : LosOptions
+        ``search`` registration settings and the ambiguity margin of :func:`runner_up_guard`.
+
+    Returns
+    -------
+    fits : list of (RegisterResult, int)
+        Each accepted registration with its template index, in order of the coarse residual.
+    errors : list of CheckFailed
+        Why each rejected hypothesis failed.
     """
     regs, errors = [], []
     for h in hyps:
@@ -222,7 +283,7 @@ def register_hypotheses(frame: Frame, db: TemplateDatabase, hyps: list[PoseHypot
 def runner_up_guard(accepted: list[GNState], options: LosOptions) -> Guard:
     """Abandon a further hypothesis that cannot change the answer (:func:`register_hypotheses`).
 
-    ``accepted``: the states of the accepted fits.  After each iteration of the candidate:
+    After each iteration of the candidate:
 
     * at full resolution (blur below ``2 PYRAMID_BLUR_PX``), its centre within ``_SAME_CENTER_PX`` of an
       accepted fit: the same answer;
@@ -230,6 +291,19 @@ def runner_up_guard(accepted: list[GNState], options: LosOptions) -> Guard:
       fit at the same iteration (same blur; the last one for later sharp iterations) by ``3 ambiguity_margin``.
       On sharp iterations its residual excess then exceeds theirs by more than the margin too
       (``excess^2 = rms^2 - noise^2`` with ``excess <= rms``): it can neither win nor make the match ambiguous.
+
+    Parameters
+    ----------
+    accepted : list of GNState
+        The Gauss-Newton states of the accepted fits (their ``history`` of RMS residuals).
+    options : LosOptions
+        ``ambiguity_margin``.
+
+    Returns
+    -------
+    Guard
+        ``guard(state, sigma)``, called after each iteration; raises :class:`~jaxlimb.errors.MatchError` to
+        abandon the candidate.
     """
     count = [0]
     full_res = 2.0 * PYRAMID_BLUR_PX

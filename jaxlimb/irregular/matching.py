@@ -3,39 +3,31 @@
 Pipeline of :func:`locate_center`:
 
 1. segment the body (:func:`~jaxlimb.irregular.silhouette.segment_body`);
-2. *rectify* the figure to a virtual camera whose boresight passes through the
-   figure centre (:mod:`.rectify`), as the on-axis templates (Sec. 3.3) and the
-   similarity principle of Eq. (18)-(19) assume;
+2. *rectify* the figure to a virtual camera whose boresight passes through the figure centre (:mod:`.rectify`),
+   as the on-axis templates (Sec. 3.3) and the similarity principle of Eq. (18)-(19) assume;
 3. features of the rectified figure (Eq. 10-14);
-4. shape distance to every template, Eq. (15), with weights Eq. (16), keep the
-   ``top_k`` best;
-5. for each kept template, estimate the rotation ``theta`` (Eq. 18-23, guarded,
-   see below), score the alignment of the template contour with the observed
-   contour, keep the best template;
-6. centre point by the similarity transform, Eq. (24)-(25), mapped back through
-   the rectification; line of sight, Eq. (4) (:meth:`Camera.los`).
+4. shape distance to every template, Eq. (15), with weights Eq. (16), keep the ``top_k`` best;
+5. for each kept template, estimate the rotation ``theta`` (Eq. 18-23, guarded, see below), score the alignment
+   of the template contour with the observed contour, keep the best template;
+6. centre point by the similarity transform, Eq. (24)-(25), mapped back through the rectification; line of
+   sight, Eq. (4) (:meth:`Camera.los`).
 
 Decisions and guards (each is tested in ``tests/irregular/test_matching.py``)
 ---------------------------------------------------------------------------
-* **Weights (Eq. 16).**  As printed, ``lambda_l = max |h_l^m - h_l^n|`` (the
-  range of ``h_l`` over the database) *multiplies* ``|h_l^i - h_l^j|``, so the
-  moment with the largest spread (``h1``) dominates and ``h3..h7`` are ignored --
-  the opposite of a normalisation.  We read it as a normalisation and use
-  ``lambda_l = 1 / range_l`` (``weights="inverse_range"``, default);
-  ``weights="paper"`` applies Eq. (16) literally.
-* **Near-zero moments.**  The distance is computed on the guarded log-scaled
-  moments of :func:`~jaxlimb.irregular.features.log_hu`
-  (``sign(h) log10(1 + |h|/floor)``), so that moments near zero neither match
-  anything (raw ``|h|`` differences all ~0) nor explode (``log|h|``).
-* **Mirror images.**  The sign of ``h7`` is kept, and the final choice among the
-  ``top_k`` candidates is made by contour agreement under a *proper* rotation
-  (no reflection), which rejects the mirror-image (antipodal) template.
-* **Unstable attitude vector.**  The paper's farthest point jumps between
-  distant contour points when two are almost equally far (near-symmetric
-  figures).  The rotation candidates are: every pairing of the three
-  farthest distinct points of the two figures (Eq. 23 for each pair), and the
-  second-moment orientation difference and that plus pi; each is scored by the
-  mean distance of the transformed template contour to the observed contour
+* **Weights (Eq. 16).**  As printed, ``lambda_l = max |h_l^m - h_l^n|`` (the range of ``h_l`` over the database)
+  *multiplies* ``|h_l^i - h_l^j|``, so the moment with the largest spread (``h1``) dominates and ``h3..h7`` are
+  ignored -- the opposite of a normalisation.  We read it as a normalisation and use ``lambda_l = 1 / range_l``
+  (``weights="inverse_range"``, default); ``weights="paper"`` applies Eq. (16) literally.
+* **Near-zero moments.**  The distance is computed on the guarded log-scaled moments of
+  :func:`~jaxlimb.irregular.features.log_hu` (``sign(h) log10(1 + |h|/floor)``), so that moments near zero
+  neither match anything (raw ``|h|`` differences all ~0) nor explode (``log|h|``).
+* **Mirror images.**  The sign of ``h7`` is kept, and the final choice among the ``top_k`` candidates is made by
+  contour agreement under a *proper* rotation (no reflection), which rejects the mirror-image (antipodal)
+  template.
+* **Unstable attitude vector.**  The paper's farthest point jumps between distant contour points when two are
+  almost equally far (near-symmetric figures).  The rotation candidates are: every pairing of the three farthest
+  distinct points of the two figures (Eq. 23 for each pair), and the second-moment orientation difference and
+  that plus pi; each is scored by the mean distance of the transformed template contour to the observed contour
   (chamfer distance), the best is refined on a fine angular grid.
 """
 
@@ -138,11 +130,22 @@ class LocateResult:
 
 # --------------------------------------------------------------------------- Eq. 15-17
 def match_weights(features: np.ndarray, mode: str = "inverse_range") -> np.ndarray:
-    """Weights ``lambda_l`` of Eq. (16) from the database features ``(N, 7)``.
+    """Weights ``lambda_l`` of Eq. (16) from the database features.
 
     ``range_l = max_{m,n} |h_l^m - h_l^n| = max_m h_l^m - min_m h_l^m``.  ``mode="paper"``
     returns ``range_l`` (Eq. 16 as printed); ``"inverse_range"`` returns
     ``1 / range_l`` (a feature with zero range gets weight 0).
+
+    Parameters
+    ----------
+    features : np.ndarray (N, 7)
+        Feature vectors of the ``N`` templates (:func:`database_features`).
+    mode : str
+        ``"inverse_range"`` or ``"paper"``.
+
+    Returns
+    -------
+    np.ndarray (7,)
     """
     f = np.asarray(features, dtype=float)
     rng = f.max(axis=0) - f.min(axis=0)
@@ -154,7 +157,21 @@ def match_weights(features: np.ndarray, mode: str = "inverse_range") -> np.ndarr
 
 
 def shape_distance(obs: np.ndarray, templates: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """Shape similarity error ``SE = sum_l lambda_l |h_l^i - h_l^j|``, Eq. (15), against every template."""
+    """Shape similarity error ``SE = sum_l lambda_l |h_l^i - h_l^j|``, Eq. (15), against every template.
+
+    Parameters
+    ----------
+    obs : np.ndarray (7,)
+        Features of the observed figure.
+    templates : np.ndarray (N, 7)
+        Features of the templates.
+    weights : np.ndarray (7,)
+        ``lambda_l`` (:func:`match_weights`).
+
+    Returns
+    -------
+    np.ndarray (N,)
+    """
     return np.abs(np.asarray(templates) - np.asarray(obs)) @ np.asarray(weights)
 
 
@@ -164,6 +181,16 @@ def rotation_from_attitude(cf_template_xy: np.ndarray, cf_observed_xy: np.ndarra
 
     ``theta = atan2(x_B y_G - y_B x_G, x_B x_G + y_B y_G)``; the common positive
     factor ``sqrt(S_B/S_G) / |CF_B|^2`` of Eq. (22) does not change ``atan2``.
+
+    Parameters
+    ----------
+    cf_template_xy, cf_observed_xy : np.ndarray (2,)
+        Attitude vectors ``C_B F_B`` and ``C_G F_G``, ``(x=col, y=row)``.
+
+    Returns
+    -------
+    float
+        Rotation from the template to the observed figure, rad, in ``(-pi, pi]``.
     """
     xb, yb = cf_template_xy
     xg, yg = cf_observed_xy
@@ -171,17 +198,26 @@ def rotation_from_attitude(cf_template_xy: np.ndarray, cf_observed_xy: np.ndarra
 
 
 def similarity_center(
-    center_obs_rc: np.ndarray,
-    area_obs: float,
-    center_tpl_rc: np.ndarray,
-    area_tpl: float,
-    point_tpl_rc: np.ndarray,
-    theta: float,
-) -> np.ndarray:
+    center_obs_rc: np.ndarray, area_obs: float, center_tpl_rc: np.ndarray, area_tpl: float, point_tpl_rc: np.ndarray, theta: float
+) -> np.ndarray:  # fmt: skip
     """Image of the body centre in the observed figure, Eq. (24)-(25).
 
     ``P_G = C_G + sqrt(S_G/S_B) Rot(theta) (P_B - C_B)`` with the rotation acting in
-    the (x=col, y=row) plane; inputs and output are (row, col).
+    the (x=col, y=row) plane.
+
+    Parameters
+    ----------
+    center_obs_rc, area_obs : np.ndarray (2,), float
+        Observed figure centre ``C_G`` (row, col) and area ``S_G`` (px^2).
+    center_tpl_rc, area_tpl : np.ndarray (2,), float
+        Template figure centre ``C_B`` and area ``S_B``.
+    point_tpl_rc, theta : np.ndarray (2,), float
+        Body-centre image ``P_B`` in the template, and the rotation (rad, Eq. 23).
+
+    Returns
+    -------
+    np.ndarray (2,)
+        ``P_G``, px (row, col).
     """
     k = math.sqrt(area_obs / area_tpl)
     d = np.asarray(point_tpl_rc, dtype=float) - np.asarray(center_tpl_rc, dtype=float)
@@ -191,7 +227,20 @@ def similarity_center(
 
 
 def line_of_sight(camera: object, center_rc: np.ndarray) -> np.ndarray:
-    """Unit line of sight to an image point, Eq. (4) of Wu et al. (``k_x = k_y = f/pitch``)."""
+    """Unit line of sight to an image point, Eq. (4) of Wu et al. (``k_x = k_y = f/pitch``).
+
+    Parameters
+    ----------
+    camera : Camera
+        Pinhole camera.
+    center_rc : np.ndarray (2,)
+        Image point, px (row, col).
+
+    Returns
+    -------
+    np.ndarray (3,)
+        Unit vector, camera frame.
+    """
     return np.asarray(camera.los(np.asarray(center_rc, dtype=float)))  # type: ignore[attr-defined]
 
 
@@ -204,7 +253,19 @@ def _rotation_candidates(tpl_contour: np.ndarray, tpl_orient: float, obs: Figure
 
 
 def database_features(db: TemplateDatabase, options: MatchOptions) -> np.ndarray:
-    """The per-template feature vectors compared by Eq. (15): guarded log-Hu or raw Hu."""
+    """The per-template feature vectors compared by Eq. (15): guarded log-Hu or raw Hu.
+
+    Parameters
+    ----------
+    db : TemplateDatabase
+        Templates.
+    options : MatchOptions
+        ``log_scale``.
+
+    Returns
+    -------
+    np.ndarray (N, 7)
+    """
     return log_hu(db.hu) if options.log_scale else np.asarray(db.hu)
 
 
@@ -222,7 +283,22 @@ class Observed:
     cG: np.ndarray
 
     def score(self, conts: np.ndarray, ks: np.ndarray, theta: np.ndarray) -> np.ndarray:
-        """Mean chamfer distance of templates ``conts`` ``(K, n, 2)`` scaled by ``ks`` for rotations ``(K, T)``."""
+        """Mean chamfer distance of scaled, rotated template contours to the observed figure.
+
+        Parameters
+        ----------
+        conts : np.ndarray (K, n, 2)
+            Template contours ``(x, y)`` relative to their centres.
+        ks : np.ndarray (K,)
+            Scale of each template (Eq. 20).
+        theta : np.ndarray (K, T)
+            Rotations tried per template, rad.
+
+        Returns
+        -------
+        np.ndarray (K, T)
+            Mean distance (px) of each transformed contour to the observed outline.
+        """
         c, s = np.cos(theta)[..., None], np.sin(theta)[..., None]
         x, y = conts[:, None, :, 0], conts[:, None, :, 1]
         kk = ks[:, None, None]
@@ -232,8 +308,21 @@ class Observed:
         return self.chamfer(pts).mean(axis=-1)
 
     def align(self, conts: np.ndarray, areas: np.ndarray, orients: np.ndarray, n_far: int = N_FAR) -> tuple[np.ndarray, np.ndarray]:
-        """Guarded rotation of each template (candidates from the ``n_far`` farthest points, then two fine grids);
-        returns (theta, score)."""
+        """Guarded rotation of each template: candidates from the ``n_far`` farthest points and the second-moment
+        orientations (module docstring), then two fine grids.
+
+        Parameters
+        ----------
+        conts, areas, orients : np.ndarray (K, n, 2), (K,), (K,)
+            Template contours, areas (px^2) and orientations (rad).
+        n_far : int
+            Farthest-point candidates per figure.
+
+        Returns
+        -------
+        theta, score : np.ndarray (K,)
+            Best rotation of each template (rad) and its mean contour distance (px).
+        """
         ks = np.sqrt(self.obs.area / np.asarray(areas, dtype=float))
         obs_far = far_point_candidates(self.obs_cxy, self.cG, n=n_far)
         cand = np.stack([_rotation_candidates(conts[i], float(orients[i]), self.obs, obs_far, n_far) for i in range(len(conts))])
@@ -251,14 +340,46 @@ class Observed:
         return th, s_all
 
     def center(self, area_B: float, center_B_rc: np.ndarray, P_B_rc: np.ndarray, theta: float) -> np.ndarray:
-        """Eq. (24)-(25) in the rectified frame, mapped back to image pixels."""
+        """Eq. (24)-(25) in the rectified frame, mapped back to image pixels.
+
+        Parameters
+        ----------
+        area_B, center_B_rc, P_B_rc, theta : float, np.ndarray (2,), np.ndarray (2,), float
+            Template area, figure centre, body-centre image (row, col) and the rotation (rad).
+
+        Returns
+        -------
+        np.ndarray (2,)
+            Body-centre image in the frame, px (row, col).
+        """
         P_v = similarity_center(self.obs.center_rc, self.obs.area, center_B_rc, area_B, P_B_rc, theta)
         P, _ = apply_homography(self.Hinv, P_v)
         return P + self.off
 
 
 def observe(mask: np.ndarray, camera: object, n_contour: int, rectify: bool = True) -> Observed:
-    """Crop, rectify (module docstring, step 2) and describe an observed binary figure."""
+    """Crop, rectify (module docstring, step 2) and describe an observed binary figure.
+
+    Parameters
+    ----------
+    mask : np.ndarray (rows, cols)
+        Binary figure in the frame.
+    camera : Camera
+        Camera of the frame (``K`` and ``los``).
+    n_contour : int
+        Points of the resampled contour.
+    rectify : bool
+        Rectify to the virtual camera through the figure centre.
+
+    Returns
+    -------
+    Observed
+
+    Raises
+    ------
+    NoBodyError
+        Empty figure.
+    """
     m_full = np.ascontiguousarray(mask, dtype=np.uint8)
     bx, by, bw, bh = cv2.boundingRect(m_full)  # (x=col, y=row, width, height), C speed
     if bw == 0 or bh == 0:
@@ -277,27 +398,27 @@ def observe(mask: np.ndarray, camera: object, n_contour: int, rectify: bool = Tr
     K[1, 2] -= r0
     H = K @ Rv.T @ np.linalg.inv(K)  # crop pixel -> virtual (crop) pixel
     obs, obs_cxy = rectified_features(crop, H, n_contour)
-    return Observed(
-        off=off,
-        fc=fc,
-        Rv=Rv,
-        Hinv=np.linalg.inv(H),
-        obs=obs,
-        obs_cxy=obs_cxy,
-        chamfer=Chamfer(crop),
-        cG=np.array([obs.center_rc[1], obs.center_rc[0]]),
-    )
+    return Observed(off=off, fc=fc, Rv=Rv, Hinv=np.linalg.inv(H), obs=obs, obs_cxy=obs_cxy, chamfer=Chamfer(crop),
+                    cG=np.array([obs.center_rc[1], obs.center_rc[0]]))  # fmt: skip
 
 
 def locate_in_mask(
-    mask: np.ndarray,
-    db: TemplateDatabase,
-    camera: object,
-    options: MatchOptions = MatchOptions(),
+    mask: np.ndarray, db: TemplateDatabase, camera: object, options: MatchOptions = MatchOptions()
 ) -> tuple[np.ndarray, dict]:
     """Body-centre image from a binary figure (steps 2-6 of the module docstring).
 
-    Returns the centre ``(row, col)`` and a dict of details.
+    Parameters
+    ----------
+    mask, db, camera, options
+        Binary figure (frame pixels); as :func:`locate_center`.
+
+    Returns
+    -------
+    P : np.ndarray (2,)
+        Body-centre image, px (row, col).
+    info : dict
+        ``template_index``, ``theta``, ``scale``, ``match_distance``, ``contour_mean_px``, ``R_virtual``,
+        ``candidates``, ``figure_center_rc`` and the ``observed`` features.
     """
     ob = observe(mask, camera, db.options.n_contour, options.rectify)
     obs, Rv, fc = ob.obs, ob.Rv, ob.fc
@@ -321,25 +442,13 @@ def locate_in_mask(
         s_best, j, theta = float(s_all[i]), js[i], float(th[i])
     P = ob.center(db.area[j], db.center_rc[j], db.center_image_rc, theta)
     k_c = math.sqrt(obs.area / db.area[j])
-    info = {
-        "template_index": j,
-        "theta": theta,
-        "scale": k_c,
-        "match_distance": float(se[j]),
-        "contour_mean_px": s_best,
-        "R_virtual": Rv,
-        "candidates": tuple(int(t) for t in top),
-        "figure_center_rc": fc,
-        "observed": obs,
-    }
+    info = {"template_index": j, "theta": theta, "scale": k_c, "match_distance": float(se[j]), "contour_mean_px": s_best,
+            "R_virtual": Rv, "candidates": tuple(int(t) for t in top), "figure_center_rc": fc, "observed": obs}  # fmt: skip
     return np.asarray(P, dtype=float), info
 
 
 def locate_center(
-    image: np.ndarray,
-    db: TemplateDatabase,
-    camera: object,
-    options: MatchOptions = MatchOptions(),
+    image: np.ndarray, db: TemplateDatabase, camera: object, options: MatchOptions = MatchOptions()
 ) -> LocateResult:
     """Locate the image of the body centre by template matching (Sec. 4 of Wu et al.).
 
@@ -354,8 +463,15 @@ def locate_center(
     options
         Matching options.
 
+    Returns
+    -------
+    LocateResult
+        Centre ``P_G`` (Eq. 25), line of sight (Eq. 4), the chosen template and its transform, the baselines.
+
     Raises
     ------
+    ConfigError
+        Image shape other than the camera's.
     NoBodyError, TooSmallError, TooBigError
         From the segmentation.
     """
@@ -367,30 +483,14 @@ def locate_center(
     if not np.all(np.isfinite(P)):
         raise NoBodyError("template matching produced a non-finite centre")
     return LocateResult(
-        center_rc=P,
-        los_camera=line_of_sight(camera, P),
-        template_index=info["template_index"],
-        theta=info["theta"],
-        scale=info["scale"],
-        match_distance=info["match_distance"],
-        contour_mean_px=info["contour_mean_px"],
-        figure_center_rc=info["figure_center_rc"],
-        brightness_center_rc=brightness_center(img, mask),
-        R_virtual=info["R_virtual"],
-        mask=mask,
-        candidates=info["candidates"],
-    )
+        center_rc=P, los_camera=line_of_sight(camera, P), template_index=info["template_index"], theta=info["theta"],
+        scale=info["scale"], match_distance=info["match_distance"], contour_mean_px=info["contour_mean_px"],
+        figure_center_rc=info["figure_center_rc"], brightness_center_rc=brightness_center(img, mask),
+        R_virtual=info["R_virtual"], mask=mask, candidates=info["candidates"],
+    )  # fmt: skip
 
 
 __all__ = [
-    "LocateResult",
-    "MatchOptions",
-    "database_features",
-    "line_of_sight",
-    "locate_center",
-    "locate_in_mask",
-    "match_weights",
-    "rotation_from_attitude",
-    "shape_distance",
-    "similarity_center",
-]
+    "LocateResult", "MatchOptions", "database_features", "line_of_sight", "locate_center", "locate_in_mask",
+    "match_weights", "rotation_from_attitude", "shape_distance", "similarity_center",
+]  # fmt: skip

@@ -1,37 +1,31 @@
 """Triangle shape models: reading, validation, repair and hashing.
 
-Wu et al. (Sec. 3.2) load an STL triangle mesh and use only its vertices ``V``
-and edges ``E``.  This module reads OBJ, STL (binary and ASCII) and PLY through
-:mod:`trimesh`, and the PDS-style plate tables (``v x y z`` / ``f i j k`` lines
-with **0-based** face indices, e.g. ``eros007790.tab``) with its own reader.
+Wu et al. (Sec. 3.2) load an STL triangle mesh and use only its vertices ``V`` and edges ``E``.  This module reads
+OBJ, STL (binary and ASCII) and PLY through :mod:`trimesh`, and the PDS-style plate tables (``v x y z`` / ``f i j k``
+lines with **0-based** face indices, e.g. ``eros007790.tab``) with its own reader.
 
 Every mesh is validated before use (:func:`validate_mesh`):
 
 * finite vertex coordinates, at least 4 vertices and 4 faces, indices in range;
-* non-degenerate faces (repeated vertex index or area below ``degenerate_rel_area``
-  times the mean face area) -- dropped when ``repair=True``, otherwise refused;
+* non-degenerate faces (repeated vertex index or area below ``degenerate_rel_area`` times the mean face area) --
+  dropped when ``repair=True``, otherwise refused;
 * closed (watertight): every undirected edge is shared by exactly two faces;
-* consistently wound: the two faces sharing an edge traverse it in opposite
-  directions -- repaired by breadth-first re-orientation over shared edges when
-  ``repair=True``;
-* outward normals: the signed volume ``sum(v0 . (v1 x v2)) / 6`` is positive --
-  an inverted mesh (negative volume) is flipped when ``repair=True``.
+* consistently wound: the two faces sharing an edge traverse it in opposite directions -- repaired by
+  breadth-first re-orientation over shared edges when ``repair=True``;
+* outward normals: the signed volume ``sum(v0 . (v1 x v2)) / 6`` is positive -- an inverted mesh (negative
+  volume) is flipped when ``repair=True``;
+* a manifold surface: the faces around every vertex form one fan (two bodies touching at a vertex, a
+  "bow-tie", are refused).
 
-* a manifold surface: the faces around every vertex form one fan (two bodies
-  touching at a vertex, a "bow-tie", are refused).
+Open meshes are always refused: closing holes would invent geometry that moves the silhouette.  Before a file is
+parsed, its declared face count (OBJ ``f`` lines, the STL/PLY/OFF headers, plate-table ``f`` lines) must be at most
+:data:`MAX_FACES` and fit the memory available; OBJ indices are 1-based, so an index ``0`` is refused (a reader
+would take it for the last vertex).  Failures raise :class:`jaxlimb.errors.MeshError`.
 
-Open meshes are always refused: closing holes would invent geometry that moves
-the silhouette.  Before a file is parsed, its declared face count (OBJ ``f``
-lines, the STL/PLY/OFF headers, plate-table ``f`` lines) must be at most
-:data:`MAX_FACES` and fit the memory available; OBJ indices are 1-based, so an
-index ``0`` is refused (a reader would take it for the last vertex).  Failures
-raise :class:`jaxlimb.errors.MeshError`.
-
-Coordinates are kept exactly as in the file (km, body-fixed frame).  The body
-centre is the **origin** of these coordinates (docs/design.md), not the volume
-centroid.  No axis is re-labelled here: which axis is the pole only matters for
-the view-sphere sampling, see :class:`jaxlimb.irregular.views.ViewSphereOptions`
-(``pole_axis``; Celestia models such as ``thebe.obj``/``phobos.obj`` are y-up).
+Coordinates are kept exactly as in the file (km, body-fixed frame).  The body centre is the **origin** of these
+coordinates (docs/design.md), not the volume centroid.  No axis is re-labelled here: which axis is the pole only
+matters for the view-sphere sampling, see :class:`jaxlimb.irregular.views.ViewSphereOptions` (``pole_axis``;
+Celestia models such as ``thebe.obj``/``phobos.obj`` are y-up).
 """
 
 from __future__ import annotations
@@ -64,12 +58,10 @@ class MeshOptions:
     Parameters
     ----------
     repair
-        Repair what can be repaired without inventing geometry (drop degenerate
-        faces, fix inconsistent winding, flip an inverted mesh).  With ``False``
-        any such defect raises :class:`~jaxlimb.errors.MeshError`.
+        Repair what can be repaired without inventing geometry (drop degenerate faces, fix inconsistent
+        winding, flip an inverted mesh).  With ``False`` any such defect raises :class:`~jaxlimb.errors.MeshError`.
     degenerate_rel_area
-        A face whose area is below this fraction of the mean face area is
-        degenerate.
+        A face whose area is below this fraction of the mean face area is degenerate.
     """
 
     repair: bool = True
@@ -139,6 +131,11 @@ def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
 
 def edge_faces(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unique undirected edges of a closed mesh and the two faces sharing each.
+
+    Parameters
+    ----------
+    faces : np.ndarray (M, 3) of int
+        Vertex indices of each face.
 
     Returns
     -------
@@ -292,6 +289,10 @@ def load_mesh(path: str | os.PathLike[str], options: MeshOptions = MeshOptions()
         table ``.tab`` (``v``/``f`` lines, 0-based face indices).
     options
         Validation and repair options.
+
+    Returns
+    -------
+    Mesh
 
     Raises
     ------
@@ -477,7 +478,16 @@ def _fix_winding(faces: np.ndarray) -> np.ndarray:
 
 
 def mesh_hash(mesh: Mesh) -> str:
-    """SHA-256 of the validated vertex (float64) and face (int64) arrays, hex."""
+    """SHA-256 of the validated vertex (float64) and face (int64) arrays, hex.
+
+    Parameters
+    ----------
+    mesh : Mesh
+
+    Returns
+    -------
+    str
+    """
     h = hashlib.sha256()
     h.update(b"jaxlimb-mesh-v1")
     h.update(np.ascontiguousarray(mesh.vertices, dtype="<f8").tobytes())
@@ -486,14 +496,6 @@ def mesh_hash(mesh: Mesh) -> str:
 
 
 __all__ = [
-    "BYTES_PER_FACE",
-    "MAX_FACES",
-    "Mesh",
-    "MeshOptions",
-    "edge_faces",
-    "face_normals",
-    "load_mesh",
-    "mesh_hash",
-    "signed_volume",
-    "validate_mesh",
-]
+    "BYTES_PER_FACE", "MAX_FACES", "Mesh", "MeshOptions", "edge_faces", "face_normals", "load_mesh", "mesh_hash",
+    "signed_volume", "validate_mesh",
+]  # fmt: skip

@@ -1,30 +1,27 @@
 r"""Model images for render-and-register (:mod:`.register`): radiance, coverage, attitude derivatives, pyramid.
 
 **Model image.**  The shape model at pose ``(R, t)`` is rasterised in a pixel window
-(:func:`jaxlimb.render.mesh.rasterise`, flat facets, ``supersample`` sub-pixels per
-side, box filter): the radiance ``M`` (unit albedo, zero sky) and the coverage ``C``.
+(:func:`jaxlimb.render.mesh.rasterise`, flat facets, ``supersample`` sub-pixels per side, box filter): the
+radiance ``M`` (unit albedo, zero sky) and the coverage ``C``.
 
-**Attitude derivatives without extra renders.**  A small rotation ``omega`` (camera
-frame) of the body about its centre ``t`` moves the surface point ``X`` by
-``dX = omega x (X - t)`` and turns the facet normals by ``omega x n``.  With the
-visible point ``X = Z (x_n, y_n, 1)`` of each pixel (the ray through the pixel
-centre meets the plane of the facet seen there) the pinhole image moves by
+**Attitude derivatives without extra renders.**  A small rotation ``omega`` (camera frame) of the body about its
+centre ``t`` moves the surface point ``X`` by ``dX = omega x (X - t)`` and turns the facet normals by
+``omega x n``.  With the visible point ``X = Z (x_n, y_n, 1)`` of each pixel (the ray through the pixel centre
+meets the plane of the facet seen there) the pinhole image moves by
 
 .. math::  \dot c = f\,(\dot X_x - x_n \dot X_z)/Z, \qquad
            \dot r = f\,(\dot X_y - y_n \dot X_z)/Z,
 
-so ``dM/domega_i = -grad M . flow_i + dM_shading/domega_i``: one render gives the
-three columns the finite differences took three more renders for.  For
-Lommel-Seeliger ``rho = 2 mu0 / (mu0 + mu)``:
-``d rho = 2 (mu d mu0 - mu0 d mu) / (mu0 + mu)^2`` with ``d mu0 = omega . (n x s)``,
-``d mu = omega . (n x e)``.  The outline is not a material line: within 2 px of it
-the flow is that of the nearest limb vertex (the contour generator).
+so ``dM/domega_i = -grad M . flow_i + dM_shading/domega_i``: one render gives the three columns the finite
+differences took three more renders for.  For Lommel-Seeliger ``rho = 2 mu0 / (mu0 + mu)``:
+``d rho = 2 (mu d mu0 - mu0 d mu) / (mu0 + mu)^2`` with ``d mu0 = omega . (n x s)``, ``d mu = omega . (n x e)``.
+The outline is not a material line: within 2 px of it the flow is that of the nearest limb vertex (the contour
+generator).
 
-**Pyramid.**  A blur of ``sigma`` px makes detail finer than ``sigma / 2`` useless:
-those iterations run on the frame box-averaged by an integer factor ``k``
-(``cv2.INTER_AREA``) against the model rendered by the camera whose pixels are
-``k`` times larger (:func:`level_camera`), whose pixel ``(R, C)`` is the mean of the
-fine pixels ``k R .. k R + k - 1``: fine coordinate ``x = k X + (k - 1) / 2``.
+**Pyramid.**  A blur of ``sigma`` px makes detail finer than ``sigma / 2`` useless: those iterations run on the
+frame box-averaged by an integer factor ``k`` (``cv2.INTER_AREA``) against the model rendered by the camera whose
+pixels are ``k`` times larger (:func:`level_camera`), whose pixel ``(R, C)`` is the mean of the fine pixels
+``k R .. k R + k - 1``: fine coordinate ``x = k X + (k - 1) / 2``.
 """
 
 from __future__ import annotations
@@ -81,11 +78,10 @@ _CLUSTERED = IdentityCache(maxsize=9)
 def clustered_mesh(mesh: Mesh, cell_km: float) -> Mesh | _Facets:
     """The mesh simplified by vertex clustering on a grid of ``cell_km`` (kept for the last few cells).
 
-    Vertices in one grid cell merge into their mean; facets that collapse are dropped,
-    the others keep their winding.  Used on the coarse pyramid levels only, with cells
-    of two level pixels: the outline moves by about a pixel there, under a blur of at
-    least two; the full-resolution iterations use the full mesh.  The cell is rounded down to a power of 2**0.5 so that successive
-    iterations reuse the same simplified mesh.
+    Vertices in one grid cell merge into their mean; facets that collapse are dropped, the others keep their
+    winding.  Used on the coarse pyramid levels only, with cells of two level pixels: the outline moves by about a
+    pixel there, under a blur of at least two; the full-resolution iterations use the full mesh.  The cell is
+    rounded down to a power of 2**0.5 so that successive iterations reuse the same simplified mesh.
     """
     q = 2.0 ** (math.floor(2.0 * math.log2(cell_km)) / 2.0)
 
@@ -108,25 +104,38 @@ def clustered_mesh(mesh: Mesh, cell_km: float) -> Mesh | _Facets:
 
 
 def window_camera(camera: object, lo: np.ndarray, hi: np.ndarray) -> object:
-    """The camera restricted to pixels ``lo..hi`` (inclusive, (row, col))."""
+    """The camera restricted to pixels ``lo..hi`` (inclusive, (row, col)).
+
+    Parameters
+    ----------
+    camera, lo, hi : Camera, np.ndarray (2,), np.ndarray (2,)
+
+    Returns
+    -------
+    Camera
+    """
     r0, c0 = camera.principal_point_rc  # type: ignore[attr-defined]
     shape = (int(hi[0] - lo[0] + 1), int(hi[1] - lo[1] + 1))
     return dataclasses.replace(camera, rows=shape[0], cols=shape[1], principal_point_rc=(r0 - lo[0], c0 - lo[1]))  # type: ignore[type-var]
 
 
 def level_camera(camera: object, k: int) -> object:
-    """The camera of the frame box-averaged ``k x k`` (pixels ``k`` times larger; module docstring)."""
+    """The camera of the frame box-averaged ``k x k`` (pixels ``k`` times larger; module docstring).
+
+    Parameters
+    ----------
+    camera, k : Camera, int
+
+    Returns
+    -------
+    Camera
+    """
     if k == 1:
         return camera
     r0, c0 = camera.principal_point_rc  # type: ignore[attr-defined]
     rows, cols = camera.shape  # type: ignore[attr-defined]
-    return dataclasses.replace(  # type: ignore[type-var]
-        camera,
-        rows=rows // k,
-        cols=cols // k,
-        pixel_pitch_mm=camera.pixel_pitch_mm * k,  # type: ignore[attr-defined]
-        principal_point_rc=((r0 - (k - 1) / 2.0) / k, (c0 - (k - 1) / 2.0) / k),
-    )
+    return dataclasses.replace(camera, rows=rows // k, cols=cols // k, pixel_pitch_mm=camera.pixel_pitch_mm * k,  # type: ignore[type-var, attr-defined]
+                               principal_point_rc=((r0 - (k - 1) / 2.0) / k, (c0 - (k - 1) / 2.0) / k))  # fmt: skip
 
 
 def downsample(image: np.ndarray, k: int) -> np.ndarray:
@@ -142,15 +151,22 @@ def render_window(
     reflectance: str = "lommel-seeliger", jacobian: bool = False, mix: np.ndarray | None = None,
     shadows: bool = False, exact: bool = True,
 ) -> ModelImage:  # fmt: skip
-    """The model image in the window ``lo..hi`` of ``camera`` (module docstring); ``sun=None``: zero phase.
+    """The model image in the window ``lo..hi`` of ``camera`` (module docstring).
 
-    With ``mix`` ``(m_1, .., m_n, m_s)`` the radiance is ``LS + sum_j m_j (law_j - LS) + m_s (smooth - flat)``
-    over the first ``n`` laws of :data:`MIX_LAWS` (:func:`mix_laws`; Lommel-Seeliger ``2 mu0 / (mu0 + mu)``,
-    Lambert ``mu0``, Minnaert ``mu0^k mu^(k-1)`` with ``k = 1/2`` and ``3/4``; ``m_1 = 1 - L`` alone is McEwen's
-    lunar-Lambert law; :func:`_smooth_minus_flat`), and ``dM_dmix`` ``(n + 1, h, w)`` is returned.  With ``shadows``
-    every facet's radiance is scaled by its lit fraction (:func:`shadow_fractions`: cast shadows).
-    ``exact``: every sub-pixel shows the facet containing its centre (:func:`~jaxlimb.render.mesh.rasterise`);
-    off on the pyramid levels (``register`` renders exactly at full resolution only: the answer is made there).
+    Parameters
+    ----------
+    mesh, camera, R, t, sun
+        Shape model, camera, pose ``x_cam = R x_body + t`` (km), unit Sun vector (camera frame; ``None``: zero phase).
+    lo, hi, supersample, reflectance, jacobian
+        Window (first, last pixel (row, col)), sub-pixels per side, base law; also the attitude derivatives.
+    mix, shadows, exact
+        ``(m_1, .., m_n, m_s)``: radiance ``LS + sum_j m_j (law_j - LS) + m_s (smooth - flat)`` over the first ``n``
+        laws of :data:`MIX_LAWS` (:func:`_smooth_minus_flat`), with ``dM_dmix``; each facet scaled by its lit fraction
+        (:func:`shadow_fractions`); every sub-pixel shows the facet containing its centre (off on pyramid levels).
+
+    Returns
+    -------
+    ModelImage
     """
     cam = window_camera(camera, lo, hi)
     h, w = cam.shape  # type: ignore[attr-defined]
@@ -460,8 +476,17 @@ def _limb_flow(flow, ras, Xc, F, cam, t, cover) -> None:  # type: ignore[no-unty
 def attitude_columns(model: ModelImage, ratio: float, blur, out: np.ndarray | None = None) -> np.ndarray:  # type: ignore[no-untyped-def]
     """``(n, 3)`` derivatives of the blurred ``G = M - ratio C`` for rotations about the camera axes (rad).
 
-    ``out``: a ``(3, n)`` array to write them in (the rows of a transposed design matrix);
-    the result is then its transposed view.
+    Parameters
+    ----------
+    model, ratio : ModelImage, float
+        A model rendered with ``jacobian=True``; ``b / a`` of the previous solve.
+    blur, out : callable, np.ndarray (3, n), optional
+        The blur of the iteration; an array to write the columns in (rows of a transposed design matrix).
+
+    Returns
+    -------
+    np.ndarray (n, 3)
+        The transposed view of ``out`` when given.
     """
     G = model.M - ratio * model.C
     gr, gc = np.gradient(G)

@@ -123,8 +123,24 @@ def _padded(pieces, pix, val, nbr, min_sizes):  # type: ignore[no-untyped-def]
 
 
 def outline_data(topo, camera, image, R, t, sun, band, min_sizes=(0, 0)):  # type: ignore[no-untyped-def]
-    """Frozen outline at the pose ``(R, t)``: the pieces' 3-D end points and third vertices ``(A, B, C)``, the band
-    pixels, their values, neighbour pieces and weights (padded to at least ``min_sizes``); ``None`` with too few."""
+    """Frozen outline at the pose ``(R, t)`` (module docstring), padded to at least ``min_sizes``; a
+    :class:`~jaxlimb.errors.GeometryError` when part of the mesh is behind the camera.
+
+    Parameters
+    ----------
+    topo, camera, image : MeshTopology, Camera, np.ndarray (rows, cols)
+        Mesh topology (:func:`~.silhouette.mesh_topology`), the frame's camera and the frame.
+    R, t, sun : np.ndarray (3, 3), (3,), (3,) or None
+        Body-to-camera rotation, body centre (km, camera frame), unit Sun direction (camera frame).
+    band, min_sizes : float, (int, int)
+        Half-width (px) of the pixel band around the limb; smallest padded (pixel, piece) counts.
+
+    Returns
+    -------
+    tuple or None
+        ``(A, B, C, pix, val, nbr, weight)``: the limb pieces' 3-D end points and third vertices (body frame), the
+        band pixels (row, col), their values, nearest pieces and weights (0: padding); ``None`` with too few.
+    """
     f = float(camera.focal_px)
     pp = tuple(float(v) for v in camera.principal_point_rc)
     shape = image.shape
@@ -152,15 +168,8 @@ def outline_data(topo, camera, image, R, t, sun, band, min_sizes=(0, 0)):  # typ
         return None
     win = (int(hi[0] - lo[0] + 1), int(hi[1] - lo[1] + 1))
     ss = _TEST_SUPERSAMPLE
-    fig, _ = render_silhouette(
-        topo,
-        R,
-        t,
-        f * ss,
-        ((pp[0] - lo[0] + 0.5) * ss - 0.5, (pp[1] - lo[1] + 0.5) * ss - 0.5),
-        (win[0] * ss, win[1] * ss),
-        sun_dir_camera=None if sun is None else sun,
-    )
+    fig, _ = render_silhouette(topo, R, t, f * ss, ((pp[0] - lo[0] + 0.5) * ss - 0.5, (pp[1] - lo[1] + 0.5) * ss - 0.5),
+                               (win[0] * ss, win[1] * ss), sun_dir_camera=None if sun is None else sun)  # fmt: skip
     PA, PB, PC, pa, pb, limb = _outline_pieces(rc, V, edges, third, limb, fig, lo, ss)
     if not np.any(limb):
         return None

@@ -57,8 +57,20 @@ class PoseHypothesis:
 
 
 def contour_normals(xy: np.ndarray, at: np.ndarray | None = None) -> np.ndarray:
-    """Outward unit normals ``(..., n, 2)`` of closed contours ``(..., n, 2)`` (x, y); with ``at`` (indices), only
-    at those points ``(..., len(at), 2)`` (the same values: central difference of the neighbours)."""
+    """Outward unit normals of closed contours, from the central difference of each point's neighbours.
+
+    Parameters
+    ----------
+    xy : np.ndarray (..., n, 2)
+        Closed contours ``(x, y)``, either winding.
+    at : np.ndarray of int, optional
+        Only at these point indices (the same values as at those points of the whole contour).
+
+    Returns
+    -------
+    np.ndarray (..., n, 2) or (..., len(at), 2)
+        Outward unit normals ``(x, y)``.
+    """
     n = xy.shape[-2]
     if at is None:
         d = np.roll(xy, -1, axis=-2) - np.roll(xy, 1, axis=-2)
@@ -132,8 +144,25 @@ def phase_candidates(
 ) -> list[PoseHypothesis]:
     """The ``n_candidates`` best distinct pose hypotheses for the lit figure ``mask`` (module docstring).
 
-    ``s_img_rc`` is the unit image-plane direction (row, col) toward the Sun; ``whole_outline``: every
-    template point counts as lit limb (zero phase, where ``s_img_rc`` only orients the extents).
+    Parameters
+    ----------
+    mask : np.ndarray (rows, cols)
+        Observed lit figure.
+    db : TemplateDatabase
+        Templates searched (every template and 5-degree roll).
+    camera : Camera
+        Camera of the frame.
+    s_img_rc : np.ndarray (2,)
+        Unit image-plane direction (row, col) toward the Sun.
+    n_candidates : int
+        Hypotheses returned; any two are at least three view-sphere steps apart in attitude.
+    whole_outline : bool
+        Every template point counts as lit limb (zero phase, where ``s_img_rc`` only orients the extents).
+
+    Returns
+    -------
+    list of PoseHypothesis
+        Best score (truncated mean chamfer distance, px) first, each with its pose in the frame's camera.
     """
     s_xy = np.array([s_img_rc[1], s_img_rc[0]], dtype=float)
     s_xy /= np.linalg.norm(s_xy)

@@ -25,7 +25,18 @@ from .features import (
 
 
 def rot_z_to(u: np.ndarray) -> np.ndarray:
-    """Smallest rotation taking +z to the unit vector ``u``."""
+    """Smallest rotation taking +z to the unit vector ``u``.
+
+    Parameters
+    ----------
+    u : np.ndarray (3,)
+        Unit vector (camera frame), e.g. a line of sight.
+
+    Returns
+    -------
+    np.ndarray (3, 3)
+        ``R`` with ``R @ [0, 0, 1] = u`` (Rodrigues' formula about ``z x u``); identity when ``u`` is along z.
+    """
     z = np.array([0.0, 0.0, 1.0])
     v = np.cross(z, u)
     s = np.linalg.norm(v)
@@ -37,7 +48,22 @@ def rot_z_to(u: np.ndarray) -> np.ndarray:
 
 
 def apply_homography(H: np.ndarray, rc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Points ``rc`` (row, col; ``(..., 2)``) mapped by the homography ``H`` (on (col, row, 1)), and the scale ``w``."""
+    """Points (row, col) mapped by the homography ``H`` (which acts on ``(col, row, 1)``), and the scale ``w``.
+
+    Parameters
+    ----------
+    H : np.ndarray (3, 3)
+        Homography on homogeneous ``(x=col, y=row, 1)``.
+    rc : np.ndarray (..., 2)
+        Points, px (row, col).
+
+    Returns
+    -------
+    rc_mapped : np.ndarray (..., 2)
+        Mapped points, px (row, col).
+    w : np.ndarray (...)
+        Homogeneous scale of each point.
+    """
     rc = np.asarray(rc, dtype=float)
     x = np.stack([rc[..., 1], rc[..., 0], np.ones(rc.shape[:-1])], axis=-1) @ H.T
     w = x[..., 2]
@@ -45,7 +71,23 @@ def apply_homography(H: np.ndarray, rc: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 def affine_of(H: np.ndarray, rc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Affine approximation ``x' = A x + b`` (x = (col, row)) of the homography at ``rc``."""
+    """Affine approximation ``x' = A x + b`` (x = (col, row)) of the homography at ``rc`` (central differences
+    of half a pixel).
+
+    Parameters
+    ----------
+    H : np.ndarray (3, 3)
+        Homography (:func:`apply_homography`).
+    rc : np.ndarray (2,)
+        Point of tangency, px (row, col).
+
+    Returns
+    -------
+    A : np.ndarray (2, 2)
+        Jacobian of the map in ``(x, y)``.
+    b : np.ndarray (2,)
+        Offset, px ``(x, y)``.
+    """
     p0, _ = apply_homography(H, rc)
     e = 0.5
     px, _ = apply_homography(H, rc + np.array([0.0, e]))
@@ -64,6 +106,26 @@ def affine_moments(area: float, c_xy: np.ndarray, mu: np.ndarray, A: np.ndarray,
     """Area, centroid and central moments (``mu20..mu03``) of a figure mapped by ``x' = A x + b``.
 
     Central moments are tensors: ``T'_ij = |det A| A_ia A_jb T_ab`` and likewise for order 3.
+
+    Parameters
+    ----------
+    area : float
+        Area of the figure (px^2).
+    c_xy : np.ndarray (2,)
+        Centroid ``(x, y)``.
+    mu : np.ndarray (7,)
+        Central moments ``mu20, mu11, mu02, mu30, mu21, mu12, mu03``.
+    A, b : np.ndarray (2, 2), (2,)
+        The affine map.
+
+    Returns
+    -------
+    area : float
+        ``|det A| area``.
+    c_xy : np.ndarray (2,)
+        ``A c + b``.
+    mu : np.ndarray (7,)
+        The mapped central moments, same order.
     """
     mu20, mu11, mu02, mu30, mu21, mu12, mu03 = mu
     T2 = np.array([[mu20, mu11], [mu11, mu02]])
@@ -86,6 +148,22 @@ def rectified_features(mask: np.ndarray, H: np.ndarray, n_contour: int) -> tuple
     affine approximation of ``H`` at the figure centre (the neglected second-order
     terms are ~ (size/f) tan(off-axis angle), below 1e-3 relative for any
     reasonable field of view).  Contour: mapped exactly.
+
+    Parameters
+    ----------
+    mask : np.ndarray (rows, cols)
+        Binary figure.
+    H : np.ndarray (3, 3)
+        Rectifying homography ``K R^T K^-1`` (pixel -> virtual pixel).
+    n_contour : int
+        Points of the resampled contour.
+
+    Returns
+    -------
+    features : FigureFeatures
+        Of the rectified figure (Eq. 10-14).
+    contour_xy : np.ndarray (m, 2)
+        The rectified outer contour, ``(x, y)`` virtual pixels.
     """
     c0, r0, bw, bh = cv2.boundingRect(np.ascontiguousarray(mask, dtype=np.uint8))
     crop = np.ascontiguousarray(mask[r0 : r0 + bh, c0 : c0 + bw], dtype=np.uint8)
@@ -127,7 +205,18 @@ class Chamfer:
         self.dt = self.dt32.astype(float)
 
     def remap(self, rc: np.ndarray) -> np.ndarray:
-        """Like ``__call__`` (without the distance outside the crop), bilinear in C (``cv2.remap``)."""
+        """Like ``__call__`` (without the distance outside the crop), bilinear in C (``cv2.remap``).
+
+        Parameters
+        ----------
+        rc : np.ndarray (..., n, 2)
+            Points, px (row, col) of the frame.
+
+        Returns
+        -------
+        np.ndarray (..., n)
+            Distance (px) to the outer contour at each point (edge-replicated outside the crop).
+        """
         shp = rc.shape[:-1]
         flat = rc.reshape(-1, shp[-1], 2)
         mr = (flat[..., 0] - self.r0).astype(np.float32)

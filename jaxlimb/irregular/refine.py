@@ -216,6 +216,11 @@ def refine_center(
         ``(R_body_to_camera, t_camera)`` to start from instead of the match (e.g.
         a navigation filter's prediction); ``match`` then only supplies the mask.
 
+    Returns
+    -------
+    RefineResult
+        Refined centre image (px, row-col), line of sight (Eq. 4), pose and the fitted edge sharpness and levels.
+
     Raises
     ------
     ConvergenceError

@@ -64,12 +64,33 @@ _TOPOLOGY = IdentityCache(maxsize=2)
 
 def cached_topology(mesh: Mesh) -> MeshTopology:
     """:func:`mesh_topology` of ``mesh``, computed once for the last meshes asked about (registration and the
-    outline refinement ask for it at every iteration)."""
+    outline refinement ask for it at every iteration).
+
+    Parameters
+    ----------
+    mesh : Mesh
+        A validated mesh (kept by identity).
+
+    Returns
+    -------
+    MeshTopology
+    """
     return _TOPOLOGY.get((mesh,), lambda: mesh_topology(mesh))
 
 
 def mesh_topology(mesh: Mesh) -> MeshTopology:
-    """Edge/face adjacency used to find contour-generator edges quickly."""
+    """Edge/face adjacency used to find contour-generator edges quickly.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        A closed, consistently wound mesh.
+
+    Returns
+    -------
+    MeshTopology
+        Vertices, faces, unit outward normals, plane offsets, edges, adjacent faces and opposite vertices.
+    """
     v, f = mesh.vertices, mesh.faces
     edges, adj = edge_faces(f)
     n = face_normals(v, f)
@@ -90,6 +111,19 @@ def visible_faces(
 
     Front-facing: ``n . (c - v0) > 0`` (perspective, exact for planar faces).
     Lit: ``n . s > 0`` with ``s`` the unit direction from the body toward the Sun.
+
+    Parameters
+    ----------
+    topo : MeshTopology
+        The mesh.
+    camera_pos_body : np.ndarray (3,)
+        Camera position ``c`` in the body frame (km).
+    sun_dir_body : np.ndarray (3,), optional
+        Direction toward the Sun, body frame.
+
+    Returns
+    -------
+    np.ndarray (M,) of bool
     """
     # einsum, not BLAS: a threaded matrix-vector product leaves OpenBLAS threads spinning (register._normal_equations)
     flag = np.einsum("ij,j->i", topo.normals, np.asarray(camera_pos_body, dtype=float)) - topo.offsets > 0.0
@@ -101,9 +135,19 @@ def visible_faces(
 def outline_edges(topo: MeshTopology, face_flag: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Edges between a flagged and an unflagged face.
 
-    Returns ``(edges, inner_third)``: ``(K, 2)`` vertex indices oriented so that the
-    flagged face traverses them ``edges[:,0] -> edges[:,1]``, and ``(K,)`` the
-    third vertex of the flagged face (which lies on the inner side).
+    Parameters
+    ----------
+    topo : MeshTopology
+        The mesh.
+    face_flag : np.ndarray (M,) of bool
+        Per face, e.g. :func:`visible_faces`.
+
+    Returns
+    -------
+    edges : np.ndarray (K, 2) of int
+        Vertex indices oriented so that the flagged face traverses them ``edges[:,0] -> edges[:,1]``.
+    inner_third : np.ndarray (K,) of int
+        The third vertex of the flagged face (which lies on the inner side).
     """
     fa = face_flag[topo.adjacent[:, 0]]
     fb = face_flag[topo.adjacent[:, 1]]
@@ -121,7 +165,14 @@ def _to_cv_points(rc: np.ndarray) -> np.ndarray:
 
 
 def fill_outline(segments_rc: np.ndarray, shape: tuple[int, int]) -> tuple[np.ndarray, list[np.ndarray]]:
-    """Draw segments ``(K, 2, 2)`` (row, col), trace the outer contours and fill them.
+    """Draw segments (row, col), trace the outer contours and fill them.
+
+    Parameters
+    ----------
+    segments_rc : np.ndarray (K, 2, 2)
+        Segment end points, px (row, col).
+    shape : (int, int)
+        Image shape.
 
     Returns
     -------
@@ -141,18 +192,36 @@ def fill_outline(segments_rc: np.ndarray, shape: tuple[int, int]) -> tuple[np.nd
 
 
 def render_silhouette(
-    topo: MeshTopology,
-    R_body_to_camera: np.ndarray,
-    t_camera: np.ndarray,
-    focal_px: float,
-    principal_rc: tuple[float, float],
-    shape: tuple[int, int],
-    sun_dir_camera: np.ndarray | None = None,
-) -> tuple[np.ndarray, list[np.ndarray]]:
+    topo: MeshTopology, R_body_to_camera: np.ndarray, t_camera: np.ndarray, focal_px: float, principal_rc: tuple[float, float],
+    shape: tuple[int, int], sun_dir_camera: np.ndarray | None = None,
+) -> tuple[np.ndarray, list[np.ndarray]]:  # fmt: skip
     """Binary projected figure of the mesh (optionally only its lit part).
 
     The mesh is placed with ``X_c = R X_b + t`` (body centre at ``t``), projected
     with the pinhole of Eq. (9); see the module docstring for the construction.
+
+    Parameters
+    ----------
+    topo : MeshTopology
+        The mesh.
+    R_body_to_camera, t_camera : np.ndarray (3, 3), (3,)
+        Pose: rotation and body centre in the camera frame (km).
+    focal_px, principal_rc : float, (float, float)
+        Focal length (px) and principal point (row, col).
+    shape : (int, int)
+        Image shape.
+    sun_dir_camera : np.ndarray (3,), optional
+        Unit direction toward the Sun, camera frame: only the lit faces are drawn.
+
+    Returns
+    -------
+    mask, contours
+        As :func:`fill_outline`.
+
+    Raises
+    ------
+    GeometryError
+        Part of the mesh is behind the camera.
     """
     R = np.asarray(R_body_to_camera, dtype=float)
     t = np.asarray(t_camera, dtype=float)
@@ -171,7 +240,20 @@ def render_silhouette(
 
 
 def fill_triangles_exact(rc_tri: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
-    """Reference rasteriser: union of triangles ``(F, 3, 2)`` drawn one by one (slow; for tests)."""
+    """Reference rasteriser: union of triangles drawn one by one (slow; for tests).
+
+    Parameters
+    ----------
+    rc_tri : np.ndarray (F, 3, 2)
+        Triangle corners, px (row, col).
+    shape : (int, int)
+        Image shape.
+
+    Returns
+    -------
+    np.ndarray of uint8
+        1 inside any triangle.
+    """
     img = np.zeros(shape, dtype=np.uint8)
     for tri in _to_cv_points(rc_tri):
         cv2.fillConvexPoly(img, tri, 1, lineType=cv2.LINE_8, shift=_SHIFT)
@@ -205,6 +287,23 @@ def otsu_threshold(image: np.ndarray, bins: int = 256, max_samples: int = 250_00
     Large images are subsampled on a regular grid (at most ``max_samples`` pixels)
     for the histogram; the threshold is a grey level, so this changes it only by
     sampling noise.
+
+    Parameters
+    ----------
+    image : np.ndarray (rows, cols)
+        Grey image.
+    bins, max_samples : int
+        Histogram bins and the most pixels sampled.
+
+    Returns
+    -------
+    float
+        Grey level between the two classes.
+
+    Raises
+    ------
+    NoBodyError
+        Constant image.
     """
     a = np.asarray(image, dtype=float)
     step = max(1, int(math.ceil(math.sqrt(a.size / max_samples))))
@@ -231,6 +330,20 @@ def segment_body(image: np.ndarray, options: SegmentOptions = SegmentOptions()) 
 
     Raises the errors of :func:`segment_components` (not a finite 2-D image; a constant
     image, a figure below ``min_area_px`` or touching the border).
+
+    Parameters
+    ----------
+    image : np.ndarray (rows, cols)
+        Grey image.
+    options : SegmentOptions
+        Threshold, smallest area, border policy.
+
+    Returns
+    -------
+    mask : np.ndarray (rows, cols) of uint8
+        1 inside the figure.
+    threshold : float
+        The grey level used.
     """
     return segment_components(image, options)[:2]
 
@@ -238,6 +351,16 @@ def segment_body(image: np.ndarray, options: SegmentOptions = SegmentOptions()) 
 def segment_components(image: np.ndarray, options: SegmentOptions = SegmentOptions()):  # type: ignore[no-untyped-def]
     """:func:`segment_body`'s ``(mask, threshold)`` and the labels and stats of every component above the
     threshold (``cv2.connectedComponentsWithStats``, 8-connected), for callers that keep more than the largest.
+
+    Parameters
+    ----------
+    image, options
+        As :func:`segment_body`.
+
+    Returns
+    -------
+    mask, threshold, labels, stats
+        The figure, the grey level, the component label image and the ``(n, 5)`` OpenCV stats (row 0: background).
 
     Raises
     ------
@@ -270,7 +393,18 @@ def segment_components(image: np.ndarray, options: SegmentOptions = SegmentOptio
 
 
 def figure_center(mask: np.ndarray) -> np.ndarray:
-    """Figure centre (FC baseline): centroid ``(row, col)`` of a binary figure."""
+    """Figure centre (FC baseline): centroid ``(row, col)`` of a binary figure.
+
+    Parameters
+    ----------
+    mask : np.ndarray (rows, cols)
+        Binary figure.
+
+    Returns
+    -------
+    np.ndarray (2,)
+        Centroid, px (row, col).
+    """
     m = cv2.moments(np.ascontiguousarray(mask, dtype=np.uint8), binaryImage=True)
     if m["m00"] <= 0:
         raise NoBodyError("empty figure: no figure centre")
@@ -278,12 +412,25 @@ def figure_center(mask: np.ndarray) -> np.ndarray:
 
 
 def figure_extents(mask: np.ndarray, axes_rc: np.ndarray, contours: list[np.ndarray] | None = None) -> np.ndarray:
-    """``max`` of a figure's pixel centres along each unit (row, col) direction of ``axes_rc`` ``(k, 2)``.
+    """``max`` of a figure's pixel centres along each unit (row, col) direction of ``axes_rc``.
 
     The maximum of a linear function over the pixels is attained on the outer contours
     (at an end of a straight run: ``CHAIN_APPROX_SIMPLE`` keeps those), so only they are
-    visited; ``contours`` (``cv2.findContours`` external contours of ``mask``, e.g. from
-    :func:`fill_outline`) saves tracing them again.
+    visited.
+
+    Parameters
+    ----------
+    mask : np.ndarray (rows, cols)
+        Binary figure.
+    axes_rc : np.ndarray (k, 2)
+        Unit directions (row, col).
+    contours : list of np.ndarray, optional
+        ``cv2.findContours`` external contours of ``mask`` (e.g. from :func:`fill_outline`), to save tracing them again.
+
+    Returns
+    -------
+    np.ndarray (k,)
+        Largest projection (px) of the figure on each direction.
     """
     if contours is None:
         contours, _ = cv2.findContours(np.ascontiguousarray(mask, dtype=np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
@@ -299,6 +446,20 @@ def brightness_center(image: np.ndarray, mask: np.ndarray | None = None, backgro
     Weights are ``max(I - background, 0)`` over ``mask`` (all pixels if ``None``);
     ``background`` defaults to the median of a ring of pixels around the mask's
     bounding box (or 0 without a mask).
+
+    Parameters
+    ----------
+    image : np.ndarray (rows, cols)
+        Grey image.
+    mask : np.ndarray (rows, cols), optional
+        Figure.
+    background : float, optional
+        Background level (DN).
+
+    Returns
+    -------
+    np.ndarray (2,)
+        Centroid, px (row, col).
     """
     img = np.asarray(image, dtype=float)
     r0, c0 = 0, 0
@@ -325,18 +486,7 @@ def brightness_center(image: np.ndarray, mask: np.ndarray | None = None, backgro
 
 
 __all__ = [
-    "MeshTopology",
-    "SegmentOptions",
-    "brightness_center",
-    "figure_center",
-    "figure_extents",
-    "fill_outline",
-    "fill_triangles_exact",
-    "mesh_topology",
-    "otsu_threshold",
-    "outline_edges",
-    "render_silhouette",
-    "segment_body",
-    "segment_components",
-    "visible_faces",
-]
+    "MeshTopology", "SegmentOptions", "brightness_center", "figure_center", "figure_extents", "fill_outline",
+    "fill_triangles_exact", "mesh_topology", "otsu_threshold", "outline_edges", "render_silhouette", "segment_body",
+    "segment_components", "visible_faces",
+]  # fmt: skip

@@ -89,6 +89,18 @@ def view_count(step_deg: float, rings: str = "paper") -> int:
 
     With ``rings="grid"`` the count of the enumeration under Eq. (5) is returned
     (``([180/D] - 1) [360/D] + 2``).  ``[.]`` is the floor.
+
+    Parameters
+    ----------
+    step_deg : float
+        Sampling interval ``D``, degrees.
+    rings : str
+        ``"paper"`` or ``"grid"`` (:class:`ViewSphereOptions`).
+
+    Returns
+    -------
+    int
+        6962 for ``D = 3`` (the paper's count).
     """
     opts = ViewSphereOptions(step_deg=step_deg, rings=rings)
     n_lat = int(math.floor(180.0 / opts.step_deg + 1e-9))
@@ -101,6 +113,16 @@ def view_angles(options: ViewSphereOptions) -> tuple[np.ndarray, np.ndarray]:
     """Angles ``(alpha, beta)`` in radians of every viewpoint (Eq. 5-6).
 
     Order: north pole, rings from north to south (longitude fastest), south pole.
+
+    Parameters
+    ----------
+    options : ViewSphereOptions
+        Step and ring layout.
+
+    Returns
+    -------
+    alpha, beta : np.ndarray (N,)
+        Angle from the pole and longitude, rad, in the sampling frame.
     """
     n_lat = int(math.floor(180.0 / options.step_deg + 1e-9))
     n_lon = int(math.floor(360.0 / options.step_deg + 1e-9))
@@ -117,7 +139,18 @@ def view_angles(options: ViewSphereOptions) -> tuple[np.ndarray, np.ndarray]:
 
 
 def camera_to_sampling(alpha: np.ndarray, beta: np.ndarray) -> np.ndarray:
-    """Rotation part of ``T_T_C`` (Eq. 7): camera axes as columns, ``(..., 3, 3)``."""
+    """Rotation part of ``T_T_C`` (Eq. 7): camera axes as columns.
+
+    Parameters
+    ----------
+    alpha, beta : np.ndarray (...)
+        Viewpoint angles, rad.
+
+    Returns
+    -------
+    np.ndarray (..., 3, 3)
+        Columns ``x_c, y_c, z_c`` (module docstring) in the sampling frame: camera -> sampling.
+    """
     a = np.asarray(alpha, dtype=float)
     b = np.asarray(beta, dtype=float)
     ca, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
@@ -133,7 +166,20 @@ def camera_to_sampling(alpha: np.ndarray, beta: np.ndarray) -> np.ndarray:
 
 
 def camera_transform(alpha: float, beta: float, radius: float) -> np.ndarray:
-    """The 4x4 homogeneous transform ``T_T_C`` of Eq. (7) (camera -> sampling frame)."""
+    """The 4x4 homogeneous transform ``T_T_C`` of Eq. (7) (camera -> sampling frame).
+
+    Parameters
+    ----------
+    alpha, beta : float
+        Viewpoint angles, rad.
+    radius : float
+        Viewpoint distance from the body centre (km).
+
+    Returns
+    -------
+    np.ndarray (4, 4)
+        Rotation :func:`camera_to_sampling` and the viewpoint position (Eq. 5) as translation.
+    """
     T = np.eye(4)
     T[:3, :3] = camera_to_sampling(alpha, beta)
     T[:3, 3] = radius * np.array(
@@ -143,14 +189,35 @@ def camera_transform(alpha: float, beta: float, radius: float) -> np.ndarray:
 
 
 def pole_permutation(pole_axis: str) -> np.ndarray:
-    """Rotation ``P`` with ``x_sampling = P @ x_body`` (sampling +z = body pole axis)."""
+    """Rotation ``P`` with ``x_sampling = P @ x_body`` (sampling +z = body pole axis).
+
+    Parameters
+    ----------
+    pole_axis : str
+        ``"x"``, ``"y"`` or ``"z"``.
+
+    Returns
+    -------
+    np.ndarray (3, 3)
+        A cyclic permutation of the axes.
+
+    Raises
+    ------
+    ConfigError
+        Another axis name.
+    """
     if pole_axis not in _POLE_PERMUTATION:
         raise ConfigError(f"`pole_axis` must be 'x', 'y' or 'z', got {pole_axis!r}")
     return _POLE_PERMUTATION[pole_axis].copy()
 
 
 def template_rotations(options: ViewSphereOptions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per-view body->camera rotations and unit view directions in the *body* frame.
+    """Per-view body->camera rotations of the view sphere (Eq. 5-7).
+
+    Parameters
+    ----------
+    options : ViewSphereOptions
+        Step, pole axis and ring layout.
 
     Returns
     -------
@@ -168,7 +235,19 @@ def template_rotations(options: ViewSphereOptions) -> tuple[np.ndarray, np.ndarr
 
 
 def viewpoint_directions(alpha: np.ndarray, beta: np.ndarray, pole_axis: str = "z") -> np.ndarray:
-    """Unit vectors from the body centre to the viewpoints, body frame, Eq. (5) with ``R = 1``."""
+    """Unit vectors from the body centre to the viewpoints, body frame, Eq. (5) with ``R = 1``.
+
+    Parameters
+    ----------
+    alpha, beta : np.ndarray (N,)
+        Viewpoint angles, rad.
+    pole_axis : str
+        Body axis of the sampling pole.
+
+    Returns
+    -------
+    np.ndarray (N, 3)
+    """
     s = np.stack([np.sin(alpha) * np.cos(beta), np.sin(alpha) * np.sin(beta), np.cos(alpha)], axis=-1)
     return s @ pole_permutation(pole_axis)  # P^T s
 
@@ -184,6 +263,19 @@ def project_points(
 
     ``X_c = R X_b + t``; ``row = rc + f y_c / z_c``, ``col = cc + f x_c / z_c``
     (docs/design.md convention; ``k_x = k_y = f`` in the paper's notation).
+
+    Parameters
+    ----------
+    points_body : np.ndarray (..., 3)
+        Points in the body frame (km).
+    R_body_to_camera : np.ndarray (3, 3)
+        Body-to-camera rotation.
+    t_camera : np.ndarray (3,)
+        Body centre in the camera frame (km).
+    focal_px : float
+        Focal length, px.
+    principal_rc : (float, float)
+        Principal point (row, col), px.
 
     Returns
     -------

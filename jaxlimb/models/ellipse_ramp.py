@@ -91,6 +91,19 @@ def ellipse_ramp_intensity(p: EllipseRampParams, rc):
     (``tests``, ``benchmarks/horizon_vs_sigmoid.py``): at 380 000 km and 40 deg phase the
     centre error drops from 0.42 to 0.06 px (Lommel-Seeliger) and from 4.4 to 0.02 px
     (Lambert).  The analytic Jacobian is :func:`ellipse_ramp_intensity_jac`.
+
+    Parameters
+    ----------
+    p : EllipseRampParams
+        The ESF's ellipse, steepness and levels plus the interior terms ``g``, ``g2`` and the limb level's
+        Fourier terms ``h1 .. h4``.
+    rc : jax.Array (n, 2)
+        Pixel coordinates as ``(row, col)``.
+
+    Returns
+    -------
+    jax.Array (n,)
+        Model intensity at each pixel.
     """
     x, y = ellipse_coords(p, rc)
     sq = p.rho**2 * x * x + y * y
@@ -224,8 +237,20 @@ def _ramp_cols(p: EllipseRampParams, rc):
 
 
 def ellipse_ramp_intensity_jac(p: EllipseRampParams, rc):
-    """Analytic Jacobian of :func:`ellipse_ramp_intensity` ``(n, 14)``, columns in field order
-    (derivation: :func:`_ramp_value_and_columns`)."""
+    """Analytic Jacobian of :func:`ellipse_ramp_intensity` (derivation: :func:`_ramp_value_and_columns`).
+
+    Parameters
+    ----------
+    p : EllipseRampParams
+        The point at which to differentiate.
+    rc : jax.Array (n, 2)
+        Pixel coordinates as ``(row, col)``.
+
+    Returns
+    -------
+    jax.Array (n, 14)
+        The derivatives of the intensity, columns in the field order of ``p``.
+    """
     return jnp.stack(_ramp_cols(p, rc), axis=-1)
 
 

@@ -206,7 +206,25 @@ def _intensity_range(p: Any) -> float:
 
 
 def check_model(model: LimbModel, n_points: int = 100, n_pix: int = 60, seed: int = 0) -> list[GradCheck]:
-    """Compare ``model.jacobian`` with ``jax.jacfwd`` and central differences at ``n_points`` random points."""
+    """Compare ``model.jacobian`` with ``jax.jacfwd`` and central differences at ``n_points`` random points.
+
+    Parameters
+    ----------
+    model : LimbModel
+        The model to check (its tolerances come from :data:`SPECS`, default 1e-9 and 1e-6).
+    n_points : int
+        Random parameter points.
+    n_pix : int
+        Pixels per point: a third inside, a third on and a third outside the limb.
+    seed : int
+        Seed of the NumPy generator that draws the points and pixels.
+
+    Returns
+    -------
+    list of GradCheck
+        One row per parameter, in the model's field order: the worst relative error against autodiff and the worst
+        central-difference error (relative to the column scale) over all points.
+    """
     rng = np.random.default_rng(seed)
     ptype = model.params_type
     names = model.param_names
@@ -252,8 +270,23 @@ GRADCHECK_MODELS = (LINEAR, CIRCLE, ELLIPSE, ELLIPSE_RAMP, LIMB_PROFILE, LIMB_DA
 
 
 def run_gradcheck(n_points: int = 100, seed: int = 0, models: tuple[str, ...] | None = None) -> list[GradCheck]:
-    """Every limb model (or those named in ``models``); see :func:`check_model`.  A model's points do not depend on
-    which others are checked."""
+    """Every limb model (or those named in ``models``); see :func:`check_model`.
+
+    Parameters
+    ----------
+    n_points : int
+        Random parameter points per model.
+    seed : int
+        Base seed; the ``i``-th model of :data:`GRADCHECK_MODELS` uses ``seed + i``, so a model's points do not
+        depend on which others are checked.
+    models : tuple of str, optional
+        Model names to check (``"circle"``, ``"lunar_limb"``, ...); ``None`` checks all.
+
+    Returns
+    -------
+    list of GradCheck
+        The rows of every checked model, in the order of :data:`GRADCHECK_MODELS`.
+    """
     out: list[GradCheck] = []
     for i, model in enumerate(GRADCHECK_MODELS):
         if models is None or model.name in models:
@@ -262,5 +295,16 @@ def run_gradcheck(n_points: int = 100, seed: int = 0, models: tuple[str, ...] | 
 
 
 def report(checks: list[GradCheck]) -> dict[str, list[dict[str, object]]]:
-    """The ``jaxlimb gradcheck --json`` object."""
+    """The ``jaxlimb gradcheck --json`` object.
+
+    Parameters
+    ----------
+    checks : list of GradCheck
+        Rows from :func:`run_gradcheck` or :func:`check_model`.
+
+    Returns
+    -------
+    dict
+        ``{"checks": [...]}``: each row's fields and whether it ``passed``.
+    """
     return {"checks": [{**asdict(c), "passed": c.passed} for c in checks]}

@@ -86,7 +86,20 @@ class LimbDarkenedParams(LimbParams):
 
 
 def limb_darkening(mu: ArrayLike, u1: ArrayLike, u2: ArrayLike):
-    """Quadratic law ``I(mu) = 1 - u1 (1 - mu) - u2 (1 - mu)^2`` (Kopal 1950), ``I(1) = 1``."""
+    """Quadratic law ``I(mu) = 1 - u1 (1 - mu) - u2 (1 - mu)^2`` (Kopal 1950), ``I(1) = 1``.
+
+    Parameters
+    ----------
+    mu : array_like
+        Cosine of the emission angle (1 at the disc centre, 0 at the limb).
+    u1, u2 : array_like
+        Linear and quadratic limb-darkening coefficients.
+
+    Returns
+    -------
+    jax.Array
+        Radiance relative to the disc centre, shape of ``mu`` broadcast with the coefficients.
+    """
     t = 1.0 - jnp.asarray(mu)
     return 1.0 - u1 * t - u2 * t * t
 
@@ -121,6 +134,18 @@ def limb_darkened_intensity_direct(p: LimbDarkenedParams, rc):
     """Blurred limb-darkened disc (module docstring) at pixels ``rc`` ``(n, 2)``: quadrature at every pixel.
 
     The reference for :func:`limb_darkened_intensity` (which tabulates it).
+
+    Parameters
+    ----------
+    p : LimbDarkenedParams
+        Disc centre, radius, PSF, radiance scale, sky level and limb-darkening coefficients.
+    rc : jax.Array (n, 2)
+        Pixel coordinates as ``(row, col)``.
+
+    Returns
+    -------
+    jax.Array (n,)
+        Model intensity at each pixel.
     """
     S = _profile_parts(_distance(p, rc)[0], p.a, p.sigma)
     return p.ymin + p.amp * (S[0] - p.u1 * S[1] - p.u2 * S[2])
@@ -185,6 +210,18 @@ def limb_darkened_intensity(p: LimbDarkenedParams, rc):
     no longer scales with pixels x quadrature nodes.  The grid's extent and step are
     constants for differentiation (``stop_gradient``): the derivative is that of the
     interpolant at a fixed grid.
+
+    Parameters
+    ----------
+    p : LimbDarkenedParams
+        Disc centre, radius, PSF, radiance scale, sky level and limb-darkening coefficients.
+    rc : jax.Array (n, 2)
+        Pixel coordinates as ``(row, col)``.
+
+    Returns
+    -------
+    jax.Array (n,)
+        Model intensity at each pixel.
     """
     return _value_and_columns(p, rc)[0]
 

@@ -99,11 +99,9 @@ import numpy as np
 
 from ._base import LimbModel
 from .profile_params import (PHYSICAL_L, PROFILE_FIXED, AnisoProfileParams, GlowProfileParams, LimbProfileParams,
-                             MinnaertProfileParams, lunar_lambert_weight)
-from .profile_radiance import (WINDOW_KEYS, aniso_terms_of, aniso_var, glow_inside, glow_outside, lit_limits,
-                               terminator_depth,
-                               radiance_parts)
-from .sigmoid import ellipse_coords
+                             MinnaertProfileParams, glow_fields, lunar_lambert_weight)
+from .profile_radiance import (WINDOW_KEYS, aniso_terms_of, aniso_var, glow_inside, glow_outside, limb_geometry,
+                               lit_limits, radiance_parts, window_regime)
 
 #: Gauss-Legendre nodes of the blur integral (module docstring).
 N_NODES = 20
@@ -113,7 +111,13 @@ _GL_X, _GL_W = np.polynomial.legendre.leggauss(N_NODES)
 @contextmanager
 def quadrature_nodes(n: int) -> Iterator[None]:
     """Evaluate the profile with an ``n``-node rule inside the block (functions traced inside it): to measure the
-    rule's error against the integral (the Jacobian is the derivative of whichever rule is used)."""
+    rule's error against the integral (the Jacobian is the derivative of whichever rule is used).
+
+    Parameters
+    ----------
+    n : int
+        Gauss-Legendre nodes of the blur integral (default outside the block: :data:`N_NODES`).
+    """
     global _GL_X, _GL_W
     old = _GL_X, _GL_W
     _GL_X, _GL_W = np.polynomial.legendre.leggauss(int(n))
@@ -121,23 +125,6 @@ def quadrature_nodes(n: int) -> Iterator[None]:
         yield
     finally:
         _GL_X, _GL_W = old
-
-
-def limb_geometry(p: LimbProfileParams, rc):
-    """``(dr, dc, x, y, d, beta, R, cpsi)`` of the pixels ``rc``: offsets from the centre, ellipse-frame
-    coordinates, distance ``d`` from the centre, the limb's radius ``R`` in the pixel's direction and the
-    cosine of its angle from the Sun's image direction (module docstring)."""
-    rc = jnp.asarray(rc)
-    dr = rc[..., 0] - p.r0
-    dc = rc[..., 1] - p.c0
-    x, y = ellipse_coords(p, rc)
-    d2 = dr * dr + dc * dc
-    d = jnp.sqrt(jnp.where(d2 > 0, d2, 1.0))
-    b2 = p.rho * p.rho * x * x + y * y
-    beta = jnp.sqrt(jnp.where(b2 > 0, b2, 1.0))
-    R = p.rho * p.a * d / beta
-    cpsi = (dr * p.sun_r + dc * p.sun_c) / d
-    return dr, dc, x, y, d, beta, R, cpsi
 
 
 def _window(d, R, se, lit=None, partials: bool = False):
@@ -155,22 +142,6 @@ def _window(d, R, se, lit=None, partials: bool = False):
     if lit is None:
         return v0, v1, dv0, dv1
     return lit_limits(lit[0], v0, v1, R, lit[1], lit[2], dv0, dv1)
-
-
-def window_regime(p: LimbProfileParams, rc):
-    """Which branch each pixel's window takes (an integer code): whether either end of ``R - d -+ 6 se`` is clamped at
-    the limb (``v = 0``), whether the terminator is clipped to the window and which side is lit.  The quadrature is
-    smooth in the parameters while these stay the same; where one switches, the rule (not the integral) has a kink of
-    the size of its error -- a window end reaching the limb moves its nodes as a square root -- and central
-    differences straddling it measure the kink, not the derivative (:mod:`jaxlimb.models.gradcheck`)."""
-    dr, dc, _, _, d, _, R, cpsi = limb_geometry(p, rc)
-    se = jnp.sqrt(p.sigma * p.sigma + 1.0 / 12.0 + (0.0 if not isinstance(p, AnisoProfileParams)
-                                                   else aniso_var(p, aniso_terms_of(p, dr, dc, d))))
-    u0, u1 = R - d - 6.0 * se, R - d + 6.0 * se
-    v0, v1 = jnp.sqrt(jnp.maximum(u0, 1e-12)), jnp.sqrt(jnp.maximum(u1, 1e-12))
-    vt, shallow = terminator_depth(p, R, cpsi, jnp.arctan(p.rho * p.a * p.inv_f))
-    flags = (u0 > 1e-12, u1 > 1e-12, vt < v0, vt > v1, shallow)
-    return sum(f.astype(jnp.int32) << i for i, f in enumerate(flags))
 
 
 def _blur_nodes(d, R, se, v0, v1):
@@ -283,6 +254,25 @@ def profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brigh
     above the limb (closed form); partials ``F_glow``, ``F_tilt``, ``F_lh``.  ``s2``: the per-pixel anisotropic
     variance of :class:`AnisoProfileParams`, added to ``sigma_e^2``.  ``window=False``: without the window's terms
     (for a column that does not need them: ``F_k``).
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        The profile's parameters (any of its variants).
+    d, R, cpsi : jax.Array (n,)
+        Per pixel: distance from the centre and limb radius along its ray (px), cosine of its angle from the Sun's
+        image direction (:func:`limb_geometry`).
+    derivatives, brightened, glowing, window : bool
+        Whether to return the partials; the other switches as above.
+    s2 : jax.Array (n,), optional
+        Anisotropic blur variance (px^2), as above.
+
+    Returns
+    -------
+    F : jax.Array (n,)
+        The blurred profile, units of ``amp``.
+    parts : dict of str to jax.Array, or None
+        With ``derivatives``: the partials named above plus ``alpha0`` (rad) and ``se`` (px); ``None`` otherwise.
     """
     alpha0 = jnp.arctan(p.rho * p.a * p.inv_f)
     se = jnp.sqrt(p.sigma * p.sigma + 1.0 / 12.0 + (0.0 if s2 is None else s2))
@@ -331,6 +321,18 @@ def limb_profile_intensity(p: LimbProfileParams, rc):
     Along the ray from the ellipse centre through a pixel at distance ``d``, the limb is at
     ``R = rho a d / beta`` (``beta = sqrt(rho^2 x^2 + y^2)`` in the ellipse frame of
     :func:`jaxlimb.models.ellipse_coords`); the circle formulas apply with that ``R``.
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        The profile's parameters, or those of a widened variant (Minnaert, glow, anisotropic blur).
+    rc : jax.Array (n, 2)
+        Pixel coordinates as ``(row, col)``.
+
+    Returns
+    -------
+    jax.Array (n,)
+        Model intensity ``ymin + amp F`` at each pixel.
     """
     dr, dc, _, _, d, _, R, cpsi = limb_geometry(p, rc)
     F, _ = profile_integrals(p, d, R, cpsi, False, isinstance(p, MinnaertProfileParams),
@@ -340,9 +342,22 @@ def limb_profile_intensity(p: LimbProfileParams, rc):
 
 @jax.jit
 def brightening_column(p: LimbProfileParams, rc):
-    """The column of ``kappa`` (:class:`MinnaertProfileParams`) at ``kappa = 0``: the derivative of the
+    r"""The column of ``kappa`` (:class:`MinnaertProfileParams`) at ``kappa = 0``: the derivative of the
     profile ``p`` toward Minnaert-like limb brightening, for a score test (the whole brightened Jacobian
-    costs 2.5x the profile's; this column alone, about one intensity)."""
+    costs 2.5x the profile's; this column alone, about one intensity).
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        The fitted profile.
+    rc : jax.Array (n, 2)
+        Pixel coordinates as ``(row, col)``.
+
+    Returns
+    -------
+    jax.Array (n,)
+        :math:`\partial f/\partial\kappa` at each pixel.
+    """
     _, _, _, _, d, _, R, cpsi = limb_geometry(p, rc)
     _, P = profile_integrals(p, d, R, cpsi, True, False, window=False)
     return p.amp * P["F_k"]
@@ -429,7 +444,18 @@ LIMB_PROFILE_ANISO = LimbModel("lunar_limb_aniso", AnisoProfileParams, limb_prof
 
 def profile_model(p: LimbProfileParams) -> LimbModel:
     """The profile model of the parameters ``p``: :data:`LIMB_PROFILE_MINNAERT`, :data:`LIMB_PROFILE_GLOW` or
-    :data:`LIMB_PROFILE`."""
+    :data:`LIMB_PROFILE_ANISO` or :data:`LIMB_PROFILE`.
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        Parameters of any profile variant.
+
+    Returns
+    -------
+    LimbModel
+        The model whose ``params_type`` is the type of ``p``.
+    """
     if isinstance(p, MinnaertProfileParams):
         return LIMB_PROFILE_MINNAERT
     if isinstance(p, AnisoProfileParams):
@@ -439,8 +465,23 @@ def profile_model(p: LimbProfileParams) -> LimbModel:
 
 @jax.jit
 def glow_column(p: LimbProfileParams, rc, log_h):
-    """The column of ``glow`` (:class:`GlowProfileParams`) at ``glow = 0`` and scale height ``exp(log_h)`` px:
-    the derivative of the profile ``p`` toward a glow, for a score test (the intensity's cost)."""
+    r"""The column of ``glow`` (:class:`GlowProfileParams`) at ``glow = 0`` and scale height ``exp(log_h)`` px:
+    the derivative of the profile ``p`` toward a glow, for a score test (the intensity's cost).
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        The fitted profile (without a glow).
+    rc : jax.Array (n, 2)
+        Pixel coordinates as ``(row, col)``.
+    log_h : float or jax.Array ()
+        Log of the glow's scale height (px).
+
+    Returns
+    -------
+    jax.Array (n,)
+        :math:`\partial f/\partial\,\mathrm{glow}` at each pixel.
+    """
     q = GlowProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()], 0.0, log_h)
     _, _, _, _, d, _, R, cpsi = limb_geometry(q, rc)
     return q.amp * _glow_unit(q, d, R, jnp.sqrt(q.sigma * q.sigma + 1.0 / 12.0))
@@ -453,32 +494,7 @@ def _glow_unit(p: GlowProfileParams, d, R, se):
     return F1 + se * se / (2.0 * d) * F1_d + glow_outside(p, d - R, se, d, False)[0]
 
 
-def glow_fields(p: LimbProfileParams) -> dict[str, float]:
-    """The glow of a :class:`GlowProfileParams` fit for a report: ``glow`` (units of ``amp``) and
-    ``glow_scale_px`` (its scale height); ``glow = 0`` for the other profiles."""
-    if not isinstance(p, GlowProfileParams):
-        return {"glow": 0.0}
-    return {"glow": float(p.glow), "glow_scale_px": math.exp(float(p.log_h)), "glow_tilt": float(p.glow_tilt)}
-
-__all__ = [
-    "LIMB_PROFILE",
-    "LIMB_PROFILE_ANISO",
-    "AnisoProfileParams",
-    "LIMB_PROFILE_GLOW",
-    "LIMB_PROFILE_MINNAERT",
-    "GlowProfileParams",
-    "LimbProfileParams",
-    "MinnaertProfileParams",
-    "brightening_column",
-    "glow_column",
-    "glow_fields",
-    "limb_geometry",
-    "PHYSICAL_L",
-    "PROFILE_FIXED",
-    "limb_profile_intensity",
-    "lunar_lambert_weight",
-    "profile_integrals",
-    "profile_model",
-    "quadrature_nodes",
-    "window_regime",
-]
+__all__ = ["LIMB_PROFILE", "LIMB_PROFILE_ANISO", "AnisoProfileParams", "LIMB_PROFILE_GLOW", "LIMB_PROFILE_MINNAERT",
+           "GlowProfileParams", "LimbProfileParams", "MinnaertProfileParams", "brightening_column", "glow_column",
+           "glow_fields", "limb_geometry", "PHYSICAL_L", "PROFILE_FIXED", "limb_profile_intensity",
+           "lunar_lambert_weight", "profile_integrals", "profile_model", "quadrature_nodes", "window_regime"]

@@ -74,11 +74,43 @@ Lommel-Seeliger limb, ``L = 1``, at 1.13 now and then)."""
 
 
 def lunar_lambert_weight(phase_rad: float, coeffs=(-0.019, 2.42e-4, -1.46e-6)) -> float:
-    """McEwen's ``L(alpha)`` (alpha in degrees, clipped to [0, 1])."""
+    """McEwen's lunar-Lambert weight ``L(alpha) = 1 + A alpha + B alpha^2 + C alpha^3`` (alpha in degrees).
+
+    Parameters
+    ----------
+    phase_rad : float
+        Phase angle (rad).
+    coeffs : tuple of float
+        ``(A, B, C)`` of the cubic in degrees; the default is McEwen's fit for the Moon.
+
+    Returns
+    -------
+    float
+        ``L``, clipped to ``[0, 1]``.
+    """
     a = math.degrees(phase_rad)
     A, B, C = coeffs
     return float(min(1.0, max(0.0, 1.0 + A * a + B * a * a + C * a**3)))
 
 
+def glow_fields(p: LimbProfileParams) -> dict[str, float]:
+    """The glow of a :class:`GlowProfileParams` fit for a report: ``glow`` (units of ``amp``) and
+    ``glow_scale_px`` (its scale height); ``glow = 0`` for the other profiles.
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        A fitted profile of any variant.
+
+    Returns
+    -------
+    dict of str to float
+        ``{"glow": 0.0}``, or ``glow``, ``glow_scale_px`` and ``glow_tilt`` for a glow fit.
+    """
+    if not isinstance(p, GlowProfileParams):
+        return {"glow": 0.0}
+    return {"glow": float(p.glow), "glow_scale_px": math.exp(float(p.log_h)), "glow_tilt": float(p.glow_tilt)}
+
+
 __all__ = ["PHYSICAL_L", "PROFILE_FIXED", "AnisoProfileParams", "GlowProfileParams", "LimbProfileParams",
-           "MinnaertProfileParams", "lunar_lambert_weight"]
+           "MinnaertProfileParams", "glow_fields", "lunar_lambert_weight"]

@@ -1,7 +1,7 @@
 r"""The pieces of the physical limb profile (:mod:`jaxlimb.models.lunar_lambert`) evaluated at one depth: the
 lunar-Lambert radiance and its partial derivatives, the terminator's depth along a ray and the window of the blur
 integral cut to its lit side (both with their partial derivatives), the glow above the limb and the anisotropic
-blur's angular terms.
+blur's angular terms; and per pixel, its geometry relative to the limb ellipse and the branch its window takes.
 
 The derivatives are those of the functions as written (the quadrature of :mod:`jaxlimb.models.lunar_lambert`
 moves its nodes with the window's ends, so its exact Jacobian needs the radiance's derivative in the depth and the
@@ -16,6 +16,7 @@ import jax
 import jax.numpy as jnp
 
 from .profile_params import AnisoProfileParams, GlowProfileParams, LimbProfileParams
+from .sigmoid import ellipse_coords
 
 #: The per-pixel quantities the window's ends depend on: distance ``d``, limb radius ``R``, blur ``se``, the
 #: cosine ``cpsi`` toward the Sun, the angular radius ``a0`` and the phase ``ph``.
@@ -24,7 +25,20 @@ WINDOW_KEYS = ("d", "R", "se", "cpsi", "a0", "ph")
 def cos_sin_small(x, small):
     """``(cos x, sin x)``; by Taylor series (to 1e-16 for ``|x| <= 0.2``) when ``small`` (a
     scalar: the body's angular radius, which bounds ``|x|``, is below 0.2 rad), else
-    ``jnp.cos``, ``jnp.sin`` (the series is ~5x cheaper)."""
+    ``jnp.cos``, ``jnp.sin`` (the series is ~5x cheaper).
+
+    Parameters
+    ----------
+    x : jax.Array
+        Angles (rad).
+    small : bool or jax.Array ()
+        Whether every ``|x|`` is at most 0.2 rad (a traced scalar is allowed: the branch is a ``lax.cond``).
+
+    Returns
+    -------
+    cos, sin : jax.Array
+        Cosine and sine of ``x``, shape of ``x``.
+    """
 
     def series(x):
         x2 = x * x
@@ -46,6 +60,28 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
     (:class:`MinnaertProfileParams`); ``dI/dkappa`` is returned in either case (at ``kappa = 0`` without it).  A
     separate model and not a parameter held at 0: on CPU the brightening's terms cost the one-pass Jacobian 2.5-3x
     (XLA repeats them in every column's reduction; a ``lax.cond`` on ``kappa = 0`` did not help).
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        Supplies ``phase`` (rad), ``L`` and, with ``brightened``, ``kappa``.
+    v : jax.Array
+        Square root of the depth below the limb (px^1/2): the quadrature nodes, ``(n, nodes)``.
+    R : jax.Array
+        Limb radius along each pixel's ray (px), broadcastable against ``v``.
+    cpsi : jax.Array
+        Cosine of the angle between the pixel's direction and the Sun's image direction, broadcastable against ``v``.
+    alpha0 : jax.Array ()
+        Angular radius of the body (rad).
+    brightened : bool
+        Multiply by the limb brightening ``(mu0 mu)^-kappa`` (:class:`MinnaertProfileParams`).
+
+    Returns
+    -------
+    tuple of 8 jax.Array
+        ``(I, I_R, I_cpsi, I_a0, I_ph, I_L, I_k, I_v)``, each of the broadcast shape of ``v``: the radiance (units
+        of ``amp``) and its partials in ``R``, ``cpsi``, ``alpha0``, ``phase``, ``L``, ``kappa`` (all at fixed
+        ``v``) and in ``v`` (at fixed ``R``).
     """
     v2 = v * v
     inv_R = 1.0 / R
@@ -108,6 +144,28 @@ def terminator_depth(p: LimbProfileParams, R, cpsi, alpha0, tangents: bool = Fal
     root is shifted by pi into ``(-pi/2, pi/2]``.  A root beyond the centre (``g_t < 0``) gives ``v_t`` at the
     centre, one beyond the limb ``v_t = 0``: the caller's clip to the window then keeps all or none of it.
     With ``tangents``, also ``d v_t`` over :data:`WINDOW_KEYS`, ``(6, n)`` (the Newton steps differentiated).
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        Supplies the phase angle ``phase`` (rad).
+    R : jax.Array (n,)
+        Limb radius along each pixel's ray (px).
+    cpsi : jax.Array (n,)
+        Cosine of the angle between each pixel's direction and the Sun's image direction.
+    alpha0 : jax.Array ()
+        Angular radius of the body (rad).
+    tangents : bool
+        Also return the partials of ``v_t``.
+
+    Returns
+    -------
+    vt : jax.Array (n,)
+        Square root of the terminator's depth below the limb (px^1/2).
+    shallow_lit : jax.Array (n,) of bool
+        Whether the shallow side of the terminator (``v < v_t``, toward the limb) is the lit one.
+    dvt : jax.Array (6, n)
+        Only with ``tangents``: the partials of ``vt`` over :data:`WINDOW_KEYS`.
     """
     sph, cph = jnp.sin(p.phase), jnp.cos(p.phase)
     theta = jnp.arctan2(-cph, sph * cpsi)
@@ -147,6 +205,27 @@ def lit_limits(p: LimbProfileParams, v0, v1, R, cpsi, alpha0, dv0=None, dv1=None
     kink converges slowly (at a 117 deg crescent's horn, 20 nodes put the intensity 0.17 DN of 217 off and
     the columns of the rule several % off at 64 nodes), while on the lit segment alone the integrand is smooth.
     A ray meets the terminator at most once (``mu0`` is a sinusoid in ``e - beta``, which spans less than pi).
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        Supplies the phase angle ``phase`` (rad).
+    v0, v1 : jax.Array (n,)
+        The window's ends in ``v`` (square root of the depth, px^1/2).
+    R : jax.Array (n,)
+        Limb radius along each pixel's ray (px).
+    cpsi : jax.Array (n,)
+        Cosine of the angle between each pixel's direction and the Sun's image direction.
+    alpha0 : jax.Array ()
+        Angular radius of the body (rad).
+    dv0, dv1 : jax.Array (6, n), optional
+        Partials of ``v0``, ``v1`` over :data:`WINDOW_KEYS`; ``None``: no partials.
+
+    Returns
+    -------
+    tuple of jax.Array
+        ``(v0, v1)`` cut to the lit segment (equal where none of the window is lit), and with ``dv0, dv1`` given
+        also their partials ``(6, n)`` each.
     """
     # g = e - beta falls monotonically with depth (dg/de = 1 - alpha0 cos e > 0): the shallow side of v_t is
     # [v0, v_t], the deep side [v_t, v1]
@@ -160,6 +239,65 @@ def lit_limits(p: LimbProfileParams, v0, v1, R, cpsi, alpha0, dv0=None, dv1=None
     vt = jnp.clip(vt, v0, v1)
     return (jnp.where(shallow_lit, v0, vt), jnp.where(shallow_lit, vt, v1), jnp.where(shallow_lit, dv0, dvt),
             jnp.where(shallow_lit, dvt, dv1))
+
+
+def limb_geometry(p: LimbProfileParams, rc):
+    """``(dr, dc, x, y, d, beta, R, cpsi)`` of the pixels ``rc``: offsets from the centre, ellipse-frame
+    coordinates, distance ``d`` from the centre, the limb's radius ``R`` in the pixel's direction and the
+    cosine of its angle from the Sun's image direction (module docstring of :mod:`jaxlimb.models.lunar_lambert`).
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        Supplies the ellipse ``(r0, c0, a, theta, rho)`` and the Sun's unit image direction ``(sun_r, sun_c)``.
+    rc : jax.Array (n, 2)
+        Pixel coordinates as ``(row, col)``.
+
+    Returns
+    -------
+    tuple of 8 jax.Array (n,)
+        ``(dr, dc, x, y, d, beta, R, cpsi)``; lengths in px.
+    """
+    rc = jnp.asarray(rc)
+    dr = rc[..., 0] - p.r0
+    dc = rc[..., 1] - p.c0
+    x, y = ellipse_coords(p, rc)
+    d2 = dr * dr + dc * dc
+    d = jnp.sqrt(jnp.where(d2 > 0, d2, 1.0))
+    b2 = p.rho * p.rho * x * x + y * y
+    beta = jnp.sqrt(jnp.where(b2 > 0, b2, 1.0))
+    R = p.rho * p.a * d / beta
+    cpsi = (dr * p.sun_r + dc * p.sun_c) / d
+    return dr, dc, x, y, d, beta, R, cpsi
+
+
+def window_regime(p: LimbProfileParams, rc):
+    """Which branch each pixel's window takes (an integer code): whether either end of ``R - d -+ 6 se`` is clamped at
+    the limb (``v = 0``), whether the terminator is clipped to the window and which side is lit.  The quadrature is
+    smooth in the parameters while these stay the same; where one switches, the rule (not the integral) has a kink of
+    the size of its error -- a window end reaching the limb moves its nodes as a square root -- and central
+    differences straddling it measure the kink, not the derivative (:mod:`jaxlimb.models.gradcheck`).
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        The profile's parameters (any of its variants).
+    rc : jax.Array (n, 2)
+        Pixel coordinates as ``(row, col)``.
+
+    Returns
+    -------
+    jax.Array (n,) of int32
+        Five bit flags per pixel; two pixels share a branch when their codes are equal.
+    """
+    dr, dc, _, _, d, _, R, cpsi = limb_geometry(p, rc)
+    se = jnp.sqrt(p.sigma * p.sigma + 1.0 / 12.0 + (0.0 if not isinstance(p, AnisoProfileParams)
+                                                   else aniso_var(p, aniso_terms_of(p, dr, dc, d))))
+    u0, u1 = R - d - 6.0 * se, R - d + 6.0 * se
+    v0, v1 = jnp.sqrt(jnp.maximum(u0, 1e-12)), jnp.sqrt(jnp.maximum(u1, 1e-12))
+    vt, shallow = terminator_depth(p, R, cpsi, jnp.arctan(p.rho * p.a * p.inv_f))
+    flags = (u0 > 1e-12, u1 > 1e-12, vt < v0, vt > v1, shallow)
+    return sum(f.astype(jnp.int32) << i for i, f in enumerate(flags))
 
 
 _INV_SQRT_PI = 1.0 / math.sqrt(math.pi)
@@ -183,7 +321,23 @@ def glow_inside(p: GlowProfileParams, v, node: bool = False):
     .. math:: \frac{1}{\sqrt{2\pi RH}}\int_0^\infty e^{-(\mu t + t^2/2R)/H}\,dt = \tfrac12\,\mathrm{erfcx}(x),
 
     1/2 at the limb, :math:`\sqrt{H/4\pi u}` deep inside.  ``d erfcx(x)/dx = 2x erfcx(x) - 2/sqrt(pi)``,
-    ``dx/dlog_h = -x/2``; with ``node``, also the derivative in ``v`` (``dx/dv = x / v``)."""
+    ``dx/dlog_h = -x/2``; with ``node``, also the derivative in ``v`` (``dx/dv = x / v``).
+
+    Parameters
+    ----------
+    p : GlowProfileParams
+        Supplies ``log_h``, the log of the glow's scale height (px).
+    v : jax.Array
+        Square root of the depth below the limb (px^1/2).
+    node : bool
+        Also return the derivative in ``v``.
+
+    Returns
+    -------
+    tuple of jax.Array
+        ``(G, G_lh)`` or, with ``node``, ``(G, G_lh, G_v)``: the radiance per unit ``glow`` and its partials in
+        ``log_h`` and ``v``, shape of ``v``.
+    """
     x = v * jnp.exp(-0.5 * p.log_h)
     ex = _erfcx(x)
     G = 0.5 * ex
@@ -208,6 +362,27 @@ def glow_outside(p: GlowProfileParams, s, se, d, derivatives: bool):
     :math:`E' = N - E/H`, :math:`E'' = N' - E'/H` (``N' = -s N / se^2``), :math:`\partial_{\sigma_e} E = \sigma_e E''`
     (the heat equation), :math:`H\,\partial_H E = (s E + \sigma_e^2 E')/H`.  As the profile
     (:func:`jaxlimb.models.lunar_lambert.profile_integrals`), the 2-D blur adds the curvature term :math:`\sigma_e^2/(2d)\,E'`.
+
+    Parameters
+    ----------
+    p : GlowProfileParams
+        Supplies ``log_h``, the log of the glow's scale height (px).
+    s : jax.Array (n,)
+        Signed distance above the limb, ``d - R`` (px).
+    se : jax.Array
+        Blur sigma :math:`\sigma_e` (px), one for all pixels or ``(n,)``.
+    d : jax.Array (n,)
+        Distance of each pixel from the centre (px), for the curvature term.
+    derivatives : bool
+        Also return the partials.
+
+    Returns
+    -------
+    G : jax.Array (n,)
+        The blurred glow with its curvature term.
+    parts : dict of str to jax.Array (n,), or None
+        With ``derivatives``: ``G_d``, ``G_R``, ``G_se``, ``G_lh``, the partials in ``d``, ``R``, ``se`` and
+        ``log_h``; ``None`` otherwise.
     """
     H = jnp.exp(p.log_h)
     inv_H = 1.0 / H
@@ -236,7 +411,20 @@ def glow_outside(p: GlowProfileParams, s, se, d, derivatives: bool):
 
 def aniso_terms(dr, dc, d):
     """``cos 2psi, sin 2psi`` of the ray ``(dr, dc)`` (length ``d``; ``psi`` from ``+col`` toward ``-row``) and their
-    partials in ``r0, c0`` (``dr = r - r0``): ``(C, S, C_r0, C_c0, S_r0, S_c0)``."""
+    partials in ``r0, c0`` (``dr = r - r0``).
+
+    Parameters
+    ----------
+    dr, dc : jax.Array (n,)
+        Pixel offsets from the centre, ``r - r0`` and ``c - c0`` (px).
+    d : jax.Array (n,)
+        Their length (px, > 0).
+
+    Returns
+    -------
+    tuple of 6 jax.Array (n,)
+        ``(C, S, C_r0, C_c0, S_r0, S_c0)``: ``cos 2psi``, ``sin 2psi`` and their partials in ``r0`` and ``c0``.
+    """
     d4 = d * d * d * d
     dif = dc * dc - dr * dr
     return (dif / (d * d), -2.0 * dr * dc / (d * d), 4.0 * dr * dc * dc / d4, -4.0 * dc * dr * dr / d4,
@@ -244,13 +432,41 @@ def aniso_terms(dr, dc, d):
 
 
 def aniso_var(p: LimbProfileParams, terms):
-    """The anisotropic part of the blur variance of :class:`AnisoProfileParams` per pixel from its
-    :func:`aniso_terms` (``None`` for the other profiles, ``terms`` then ``None``)."""
+    r"""The anisotropic part of the blur variance of :class:`AnisoProfileParams` per pixel from its
+    :func:`aniso_terms` (``None`` for the other profiles, ``terms`` then ``None``).
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        Supplies ``s2c``, ``s2s`` (px^2) when ``terms`` is not ``None``.
+    terms : tuple of jax.Array, or None
+        The output of :func:`aniso_terms_of`.
+
+    Returns
+    -------
+    jax.Array (n,) or None
+        ``s2c cos 2psi + s2s sin 2psi`` (px^2), added to :math:`\sigma_e^2`; ``None`` when ``terms`` is.
+    """
     if terms is None:
         return None
     return p.s2c * terms[0] + p.s2s * terms[1]
 
 
 def aniso_terms_of(p: LimbProfileParams, dr, dc, d):
-    """:func:`aniso_terms` for :class:`AnisoProfileParams`, ``None`` for the other profiles."""
+    """:func:`aniso_terms` for :class:`AnisoProfileParams`, ``None`` for the other profiles.
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        The profile's parameters; only their type matters.
+    dr, dc : jax.Array (n,)
+        Pixel offsets from the centre, ``r - r0`` and ``c - c0`` (px).
+    d : jax.Array (n,)
+        Their length (px, > 0).
+
+    Returns
+    -------
+    tuple of 6 jax.Array (n,), or None
+        As :func:`aniso_terms`, or ``None`` when ``p`` is not :class:`AnisoProfileParams`.
+    """
     return aniso_terms(dr, dc, d) if isinstance(p, AnisoProfileParams) else None

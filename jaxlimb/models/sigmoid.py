@@ -106,6 +106,26 @@ def linear_intensity(p: LinearParams, x: Float[Array, " n"]) -> Float[Array, " n
     r"""Linear sigmoid function (LSF), Eq. (12) of [1]_.
 
     .. math:: f = y_{\max} + \frac{y_{\min} - y_{\max}}{1 + e^{k (x_t - x)}}
+
+    Parameters
+    ----------
+    p : LinearParams
+        Transition point ``xt``, steepness ``k`` and the levels ``ymax`` (``x -> -inf``), ``ymin`` (``x -> +inf``).
+    x : jax.Array (n,)
+        Positions along the line (px), e.g. the samples of a scan line across the limb.
+
+    Returns
+    -------
+    jax.Array (n,)
+        Model intensity at each position.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from jaxlimb.models import LinearParams, linear_intensity
+    >>> p = LinearParams(xt=50.0, k=0.5, ymax=150.0, ymin=20.0)
+    >>> np.round(np.asarray(linear_intensity(p, np.array([40.0, 50.0, 60.0])), dtype=float), 2)
+    array([149.13,  85.  ,  20.87])
     """
     x = jnp.asarray(x)
     z = p.k * (x - p.xt)
@@ -120,6 +140,18 @@ def linear_intensity_jac(p: LinearParams, x: Float[Array, " n"]) -> Float[Array,
     :math:`\partial f/\partial y_{\max} = \alpha/(1+\alpha)`,
     :math:`\partial f/\partial x_t = -(y_{\min}-y_{\max})\,\alpha k/(1+\alpha)^2`,
     :math:`\partial f/\partial k = (x_t - x_i)/k \cdot \partial f/\partial x_t`.
+
+    Parameters
+    ----------
+    p : LinearParams
+        The point at which to differentiate.
+    x : jax.Array (n,)
+        Positions along the line (px).
+
+    Returns
+    -------
+    jax.Array (n, 4)
+        :math:`\partial f_i/\partial(x_t, k, y_{\max}, y_{\min})`, columns in the field order of ``p``.
     """
     return jnp.stack(_linear_jac_columns(p, x), axis=-1)
 
@@ -167,7 +199,29 @@ def circle_intensity(p: CircleParams, rc: Float[Array, "n 2"]) -> Float[Array, "
     .. math:: f = y_{\max} + \frac{y_{\min} - y_{\max}}{1 + e^{k(r_e - d)}},
               \quad d = \sqrt{(c_0 - c)^2 + (r_0 - r)^2}
 
-    ``rc`` holds the pixel coordinates ``(row, col)`` as an ``(n, 2)`` array.
+    Parameters
+    ----------
+    p : CircleParams
+        Centre ``(r0, c0)`` (px), radius :math:`r_e` (px), steepness ``k`` (1/px) and the inside (``ymax``) and
+        outside (``ymin``) levels.
+    rc : jax.Array (n, 2)
+        Pixel coordinates as ``(row, col)``.
+
+    Returns
+    -------
+    jax.Array (n,)
+        Model intensity at each pixel.
+
+    Examples
+    --------
+    A disc of radius 30 px: its centre is at ``ymax``, its limb halfway between the levels.
+
+    >>> import numpy as np
+    >>> from jaxlimb.models import CircleParams, circle_intensity
+    >>> p = CircleParams(r0=100.0, c0=120.0, radius=30.0, k=2.0, ymax=200.0, ymin=10.0)
+    >>> rc = np.array([[100.0, 120.0], [100.0, 150.0], [100.0, 151.0]])
+    >>> np.round(np.asarray(circle_intensity(p, rc), dtype=float), 2)
+    array([200.  , 105.  ,  32.65])
     """
     rc = jnp.asarray(rc)
     d = _safe_norm(p.r0 - rc[..., 0], p.c0 - rc[..., 1])
@@ -189,6 +243,18 @@ def circle_intensity_jac(p: CircleParams, rc: Float[Array, "n 2"]) -> Float[Arra
 
     At the centre (:math:`\beta_i = 0`) the direction is undefined; the centre
     columns are set to 0 there (autodiff of :func:`circle_intensity` agrees).
+
+    Parameters
+    ----------
+    p : CircleParams
+        The point at which to differentiate.
+    rc : jax.Array (n, 2)
+        Pixel coordinates as ``(row, col)``.
+
+    Returns
+    -------
+    jax.Array (n, 6)
+        :math:`\partial f_i/\partial(r_0, c_0, r_e, k, y_{\max}, y_{\min})`, columns in the field order of ``p``.
     """
     return jnp.stack(_circle_jac_columns(p, rc), axis=-1)
 
@@ -276,6 +342,20 @@ def ellipse_coords(p: EllipseParams, rc: Float[Array, "n 2"]) -> tuple[Array, Ar
     :math:`\vartheta` turns the ``x`` axis counter-clockwise from ``+col``,
     and ``y`` is ``x`` turned by another 90 degrees counter-clockwise.  The
     semi-axis ``a`` lies along ``x`` and ``b = rho a`` along ``y``.
+
+    Parameters
+    ----------
+    p : EllipseParams
+        Centre ``(r0, c0)`` (px) and orientation ``theta`` (rad); the other fields are not used.
+    rc : jax.Array (n, 2)
+        Pixel coordinates as ``(row, col)``.
+
+    Returns
+    -------
+    x : jax.Array (n,)
+        Coordinate along the ellipse's ``a`` axis (px).
+    y : jax.Array (n,)
+        Coordinate along its ``b`` axis (px).
     """
     rc = jnp.asarray(rc)
     dr = rc[..., 0] - p.r0
@@ -287,7 +367,20 @@ def ellipse_coords(p: EllipseParams, rc: Float[Array, "n 2"]) -> tuple[Array, Ar
 
 
 def ellipse_points(p: EllipseParams, phi: Float[Array, " m"]) -> Float[Array, "m 2"]:
-    """Points ``(row, col)`` on the ellipse at eccentric anomalies ``phi`` (inverse transform, Eq. 20)."""
+    r"""Points ``(row, col)`` on the ellipse at eccentric anomalies ``phi`` (inverse transform, Eq. 20).
+
+    Parameters
+    ----------
+    p : EllipseParams
+        Centre ``(r0, c0)`` (px), semi-axis ``a`` (px), orientation ``theta`` (rad) and axis ratio ``rho``.
+    phi : jax.Array (m,)
+        Eccentric anomalies (rad), measured from the ``a`` axis toward the ``b`` axis.
+
+    Returns
+    -------
+    jax.Array (m, 2)
+        The points :math:`(x, y) = (a\cos\varphi, \rho a\sin\varphi)` as pixel coordinates ``(row, col)``.
+    """
     x = p.a * jnp.cos(phi)
     y = p.rho * p.a * jnp.sin(phi)
     ct, st = jnp.cos(p.theta), jnp.sin(p.theta)
@@ -303,6 +396,31 @@ def ellipse_intensity(p: EllipseParams, rc: Float[Array, "n 2"]) -> Float[Array,
     with ``(x, y)`` from :func:`ellipse_coords`.  The level set
     :math:`\beta = \rho a` is the ellipse :math:`x^2/a^2 + y^2/(\rho a)^2 = 1`
     (Eq. 18).
+
+    Parameters
+    ----------
+    p : EllipseParams
+        Centre ``(r0, c0)`` (px), semi-axis ``a`` (px), orientation ``theta`` (rad), axis ratio ``rho = b/a``,
+        steepness ``k`` (1/px) and the inside (``ymax``) and outside (``ymin``) levels.
+    rc : jax.Array (n, 2)
+        Pixel coordinates as ``(row, col)``.
+
+    Returns
+    -------
+    jax.Array (n,)
+        Model intensity at each pixel.
+
+    Examples
+    --------
+    An ellipse with ``a = 40`` px along the columns (``theta = 0``) and ``b = 30`` px along the rows: both
+    ends of its axes are on the 50 % level.
+
+    >>> import numpy as np
+    >>> from jaxlimb.models import EllipseParams, ellipse_intensity
+    >>> p = EllipseParams(r0=100.0, c0=120.0, a=40.0, theta=0.0, rho=0.75, k=2.0, ymax=200.0, ymin=10.0)
+    >>> rc = np.array([[100.0, 120.0], [100.0, 160.0], [70.0, 120.0], [60.0, 120.0]])
+    >>> np.round(np.asarray(ellipse_intensity(p, rc), dtype=float), 2)
+    array([200., 105., 105.,  10.])
     """
     x, y = ellipse_coords(p, rc)
     beta = _safe_norm(p.rho * x, y)
@@ -326,6 +444,19 @@ def ellipse_intensity_jac(p: EllipseParams, rc: Float[Array, "n 2"]) -> Float[Ar
 
     The paper holds :math:`\rho` fixed and prints no :math:`\partial f/\partial\rho`; ours
     (same chain rule) is :math:`\partial f/\partial\rho = -g k\,(a - \rho x_i^2/\beta_i)`.
+
+    Parameters
+    ----------
+    p : EllipseParams
+        The point at which to differentiate.
+    rc : jax.Array (n, 2)
+        Pixel coordinates as ``(row, col)``.
+
+    Returns
+    -------
+    jax.Array (n, 8)
+        :math:`\partial f_i/\partial(r_0, c_0, a, \vartheta, \rho, k, y_{\max}, y_{\min})`, columns in the field
+        order of ``p``.
     """
     return jnp.stack(_ellipse_jac_columns(p, rc), axis=-1)
 

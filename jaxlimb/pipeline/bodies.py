@@ -54,7 +54,24 @@ def _shape(frame: Frame) -> BodyShape:
 def body_strategy(frame: Frame) -> Body:
     """The strategy for the frame: ``LocateOptions.shape``, or from the hints' body (module table); a sphere whose
     limb the hints predict (camera, range, radii, expected centre: SPICE) is measured on its whole limb, one whose
-    expected disc exceeds the frame on its visible arc."""
+    expected disc exceeds the frame on its visible arc.
+
+    Parameters
+    ----------
+    frame : Frame
+        The prepared inputs (options, hints, camera, image size).
+
+    Returns
+    -------
+    Body
+        ``Disc``, ``Ellipsoid``, ``PredictedLimbSphere`` or ``Sphere`` (with the lunar-Lambert profile when
+        ``profile="auto"`` and the Sun direction is known).
+
+    Raises
+    ------
+    ConfigError
+        A profile the chosen strategy does not fit (``limb-darkened`` off the disc, another profile on it).
+    """
     shape = _shape(frame)
     if shape == BodyShape.DISC:
         if frame.opt.profile not in ("auto", "limb-darkened"):

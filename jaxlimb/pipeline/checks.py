@@ -93,7 +93,27 @@ class CenterOutOfFieldError(CheckFailed):
 
 
 def max_limb_displacement(center0, radius0: float, center1, radius1: float, angles: np.ndarray) -> float:
-    """``max |delta(psi)|`` over ``angles`` (module docstring, Check 5)."""
+    """``max |delta(psi)|`` over ``angles`` (module docstring, Check 5).
+
+    Parameters
+    ----------
+    center0 : (float, float)
+        Centre ``(row, col)`` of the front end's (Taubin) circle (px).
+    radius0 : float
+        Its radius (px).
+    center1 : (float, float)
+        Centre of the fitted circle (px).
+    radius1 : float
+        Its radius (px).
+    angles : np.ndarray (n,)
+        Polar angles (rad, ``atan2(d_row, d_col)``) of the fitted pixels.
+
+    Returns
+    -------
+    float
+        Largest radial displacement of the limb on the arc (px); with no angles, ``|dr| + |dc|`` (the bound
+        over all directions).
+    """
     ang = np.asarray(angles, dtype=float)
     if ang.size == 0:
         return abs(radius1 - radius0) + float(np.hypot(center1[0] - center0[0], center1[1] - center0[1]))
@@ -103,14 +123,43 @@ def max_limb_displacement(center0, radius0: float, center1, radius1: float, angl
 
 
 def jump_threshold(dr: float) -> float:
-    """The Check-5 threshold ``X = max(2, dr/2)`` px (module docstring)."""
+    """The Check-5 threshold ``X = max(2, dr/2)`` px (module docstring).
+
+    Parameters
+    ----------
+    dr : float
+        Annulus half-width (px).
+
+    Returns
+    -------
+    float
+        The largest limb displacement accepted (px).
+    """
     return max(2.0, 0.5 * float(dr))
 
 
 def check_jump(center0, radius0: float, center1, radius1: float, angles: np.ndarray, threshold: float) -> float:
     """Check 5: raise :class:`~jaxlimb.errors.JumpError` if the fitted limb moved more than ``threshold``.
 
-    Returns the displacement (px) when the check passes.
+    Parameters
+    ----------
+    center0 : (float, float)
+        Centre ``(row, col)`` of the front end's circle (px).
+    radius0 : float
+        Its radius (px).
+    center1 : (float, float)
+        Centre of the fitted circle (px).
+    radius1 : float
+        Its radius (px).
+    angles : np.ndarray (n,)
+        Polar angles (rad) of the fitted pixels (:func:`max_limb_displacement`).
+    threshold : float
+        Limit (px), :func:`jump_threshold`.
+
+    Returns
+    -------
+    float
+        The displacement (px) when the check passes.
     """
     disp = max_limb_displacement(center0, radius0, center1, radius1, angles)
     if not math.isfinite(disp) or disp > threshold:
@@ -123,7 +172,18 @@ def check_jump(center0, radius0: float, center1, radius1: float, angles: np.ndar
 
 
 def arc_span_deg(angles: np.ndarray) -> float:
-    """Angular span (deg) of polar ``angles`` (rad): 360 deg less the largest gap between them."""
+    """Angular span (deg) of polar ``angles`` (rad): 360 deg less the largest gap between them.
+
+    Parameters
+    ----------
+    angles : np.ndarray (n,)
+        Polar angles (rad), any range.
+
+    Returns
+    -------
+    float
+        The span in degrees (0 for fewer than two angles).
+    """
     a = np.sort(np.mod(np.asarray(angles, dtype=float), 2.0 * math.pi))
     if a.size < 2:
         return 0.0
@@ -135,11 +195,22 @@ def check_lit_arc(angles: np.ndarray, min_arc_deg: float = MIN_LIT_ARC_DEG, half
                   cause: str | None = None) -> float:
     """Raise :class:`~jaxlimb.errors.ArcTooShortError` if the fitted pixels span less than ``min_arc_deg``.
 
-    ``angles``: polar angles (rad) of the fitted pixels about the circle centre.  ``halfangle``
-    (rad, optional): the half-angle of the lit-side window; the limit is never more than 90 % of
-    the window (``2 halfangle``), so that a body whose whole lit limb is in the frame always passes.
-    ``cause``: why the arc is short, for the message (default: a cropped body facing the Sun out of the frame).
-    Returns the span (deg).
+    Parameters
+    ----------
+    angles : np.ndarray (n,)
+        Polar angles (rad) of the fitted pixels about the circle centre.
+    min_arc_deg : float
+        Shortest arc accepted (deg; module docstring, lit-arc check).
+    halfangle : float, optional
+        Half-angle (rad) of the lit-side window; the limit is never more than 90 % of the window
+        (``2 halfangle``), so that a body whose whole lit limb is in the frame always passes.
+    cause : str, optional
+        Why the arc is short, for the message (default: a cropped body facing the Sun out of the frame).
+
+    Returns
+    -------
+    float
+        The span (deg).
     """
     span = arc_span_deg(angles)
     limit = float(min_arc_deg)
@@ -155,7 +226,22 @@ def check_lit_arc(angles: np.ndarray, min_arc_deg: float = MIN_LIT_ARC_DEG, half
 
 
 def check_radius_prior(radius: float, band: tuple[float, float], source: str = "prior") -> None:
-    """Check 4 on the refined radius: it must lie in the prior's band ``[lo, hi]`` (px)."""
+    """Check 4 on the refined radius: it must lie in the prior's band ``[lo, hi]`` (px).
+
+    Parameters
+    ----------
+    radius : float
+        Refined radius (px).
+    band : (float, float)
+        ``(lo, hi)`` radius band of the prior (px).
+    source : str
+        Name of the prior, for the message.
+
+    Raises
+    ------
+    RadiusInconsistentError
+        The radius is outside the band.
+    """
     lo, hi = band
     if not (lo <= radius <= hi):
         raise RadiusInconsistentError(
@@ -167,10 +253,25 @@ def check_radius_prior(radius: float, band: tuple[float, float], source: str = "
 def check_size(radius: float, shape: tuple[int, int], min_diameter_px: float = 10.0, arc_deg: float | None = None) -> None:
     """Check 1 on the measurement: diameter below ``min_diameter_px`` or radius above the half-diagonal.
 
-    ``arc_deg`` (the fitted arc in the frame) makes the too-big message say what is missing: a limb arc
-    *is* visible, but a free circle larger than the frame through it is not checked by anything; the
-    camera and a range prior fix the circle's size and the arc is then measured
-    (:func:`jaxlimb.pipeline.sphere.predicted.PredictedLimbSphere`)."""
+    Parameters
+    ----------
+    radius : float
+        Measured radius (px).
+    shape : (int, int)
+        Frame ``(rows, cols)``.
+    min_diameter_px : float
+        Smallest diameter accepted (px).
+    arc_deg : float, optional
+        The fitted arc in the frame (deg); makes the too-big message say what is missing: a limb arc *is*
+        visible, but a free circle larger than the frame through it is not checked by anything; the camera and
+        a range prior fix the circle's size and the arc is then measured
+        (:class:`jaxlimb.pipeline.sphere.predicted.PredictedLimbSphere`).
+
+    Raises
+    ------
+    TooSmallError, TooBigError
+        The measured size fails Check 1.
+    """
     if 2.0 * radius < min_diameter_px:
         raise TooSmallError(
             f"Check 1: measured apparent diameter {2 * radius:.3g} px is below min_diameter_px = {min_diameter_px:g} px"
@@ -191,7 +292,24 @@ def check_size(radius: float, shape: tuple[int, int], min_diameter_px: float = 1
 
 
 def check_center_in_field(center_rc, radius: float, shape: tuple[int, int], margin_px: float = 2.0) -> None:
-    """Check 4: the distance of the centre from the frame rectangle must not exceed ``radius + margin_px``."""
+    """Check 4: the distance of the centre from the frame rectangle must not exceed ``radius + margin_px``.
+
+    Parameters
+    ----------
+    center_rc : (float, float)
+        Body centre ``(row, col)`` (px).
+    radius : float
+        Radius (px).
+    shape : (int, int)
+        Frame ``(rows, cols)``; the rectangle spans ``[-0.5, rows - 0.5] x [-0.5, cols - 0.5]``.
+    margin_px : float
+        Slack added to the radius (px).
+
+    Raises
+    ------
+    CenterOutOfFieldError
+        The circle does not touch the frame.
+    """
     r, c = float(center_rc[0]), float(center_rc[1])
     R, C = shape
     dr = max(0.0, -0.5 - r, r - (R - 0.5))
@@ -230,7 +348,20 @@ class NonPhysicalFitError(CheckFailed):
 
 
 def check_levels(ymax: float, ymin: float, what: str) -> None:
-    """The lit body must be brighter than the sky: ``ymax > ymin`` (DN), both finite."""
+    """The lit body must be brighter than the sky: ``ymax > ymin`` (DN), both finite.
+
+    Parameters
+    ----------
+    ymax, ymin : float
+        Inside and outside levels of the fitted edge (DN).
+    what : str
+        The fit's name, for the message.
+
+    Raises
+    ------
+    NonPhysicalFitError
+        The levels are not finite or not in that order.
+    """
     if not (math.isfinite(ymax) and math.isfinite(ymin) and ymax > ymin):
         raise NonPhysicalFitError(
             f"the {what} fit is not a lit limb: inside level ymax = {ymax:.6g} DN is not above the sky level "
@@ -238,7 +369,20 @@ def check_levels(ymax: float, ymin: float, what: str) -> None:
 
 
 def check_edge_width(psf_sigma_px: float, what: str) -> None:
-    """The edge's Gaussian-equivalent PSF sigma (px) must lie in ``[0, MAX_PSF_SIGMA_PX]``."""
+    """The edge's Gaussian-equivalent PSF sigma (px) must lie in ``[0, MAX_PSF_SIGMA_PX]``.
+
+    Parameters
+    ----------
+    psf_sigma_px : float
+        Fitted edge blur (px).
+    what : str
+        The fit's name, for the message.
+
+    Raises
+    ------
+    NonPhysicalFitError
+        The blur is not finite or outside the range.
+    """
     if not (math.isfinite(psf_sigma_px) and 0.0 <= psf_sigma_px <= MAX_PSF_SIGMA_PX):
         raise NonPhysicalFitError(
             f"the {what} fit's edge blur (Gaussian PSF sigma {psf_sigma_px:.4g} px) is outside the plausible range "

@@ -99,18 +99,21 @@ def save_locate_figure(
 ) -> None:
     """Save a PNG/PDF picture of ``measurement`` on ``image`` (matplotlib, Agg; atomic write).
 
-    Left panel: the image cropped around the body (limb box + 10 % margin, clipped to the
-    frame), the fitted pixels (``selected_pixels``, default
-    ``measurement.selected_pixels_rc``) as small dots, the fitted limb (red) and centre
-    (red +), the truth limb (dashed cyan) and centre (cyan x) when ``truth`` is given
-    (a :class:`jaxlimb.render.RenderTruth`, a :class:`jaxlimb.imaging.SunTruth` or a dict with
-    ``center_rc`` and ``radius_px``).  Right panel: a zoom of 30 x 30 px on the limb point
-    farthest from the body in the lit direction, where the sub-pixel fit can be seen.
+    Left: the body, fitted pixels, limb and centre (red), truth (cyan), titled ``title`` (default: centre, radius,
+    error); right: 30 x 30 px of the lit limb.  A non-2-D ``image``: :class:`~jaxlimb.errors.LimbInputError`.
 
-    Raises
-    ------
-    LimbInputError
-        ``image`` is not 2-D.
+    Parameters
+    ----------
+    image : np.ndarray (rows, cols)
+    measurement : LimbMeasurement
+    path : str or os.PathLike
+        Output file; its suffix picks the format (default PNG).
+    selected_pixels : np.ndarray (n, 2), optional
+        Fitted pixels ``(row, col)``; default ``measurement.selected_pixels_rc``.
+    truth : RenderTruth, SunTruth or dict, optional
+        True limb and centre (a dict needs ``center_rc`` and ``radius_px``).
+    title : str, optional
+    dpi : int
     """
     import matplotlib
 

@@ -24,7 +24,22 @@ from .stages import Frame
 
 
 def as_hints(hints: Any) -> Hints | None:
-    """Hints from a :class:`~jaxlimb.imaging.Hints`, its dict or ``None``."""
+    """Hints from a :class:`~jaxlimb.imaging.Hints`, its dict or ``None``.
+
+    Parameters
+    ----------
+    hints : Hints, dict or None
+        The hints, or their JSON dict (docs/design.md).
+
+    Returns
+    -------
+    Hints or None
+
+    Raises
+    ------
+    ConfigError
+        Any other type (or an invalid dict).
+    """
     if hints is None or isinstance(hints, Hints):
         return hints
     if isinstance(hints, dict):
@@ -33,7 +48,22 @@ def as_hints(hints: Any) -> Hints | None:
 
 
 def as_camera(camera: Any) -> Camera | None:
-    """A camera from a :class:`~jaxlimb.geometry.camera.Camera`, its dict or ``None``."""
+    """A camera from a :class:`~jaxlimb.geometry.camera.Camera`, its dict or ``None``.
+
+    Parameters
+    ----------
+    camera : Camera, dict or None
+        The camera, or its JSON dict (docs/design.md).
+
+    Returns
+    -------
+    Camera or None
+
+    Raises
+    ------
+    ConfigError
+        Any other type (or an invalid dict).
+    """
     if camera is None or isinstance(camera, Camera):
         return camera
     if isinstance(camera, dict):
@@ -46,6 +76,23 @@ def prepare(image: Any, camera: Any, hints: Any, options: Any, mask: Any = None)
 
     A body the hints say is too small, too big or too thin is reported as such before the image
     is searched (Aerospace 2015 §3: "after internal parameter computation").
+
+    Parameters
+    ----------
+    image : array_like
+        2-D grey image ``[row, col]``.
+    camera : Camera, dict or None
+    hints : Hints, dict or None
+    options : LocateOptions or None
+        ``None``: the defaults.
+    mask : np.ndarray of bool, optional
+        Validity mask of the image's shape (``True`` = measured pixel); invalid pixels are filled
+        (:func:`fill_invalid`).
+
+    Returns
+    -------
+    Frame
+        The validated inputs, the start time set.
     """
     opt = options if options is not None else LocateOptions()
     if not isinstance(opt, LocateOptions):
@@ -74,7 +121,24 @@ def prepare(image: Any, camera: Any, hints: Any, options: Any, mask: Any = None)
 def fill_invalid(img: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """A copy of ``img`` whose invalid pixels hold the median of the valid ones (the convention of
     :func:`jaxlimb.imaging.formats.read_frame`): whatever a caller left there (zeros, saturated fill)
-    shows no step to a stage that reads the image without the mask (body detection, the prior)."""
+    shows no step to a stage that reads the image without the mask (body detection, the prior).
+
+    Parameters
+    ----------
+    img : np.ndarray (rows, cols)
+        The image; its dtype is kept (integers get the rounded median).
+    mask : np.ndarray of bool (rows, cols)
+        ``True`` = valid pixel.
+
+    Returns
+    -------
+    np.ndarray (rows, cols)
+
+    Raises
+    ------
+    ImageContentError
+        No valid pixel.
+    """
     if not mask.any():
         raise ImageContentError("the validity mask marks every pixel invalid: nothing to measure")
     out = np.array(img)  # (the dtype is kept: the saturation level of integer frames depends on it)
@@ -84,14 +148,33 @@ def fill_invalid(img: np.ndarray, mask: np.ndarray) -> np.ndarray:
 
 
 def limb_predicted(frame: Frame) -> bool:
-    """The hints place the limb (SPICE-like prediction: expected centre, range prior, radii, pinhole camera)."""
+    """The hints place the limb (SPICE-like prediction: expected centre, range prior, radii, pinhole camera).
+
+    Parameters
+    ----------
+    frame : Frame
+
+    Returns
+    -------
+    bool
+    """
     cam, h = frame.cam, frame.hints
     return (cam is not None and not cam.has_distortion and h is not None and h.expected_center_rc is not None
             and h.range_prior_km is not None and h.radius_km() is not None)
 
 
 def arc_only(frame: Frame) -> bool:
-    """Camera (pinhole), range and radius known, and the expected disc larger than the frame's half-diagonal."""
+    """Camera (pinhole), range and radius known, and the expected disc larger than the frame's half-diagonal.
+
+    Parameters
+    ----------
+    frame : Frame
+
+    Returns
+    -------
+    bool
+        ``f_px tan(asin(R / range))`` exceeds half the frame diagonal.
+    """
     cam, h = frame.cam, frame.hints
     if cam is None or cam.has_distortion or h is None or h.radius_km() is None or h.range_prior_km is None:
         return False
@@ -101,7 +184,16 @@ def arc_only(frame: Frame) -> bool:
 
 def frame_mask(frame: Frame) -> np.ndarray | None:
     """The validity mask of ``frame.img`` (``None`` when all valid or when a strategy resampled the frame:
-    the observed mask no longer fits its grid)."""
+    the observed mask no longer fits its grid).
+
+    Parameters
+    ----------
+    frame : Frame
+
+    Returns
+    -------
+    np.ndarray of bool (rows, cols) or None
+    """
     return frame.mask if frame.observed_cam is None else None
 
 
@@ -139,7 +231,18 @@ def _variegated(frame: Frame, name: str, mask) -> bool:  # type: ignore[no-untyp
 
 def candidates(frame: Frame) -> Any:
     """Stage 2: the front end's limb candidates, circle and lit direction (Checks 1-4); the other front end when the
-    chosen one finds no limb (:attr:`LocateOptions.front_end_fallback`)."""
+    chosen one finds no limb (:attr:`LocateOptions.front_end_fallback`).
+
+    Parameters
+    ----------
+    frame : Frame
+
+    Returns
+    -------
+    LimbCandidates
+        The front end's answer (:func:`jaxlimb.imaging.front_end`): limb points, initial circle, lit
+        direction, the detected region in ``info``.
+    """
     mask = frame_mask(frame)
     name = str(frame.opt.front_end)
     try:
@@ -157,27 +260,70 @@ def candidates(frame: Frame) -> Any:
 
 
 def other_front_end(frame: Frame) -> str:
-    """The name of the front end not chosen in ``frame.opt``."""
+    """The name of the front end not chosen in ``frame.opt``.
+
+    Parameters
+    ----------
+    frame : Frame
+
+    Returns
+    -------
+    str
+        ``"gradient"`` or ``"scanline"``.
+    """
     return "scanline" if str(frame.opt.front_end) == "gradient" else "gradient"
 
 
 def other_candidates(frame: Frame) -> Any:
     """The limb candidates of the front end not chosen (:func:`other_front_end`), for the fallbacks of
-    :func:`candidates` and :func:`jaxlimb.pipeline.locate.locate`."""
+    :func:`candidates` and :func:`jaxlimb.pipeline.locate.locate`.
+
+    Parameters
+    ----------
+    frame : Frame
+
+    Returns
+    -------
+    LimbCandidates
+        As :func:`candidates`.
+    """
     other = other_front_end(frame)
     return front_end(other, frame.img, None, hints=frame.hints, camera=frame.cam,
                      options=_front_end_options(frame, other), mask=frame_mask(frame))
 
 
 def min_diameter_px(frame: Frame) -> float:
-    """Check 1's smallest diameter: the gradient front end's prior setting, else 10 px."""
+    """Check 1's smallest diameter: the gradient front end's prior setting, else 10 px.
+
+    Parameters
+    ----------
+    frame : Frame
+
+    Returns
+    -------
+    float
+        Diameter (px).
+    """
     if frame.opt.gradient is not None and frame.opt.front_end == "gradient":
         return float(frame.opt.gradient.prior.min_diameter_px)  # type: ignore[attr-defined]
     return 10.0
 
 
 def arc_angles(coords: np.ndarray, center_rc) -> np.ndarray:
-    """Polar angles (rad) of pixels about a centre."""
+    """Polar angles (rad) of pixels about a centre.
+
+    Parameters
+    ----------
+    coords : np.ndarray (n, 2)
+        Pixels ``(row, col)``.
+    center_rc : (float, float)
+        Centre ``(row, col)``.
+
+    Returns
+    -------
+    np.ndarray (n,)
+        ``atan2(d_row, d_col)`` in ``(-pi, pi]``.
+    """
     return np.arctan2(coords[:, 0] - float(center_rc[0]), coords[:, 1] - float(center_rc[1]))
 
 

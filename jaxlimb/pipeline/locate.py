@@ -40,38 +40,39 @@ def locate(
 
     Parameters
     ----------
-    image
-        2-D grey image ``[row, col]`` (any numeric dtype; colour is converted with a warning).
-    camera
-        :class:`~jaxlimb.geometry.camera.Camera` (or its dict); enables the body-centre
-        correction, the line of sight and the range (the ellipsoid strategy needs it).
-    hints
-        :class:`~jaxlimb.geometry.hints.Hints` (or the hints dict of docs/design.md): body (``earth`` selects the
-        ellipsoid strategy, ``sun`` the disc), radii, range prior, Sun direction, attitude ...  With a camera and hints
-        that predict the limb of a sphere (``expected_center_rc``, ``range_prior_km``, radii: SPICE), the whole limb,
-        lit and dark, is measured (:mod:`jaxlimb.pipeline.sphere.predicted`); so is the visible arc of a sphere whose
-        expected disc exceeds the frame (camera, range, radius).
-    options
-        :class:`~jaxlimb.pipeline.options.LocateOptions`.
-    mask
-        Validity mask (``True`` = measured pixel; :class:`jaxlimb.imaging.formats.Frame`); masked
-        pixels are neither limb nor background.
+    image : array_like (rows, cols)
+        Grey image ``[row, col]`` (any numeric dtype; colour is converted with a warning).
+    camera : Camera, dict or None
+        Enables the body-centre correction, the line of sight and the range (the ellipsoid strategy needs it).
+    hints : Hints, dict or None
+        The prior (docs/design.md): body (``earth``: ellipsoid strategy, ``sun``: disc), radii, range, Sun direction,
+        attitude ...  Hints predicting a sphere's limb (expected centre, range, radii: SPICE) have the whole limb,
+        lit and dark, measured (:mod:`jaxlimb.pipeline.sphere.predicted`), or the visible arc of a too-large disc.
+    options : LocateOptions, optional
+    mask : np.ndarray of bool (rows, cols), optional
+        Validity mask (``True`` = measured pixel); masked pixels are neither limb nor background.
 
     Returns
     -------
     LimbMeasurement
-        ``center_rc`` is the image of the **body centre** (with a camera) or the circle centre
-        (without); ``covariance`` one square matrix over the mapped quantities and the other fit
-        parameters; ``extras`` the intermediate values, the checks' numbers and the timings.
+        ``center_rc`` the image of the **body centre** (with a camera) or the circle centre (without); ``covariance``
+        one matrix over the mapped quantities and the other fit parameters; ``extras`` the checks' numbers, timings.
 
     Raises
     ------
     ImageContentError, ConfigError, GeometryError
         Unusable image / camera / hints / options (CLI exit 2).
     CheckFailed
-        A check failed (CLI exit 3): no body, too small/big/thin, outliers, radius inconsistent, centre
-        out of field, arc too short, no convergence, jump, non-physical fit, centre too uncertain
-        (:mod:`jaxlimb.pipeline.checks`).
+        A check failed (CLI exit 3; :mod:`jaxlimb.pipeline.checks`): no body, too small/big/thin, no convergence ...
+
+    Examples
+    --------
+    >>> import jax, numpy as np; jax.config.update("jax_enable_x64", True)
+    >>> rr, cc = np.mgrid[:200, :240]
+    >>> image = 20 + 180 / (1 + np.exp(1.5 * (np.hypot(rr - 95.3, cc - 130.6) - 60.0)))  # a disc, no noise
+    >>> m = locate(image)
+    >>> m.to_json()["status"], [round(v, 1) for v in m.center_rc], round(m.radius_px, 1)
+    ('ok', [95.3, 130.6], 60.0)
     """
     frame = prepare(image, camera, hints, options, mask)
     body = body_strategy(frame)

@@ -29,7 +29,20 @@ from .stages import BodyCenter, Covariance, Frame, Levels, RefineResult
 
 def covariance(final: RefineResult, geo: BodyCenter) -> Covariance:
     """Stage "covariance": ``J P_fit J^T`` with ``J`` the body-centre map on the mapped parameters and the
-    identity on the others (module docstring)."""
+    identity on the others (module docstring).
+
+    Parameters
+    ----------
+    final : RefineResult
+        The final fit; ``final.fit.covariance`` is ``P_fit`` over its free parameters.
+    geo : BodyCenter
+        The body-centre map: outputs, the parameters they depend on, its Jacobian and optional model-error block.
+
+    Returns
+    -------
+    Covariance
+        Rows ``geo.outputs`` then the unmapped free parameters; symmetrised; ``jacobian`` the full ``J``.
+    """
     free = list(final.fit.free)
     gidx = [free.index(n) for n in geo.params]
     other = [i for i in range(len(free)) if i not in gidx]
@@ -45,12 +58,28 @@ def covariance(final: RefineResult, geo: BodyCenter) -> Covariance:
 
 
 def crlb(frame: Frame, final: RefineResult, cov: Covariance) -> dict[str, float] | None:
-    """The Cramér--Rao bound at the estimate with :math:`\\hat\\sigma` as the noise level, propagated as the
+    r"""The Cramér--Rao bound at the estimate with :math:`\hat\sigma` as the noise level, propagated as the
     covariance.  Noise only: the model-error terms of the covariance (the profile's cluster-robust term,
     :func:`~jaxlimb.pipeline.profile.model_error.with_model_error`; the free ellipse's offset) are not in it.  With
-    unit pixel weights it is the fit's noise-only covariance :math:`\\hat\\sigma^2 (J^\\top J)^{-1}` (no second
+    unit pixel weights it is the fit's noise-only covariance :math:`\hat\sigma^2 (J^\top J)^{-1}` (no second
     pass over the pixels); with the level normalisation's weights it is :func:`~jaxlimb.analysis.crlb.crlb`'s
-    Fisher information with per-pixel noise ``sigma / w_i``."""
+    Fisher information with per-pixel noise ``sigma / w_i``.
+
+    Parameters
+    ----------
+    frame : Frame
+        ``frame.opt.compute_crlb`` switches it on.
+    final : RefineResult
+        The final fit and its data.
+    cov : Covariance
+        The reported covariance (its names and Jacobian are reused).
+
+    Returns
+    -------
+    dict or None
+        ``{name: 1-sigma bound}`` in the units of the covariance's rows; ``None`` when off or the Fisher
+        matrix is singular.
+    """
     if not frame.opt.compute_crlb:
         return None
     C = cov.jacobian @ final.covariance_noise @ cov.jacobian.T
@@ -71,7 +100,19 @@ def crlb(frame: Frame, final: RefineResult, cov: Covariance) -> dict[str, float]
 def levels(final: RefineResult) -> Levels:
     """The fitted edge as ``k, ymax, ymin`` (the physical profiles: the logistic ``k`` equivalent to their
     Gaussian edge, ``ymin + amp`` as ``ymax``) and its PSF sigma (``sqrt((1.7/k)^2 - 1/12)`` for a logistic;
-    ``1/k`` for the ramp's Gaussian kernel, pixel box included)."""
+    ``1/k`` for the ramp's Gaussian kernel, pixel box included).
+
+    Parameters
+    ----------
+    final : RefineResult
+        The final fit; its data's ``offset``/``scale`` map normalised levels back to DN.
+
+    Returns
+    -------
+    Levels
+        ``k`` (1/px), ``ymax``/``ymin`` (DN), PSF sigma (px; ``inf`` for ``k <= 0``) and, for a physical
+        profile, its parameters as a dict.
+    """
     fp = final.fit.params
     if isinstance(fp, (LimbProfileParams, LimbDarkenedParams)):
         sig = abs(float(fp.sigma))
@@ -94,7 +135,23 @@ def levels(final: RefineResult) -> Levels:
 
 def check_physical(frame: Frame, lev: Levels, cov: Covariance, what: str) -> None:
     """Stage "checks" (a fit is physical or it is a failure): the body brighter than the sky, the edge blur
-    plausible, the centre's sigma within ``max_center_sigma_px``."""
+    plausible, the centre's sigma within ``max_center_sigma_px``.
+
+    Parameters
+    ----------
+    frame : Frame
+        Its options give ``max_center_sigma_px``.
+    lev : Levels
+        The fitted edge.
+    cov : Covariance
+        The reported covariance (its ``center_r``/``center_c`` block, when present).
+    what : str
+        The fit's name, for the messages.
+
+    Raises
+    ------
+    NonPhysicalFitError, CenterTooUncertainError
+    """
     check_levels(lev.ymax, lev.ymin, what)
     if lev.profile is not None and float(lev.profile["amp"]) <= 0:
         check_levels(lev.ymin + float(lev.profile["amp"]), lev.ymin, what)
@@ -104,7 +161,17 @@ def check_physical(frame: Frame, lev: Levels, cov: Covariance, what: str) -> Non
 
 
 def timings(frame: Frame) -> dict[str, float]:
-    """Seconds spent in each stage (``frame.timings`` holds the end time of each) and the total."""
+    """Seconds spent in each stage (``frame.timings`` holds the end time of each) and the total.
+
+    Parameters
+    ----------
+    frame : Frame
+
+    Returns
+    -------
+    dict of str to float
+        Stage name -> duration (s), in the order the stages ran, and ``"total"``.
+    """
     out, t = {}, frame.t0
     for name, end in frame.timings.items():
         out[name] = end - t
@@ -115,7 +182,30 @@ def timings(frame: Frame) -> dict[str, float]:
 
 def measurement(frame: Frame, cand: Any, final: RefineResult, geo: BodyCenter, cov: Covariance, lev: Levels,
                 extras: dict[str, Any], iterations: int) -> LimbMeasurement:
-    """Stage "result": the :class:`~jaxlimb.pipeline.result.LimbMeasurement` (the same type for every body)."""
+    """Stage "result": the :class:`~jaxlimb.pipeline.result.LimbMeasurement` (the same type for every body).
+
+    Parameters
+    ----------
+    frame : Frame
+    cand : LimbCandidates or PredictedCandidates
+        The front end's answer (its ``front_end`` name is reported).
+    final : RefineResult
+        The final fit.
+    geo : BodyCenter
+        The body-centre geometry.
+    cov : Covariance
+    lev : Levels
+    extras : dict
+        The strategy's intermediate values (``None`` values are dropped).
+    iterations : int
+        Solver steps of the fits that made the answer.
+
+    Returns
+    -------
+    LimbMeasurement
+        With ``selected_pixels_rc`` (observed pixels) when ``keep_pixels`` is set, the CRLB, and ``extras``
+        holding also ``sigma_hat`` (DN) and ``timings_s``.
+    """
     pix = None
     if frame.opt.keep_pixels:
         pix = final.coords

@@ -22,6 +22,13 @@ class EllipseResult:
     angle_rad: float
 
     def to_json(self) -> dict[str, Any]:
+        """The ellipse as the ``"ellipse"`` object of the result JSON (docs/design.md).
+
+        Returns
+        -------
+        dict
+            ``center_rc`` ``[r, c]``, ``semi_axes_px`` ``[a, b]``, ``angle_rad``.
+        """
         return {"center_rc": list(self.center_rc), "semi_axes_px": list(self.semi_axes_px), "angle_rad": self.angle_rad}
 
 
@@ -65,7 +72,19 @@ class LimbMeasurement:
     selected_pixels_rc: Any = field(default=None, repr=False, compare=False)
 
     def to_json(self) -> dict[str, Any]:
-        """The ``--json`` success object of ``jaxlimb locate`` (docs/design.md)."""
+        """The ``--json`` success object of ``jaxlimb locate`` (docs/design.md).
+
+        Returns
+        -------
+        dict
+            ``status`` ``"ok"``, ``center_rc`` and the other fields; the optional ones (``radius_px``, ``ellipse``,
+            ``los_camera``, ``range_km``, ``crlb``, ``extras``) only when set; never ``selected_pixels_rc``.
+
+        Raises
+        ------
+        ValueError
+            A non-finite number anywhere in it (the JSON carries no NaN or inf).
+        """
         out: dict[str, Any] = {"status": "ok", "center_rc": [float(v) for v in self.center_rc]}
         if self.radius_px is not None:
             out["radius_px"] = float(self.radius_px)

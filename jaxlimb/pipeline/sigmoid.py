@@ -24,7 +24,17 @@ K_INIT = 1.5
 
 # ============================================================================ fits
 def levels_held(options: LocateOptions) -> tuple[str, ...]:
-    """The edge parameters held fixed: none with ``estimate_k``, else ``k`` and the levels (the papers' setting)."""
+    """The edge parameters held fixed: none with ``estimate_k``, else ``k`` and the levels (the papers' setting).
+
+    Parameters
+    ----------
+    options : LocateOptions
+
+    Returns
+    -------
+    tuple of str
+        ``()`` or ``("k", "ymax", "ymin")``.
+    """
     return () if options.estimate_k else ("k", "ymax", "ymin")
 
 
@@ -33,8 +43,22 @@ def pad_bucket(data: FitData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
     The sizes are those of :func:`jaxlimb.fitting.fit.bucket_size`, starting at 4096: few
     distinct compiled programs across images (compiling costs seconds, a fit of 10^4 pixels
-    milliseconds) for at most 1.5x the work (powers of two alone cost up to 2x: 4887 pixels
-    ran as 8192, now as 6144).
+    milliseconds) for at most 1.5x the work (powers of two alone cost up to 2x: 4887 pixels would run as
+    8192 instead of 6144).
+
+    Parameters
+    ----------
+    data : FitData
+        ``n`` pixels; ``weights`` ``None`` means unit weights.
+
+    Returns
+    -------
+    coords : np.ndarray (m, 2)
+        The pixels ``(row, col)`` padded to ``m >= n``.
+    z : np.ndarray (m,)
+        Their intensities.
+    weights : np.ndarray (m,)
+        Their weights, 0 on the padding.
     """
     n = data.z.shape[0]
     size = max(4096, bucket_size(n))
@@ -50,7 +74,28 @@ def pad_bucket(data: FitData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def run_fit(model, data: FitData, init, options: LocateOptions, fixed, solver=None) -> LimbFit:
     """``model`` fitted to ``data`` from ``init`` (``fixed`` held; the options' solver unless ``solver``), padded to a
     bucket (:func:`pad_bucket`); Check 5: no convergence or non-finite parameters is a
-    :class:`~jaxlimb.errors.ConvergenceError`."""
+    :class:`~jaxlimb.errors.ConvergenceError`.
+
+    Parameters
+    ----------
+    model : LimbModel
+        The intensity model (CSF, ESF, a limb profile ...: :mod:`jaxlimb.models`).
+    data : FitData
+        Pixels ``(row, col)``, intensities and weights.
+    init : the model's parameter container
+        Starting point.
+    options : LocateOptions
+        Solver name and ``max_steps``.
+    fixed : tuple of str
+        Names of the parameters held at ``init``.
+    solver : optional
+        A solver object or name for :func:`jaxlimb.fitting.fit`, overriding the options'.
+
+    Returns
+    -------
+    LimbFit
+        The converged fit (parameters, covariance over the free ones, ``sigma2``, steps).
+    """
     coords, z, w = pad_bucket(data)
     res = fit(model, coords, z, init, solver if solver is not None else solver_from_name(options.solver), fixed=fixed,
               weights=w,
@@ -80,7 +125,20 @@ def _fisher_jit(model, params, coords, w2, free_idx):
 
 
 def predict(model, params, coords: np.ndarray) -> np.ndarray:
-    """Model intensities at ``coords`` (jitted on power-of-two padded shapes: no per-image recompiles)."""
+    """Model intensities at ``coords`` (jitted on the padded shapes of :func:`pad_bucket`: no per-image recompiles).
+
+    Parameters
+    ----------
+    model : LimbModel
+    params : the model's parameter container
+    coords : np.ndarray (n, 2)
+        Pixels ``(row, col)``.
+
+    Returns
+    -------
+    np.ndarray (n,)
+        Intensities in the units of ``params``' levels.
+    """
     n = coords.shape[0]
     cp, _, _ = pad_bucket(FitData(coords, np.zeros(n), None, 0.0, 1.0))
     return np.asarray(_predict_jit(model, params, jax.device_put(np.asarray(cp))))[:n]
@@ -88,7 +146,25 @@ def predict(model, params, coords: np.ndarray) -> np.ndarray:
 
 def fisher_information(model, params, data: FitData, fixed: tuple[str, ...], sigma: float) -> np.ndarray:
     """Fisher matrix ``J^T diag(w^2) J / sigma^2`` over the free parameters (the information of
-    :func:`jaxlimb.analysis.crlb.crlb` with per-pixel noise ``sigma / w_i``), jitted on padded shapes."""
+    :func:`jaxlimb.analysis.crlb.crlb` with per-pixel noise ``sigma / w_i``), jitted on padded shapes.
+
+    Parameters
+    ----------
+    model : LimbModel
+    params : the model's parameter container
+        The estimate.
+    data : FitData
+        Pixels and weights ``w_i`` (``None``: 1).
+    fixed : tuple of str
+        Parameters held fixed (not in the matrix).
+    sigma : float
+        Noise level in the units of ``data.z``.
+
+    Returns
+    -------
+    np.ndarray (p, p)
+        ``p`` the number of free parameters, in the model's parameter order.
+    """
     cp, _, w = pad_bucket(data)
     idx = jnp.asarray(model.free_indices(fixed))
     F = np.asarray(_fisher_jit(model, params, jnp.asarray(cp), jnp.asarray(w * w), idx))
@@ -96,7 +172,20 @@ def fisher_information(model, params, data: FitData, fixed: tuple[str, ...], sig
 
 
 def replace_params(p, **kw):
-    """A copy of a parameter container with some fields replaced (floats, not 0-d arrays)."""
+    """A copy of a parameter container with some fields replaced (floats, not 0-d arrays).
+
+    Parameters
+    ----------
+    p : parameter container
+        Any :mod:`jaxlimb.models` parameter module with a ``replace`` method.
+    **kw : float
+        Field name -> new value.
+
+    Returns
+    -------
+    parameter container
+        Of the type of ``p``.
+    """
     return p.replace(**{k: float(v) for k, v in kw.items()})
 
 

@@ -22,27 +22,25 @@ result                 the same measurement for every body                      
 
 A body strategy (:class:`Body`) supplies the stages that differ between bodies; every strategy is a final class
 (:mod:`jaxlimb.pipeline.sphere`, :mod:`jaxlimb.pipeline.ellipsoid`), chosen by :func:`jaxlimb.pipeline.bodies.body_strategy`.
+The values of the limb-pixel and edge-fit stages are defined in :mod:`jaxlimb.pipeline.edge_stages` and
+re-exported here.
 """
 
 from __future__ import annotations
 
-import math
 import time
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any, ClassVar, Generic, TypeVar
 
-import equinox as eqx
-import jax.numpy as jnp
 import numpy as np
 
-from ..fitting import LimbFit
 from ..geometry.camera import Camera
 from ..geometry.hints import Hints
-from ..geometry.sphere_image import SphereImage
 from ..imaging.gradient_front_end import GradientOptions
-from ..imaging.predicted import LimbShape
 from ..imaging.scanline_front_end import ScanlineOptions
+from .edge_stages import (AnnulusSelection, EdgeFit, EllipsePixels, EllipsoidEdge, FitData, LimbPixels,
+                          PredictedCandidates, PredictedEdge, PredictedPixels, RefineResult)
 from .options import LocateOptions
 from .result import EllipseResult, LimbMeasurement
 
@@ -93,285 +91,83 @@ class Frame:
         return self.hints.radius_km() if self.hints is not None else None
 
     def front_end_options(self, name: str | None = None) -> GradientOptions | ScanlineOptions | None:
-        """The options of front end ``name`` (default: the chosen one); ``None`` for its defaults."""
+        """The options of front end ``name`` (default: the chosen one); ``None`` for its defaults.
+
+        Parameters
+        ----------
+        name : str, optional
+            ``"gradient"`` or ``"scanline"``.
+
+        Returns
+        -------
+        GradientOptions, ScanlineOptions or None
+            ``opt.gradient`` for the gradient front end, else ``opt.scanline``.
+        """
         name = str(self.opt.front_end) if name is None else name
         return self.opt.gradient if name == "gradient" else self.opt.scanline
 
     def to_observed(self, rc_ideal) -> tuple[float, float]:
-        """Ideal (pinhole) pixel -> observed pixel (through the lens distortion, if any)."""
+        """Ideal (pinhole) pixel -> observed pixel (through the lens distortion, if any).
+
+        Parameters
+        ----------
+        rc_ideal : (float, float)
+            Ideal pixel ``(row, col)``.
+
+        Returns
+        -------
+        (float, float)
+            Observed pixel ``(row, col)``.
+        """
         if self.cam is not None and self.cam.has_distortion:
             return tuple(float(v) for v in self.cam.distort(np.asarray(rc_ideal, float)))
         return (float(rc_ideal[0]), float(rc_ideal[1]))
 
     def to_ideal(self, rc: np.ndarray) -> np.ndarray:
-        """Observed pixels ``(n, 2)`` (or one) -> ideal pixels."""
+        """Observed pixels ``(n, 2)`` (or one) -> ideal pixels.
+
+        Parameters
+        ----------
+        rc : np.ndarray (n, 2) or (2,)
+            Observed pixels ``(row, col)``.
+
+        Returns
+        -------
+        np.ndarray
+            Same shape, ideal (pinhole) pixels.
+        """
         if self.cam is not None and self.cam.has_distortion:
             return np.asarray(self.cam.undistort(np.asarray(rc, float)))
         return np.asarray(rc, float)
 
     def mark(self, stage: str) -> None:
+        """Record the end of stage ``stage`` (``time.perf_counter``) in ``timings``.
+
+        Parameters
+        ----------
+        stage : str
+            Stage name (``front_end``, ``refine``, ``profile``, ``body_center`` ...).
+        """
         self.timings[stage] = time.perf_counter()
 
     def phase(self, center_rc) -> float:
-        """Phase angle (rad) at ``center_rc`` from the hints' Sun direction (Eq. 2 of Aerospace 2015)."""
+        """Phase angle (rad) at ``center_rc`` from the hints' Sun direction (Eq. 2 of Aerospace 2015).
+
+        Parameters
+        ----------
+        center_rc : (float, float)
+            Body centre ``(row, col)`` (px); its line of sight (the boresight without camera).
+
+        Returns
+        -------
+        float
+            Angle between the body-to-Sun and body-to-camera directions, in ``[0, pi]``.
+        """
         assert self.hints is not None and self.hints.sun_dir_camera is not None
         s = np.asarray(self.hints.sun_dir_camera, dtype=float)
         s = s / np.linalg.norm(s)
         u = self.cam.los(np.asarray(center_rc, dtype=float)) if self.cam is not None else np.array([0.0, 0.0, 1.0])
         return float(np.arccos(np.clip(-s @ u, -1.0, 1.0)))
-
-
-# =============================================================================== limb pixels, edge fit
-@dataclass(frozen=True)
-class AnnulusSelection:
-    """The pixels selected for the sigmoid fit.
-
-    Attributes
-    ----------
-    coords : ``(n, 2)`` pixel coordinates ``(row, col)``.
-    z : ``(n,)`` intensities.
-    center_rc, radius : the circle the annulus is built on.
-    dr : the half-width (px).
-    direction : unit ``(d_row, d_col)`` of the middle of the selected arc, or ``None`` (whole circle).
-    halfangle : half-angle of the geometric window (rad; ``pi`` = whole circle).
-    inner_level, outer_level : medians of the inner and outer quarters (initial ``ymax``, ``ymin``).
-    inner_edge_mean, outer_edge_mean : means of the pixels within 1 px of ``r - dr`` and ``r + dr``
-        (the fixed levels of the illuminated-ellipsoid paper §VI).
-    n_bins_kept, n_bins : angular bins kept by the contrast test, and bins with pixels.
-    pixel_inner, pixel_outer : ``(n,)`` the inner and outer levels (medians of the inner and
-        outer quarters) of each pixel's angular bin, for the level normalisation.
-    """
-
-    coords: np.ndarray
-    z: np.ndarray
-    center_rc: tuple[float, float]
-    radius: float
-    dr: float
-    direction: tuple[float, float] | None
-    halfangle: float
-    inner_level: float
-    outer_level: float
-    inner_edge_mean: float
-    outer_edge_mean: float
-    n_bins_kept: int
-    n_bins: int
-    pixel_inner: np.ndarray | None = None
-    pixel_outer: np.ndarray | None = None
-
-    @property
-    def n(self) -> int:
-        return int(self.z.shape[0])
-
-    def angles(self) -> np.ndarray:
-        """Polar angles ``atan2(d_row, d_col)`` of the pixels about ``center_rc``."""
-        return np.arctan2(self.coords[:, 0] - self.center_rc[0], self.coords[:, 1] - self.center_rc[1])
-
-
-@dataclass(frozen=True)
-class FitData:
-    """The data of a sigmoid fit: pixels, (normalised) intensities, weights and the DN scale.
-
-    Level-normalised (the round limb's annulus, :func:`jaxlimb.pipeline.sphere.fits.fit_data`), each pixel is
-    divided by its angular bin's contrast, ``z_n = (z - O_bin) / (I_bin - O_bin)`` and weighted by ``w = (I_bin - O_bin) / C_ref``
-    (``C_ref`` the median contrast), so that the weighted residuals are the DN residuals
-    divided by ``C_ref``: the fit is the CSF with an angle-dependent amplitude, i.e. the
-    lit limb's brightness may vary along the arc (it does: Lambert-like surfaces fade
-    toward the horns as the cosine of the angle from the sub-solar limb point, which pulls
-    a one-level CSF inward there by px).  ``offset``/``scale`` map fitted levels back to
-    DN: ``DN = offset + scale * y``.
-    """
-
-    coords: np.ndarray
-    z: np.ndarray
-    weights: np.ndarray | None
-    offset: float
-    scale: float
-
-    def subset(self, keep: np.ndarray) -> FitData:
-        return FitData(self.coords[keep], self.z[keep], None if self.weights is None else self.weights[keep],
-                       self.offset, self.scale)
-
-    def with_coords(self, coords: np.ndarray) -> FitData:
-        return FitData(coords, self.z, self.weights, self.offset, self.scale)
-
-
-@dataclass(frozen=True)
-class RefineResult:
-    r"""A sigmoid fit on an annulus, after the outlier pass.
-
-    Attributes
-    ----------
-    fit : the final :class:`~jaxlimb.fitting.LimbFit`.
-    data : the :class:`FitData` of the final fit (outliers removed; ideal pixel coordinates
-        for the sphere fit of a camera with distortion).
-    n_outliers : pixels dropped by the residual test.
-    fixed : names of the parameters held fixed.
-    sphere : for :func:`fit_sphere_annulus`, the :class:`~jaxlimb.geometry.sphere_image.SphereImage`
-        of the final estimate.
-    noise_covariance : the fit's noise-only covariance :math:`\hat\sigma^2 (J^\top J)^{-1}` when
-        ``fit.covariance`` carries a model-error term (:func:`jaxlimb.pipeline.profile.model_error.with_model_error`);
-        ``None``: ``fit.covariance`` is noise-only.  The Cramér--Rao bound uses this one.
-    """
-
-    fit: LimbFit
-    data: FitData
-    n_outliers: int
-    fixed: tuple[str, ...]
-    sphere: SphereImage | None = None
-    noise_covariance: np.ndarray | None = None
-
-    @property
-    def coords(self) -> np.ndarray:
-        return self.data.coords
-
-    @property
-    def covariance_noise(self) -> np.ndarray:
-        """The noise-only covariance of the free parameters (see ``noise_covariance``)."""
-        return np.asarray(self.fit.covariance if self.noise_covariance is None else self.noise_covariance)
-
-    def with_covariance(self, C: np.ndarray, **changes) -> "RefineResult":
-        """A copy whose fit's covariance is ``C`` (and whose other fields are ``changes``, e.g. the
-        ``noise_covariance`` it widened): the one setter of the model-error terms."""
-        return replace(self, fit=eqx.tree_at(lambda x: x.covariance, self.fit, jnp.asarray(C)), **changes)
-
-    def with_move_witness(self, other: "RefineResult", frac: float) -> "RefineResult":
-        """A copy with ``(frac |d|)^2`` added to the variances of ``r0`` and ``c0`` and ``(frac d_a)^2`` to that of
-        ``a``, ``d`` the move of ``(r0, c0, a)`` from ``other`` (a second model of the same limb whose correction is
-        itself uncertain, in every direction); unchanged unless all three are free."""
-        free = list(self.fit.free)
-        if not all(n in free for n in ("r0", "c0", "a")):
-            return self
-        d = np.array([float(getattr(self.fit.params, n)) - float(getattr(other.fit.params, n)) for n in ("r0", "c0", "a")])
-        C = np.array(self.fit.covariance)
-        for i, v in zip((free.index("r0"), free.index("c0"), free.index("a")),
-                        (float(np.hypot(d[0], d[1])),) * 2 + (abs(d[2]),)):
-            C[i, i] += (frac * v) ** 2
-        return self.with_covariance(C)
-
-
-@dataclass(frozen=True)
-class LimbPixels:
-    """The pixels of the lit limb: the annulus and the lit-side window it was cut with.
-
-    ``direction`` (unit ``(d_row, d_col)`` toward the lit side, ``None``: all round) and ``half``
-    (rad) the window; ``phase`` (rad) the phase angle used (``None``: unknown); ``dr`` the annulus
-    half-width (px); ``min_arc_deg`` the shortest lit arc accepted; ``dr_max`` the widest half-width the
-    edge fit may widen it to; ``shift`` (px) how far the annulus' middle lies outside the circle (a thin
-    crescent's band: :func:`crescent_halfwidth`, :func:`limb_pixels`).
-    """
-
-    sel: AnnulusSelection
-    dr: float
-    direction: tuple[float, float] | None
-    half: float
-    phase: float | None
-    min_arc_deg: float
-    dr_max: float = math.inf
-    shift: float = 0.0
-
-
-@dataclass(frozen=True)
-class EdgeFit:
-    """The edge fit of a round limb: the circular sigmoid on the final annulus, and how it was reached."""
-
-    circ: RefineResult
-    pixels: LimbPixels
-    widened: bool
-    recentered: bool
-    arc_deg: float
-    jump_px: float = 0.0
-    jump_limit_px: float = 0.0
-
-    @property
-    def center_rc(self) -> tuple[float, float]:
-        p = self.circ.fit.params
-        return (float(p.r0), float(p.c0))
-
-    @property
-    def radius(self) -> float:
-        return float(self.circ.fit.params.radius)
-
-
-@dataclass(frozen=True)
-class EllipsePixels:
-    """The start of the ellipsoid's edge fit: position prior, lit window and initial ellipse."""
-
-    p0: np.ndarray
-    range_prior_km: float
-    lit_dir: tuple[float, float] | None
-    half: float
-    ellipse: tuple
-    trace: Any = None
-    ray_fit: bool = False
-
-    @property
-    def patchy(self) -> bool:
-        """An albedo-patchy lit limb (:meth:`~jaxlimb.pipeline.ellipsoid.trace.TracedLimb.patchy`): the band is then
-        level-normalised per ray and the edge is a plain step (no ramp, no profile refit)."""
-        return self.trace is not None and self.trace.patchy()
-
-
-@dataclass(frozen=True)
-class EllipsoidEdge:
-    """The ellipsoid's edge fit: the last fit, its pixels, ellipse ``((r0, c0), (a, b), theta)``, position; on a
-    patchy limb also the other estimate's ``(r0, c0, a)`` (``witness``, :func:`_patchy_geometry`) and whether the
-    band fit converged."""
-
-    final: RefineResult
-    pixels: EllipsePixels
-    fitted: tuple
-    p: np.ndarray
-    history: list
-    jump_px: float
-    jump_limit_px: float
-    witness: tuple | None = None
-    band_converged: bool = True
-    shading_shift: tuple | None = None
-    asymmetry: tuple | None = None
-
-    @property
-    def n_steps(self) -> int:
-        return int(sum(h["fit_steps"] for h in self.history))
-
-@dataclass(frozen=True)
-class PredictedCandidates:
-    """The predicted-limb front end's answer (:mod:`jaxlimb.imaging.predicted`): the limb the hints predict, the edge
-    points found along it (either polarity; ``step`` their sign and size, ``used`` those the shape fit kept), the
-    predicted shape fitted to them, and the image noise."""
-
-    predicted: LimbShape
-    points_rc: np.ndarray
-    step: np.ndarray
-    used: np.ndarray
-    shape: LimbShape
-    noise: float
-    front_end: str = "predicted"
-    info: dict[str, Any] = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
-class PredictedPixels:
-    """The whole limb's first annulus: ``|d| <= dr`` px about ``shape`` (re-drawn about each fit)."""
-
-    shape: LimbShape
-    dr: float
-
-
-@dataclass(frozen=True)
-class PredictedEdge:
-    """The whole-limb edge fit: the last pass's fit, the fitted limb (predicted shape, measured place and scale), the
-    last annulus half-width, the angular bins with a limb step of either polarity, the centre's gains per px of
-    three edge-error patterns along the arc (:func:`~jaxlimb.imaging.predicted.edge_bias_gain`), the predicted limb
-    and the image noise."""
-
-    fit: RefineResult
-    shape: LimbShape
-    dr: float
-    counts: dict[str, int]
-    gain: np.ndarray
-    predicted: LimbShape
-    noise: float
-
 
 
 # =============================================================================== body centre, covariance, levels
@@ -411,9 +207,26 @@ class Covariance:
     jacobian: np.ndarray
 
     def as_dict(self) -> dict[str, dict[str, float]]:
+        """The matrix as the result's ``{name: {name: value}}`` (docs/design.md).
+
+        Returns
+        -------
+        dict of str to dict of str to float
+        """
         return {a: {b: float(self.matrix[i, j]) for j, b in enumerate(self.names)} for i, a in enumerate(self.names)}
 
     def block(self, names: tuple[str, ...]) -> np.ndarray:
+        """The sub-matrix of the rows and columns ``names``.
+
+        Parameters
+        ----------
+        names : tuple of str
+            Row names, e.g. ``("center_r", "center_c")``.
+
+        Returns
+        -------
+        np.ndarray (len(names), len(names))
+        """
         idx = [self.names.index(n) for n in names]
         return self.matrix[np.ix_(idx, idx)]
 
@@ -446,44 +259,168 @@ class Body(ABC, Generic[PixelsT, EdgeT]):
 
     @abstractmethod
     def prepare(self, frame: Frame) -> Frame:
-        """The frame as this body measures it (resampled, hints completed ...)."""
+        """The frame as this body measures it (resampled, hints completed ...).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+
+        Returns
+        -------
+        Frame
+        """
 
     @abstractmethod
     def candidates(self, frame: Frame) -> Any:
-        """The limb candidates and the initial circle / ellipse (Checks 1-4)."""
+        """The limb candidates and the initial circle / ellipse (Checks 1-4).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+
+        Returns
+        -------
+        Any
+            The front end's answer (``LimbCandidates``, ``PredictedCandidates`` ...).
+        """
 
     @abstractmethod
     def limb_pixels(self, frame: Frame, cand: Any) -> PixelsT:
-        """Which pixels are the limb."""
+        """Which pixels are the limb.
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        cand : Any
+            The front end's answer (:meth:`candidates`).
+
+        Returns
+        -------
+        PixelsT
+        """
 
     @abstractmethod
     def edge_fit(self, frame: Frame, cand: Any, pixels: PixelsT) -> EdgeT:
-        """The sigmoid edge fit and its checks."""
+        """The sigmoid edge fit and its checks.
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        cand : Any
+            The front end's answer (:meth:`candidates`).
+        pixels : PixelsT
+            The limb pixels.
+
+        Returns
+        -------
+        EdgeT
+        """
 
     @abstractmethod
     def report(self, frame: Frame, cand: Any, edge: EdgeT) -> dict[str, Any]:
-        """The intermediate values worth reporting (``extras``)."""
+        """The intermediate values worth reporting (``extras``).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        cand : Any
+            The front end's answer (:meth:`candidates`).
+        edge : EdgeT
+            The edge fit (:meth:`edge_fit`).
+
+        Returns
+        -------
+        dict of str to Any
+        """
 
     @abstractmethod
     def refit(self, frame: Frame, cand: Any, edge: EdgeT, extras: dict[str, Any]) -> RefineResult:
-        """The physical profile refit (or the edge fit with its model-error terms)."""
+        """The physical profile refit (or the edge fit with its model-error terms).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        cand : Any
+            The front end's answer (:meth:`candidates`).
+        edge : EdgeT
+            The edge fit (:meth:`edge_fit`).
+        extras : dict
+            The report, which the refit may add to.
+
+        Returns
+        -------
+        RefineResult
+            The fit that answers.
+        """
 
     @abstractmethod
     def body_center(self, frame: Frame, edge: EdgeT, final: RefineResult) -> BodyCenter:
-        """Fitted limb -> body-centre image, radius / range, line of sight, with the map's Jacobian."""
+        """Fitted limb -> body-centre image, radius / range, line of sight, with the map's Jacobian.
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        edge : EdgeT
+            The edge fit (:meth:`edge_fit`).
+        final : RefineResult
+            The answering fit.
+
+        Returns
+        -------
+        BodyCenter
+        """
 
     @abstractmethod
     def check(self, frame: Frame, levels: Levels, cov: Covariance) -> None:
         """Stage "checks": the fit is physical (levels, edge blur) and, where the body's covariance is the fit's, the
-        centre within ``max_center_sigma_px``; a failure is a typed error."""
+        centre within ``max_center_sigma_px``; a failure is a typed error.
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        levels : Levels
+            The fitted edge.
+        cov : Covariance
+            The reported covariance.
+        """
 
     @abstractmethod
     def iterations(self, edge: EdgeT, final: RefineResult) -> int:
-        """The solver steps of the fits that made the answer."""
+        """The solver steps of the fits that made the answer.
+
+        Parameters
+        ----------
+        edge : EdgeT
+            The edge fit (:meth:`edge_fit`).
+        final : RefineResult
+
+        Returns
+        -------
+        int
+        """
 
     @abstractmethod
     def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
-        """The body's last check or map of the measurement (dark limb, lens distortion ...)."""
+        """The body's last check or map of the measurement (dark limb, lens distortion ...).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        meas : LimbMeasurement
+
+        Returns
+        -------
+        LimbMeasurement
+        """
 
 
 __all__ = ["AnnulusSelection", "Body", "BodyCenter", "Covariance", "EdgeFit", "EllipsePixels", "EllipsoidEdge", "FitData",

@@ -297,8 +297,9 @@ def shadow_fractions(vertices: np.ndarray, faces: np.ndarray, sun_body: np.ndarr
     over the count its projected area predicts (above 0.8: 1, sampling noise).  Facets the Sun
     does not face get 0; facets expected to cover fewer than 6 samples keep 1 (unresolved).  Depends only on the Sun
     direction in the body frame, taken on a grid of ~0.25 deg cells (:data:`_SHADOW_GRID`) and computed at the
-    cell's own direction: the map is a function of the cell alone, whatever direction reached it first (the map of
-    the first direction seen in a cell made a registration depend on the calls before it), and cached per mesh.
+    cell's own direction: the map is a function of the cell alone, whatever direction reached it first (a map of
+    the first direction seen in a cell would make a registration depend on the calls made before it), and cached
+    per mesh.
     """
     V = np.asarray(vertices, dtype=float)
     F = np.asarray(faces, dtype=np.int64)

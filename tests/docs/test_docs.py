@@ -39,6 +39,10 @@ def test_site_builds_strict(tmp_path):
     for command in ("jaxlimb locate", "jaxlimb navigate", "jaxlimb los build-db", "jaxlimb los locate",
                     "jaxlimb posterior", "jaxlimb montecarlo", "jaxlimb gradcheck", "jaxlimb figures", "--kernels"):
         assert command in cli, f"the CLI reference lacks {command}"
+    assert "JAXLIMB_PROGRESS" in cli and "--quiet" in cli  # the top-level help's epilog, the progress rule
+    formats = (site / "formats" / "index.html").read_text()
+    for name in ("camera", "hints", "result"):  # the tables generated from the package's schemas, and the schemas
+        assert f"jaxlimb/schemas/{name}.schema.json" in formats
     accuracy = (site / "validation" / "accuracy" / "index.html").read_text()
     assert "benchmarks/results/families_moon.json" in accuracy and "<table>" in accuracy
     api = (site / "api" / "fitting" / "index.html").read_text()
@@ -51,6 +55,7 @@ def test_site_builds_strict(tmp_path):
 
 def test_formats_example_locates_the_rendered_moon(tmp_path, monkeypatch, capsys):
     """The cam.json and hints.json of docs/formats.md, on the frame its make_moon.py renders, through the CLI."""
+    from jaxlimb._schema import validate
     from jaxlimb.cli import main
 
     monkeypatch.chdir(tmp_path)
@@ -63,6 +68,7 @@ def test_formats_example_locates_the_rendered_moon(tmp_path, monkeypatch, capsys
     code = main(["locate", "moon.png", "--camera", "cam.json", "--hints", "hints.json", "--json"])
     out = json.loads(capsys.readouterr().out)
     assert code == 0, out
+    validate(out, "result", "locate --json")  # the record of jaxlimb/schemas/result.schema.json
     assert max(abs(a - b) for a, b in zip(out["center_rc"], truth.center_rc)) < 0.02
     assert abs(out["radius_px"] - truth.apparent_radius_px) < 0.02
     assert out["extras"]["profile"]["model"] == "lunar-lambert"
@@ -81,9 +87,20 @@ def test_formats_examples_are_complete():
     Camera.from_dict(cam)
     keys = set(json.loads(_block("formats.md", "hints.json"))) | set(json.loads(_block("formats.md", "hints_earth.json")))
     assert keys == {f.name for f in fields(Hints)}
-    text = (DOCS / "formats.md").read_text()
+    text = re.sub(r"<!--\s*schema:\s*(\w+)\s*-->", lambda m: _schema_tables().render(m.group(1)),
+                  (DOCS / "formats.md").read_text())
     for name in {f.name for f in fields(Hints)} | {f.name for f in fields(Camera)}:
-        assert f"`{name}`" in text, f"formats.md does not describe `{name}`"
+        assert f"| `{name}` |" in text, f"formats.md does not describe `{name}`"
+
+
+def _schema_tables():
+    """The docs hook that renders ``<!-- schema: NAME -->`` (docs/hooks/schema_tables.py)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("jaxlimb_schema_tables", DOCS / "hooks" / "schema_tables.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
 
 
 def _resolve(name: str) -> object:

@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 import pytest
 
+from jaxlimb._schema import validate
 from jaxlimb.cli import main
 
 from ._scenes import SMALL_CAMERA, scene
@@ -62,6 +63,7 @@ def test_success_json(files, capsys):
     assert len(lines) == 1
     j = json.loads(lines[0])
     assert j["status"] == "ok"
+    validate(j, "result", "locate --json")  # jaxlimb/schemas/result.schema.json
     for key in ("center_rc", "radius_px", "k", "ymax", "ymin", "covariance", "iterations", "solver", "front_end",
                 "n_pixels", "los_camera", "range_km"):
         assert key in j, key
@@ -75,6 +77,7 @@ def test_success_variants(files, capsys):
     code, out, _ = _run(capsys, "locate", d / "moon.png", "--front-end", "scanline", "--model", "ellipse", "--json")
     assert code == 0
     j = json.loads(out)
+    validate(j, "result", "locate --json")
     assert j["front_end"] == "scanline" and set(j["ellipse"]) == {"center_rc", "semi_axes_px", "angle_rad"}
     assert "radius_px" not in j and "range_km" not in j  # no camera: no range
     code, out, err = _run(capsys, "locate", d / "moon.png")  # human-readable

@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
+from jaxlimb._schema import validate
 from jaxlimb.cli import main
 
 from ._scenes import SMALL_CAMERA, scene
@@ -45,6 +46,8 @@ def test_directory_streams_one_line_per_frame_equal_to_single_runs(frames, capsy
     recs = _lines(capsys.readouterr().out)
     assert [r["image"] for r in recs] == [str(d / "imgs" / f"f{i}.png") for i in range(3)]
     assert all(r["status"] == "ok" for r in recs)
+    for r in recs:  # every JSON line is a record of jaxlimb/schemas/result.schema.json
+        validate(r, "result", "locate JSON line")
     assert all(r["timing"]["compile_s"] <= r["timing"]["seconds"] for r in recs)  # compile time reported apart
     assert main([*_args(d, d / "imgs" / "f1.png"), "--json"]) == 0
     single = json.loads(capsys.readouterr().out)
@@ -61,6 +64,7 @@ def test_bad_frames_give_error_lines_and_the_run_goes_on(frames, capsys):
     recs = _lines(capsys.readouterr().out)
     assert [r["status"] for r in recs] == ["ok", "error", "ok"]
     assert recs[1]["image"].endswith("black.png") and recs[1]["check"] and recs[1]["message"]
+    validate(recs[1], "result", "locate JSON line")  # an error line is a record of the schema too
     code = main(_args(d, str(d / "bad" / "*.png"), d / "imgs" / "f0.png"))  # a quoted glob + a file
     out, err = capsys.readouterr()
     assert code == 2  # the truncated PNG is unusable input: the worst

@@ -64,9 +64,9 @@ Example
 >>> post = sample_posterior(lp, f, options=PosteriorOptions(seed=1))        # doctest: +SKIP
 >>> print(comparison_table(compare_uncertainties(post, f, crlb(CIRCLE, s.coords, s.truth, 10.0))))  # doctest: +SKIP
 
-Measured (``benchmarks/posterior_study.py``; 2 shared CPU cores): the six-parameter
-posterior of a full limb (3015 px) converges (``N > 50 tau``, ``tau ~ 70``) in ~5000 steps
-x 32 walkers, 15-20 s; the vectorised log-posterior is ~3x faster than one call per walker.
+``benchmarks/posterior_study.py`` measures the chains' convergence and wall time on limbs from a full
+circle to short arcs, and the vectorised log-posterior's speed-up over one call per walker
+(``docs/validation/uncertainty.md``).
 
 References
 ----------

@@ -64,6 +64,25 @@ def priors_from_hints(hints: Mapping[str, Any], model: LimbModel, default_frac: 
     ``expected_radius_px`` with ``expected_radius_uncertainty_frac`` (default
     ``default_frac``) becomes a Gaussian prior on ``radius`` (circle) or ``a`` (ellipse)
     with sd ``frac * expected_radius_px``.  Unknown keys are ignored.
+
+    Parameters
+    ----------
+    hints : mapping
+        The hints, as a dict.
+    model : LimbModel
+        The model to sample; a model with neither ``radius`` nor ``a`` gets no prior.
+    default_frac : float
+        Relative sd of the radius prior when the hints give none.
+
+    Returns
+    -------
+    Priors
+        At most one Gaussian prior (mean and sd in px).
+
+    Raises
+    ------
+    LimbInputError
+        A non-positive or non-numeric radius or fraction.
     """
     gauss: dict[str, tuple[float, float]] = {}
     r = hints.get("expected_radius_px")
@@ -107,7 +126,18 @@ class LogPosterior:
         return np.asarray(self.batch(y) if y.ndim == 2 else self.single(y))
 
     def params(self, y: np.ndarray) -> LimbParams:
-        """Model parameters (a container) at a sampled vector ``y``."""
+        """Model parameters (a container) at a sampled vector ``y``.
+
+        Parameters
+        ----------
+        y : np.ndarray (d,)
+            A point over :attr:`names` (a ``log_sigma`` entry is ignored).
+
+        Returns
+        -------
+        LimbParams
+            ``theta0`` with the free entries replaced by ``y``.
+        """
         th = self.theta0.copy()
         th[list(self.free_idx)] = np.asarray(y)[: len(self.free_idx)]
         return self.model.params_type.from_vector(jnp.asarray(th))
@@ -184,21 +214,34 @@ def log_posterior(model: LimbModel, coords: Any, z: Any, init: LimbParams, *, fi
                   priors: Priors | None = None, weights: Any = None) -> LogPosterior:
     """Build the jitted (and vmapped) log-posterior of the module docstring.
 
-    Parameters
-    ----------
-    model, coords, z : the model and the pixels ``(n, 2)`` (``(n,)`` for LINEAR) and intensities.
-    init : parameter container; the fixed parameters are held at its values.
-    fixed : names of the parameters not sampled.
-    noise, sigma : see :class:`NoiseModel`.
-    priors : :class:`Priors` (default: positivity bounds only).
-    weights : per-pixel weights ``(n,)`` of the fit (module docstring; default all 1).
-
     The pixels are padded to their bucket (:func:`jaxlimb.fitting.bucket_size`, zero weight): posteriors of
     pixel sets of similar size share one compiled program.
+
+    Parameters
+    ----------
+    model : LimbModel
+        The limb model (a sigmoid of Mortari et al. 2016 Sec. V, or any model of :mod:`jaxlimb.models`).
+    coords : array (n, 2)
+        Pixels as (row, col) (``(n,)`` columns for ``LINEAR``).
+    z : array (n,)
+        Intensities (DN).
+    init : LimbParams
+        Parameter container; the fixed parameters are held at its values.
+    fixed : sequence of str
+        Names of the parameters not sampled.
+    noise : NoiseModel or {"known", "marginal", "free"}
+        Treatment of the noise level (:class:`NoiseModel`).
+    sigma : float, optional
+        Noise standard deviation (DN), required with ``"known"``.
+    priors : Priors, optional
+        Default: positivity bounds only.
+    weights : array (n,), optional
+        Per-pixel weights of the fit (module docstring); default all 1.
 
     Returns
     -------
     LogPosterior
+        Over the free parameters (then ``log_sigma`` with ``"free"``).
 
     Raises
     ------

@@ -39,7 +39,22 @@ def _sqrtm(a: np.ndarray, inverse: bool = False) -> np.ndarray:
 
 def sandwich_adjust(samples: np.ndarray, estimate: np.ndarray, target: np.ndarray) -> np.ndarray:
     """Shaby's open-faced sandwich (module docstring): ``estimate + Omega (samples - estimate)`` whose covariance is
-    ``target``."""
+    ``target``.
+
+    Parameters
+    ----------
+    samples : np.ndarray (m, d)
+        Posterior samples.
+    estimate : np.ndarray (d,)
+        The point the samples are scaled about (the fit's estimate).
+    target : np.ndarray (d, d)
+        Covariance the adjusted samples get (``locate``'s).
+
+    Returns
+    -------
+    np.ndarray (m, d)
+        Adjusted samples: the posterior's shape, ``target``'s spread.
+    """
     omega = _sqrtm(target) @ _sqrtm(np.atleast_2d(np.cov(samples, rowvar=False)), inverse=True)
     return estimate + (samples - estimate) @ omega.T
 
@@ -65,7 +80,15 @@ class MeasuredPosterior:
 
     def compare(self) -> dict[str, dict[str, float | None]]:
         """Per mapped quantity: ``locate``'s value and sigma, the CRLB, the posterior's mean and sd (raw and
-        adjusted) and their ratios to ``locate``'s sigma."""
+        adjusted) and their ratios to ``locate``'s sigma.
+
+        Returns
+        -------
+        dict
+            ``{quantity: {"locate", "locate_sd", "crlb", "post_mean", "post_sd", "adjusted_mean", "adjusted_sd",
+            "post_over_locate", "adjusted_over_locate"}}`` for ``center_r``, ``center_c`` (px), ``radius`` (px) and
+            ``range_km`` where mapped; ``None`` where not available.
+        """
         lf = self.located
         est = {"center_r": lf.measurement.center_rc[0], "center_c": lf.measurement.center_rc[1],
                "radius": lf.measurement.radius_px, "range_km": lf.measurement.range_km}
@@ -84,7 +107,13 @@ class MeasuredPosterior:
         return out
 
     def summary(self) -> dict[str, Any]:
-        """JSON-ready: the chain, the parameters' posterior and the mapped comparison."""
+        """JSON-ready: the chain, the parameters' posterior and the mapped comparison.
+
+        Returns
+        -------
+        dict
+            ``model``, ``free``, ``chain`` (:meth:`Posterior.summary`) and ``comparison`` (:meth:`compare`).
+        """
         return {"model": self.located.model.name, "free": list(self.located.free), "chain": self.posterior.summary(),
                 "comparison": self.compare()}
 
@@ -108,8 +137,33 @@ def measured_posterior(lf: LocatedFit, options: PosteriorOptions | None = None, 
                        n_mapped: int = 1000, progress: bool = False) -> MeasuredPosterior:
     """Sample the posterior of ``locate``'s fit ``lf`` and map it (module docstring).
 
-    ``noise``: ``"marginal"`` (default) or ``"known"`` (the fit's residual sigma); ``n_mapped``: samples mapped to the
-    body centre (evenly thinned).  The walkers start around ``locate``'s estimate with its noise-only covariance.
+    The walkers start around ``locate``'s estimate with its noise-only covariance.
+
+    Parameters
+    ----------
+    lf : LocatedFit
+        From :func:`~jaxlimb.analysis.located.located_fit`.
+    options : PosteriorOptions, optional
+        Sampler settings; default ``PosteriorOptions()``.
+    noise : {"marginal", "known"}
+        Noise marginalised (Jeffreys) or known at the fit's residual sigma.
+    n_mapped : int
+        Samples mapped to the body centre (evenly thinned).
+    progress : bool
+        Show the sampler's progress bar.
+
+    Returns
+    -------
+    MeasuredPosterior
+        The samples, the adjusted samples and both mapped.
+
+    Raises
+    ------
+    PosteriorImproperError
+        emcee cannot move the ensemble, or the posterior is improper
+        (:func:`~jaxlimb.analysis.posterior.check_posterior`).
+    ConvergenceError
+        The walkers cannot be placed (the log-posterior is -inf around the estimate).
     """
     data, fixed = lf.data, tuple(lf.final.fixed)
     lp = log_posterior(lf.model, data.coords, data.z, lf.params, fixed=fixed, noise=noise,
@@ -124,9 +178,24 @@ def measured_posterior(lf: LocatedFit, options: PosteriorOptions | None = None, 
 
 
 def credible_level(samples: np.ndarray, truth: np.ndarray) -> float:
-    """The smallest credible level whose region holds ``truth``: the fraction of ``samples`` ``(m, k)`` closer to the
-    samples' mean than ``truth`` is, in the Mahalanobis distance of the samples' covariance (``truth`` is inside the
-    ``q`` region when this is ``<= q``; over scenes drawn from the prior it is uniform for a calibrated posterior)."""
+    """The smallest credible level whose region holds ``truth``.
+
+    The fraction of ``samples`` closer to the samples' mean than ``truth`` is, in the Mahalanobis distance of the
+    samples' covariance: ``truth`` is inside the ``q`` region when this is ``<= q``; over scenes drawn from the prior
+    it is uniform for a calibrated posterior.
+
+    Parameters
+    ----------
+    samples : np.ndarray (m, k)
+        Samples of ``k`` quantities (``(m,)`` for one).
+    truth : np.ndarray (k,)
+        The true value.
+
+    Returns
+    -------
+    float
+        Credible level in [0, 1].
+    """
     s = np.atleast_2d(np.asarray(samples, float).T).T
     mean = s.mean(axis=0)
     inv = np.linalg.inv(np.atleast_2d(np.cov(s, rowvar=False)))
@@ -137,7 +206,22 @@ def credible_level(samples: np.ndarray, truth: np.ndarray) -> float:
 
 def truth_levels(mp: MeasuredPosterior, center_rc: Any, radius_px: float | None = None) -> dict[str, float]:
     """Where a scene's truth falls: the credible levels (:func:`credible_level`) of the true body centre and radius in
-    the posterior and in the adjusted posterior, and in ``locate``'s own Gaussian (its NEES as a chi-square level)."""
+    the posterior and in the adjusted posterior, and in ``locate``'s own Gaussian (its NEES as a chi-square level).
+
+    Parameters
+    ----------
+    mp : MeasuredPosterior
+        The posterior of ``locate``'s fit.
+    center_rc : array (2,)
+        True body centre, (row, col) px.
+    radius_px : float, optional
+        True apparent radius (px).
+
+    Returns
+    -------
+    dict of str to float
+        ``center``, ``center_adjusted``, ``center_locate`` and, with ``radius_px``, ``radius`` and ``radius_adjusted``.
+    """
     lf = mp.located
     t = np.asarray(center_rc, float)
     out = {"center": credible_level(np.column_stack([mp.mapped["center_r"], mp.mapped["center_c"]]), t),

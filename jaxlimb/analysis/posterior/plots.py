@@ -15,7 +15,23 @@ def corner_plot(post: Posterior, path: Any | None = None, truths: Mapping[str, f
                 laplace: LimbFit | None = None, title: str | None = None) -> Any:
     """Corner plot of the samples (``corner``), with the truth and the Laplace 1-sigma if given.
 
-    Saves to ``path`` (atomically) when given; returns the figure.
+    Parameters
+    ----------
+    post : Posterior
+        The samples.
+    path : str or Path, optional
+        Where to write the figure (atomically; the format from the suffix); ``None`` writes nothing.
+    truths : mapping of str to float, optional
+        True value per parameter name, drawn as lines.
+    laplace : LimbFit, optional
+        The fit, whose Laplace ``estimate +- 1 sigma`` is drawn dashed on the diagonal.
+    title : str, optional
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure (closed when written to ``path``).
     """
     import corner
     import matplotlib
@@ -57,9 +73,24 @@ def _ellipse(ax: Any, mean: np.ndarray, cov: np.ndarray, k: float, **kw: Any) ->
 
 def plot_measured(mp: Any, path: Any | None = None, truth: Mapping[str, float] | None = None,
                   title: str | None = None) -> Any:
-    """The posterior of ``locate``'s centre (:class:`~jaxlimb.analysis.posterior.MeasuredPosterior`): the samples of
-    the body centre, raw and adjusted, with ``locate``'s 1- and 2-sigma ellipses (and the truth if given), and the
-    radius's samples against ``locate``'s sigma."""
+    """The posterior of ``locate``'s centre: the samples of the body centre, raw and adjusted, with ``locate``'s 1- and
+    2-sigma ellipses (and the truth if given), and the radius's samples against ``locate``'s sigma.
+
+    Parameters
+    ----------
+    mp : MeasuredPosterior
+        From :func:`~jaxlimb.analysis.posterior.measured_posterior`.
+    path : str or Path, optional
+        Where to write the figure (:func:`~jaxlimb.analysis.figures.save_figure`); ``None`` writes nothing.
+    truth : mapping of str to float, optional
+        ``center_r``, ``center_c`` and optionally ``radius`` (px).
+    title : str, optional
+        Figure title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
     import matplotlib
 
     matplotlib.use("Agg", force=False)

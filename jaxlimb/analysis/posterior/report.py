@@ -14,8 +14,22 @@ def compare_uncertainties(post: Posterior, fit: LimbFit | None = None, bound: Cr
                           truth: LimbParams | None = None) -> dict[str, dict[str, float | None]]:
     """Per parameter: posterior mean and sd, Laplace sd, CRLB sd and their ratios.
 
-    Returns ``{name: {"post_mean", "post_std", "laplace_std", "crlb", "post_over_crlb",
-    "post_over_laplace", "laplace_over_crlb", "truth"}}`` (``None`` where not available).
+    Parameters
+    ----------
+    post : Posterior
+        The samples.
+    fit : LimbFit, optional
+        The fit whose Laplace sd is compared.
+    bound : CramerRao, optional
+        The Cramér--Rao bound (:func:`~jaxlimb.analysis.crlb.crlb`).
+    truth : LimbParams, optional
+        True parameters.
+
+    Returns
+    -------
+    dict
+        ``{name: {"post_mean", "post_std", "laplace_std", "crlb", "post_over_crlb", "post_over_laplace",
+        "laplace_over_crlb", "truth"}}`` per sampled parameter (``None`` where not available).
     """
     lap = {} if fit is None else {k: float(v) for k, v in fit.std.items()}
     cr = {} if bound is None else bound.std
@@ -37,7 +51,18 @@ def compare_uncertainties(post: Posterior, fit: LimbFit | None = None, bound: Cr
 
 
 def comparison_table(cmp: Mapping[str, Mapping[str, float | None]]) -> str:
-    """Text table of :func:`compare_uncertainties`."""
+    """Text table of :func:`compare_uncertainties`.
+
+    Parameters
+    ----------
+    cmp : mapping
+        The output of :func:`compare_uncertainties`.
+
+    Returns
+    -------
+    str
+        A header line and one line per parameter.
+    """
 
     def f(v: float | None, w: int = 11, p: int = 5) -> str:
         return f"{'-':>{w}}" if v is None else f"{v:{w}.{p}g}"

@@ -32,6 +32,28 @@ def synthetic_circle(radius: float = 150.0, k: float = 3.0, ymax: float = 200.0,
     ``+col`` toward ``-row``): 360 = full disc, 180 = the lit limb of a crescent or gibbous
     Moon (the limb between the cusps is always a half circle), 60 = a short arc.  The
     intensities are the model itself, so the fit's model is exact and the CRLB applies.
+
+    Parameters
+    ----------
+    radius, k, ymax, ymin : float
+        True circular-sigmoid parameters: radius (px), steepness (1/px), intensities inside and outside (DN).
+    sigma : float
+        Standard deviation of the Gaussian noise (DN).
+    arc_deg, arc_center_deg : float
+        Width of the arc and its central position angle (degrees).
+    annulus : float
+        Half-width of the pixel band around the limb (px).
+    center_rc : tuple of float, optional
+        True centre (row, col) px; default ``(half + 0.3, half - 0.4)``, off the pixel grid, with
+        ``half = radius + annulus + 2``.
+    seed : int
+        Seed of the noise (``numpy.random.default_rng``).
+
+    Returns
+    -------
+    SyntheticLimb
+        Pixels ``(n, 2)`` as (row, col), noisy intensities ``(n,)``, the truth (:class:`CircleParams`), ``sigma``
+        and ``arc_deg``.
     """
     for name, v in (("radius", radius), ("k", k), ("sigma", sigma), ("annulus", annulus)):
         if not (math.isfinite(v) and v > 0):

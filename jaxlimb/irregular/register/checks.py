@@ -45,6 +45,24 @@ def overlap(obs: np.ndarray, model_flat: np.ndarray, thr: float, sigma: float, m
     out.  ``misfit`` is the fit's residual excess times its contrast: the background of an 8-bit frame can
     be noiseless (MAD 0) while the body's own photon and quantisation noise and the misfit of a real surface
     are not.  Twice that band lets another body's model through (``tests/irregular/test_locate_los.py``).
+
+    Parameters
+    ----------
+    obs : np.ndarray (h, w) of bool
+        Observed lit figure in the window.
+    model_flat : np.ndarray (h * w,)
+        Fitted model radiance (DN), flattened row-major.
+    thr : float
+        The segmentation's grey level (DN).
+    sigma : float
+        Background noise (DN); ``nan``: none.
+    misfit : float
+        Accepted model misfit (DN) widening the left-out band.
+
+    Returns
+    -------
+    float
+        Intersection over union of the two figures, in [0, 1].
     """
     model = model_flat.reshape(obs.shape)
     sure = np.abs(model - thr) > 3.0 * (sigma if math.isfinite(sigma) else 0.0) + misfit
@@ -54,7 +72,22 @@ def overlap(obs: np.ndarray, model_flat: np.ndarray, thr: float, sigma: float, m
 
 
 def background_sigma(image: np.ndarray, mask: np.ndarray, lo, hi) -> float:  # type: ignore[no-untyped-def]
-    """Robust (MAD) noise of the background pixels of the window, away from the figure."""
+    """Robust (MAD) noise of the background pixels of the window, away from the figure.
+
+    Parameters
+    ----------
+    image : np.ndarray (rows, cols)
+        Frame (DN).
+    mask : np.ndarray (rows, cols)
+        Lit figure; pixels within 3 px of it are left out.
+    lo, hi : np.ndarray (2,) of int
+        Window, first and last pixel ``(row, col)``.
+
+    Returns
+    -------
+    float
+        ``1.4826 MAD`` of the background (DN); ``nan`` with fewer than 50 background pixels.
+    """
     win = (slice(lo[0], hi[0] + 1), slice(lo[1], hi[1] + 1))
     far = cv2.dilate(np.ascontiguousarray(mask, dtype=np.uint8), np.ones((7, 7), np.uint8))[win] == 0
     vals = image[win][far]
@@ -73,7 +106,29 @@ def _with_sector_model_error(sol: Solve, res: np.ndarray, P: np.ndarray, cov: np
 
 
 def center_covariance(sol: Solve, P: np.ndarray, options: RegisterOptions) -> tuple[np.ndarray, float]:
-    """Covariance of the centre (module docstring) and the residual variance of the solve ``sol``."""
+    """Covariance of the centre (module docstring) and the residual variance of the solve ``sol``.
+
+    Parameters
+    ----------
+    sol : Solve
+        The last (sharp, full-resolution) linear solve.
+    P : np.ndarray (2,)
+        Body-centre image, px ``(row, col)``: the centre of the model-error sectors.
+    options : RegisterOptions
+        ``model_error`` switches the sector term on.
+
+    Returns
+    -------
+    cov : np.ndarray (2, 2)
+        Covariance of the centre, px^2 ``(row, col)``.
+    s2 : float
+        Residual variance (DN^2).
+
+    Raises
+    ------
+    ConvergenceError
+        Singular normal matrix.
+    """
     a = float(sol.beta[0])
     res = sol.y - np.einsum("i,ij->j", sol.beta, sol.At)
     dof = max(res.size - sol.At.shape[0], 1)
@@ -102,8 +157,29 @@ def _check(excess: float, iou: float, P: np.ndarray, cov: np.ndarray, options: R
 
 
 def finish_registration(problem: Problem, threshold: float, st: GNState, ncc: float) -> RegisterResult:
-    """Covariance and checks (module docstring) from the last (sharp, full-resolution) solve of ``st``;
-    ``threshold``: the segmentation's grey level."""
+    """Covariance and checks (module docstring) from the last (sharp, full-resolution) solve of ``st``.
+
+    Parameters
+    ----------
+    problem : Problem
+        The registration problem (frame, camera, lit figure, options).
+    threshold : float
+        The segmentation's grey level (DN).
+    st : GNState
+        Converged Gauss-Newton state.
+    ncc : float
+        Cross-correlation of the start (reported only).
+
+    Returns
+    -------
+    RegisterResult
+        Centre, line of sight, range, covariance and the quality measures.
+
+    Raises
+    ------
+    ConvergenceError, MatchError, CenterTooUncertainError
+        No iteration or a non-finite answer; residual excess or overlap beyond the limits; centre sigma too wide.
+    """
     sol = st.last
     if sol is None:
         raise ConvergenceError("registration: no iteration was made")

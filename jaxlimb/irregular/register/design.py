@@ -26,7 +26,20 @@ N_POSE_ATTITUDE = 8  # ... and the attitude (3)
 
 
 def blur(a: np.ndarray, sigma: float) -> np.ndarray:
-    """Gaussian blur (``sigma`` px, replicated border); ``a`` itself for ``sigma <= 0``."""
+    """Gaussian blur (``sigma`` px, replicated border); ``a`` itself for ``sigma <= 0``.
+
+    Parameters
+    ----------
+    a : np.ndarray (h, w)
+        Image.
+    sigma : float
+        Standard deviation of the Gaussian, px.
+
+    Returns
+    -------
+    np.ndarray (h, w)
+        The blurred image.
+    """
     return a if sigma <= 0 else cv2.GaussianBlur(a, (0, 0), sigma, borderType=cv2.BORDER_REPLICATE)
 
 
@@ -36,6 +49,22 @@ def pose_rows(M: np.ndarray, C: np.ndarray, ratio: float, P_win: np.ndarray, n_r
     Rows: ``M``, ``1 - C``, ``-dG/dr``, ``-dG/dc``, ``-(x - P).grad G`` with ``G = M - ratio C`` (``ratio = b/a``
     of the previous solve); rows 5.. are left for the other columns.  Rows, not columns: each is written in one
     contiguous pass and the normal matrix is ``At At^T``.
+
+    Parameters
+    ----------
+    M, C : np.ndarray (h, w)
+        Model radiance (unit albedo) and coverage in the window.
+    ratio : float
+        ``b / a`` of the previous solve.
+    P_win : np.ndarray (2,)
+        Body-centre image in window pixels ``(row, col)``.
+    n_rows : int
+        Rows allocated (``>= 5``); rows 5.. are left unset.
+
+    Returns
+    -------
+    np.ndarray (n_rows, h * w)
+        ``At``, the transposed design matrix.
     """
     h, w = M.shape
     At = np.empty((n_rows, h * w))
@@ -52,7 +81,22 @@ def pose_rows(M: np.ndarray, C: np.ndarray, ratio: float, P_win: np.ndarray, n_r
 
 def albedo_rows(M: np.ndarray, P_win: np.ndarray, order: int, harmonics: int) -> list[np.ndarray]:
     """``M`` times the monomials of degree 1..``order`` of the offsets from ``P_win`` (units of the window size)
-    and times ``cos k theta``, ``sin k theta`` (``k = 1..harmonics``, ``theta`` the position angle about ``P_win``)."""
+    and times ``cos k theta``, ``sin k theta`` (``k = 1..harmonics``, ``theta`` the position angle about ``P_win``).
+
+    Parameters
+    ----------
+    M : np.ndarray (h, w)
+        Model radiance (blurred like the frame).
+    P_win : np.ndarray (2,)
+        Body-centre image in window pixels ``(row, col)``.
+    order, harmonics : int
+        Polynomial degree and number of position-angle harmonics (:attr:`.RegisterOptions.albedo_order`).
+
+    Returns
+    -------
+    list of np.ndarray (h * w,)
+        The albedo columns, polynomial ones first.
+    """
     h, w = M.shape
     y = (np.arange(h)[:, None] - P_win[0]) / max(h, w) * np.ones((1, w))
     x = (np.arange(w)[None, :] - P_win[1]) / max(h, w) * np.ones((h, 1))
@@ -64,8 +108,7 @@ def albedo_rows(M: np.ndarray, P_win: np.ndarray, order: int, harmonics: int) ->
 
 def surge_fields(cam, lo, hi, Pk, sun, widths, min_range: float = 0.0) -> list[np.ndarray]:  # type: ignore[no-untyped-def]
     """``1 / (1 + tan(g/2) / h)`` over the window ``lo..hi`` of ``cam`` for each width ``h`` of ``widths``, with
-    ``g`` the phase angle (Sun -- surface -- camera) of each pixel's ray (``sun=None``: the Sun behind the
-    camera, along the ray through ``Pk``).
+    ``g`` the phase angle (Sun -- surface -- camera) of each pixel's ray.
 
     The shadow-hiding opposition surge (Hapke 1986, Eq. 11: ``B(g) = B_0 / (1 + tan(g/2) / h)``) brightens the
     part of the body nearest zero phase, and the phase angle varies by ~10 deg across a body at 3x its long
@@ -73,6 +116,26 @@ def surge_fields(cam, lo, hi, Pk, sun, widths, min_range: float = 0.0) -> list[n
     the coefficient of ``M`` stays the contrast there.  A field that varies by less than ``min_range`` over
     the window is left out: a gentle gradient the surge hardly shows, which a free column would spend on
     other misfits.
+
+    Parameters
+    ----------
+    cam : Camera
+        Camera of the pyramid level (``focal_px``, ``principal_point_rc``).
+    lo, hi : np.ndarray (2,) of int
+        Window, first and last pixel ``(row, col)``.
+    Pk : np.ndarray (2,)
+        Body-centre image, level pixels ``(row, col)``.
+    sun : np.ndarray (3,) or None
+        Unit vector toward the Sun, camera frame; ``None``: the Sun behind the camera, along the ray through ``Pk``.
+    widths : sequence of float
+        Surge widths ``h`` (rad).
+    min_range : float
+        Smallest variation over the window of a field that is kept.
+
+    Returns
+    -------
+    list of np.ndarray (hi - lo + 1)
+        One field per kept width.
     """
     f = cam.focal_px  # type: ignore[attr-defined]
     pr, pc = cam.principal_point_rc  # type: ignore[attr-defined]
@@ -90,7 +153,19 @@ def surge_fields(cam, lo, hi, Pk, sun, widths, min_range: float = 0.0) -> list[n
 
 def has_dark_side(model: ModelImage, min_frac: float) -> bool:
     """Whether at least ``min_frac`` (and 16 pixels) of the model's covered pixels are unlit (the pedestal
-    column of :func:`system` is then identifiable; ``min_frac = 0``: never)."""
+    column of :func:`system` is then identifiable; ``min_frac = 0``: never).
+
+    Parameters
+    ----------
+    model : ModelImage
+        Rendered model (radiance ``M``, coverage ``C``).
+    min_frac : float
+        Smallest fraction of fully covered pixels that are unlit.
+
+    Returns
+    -------
+    bool
+    """
     body = model.C > 0.99
     n = int(np.count_nonzero(body))
     dark = int(np.count_nonzero(body & (model.M <= 1e-6)))
@@ -120,7 +195,30 @@ class Columns:
 
 def system(lm: LevelModel, image: np.ndarray, s: float, psf: float, ratio: float, cols: Columns) -> tuple[np.ndarray, np.ndarray]:
     """Transposed design matrix and data of one solve: the frame (level pixels) blurred by ``s``, the model by
-    ``hypot(s, psf)`` (the camera's PSF).  Rows: :func:`pose_rows`, then those of ``cols``."""
+    ``hypot(s, psf)`` (the camera's PSF).  Rows: :func:`pose_rows`, then those of ``cols``.
+
+    Parameters
+    ----------
+    lm : LevelModel
+        The model rendered at the level, its window and centre.
+    image : np.ndarray (rows, cols)
+        Frame at the level (DN).
+    s : float
+        Blur of the iteration (level px).
+    psf : float
+        Gaussian PSF sigma of the camera (level px).
+    ratio : float
+        ``b / a`` of the previous solve (:func:`pose_rows`).
+    cols : Columns
+        The columns beyond the pose.
+
+    Returns
+    -------
+    At : np.ndarray (n_columns, n)
+        Transposed design matrix over the ``n`` window pixels.
+    y : np.ndarray (n,)
+        Blurred frame in the window.
+    """
     model, lo, hi = lm.model, lm.lo, lm.hi
     sm = math.hypot(s, psf)
     Mb = blur(model.M, sm)
@@ -143,6 +241,20 @@ def normal_equations(At: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndar
 
     One product over all the window's pixels wakes OpenBLAS's thread pool, whose threads then spin for
     every later call (twice the CPU time of a locate on two busy cores).
+
+    Parameters
+    ----------
+    At : np.ndarray (p, n)
+        Transposed design matrix.
+    y : np.ndarray (n,)
+        Data.
+
+    Returns
+    -------
+    N : np.ndarray (p, p)
+        Normal matrix ``At At^T``.
+    r : np.ndarray (p,)
+        ``At y``.
     """
     N = np.zeros((At.shape[0], At.shape[0]))
     for j in range(0, At.shape[1], _CHUNK):
@@ -166,7 +278,13 @@ class Solve:
     n_pose: int = N_POSE
 
     def fitted_radiance(self) -> np.ndarray:
-        """The fitted image without the pose columns: contrast, sky and the radiance terms after them."""
+        """The fitted image without the pose columns: contrast, sky and the radiance terms after them.
+
+        Returns
+        -------
+        np.ndarray (n,)
+            Fitted radiance (DN) over the window pixels, row-major.
+        """
         n = self.n_pose
         return np.einsum("i,ij->j", self.beta[:2], self.At[:2]) + np.einsum("i,ij->j", self.beta[n:], self.At[n:])
 
@@ -174,8 +292,27 @@ class Solve:
 def solve(At: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
     """Linear least squares ``At^T beta ~ y`` by the (column-scaled) normal equations: a few columns, many rows.
 
-    Returns ``beta``, the residual sum of squares ``|y|^2 - 2 beta.At y + beta.N beta`` (no residual vector:
-    ~1e-12 relative, the residual is >= 1e-6 of ``|y|^2`` here) and the normal matrix ``N = At At^T``.
+    Parameters
+    ----------
+    At : np.ndarray (p, n)
+        Transposed design matrix.
+    y : np.ndarray (n,)
+        Data.
+
+    Returns
+    -------
+    beta : np.ndarray (p,)
+        Coefficients.
+    rss : float
+        Residual sum of squares ``|y|^2 - 2 beta.At y + beta.N beta`` (no residual vector: ~1e-12 relative, the
+        residual is >= 1e-6 of ``|y|^2`` here).
+    N : np.ndarray (p, p)
+        Normal matrix ``At At^T``.
+
+    Raises
+    ------
+    ConvergenceError
+        Singular normal matrix (the model has no texture or edge).
     """
     N, r = normal_equations(At, y)
     sc = np.maximum(np.sqrt(np.diag(N)), 1e-300)

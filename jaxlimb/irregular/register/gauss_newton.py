@@ -55,7 +55,20 @@ class Problem:
         return self.pyramid[1].camera
 
     def columns(self, with_mix: bool, fields: tuple[np.ndarray, ...] = ()) -> Columns:
-        """The columns of a solve of this problem (:class:`.design.Columns`)."""
+        """The columns of a solve of this problem (:class:`.design.Columns`).
+
+        Parameters
+        ----------
+        with_mix : bool
+            Include the photometric-mix columns.
+        fields : tuple of np.ndarray
+            Surge fields (:func:`.design.surge_fields`).
+
+        Returns
+        -------
+        Columns
+            Attitude, mix, albedo, surge and pedestal columns as the options ask.
+        """
         o = self.options
         return Columns(self.fit_attitude, with_mix, (o.albedo_order, o.albedo_harmonics), fields, pedestal_frac(o))
 
@@ -83,12 +96,36 @@ class GNState:
 
 
 def pedestal_frac(options: RegisterOptions) -> float:
-    """The dark fraction of :func:`.design.has_dark_side` for the pedestal column (0: never)."""
+    """The dark fraction of :func:`.design.has_dark_side` for the pedestal column (0: never).
+
+    Parameters
+    ----------
+    options : RegisterOptions
+        ``fit_pedestal``.
+
+    Returns
+    -------
+    float
+        ``PEDESTAL_MIN_DARK_FRAC``, or 0 without the pedestal column.
+    """
     return PEDESTAL_MIN_DARK_FRAC if options.fit_pedestal else 0.0
 
 
 def initial_mix(options: RegisterOptions, phase_deg: float = 0.0) -> np.ndarray | None:
-    """The initial photometric mix: ``options.mix_laws`` laws, at most two from 75 deg phase on; ``None``: not fitted."""
+    """The initial photometric mix: ``options.mix_laws`` laws, at most two from 75 deg phase on.
+
+    Parameters
+    ----------
+    options : RegisterOptions
+        ``fit_photometry`` and ``mix_laws``.
+    phase_deg : float
+        Phase angle (deg) at the body.
+
+    Returns
+    -------
+    np.ndarray or None
+        Zeros (the base reflectance alone), one per mixed law plus the smooth-shading term; ``None``: not fitted.
+    """
     if not options.fit_photometry:
         return None
     n = options.mix_laws if phase_deg < _MIX_LAWS_MAX_PHASE_DEG else min(options.mix_laws, 2)
@@ -96,13 +133,49 @@ def initial_mix(options: RegisterOptions, phase_deg: float = 0.0) -> np.ndarray 
 
 
 def render_state(problem: Problem, st: GNState, k: int, jacobian: bool | None = None) -> LevelModel:
-    """The model at pyramid factor ``k`` for the pose of ``st`` (attitude derivatives when the attitude is fitted)."""
+    """The model at pyramid factor ``k`` for the pose of ``st`` (attitude derivatives when the attitude is fitted).
+
+    Parameters
+    ----------
+    problem : Problem
+        The registration problem.
+    st : GNState
+        Current pose ``(R, P, D)`` and photometric mix.
+    k : int
+        Pyramid factor.
+    jacobian : bool, optional
+        Render the attitude derivatives; default ``problem.fit_attitude``.
+
+    Returns
+    -------
+    LevelModel
+        The rendered model, its window and centre in level pixels.
+    """
     jac = problem.fit_attitude if jacobian is None else jacobian
     return render_level(problem.pyramid, problem.mesh, problem.sun, problem.options, k, (st.R, st.P, st.D), jac, st.mix)
 
 
 def gn_step(problem: Problem, st: GNState, sigma: float, k: int, rendered: LevelModel | None = None) -> Solve:
-    """One linearised solve at blur ``sigma`` and pyramid factor ``k`` (``rendered``: the model of this pose, if made)."""
+    """One linearised solve at blur ``sigma`` and pyramid factor ``k``.
+
+    Parameters
+    ----------
+    problem : Problem
+        The registration problem.
+    st : GNState
+        Current pose, PSF, ``ratio`` and mix.
+    sigma : float
+        Blur of the iteration (full-resolution px).
+    k : int
+        Pyramid factor.
+    rendered : LevelModel, optional
+        The model of this pose, if already rendered.
+
+    Returns
+    -------
+    Solve
+        Coefficients, residual sum of squares, normal matrix and design of the solve.
+    """
     lm = render_state(problem, st, k) if rendered is None else rendered
     level, o = problem.pyramid[k], problem.options
     fields = surge_fields(level.camera, lm.lo, lm.hi, lm.Pk, problem.sun, o.surge_widths, _SURGE_MIN_RANGE) if o.surge_widths else []
@@ -116,7 +189,19 @@ def estimate_psf(problem: Problem, st: GNState, rendered: LevelModel | None = No
     """Gaussian sigma (px) of the camera's PSF: the one of the grid whose blurred model leaves the smallest residual
     at the current pose (one render), refined by a parabola through the three values around the minimum.
 
-    ``rendered``: the full-resolution model of the current pose, if made (the next iteration's: one render for both).
+    Parameters
+    ----------
+    problem : Problem
+        The registration problem.
+    st : GNState
+        Current pose.
+    rendered : LevelModel, optional
+        The full-resolution model of the current pose, if made (the next iteration's: one render for both).
+
+    Returns
+    -------
+    float
+        PSF sigma, full-resolution px (within the grid ``_PSF_GRID_PX``).
     """
     lm = render_state(problem, st, 1, jacobian=False) if rendered is None else rendered
     grid = np.asarray(_PSF_GRID_PX, dtype=float)
@@ -137,7 +222,18 @@ def estimate_psf(problem: Problem, st: GNState, rendered: LevelModel | None = No
 
 
 def rotvec_matrix(w: np.ndarray) -> np.ndarray:
-    """Rodrigues rotation of a rotation vector ``w`` (rad)."""
+    """Rodrigues rotation of a rotation vector ``w`` (rad).
+
+    Parameters
+    ----------
+    w : np.ndarray (3,)
+        Rotation vector: axis times angle (rad).
+
+    Returns
+    -------
+    np.ndarray (3, 3)
+        Rotation matrix (identity for ``|w| < 1e-15``).
+    """
     th = float(np.linalg.norm(w))
     if th < 1e-15:
         return np.eye(3)
@@ -146,8 +242,34 @@ def rotvec_matrix(w: np.ndarray) -> np.ndarray:
 
 
 def iterate(problem: Problem, st: GNState, sigma: float, k: int | None = None, rendered: LevelModel | None = None) -> bool:
-    """One Gauss-Newton iteration at blur ``sigma`` (in place; pyramid factor ``k``, default from the blur);
-    ``True`` when converged (sharp, small steps).  ``rendered``: :func:`gn_step`'s."""
+    """One Gauss-Newton iteration at blur ``sigma``, updating ``st`` in place.
+
+    The step is limited to ``2 + 2 sigma`` px, 5 % in range and 3 deg in attitude; a sharp step that reverses
+    the last one is halved.
+
+    Parameters
+    ----------
+    problem : Problem
+        The registration problem.
+    st : GNState
+        State, moved in place.
+    sigma : float
+        Blur of the iteration (full-resolution px); 0: sharp.
+    k : int, optional
+        Pyramid factor; default from the blur and the figure size (:func:`.pyramid.level_of`).
+    rendered : LevelModel, optional
+        The model of this pose, if made (:func:`gn_step`).
+
+    Returns
+    -------
+    bool
+        Converged: a sharp iteration with steps below ``TOL_PX``.
+
+    Raises
+    ------
+    ConvergenceError
+        The fitted contrast is not positive.
+    """
     if k is None:
         k = level_of(sigma, figure_size(problem.pyramid[1].mask))
     sol = gn_step(problem, st, sigma, k, rendered)
@@ -191,7 +313,20 @@ def _move(st: GNState, beta: np.ndarray, sigma: float, k: int, fit_attitude: boo
 
 def coarse_stage(problem: Problem, st: GNState) -> GNState:
     """The first blurred iteration of the blur schedule and those after it at pyramid factors of at least
-    :data:`.pyramid.COARSE_MIN_LEVEL` (cheap: a 600 px figure is 75-120 px across there)."""
+    :data:`.pyramid.COARSE_MIN_LEVEL` (cheap: a 600 px figure is 75-120 px across there).
+
+    Parameters
+    ----------
+    problem : Problem
+        The registration problem.
+    st : GNState
+        Starting state, moved in place.
+
+    Returns
+    -------
+    GNState
+        ``st``.
+    """
     mask = problem.pyramid[1].mask
     size = figure_size(mask)
     for sigma in blur_schedule(mask, problem.wide):
@@ -207,8 +342,25 @@ Guard = Callable[[GNState, float], None]
 def fine_stage(problem: Problem, st: GNState, guard: Guard | None = None) -> GNState:
     """The rest of the blur schedule, then sharp iterations to convergence (``max_iterations`` in all).
 
-    ``guard(state, sigma)``, if given, is called after every iteration and may raise a
-    :class:`~jaxlimb.errors.CheckFailed` to abandon the registration.
+    Parameters
+    ----------
+    problem : Problem
+        The registration problem.
+    st : GNState
+        State after :func:`coarse_stage`, moved in place.
+    guard : Guard, optional
+        ``guard(state, sigma)``, called after every iteration; it may raise a
+        :class:`~jaxlimb.errors.CheckFailed` to abandon the registration.
+
+    Returns
+    -------
+    GNState
+        ``st``, converged.
+
+    Raises
+    ------
+    ConvergenceError
+        The last step still exceeds ``_MAX_FINAL_STEP_PX`` after ``max_iterations``.
     """
     o, mask = problem.options, problem.pyramid[1].mask
     blur = blur_schedule(mask, problem.wide)

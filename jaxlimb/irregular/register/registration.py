@@ -40,17 +40,11 @@ def _gauss_newton(problem: Problem, R: np.ndarray, P: np.ndarray, D: float) -> G
 
 
 def register_known_attitude(
-    image: np.ndarray,
-    mesh: Mesh,
-    camera: object,
-    R_body_to_camera: np.ndarray,
-    sun_dir_camera: np.ndarray | None = None,
-    range_km: float | None = None,
-    options: RegisterOptions = RegisterOptions(),
-    segmentation: tuple[np.ndarray, float] | None = None,
-    fit_attitude: bool = False,
+    image: np.ndarray, mesh: Mesh, camera: object, R_body_to_camera: np.ndarray, sun_dir_camera: np.ndarray | None = None,
+    range_km: float | None = None, options: RegisterOptions = RegisterOptions(),
+    segmentation: tuple[np.ndarray, float] | None = None, fit_attitude: bool = False,
     initial: tuple[np.ndarray, float] | None = None,
-) -> RegisterResult:
+) -> RegisterResult:  # fmt: skip
     """Body-centre image of a body of known attitude by render-and-register (:mod:`jaxlimb.irregular.register`).
 
     Parameters
@@ -75,6 +69,11 @@ def register_known_attitude(
         template match, not from the hints).
     initial
         ``(P, D)`` to start from instead of the lit figure (e.g. a template match).
+
+    Returns
+    -------
+    RegisterResult
+        Centre ``center_rc`` (px, ``(row, col)``), its covariance, line of sight, range and the quality measures.
 
     Raises
     ------
@@ -106,8 +105,23 @@ def with_lit_limb(res: RegisterResult, st: GNState, camera: object) -> RegisterR
     :attr:`.RegisterOptions.limb_min_phase_deg`), from the last solve of ``st`` (sharp, full resolution).
 
     The fitted model of that solve is linearised at the centre before its last step: the edge estimate is a
-    shift of that point.  ``res`` itself when the edge estimate has too few points or too wide a scatter.
-    The reported covariance stays the registration's: the edge estimate's sandwich alone under-reports.
+    shift of that point.  The reported covariance stays the registration's: the edge estimate's sandwich
+    alone under-reports.
+
+    Parameters
+    ----------
+    res : RegisterResult
+        The registration.
+    st : GNState
+        Its converged Gauss-Newton state.
+    camera : Camera
+        Camera of the frame (the new line of sight).
+
+    Returns
+    -------
+    RegisterResult
+        ``res`` with ``center_rc``, ``los_camera`` and ``t_camera`` moved; ``res`` itself when the edge estimate
+        has too few points or too wide a scatter.
     """
     sol = st.last
     if sol is None:
@@ -143,6 +157,30 @@ def start_search_registration(
 
     ``state.rms_frac`` then ranks the hypotheses before the expensive full-resolution iterations
     (:func:`complete_search_registration`).
+
+    Parameters
+    ----------
+    image : np.ndarray (rows, cols)
+        Grey frame.
+    mesh : Mesh
+        Shape model (km, body frame).
+    camera : Camera
+        Camera of the frame.
+    R : np.ndarray (3, 3)
+        Body-to-camera rotation of the hypothesis.
+    sun : np.ndarray (3,) or None
+        Unit vector toward the Sun, camera frame; ``None``: zero phase.
+    initial : (np.ndarray (2,), float)
+        The hypothesis' centre image ``P`` (px) and range ``D`` (km).
+    segmentation : (np.ndarray, float)
+        ``(mask, threshold)`` of :func:`~.start.lit_figure`.
+    options : RegisterOptions
+        Registration settings.
+
+    Returns
+    -------
+    Registration
+        The problem, the state after the coarse stage and the NCC peak.
     """
     img = np.asarray(image, dtype=float)
     R = np.asarray(R, dtype=float)
@@ -153,8 +191,25 @@ def start_search_registration(
 
 
 def complete_search_registration(reg: Registration, guard: Guard | None = None) -> RegisterResult:
-    """The full-resolution iterations and the checks of a :func:`start_search_registration` (``guard``:
-    :func:`~.gauss_newton.fine_stage`)."""
+    """The full-resolution iterations and the checks of a :func:`start_search_registration`.
+
+    Parameters
+    ----------
+    reg : Registration
+        A registration after its coarse stage.
+    guard : Guard, optional
+        Called after each iteration (:func:`~.gauss_newton.fine_stage`), may abandon it.
+
+    Returns
+    -------
+    RegisterResult
+        The checked registration.
+
+    Raises
+    ------
+    MatchError, CenterTooUncertainError, ConvergenceError
+        As :func:`register_known_attitude`.
+    """
     st = fine_stage(reg.problem, reg.state, guard)
     return finish_registration(reg.problem, reg.threshold, st, reg.ncc)
 

@@ -26,13 +26,43 @@ _SEARCH_PX = 12  # half-width (px) of the cross-correlation search
 
 
 def phase_angle_deg(sun_dir_camera: np.ndarray, camera: object, center_rc: np.ndarray) -> float:
-    """Sun-body-camera angle (deg) at the body seen at ``center_rc`` (``sun_dir_camera``: a unit vector)."""
+    """Sun-body-camera angle (deg) at the body seen at ``center_rc``.
+
+    Parameters
+    ----------
+    sun_dir_camera : np.ndarray (3,)
+        Unit vector from the body toward the Sun, camera frame.
+    camera : Camera
+        Pinhole camera.
+    center_rc : np.ndarray (2,)
+        Image of the body, px ``(row, col)``.
+
+    Returns
+    -------
+    float
+        Phase angle, degrees (0: full, 180: new).
+    """
     u = np.asarray(camera.los(center_rc), dtype=float)  # type: ignore[attr-defined]
     return math.degrees(math.acos(max(-1.0, min(1.0, float(-u @ np.asarray(sun_dir_camera, dtype=float))))))
 
 
 def sun_phase_deg(camera: object, P: np.ndarray, sun: np.ndarray | None) -> float:
-    """:func:`phase_angle_deg` at ``P`` for any Sun vector (normalised; ``sun=None``: zero phase)."""
+    """:func:`phase_angle_deg` at ``P`` for any Sun vector (normalised; ``sun=None``: zero phase).
+
+    Parameters
+    ----------
+    camera : Camera
+        Pinhole camera.
+    P : np.ndarray (2,)
+        Image of the body, px ``(row, col)``.
+    sun : np.ndarray (3,) or None
+        Direction toward the Sun, camera frame (any length).
+
+    Returns
+    -------
+    float
+        Phase angle, degrees; 0 without a Sun direction.
+    """
     if sun is None:
         return 0.0
     return phase_angle_deg(np.asarray(sun, dtype=float) / float(np.linalg.norm(sun)), camera, P)
@@ -44,6 +74,20 @@ def lit_figure(image: np.ndarray, min_frac: float = 0.02) -> tuple[np.ndarray, f
 
     At phase > 0 the lit part of a non-convex body (a contact binary's two lobes, a ridge beyond a dark
     valley) can fall apart into several pieces; the largest alone is not the figure the model predicts.
+
+    Parameters
+    ----------
+    image : np.ndarray (rows, cols)
+        Grey frame.
+    min_frac : float
+        Smallest component kept, as a fraction of the largest one's area (and at least 20 px).
+
+    Returns
+    -------
+    mask : np.ndarray (rows, cols)
+        The lit figure (non-zero inside).
+    threshold : float
+        The segmentation's grey level.
     """
     mask, thr, labels, stats = segment_components(image)  # the components labelled once
     n = stats.shape[0]
@@ -67,8 +111,25 @@ def extent_update(
     limb/terminator cusps) and toward the Sun (the sub-solar limb) are those of the silhouette (exact for a
     convex body), whatever the dim terminator does: the scale is the ratio of the cross-Sun widths, the shift
     matches the cross-Sun mid-point and the sunward extreme.  Without one (zero phase): area ratio and
-    centroids.  ``pred_contours``: the outer contours of ``pred``, if known
-    (:func:`~jaxlimb.irregular.silhouette.figure_extents`).
+    centroids.
+
+    Parameters
+    ----------
+    obs, pred : np.ndarray (rows, cols)
+        Observed and predicted lit figures (masks).
+    P : np.ndarray (2,)
+        Predicted body-centre image, px ``(row, col)``: the centre of the scaling.
+    s_img : np.ndarray (2,) or None
+        Unit direction toward the Sun in the image ``(row, col)``; ``None``: zero phase.
+    pred_contours : list, optional
+        The outer contours of ``pred``, if known (:func:`~jaxlimb.irregular.silhouette.figure_extents`).
+
+    Returns
+    -------
+    shift : np.ndarray (2,)
+        Shift (px, ``(row, col)``) to add to ``P``.
+    k : float
+        Scale of the observed over the predicted figure (the range is divided by it).
     """
     if s_img is None:
         k = math.sqrt(float(obs.sum()) / float(pred.sum()))
@@ -86,7 +147,38 @@ def extent_update(
 
 
 def initial_center(mesh: Mesh, camera: object, R: np.ndarray, sun, mask: np.ndarray, range_km: float | None):  # type: ignore[no-untyped-def]
-    """``(P, D)`` from the observed lit figure ``mask`` (module docstring)."""
+    """``(P, D)`` from the observed lit figure ``mask`` (module docstring).
+
+    The centre starts at the figure centroid and the range at the hints' value (or the one at which the
+    bounding sphere spans the figure), then three :func:`extent_update` passes match the predicted figure.
+
+    Parameters
+    ----------
+    mesh : Mesh
+        Shape model (km, body frame).
+    camera : Camera
+        Pinhole camera.
+    R : np.ndarray (3, 3)
+        Body-to-camera rotation.
+    sun : np.ndarray (3,) or None
+        Unit vector toward the Sun, camera frame; ``None``: zero phase.
+    mask : np.ndarray (rows, cols)
+        Observed lit figure.
+    range_km : float or None
+        Range prior, km.
+
+    Returns
+    -------
+    P : np.ndarray (2,)
+        Body-centre image, px ``(row, col)``.
+    D : float
+        Range, km.
+
+    Raises
+    ------
+    MatchError
+        The predicted lit figure is empty (wrong attitude or range).
+    """
     topo = cached_topology(mesh)
     fc = figure_center(mask)
     rr, cc = np.nonzero(mask.any(axis=1))[0], np.nonzero(mask.any(axis=0))[0]
@@ -105,7 +197,30 @@ def initial_center(mesh: Mesh, camera: object, R: np.ndarray, sun, mask: np.ndar
 
 
 def ncc_shift(image: np.ndarray, model: np.ndarray, lo: np.ndarray, search: int) -> tuple[np.ndarray, float]:
-    """Shift (row, col) of ``model`` (rendered in the window starting at ``lo``) that maximises the NCC."""
+    """Shift (row, col) of ``model`` (rendered in the window starting at ``lo``) that maximises the NCC.
+
+    Normalised cross-correlation (``cv2.TM_CCOEFF_NORMED``) over shifts up to ``search`` px; integer peak
+    refined by a parabola along each axis.
+
+    Parameters
+    ----------
+    image : np.ndarray (rows, cols)
+        Frame.
+    model : np.ndarray (h, w)
+        Rendered model.
+    lo : np.ndarray (2,) of int
+        Frame pixel of the model's first pixel.
+    search : int
+        Largest shift searched (px, per axis).
+
+    Returns
+    -------
+    shift : np.ndarray (2,)
+        Sub-pixel shift ``(row, col)`` to add to the model's position; zeros when the window leaves the frame
+        or the model is flat.
+    ncc : float
+        Peak correlation (``nan`` in those cases).
+    """
     h, w = model.shape
     big = np.pad(image, search, mode="edge")
     region = big[int(lo[0]) : int(lo[0]) + h + 2 * search, int(lo[1]) : int(lo[1]) + w + 2 * search]
@@ -124,7 +239,28 @@ def ncc_shift(image: np.ndarray, model: np.ndarray, lo: np.ndarray, search: int)
 
 
 def start_pose(problem: Problem, R: np.ndarray, range_km: float | None, initial=None):  # type: ignore[no-untyped-def]
-    """The initial pose (or ``initial``, ``(P, D)``) moved by the NCC peak at full resolution: ``(P, D, ncc)``."""
+    """The initial pose (or ``initial``, ``(P, D)``) moved by the NCC peak at full resolution.
+
+    Parameters
+    ----------
+    problem : Problem
+        The registration problem (frame pyramid, mesh, Sun, options).
+    R : np.ndarray (3, 3)
+        Body-to-camera rotation.
+    range_km : float or None
+        Range prior, km (:func:`initial_center`).
+    initial : (np.ndarray (2,), float), optional
+        ``(P, D)`` to start from instead of :func:`initial_center`.
+
+    Returns
+    -------
+    P : np.ndarray (2,)
+        Body-centre image, px ``(row, col)``.
+    D : float
+        Range, km.
+    ncc : float
+        Peak normalised cross-correlation (:func:`ncc_shift`).
+    """
     image, camera, mask = problem.pyramid[1]
     P, D = initial_center(problem.mesh, camera, R, problem.sun, mask, range_km) if initial is None else initial
     lo, hi = window(camera, P, D, problem.mesh, mask)
@@ -135,7 +271,26 @@ def start_pose(problem: Problem, R: np.ndarray, range_km: float | None, initial=
 
 def coarse_ncc(problem: Problem, R: np.ndarray, initial: tuple[np.ndarray, float]) -> tuple[np.ndarray, float, float]:
     """The NCC peak on the pyramid level of the first blurred iteration of the attitude fit (a template's pose
-    is off by pixels, not by less): ``(P, D, ncc)``."""
+    is off by pixels, not by less).
+
+    Parameters
+    ----------
+    problem : Problem
+        The registration problem (frame pyramid, mesh, Sun, options).
+    R : np.ndarray (3, 3)
+        Body-to-camera rotation of the template hypothesis.
+    initial : (np.ndarray (2,), float)
+        The hypothesis' ``(P, D)``: centre image (px) and range (km).
+
+    Returns
+    -------
+    P : np.ndarray (2,)
+        Body-centre image moved by the peak, px ``(row, col)`` at full resolution.
+    D : float
+        Range, km (unchanged).
+    ncc : float
+        Peak normalised cross-correlation.
+    """
     P, D = np.asarray(initial[0], dtype=float), float(initial[1])
     camera, mask = problem.pyramid[1].camera, problem.pyramid[1].mask
     blur = blur_schedule(mask, True)

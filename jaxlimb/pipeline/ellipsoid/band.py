@@ -21,7 +21,26 @@ from .trace_fit import normalised_band
 
 # =============================================================================== pixel selection
 def band_pixels(shape, ell: tuple, band: float, lit_dir, half_angle: float) -> np.ndarray:
-    """Pixels ``(row, col)`` within ``band`` px of the ellipse and inside the lit arc."""
+    """Pixels ``(row, col)`` within ``band`` px of the ellipse and inside the lit arc.
+
+    Parameters
+    ----------
+    shape : tuple of int
+        The image's ``(rows, cols)``; pixels outside it are not returned.
+    ell : tuple
+        The ellipse ``((r0, c0), (a, b), theta)``: centre (px, ``(row, col)``), semi-axes (px), orientation (rad).
+    band : float
+        Half-width (px) of the band, in the signed distance of :func:`~jaxlimb.geometry.conic.ellipse_signed_distance`.
+    lit_dir : tuple of float or None
+        Direction ``(d_row, d_col)`` from the centre toward the middle of the lit arc; ``None``: all round.
+    half_angle : float
+        Half-angle (rad) of the lit arc about ``lit_dir``.
+
+    Returns
+    -------
+    np.ndarray (n, 2)
+        The selected pixel centres ``(row, col)`` (float).
+    """
     (r0, c0), (a, b), th = ell
     R = a + band + 2
     rows = np.arange(max(0, int(math.floor(r0 - R))), min(shape[0], int(math.ceil(r0 + R)) + 1))
@@ -42,7 +61,25 @@ def band_pixels(shape, ell: tuple, band: float, lit_dir, half_angle: float) -> n
 
 def band_data(img: np.ndarray, ell: tuple, band: float, pix: "EllipsePixels") -> FitData:
     """The band's pixels and values; with a trace, level-normalised per ray (rays without a limb against the
-    sky, or with a cloud edge inside the band, left out: :func:`~jaxlimb.pipeline.ellipsoid.trace_fit.normalised_band`)."""
+    sky, or with a cloud edge inside the band, left out: :func:`~jaxlimb.pipeline.ellipsoid.trace_fit.normalised_band`).
+
+    Parameters
+    ----------
+    img : np.ndarray (rows, cols)
+        The grey image.
+    ell : tuple
+        The current ellipse ``((r0, c0), (a, b), theta)`` (px, rad).
+    band : float
+        Half-width (px) of the band about ``ell``.
+    pix : EllipsePixels
+        The lit window (``lit_dir``, ``half``) and, on a patchy limb, the traced rays.
+
+    Returns
+    -------
+    FitData
+        Pixels ``(row, col)`` and intensities in DN (``offset = 0``, ``scale = 1``, no weights), or on a patchy
+        limb the per-ray normalised values, weights and the DN scale.
+    """
     pts = band_pixels(img.shape, ell, band, pix.lit_dir, pix.half)
     if pix.patchy:
 
@@ -51,6 +88,27 @@ def band_data(img: np.ndarray, ell: tuple, band: float, pix: "EllipsePixels") ->
 
 
 def first_levels(img: np.ndarray, pts: np.ndarray, z: np.ndarray, ell: tuple, band: float) -> tuple[float, float]:
+    """The first edge fit's start levels: the medians of the pixels more than ``band / 2`` px inside and
+    outside the ellipse.
+
+    Parameters
+    ----------
+    img : np.ndarray (rows, cols)
+        The image (unused: the levels come from ``z``).
+    pts : np.ndarray (n, 2)
+        The band's pixels ``(row, col)``.
+    z : np.ndarray (n,)
+        Their values.
+    ell : tuple
+        The ellipse ``((r0, c0), (a, b), theta)`` (px, rad) the band is about.
+    band : float
+        The band's half-width (px).
+
+    Returns
+    -------
+    tuple of float
+        ``(ymax, ymin)``, the inside and outside levels; the 90th and 10th percentiles of ``z`` where a side is empty.
+    """
     F = ellipse_signed_distance(pts, ell)
     inner, outer = z[F < -0.5 * band], z[F > 0.5 * band]
     ymax = float(np.median(inner)) if inner.size else float(np.percentile(z, 90))
@@ -59,7 +117,25 @@ def first_levels(img: np.ndarray, pts: np.ndarray, z: np.ndarray, ell: tuple, ba
 
 
 def edge_start(eo: EllipsoidOptions, ell: tuple, prev: Any, levels: tuple[float, float]) -> Any:
-    """The edge model's start: the current ellipse, the previous fit's other parameters (or the levels)."""
+    """The edge model's start: the current ellipse, the previous fit's other parameters (or the levels).
+
+    Parameters
+    ----------
+    eo : EllipsoidOptions
+        ``interior_ramp`` chooses :class:`~jaxlimb.models.EllipseRampParams` over
+        :class:`~jaxlimb.models.EllipseParams` for a first fit.
+    ell : tuple
+        The ellipse ``((r0, c0), (a, b), theta)`` (px, rad); sets ``r0, c0, a, rho = b / a, theta``.
+    prev : EllipseParams or EllipseRampParams or None
+        The previous fit's parameters (their ``k``, levels and ramp kept), ``None`` for the first fit.
+    levels : tuple of float
+        ``(ymax, ymin)`` of a first fit (:func:`first_levels`); ``k`` starts at ``K_INIT`` and the ramp at 0.
+
+    Returns
+    -------
+    EllipseParams or EllipseRampParams
+        The start of the elliptical sigmoid fit (Mortari et al. 2016 §V-C).
+    """
     (r0, c0), (a, b), th = ell
     geo = dict(r0=r0, c0=c0, a=a, theta=th, rho=b / a)
     if prev is not None:
@@ -69,15 +145,43 @@ def edge_start(eo: EllipsoidOptions, ell: tuple, prev: Any, levels: tuple[float,
 
 
 def with_ellipse(edge: EllipsoidEdge, fitted: tuple) -> EllipsoidEdge:
-    """``edge`` answering ellipse ``fitted`` (``fitted`` and its final fit's ``r0, c0, a, rho, theta``)."""
+    """``edge`` answering ellipse ``fitted`` (``fitted`` and its final fit's ``r0, c0, a, rho, theta``).
+
+    Parameters
+    ----------
+    edge : EllipsoidEdge
+        The edge fit to edit.
+    fitted : tuple
+        The new ellipse ``((r0, c0), (a, b), theta)`` (px, rad).
+
+    Returns
+    -------
+    EllipsoidEdge
+        A copy whose ``fitted`` and final fit's parameters are the new ellipse (levels, ``k`` and covariance unchanged).
+    """
     (r0, c0), (a, b), th = fitted
     P = edge.final.fit.params.replace(r0=r0, c0=c0, a=a, rho=b / a, theta=th)
     return replace(edge, final=replace(edge.final, fit=eqx.tree_at(lambda x: x.params, edge.final.fit, P)), fitted=fitted)
 
 
 def shifted(edge: EllipsoidEdge, shift: tuple | None) -> EllipsoidEdge:
-    """``edge`` with its ``(r0, c0, a)`` moved by ``shift`` (the rays' shading correction, :func:`ray_geometry`): the
-    band fit of the level-normalised pixels assumes the same flat inside as the rays' half-level crossings."""
+    """``edge`` with its ``(r0, c0, a)`` moved by ``shift`` (the rays' shading correction,
+    :func:`~jaxlimb.pipeline.ellipsoid.patchy.ray_geometry`): the band fit of the level-normalised pixels assumes the
+    same flat inside as the rays' half-level crossings.
+
+    Parameters
+    ----------
+    edge : EllipsoidEdge
+        The band fit.
+    shift : tuple of float or None
+        ``(d_r0, d_c0, d_a)`` (px) added to the ellipse's centre and semi-major axis (``b`` scaled with ``a``);
+        ``None``: no shift.
+
+    Returns
+    -------
+    EllipsoidEdge
+        The shifted edge (``edge`` itself when ``shift`` is ``None``).
+    """
     if shift is None:
         return edge
     (r0, c0), (a, b), th = edge.fitted

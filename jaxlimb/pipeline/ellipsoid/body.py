@@ -55,7 +55,21 @@ from .start import ellipse_pixels, ellipsoid_candidates
 
 
 def ellipsoid_prepare(frame: Frame) -> Frame:
-    """Stage "prepare" of the ellipsoid: the hints name the Earth when they name no body; lens distortion: measure in the ideal image (resampled), the observed camera kept for ``finish``."""
+    """Stage "prepare" of the ellipsoid: the hints name the Earth when they name no body; with lens distortion the
+    image is resampled onto the ideal (pinhole) grid, where the limb is a conic, and the observed camera kept for
+    ``finish``.
+
+    Parameters
+    ----------
+    frame : Frame
+        The validated inputs.
+
+    Returns
+    -------
+    Frame
+        ``frame`` with its hints completed and, for a distorted camera, the ideal image, its pinhole camera and
+        ``observed_cam``.
+    """
     cam = frame.cam
     if frame.hints is None or frame.hints.body is None:
         frame = replace(frame, hints=earth_hints(frame.hints))
@@ -66,7 +80,25 @@ def ellipsoid_prepare(frame: Frame) -> Frame:
 
 
 def ellipsoid_report(body: EllipsoidModel, frame: Frame, cand: Any, edge: EllipsoidEdge) -> dict[str, Any]:
-    """The intermediate values of the ellipsoid's first stages, for ``extras``."""
+    """The intermediate values of the ellipsoid's first stages, for ``extras``.
+
+    Parameters
+    ----------
+    body : EllipsoidModel
+        The body (``free``, ``atmosphere_km``).
+    frame : Frame
+        The frame (whether the Sun direction is known).
+    cand : Any
+        The front end's candidates (initial circle, prior).
+    edge : EllipsoidEdge
+        The edge fit.
+
+    Returns
+    -------
+    dict
+        The initial circle, the edge fit (model, fit history, ellipse centre and semi-axes in px, range in km),
+        the range prior, the jump of Check 5 and its limit (px), and the prior's source.
+    """
     prior = cand.info.get("prior")
     return {"initial_circle": {"center_rc": list(cand.center_rc), "radius_px": cand.radius,
                                "n_points": cand.n_points},
@@ -79,7 +111,22 @@ def ellipsoid_report(body: EllipsoidModel, frame: Frame, cand: Any, edge: Ellips
 
 
 def distorted_back(frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
-    """Stage "finish" of the ellipsoid: with a distorted camera, ``center_rc`` and its covariance rows mapped to the observed image."""
+    """Stage "finish" of the ellipsoid: with a distorted camera, ``center_rc`` and its covariance rows mapped to the
+    observed image.
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame; ``observed_cam`` is the distorted camera (``None``: nothing to map).
+    meas : LimbMeasurement
+        The measurement in ideal (pinhole) pixels.
+
+    Returns
+    -------
+    LimbMeasurement
+        The centre, the selected pixels and the ``center_r, center_c`` rows and columns of the covariance mapped
+        through the distortion (its Jacobian by central differences); ``meas`` itself without distortion.
+    """
     cam = frame.observed_cam
     if cam is None:
         return meas
@@ -109,7 +156,18 @@ class Ellipsoid(Body[EllipsePixels, EllipsoidEdge]):
 
     @classmethod
     def for_frame(cls, frame: Frame) -> "Ellipsoid":
-        """The strategy for ``frame`` (:meth:`EllipsoidModel.for_frame`)."""
+        """The strategy for ``frame`` (:meth:`EllipsoidModel.for_frame`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The validated inputs.
+
+        Returns
+        -------
+        Ellipsoid
+            The strategy with the body's model.
+        """
         return cls(EllipsoidModel.for_frame(frame))
 
     @property
@@ -118,36 +176,178 @@ class Ellipsoid(Body[EllipsePixels, EllipsoidEdge]):
         return self.model.free
 
     def prepare(self, frame: Frame) -> Frame:
+        """Stage "prepare" (:func:`ellipsoid_prepare`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The validated inputs.
+
+        Returns
+        -------
+        Frame
+            The frame as the ellipsoid measures it.
+        """
         return ellipsoid_prepare(frame)
 
     def candidates(self, frame: Frame) -> Any:
+        """Stage "candidates" (:func:`~jaxlimb.pipeline.ellipsoid.start.ellipsoid_candidates`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared frame.
+
+        Returns
+        -------
+        Any
+            The front end's candidates and initial circle.
+        """
         return ellipsoid_candidates(self.model, frame)
 
     def limb_pixels(self, frame: Frame, cand: Any) -> EllipsePixels:
+        """Stage "limb pixels" (:func:`~jaxlimb.pipeline.ellipsoid.start.ellipse_pixels`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared frame.
+        cand : Any
+            The candidates.
+
+        Returns
+        -------
+        EllipsePixels
+            Position prior, lit window and start ellipse.
+        """
         return ellipse_pixels(self.model, frame, cand)
 
     def edge_fit(self, frame: Frame, cand: Any, pixels: EllipsePixels) -> EllipsoidEdge:
+        """Stage "edge fit" (:func:`~jaxlimb.pipeline.ellipsoid.edge.ellipsoid_edge`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared frame.
+        cand : Any
+            The candidates.
+        pixels : EllipsePixels
+            The start of the fit.
+
+        Returns
+        -------
+        EllipsoidEdge
+            The elliptical edge fit after its checks.
+        """
         return ellipsoid_edge(self.model, frame, cand, pixels)
 
     def report(self, frame: Frame, cand: Any, edge: EllipsoidEdge) -> dict[str, Any]:
+        """The intermediate values for ``extras`` (:func:`ellipsoid_report`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The frame.
+        cand : Any
+            The candidates.
+        edge : EllipsoidEdge
+            The edge fit.
+
+        Returns
+        -------
+        dict
+            The values to report.
+        """
         return ellipsoid_report(self.model, frame, cand, edge)
 
     def refit(self, frame: Frame, cand: Any, edge: EllipsoidEdge, extras: dict[str, Any]) -> RefineResult:
         """The lunar-Lambert profile on the edge fit's pixels (Sun direction known), else the edge fit; the centre's
-        variance floored at ``EllipsoidOptions.center_floor_px``."""
+        variance floored at ``EllipsoidOptions.center_floor_px``.
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared frame.
+        cand : Any
+            The candidates (unused).
+        edge : EllipsoidEdge
+            The edge fit.
+        extras : dict
+            The report, to which the profile stage adds its values.
+
+        Returns
+        -------
+        RefineResult
+            The final fit.
+        """
         return floor_center_var(fit_profile_ellipsoid(self.model, frame, edge, extras), self.model.eo.center_floor_px ** 2)
 
     def body_center(self, frame: Frame, edge: EllipsoidEdge, final: RefineResult) -> BodyCenter:
+        """Stage "body-centre mapping" (:func:`~jaxlimb.pipeline.ellipsoid.center.ellipsoid_center`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared frame.
+        edge : EllipsoidEdge
+            The edge fit (unused).
+        final : RefineResult
+            The final fit.
+
+        Returns
+        -------
+        BodyCenter
+            The body centre's image, line of sight and range, with the map's Jacobian.
+        """
         return ellipsoid_center(self.model, frame, final)
 
     def check(self, frame: Frame, levels: Levels, cov: Covariance) -> None:
+        """Stage "checks" (:func:`~jaxlimb.pipeline.report.check_physical`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The frame (``max_center_sigma_px``).
+        levels : Levels
+            The fitted edge's levels and blur.
+        cov : Covariance
+            The measurement's covariance.
+        """
         check_physical(frame, levels, cov, self.name)
 
     def iterations(self, edge: EllipsoidEdge, final: RefineResult) -> int:
+        """The solver steps of the fits that made the answer: the edge fits, plus the profile fit when there is one.
+
+        Parameters
+        ----------
+        edge : EllipsoidEdge
+            The edge fit (its history of steps).
+        final : RefineResult
+            The final fit.
+
+        Returns
+        -------
+        int
+            The number of solver steps.
+        """
         # the edge fit with its model-error term is the same fit (same data), the profile a second one
         return edge.n_steps + (int(final.fit.n_steps) if type(final.fit.params) is not type(edge.final.fit.params) else 0)
 
     def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
+        """Stage "finish" (:func:`distorted_back`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The frame.
+        meas : LimbMeasurement
+            The measurement.
+
+        Returns
+        -------
+        LimbMeasurement
+            The measurement in the observed image's pixels.
+        """
         return distorted_back(frame, meas)
 
 

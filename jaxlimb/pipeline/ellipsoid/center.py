@@ -19,8 +19,27 @@ from .pole_prior import FREE_ELLIPSE, marginal_center
 
 
 def ellipsoid_center(body: EllipsoidModel, frame: Frame, final: RefineResult) -> BodyCenter:
-    """Stage "body-centre mapping" of the ellipsoid: the range iteration from the final fit's ellipse and its
-    central-difference Jacobian; outputs ``center_r, center_c, range_km, a`` (and ``rho, theta`` when free)."""
+    """Stage "body-centre mapping" of the ellipsoid: the range iteration (Mortari et al. 2016 §IV, Fig. 2) from the
+    final fit's ellipse and its central-difference Jacobian; outputs ``center_r, center_c, range_km, a`` (and
+    ``rho, theta`` when free).  With a free ellipse the unsigned centre offset is a model error
+    (:func:`unsigned_offset_cov`), or the centre is marginalised over the poles the Sun's declination bound allows.
+
+    Parameters
+    ----------
+    body : EllipsoidModel
+        The spheroid, its orientation and whether the ellipse is free.
+    frame : Frame
+        The frame: camera (required) and hints.
+    final : RefineResult
+        The final fit (edge or profile), whose ``r0, c0, a, rho, theta`` give the limb ellipse.
+
+    Returns
+    -------
+    BodyCenter
+        The body centre's image ``(row, col)`` (px), the limb ellipse, the line of sight (camera frame), the range
+        (km), the Jacobian of the outputs by the fit's geometric parameters, the model-error covariance (free
+        ellipse) and the ``gamma_off``, ``a'``, ``b'`` of the cone in ``extras``.
+    """
     cam, P = frame.cam, final.fit.params
     fitted = as_ellipse(P)
     p, info = position(body, cam, fitted, frame_position_start(final, body, cam, fitted))
@@ -77,21 +96,58 @@ def _pole_marginal(body: EllipsoidModel, frame: Frame, final: RefineResult, p: n
 
 
 def frame_position_start(final: RefineResult, body: EllipsoidModel, cam: Camera, fitted: tuple) -> np.ndarray:
-    """The range iteration's start: the free-ellipse position of ``fitted`` (``(Re + h) / a'`` along the cone axis)."""
+    """The range iteration's start: the free-ellipse position of ``fitted`` (``(Re + h) / a'`` along the cone axis).
+
+    Parameters
+    ----------
+    final : RefineResult
+        The final fit (unused).
+    body : EllipsoidModel
+        The spheroid and limb height.
+    cam : Camera
+        The pinhole camera.
+    fitted : tuple
+        The ellipse ``((r0, c0), (a, b), theta)`` (px, rad).
+
+    Returns
+    -------
+    np.ndarray (3,)
+        Observer minus body centre (km, camera frame).
+    """
     free = replace(body, R=None, free=True)
     return position(free, cam, fitted, np.zeros(3))[0]
 
 
 def unsigned_offset_cov(camera: Camera, fitted: tuple, range_km: float, equatorial_km: float, polar_km: float,
                         atmosphere_km: float, n_out: int) -> tuple[np.ndarray, float]:
-    """The free ellipse's unsigned centre offset as a model error (module docstring, "Free ellipse"):
-    a uniform error ``+-gamma_off`` along the image of the polar axis, ``var = gamma_off^2 / 3`` px^2, in every
-    direction (the fitted ellipse's minor axis is no measure of that axis: ``a - b`` is ~0.3 % of ``a``), with
-    ``gamma_off`` its largest value over the observer's latitude (:func:`max_gamma_off`).  (The latitude from
-    the measured axis ratio was tried: on a lit arc the ratio is not measured well enough, it came out ~1,
-    i.e. pole-on and no offset, for frames at 22-44 deg whose centres were 0.1-0.32 px off: centre NEES
-    45-760 on ``benchmarks/families.py``'s ``earth_noR`` rows.)  Returns the ``(n_out, n_out)`` covariance (on the
-    ``center_r, center_c`` block) and ``gamma_off`` (rad)."""
+    """The free ellipse's unsigned centre offset as a model error: a uniform error ``+-gamma_off`` along the
+    image of the polar axis, ``var = gamma_off^2 / 3`` px^2, in every direction (the fitted ellipse's minor axis
+    is no measure of that axis: ``a - b`` is ~0.3 % of ``a``), with ``gamma_off`` its largest value over the
+    observer's latitude (:func:`~jaxlimb.geometry.earth_cone.max_gamma_off`).  The latitude is not taken from the
+    fitted axis ratio: on a lit arc that ratio is not measured well enough and comes out near 1 (pole-on, no offset).
+
+    Parameters
+    ----------
+    camera : Camera
+        The camera (``focal_px`` converts the angle to px).
+    fitted : tuple
+        The fitted ellipse (unused: the bound does not depend on its shape).
+    range_km : float
+        The range to the body centre (km).
+    equatorial_km, polar_km : float
+        The spheroid's radii (km).
+    atmosphere_km : float
+        The limb's height above the surface (km).
+    n_out : int
+        The number of outputs of the body-centre map.
+
+    Returns
+    -------
+    cov : np.ndarray (n_out, n_out)
+        Zero but for its ``center_r, center_c`` block (px^2).
+    gamma_off : float
+        The bound on the offset angle (rad).
+    """
     del fitted  # the bound does not depend on the fitted shape (docstring)
     goff = max_gamma_off(range_km, equatorial_km, polar_km, atmosphere_km)
     s_px = goff * camera.focal_px

@@ -25,7 +25,31 @@ from .patchy import patchy_geometry
 
 
 def ellipsoid_edge(body: EllipsoidModel, frame: Frame, cand: Any, pix: EllipsePixels) -> EllipsoidEdge:
-    """Stage "edge fit" of the ellipsoid: the ramp ESF loop (module docstring), then Checks 1, 3/4, 4, 5 on the fitted ellipse."""
+    """Stage "edge fit" of the ellipsoid: the ramp ESF loop (:func:`edge_loop`), the rays' estimate on a patchy limb
+    with the attitude known, then Checks 5 (jump), 1 (size), 3/4 (radius in the prior's band) and the centre in
+    the field on the fitted ellipse.
+
+    Parameters
+    ----------
+    body : EllipsoidModel
+        The body.
+    frame : Frame
+        The prepared frame.
+    cand : Any
+        The front end's candidates (initial circle, prior).
+    pix : EllipsePixels
+        Position prior, lit window and start ellipse.
+
+    Returns
+    -------
+    EllipsoidEdge
+        The edge fit with the jump and its limit.
+
+    Raises
+    ------
+    JumpError, TooSmallError, RadiusInconsistentError, CenterOutOfFieldError, TooManyOutliersError
+        A failed check (:mod:`jaxlimb.errors`).
+    """
     edge = edge_loop(body, frame, pix)
     if pix.patchy and not body.free:
         edge = patchy_geometry(body, frame, edge)
@@ -42,10 +66,26 @@ def ellipsoid_edge(body: EllipsoidModel, frame: Frame, cand: Any, pix: EllipsePi
 
 
 def edge_loop(body: EllipsoidModel, frame: Frame, pix: EllipsePixels) -> EllipsoidEdge:
-    """Steps 2-5 of the module docstring of :mod:`jaxlimb.pipeline.ellipsoid`: fit, range iteration, predicted
-    shape, refit while the prediction moves the ellipse by more than :data:`~jaxlimb.pipeline.ellipsoid.model.REFIT_TOL_PX`.  On a patchy limb with the
-    attitude known a band fit that does not converge returns its start (``band_converged=False``) for the rays'
-    fit instead of raising."""
+    """Steps 2-4 of :mod:`jaxlimb.pipeline.ellipsoid`: the elliptical sigmoid fit (Mortari et al. 2016 §V-C) on the
+    band, the range iteration and the predicted shape (Eq. 2-9), refitted while the prediction moves the ellipse by
+    more than :data:`~jaxlimb.pipeline.ellipsoid.model.REFIT_TOL_PX`; on a patchy limb with the attitude known a band
+    fit that does not converge returns its start (``band_converged=False``) for the rays' fit instead of raising.
+    Fewer than 50 pixels in the band is a :class:`~jaxlimb.errors.TooManyOutliersError`.
+
+    Parameters
+    ----------
+    body : EllipsoidModel
+        The body: ``free`` fits ``rho, theta``, else they are predicted and held.
+    frame : Frame
+        The prepared frame.
+    pix : EllipsePixels
+        Position prior, lit window and start ellipse.
+
+    Returns
+    -------
+    EllipsoidEdge
+        The last fit, its data, ellipse ``((r0, c0), (a, b), theta)``, position (km) and fit history.
+    """
     eo, cam, img = body.eo, frame.cam, frame.img
     model = ELLIPSE_RAMP if eo.interior_ramp else ELLIPSE
     fixed = () if body.free else ("rho", "theta")
@@ -87,7 +127,30 @@ def edge_loop(body: EllipsoidModel, frame: Frame, pix: EllipsePixels) -> Ellipso
 
 def check_ellipse_jump(frame: Frame, cand: Any, edge: EllipsoidEdge, eo: EllipsoidOptions) -> EllipsoidEdge:
     """Check 5: the fitted ellipse must lie within ``max(2, band/2) + (a - b)`` px of the front end's circle on
-    the fitted arc (the circle cannot follow the ellipse's out-of-roundness ``a - b``)."""
+    the fitted arc (the circle cannot follow the ellipse's out-of-roundness ``a - b``); with a trace, of the
+    traced start ellipse on the lit arc.
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame (unused).
+    cand : Any
+        The front end's candidates (``center_rc``, ``radius``).
+    edge : EllipsoidEdge
+        The edge fit.
+    eo : EllipsoidOptions
+        ``band_px`` sets the threshold.
+
+    Returns
+    -------
+    EllipsoidEdge
+        ``edge`` with ``jump_px`` (the largest distance, px) and ``jump_limit_px``.
+
+    Raises
+    ------
+    JumpError
+        The fit moved the limb farther than the limit.
+    """
 
     pts = edge.final.coords
     if edge.pixels.trace is not None:  # the initial conic is the traced ellipse, not the front end's circle

@@ -41,7 +41,25 @@ class EllipsoidModel:
 
     @classmethod
     def for_frame(cls, frame: Frame) -> "EllipsoidModel":
-        """Validate what the ellipsoid needs (camera, spheroid radii, rotation) and refuse what it cannot honour."""
+        """Validate what the ellipsoid needs (camera, spheroid radii, rotation) and refuse what it cannot honour.
+
+        Parameters
+        ----------
+        frame : Frame
+            The validated inputs; the hints default to the Earth's (WGS-84, no attitude).
+
+        Returns
+        -------
+        EllipsoidModel
+            The body; its ellipse is free when ``R_body_to_camera`` is unknown or ``model="ellipse"``.
+
+        Raises
+        ------
+        ConfigError
+            No camera, ``estimate_k=False`` or the limb-darkened profile.
+        GeometryError
+            The body is not a spheroid (``body_radii_km[0] != body_radii_km[1]``).
+        """
         opt, h = frame.opt, frame.hints
         if frame.cam is None:
             raise ConfigError("the ellipsoid strategy (hints body 'earth') needs a camera (`camera`; the CLI's --camera): "
@@ -69,22 +87,78 @@ class EllipsoidModel:
         return None if (self.free or self.R is None) else self.R[:, 2]
 
     def solver(self, frame: Frame):  # noqa: ANN201
-        """The chosen solver object, ``None`` for the default (``lm``)."""
+        """The chosen solver object, ``None`` for the default (``lm``).
+
+        Parameters
+        ----------
+        frame : Frame
+            The frame whose options name the solver.
+
+        Returns
+        -------
+        solver or None
+            The solver of :func:`~jaxlimb.fitting.solver_from_name`, or ``None``.
+        """
         return None if frame.opt.solver == "lm" else solver_from_name(frame.opt.solver)
 
     def predicted_shape(self, cam: Camera, center_km: np.ndarray) -> tuple[float, float]:
-        """``(rho, theta)`` of the limb spheroid's image ellipse with its centre at ``center_km`` (camera frame)."""
+        """``(rho, theta)`` of the limb spheroid's image ellipse with its centre at ``center_km`` (camera frame):
+        the limb cone and its image conic (Mortari et al. 2016 Eq. 2-9,
+        :func:`~jaxlimb.geometry.ellipsoid.image_conic`).
+
+        Parameters
+        ----------
+        cam : Camera
+            The pinhole camera.
+        center_km : np.ndarray (3,)
+            The body centre (km, camera frame).
+
+        Returns
+        -------
+        rho : float
+            Axis ratio ``b / a`` of the image ellipse.
+        theta : float
+            Orientation of its major axis (rad).
+        """
         ic = image_conic(cam, self.radii_limb, center_km, self.R)
         return float(ic.rho), float(ic.angle_rad)
 
 
 def earth_hints(h: Any = None) -> Any:
+    """Hints that name the Earth.
+
+    Parameters
+    ----------
+    h : Hints or None
+        Hints to complete (``None``: none given).
+
+    Returns
+    -------
+    Hints
+        ``h`` with ``body="earth"``, or hints holding only that.
+    """
 
     return Hints(body="earth") if h is None else replace(h, body="earth")
 
 
 def as_ellipse(P: Any) -> tuple:
-    """The fitted ellipse ``((r0, c0), (a, b), theta)`` with ``a >= b``, ``theta`` in ``[0, pi)``."""
+    """The fitted ellipse ``((r0, c0), (a, b), theta)`` with ``a >= b``, ``theta`` in ``[0, pi)``.
+
+    Parameters
+    ----------
+    P : EllipseParams or a profile's parameters
+        Fitted parameters with ``r0, c0, a, rho, theta`` (px, rad).
+
+    Returns
+    -------
+    tuple
+        ``((r0, c0), (a, b), theta)`` (px, rad).
+
+    Raises
+    ------
+    ConvergenceError
+        ``a`` or ``rho`` not positive.
+    """
     a, rho, th = float(P.a), float(P.rho), float(P.theta)
     if a <= 0 or rho <= 0:
         raise ConvergenceError(f"the elliptical edge fit gave a non-physical ellipse: a = {a}, rho = {rho}")
@@ -95,7 +169,32 @@ def as_ellipse(P: Any) -> tuple:
 
 
 def position(body: EllipsoidModel, cam: Camera, fitted: tuple, p0: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
-    """The observer position from a fitted ellipse (range iteration); no convergence is a failed check."""
+    """The observer position from a fitted ellipse (range iteration, Mortari et al. 2016 §IV, Fig. 2,
+    :func:`~jaxlimb.geometry.earth_cone.earth_position_from_ellipse`); no convergence is a failed check.
+
+    Parameters
+    ----------
+    body : EllipsoidModel
+        The spheroid, limb height and pole (``None`` when free: ``p = -(Re + h) / a' v_c``).
+    cam : Camera
+        The pinhole camera.
+    fitted : tuple
+        The ellipse ``((r0, c0), (a, b), theta)`` (px, rad).
+    p0 : np.ndarray (3,)
+        Start of the iteration (km, camera frame).
+
+    Returns
+    -------
+    p : np.ndarray (3,)
+        Observer minus body centre (km, camera frame).
+    info : dict
+        ``iterations``, ``converged``, ``gamma_off_rad``, ``a_prime``, ``b_prime`` and the cone.
+
+    Raises
+    ------
+    ConvergenceError
+        The iteration does not converge or the ellipse gives no limb cone.
+    """
     try:
         return earth_position_from_ellipse(
             cam, *fitted, p0, pole_camera=body.pole, equatorial_km=body.equatorial_km, polar_km=body.polar_km,
@@ -108,6 +207,23 @@ def position(body: EllipsoidModel, cam: Camera, fitted: tuple, p0: np.ndarray) -
 
 # =============================================================================== ellipse -> position
 def spheroid(hints: Hints) -> tuple[float, float, float]:
+    """The spheroid the hints name.
+
+    Parameters
+    ----------
+    hints : Hints
+        ``body_radii_km`` (default WGS-84) and ``atmosphere_km`` (default 0).
+
+    Returns
+    -------
+    tuple of float
+        ``(equatorial_km, polar_km, atmosphere_km)``.
+
+    Raises
+    ------
+    GeometryError
+        The first two radii differ (not a spheroid).
+    """
     radii = hints.body_radii_km if hints.body_radii_km is not None else (EARTH_EQUATORIAL_KM, EARTH_EQUATORIAL_KM, EARTH_POLAR_KM)
     a, b, c = (float(v) for v in radii)
     if abs(a - b) > 1e-9 * a:

@@ -21,15 +21,36 @@ from .trace_fit import GLOW_LIFT_Z, fit_traced, fit_traced_glow, trace_model_cov
 
 def ray_geometry(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdge, passes: int = 2) -> EllipsoidEdge:
     """An albedo-patchy limb's geometry from its rays, not from the band fit (attitude known): the known-shape
-    ellipse through the traced limb points (:func:`~jaxlimb.pipeline.ellipsoid.trace_fit.fit_traced`, soft-L1), the rays
-    re-sampled about it and the shape re-predicted at its position, ``passes`` times, starting from the traced
-    start ellipse.  Why: the band fit of the level-normalised pixels pulls ``(r0, c0, a)`` with the cloud edges
-    0-5 px inside the limb that survive the per-ray flatness test (``benchmarks/families.py`` Earth ``clouds``
-    frame 1, 127 px: the band fit 4.2 px off, its traced start 0.8 px), while the ray fit weighs each ray's
-    limb point once.  The edge fit's other parameters (levels, kernel) are kept; its ``(r0, c0, a)`` covariance
-    is replaced by the rays' cluster-robust one in the refit stage
-    (:func:`~jaxlimb.pipeline.ellipsoid.profile.fit_profile_ellipsoid`).  Returns the edge with its
-    ``pixels.trace`` the last trace."""
+    ellipse through the traced limb points (:func:`~jaxlimb.pipeline.ellipsoid.trace_fit.fit_traced`, soft-L1), the
+    rays re-sampled about it and the shape re-predicted at its position, ``passes`` times, starting from the traced
+    start ellipse.  Why: the band fit of the level-normalised pixels is pulled by the cloud edges a few px inside
+    the limb that survive the per-ray flatness test, while the ray fit weighs each ray's limb point once.  The edge
+    fit's other parameters (levels, kernel) are kept; its ``(r0, c0, a)`` covariance is replaced by the rays'
+    cluster-robust one in the refit stage (:func:`~jaxlimb.pipeline.ellipsoid.profile.fit_profile_ellipsoid`).
+
+    Parameters
+    ----------
+    body : EllipsoidModel
+        The body (attitude known: ``rho, theta`` predicted).
+    frame : Frame
+        The prepared frame (image, camera, Sun direction for the shading correction).
+    edge : EllipsoidEdge
+        The band fit, whose ``pixels.trace`` is the traced start.
+    passes : int
+        Number of trace-and-fit passes.
+
+    Returns
+    -------
+    EllipsoidEdge
+        The edge answering the rays' ellipse and position, with ``pixels.trace`` the last trace
+        (``ray_fit=True``) and ``shading_shift`` the move ``(d_r0, d_c0, d_a)`` (px) of the shading
+        correction (``None`` when none was made).
+
+    Raises
+    ------
+    TooManyOutliersError
+        Too few rays with a limb against the sky.
+    """
 
     pix, cam = edge.pixels, frame.cam
     search = max(6.0, 2.0 * body.eo.band_px)
@@ -47,13 +68,12 @@ def ray_geometry(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdge, passes
 def _rays_once(body: EllipsoidModel, frame: Frame, tr: Any, ell: tuple) -> tuple[Any, tuple, tuple | None]:
     """One pass of :func:`ray_geometry` on trace ``tr`` about ``ell``: the rays' ellipse (:func:`_fit_rays`) with the
     crossings' shading bias removed (:func:`_shaded`), and the shift ``(dr0, dc0, da)`` that removal made (``None``
-    when it was not made).  The glow's lift and the shading model do not compose (``combined`` 2-4 moved 0.1-0.2 px),
-    so a glow fitted on the raw crossings is kept alone -- except on a shading-flattened trace (a dark Lambert limb,
-    :class:`~jaxlimb.pipeline.ellipsoid.shading.RayShading`), whose raw crossings lie 0.6-0.8 px inside the limb, deepest
-    where the limb is darkest: a ``c / A_ray`` lift takes that for a glow (the mottled Earth at 2 deg phase,
-    ``benchmarks/earth_mottled.py``, 0.89 px off; tested after the shading's removal it still fitted one, 0.76 px).
-    There only the shading is removed: a glow above a dark limb is not modelled (such a trace arises only near zero
-    phase, :func:`wide_trace`)."""
+    when it was not made).  The glow's lift and the shading model do not compose (each moves the crossings by an
+    amount set by the ray's brightness, and the two together move the centre), so a glow fitted on the raw crossings is kept alone -- except on a shading-flattened
+    trace (a dark Lambert limb, :class:`~jaxlimb.pipeline.ellipsoid.shading.RayShading`), whose raw crossings lie
+    inside the limb, deepest where the limb is darkest: a ``c / A_ray`` lift takes that for a glow.  There only the
+    shading is removed: a glow above a dark limb is not modelled (such a trace arises only near zero phase,
+    :func:`wide_trace`; ``docs/validation/constants.md#glow-and-shading``)."""
 
     def moved(a: tuple, b: tuple) -> tuple:
         return (a[0][0] - b[0][0], a[0][1] - b[0][1], a[1][0] - b[1][0])
@@ -83,13 +103,11 @@ def _shaded(body: EllipsoidModel, frame: Frame, tr: Any, ell: tuple) -> Any:
 
 GLOW_TILT_MAX_PHASE_DEG = 20.0
 """At or below this phase (deg) a glow fitted above a patchy limb (:func:`_fit_rays`) carries its tilt toward the Sun
-in the covariance (:func:`~jaxlimb.pipeline.ellipsoid.trace_fit.glow_lift_columns`).  A glow is sunlight scattered by the
-atmosphere at the limb's tangent points, whose solar zenith angle is ``acos(sin(phase) cos(psi))``: at 20 deg of
-phase or less it is 70 deg or more all along the lit limb, where the twilight glow changes fast with it (the full disc
-from L1, 4-12 deg: the uniform lift left ``benchmarks/earth_full_disc.py``'s held-out ``combined`` 0 and 2 0.54 and
-0.56 px off along the Sun at NEES 49 and 14).  On a gibbous limb most tangent points are in full sunlight and the
-glow is nearly uniform: there the tilt's marginal only widened the sigmas, past the tolerance on
-``benchmarks/families.py``'s Earth ``combined`` 2 and 3 (39-58 deg; 0.09 and 0.20 px off at NEES 3.1 and 1.7)."""
+in the covariance (:func:`~jaxlimb.pipeline.ellipsoid.trace_fit.glow_lift_columns`).  A glow is sunlight scattered by
+the atmosphere at the limb's tangent points, whose solar zenith angle is ``acos(sin(phase) cos(psi))``: at 20 deg of
+phase or less it is 70 deg or more all along the lit limb, where the twilight glow changes fast with it (the full
+disc from L1).  On a gibbous limb most tangent points are in full sunlight and the glow is nearly uniform: there
+the tilt's marginal only widens the sigmas (``docs/validation/constants.md#glow_tilt_max_phase_deg``)."""
 
 
 def _glow_tilt(frame: Frame, center_rc) -> bool:
@@ -104,17 +122,11 @@ def _fit_rays(tr: Any, ell: tuple, glow_tilt: bool = False) -> tuple[Any, tuple]
     (:func:`~jaxlimb.pipeline.ellipsoid.trace_fit.fit_traced_glow`; the returned trace then has ``glow_term`` set, so its
     covariance carries the lift too, and :func:`patchy_geometry` answers with the rays: the band fit has no glow).
 
-    Why: a glow above a cloudy limb (``benchmarks/families.py`` Earth ``combined``) adds the same radiance over ocean
-    and cloud, so it lifts the half-level crossings of the dim ocean rays ten times more than the cloud rays': the
-    traced limb is an ellipse pushed out by 0.3-0.9 px where the limb is dim (``combined`` 0, 4), and that part of it
-    which varies along the arc moves the centre.  Measured with the truth ellipse as the trace's reference (centre
-    error / radius error px, without -> with the lift): ``combined`` 2 0.44 / 0.30 -> 0.06 / 0.08, 4 0.91 / 1.66 ->
-    0.28 / 0.36, 3 0.18 / 0.57 -> 0.19 / 0.24, 1 0.28 / 0.32 -> 0.43 / -0.27; no ``clouds`` frame passes the gate.
-    In the pipeline (``locate``, attitude known): ``combined`` 2 0.290 -> 0.086 px (range -0.27 -> -0.02 %), 3 0.340 ->
-    0.186 px, 1 and 4 measured at 0.51 and 0.32 px (NEES 2.3, 1.6) instead of ``center_too_uncertain``; frames 6-13 of
-    the same seed (not tuned on): the two ``ok`` answers 1.006 / 1.297 px (NEES 21, 3.9) -> 0.106 / 0.143 px, one
-    1.3 px answer now a typed failure.  (At 380 000 km the inside level ``P``, 2-5 px deep, is surface 10-16 deg from
-    the limb, a poorer proxy of the limb's own radiance: ``combined`` 1 moved 0.41 -> 0.51 px.)"""
+    Why: a glow above a cloudy limb adds the same radiance over ocean and cloud, so it lifts the half-level crossings
+    of the dim ocean rays ten times more than the cloud rays' (the lift is ``c / (P_ray - s)``): the traced limb is an
+    ellipse pushed out where the limb is dim, and the part of that push which varies along the arc moves the centre.
+    At 380 000 km the inside level ``P``, 2-5 px deep, is surface 10-16 deg from the limb, a poorer proxy of the
+    limb's own radiance, and the lift a poorer model (``docs/validation/constants.md#glow_lift_z``)."""
     from dataclasses import replace as _replace
 
     e, c, z = fit_traced_glow(tr, ell)
@@ -124,14 +136,37 @@ def _fit_rays(tr: Any, ell: tuple, glow_tilt: bool = False) -> tuple[Any, tuple]
 
 
 def patchy_geometry(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdge, chi2: float = 5.99) -> EllipsoidEdge:
-    """An albedo-patchy limb (attitude known) measured twice: the band fit of the level-normalised pixels (``edge``) and
-    the known-shape ellipse through the traced rays (:func:`ray_geometry`). The band fit is kept unless its centre lies
-    outside the rays' 95 % region (``d^T C_rays^-1 d > chi2`` on ``(r0, c0)``, ``C_rays`` the rays' cluster-robust
-    covariance, :func:`~jaxlimb.pipeline.ellipsoid.trace_fit.trace_model_cov`): then the band fit ran after cloud edges
-    (``benchmarks/families.py`` Earth ``clouds`` frame 1: 4.2 px off, the rays 1.4 px) and the rays' ellipse is the
-    answer; so it is when the band fit did not converge (no witness then). Either way the other estimate's
-    ``(r0, c0, a)`` is kept as ``witness``: two models of the same limb, their difference is model error (added to the
-    covariance by :func:`~jaxlimb.pipeline.ellipsoid.profile.fit_profile_ellipsoid`, as a rejected profile's is)."""
+    """An albedo-patchy limb (attitude known) measured twice: the band fit of the level-normalised pixels (``edge``)
+    and the known-shape ellipse through the traced rays (:func:`ray_geometry`).  The band fit is kept unless its
+    centre lies outside the rays' 95 % region (``d^T C_rays^-1 d > chi2`` on ``(r0, c0)``, ``C_rays`` the rays'
+    cluster-robust covariance, :func:`~jaxlimb.pipeline.ellipsoid.trace_fit.trace_model_cov`), when the band fit
+    followed cloud edges, or the rays fitted a glow's lift; the rays' ellipse answers then, and when the band fit did
+    not converge (no witness then).  Either way the other estimate's ``(r0, c0, a)`` is kept as ``witness``: two
+    models of the same limb, their difference is model error (added to the covariance by
+    :func:`~jaxlimb.pipeline.ellipsoid.profile.fit_profile_ellipsoid`, as a rejected profile's is).
+
+    Parameters
+    ----------
+    body : EllipsoidModel
+        The body (attitude known).
+    frame : Frame
+        The prepared frame.
+    edge : EllipsoidEdge
+        The band fit (``band_converged`` says whether it converged).
+    chi2 : float
+        The chi-square bound with 2 degrees of freedom (5.99: 95 %).
+
+    Returns
+    -------
+    EllipsoidEdge
+        The band fit (shifted by the rays' shading correction) or the rays' fit, with ``witness`` (px) and the
+        traced step's ``asymmetry`` ``(d_r0, d_c0, 0)`` (px, ``None`` when it could not be measured).
+
+    Raises
+    ------
+    TooManyOutliersError
+        Too few rays and no converged band fit.
+    """
 
     try:
         rays = ray_geometry(body, frame, edge)
@@ -163,8 +198,7 @@ def _asymmetry(img: np.ndarray, ell: tuple, lit_dir, half: float,
     through the rays' 30 % crossings less the one through their 70 % crossings, ``(dr0, dc0, 0)``.  A symmetric
     blurred step moves only the radius between the two (by ~1 PSF sigma; left out, it is the step's width, not an
     error); a glow on the sky side, a smear, or an albedo change within the PSF depth that varies along the limb moves
-    the centre (about the traced start on ``benchmarks/families.py`` Earth frames: ``combined`` 0 and 2, 0.36 and 0.58
-    px; ``clouds`` 0, 0.16 px; the uniform ``own`` 0, 0.009 px).  As in Hausman's (1978) specification test, the
+    the centre (``docs/validation/constants.md#traced-asymmetry``).  As in Hausman's (1978) specification test, the
     difference of two estimators that agree when the model holds.  ``None`` if either fit fails."""
 
     out = []

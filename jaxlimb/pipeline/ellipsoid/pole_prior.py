@@ -40,7 +40,18 @@ _STEPS = np.array([1e-3, 1e-3, 1e-3, 1e-6, 1e-5])
 
 
 def sphere_grid(n: int = N_POLES) -> np.ndarray:
-    """``n`` unit vectors spread evenly over the sphere (Fibonacci lattice), ``(n, 3)``."""
+    """``n`` unit vectors spread evenly over the sphere (Fibonacci lattice).
+
+    Parameters
+    ----------
+    n : int
+        Number of points.
+
+    Returns
+    -------
+    np.ndarray (n, 3)
+        Unit vectors.
+    """
     k = np.arange(n) + 0.5
     z = 1.0 - 2.0 * k / n
     phi = math.pi * (3.0 - math.sqrt(5.0)) * k
@@ -49,9 +60,22 @@ def sphere_grid(n: int = N_POLES) -> np.ndarray:
 
 
 def cone_flattening(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Flattening vectors ``g`` ``(..., 2)`` and unit axes ``(..., 3)`` (``z > 0``) of limb cones ``M`` ``(..., 3, 3)``
-    (positive on the rays that hit the body, eigenvalues ``(-, -, +)``; :func:`jaxlimb.geometry.earth_cone.cone_eigen`);
-    ``psi`` is measured from the camera's ``x`` axis projected on the plane normal to the cone axis."""
+    """Flattening vectors ``g = (1 - b'/a') (cos 2psi, sin 2psi)`` and unit axes of limb cones (module docstring);
+    ``psi`` is the major axis' angle from the camera's ``x`` axis projected on the plane normal to the cone axis.
+
+    Parameters
+    ----------
+    M : np.ndarray (..., 3, 3)
+        Limb cones in the camera frame, positive on the rays that hit the body (eigenvalues ``(-, -, +)``;
+        :func:`jaxlimb.geometry.earth_cone.cone_eigen`).
+
+    Returns
+    -------
+    g : np.ndarray (..., 2)
+        The flattening vectors.
+    axis : np.ndarray (..., 3)
+        The cones' unit axes (``z > 0``).
+    """
     _, axis, a_, b_, V = cone_eigen(M)
     return _flattening(axis, a_, b_, V[..., :, 1]), axis
 
@@ -66,15 +90,42 @@ def _flattening(axis: np.ndarray, a_, b_, major: np.ndarray) -> np.ndarray:
 
 
 def ellipse_flattening(camera: Camera, ell: tuple) -> np.ndarray:
-    """``g`` of the limb cone of image ellipse ``ell = ((r0, c0), (a, b), theta)``
-    (:func:`jaxlimb.geometry.earth_cone.image_ellipse_cone`)."""
+    """``g`` of the limb cone of an image ellipse (:func:`jaxlimb.geometry.earth_cone.image_ellipse_cone`).
+
+    Parameters
+    ----------
+    camera : Camera
+        The pinhole camera.
+    ell : tuple
+        The image ellipse ``((r0, c0), (a, b), theta)`` (px, rad).
+
+    Returns
+    -------
+    np.ndarray (2,)
+        The flattening vector ``(1 - b'/a') (cos 2psi, sin 2psi)``.
+    """
     cone = image_ellipse_cone(camera, *ell)
     return _flattening(cone.axis, *cone.semi_axes, cone.major_dir)
 
 
 def spheroid_cones(q: np.ndarray, poles: np.ndarray, equatorial_km: float, polar_km: float) -> np.ndarray:
-    """Limb cones ``(n, 3, 3)`` of a spheroid of radii ``(a, a, c)`` centred at ``q`` (camera frame, km) with the
-    poles ``(n, 3)`` (module docstring)."""
+    """Limb cones of a spheroid of radii ``(a, a, c)`` with each of several poles: ``M = (Aq)(Aq)^T - (q^T A q - 1) A``,
+    ``A = I/a^2 + (1/c^2 - 1/a^2) p p^T`` (Eq. 2 of Mortari et al. 2016 in the camera frame).
+
+    Parameters
+    ----------
+    q : np.ndarray (3,)
+        The body centre (km, camera frame).
+    poles : np.ndarray (n, 3)
+        Unit pole directions (camera frame).
+    equatorial_km, polar_km : float
+        The radii ``a`` and ``c`` (km; the limb's height included).
+
+    Returns
+    -------
+    np.ndarray (n, 3, 3)
+        The cones' matrices.
+    """
     al, be = 1.0 / equatorial_km**2, 1.0 / polar_km**2 - 1.0 / equatorial_km**2
     A = al * np.eye(3)[None] + be * poles[:, :, None] * poles[:, None, :]
     Aq = A @ q
@@ -97,10 +148,33 @@ def _g_likelihood(camera: Camera, params, cov_geo: np.ndarray, flattening: float
 
 def marginal_center(camera: Camera, params, cov_geo: np.ndarray, q: np.ndarray, sun_dir_camera, sin_dmax: float,
                     equatorial_km: float, polar_km: float) -> tuple[np.ndarray, np.ndarray, dict] | None:
-    """The body centre's image ``(2,)`` and its covariance ``(2, 2)`` (px) marginalised over the poles allowed by
-    ``|s . p| <= sin_dmax`` (module docstring); ``params``: the free fit (``r0, c0, a, rho, theta``), ``cov_geo`` their
-    covariance, ``q`` the body centre of the free fit (camera frame, km).  ``None`` when no pole of the grid is allowed
-    or none is likely."""
+    """The body centre's image and its covariance marginalised over the poles allowed by ``|s . p| <= sin_dmax``
+    (module docstring).
+
+    Parameters
+    ----------
+    camera : Camera
+        The pinhole camera.
+    params : EllipseParams or a profile's parameters
+        The free fit (``r0, c0, a, rho, theta``, px and rad).
+    cov_geo : np.ndarray (5, 5)
+        Their covariance, in the order of :data:`FREE_ELLIPSE`.
+    q : np.ndarray (3,)
+        The body centre of the free fit (km, camera frame).
+    sun_dir_camera : array_like (3,)
+        Direction from the body toward the Sun (camera frame, any length).
+    sin_dmax : float
+        Sine of the largest solar declination on the body.
+    equatorial_km, polar_km : float
+        The limb spheroid's radii (km).
+
+    Returns
+    -------
+    tuple or None
+        ``(mean, cov, report)``: the centre's image ``(row, col)`` ``(2,)`` (px), its covariance ``(2, 2)`` (px^2),
+        and ``{"n_poles", "effective_poles", "chi2_min"}``; ``None`` when no pole of the grid is allowed or none
+        is likely.
+    """
     f = 1.0 - polar_km / equatorial_km
     s = np.asarray(sun_dir_camera, float)
     s = s / np.linalg.norm(s)

@@ -40,9 +40,28 @@ from .trace_fit import coherent_shift_var, trace_model_cov
 
 
 def profile_wanted(frame: Frame, interior_ramp: bool) -> bool:
-    """``profile="auto"``: the physical profile when the Sun direction is known and the edge model is the
-    default one (the paper's flat ESF, ``interior_ramp=False``, is a sigmoid experiment: kept as it is, as
-    the sphere keeps the papers' fixed-``k`` CSF); ``"lunar-lambert"``: always (needs the Sun)."""
+    """Whether the profile refit runs.  ``profile="auto"``: the physical profile when the Sun direction is known and
+    the edge model is the default one (the paper's flat ESF, ``interior_ramp=False``, is a sigmoid experiment: kept
+    as it is, as the sphere keeps the papers' fixed-``k`` CSF); ``"lunar-lambert"``: always (needs the Sun);
+    ``"sigmoid"``: never.
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame (``opt.profile``, the Sun direction).
+    interior_ramp : bool
+        The edge model has the interior ramp (``EllipsoidOptions.interior_ramp``).
+
+    Returns
+    -------
+    bool
+        Fit the lunar-Lambert profile.
+
+    Raises
+    ------
+    ConfigError
+        ``profile="lunar-lambert"`` without the Sun direction.
+    """
     prof = frame.opt.profile
     if prof == "sigmoid":
         return False
@@ -124,9 +143,23 @@ def _passes(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdge, fd: FitData
 
 def edge_with_model_error(edge: EllipsoidEdge, rejected: Any = None) -> RefineResult:
     """The edge fit's :class:`RefineResult` with the model-error terms of
-    :func:`~jaxlimb.pipeline.profile.model_error.with_model_error` (the answer when the profile is not fitted or is
-    rejected: a limb the profile does not describe, e.g. Hapke's, biased 0.05-0.06 px for a noise-only sigma
-    of 0.002-0.005 px on ``benchmarks/families.py``'s Earth ``hapke`` frames)."""
+    :func:`~jaxlimb.pipeline.profile.model_error.with_model_error`: the answer when the profile is not fitted or is
+    rejected (a limb the profile does not describe, e.g. Hapke's, whose edge-fit bias exceeds its noise-only
+    sigma).  A rejected profile fit is a second model of the same limb: the difference of the two limbs'
+    ``(r0, c0, a)``, ``d d^T``, is added as model error too.
+
+    Parameters
+    ----------
+    edge : EllipsoidEdge
+        The edge fit.
+    rejected : LimbProfileParams or None
+        The rejected profile fit's parameters, if any.
+
+    Returns
+    -------
+    RefineResult
+        The edge fit with its covariance widened.
+    """
     model = ELLIPSE_RAMP if isinstance(edge.final.fit.params, EllipseRampParams) else ELLIPSE
     out = with_model_error(edge.final, model=model)
     if rejected is None:
@@ -170,7 +203,20 @@ def _with_trace_error(out: RefineResult, edge: EllipsoidEdge, replace_block: boo
 def floor_center_var(out: RefineResult, var: float) -> RefineResult:
     """``out`` with the covariance of its ellipse centre ``(r0, c0)`` raised to at least ``var`` (px^2) in every
     direction: ``C + [var I - C]_+`` (:func:`jaxlimb.model_error.with_model_error`; eigenvalues below ``var``
-    lifted to it, eigenvectors kept; the other parameters untouched)."""
+    lifted to it, eigenvectors kept; the other parameters untouched).
+
+    Parameters
+    ----------
+    out : RefineResult
+        The fit.
+    var : float
+        The floor (px^2); ``<= 0``: none.
+
+    Returns
+    -------
+    RefineResult
+        ``out`` with the floored covariance (``out`` itself when ``r0, c0`` are not free or ``var <= 0``).
+    """
 
     free = list(out.fit.free)
     if var <= 0.0 or not all(n in free for n in ("r0", "c0")):
@@ -199,7 +245,33 @@ def _with_witness(out: RefineResult, edge: EllipsoidEdge) -> RefineResult:
 
 
 def fit_profile_ellipsoid(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdge, extras: dict[str, Any]) -> RefineResult:
-    """The stage (module docstring): the profile's :class:`RefineResult`, or the edge fit's."""
+    """The profile-refit stage (module docstring): the lunar-Lambert profile's :class:`RefineResult`, widened by a glow
+    (:func:`widen_glow_ellipsoid`) or an anisotropic blur (:func:`widen_aniso_ellipsoid`) when they are significant,
+    with its model-error terms and the unresolved glow's consider covariance; else the edge fit's with its
+    model-error terms.  On an albedo-patchy limb the edge fit, with the traced rays' cluster-robust covariance, the
+    coherent-shift floor and the witnesses' differences as model error.
+
+    Parameters
+    ----------
+    body : EllipsoidModel
+        The body.
+    frame : Frame
+        The prepared frame.
+    edge : EllipsoidEdge
+        The edge fit.
+    extras : dict
+        The report: ``profile_fits`` or ``profile_rejected`` (and why) is added to it.
+
+    Returns
+    -------
+    RefineResult
+        The final fit.
+
+    Raises
+    ------
+    ConvergenceError, GeometryError, LimbInputError
+        A failed profile fit when ``profile="lunar-lambert"`` (with ``"auto"`` the edge fit answers).
+    """
     if not profile_wanted(frame, body.eo.interior_ramp):
         return edge_with_model_error(edge)
     if edge.pixels.patchy:  # the profile's one albedo is not this limb's (clouds): the per-ray step stays
@@ -238,19 +310,28 @@ def with_unresolved_glow(body: EllipsoidModel, rr: RefineResult, system=None) ->
     ``h_k = H_k a / R_e`` px and ``s_k = min(g_max / sqrt(3), GLOW_Z s_d,k)``: the root mean square of a glow
     uniform up to ``g_max`` or, where the data would see a smaller one, the largest the glow gate can miss
     (:data:`~jaxlimb.pipeline.profile.glow.GLOW_Z` times ``s_d,k``, the data's own sigma of that glow with the fit's
-    parameters beside it).  The estimate is not moved.  Measured (``benchmarks/families.py``):
-    held-out seed 2028 ``glow`` 1, 3, 5 (380 000 km) range z -3.5 / -2.6 / -3.5 -> -1.1 / -1.5 / -0.9, ``glow`` 2
-    (40 000 km) -5.4 -> -2.9; ``own`` near frames' z within 30 % of what they were.
+    parameters beside it).  The estimate is not moved.
 
     Why: a glow of a third of a pixel is an edge shifted outward (its light is the first moment of the step), so
-    neither the gate nor the misfit sees it, and the radius it lifts is the range's: ``benchmarks/families.py``
-    Earth ``glow`` 3 and 5 (380 000 km, 14-16 km glows of 0.11 and 0.28 of the disc) came out 0.045 and 0.091 %
-    short at z = -4.5 and -3.5 with centre NEES 4.7 and 1.3 (the lit arc couples the radius to the centre).  A
-    faint glow the gate misses at 40 000 km does the same (held-out seed 2028 ``glow`` 2: 7 km, 0.06 of the disc,
-    1.4 px; z = -5.4).  The Schmidt consider term of orbit determination (Tapley, Schutz & Born 2004, Sec. 6.3)
+    neither the gate nor the misfit sees it, and the radius it lifts is the range's (the lit arc couples the radius
+    to the centre).  The Schmidt consider term of orbit determination (Tapley, Schutz & Born 2004, Sec. 6.3)
     carries that one-sided bias in the covariance without estimating it: a given frame's glow is unknown.
-    ``system``: ``rr``'s weighted system under its profile (:func:`~jaxlimb.pipeline.profile.model_error.with_model_error`'s),
-    if formed."""
+
+    Parameters
+    ----------
+    body : EllipsoidModel
+        The body (``eo.unresolved_glow``, the limb radius).
+    rr : RefineResult
+        The profile fit.
+    system : tuple or None
+        ``rr``'s weighted system ``(J, r, padded, w)`` under its profile
+        (:func:`~jaxlimb.pipeline.profile.model_error.weighted_system`), if formed.
+
+    Returns
+    -------
+    RefineResult
+        ``rr`` with the widened covariance; ``rr`` itself when the option is off or the fit has a glow.
+    """
 
     p = rr.fit.params
     if body.eo.unresolved_glow is None or isinstance(p, (GlowProfileParams, MinnaertProfileParams)):
@@ -295,16 +376,28 @@ def _widened_fit(frame: Frame, rr: RefineResult, model: Any, start: Any, fixed: 
 def widen_glow_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
     """The ellipsoid's profile ``rr`` refitted with a glow above the limb (:data:`~jaxlimb.models.LIMB_PROFILE_GLOW`,
     the shape ``theta, rho`` held as in ``rr``) when the score test of the sphere's
-    :func:`~jaxlimb.pipeline.profile.glow.widen_glow` asks for it (the one-step glow at a 1 px scale height positive at
-    z > :data:`~jaxlimb.pipeline.profile.glow.GLOW_Z`, the one at 0.3 px positive); a refit that does not converge,
-    or whose glow or scale height leaves the plausible range, keeps ``rr`` (its model-error terms carry the misfit).
+    :func:`~jaxlimb.pipeline.profile.glow.widen_glow` asks for it (the one-step glow at a 1 px scale height positive
+    at z > :data:`~jaxlimb.pipeline.profile.glow.GLOW_Z`, the one at 0.3 px positive); a refit that does not
+    converge, or whose glow or scale height leaves the plausible range, keeps ``rr`` (its model-error terms carry
+    the misfit).
 
-    Why: an exponential glow above the Earth's limb (``benchmarks/families.py`` Earth ``glow``, 6-25 km scale height,
-    0.03-0.4 of the surface) lifts the lunar-Lambert profile's limb by 0.2-1 km; the part of it that varies along the
-    arc left the centre 0.02-0.05 px off for a 0.003-0.008 px sigma (NEES 4.5, frames up to 9.7).  The glow's
-    columns are the Moon's (Sec. "Glows above the limb" of the README); the profile's geometry is the sphere's
-    along each ray, as for :data:`~jaxlimb.models.LIMB_PROFILE` on the Earth (module docstring of
-    :mod:`jaxlimb.pipeline.ellipsoid`)."""
+    Why: an exponential glow above the Earth's limb lifts the lunar-Lambert profile's limb, and the part of that
+    lift that varies along the arc moves the centre.  The glow's columns are the Moon's
+    (:mod:`jaxlimb.pipeline.profile.glow`); the profile's geometry is the sphere's along each ray, as for
+    :data:`~jaxlimb.models.LIMB_PROFILE` on the Earth (module docstring of :mod:`jaxlimb.pipeline.ellipsoid`).
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame (solver choice).
+    rr : RefineResult
+        The profile fit.
+
+    Returns
+    -------
+    RefineResult
+        The glow fit, or ``rr``.
+    """
 
     q = glow_start(rr)
     if q is None:
@@ -321,16 +414,25 @@ def widen_aniso_ellipsoid(frame: Frame, rr: RefineResult) -> RefineResult:
     """The ellipsoid's lunar-Lambert profile ``rr`` refitted with an anisotropic blur
     (:data:`~jaxlimb.models.LIMB_PROFILE_ANISO`: ``s2c, s2s`` of the variance across the limb, the shape held as in
     ``rr``); a refit that does not converge, whose variance is not positive or whose anisotropy is small
-    (:func:`aniso_significant`) keeps ``rr``.  Not after a glow, and not with a free ellipse (its ``rho, theta`` move
-    the limb in a ``2 psi`` pattern too: with ``R_body_to_camera`` unknown the ``motion`` rows went 0.131 / 0.280 /
-    0.298 -> 0.141 / 0.290 / 0.296 px, range max 0.027 -> 0.045 %).
+    (:func:`~jaxlimb.pipeline.profile.widen.aniso_significant`) keeps ``rr``.  Not after a glow, and not with a
+    free ellipse (its ``rho, theta`` move the limb in a ``2 psi`` pattern too).
 
     Why: a motion smear blurs the limb more where it runs across it than where it runs along it; one isotropic
     sigma is too wide on part of the lit arc and too narrow on the rest, and with the profile's interior gradient
     that moves the fitted limb in and out along the arc (a ``cos 2psi`` pattern that moves the centre).
-    ``benchmarks/families.py`` Earth ``motion`` (6 frames, attitude known): 0.037 / 0.104 / 0.060 / 0.009 / 0.037 /
-    0.052 px; the same scenes with the smear replaced by an isotropic Gaussian of the same variance
-    0.010 / 0.011 / 0.005 / 0.007 / 0.006 / 0.006 px."""
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame (solver choice).
+    rr : RefineResult
+        The profile fit (:class:`~jaxlimb.models.LimbProfileParams`; others are returned unchanged).
+
+    Returns
+    -------
+    RefineResult
+        The anisotropic fit, or ``rr``.
+    """
 
     p = rr.fit.params
     if type(p) is not LimbProfileParams:

@@ -28,11 +28,28 @@ PATCHY_SHADING_L = 0.0
 
 
 def ellipsoid_candidates(body: EllipsoidModel, frame: Frame) -> Any:
-    """Stage "candidates" of the ellipsoid: the shared front end; when it fails on the limb's size or outliers (its circle on cloud edges: a 37 px
-    circle for a 124 px Earth) and the trace is on, the disc's outermost lit pixel and the range prior's
-    radius (:func:`blob_candidates`) start the trace instead; so they do when the front end's radius lies
-    outside the range prior's 1-sigma band (``Prior.radius_uncertainty_frac``: its 3-sigma RANSAC band let
-    circles on cloud edges through)."""
+    """Stage "candidates" of the ellipsoid: the shared front end; when it fails on the limb's size or outliers (its
+    circle on cloud edges) the disc's outermost lit pixel and the range prior's radius (:func:`blob_candidates`)
+    start the trace instead; so they do when the front end's radius lies outside the range prior's 1-sigma band
+    (``Prior.radius_uncertainty_frac``: its 3-sigma RANSAC band lets circles on cloud edges through).
+
+    Parameters
+    ----------
+    body : EllipsoidModel
+        The body (limb radius for the fallback).
+    frame : Frame
+        The prepared frame.
+
+    Returns
+    -------
+    LimbCandidates
+        The front end's candidates, or the fallback start (no points, ``lit_halfangle = pi/2``).
+
+    Raises
+    ------
+    RadiusInconsistentError, TooManyOutliersError
+        The front end failed and no fallback start is available (no range prior or Sun direction).
+    """
     try:
         cand = candidates(frame)
     except (RadiusInconsistentError, TooManyOutliersError):
@@ -53,7 +70,33 @@ def ellipsoid_candidates(body: EllipsoidModel, frame: Frame) -> Any:
 
 
 def ellipse_pixels(body: EllipsoidModel, frame: Frame, cand: Any) -> EllipsePixels:
-    """Stage "limb pixels" of the ellipsoid: the position prior, the lit window (arc check) and the initial ellipse."""
+    """Stage "limb pixels" of the ellipsoid: the position prior (range prior, else the radius of the candidates'
+    circle), the lit window (the Sun's image direction, else the front end's arc, less ``arc_margin_deg`` at each
+    horn) and the initial ellipse (shape predicted with a known attitude) traced against the sky
+    (:func:`traced_start`).
+
+    Parameters
+    ----------
+    body : EllipsoidModel
+        The body.
+    frame : Frame
+        The prepared frame (camera, hints).
+    cand : LimbCandidates
+        The candidates' circle and lit arc.
+
+    Returns
+    -------
+    EllipsePixels
+        Observer position prior (km, camera frame), range prior (km), lit window ``(d_row, d_col)`` and half-angle
+        (rad), the start ellipse ``((r0, c0), (a, b), theta)`` (px, rad) and its trace (or ``None``).
+
+    Raises
+    ------
+    GeometryError
+        The range prior puts the observer inside the body.
+    ArcTooShortError
+        Less than 10 deg of lit arc is left.
+    """
     cam, h, eo = frame.cam, frame.hints, body.eo
     c_rc = np.array(cand.center_rc, float)
     rl = body.equatorial_km + body.atmosphere_km
@@ -80,9 +123,23 @@ def ellipse_pixels(body: EllipsoidModel, frame: Frame, cand: Any) -> EllipsePixe
 
 
 def blob_candidates(body: EllipsoidModel, frame: Frame) -> Any:
-    """A start without the front end (:meth:`Ellipsoid.candidates`): the radius ``f tan(asin(Re / D))`` of the range
-    prior ``D`` and the centre ``R`` px behind the brightest-side extreme of the disc (the pixel above the sky
-    by 5 noise sigma farthest toward the Sun's image direction); ``None`` without a camera, range prior or Sun."""
+    """A start without the front end (:meth:`~jaxlimb.pipeline.ellipsoid.body.Ellipsoid.candidates`): the radius
+    ``f tan(asin(Re / D))`` of the range prior ``D`` and the centre ``R`` px behind the brightest-side extreme of the
+    disc (the pixel above the sky by 5 noise sigma farthest toward the Sun's image direction).
+
+    Parameters
+    ----------
+    body : EllipsoidModel
+        The body (equatorial radius and limb height).
+    frame : Frame
+        The prepared frame: camera, ``range_prior_km`` and ``sun_dir_camera`` are needed.
+
+    Returns
+    -------
+    LimbCandidates or None
+        Centre ``(row, col)`` and radius (px), the Sun's image direction as the lit side; ``None`` without a
+        camera, range prior or Sun, with the prior inside the body, or when no disc of 50 px or more is found.
+    """
 
     cam, h, img = frame.cam, frame.hints, np.asarray(frame.img, float)
     if cam is None or h is None or not h.range_prior_km or h.sun_dir_camera is None:
@@ -115,22 +172,52 @@ def blob_candidates(body: EllipsoidModel, frame: Frame) -> Any:
 
 
 def ray_shading(body: EllipsoidModel, frame: Frame) -> Any:
-    """The uniform disc's shading for the trace's flatness test (:class:`~jaxlimb.pipeline.ellipsoid.shading.RayShading`,
-    lunar-Lambert :data:`PATCHY_SHADING_L`), ``None`` without the Sun direction."""
+    """The uniform disc's shading for the trace's flatness test
+    (:class:`~jaxlimb.pipeline.ellipsoid.shading.RayShading`, lunar-Lambert :data:`PATCHY_SHADING_L`).
+
+    Parameters
+    ----------
+    body : EllipsoidModel
+        The body (unused).
+    frame : Frame
+        The frame (camera, Sun direction).
+
+    Returns
+    -------
+    RayShading or None
+        The shading model; ``None`` without the Sun direction.
+    """
     sun = frame.hints.sun_dir_camera
     return None if sun is None else RayShading(frame.cam, tuple(float(x) for x in sun), PATCHY_SHADING_L)
 
 
 def wide_trace(img: np.ndarray, ell: tuple, lit_dir, half: float, shade: Any) -> Any:
-    """The start's wide trace (20 % of the radius deep) -- with the shading-flattened flatness test
-    (:class:`~jaxlimb.pipeline.ellipsoid.shading.RayShading`) when the shading explains the plain test's rejections (a
-    uniform disc would fail it on half the rays or more, :meth:`~jaxlimb.pipeline.ellipsoid.shading.RayShading.dark_share`:
-    a dark Lambert limb near zero phase) and the flattened test keeps more rays, traced about ``ell`` or, when that
-    keeps fewer than the plain test, about the plain rays' own fit.  Every other frame keeps its trace (a
-    cloudy limb under a glow and a smear at 58 deg of phase, ``benchmarks/families.py`` Earth ``combined`` 2, went from
-    0.09 to 1.32 px when its rays were flattened: the flattened trace is not tested for a glow, :func:`_rays_once`).
-    (Also requiring the plain test to keep under one ray in ten left mottled frames whose brighter stretches passed
-    it to the one-albedo profile: ``benchmarks/earth_mottled.py`` maps 8-12, NEES 4-45.)"""
+    """The start's wide trace (20 % of the radius deep, at least 12 px) -- with the shading-flattened flatness test
+    (:class:`~jaxlimb.pipeline.ellipsoid.shading.RayShading`) when the shading explains the plain test's rejections
+    (a uniform disc would fail it on half the rays or more,
+    :meth:`~jaxlimb.pipeline.ellipsoid.shading.RayShading.dark_share`: a dark Lambert limb near zero phase) and the
+    flattened test keeps more rays, traced about ``ell`` or, when that keeps fewer than the plain test, about the
+    plain rays' own fit.  Every other frame keeps its plain trace: the flattened trace is not tested for a glow
+    (:func:`~jaxlimb.pipeline.ellipsoid.patchy.ray_geometry`).
+
+    Parameters
+    ----------
+    img : np.ndarray (rows, cols)
+        The image.
+    ell : tuple
+        The start ellipse ``((r0, c0), (a, b), theta)`` (px, rad).
+    lit_dir : tuple of float or None
+        Direction ``(d_row, d_col)`` of the lit side; ``None``: all round.
+    half : float
+        Half-angle (rad) of the lit window.
+    shade : RayShading or None
+        The uniform disc's shading (``None``: plain test only).
+
+    Returns
+    -------
+    TracedLimb
+        The trace kept.
+    """
 
     search = max(12.0, 0.2 * ell[1][0])
     tr = trace_limb(img, ell, lit_dir, half, search)
@@ -146,12 +233,34 @@ def wide_trace(img: np.ndarray, ell: tuple, lit_dir, half: float, shade: Any) ->
 
 def traced_start(img: np.ndarray, ell: tuple, lit_dir, half: float, band: float,
                   shade: Any = None) -> tuple[tuple, Any]:
-    """The initial ellipse from the limb against the sky (:mod:`jaxlimb.pipeline.ellipsoid.trace`): a wide trace about the
-    front end's ellipse (it may lie on cloud edges: the search reaches 20 % of the radius; :func:`wide_trace`), a
-    fit, a narrow trace about it and a second fit; returns the ellipse and the narrow trace (its per-ray levels
-    normalise the band; it carries the wide trace's ``shade`` to every later trace). A front-end ellipse
-    within 1 px (median) of the traced points is kept (replacing it by the fit of a few traced rays sent one far
-    ``lambert`` frame's free ellipse to a 1.3 px centre sigma)."""
+    """The initial ellipse from the limb against the sky (:mod:`jaxlimb.pipeline.ellipsoid.trace`): a wide trace
+    about the front end's ellipse (it may lie on cloud edges: the search reaches 20 % of the radius;
+    :func:`wide_trace`), a fit, a narrow trace about it and a second fit.  A front-end ellipse within 1 px (median)
+    of the traced points, whose rays' fit also lies within 1 px, is kept (a fit of few traced rays may run off).
+
+    Parameters
+    ----------
+    img : np.ndarray (rows, cols)
+        The image.
+    ell : tuple
+        The front end's ellipse ``((r0, c0), (a, b), theta)`` (px, rad).
+    lit_dir : tuple of float or None
+        Direction ``(d_row, d_col)`` of the lit side; ``None``: all round.
+    half : float
+        Half-angle (rad) of the lit window.
+    band : float
+        The band's half-width (px); the narrow trace searches ``max(6, 2 band)`` px.
+    shade : RayShading or None
+        The uniform disc's shading for the wide trace's flatness test.
+
+    Returns
+    -------
+    ell : tuple
+        The start ellipse ``((r0, c0), (a, b), theta)``.
+    trace : TracedLimb or None
+        The narrow trace (its per-ray levels normalise the band; it carries the wide trace's ``shade``); ``None``
+        when too few rays have a flat inside or the fit ran off (then ``ell`` is the front end's).
+    """
 
     try:
         tr = wide_trace(img, ell, lit_dir, half, shade)

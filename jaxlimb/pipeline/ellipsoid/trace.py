@@ -2,9 +2,8 @@ r"""The limb as the boundary against space: the outermost edge along rays from t
 
 A cloudy Earth has interior albedo edges (cloud against ocean: albedo 0.75 against 0.06) as strong as the
 limb, and its limb's brightness changes by an order of magnitude along the arc (a cloud over the limb, then
-ocean).  A gradient front end takes cloud edges for limb points (its circle was 7-19 px off on
-:mod:`jaxlimb.render.independent`'s ``clouds`` frames) and a band fit with one inside level is pulled by
-them.  What tells the limb from every cloud edge is that it is the *last* transition before the sky: along
+ocean).  A gradient front end takes cloud edges for limb points, and a band fit with one inside level is
+pulled by them.  What tells the limb from every cloud edge is that it is the *last* transition before the sky: along
 each ray from the centre, outward, nothing brighter than the sky follows it.
 
 :func:`trace_limb` samples rays across the lit window (one per px of arc) from ``search`` px inside to
@@ -66,14 +65,22 @@ class TracedLimb:
         return np.isfinite(self.inside)
 
     def patchy(self, tol: float = PATCHY_TOL) -> bool:
-        """Whether the limb's inside level varies along the arc by more than a smooth photometric fade does:
-        the RMS of ``log P`` about its second-order harmonic fit in the ray angle exceeds ``tol`` (0.1: 10 %).
-        Lambert-like fading toward the horns is a first/second harmonic; an albedo map (clouds over an
-        ocean: 0.75 against 0.06) is not.  Also patchy: fewer than one ray in ten kept (a uniform disc keeps
-        18-99 % on ``benchmarks/families.py``'s ``own`` frames, a cloudy one with motion blur and glow 3 %) when the
-        kept rays' levels are not as level as a uniform disc's (RMS above :data:`FEW_RAYS_RMS`: without the attitude,
-        traced about a front-end circle 4 px off, four uniform Earths kept 4-10 % of their rays at RMS 0.006-0.014 and
-        one, ``lambert`` 4, was measured as a patchy limb 1.4 px off; the cloudy frames' RMS is 0.14-0.49)."""
+        """Whether the limb's inside level varies along the arc by more than a smooth photometric fade does: the RMS of
+        ``log P`` about its second-order harmonic fit in the ray angle exceeds ``tol``.  Lambert-like fading toward the
+        horns is a first/second harmonic; an albedo map (clouds over an ocean) is not.  Also patchy: fewer than one ray
+        in ten kept when the kept rays' levels are not as level as a uniform disc's (RMS above :data:`FEW_RAYS_RMS`).
+        A shading-flattened trace is judged by its rays' albedo instead (:data:`PATCHY_ALBEDO_TOL`).
+
+        Parameters
+        ----------
+        tol : float
+            The largest RMS of ``log P`` of a uniform limb (0.1: 10 %).
+
+        Returns
+        -------
+        bool
+            ``True`` for an albedo-patchy limb; ``False`` also when fewer than 20 rays have a level above the sky.
+        """
         ok = self.ok & (self.inside > self.sky)
         if self.albedo is not None:
             ok &= self.albedo > 0
@@ -89,7 +96,9 @@ class TracedLimb:
 
 
 PATCHY_ALBEDO_TOL = 0.04
-"""RMS (of ``log``) of the albedo along a shading-flattened trace's rays above which the limb is patchy."""
+"""RMS (of ``log``) of the albedo along a shading-flattened trace's rays above which the limb is patchy: a uniform
+disc keeps it near the ray noise, an albedo map well above it.  Tuned on the mottled Earths of
+``benchmarks/earth_mottled.py`` (``docs/validation/constants.md#patchy_albedo_tol``)."""
 
 
 def _harmonic_rms(t: np.ndarray, y: np.ndarray) -> float:
@@ -105,9 +114,7 @@ def _albedo_patchy(t: np.ndarray, y: np.ndarray) -> bool:
     when its RMS about the second-order harmonic fit exceeds both :data:`PATCHY_ALBEDO_TOL` and twice the ray
     noise (from neighbouring rays' differences, which an albedo map that changes slowly along the limb leaves out;
     pure noise gives an RMS of about the noise).  ``log P`` would not do: the shading makes it vary along a dark limb
-    (``benchmarks/earth_mottled.py`` at 2 deg phase: RMS 0.042 for the uniform disc, 0.094 for map 4; the albedo's
-    0.015 and 0.083, ray noise 0.012 and 0.017).  Map 9, traced about the start ellipse: 0.080 for a noise of 0.033
-    (three times the noise called it uniform, and the one-albedo profile answered 1.5 px off, NEES 12)."""
+    as much as an albedo map does (``docs/validation/constants.md#patchy_albedo_tol``)."""
     noise = 1.4826 * float(np.median(np.abs(np.diff(y)))) / math.sqrt(2.0)
     return _harmonic_rms(t, y) > max(PATCHY_ALBEDO_TOL, 2.0 * noise)
 
@@ -182,9 +189,9 @@ def _ray_edges(v: np.ndarray, rad: np.ndarray, sky: float, noise: float, step: f
     """Steps 2-4 of the module docstring on every ray: the limb's radius along the ray and the inside level; with
     ``shade_rows`` (a uniform disc's radiance on the same samples, :class:`RayShading`) the flatness of step 3 is
     tested on the samples divided by it, and the third value is each ray's albedo (the window's median of that
-    ratio; ``None`` without ``shade_rows``).  (Tried: the level 2-5 px inside the half crossing, iterated from the
-    foot, so that a bright glow's foot does not set it: on the ``clouds`` frames it climbed onto cloud edges inside
-    the ocean limb, centres 0.6-2.9 px off instead of 0.1-0.5 px.)"""
+    ratio; ``None`` without ``shade_rows``).  The inside level is read below the outer foot, not iterated from the
+    half crossing: iterated, it climbs onto cloud edges inside an ocean limb
+    (``docs/validation/constants.md#ray-levels``)."""
     m = v.shape[1]
     vv = np.where(np.isfinite(v), v, sky)
     bright = vv > sky + 5.0 * noise
@@ -209,10 +216,39 @@ def _ray_edges(v: np.ndarray, rad: np.ndarray, sky: float, noise: float, step: f
 
 def trace_limb(img: np.ndarray, ell: tuple, lit_dir, half: float, search: float, *, step: float = 0.5,
                flat_frac: float = 0.35, level: float = 0.5, shade: "RayShading | None" = None) -> TracedLimb:
-    """Trace the limb along rays across the lit window about ellipse ``ell`` (module docstring); ``level``: the
-    crossing's fraction of the step (0.5, the edge; others measure the step's asymmetry, see
-    :func:`jaxlimb.pipeline.ellipsoid.patchy._asymmetry`); ``shade``: test the inside's flatness on the rays divided by a
-    uniform disc's shading (:class:`RayShading`)."""
+    """Trace the limb along rays across the lit window about ellipse ``ell`` (module docstring, steps 1-4).
+
+    Parameters
+    ----------
+    img : np.ndarray (rows, cols)
+        The image.
+    ell : tuple
+        The reference ellipse ``((r0, c0), (a, b), theta)`` (px, rad); rays start at its centre.
+    lit_dir : tuple of float or None
+        Direction ``(d_row, d_col)`` of the lit side; ``None``: all round.
+    half : float
+        Half-angle (rad) of the lit window about ``lit_dir``.
+    search : float
+        How far (px) inside and outside ``ell`` each ray is sampled.
+    step : float
+        Sample spacing along the rays (px).
+    flat_frac : float
+        Largest range of the inside window, as a fraction of ``P - s``, of a kept ray.
+    level : float
+        The crossing's fraction of the step (0.5, the edge; others measure the step's asymmetry).
+    shade : RayShading or None
+        Test the inside's flatness on the rays divided by a uniform disc's shading (:class:`RayShading`).
+
+    Returns
+    -------
+    TracedLimb
+        Ray angles, limb points ``(row, col)`` and inside levels (NaN on rejected rays), sky level and noise (DN).
+
+    Raises
+    ------
+    TooManyOutliersError
+        No sky outside the limb (every ray leaves the frame).
+    """
     angles = _ray_angles(ell, lit_dir, half)
     v, rad, u = _sample_rays(img, ell, angles, search, step)
     sky, noise = _sky(v)
@@ -227,17 +263,39 @@ def trace_limb(img: np.ndarray, ell: tuple, lit_dir, half: float, search: float,
 
 def shading_offsets(tr: TracedLimb, ell: tuple, cam, sun_dir_camera, psf_sigma_px: float, L: float = 0.0,
                     search: float = 6.0, step: float = 0.5) -> np.ndarray:
-    r"""Per ray of ``tr``, where :func:`trace_limb`'s half-level crossing lies (px, outward positive) on a disc of
-    *uniform* albedo (lunar-Lambert shading, ``L = 0``: Lambert), blurred by a Gaussian PSF of ``psf_sigma_px`` and
-    the pixel: the crossing's photometric bias, which an albedo that varies from ray to ray scales but does not move.
+    """Per ray of ``tr``, where :func:`trace_limb`'s half-level crossing lies on a disc of *uniform* albedo
+    (lunar-Lambert shading, ``L = 0``: Lambert), blurred by a Gaussian PSF of ``psf_sigma_px`` and the pixel: the
+    crossing's photometric bias, which an albedo that varies from ray to ray scales but does not move.
 
     Why: the shading rises inward from the limb (``mu0 ~ sin(a) cos(psi) + cos(a) sqrt(2u/R)`` at depth ``u``, phase
     ``a``, position angle ``psi`` from the Sun), so the inside level ``P`` 2-5 px deep exceeds the limb's own radiance,
     most toward the horns; the crossings sit up to ~1 PSF sigma inside the limb there and less at the sub-solar point,
-    and the ellipse through them moves toward the Sun (``benchmarks/families.py`` Earth ``lambert`` frames traced
-    about their true ellipse: +0.15 to +0.37 px along the Sun, 0.00-0.01 px across).  Each ray's model is sampled
-    like the ray (``step`` px over ``+-search``), scaled to the ray's inside level, and put through the trace's own
-    edge rule (:func:`_ray_edges`, flatness not tested: the ray passed it).  NaN where ``tr`` rejected the ray."""
+    and the ellipse through them moves toward the Sun.  Each ray's model is sampled like the ray (``step`` px over
+    ``+-search``), scaled to the ray's inside level, and put through the trace's own edge rule (flatness not
+    tested: the ray passed it).
+
+    Parameters
+    ----------
+    tr : TracedLimb
+        The trace.
+    ell : tuple
+        Its reference ellipse ``((r0, c0), (a, b), theta)`` (px, rad).
+    cam : Camera
+        The pinhole camera.
+    sun_dir_camera : array_like (3,)
+        Direction toward the Sun (camera frame).
+    psf_sigma_px : float
+        The PSF's Gaussian sigma (px; :func:`shading_sigma`).
+    L : float
+        The lunar-Lambert weight.
+    search, step : float
+        Sampling of the model rays (px).
+
+    Returns
+    -------
+    np.ndarray (n,)
+        The offsets (px, outward positive); NaN where ``tr`` rejected the ray.
+    """
     xs = np.arange(-search, search + 0.5 * step, step)
     sel = np.ones_like(tr.ok)  # every ray (rejected ones get NaN rows)
     rows = _scaled_rows(tr, sel, ell, limb_normals(cam, ell, tr.angles), sun_dir_camera, psf_sigma_px, L, xs)
@@ -280,8 +338,37 @@ def shading_sigma(img: np.ndarray, tr: TracedLimb, ell: tuple, cam, sun_dir_came
     """The PSF sigma (px, from ``sigmas``) whose shading model (:func:`shading_offsets`) best matches the kept rays'
     level-normalised profiles about their own crossings (5 px inside to 3 px outside).  ``L`` is given, not
     chosen: the flatness test keeps the rays whose albedo falls inward, and their profiles look flatter than the
-    shading (on the Lambert ``clouds`` frames of ``benchmarks/families.py`` the best ``L`` was 0.25-1.0; on the
-    uniform ``lambert`` and lunar-Lambert ``own`` frames it was found, 0 and 0.25-0.75)."""
+    shading.
+
+    Parameters
+    ----------
+    img : np.ndarray (rows, cols)
+        The image.
+    tr : TracedLimb
+        The trace.
+    ell : tuple
+        Its reference ellipse ``((r0, c0), (a, b), theta)`` (px, rad).
+    cam : Camera
+        The pinhole camera.
+    sun_dir_camera : array_like (3,)
+        Direction toward the Sun (camera frame).
+    L : float
+        The lunar-Lambert weight.
+    sigmas : tuple of float
+        The candidate sigmas (px).
+    search : float
+        Half-length (px) of the rays re-sampled.
+
+    Returns
+    -------
+    float
+        The best sigma (px).
+
+    Raises
+    ------
+    TooManyOutliersError
+        Fewer than 20 kept rays.
+    """
     ok = tr.ok
     if ok.sum() < 20:
         raise TooManyOutliersError(f"the limb trace kept {int(ok.sum())} rays with a limb against the sky (need >= 20)")
@@ -298,7 +385,20 @@ def shading_sigma(img: np.ndarray, tr: TracedLimb, ell: tuple, cam, sun_dir_came
 
 def shading_corrected(tr: TracedLimb, offsets: np.ndarray) -> TracedLimb:
     """``tr`` with each kept ray's limb point moved back along its ray by its :func:`shading_offsets` (rays whose
-    offset is not finite left out)."""
+    offset is not finite left out).
+
+    Parameters
+    ----------
+    tr : TracedLimb
+        The trace.
+    offsets : np.ndarray (n,)
+        Per-ray offsets (px, outward positive).
+
+    Returns
+    -------
+    TracedLimb
+        The corrected trace.
+    """
     u = np.column_stack([np.sin(tr.angles), np.cos(tr.angles)])
     pts = tr.points - np.where(np.isfinite(offsets), offsets, np.nan)[:, None] * u
     inside = np.where(np.isfinite(offsets), tr.inside, np.nan)

@@ -16,10 +16,29 @@ from .trace import TracedLimb
 
 
 def fit_traced(tr: TracedLimb, ell: tuple, free_shape: bool = False) -> tuple:
-    """The ellipse through the traced points: ``(r0, c0, a)`` (and ``rho, theta`` when ``free_shape``) by a
-    soft-L1 geometric fit (scale 0.5 px), started at ``ell``; returns ``((r0, c0), (a, b), theta)``.  With
-    ``tr.glow_term`` (known shape only) the points' residuals include the glow's lift ``g / A_ray``
-    (:func:`glow_lift_column`, :func:`fit_traced_glow`)."""
+    """The ellipse through the traced points: ``(r0, c0, a)`` (and ``rho, theta`` when ``free_shape``) by a soft-L1
+    geometric fit (scale 0.5 px), started at ``ell``.  With ``tr.glow_term`` (known shape only) the points'
+    residuals include the glow's lift ``c / A_ray`` (:func:`glow_lift_column`, :func:`fit_traced_glow`).
+
+    Parameters
+    ----------
+    tr : TracedLimb
+        The trace; its kept rays' limb points are fitted.
+    ell : tuple
+        The start ``((r0, c0), (a, b), theta)`` (px, rad); its ``b / a`` and ``theta`` are held unless ``free_shape``.
+    free_shape : bool
+        Fit ``rho, theta`` too.
+
+    Returns
+    -------
+    tuple
+        The fitted ellipse ``((r0, c0), (a, b), theta)`` (px, rad).
+
+    Raises
+    ------
+    TooManyOutliersError
+        Fewer than 20 kept rays.
+    """
     from scipy.optimize import least_squares
 
     pts = tr.points[tr.ok]
@@ -41,9 +60,9 @@ def fit_traced(tr: TracedLimb, ell: tuple, free_shape: bool = False) -> tuple:
 
 GLOW_LIFT_Z = 4.0
 """The z-score (cluster-robust, :func:`fit_traced_glow`) above which a patchy limb's traced points are fitted with
-the glow's lift.  Measured on ``benchmarks/families.py``'s Earth frames (truth ellipse as the trace's reference):
-``combined`` (clouds + a glow of 0.05-0.34 of the surface) z = -0.4, 3.3, 4.4, 7.2, 28, 76 (the one at -0.4 the
-faintest glow, 0.05); ``clouds`` (no glow) frames 0-16 of seed 2026 z = -2.8 ... 3.2, all below 4."""
+the glow's lift.  Cloud edges alone lift some rays and not others, at random along the arc; a glow lifts the dim
+rays systematically.  A threshold tuned on the project's cloudy Earths with and without a glow
+(``docs/validation/constants.md#glow_lift_z``)."""
 
 
 def glow_lift_column(tr: TracedLimb) -> np.ndarray:
@@ -52,25 +71,44 @@ def glow_lift_column(tr: TracedLimb) -> np.ndarray:
     depend on the surface's albedo) to a step of height ``A = P - sky``; the crossing of ``sky + A/2`` moves out by
     ``g / |I'| ~ sqrt(2 pi) sigma g / A`` (first order), so a ray over ocean (``A`` ten times smaller than over a
     cloud) is lifted ten times more.  Along a cloudy limb ``1/A`` varies by an order of magnitude, so the lift is
-    not the radius's constant and is estimated beside the ellipse (on a uniform limb it would be)."""
+    not the radius's constant and is estimated beside the ellipse (on a uniform limb it would be).
+
+    Parameters
+    ----------
+    tr : TracedLimb
+        The trace.
+
+    Returns
+    -------
+    np.ndarray (n_kept,)
+        The column (1 at the median ray).
+    """
     inv = 1.0 / np.maximum(tr.inside[tr.ok] - tr.sky, 1e-12)
     return inv / float(np.median(inv))
 
 
 def glow_lift_columns(tr: TracedLimb, tilt: bool = True) -> np.ndarray:
-    """``(n_kept, k)``: :func:`glow_lift_column`, and with ``tilt`` (and ``tr.glow_tilt``, ``tr.lit_angle`` known) the
-    same times ``cos psi``, ``psi`` the ray's angle from the lit side's direction: a glow lit by the Sun is brighter
-    toward it, ``g (1 + t cos psi)`` (the profile's ``glow_tilt``, :mod:`jaxlimb.models.lunar_lambert`), and lifts the
-    sunward rays more, which moves the ellipse toward the Sun.  The tilt is nearly a centre shift along the Sun (the
-    two differ only by ``1 / A_ray``), so it is not fitted (:func:`fit_traced_glow`): it is marginalised in the
-    covariance (:func:`trace_model_cov`).
+    """:func:`glow_lift_column`, and with ``tilt`` (and ``tr.glow_tilt``, ``tr.lit_angle`` known) the same times
+    ``cos psi``, ``psi`` the ray's angle from the lit side's direction: a glow lit by the Sun is brighter toward it,
+    ``g (1 + t cos psi)`` (the profile's ``glow_tilt``, :mod:`jaxlimb.models.lunar_lambert`), and lifts the sunward
+    rays more, which moves the ellipse toward the Sun.  The tilt is nearly a centre shift along the Sun (the two
+    differ only by ``1 / A_ray``), so it is not fitted (:func:`fit_traced_glow`): it is marginalised in the
+    covariance (:func:`trace_model_cov`).  The pipeline asks for the tilt near zero phase only
+    (:data:`jaxlimb.pipeline.ellipsoid.patchy.GLOW_TILT_MAX_PHASE_DEG`), where the glow changes fast with the
+    solar zenith angle along the limb.
 
-    Why: on the full-disc Earth with clouds and a glow (``benchmarks/earth_full_disc.py`` ``combined``, held-out
-    seed 2027) the uniform lift left two frames 0.54 and 0.56 px off, both along the Sun's image direction, at centre
-    sigmas of 0.08 px (NEES 49 and 14); with the tilt marginalised, NEES 2.4 and 1.1.  Fitting the tilt instead put
-    them 0.09 px off and into a typed failure, but moved ``benchmarks/families.py``'s gibbous ``combined`` frames 2-4
-    from 0.09 / 0.20 / 0.32 px to 0.48 / 0.38 / 0.50 px.  The pipeline asks for the tilt near zero phase only
-    (:data:`jaxlimb.pipeline.ellipsoid.patchy.GLOW_TILT_MAX_PHASE_DEG`)."""
+    Parameters
+    ----------
+    tr : TracedLimb
+        The trace.
+    tilt : bool
+        Add the tilt's column when the trace asks for it.
+
+    Returns
+    -------
+    np.ndarray (n_kept, k)
+        ``k = 1`` (the lift) or 2 (lift and tilt).
+    """
     col = glow_lift_column(tr)
     if not (tilt and tr.glow_tilt) or tr.lit_angle is None:
         return col[:, None]
@@ -89,8 +127,29 @@ def _glow_residuals(tr: TracedLimb, ell: tuple, tilt: bool):
 
 def fit_traced_glow(tr: TracedLimb, ell: tuple) -> tuple[tuple, float, float]:
     """The known-shape ellipse through the traced points with the glow's lift ``c / A_ray`` (:func:`glow_lift_column`)
-    fitted beside ``(r0, c0, a)`` (soft-L1, as :func:`fit_traced`); returns the ellipse, ``c`` (px at the median ray)
-    and its z-score with the cluster-robust sigma of :func:`trace_model_cov` (10 deg clusters, CR2)."""
+    fitted beside ``(r0, c0, a)`` (soft-L1, as :func:`fit_traced`).
+
+    Parameters
+    ----------
+    tr : TracedLimb
+        The trace.
+    ell : tuple
+        The start ``((r0, c0), (a, b), theta)`` (px, rad); ``b / a`` and ``theta`` held.
+
+    Returns
+    -------
+    ell : tuple
+        The fitted ellipse ``((r0, c0), (a, b), theta)``.
+    c : float
+        The lift (px at the median ray).
+    z : float
+        Its z-score with the cluster-robust sigma of :func:`trace_model_cov` (10 deg clusters, CR2).
+
+    Raises
+    ------
+    TooManyOutliersError
+        Fewer than 20 kept rays.
+    """
     from scipy.optimize import least_squares
 
     if int(tr.ok.sum()) < 20:
@@ -118,14 +177,30 @@ def trace_model_cov(tr: TracedLimb, ell: tuple, bin_deg: float = 10.0, bias_redu
     """Model error of an albedo-patchy limb: the cluster-robust (sandwich) covariance of ``(r0, c0, a)`` of the
     geometric fit of the traced points about ``ell``, clusters of ``bin_deg`` of ray angle.  Albedo structure
     across the limb (a cloud edge 0-2 px inside it) shifts the edge of whole stretches of rays alike; the
-    pixel noise of the band fit does not see that, the spread of those stretches does.  ``(3, 3)``.
+    pixel noise of the band fit does not see that, the spread of those stretches does.  With ``tr.glow_term`` the
+    glow's lift (and tilt) is fitted beside the ellipse and marginalised.
 
-    The bias-reduced sandwich (CR2, :func:`~jaxlimb.model_error.cluster_robust_bias_reduced`), not the
-    plain one: when few rays survive (a glow and motion blur over clouds, ``benchmarks/families.py`` Earth
-    ``combined`` 2: 42 of 1208 rays in 6 sectors, the end sectors' leverage 0.9) the plain sandwich's centre
-    sigma was 0.04 px for a 0.19 px error (NEES 14.7); with many well-spread sectors the two agree within 10-40 %.
-    ``bias_reduced=False``: the plain sandwich (CR1), the gate of :func:`~jaxlimb.pipeline.ellipsoid.patchy.patchy_geometry`
-    (tuned with it; its choice between the band fit and the rays is left as it was)."""
+    The bias-reduced sandwich (CR2, :func:`~jaxlimb.model_error.cluster_robust_bias_reduced`) by default: with few
+    rays in few sectors the plain sandwich underestimates the centre's sigma, and with many well-spread sectors the
+    two agree.
+
+    Parameters
+    ----------
+    tr : TracedLimb
+        The trace.
+    ell : tuple
+        The fitted ellipse ``((r0, c0), (a, b), theta)`` (px, rad).
+    bin_deg : float
+        Width (deg) of the clusters of ray angle.
+    bias_reduced : bool
+        CR2; ``False``: the plain sandwich (CR1), the gate of
+        :func:`~jaxlimb.pipeline.ellipsoid.patchy.patchy_geometry`.
+
+    Returns
+    -------
+    np.ndarray (3, 3)
+        Covariance of ``(r0, c0, a)`` (px^2).
+    """
     (r0, c0), (a, b), th = ell
     if tr.glow_term:  # the lift (and its tilt) beside the ellipse: their uncertainty is the ellipse's too (marginal)
         res = _glow_residuals(tr, ell, tilt=True)
@@ -145,18 +220,31 @@ def trace_model_cov(tr: TracedLimb, ell: tuple, bin_deg: float = 10.0, bias_redu
 def coherent_shift_var(tr: TracedLimb, ell: tuple, bin_deg: float = 10.0, min_rays: int = 3) -> float:
     """Variance (px^2, per axis) of the centre shift an albedo-patchy limb's bias field hides in the fit.
 
-    Clouds within a pixel of the limb move whole stretches of traced rays alike (``bin_deg`` sectors of
-    ``benchmarks/families.py``'s Earth ``clouds`` frames: -0.8 to +0.6 px).  The known-shape fit absorbs the part
-    of that field that looks like a radius (``k = 0``) or a centre shift (``k = 1``), so neither the residuals nor
-    their cluster sandwich (:func:`trace_model_cov`) can see it; they see the rest.  With no preferred
-    harmonic in an albedo field, the absorbed shift has the visible part's power: the sector means of the rays'
-    distances from ``ell`` less their fit by ``1, cos psi, sin psi`` (and the glow's lift, :func:`glow_lift_column`,
-    when ``tr.glow_term``) have mean square ``m^2`` of which the rays' own scatter contributes ``var(d) / n_sector``, and
-    ``m^2 - var(d)/n`` per axis is the hidden shift's variance.  Measured on held-out ``clouds`` frame 6
-    (40 000 km, 602 px): the ellipse 0.63 px off along the direction the sandwich gave 0.14 px (NEES 18); this
-    term is 0.28 px, and as a floor on the centre's variance (``ellipsoid_profile._with_trace_error``) it brings the
-    NEES to 4.8, while the other near cloudy frames' go 0.3-1.3 -> 0.3-0.5 (frames 0-13,
-    ``benchmarks/results/families_earth_clouds14.json``)."""
+    Clouds within a pixel of the limb move whole stretches of traced rays alike.  The known-shape fit absorbs the
+    part of that field that looks like a radius (``k = 0``) or a centre shift (``k = 1``), so neither the residuals
+    nor their cluster sandwich (:func:`trace_model_cov`) can see it; they see the rest.  With no preferred harmonic
+    in an albedo field, the absorbed shift has the visible part's power: the sector means of the rays' distances
+    from ``ell`` less their fit by ``1, cos psi, sin psi`` (and the glow's lift, :func:`glow_lift_column`, when
+    ``tr.glow_term``) have mean square ``m^2`` of which the rays' own scatter contributes ``var(d) / n_sector``, and
+    ``m^2 - var(d)/n`` per axis is the hidden shift's variance.  Used as a floor on the centre's variance
+    (:func:`~jaxlimb.pipeline.ellipsoid.profile.floor_center_var`).
+
+    Parameters
+    ----------
+    tr : TracedLimb
+        The trace.
+    ell : tuple
+        The fitted ellipse ``((r0, c0), (a, b), theta)`` (px, rad).
+    bin_deg : float
+        Width (deg) of the sectors of ray angle.
+    min_rays : int
+        Fewest rays of a sector used.
+
+    Returns
+    -------
+    float
+        The variance (px^2, at least 0; 0 with fewer than 20 rays or 2 sectors).
+    """
     ok = tr.ok
     if int(ok.sum()) < 20:
         return 0.0
@@ -176,8 +264,27 @@ def coherent_shift_var(tr: TracedLimb, ell: tuple, bin_deg: float = 10.0, min_ra
 
 
 def normalised_band(img: np.ndarray, pts: np.ndarray, tr: TracedLimb) -> tuple[np.ndarray, FitData]:
-    """The band's pixels with their ray's levels (module docstring): a keep mask over ``pts`` and the
-    :class:`FitData` of the kept pixels (``z_n``, weights, ``offset = sky``, ``scale = C_ref``)."""
+    """The band's pixels with their ray's levels (module docstring of :mod:`jaxlimb.pipeline.ellipsoid.trace`):
+    ``z_n = (z - s) / (P_ray - s)`` with weights ``(P_ray - s) / C_ref``, each pixel taking the nearest ray in angle;
+    pixels of rejected rays are left out.
+
+    Parameters
+    ----------
+    img : np.ndarray (rows, cols)
+        The image.
+    pts : np.ndarray (n, 2)
+        The band's pixels ``(row, col)``.
+    tr : TracedLimb
+        The trace whose per-ray levels normalise them.
+
+    Returns
+    -------
+    keep : np.ndarray (n,) of bool
+        The pixels kept.
+    data : FitData
+        The kept pixels' normalised values and weights, ``offset = s`` (the sky, DN), ``scale = C_ref`` (the
+        median contrast, DN).
+    """
     z = np.asarray(img[pts[:, 0].astype(int), pts[:, 1].astype(int)], float)
     ang = np.arctan2(pts[:, 0] - tr.center_rc[0], pts[:, 1] - tr.center_rc[1])
     order = np.argsort(np.mod(tr.angles, 2 * np.pi))

@@ -38,19 +38,49 @@ def profile_sun_direction(sun_dir_camera, camera=None, center_rc=None) -> tuple[
     :func:`~jaxlimb.imaging.sun_direction_image` returns ``None`` below a projected length of 0.02 (phase
     below 1.15 deg or above 178.85 deg): right for choosing a lit side, wrong for the profile, whose limb
     asymmetry is ``sin(phase) cos(psi')`` times a rim of depth ``~ R sin^2(phase)`` with a tail that falls only
-    as ``1/sqrt(depth)`` (the ``2 mu0/(mu0 + mu)`` term, module docstring of
-    :mod:`jaxlimb.models.lunar_lambert`).  Measured: a 34 px full Moon at phase 0.71 deg moves its blurred
-    50 % level by +0.028 px toward the Sun and -0.039 px away from it; held along ``+row`` instead of the
-    Sun's direction, the profile put the centre 0.04-0.10 px off for a reported sigma of 0.008 px (the
-    ``motion`` family's NEES 4.5; a Gaussian PSF did the same).  ``(1, 0)`` only when the direction is
-    undefined (the Sun on the line of sight)."""
+    as ``1/sqrt(depth)`` (the ``2 mu0/(mu0 + mu)`` term, module docstring of :mod:`jaxlimb.models.lunar_lambert`):
+    even below 1 deg of phase the blurred limb is measurably asymmetric along the Sun, and a profile held along
+    another direction moves the centre by more than its sigma.
+
+    Parameters
+    ----------
+    sun_dir_camera : array_like (3,)
+        Direction from the body toward the Sun (camera frame).
+    camera : Camera or None
+        The camera (``None``: orthographic, the direction's ``(y, x)``).
+    center_rc : tuple of float or None
+        The body's image ``(row, col)`` (px), where the direction is projected.
+
+    Returns
+    -------
+    tuple of float
+        Unit ``(sun_r, sun_c)``; ``(1, 0)`` only when the direction is undefined (the Sun on the line of sight).
+    """
     sun_rc = sun_direction_image(sun_dir_camera, camera, center_rc, min_norm=0.0)
     return (1.0, 0.0) if sun_rc is None else sun_rc
 
 
 def profile_start(frame: Frame, circle: CircleParams, data: FitData, center) -> LimbProfileParams:
     """The profile's start: the CSF ``circle`` and its levels (``data``: the CSF's, maybe level-normalised), the PSF
-    from its ``k``, the Sun from the hints."""
+    from its ``k`` (:func:`~jaxlimb.pipeline.profile.passes.gaussian_sigma_of_k`), the Sun from the hints, McEwen's
+    ``L(phase)`` and ``1/f`` from the camera (or the range prior).
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame; the hints must hold ``sun_dir_camera``.
+    circle : CircleParams
+        The circular sigmoid fit (Eq. 16 of Mortari et al. 2016).
+    data : FitData
+        Its data: with weights (level-normalised) ``offset``/``scale`` give the levels in DN.
+    center : tuple of float
+        The start centre ``(row, col)`` (px; ideal pixels with a distorted camera).
+
+    Returns
+    -------
+    LimbProfileParams
+        The start (round: ``rho = 1``, ``theta = 0``).
+    """
     p = circle
     h = frame.hints
     assert h is not None and h.sun_dir_camera is not None
@@ -68,10 +98,26 @@ def profile_start(frame: Frame, circle: CircleParams, data: FitData, center) -> 
 
 def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: float | None = None
                       ) -> tuple[RefineResult, int]:
-    """Refit the pixels of the CSF (``circle`` fitted to ``data``) with the physical lunar-Lambert limb profile.
+    """Refit the pixels of the CSF (``circle`` fitted to ``data``) with the physical lunar-Lambert limb profile,
+    widened (limb brightening, smear or glow, patchy sectors) when a score test asks for it, with its model-error
+    terms; clipped pixels are left out when the image saturates.
 
-    ``sat``: the image's clip level (:func:`saturation_level`), if any.  Returns the
-    :class:`~jaxlimb.pipeline.stages.RefineResult` and the number of clipped pixels left out."""
+    Parameters
+    ----------
+    frame : Frame
+        The frame; the hints must hold ``sun_dir_camera``.
+    circle : CircleParams
+        The CSF fit.
+    data : FitData
+        Its pixels (the values are read again from the image).
+    sat : float or None
+        The image's clip level (:func:`~jaxlimb.pipeline.profile.passes.saturation_level`), if any.
+
+    Returns
+    -------
+    tuple
+        The :class:`~jaxlimb.pipeline.stages.RefineResult` and the number of clipped pixels left out.
+    """
     h, opt = frame.hints, frame.opt
     if h is None or h.sun_dir_camera is None:
         raise ConfigError("LocateOptions.profile = 'lunar-lambert' needs the Sun direction (hints `sun_dir_camera`)")

@@ -25,10 +25,9 @@ GLOW_H0 = (1.0, 0.3)
 
 GLOW_Z = 3.0
 """The z-score of the glow's one-step estimate at ``GLOW_H0[0]`` above which the profile is refitted with a glow
-(and the estimate at ``GLOW_H0[1]`` must be positive).  Measured (``benchmarks/families.py``, Moon, 6 frames each;
-step, z at 1 px): glow frames 0.010-0.44, z 1.9-108 (the two below 3 are 0.02 px off without the glow); airy 0.03-0.16,
-z 8-28; motion one frame at z 5.1; combined one at 3.5; own, Hapke, Lommel-Seeliger, defocus, JPEG, stars all
-negative; maria at most 1.4."""
+(and the estimate at ``GLOW_H0[1]`` must be positive): a one-sided score test, a glow only adds light above the
+limb.  A threshold tuned on the project's scene families: the glow frames and the non-Gaussian PSFs, whose wings
+look like a glow, pass it; uniform-albedo limbs and maria do not (``docs/validation/constants.md#glow_z``)."""
 
 
 GLOW_MAX = 1.0
@@ -41,10 +40,23 @@ than the annulus the profile is fitted on."""
 
 
 def glow_step(rr: RefineResult, system=None) -> list[tuple[float, float]]:
-    """One Gauss--Newton step of the glow (:class:`~jaxlimb.models.lunar_lambert.GlowProfileParams`, held at 0
-    in ``rr``) at each scale height of :data:`GLOW_H0`, with the free parameters of ``rr`` refitted beside it,
-    and its z-score: the score test of :func:`brightening_step` (the scale height is not identified at zero
-    glow, so the test is made at fixed ones; ``system`` as :func:`brightening_step`)."""
+    """One Gauss--Newton step of the glow (:class:`~jaxlimb.models.lunar_lambert.GlowProfileParams`, held at 0 in
+    ``rr``) at each scale height of :data:`GLOW_H0`, with the free parameters of ``rr`` refitted beside it, and its
+    z-score: the score test of :func:`~jaxlimb.pipeline.profile.widen.brightening_step` (the scale height is not
+    identified at zero glow, so the test is made at fixed ones).
+
+    Parameters
+    ----------
+    rr : RefineResult
+        A fit of :data:`~jaxlimb.models.LIMB_PROFILE`.
+    system : tuple or None
+        ``rr``'s :func:`~jaxlimb.pipeline.profile.model_error.weighted_system` ``(J, r, padded, w)``, if formed.
+
+    Returns
+    -------
+    list of tuple of float
+        ``(step, z)`` per scale height of :data:`GLOW_H0` (the glow in units of ``amp``).
+    """
     J, r, padded, w = weighted_system(rr, LIMB_PROFILE) if system is None else system
     cols = np.asarray(glow_columns(rr.fit.params, padded, jnp.log(jnp.asarray(GLOW_H0))))[:, : r.size] * w
     return [last_step(np.concatenate([J, c[:, None]], axis=1), r) for c in cols]
@@ -56,14 +68,31 @@ glow_columns = jax.jit(jax.vmap(glow_column, in_axes=(None, None, 0)))
 def widen_glow(frame: Frame, rr: RefineResult, solver, system=None) -> RefineResult:
     """``rr`` refitted with a glow above the limb (:data:`~jaxlimb.models.lunar_lambert.LIMB_PROFILE_GLOW`) when
     :func:`glow_step` at ``GLOW_H0[0]`` is positive at more than :data:`GLOW_Z` sigma and positive at
-    ``GLOW_H0[1]``; else, or when the refit leaves ``(0, GLOW_MAX]`` or :data:`GLOW_H_RANGE`, ``rr`` itself.
+    ``GLOW_H0[1]``; else, or when the refit leaves ``(0, GLOW_MAX]`` or :data:`GLOW_H_RANGE`, ``rr`` itself.  The
+    glow's tilt toward the Sun is fitted and kept only when it is significant (:func:`tilt_significant`).
 
-    Why: a glow (exponential above the limb; benchmark family ``glow``) put the lunar-Lambert profile's centre up to
-    0.82 px off, the same along the limb (NEES 16 with the split witness); the widened profile 0.003-0.075 px.  The
-    edge's step: a PSF with wider wings than a Gaussian (Airy) also moves light out of the limb, but from its first
-    few tenths of a pixel, where a glow adds light: one Airy frame with a negative step at 0.3 px was put 0.04 px off
-    (0.007 without).  Rejected refits keep ``rr``, not a typed failure: its covariance carries the misfit as model
-    error (split witness) and the answer stays usable; a glow outside the bounds is not the glow it is meant for."""
+    Why: a glow (exponential above the limb) moves the lunar-Lambert profile's centre by up to most of a
+    pixel.  The edge's step at ``GLOW_H0[1]``: a PSF with wider wings than a Gaussian (Airy) also moves light out of
+    the limb, but from its first few tenths of a pixel, where a glow adds light.  Rejected refits keep ``rr``, not
+    a typed failure: its covariance carries the misfit as model error (split witness) and the answer stays usable;
+    a glow outside the bounds is not the glow it is meant for.
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame (camera, options).
+    rr : RefineResult
+        A round body's profile fit.
+    solver : solver or None
+        The solver of the refit (``None``: the options').
+    system : tuple or None
+        ``rr``'s weighted system, if formed.
+
+    Returns
+    -------
+    RefineResult
+        The glow fit, or ``rr``.
+    """
     start = glow_start(rr, system)
     if start is None:
         return rr
@@ -84,22 +113,27 @@ def widen_glow(frame: Frame, rr: RefineResult, solver, system=None) -> RefineRes
 
 GLOW_TILT_Z = 2.0
 """The z-score (tilt over its sigma) below which :func:`widen_glow` refits a round body's glow with its tilt held at 0
-(:func:`tilt_significant`; the two-sided 95 % test).  Measured (``benchmarks/families.py``, tilt at z, centre error
-free / held): seed 2026 ``glow`` 1 0.11 at 0.2, 0.015 / 0.013 px; seed 2027 ``glow`` 2 (phase 11 deg, the renderer's
-glow ``1 + 1.0 cpsi``) 1.27 at 2.1, 0.012 / 0.057 px; held-out seed 2028 ``glow`` 5 0.46 at 1.6, 0.190 / 0.003 px,
-``airy`` 2 0.39 at 1.5, 0.022 / 0.006 px.  Chosen after seeing seed 2028: any value in (1.6, 2.1) separates these
-frames; 3.0 lost seed 2027's ``glow`` 2."""
+(:func:`tilt_significant`; the two-sided 95 % test).  A tilt the data do not resolve is a free direction the centre
+trades against; held at 0 the glow is uniform along the limb.  A threshold tuned on the project's scene families
+(``docs/validation/constants.md#glow_tilt_z``)."""
 
 
 def tilt_significant(res) -> bool:
-    """Whether the widened fit ``res`` keeps its glow's tilt (held, or free at least :data:`GLOW_TILT_Z` of its sigma).
+    """Whether the widened fit ``res`` keeps its glow's tilt (held, or free at least :data:`GLOW_TILT_Z` of its
+    sigma).  The tilt is one more free parameter of the glow's shape along the limb, and a tilt the data do not ask
+    for is the fit absorbing something else.  Round bodies only: the Earth's widened fit
+    (:mod:`jaxlimb.pipeline.ellipsoid.profile`) keeps :func:`fit_glow_tilt`'s choice.
 
-    Why: the tilt is one more free parameter of the glow's shape along the limb, and a tilt the data do not ask for
-    is the fit absorbing something else.  Held-out ``glow`` 5 of seed 2028 (``benchmarks/families.py``: a crescent at
-    phase 149 deg, 92 deg of lit arc, the renderer's glow flat over it) fitted a tilt of 0.46 at 1.6 sigma and a glow of
-    0.21 of ``amp`` for the renderer's 0.28: 0.19 px off; held at 0: glow 0.28, 0.003 px.  Tilts the data ask for stay:
-    held-out ``glow`` 1 of seed 2029 0.55 at 7.2 sigma.  Round bodies only: the Earth's widened fit
-    (:mod:`jaxlimb.pipeline.ellipsoid.profile`) keeps :func:`fit_glow_tilt`'s choice."""
+    Parameters
+    ----------
+    res : LimbFit
+        A fit of :data:`~jaxlimb.models.lunar_lambert.LIMB_PROFILE_GLOW`.
+
+    Returns
+    -------
+    bool
+        ``True`` when the tilt is held or significant.
+    """
     if "glow_tilt" not in res.free:
         return True
     i = list(res.free).index("glow_tilt")
@@ -108,10 +142,21 @@ def tilt_significant(res) -> bool:
 
 
 def fit_glow_tilt(run, fixed: tuple[str, ...]):
-    """``run(fixed)`` (a widened glow fit returning ``(result, extra)``) with the glow's tilt free, then, when that
-    fit raised :class:`~jaxlimb.errors.ConvergenceError`, did not converge, is not plausible or its tilt is not one
-    to keep (:func:`tilt_kept`), with the tilt held at 0.  Returns ``((result, extra), fixed)``; the second fit
-    may raise."""
+    """``run(fixed)`` with the glow's tilt free, then, when that fit raised :class:`~jaxlimb.errors.ConvergenceError`,
+    did not converge, is not plausible or its tilt is not one to keep (:func:`tilt_kept`), with the tilt held at 0.
+
+    Parameters
+    ----------
+    run : callable
+        ``fixed -> (result, extra)``: a widened glow fit holding the parameters ``fixed``.
+    fixed : tuple of str
+        The parameters held besides the tilt.
+
+    Returns
+    -------
+    tuple
+        ``((result, extra), fixed)``, ``fixed`` with ``"glow_tilt"`` when it was held; the second fit may raise.
+    """
     try:
         out = run(fixed)
         res = out[0]
@@ -126,7 +171,21 @@ def fit_glow_tilt(run, fixed: tuple[str, ...]):
 def glow_start(rr: RefineResult, system=None) -> GlowProfileParams | None:
     """The glow gate of :func:`widen_glow` (sphere and ellipsoid alike): the widened profile's start from ``rr`` when
     :func:`glow_step` at ``GLOW_H0[0]`` is positive at more than :data:`GLOW_Z` sigma and positive at
-    ``GLOW_H0[1]``, else ``None``."""
+    ``GLOW_H0[1]``.
+
+    Parameters
+    ----------
+    rr : RefineResult
+        A fit of :data:`~jaxlimb.models.LIMB_PROFILE`.
+    system : tuple or None
+        ``rr``'s weighted system, if formed.
+
+    Returns
+    -------
+    GlowProfileParams or None
+        ``rr``'s parameters with the one-step glow (at most ``GLOW_MAX / 2``) at scale height ``GLOW_H0[0]``;
+        ``None`` when the gate stays shut.
+    """
     (step, z), (step_edge, _) = glow_step(rr, system)
     if not (step > 0.0 and z > GLOW_Z and step_edge > 0.0):
         return None
@@ -149,30 +208,64 @@ def tilt_kept(q: GlowProfileParams) -> bool:
     held at 0): ``0 <= glow_tilt <= GLOW_TILT_MAX`` and a scale height of at least :data:`GLOW_TILT_MIN_H_PX`.
 
     A shell lit by the Sun is brighter where its tangent points are lit more (module docstring of
-    :mod:`jaxlimb.models.lunar_lambert`); a tilt away from the Sun is the fit absorbing something else: on
-    ``benchmarks/families.py`` Moon ``airy`` (the PSF's wings pass the glow gate at 7-14 deg phase) the free tilt went
-    to -0.29 to -0.57 and 4 frames from 0.000-0.008 to 0.042-0.090 px.  A glow thinner than half a pixel is a step on
-    the limb whose tilt is the limb's own photometry: on Earth ``glow`` 1 (380 000 km, 0.44 px) it went to 15 and
-    the centre from 0.024 to 0.089 px."""
+    :mod:`jaxlimb.models.lunar_lambert`); a tilt away from the Sun is the fit absorbing something else (an Airy
+    PSF's wings), and a glow thinner than half a pixel is a step on the limb whose tilt is the limb's own
+    photometry.
+
+    Parameters
+    ----------
+    q : GlowProfileParams
+        The widened fit's parameters.
+
+    Returns
+    -------
+    bool
+        ``True`` when the tilt is kept.
+    """
     t = float(q.glow_tilt)
     return 0.0 <= t <= GLOW_TILT_MAX and math.exp(float(q.log_h)) >= GLOW_TILT_MIN_H_PX
 
 
 def glow_plausible(q: GlowProfileParams) -> bool:
     """A widened fit's glow in ``(0, GLOW_MAX]`` on the whole lit limb (``cpsi`` in ``[0, 1]``: ``glow`` and
-    ``glow (1 + glow_tilt)`` both in it) and its scale height in :data:`GLOW_H_RANGE`; NaN fails."""
+    ``glow (1 + glow_tilt)`` both in it) and its scale height in :data:`GLOW_H_RANGE`; NaN fails.
+
+    Parameters
+    ----------
+    q : GlowProfileParams
+        The widened fit's parameters.
+
+    Returns
+    -------
+    bool
+        ``True`` when the glow is plausible.
+    """
     lh, lo, hi = float(q.log_h), math.log(GLOW_H_RANGE[0]), math.log(GLOW_H_RANGE[1])
     g, g1 = float(q.glow), float(q.glow) * (1.0 + float(q.glow_tilt))
     return 0.0 < g <= GLOW_MAX and 0.0 <= g1 <= GLOW_MAX and lo <= lh <= hi
 
 
 def widen_aniso_or_glow(frame: Frame, rr: RefineResult, solver, system=None) -> RefineResult:
-    """:func:`widen_aniso` and :func:`widen_glow` of ``rr``; when both refit, the one with the smaller residual RMS.
+    """:func:`~jaxlimb.pipeline.profile.widen.widen_aniso` and :func:`widen_glow` of ``rr``; when both refit, the one
+    with the smaller residual RMS.  Each one's score gate opens on the other's scenes: a strong glow on a crescent
+    looks anisotropic, and a motion smear raises the glow's step.
 
-    Why: each one's score gate opens on the other's scenes.  A strong glow on a crescent looks anisotropic (seed 2026
-    ``glow`` 5 and 2: one-step anisotropy 0.13 / 0.12 of ``sigma_e^2``, chi^2 66 / 117; with the anisotropic refit
-    kept, frame 5 went 0.004 -> 0.826 px), and a motion smear raises the glow's step (held-out ``motion`` 0 of seed
-    2028 and 1 of seed 2027 took the glow: 0.064 and 0.061 px; the anisotropic refit 0.006 and 0.018 px)."""
+    Parameters
+    ----------
+    frame : Frame
+        The frame.
+    rr : RefineResult
+        A round body's profile fit.
+    solver : solver or None
+        The solver of the refits.
+    system : tuple or None
+        ``rr``'s weighted system, if formed.
+
+    Returns
+    -------
+    RefineResult
+        The chosen refit, or ``rr`` when neither gate opens.
+    """
     aniso = widen_aniso(frame, rr, solver, system)
     glow = widen_glow(frame, rr, solver, system)
     if aniso is rr or glow is rr:

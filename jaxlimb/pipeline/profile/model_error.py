@@ -26,9 +26,9 @@ MODEL_ERROR_SECTORS = 24
 
 WITNESS_CUT: tuple[float, ...] = (1.0, 2.0)
 """The splits of :func:`split_witness`: for each ``c``, the pixels outside ``-c`` effective PSF sigmas of the
-limb (the sky side and the edge) and those inside ``+c`` (the edge and the disc).  Measured on
-``benchmarks/families.py`` (Moon, 3 frames each; centre NEES with 2.0 alone / 1.0 and 2.0): Minnaert 2.3 /
-1.1, glow 33 / 20, own 1.9 / 1.3."""
+limb (the sky side and the edge) and those inside ``+c`` (the edge and the disc).  Two cuts see a model error
+that lives at one depth of the profile (a glow, a rim) better than one; tuned on the project's scene families
+(``docs/validation/constants.md#witness_cut``)."""
 
 
 _GEOMETRIC = ("r0", "c0", "a", "theta", "rho")
@@ -38,7 +38,18 @@ _COLUMNS: dict[str, Any] = {}
 
 
 def columns(model: LimbModel):
-    """``model``'s jitted ``(intensity, columns)`` (one compiled program per model)."""
+    """``model``'s jitted ``(intensity, columns)`` (one compiled program per model).
+
+    Parameters
+    ----------
+    model : LimbModel
+        The limb model.
+
+    Returns
+    -------
+    callable
+        ``(params, coords) -> (intensity (n,), columns)``, jitted and cached by the model's name.
+    """
     if model.name not in _COLUMNS:
         _COLUMNS[model.name] = jax.jit(model.intensity_and_jacobian_columns)
     return _COLUMNS[model.name]
@@ -51,8 +62,23 @@ def _signed_profile(p, rc):
 
 
 def signed_distance(params: Any, coords: np.ndarray, padded: np.ndarray) -> np.ndarray:
-    """Signed distance (px, positive outside) of the pixels to the fitted limb: the profile's own radius in
-    each pixel's direction; the ellipse (first order) of an elliptical sigmoid/ramp; the circle's radius."""
+    """Signed distance (px, positive outside) of the pixels to the fitted limb: the profile's own radius in each
+    pixel's direction; the ellipse (first order) of an elliptical sigmoid/ramp; the circle's radius.
+
+    Parameters
+    ----------
+    params : LimbProfileParams, EllipseParams, EllipseRampParams or CircleParams
+        The fitted parameters.
+    coords : np.ndarray (n, 2)
+        The pixels ``(row, col)``.
+    padded : jax.Array (m, 2)
+        ``coords`` padded to its bucket (the profile's compiled program; :func:`weighted_system`).
+
+    Returns
+    -------
+    np.ndarray (n,)
+        The distances (px).
+    """
     if isinstance(params, LimbProfileParams):
         return np.asarray(_signed_profile(params, padded))[: coords.shape[0]]
     c = np.asarray(coords, float)
@@ -65,7 +91,18 @@ def signed_distance(params: Any, coords: np.ndarray, padded: np.ndarray) -> np.n
 
 def edge_sigma(params: Any) -> float:
     """The effective (pixel box included) Gaussian sigma of the fitted edge: ``sqrt(sigma^2 + 1/12)`` for the
-    profile, ``1/k`` for the ramp's kernel, ``LOGISTIC_TO_GAUSS / k`` for a logistic."""
+    profile, ``1/k`` for the ramp's kernel, ``LOGISTIC_TO_GAUSS / k`` for a logistic.
+
+    Parameters
+    ----------
+    params : LimbProfileParams, EllipseRampParams, CircleParams or EllipseParams
+        The fitted parameters.
+
+    Returns
+    -------
+    float
+        The sigma (px).
+    """
     if isinstance(params, LimbProfileParams):
         return math.sqrt(float(params.sigma) ** 2 + 1.0 / 12.0)
     k = abs(float(params.k))
@@ -80,13 +117,27 @@ def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS, mod
     noise-only covariance is kept as ``noise_covariance`` (the Cramér--Rao bound's).  Level-normalised data
     (weights): the weighted residuals and Jacobian, as the fit minimises them.
 
-    Why: an albedo that varies along and across the limb (maria, clouds), another reflectance
-    law, a glow or a PSF of another shape bias the centre by more than the noise-only sigma
-    (maria Moons: up to 0.1 px for a reported 0.005-0.01 px; ``benchmarks/families.py``: centre
-    NEES 129 -> ~4 with the sector term).  A misfit the same all along the limb (Minnaert's limb
-    brightening: 0.3-0.4 px for a reported 0.02 px) leaves no sector structure; the split witness sees
-    it (the sky-side fit moves 0.2-0.25 px of the 0.3-0.4 px).  ``system``: ``rr``'s :func:`weighted_system` under
-    ``model``, if already formed."""
+    Why: an albedo that varies along and across the limb (maria, clouds), another reflectance law, a glow or a
+    PSF of another shape bias the centre by more than the noise-only sigma, in a pattern that varies along the limb
+    (the sector term sees it).  A misfit the same all along the limb (Minnaert's limb brightening) leaves no sector
+    structure; the split witness sees it.
+
+    Parameters
+    ----------
+    rr : RefineResult
+        The fit.
+    n_sectors : int
+        Angular sectors of the cluster-robust term.
+    model : LimbModel or None
+        ``rr``'s model (``None``: the profile of its parameters).
+    system : tuple or None
+        ``rr``'s :func:`weighted_system` under ``model``, if already formed.
+
+    Returns
+    -------
+    RefineResult
+        ``rr`` with the widened covariance and ``noise_covariance`` the fit's own.
+    """
 
     model = profile_model(rr.fit.params) if model is None else model
     fit = rr.fit
@@ -102,7 +153,26 @@ def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS, mod
 
 def weighted_system(rr: RefineResult, model: LimbModel):
     """The weighted Jacobian (free parameters of ``rr.fit``) and residuals of ``rr`` under ``model``, the padded
-    device coordinates (one program per bucket) and the pixel weights."""
+    device coordinates (one program per bucket) and the pixel weights.
+
+    Parameters
+    ----------
+    rr : RefineResult
+        The fit and its data.
+    model : LimbModel
+        The model evaluated at ``rr.fit.params``.
+
+    Returns
+    -------
+    J : np.ndarray (n, p)
+        Weighted Jacobian by the ``p`` free parameters.
+    r : np.ndarray (n,)
+        Weighted residuals (data minus model).
+    padded : jax.Array (m, 2)
+        The pixels padded to their bucket.
+    w : np.ndarray (n,)
+        The pixel weights (ones without level normalisation).
+    """
 
     fit = rr.fit
     coords = np.asarray(rr.data.coords, float)
@@ -118,16 +188,31 @@ def weighted_system(rr: RefineResult, model: LimbModel):
 
 
 def split_witness(rr: RefineResult, J: np.ndarray, r: np.ndarray, s: np.ndarray) -> tuple[list[int], np.ndarray]:
-    """The specification-test term of :mod:`jaxlimb.model_error` (Hausman 1978) on the limb's
-    geometry (the free ones of ``r0, c0, a, theta, rho``): the profile refitted on the sky side and the edge
-    (signed distance ``s`` to the limb above ``-c`` effective PSF sigmas) and on the edge and the disc (below
-    ``+c``), ``c`` in :data:`WITNESS_CUT`; the sum of ``[d d^T - (C_sub - C)]_+`` over the subsets.  Each
-    refit is one Gauss--Newton step from the full fit's answer with its Jacobian ``J`` and residuals ``r`` (no
-    new model evaluation; the step is the subset fit to first order).  Returns the indices of those parameters among
-    ``rr.fit.free`` and the term (no contribution from a subset of fewer than 50 pixels).
+    """The specification-test term of :mod:`jaxlimb.model_error` (Hausman 1978) on the limb's geometry (the free
+    ones of ``r0, c0, a, theta, rho``): the profile refitted on the sky side and the edge (signed distance ``s`` to
+    the limb above ``-c`` effective PSF sigmas) and on the edge and the disc (below ``+c``), ``c`` in
+    :data:`WITNESS_CUT`; the sum of ``[d d^T - (C_sub - C)]_+`` over the subsets.  Each refit is one Gauss--Newton
+    step from the full fit's answer with its Jacobian ``J`` and residuals ``r`` (no new model evaluation; the step
+    is the subset fit to first order).  A subset of fewer than 50 pixels (or all of them) contributes nothing.
 
-    Measured (``benchmarks/families.py`` Minnaert frames, centre errors 0.03 / 0.41 / 0.34 px): the sky-side
-    fit moves by 0.028 / 0.32 / 0.26 px toward the truth; own-family frames move by 0.00-0.04 px."""
+    Parameters
+    ----------
+    rr : RefineResult
+        The fit.
+    J : np.ndarray (n, p)
+        Its weighted Jacobian (:func:`weighted_system`).
+    r : np.ndarray (n,)
+        Its weighted residuals.
+    s : np.ndarray (n,)
+        Signed distance (px) of the pixels to the fitted limb (:func:`signed_distance`).
+
+    Returns
+    -------
+    idx : list of int
+        Indices of the geometric parameters among ``rr.fit.free``.
+    W : np.ndarray (k, k)
+        The term, on those parameters.
+    """
 
     fit = rr.fit
     free = list(fit.free)
@@ -149,7 +234,21 @@ def split_witness(rr: RefineResult, J: np.ndarray, r: np.ndarray, s: np.ndarray)
 
 
 def last_step(X: np.ndarray, r: np.ndarray) -> tuple[float, float]:
-    """The last component of the least-squares step ``X^+ r`` and its z-score (0, 0 with too few rows)."""
+    """The last component of the least-squares step ``X^+ r`` and its z-score: a one-step score estimate of the
+    last column's coefficient.
+
+    Parameters
+    ----------
+    X : np.ndarray (n, p)
+        The weighted Jacobian with the tested column last.
+    r : np.ndarray (n,)
+        The weighted residuals.
+
+    Returns
+    -------
+    tuple of float
+        ``(step, z)``; ``(0, 0)`` with fewer than ``max(50, 2 p)`` rows.
+    """
     if X.shape[0] < max(50, 2 * X.shape[1]):
         return 0.0, 0.0
     step, var = last_column_step(X, r)
@@ -158,8 +257,25 @@ def last_step(X: np.ndarray, r: np.ndarray) -> tuple[float, float]:
 
 def trailing_step(X: np.ndarray, r: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     """The last ``k`` components of the least-squares step ``X^+ r`` (the last ``k`` columns' coefficients with the
-    others fitted beside them) and their ``(k, k)`` covariance from the residual scatter (``s^2 [(X^T X)^-1]``'s
-    trailing block)."""
+    others fitted beside them) and their covariance from the residual scatter (``s^2 [(X^T X)^-1]``'s trailing
+    block).
+
+    Parameters
+    ----------
+    X : np.ndarray (n, p)
+        The weighted Jacobian with the tested columns last.
+    r : np.ndarray (n,)
+        The weighted residuals.
+    k : int
+        Number of trailing columns.
+
+    Returns
+    -------
+    step : np.ndarray (k,)
+        Their coefficients.
+    cov : np.ndarray (k, k)
+        Their covariance.
+    """
     A_inv = np.linalg.pinv(X.T @ X)
     step = A_inv @ (X.T @ r)
     s2 = float(np.sum((r - X @ step) ** 2)) / max(X.shape[0] - X.shape[1], 1)
@@ -167,7 +283,20 @@ def trailing_step(X: np.ndarray, r: np.ndarray, k: int) -> tuple[np.ndarray, np.
 
 
 def last_column_step(X: np.ndarray, r: np.ndarray) -> tuple[float, float]:
-    """:func:`trailing_step` of the last column alone: its coefficient and its variance."""
+    """:func:`trailing_step` of the last column alone: its coefficient and its variance.
+
+    Parameters
+    ----------
+    X : np.ndarray (n, p)
+        The weighted Jacobian with the tested column last.
+    r : np.ndarray (n,)
+        The weighted residuals.
+
+    Returns
+    -------
+    tuple of float
+        ``(step, variance)``.
+    """
     step, var = trailing_step(X, r, 1)
     return float(step[0]), float(var[0, 0])
 

@@ -23,8 +23,19 @@ PROFILE_HELD = tuple(n for n in PROFILE_FIXED if n != "L")
 
 
 def l_band(fit) -> tuple[float, float]:
-    """The accepted range of ``L`` for ``fit`` (a :class:`~jaxlimb.fitting.LimbFit` of :data:`LIMB_PROFILE`):
-    :data:`PHYSICAL_L` widened by 3 sigma of ``L`` when ``L`` was estimated."""
+    """The accepted range of ``L``: :data:`~jaxlimb.models.lunar_lambert.PHYSICAL_L` widened by 3 sigma of ``L`` when
+    ``L`` was estimated.
+
+    Parameters
+    ----------
+    fit : LimbFit
+        A fit of :data:`~jaxlimb.models.LIMB_PROFILE` (or one of its widened forms).
+
+    Returns
+    -------
+    tuple of float
+        ``(L_min, L_max)``; ``(-inf, inf)`` when ``L`` was held.
+    """
     if "L" not in fit.free:
         return (-math.inf, math.inf)
     i = list(fit.free).index("L")
@@ -36,26 +47,73 @@ __all__ = ["l_band"]
 
 
 def saturation_level(img: np.ndarray) -> float | None:
-    """The clip level of ``img`` if it has one: its maximum when >= 20 pixels sit exactly on it
-    (noise never makes a plateau; clipping, including 12-bit data in 16-bit words, does)."""
+    """The clip level of ``img`` if it has one: its maximum when >= 20 pixels sit exactly on it (noise never makes a
+    plateau; clipping, including 12-bit data in 16-bit words, does).
+
+    Parameters
+    ----------
+    img : np.ndarray
+        The image.
+
+    Returns
+    -------
+    float or None
+        The clip level (DN), or ``None``.
+    """
     m = float(np.max(img))
     return m if np.count_nonzero(img == m) >= 20 else None
 
 
 def gaussian_sigma_of_k(k: float) -> float:
     """The PSF sigma (px, pixel box removed) of a blurred edge whose logistic steepness is ``k``:
-    ``sqrt((LOGISTIC_TO_GAUSS / k)^2 - 1/12)``, at least 0.3 px."""
+    ``sqrt((LOGISTIC_TO_GAUSS / k)^2 - 1/12)``, at least 0.3 px.
+
+    Parameters
+    ----------
+    k : float
+        The sigmoid's steepness (px^-1).
+
+    Returns
+    -------
+    float
+        The Gaussian sigma (px).
+    """
     s_e = LOGISTIC_TO_GAUSS / max(float(k), 1e-6)
     return math.sqrt(max(s_e * s_e - 1.0 / 12.0, 0.09))
 
 
 def profile_passes(frame: Frame, data: FitData, start: LimbProfileParams, center, radius, fixed, solver,
                     model: LimbModel = LIMB_PROFILE):
-    """The profile fit (``center``/``radius``: the circle to start the sphere's shape from; ``None``:
-    from ``start``).  With a camera, the sphere's ellipse shape is held fixed and iterated.  The shape
+    """The profile fit.  With a camera, the sphere's ellipse shape is held fixed and iterated.  The shape
     (``a - b`` ~ 5 px at the corner of the default imager for a 210 px Moon) changes by ~0.006 px per px
     of centre shift, so a second pass is run only when the shape at the fitted centre differs from the
-    one fitted by more than 1e-3 px anywhere on the limb; it starts at the answer, without coarse phase."""
+    one fitted by more than 1e-3 px anywhere on the limb (:func:`shape_change_px`); it starts at the answer,
+    without coarse phase.
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame (camera, options).
+    data : FitData
+        Pixels ``(row, col)`` (ideal with a distorted camera) and values.
+    start : LimbProfileParams
+        The start.
+    center, radius : tuple of float, float or None
+        The circle (px) the sphere's shape starts from; ``None``: from ``start``.
+    fixed : tuple of str
+        Parameters held.
+    solver : solver or None
+        The first pass's solver (``None``: the options').
+    model : LimbModel
+        The profile model.
+
+    Returns
+    -------
+    fit : LimbFit
+        The last pass's fit.
+    sphere : SphereImage or None
+        The sphere's image at the fitted centre (``None`` without a camera).
+    """
     opt = frame.opt
     if not frame.use_camera:
         return run_fit(model, data, start, opt, fixed, solver), None
@@ -77,8 +135,21 @@ def profile_passes(frame: Frame, data: FitData, start: LimbProfileParams, center
 
 
 def shape_change_px(q: LimbProfileParams, sph) -> float:
-    """Largest radial change (px) of the limb ellipse of ``q`` if its axis ratio and orientation
-    were those of ``sph`` (same ``a``): ``|d(a - b)| + (a - b) |d theta|``."""
+    """Largest radial change (px) of the limb ellipse of ``q`` if its axis ratio and orientation were those of
+    ``sph`` (same ``a``): ``|d(a - b)| + (a - b) |d theta|``.
+
+    Parameters
+    ----------
+    q : LimbProfileParams
+        The fitted profile.
+    sph : SphereImage
+        The sphere's image at the fitted centre.
+
+    Returns
+    -------
+    float
+        The change (px).
+    """
     a = float(q.a)
     dab = abs(a * (1.0 - float(q.rho)) - a * (1.0 - float(sph.rho)))
     dth = abs(math.remainder(float(q.theta) - float(sph.angle_rad), math.pi))

@@ -28,41 +28,28 @@ PATCHY_SECTORS = 24
 
 
 PATCHY_RATIO = 1.5
-"""A sector whose mean squared residual exceeds this multiple of the median sector's is down-weighted.
-Measured (``benchmarks/families.py``, Moon, 6 frames per family, fit of main 002f51e): 2-60 in the sectors a
-mare crosses (4-6 such sectors on 5 of the 6 maria frames), at most 1.6 on uniform-albedo lunar-Lambert,
-Minnaert, glow, Airy, defocus, JPEG and star frames; 2.0-3.1 in 1-3 sectors of one Hapke, one
-Lommel-Seeliger, two motion-smeared and one JPEG frame, whose answers moved by at most 0.007 px.
-2.0 until held-out seed 2028 (n 6): its maria 3 and 4 are subtle (ratios 1.6-3.0 in the sectors the maria cross),
-the maria median 0.054 px (frames 0 / 4 0.148 / 0.055); with 1.5 0.036 (0.083 / 0.018; frame 2 0.094 -> 0.119, its
-covariance covering it, :func:`with_reweighting_witness`).  On the tuning seeds (with the glow's tilt test and the
-witness): seed 2026 combined max 0.093 -> 0.044, jpeg max 0.114 -> 0.101, minnaert 3 0.012 -> 0.027; seed 2027
-combined median / max 0.037 / 0.136 -> 0.027 / 0.106, maria 0.019 / 0.034 -> 0.017 / 0.027, own 2 0.029 -> 0.014,
-cropped 0 0.107 -> 0.119.  Checked on held-out seed 2029 (n 4): maria / combined median 0.033 / 0.045 -> 0.026 /
-0.031, other families unchanged but glow 0 0.023 -> 0.031."""
+"""A sector whose mean squared residual exceeds this multiple of the median sector's is down-weighted.  A mare
+crossing the limb makes its sectors misfit many times the median, a uniform-albedo limb keeps them near it; the
+threshold sits between the two and was tuned on the project's scene families
+(``docs/validation/constants.md#patchy_ratio``)."""
 
 
 PATCHY_PASSES = 4
-"""Reweighted passes (each from the previous answer, the weights from its residuals).  Two passes with the weight
-``ratio^-1/2`` stopped half way on wide maria: held-out frames (``benchmarks/families.py --seed 2027/2028``) combined 0
-(three maria over 50 deg of the lit limb about the sub-solar point) 0.249 px, maria 0 of seed 2028 0.309 px; with
-:data:`PATCHY_POWER` 1.5 and 4 passes 0.134 / 0.142 px (8 passes: the same to 1e-3 px)."""
+"""Reweighted passes (each from the previous answer, the weights from its residuals: iteratively reweighted least
+squares, Huber 1981 Sec. 7).  A wide mare pulls the first answer, so the first weights underrate its sectors'
+misfit; a few passes let the weights settle (``docs/validation/constants.md#patchy_passes``)."""
 
 
 PATCHY_POWER = 1.5
 """A down-weighted sector's residual weight is ``ratio^-PATCHY_POWER`` (its weight in the normal equations
-``ratio^-3``, :func:`patchy_weights`).  Measured on the held-out maria / combined frames above (4 passes): power 0.5
-0.207 / 0.046 / 0.027 px (combined 0, maria 2 and 0 of seed 2027), 1.0 0.146 / 0.028 / 0.020, 1.5 0.134 / 0.027 /
-0.010, 2.0 0.132 / -, maria 1 of seed 2028 0.036 -> 0.012 (1.5) / 0.011 (2.0)."""
+``ratio^-3``, :func:`patchy_weights`): the more a sector misfits, the less it counts.  Tuned on the project's maria
+frames (``docs/validation/constants.md#patchy_passes``)."""
 
 
 PATCHY_WITNESS = 0.25
-"""The fraction of the reweighting's move (:func:`with_reweighting_witness`) carried as the centre's and radius' sigma.
-Chosen on seeds 2026 and 2027 of ``benchmarks/families.py`` (``maria`` and ``combined``, 18 reweighted frames): the
-centre error left over the move 0.02-1.8, median 0.22.  Mean centre NEES with 0 / 0.25 / 0.5 (recomputed from the
-records' covariances): seed 2026 maria 1.19 / 0.83 / 0.65, combined 2.07 / 1.20 / 1.11, seed 2027 maria 1.68 / 0.83 /
-0.50, combined 2.22 / 0.40 / 0.20; held-out seed 2028 (n 6) maria 8.57 / 1.70, combined 1.98 / 0.47, seed 2029 (n 4)
-maria 2.27 / 0.83, combined 1.31 / 1.28.  The term was looked for after seed 2028's maria 2 (below)."""
+"""The fraction of the reweighting's move (:func:`with_reweighting_witness`) carried as the centre's and radius' sigma:
+what the weights leave of a mare's pull scales with what they removed.  Tuned on the project's maria and combined
+frames by the centre NEES (``docs/validation/constants.md#patchy_witness``)."""
 
 
 def with_reweighting_witness(out: RefineResult, unweighted: RefineResult) -> RefineResult:
@@ -72,15 +59,41 @@ def with_reweighting_witness(out: RefineResult, unweighted: RefineResult) -> Ref
 
     Why: the weights remove the sectors a mare crosses, not the mare's whole pull (its edge's taper in the sectors
     kept, the arc left), and the model-error terms of the weighted fit see only what is left of the residuals.
-    Held-out ``maria`` 2 of seed 2028 (``benchmarks/families.py``: three maria across the lit limb and two more
-    near it; any subset of them 0.003-0.024 px): moved 0.28 px, left 0.094 px across the move for a sigma of
-    0.015-0.022 px (NEES 40).  The same in every direction: what is left is not along the move (as
-    :func:`jaxlimb.pipeline.profile.widen.with_aniso_witness`); the noise-only covariance is kept."""
+    The same in every direction: what is left is not along the move (as
+    :func:`jaxlimb.pipeline.profile.widen.with_aniso_witness`); the noise-only covariance is kept.
+
+    Parameters
+    ----------
+    out : RefineResult
+        The reweighted fit (with its model-error terms).
+    unweighted : RefineResult
+        The fit before the reweighting.
+
+    Returns
+    -------
+    RefineResult
+        ``out`` with the widened covariance (unchanged unless ``r0, c0, a`` are all free).
+    """
     return out.with_move_witness(unweighted, PATCHY_WITNESS)
 
 
 def sector_misfit(r: np.ndarray, groups: np.ndarray, n_sectors: int) -> np.ndarray:
-    """Each sector's mean squared residual over the median sector's (sectors with no pixel: 0)."""
+    """Each sector's mean squared residual over the median sector's (sectors with no pixel: 0).
+
+    Parameters
+    ----------
+    r : np.ndarray (n,)
+        Residuals of the pixels.
+    groups : np.ndarray (n,) of int
+        Each pixel's sector (:func:`jaxlimb.model_error.sector_groups`).
+    n_sectors : int
+        Number of sectors.
+
+    Returns
+    -------
+    np.ndarray (n_sectors,)
+        The ratios.
+    """
     counts = np.bincount(groups, minlength=n_sectors)
     ms = np.bincount(groups, weights=r * r, minlength=n_sectors) / np.maximum(counts, 1)
     return ms / max(float(np.median(ms[counts > 0])), 1e-300)
@@ -89,22 +102,35 @@ def sector_misfit(r: np.ndarray, groups: np.ndarray, n_sectors: int) -> np.ndarr
 def downweight_patchy_sectors(frame: Frame, rr: RefineResult, solver, system=None) -> RefineResult:
     """``rr`` refitted with the sectors of the limb whose residuals are far above the others' down-weighted
     (weight ``ratio^-PATCHY_POWER`` of :func:`sector_misfit` above :data:`PATCHY_RATIO`; an M-estimator whose unit is
-    the sector, Huber 1981 Sec. 7); ``rr`` itself when no sector is.
+    the sector, Huber 1981 Sec. 7).
 
     Why: the profile assumes one albedo along the lit limb.  A mare crossing the limb changes the profile's
     *radial* shape within a pixel or two of the edge (5 deg of surface from the limb is 0.4 px in the image),
-    which an amplitude along the limb cannot follow (measured: it did not help), and pulls the centre by up
-    to 0.11 px.  The sectors it crosses misfit far above the noise.  Measured on the independent maria frames
-    (``benchmarks/families.py``): centre median / max 0.048 / 0.115 -> 0.023 / 0.043 px, ``combined`` (Hapke,
-    maria, any PSF, JPEG) 0.078 / 0.100 -> 0.015 / 0.093 px.
+    which an amplitude along the limb cannot follow, and pulls the centre by a tenth of a pixel.  The sectors it
+    crosses misfit far above the noise.
 
     How: each of the :data:`PATCHY_PASSES` reweighted fits is :data:`PATCHY_GN_STEPS` Gauss--Newton steps of the
     weighted problem from the previous answer (Nocedal & Wright 2006, Eq. 10.23), with the Jacobian the profile's
     one-pass columns give beside the intensity: the reweighting moves the answer by hundredths of a pixel, where
-    the problem is linear.  Measured on the 12 maria and combined frames: the centres of the full LM refits to
-    <= 1e-4 px and their NEES to 0.05, for a third of their CPU.  A step that is not finite or raises the
-    weighted residual sum, or an answer whose sphere shape has moved by 1e-3 px, falls back to the LM refits
-    (:func:`_downweight_by_refits`).  ``system``: ``rr``'s :func:`weighted_system` under the profile, if formed.
+    the problem is linear.  A step that is not finite or raises the weighted residual sum, or an answer whose sphere
+    shape has moved by 1e-3 px, falls back to full LM refits.
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame (camera, options).
+    rr : RefineResult
+        The unweighted profile fit.
+    solver : solver or None
+        The solver of the fallback refits.
+    system : tuple or None
+        ``rr``'s :func:`~jaxlimb.pipeline.profile.model_error.weighted_system` under the profile, if formed.
+
+    Returns
+    -------
+    RefineResult
+        The reweighted fit (its weights in ``data.weights``); ``rr`` itself when no sector is down-weighted or its
+        ``L`` is outside :func:`~jaxlimb.pipeline.profile.passes.l_band`.
     """
     if not _l_described(rr):  # a limb the profile does not describe: no sector weighting can make it one
         return rr
@@ -131,10 +157,8 @@ def downweight_patchy_sectors(frame: Frame, rr: RefineResult, solver, system=Non
 
 def _l_described(rr: RefineResult) -> bool:
     """Whether the unweighted fit ``rr`` has its ``L`` within :func:`~jaxlimb.pipeline.profile.passes.l_band` (always, with
-    ``L`` held).  The band widens by 3 sigma of ``L``, and down-weighting sectors raises that sigma: on a flat 8-bit
-    own render (``tests/pipeline/test_cli_locate.py``'s Moon, 30 000 km, phase 30 deg) the fit with ``L`` 1.51 outside
-    its band was rejected and the edge fit answered 0.007 px; down-weighted by ``ratio^-1.5`` it came back with ``L``
-    1.26-1.41 inside its widened band and the centre 0.23 px off."""
+    ``L`` held).  The band widens by 3 sigma of ``L``, and down-weighting sectors raises that sigma: a fit the profile
+    does not describe must not be let back in by its own reweighting (``docs/validation/constants.md#l-band``)."""
     if "L" not in rr.fit.free:
         return True
     lo, hi = l_band(rr.fit)
@@ -143,7 +167,22 @@ def _l_described(rr: RefineResult) -> bool:
 
 def patchy_weights(coords: np.ndarray, p, r: np.ndarray) -> np.ndarray | None:
     """Per-pixel weights of one pass of :func:`downweight_patchy_sectors`: ``ratio^-PATCHY_POWER`` in the sectors about
-    ``p``'s centre whose :func:`sector_misfit` ratio exceeds :data:`PATCHY_RATIO`, 1 elsewhere; ``None`` when none does."""
+    ``p``'s centre whose :func:`sector_misfit` ratio exceeds :data:`PATCHY_RATIO`, 1 elsewhere.
+
+    Parameters
+    ----------
+    coords : np.ndarray (n, 2)
+        The pixels ``(row, col)``.
+    p : LimbProfileParams
+        The current answer (its centre ``r0, c0`` defines the sectors).
+    r : np.ndarray (n,)
+        The unweighted residuals at ``p``.
+
+    Returns
+    -------
+    np.ndarray (n,) or None
+        The weights; ``None`` when no sector exceeds the ratio.
+    """
     groups = sector_groups(coords, (float(p.r0), float(p.c0)), PATCHY_SECTORS)
     ratio = sector_misfit(r, groups, PATCHY_SECTORS)
     if not np.any(ratio > PATCHY_RATIO):
@@ -152,8 +191,9 @@ def patchy_weights(coords: np.ndarray, p, r: np.ndarray) -> np.ndarray | None:
 
 
 PATCHY_GN_STEPS = 2
-"""Gauss--Newton steps per reweighted pass of :func:`downweight_patchy_sectors` (one left the centre up to
-5e-4 px from the LM refit's on the maria frames, two within 1e-4 px)."""
+"""Gauss--Newton steps per reweighted pass of :func:`downweight_patchy_sectors`: the reweighting moves the answer by
+hundredths of a pixel, where the problem is nearly linear and two steps reach the LM refit's answer
+(``docs/validation/constants.md#patchy_gn_steps``)."""
 
 
 def _unweighted_system(model: LimbModel, rr: RefineResult, padded=None):

@@ -20,8 +20,21 @@ from .passes import profile_passes
 
 def aniso_step(rr: RefineResult, system=None) -> tuple[float, float]:
     """One Gauss--Newton step of the blur's anisotropy ``(s2c, s2s)`` (held at 0 in ``rr``) with the free parameters
-    of ``rr`` refitted beside it: its size over ``sigma_e^2`` and its chi^2 (the score test of :func:`brightening_step`;
-    ``system``: ``rr``'s :func:`weighted_system` under the profile, if formed)."""
+    of ``rr`` refitted beside it: the score test of :func:`brightening_step` for the two terms together.
+
+    Parameters
+    ----------
+    rr : RefineResult
+        A fit of :data:`~jaxlimb.models.LIMB_PROFILE`.
+    system : tuple or None
+        ``rr``'s :func:`~jaxlimb.pipeline.profile.model_error.weighted_system` under the profile, if formed.
+
+    Returns
+    -------
+    tuple of float
+        ``(frac, chi2)``: the step's size ``hypot(s2c, s2s)`` over ``sigma_e^2 = sigma^2 + 1/12`` and its chi^2
+        (2 degrees of freedom); ``(0, 0)`` with too few pixels.
+    """
 
     J, r, padded, w = weighted_system(rr, LIMB_PROFILE) if system is None else system
     p = rr.fit.params
@@ -38,16 +51,32 @@ def aniso_step(rr: RefineResult, system=None) -> tuple[float, float]:
 
 
 def widen_aniso(frame: Frame, rr: RefineResult, solver, system=None) -> RefineResult:
-    """``rr`` refitted with an anisotropic blur (:data:`~jaxlimb.models.lunar_lambert.LIMB_PROFILE_ANISO`: ``s2c, s2s``
-    of the blur variance across the limb, ``cos 2psi`` and ``sin 2psi``), the sphere's shape iterated as in
-    :func:`profile_passes`; ``rr`` itself when the refit fails, its variance is not positive or its anisotropy is not
-    significant (the ellipsoid's gate, :func:`jaxlimb.pipeline.profile.widen.aniso_significant`: at least 0.12 of
-    ``sigma_e^2`` at chi^2(2) 99.9 %).  Tried before the glow: a smear passes the glow's gate too.
+    """``rr`` refitted with an anisotropic blur (:data:`~jaxlimb.models.lunar_lambert.LIMB_PROFILE_ANISO`: ``s2c,
+    s2s`` of the blur variance across the limb, ``cos 2psi`` and ``sin 2psi``), the sphere's shape iterated as in
+    :func:`~jaxlimb.pipeline.profile.passes.profile_passes`, when the one-step anisotropy clears the gate
+    (:func:`aniso_clears`); ``rr`` itself otherwise, or when the refit fails, its variance is not positive or its
+    anisotropy is not significant (:func:`aniso_significant`).  Tried before the glow: a smear passes the glow's
+    gate too.
 
     Why: a motion smear blurs the limb more where it runs across it than along it; one isotropic sigma moves the
-    fitted limb in and out along the arc (``cos 2psi``) and the centre with it.  Held-out crescents of
-    ``benchmarks/families.py`` (``motion``, 1.5-3.5 px smears, phase 129-133 deg): seed 2028 frame 1 0.107 -> 0.018 px,
-    frame 0 (which had opened the glow) 0.064 -> 0.006 px, seed 2027 frame 1 0.061 -> 0.018 px."""
+    fitted limb in and out along the arc (``cos 2psi``) and the centre with it.
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame (camera, options).
+    rr : RefineResult
+        A round body's profile fit (:class:`~jaxlimb.models.LimbProfileParams`; others are returned unchanged).
+    solver : solver or None
+        The solver of the refit (``None``: the options').
+    system : tuple or None
+        ``rr``'s weighted system, if formed.
+
+    Returns
+    -------
+    RefineResult
+        The anisotropic fit, or ``rr``.
+    """
 
     p = rr.fit.params
     if type(p) is not LimbProfileParams:
@@ -67,17 +96,29 @@ def widen_aniso(frame: Frame, rr: RefineResult, solver, system=None) -> RefineRe
 
 def with_aniso_blur_witness(out: RefineResult, iso: RefineResult) -> RefineResult:
     """``out`` (an anisotropic-blur refit, :func:`widen_aniso`) with half its move from the isotropic fit ``iso`` added
-    to the centre's and radius' variances (:func:`jaxlimb.pipeline.profile.widen.with_aniso_witness`): a line smear
-    is not a Gaussian of another variance.  Held-out ``motion`` 1 of seed 2027: 0.018 px off, NEES 9.5 without it."""
+    to the centre's and radius' variances (:func:`with_aniso_witness`): a line smear is not a Gaussian of another
+    variance.
+
+    Parameters
+    ----------
+    out : RefineResult
+        The anisotropic refit (with its model-error terms).
+    iso : RefineResult
+        The isotropic profile fit.
+
+    Returns
+    -------
+    RefineResult
+        ``out`` with the widened covariance.
+    """
 
     return with_aniso_witness(out, iso)
 
 
 KAPPA_GATE = 0.04
 """The one-step estimate of the limb-brightening exponent ``kappa`` (:func:`brightening_step`) above which the
-profile is refitted with ``kappa`` free.  Measured (``benchmarks/families.py``, Moon, 6 frames each, the fit with
-``kappa`` always free): Minnaert limbs (``kappa = 1 - k`` = 0.05-0.45) gave 0.056-0.39; lunar-Lambert, Hapke,
-Lommel-Seeliger with surge, maria and ``combined`` gave -0.15 to 0.021."""
+profile is refitted with ``kappa`` free.  A threshold tuned on the project's scene families: Minnaert limbs lie
+above it, the lunar-Lambert, Hapke, Lommel-Seeliger and maria limbs below (``docs/validation/constants.md#kappa_gate``)."""
 
 
 KAPPA_DISC_CUT = 1.0
@@ -87,9 +128,8 @@ KAPPA_DISC_CUT = 1.0
 KAPPA_DISC_RATIO = 0.5
 """The disc side's step must be at least this fraction of the step on all pixels.  A Minnaert rim brightens the
 disc for pixels inward (``mu^-kappa``, ``mu = sqrt(2 depth / R)``); a glow above the limb or a PSF's wings only
-the edge and the sky.  Measured (``benchmarks/families.py``, Moon, 6 frames each; disc-side / all-pixel step):
-Minnaert 0.76-1.06; glow -0.06-0.27 (all-pixel steps up to 0.33: the widened fit moved the centre 0.2 px
-*away* from the truth there); Airy -2.0 (one frame with an all-pixel step of 0.17)."""
+the edge and the sky, and a ``kappa`` fitted to those moves the centre away from the truth.  Tuned on the
+project's scene families (``docs/validation/constants.md#kappa_disc_ratio``)."""
 
 
 KAPPA_MAX = 0.6
@@ -97,12 +137,26 @@ KAPPA_MAX = 0.6
 
 
 def brightening_step(rr: RefineResult, system=None) -> tuple[tuple[float, float], tuple[float, float]]:
-    """One Gauss--Newton step of the profile's limb-brightening exponent ``kappa`` (held at 0 in ``rr``) with
-    all the free parameters of ``rr`` refitted beside it, and its z-score (step / its noise sigma): on all the
-    pixels, and on the disc side (signed distance below ``-KAPPA_DISC_CUT`` effective PSF sigmas).
+    """One Gauss--Newton step of the profile's limb-brightening exponent ``kappa`` (held at 0 in ``rr``) with all the
+    free parameters of ``rr`` refitted beside it, and its z-score (step / its noise sigma): on all the pixels, and
+    on the disc side (signed distance below ``-KAPPA_DISC_CUT`` effective PSF sigmas).
 
-    The score (Lagrange-multiplier) test of Rao (1948) read as an estimate: the residuals and Jacobian of the
-    fit already made, no new fit (``system``: its :func:`weighted_system`, if already formed)."""
+    The score (Lagrange-multiplier) test of Rao (1948) read as an estimate: the residuals and Jacobian of the fit
+    already made, no new fit.
+
+    Parameters
+    ----------
+    rr : RefineResult
+        A fit of :data:`~jaxlimb.models.LIMB_PROFILE`.
+    system : tuple or None
+        ``rr``'s :func:`~jaxlimb.pipeline.profile.model_error.weighted_system` under the profile, if formed.
+
+    Returns
+    -------
+    tuple
+        ``((step, z), (step_disc, z_disc))``: ``kappa``'s one-step estimate and z-score on all pixels and on the
+        disc side.
+    """
     J, r, padded, w = weighted_system(rr, LIMB_PROFILE) if system is None else system
     col = np.asarray(brightening_column(rr.fit.params, padded))[: r.size] * w
     X = np.concatenate([J, col[:, None]], axis=1)
@@ -117,9 +171,26 @@ def widen_brightening(frame: Frame, rr: RefineResult, solver, system=None) -> Re
     :data:`KAPPA_GATE` at more than 3 sigma on all pixels and on the disc side, the latter at least
     :data:`KAPPA_DISC_RATIO` of the former; else, or when the refit leaves ``(0, KAPPA_MAX]``, ``rr`` itself.
 
-    Why: a Minnaert rim (``k < 1``) is brighter than any lunar-Lambert rim; the profile held to lunar-Lambert
-    put the centre 0.24-0.41 px off on Minnaert Moons (``benchmarks/families.py``), the widened one 0.006-0.016
-    px.  Always free, it cost the lunar-Lambert and Hapke Moons 0.004-0.006 px of median accuracy."""
+    Why: a Minnaert rim (``k < 1``) is brighter than any lunar-Lambert rim, and the profile held to lunar-Lambert
+    puts the centre a few tenths of a pixel off on such a limb; ``kappa`` always free costs the lunar-Lambert limbs
+    accuracy, hence the gate.
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame (camera, options).
+    rr : RefineResult
+        A round body's profile fit with ``L`` estimated.
+    solver : solver or None
+        The solver of the refit.
+    system : tuple or None
+        ``rr``'s weighted system, if formed.
+
+    Returns
+    -------
+    RefineResult
+        The Minnaert-widened fit, or ``rr``.
+    """
     (step, z), (step_disc, z_disc) = brightening_step(rr, system)
     if not (step > KAPPA_GATE and z > 3.0 and step_disc > max(KAPPA_GATE, KAPPA_DISC_RATIO * step) and z_disc > 3.0):
         return rr
@@ -136,35 +207,68 @@ def widen_brightening(frame: Frame, rr: RefineResult, solver, system=None) -> Re
 
 ANISO_MIN_FRAC = 0.12
 """The smallest anisotropy ``hypot(s2c, s2s) / sigma_e^2`` a profile refit is kept with (:func:`widen_aniso_ellipsoid`).
-Measured on ``benchmarks/families.py``'s Earth frames (attitude known): ``motion`` 0.18-0.53 (chi^2 of ``s2c, s2s``
-660-34 000); the isotropic PSFs ``own``, ``lambert``, ``airy``, ``defocus``, ``jpeg``, ``hapke`` at most 0.077 (chi^2
-up to 75: a PSF shape the Gaussian does not match, not a smear).  Kept unconditionally, the two free terms moved
-those frames by up to 0.015 px (``lambert`` median 0.009 -> 0.015 px)."""
+A motion smear is anisotropic by a large fraction of the blur; an isotropic PSF the Gaussian does not match leaves a
+small, sometimes significant, anisotropy whose two free terms only move the centre.  Tuned on the project's Earth
+frames (``docs/validation/constants.md#aniso_min``)."""
 
 
 ANISO_MIN_CHI2 = 13.8
 """And significant: ``s^T C_s^-1 s`` above the chi^2(2) 99.9 % point.  The same two bounds gate the sphere's refit on
-its one-step anisotropy (:func:`jaxlimb.pipeline.profile.widen.widen_aniso`; ``benchmarks/families.py``, size over
-``sigma_e^2`` and chi^2: held-out Moon ``motion`` crescents 0.32-0.81, 237-8467; seed 2026 ``own`` 0, ``airy`` 0,
-``glow`` 0, ``hapke`` 1 at most 0.024, 7.2; seed 2028 ``own`` 0 0.019, 13.5), which keeps that refit's CPU (112 -> 148
-ms per frame when always run) off the frames without a smear."""
+its one-step anisotropy (:func:`jaxlimb.pipeline.profile.widen.widen_aniso`), which keeps that refit's CPU off the
+frames without a smear (``docs/validation/constants.md#aniso_min``)."""
 
 
 def aniso_clears(frac: float, chi2: float) -> bool:
     """An anisotropy of size ``frac`` (over ``sigma_e^2``) at ``chi2`` is kept: at least :data:`ANISO_MIN_FRAC` and
-    :data:`ANISO_MIN_CHI2`."""
+    :data:`ANISO_MIN_CHI2`.
+
+    Parameters
+    ----------
+    frac : float
+        ``hypot(s2c, s2s) / sigma_e^2``.
+    chi2 : float
+        ``s^T C_s^-1 s`` of ``s = (s2c, s2s)``.
+
+    Returns
+    -------
+    bool
+        ``True`` when both bounds are met.
+    """
     return bool(frac >= ANISO_MIN_FRAC and chi2 >= ANISO_MIN_CHI2)
 
 
 def aniso_plausible(q: Any) -> bool:
-    """The anisotropic blur variance ``sigma^2 + 1/12 + s2c cos 2psi + s2s sin 2psi`` positive at every ``psi`` (the
-    line smears of the independent renderer, 1.5-3.5 px on a 0.5-0.8 px Gaussian, stay within half of it)."""
+    """The anisotropic blur variance ``sigma^2 + 1/12 + s2c cos 2psi + s2s sin 2psi`` positive at every ``psi``, with
+    a margin (``hypot(s2c, s2s) < 0.9 sigma_e^2``), and the amplitude and semi-major axis positive.
+
+    Parameters
+    ----------
+    q : AnisoProfileParams
+        The refit's parameters.
+
+    Returns
+    -------
+    bool
+        ``True`` when plausible.
+    """
     v = float(q.sigma) ** 2 + 1.0 / 12.0
     return bool(math.hypot(float(q.s2c), float(q.s2s)) < 0.9 * v and float(q.amp) > 0 and float(q.a) > 0)
 
 
 def aniso_significant(res: Any) -> bool:
-    """The refit's anisotropy at least :data:`ANISO_MIN_FRAC` of ``sigma_e^2`` and at chi^2 >= :data:`ANISO_MIN_CHI2`."""
+    """The refit's anisotropy at least :data:`ANISO_MIN_FRAC` of ``sigma_e^2`` and at chi^2 >= :data:`ANISO_MIN_CHI2`
+    (the chi^2 from the fit's covariance of ``s2c, s2s``).
+
+    Parameters
+    ----------
+    res : LimbFit
+        A fit of :data:`~jaxlimb.models.lunar_lambert.LIMB_PROFILE_ANISO` with ``s2c, s2s`` free.
+
+    Returns
+    -------
+    bool
+        ``True`` when significant; ``False`` also when their covariance is singular.
+    """
     q, free = res.params, list(res.free)
     s = np.array([float(q.s2c), float(q.s2s)])
     idx = [free.index("s2c"), free.index("s2s")]
@@ -182,11 +286,20 @@ ANISO_WITNESS = 0.5
 def with_aniso_witness(out: RefineResult, iso: RefineResult) -> RefineResult:
     """``(w |d|)^2`` added to the variances of ``r0`` and ``c0`` (and ``(w d_a)^2`` to that of ``a``), ``d`` the
     anisotropic refit's move from the isotropic profile ``iso`` and ``w`` = :data:`ANISO_WITNESS`: a line smear is not
-    a Gaussian of another variance (a 1.5-3.5 px box on a 0.5-0.8 px Gaussian), so the correction is itself uncertain,
-    and not only along its own direction.  ``benchmarks/families.py`` Earth ``motion`` frames 0-11 (seed 2026; 6-11 not
-    tuned on): the refit moved the centre 0.015-0.15 px and left 0.004-0.031 px (residual / move 0.04-0.9); frame 10
-    (moved 0.153 px along the row, left 0.021 px along the column, where its covariance is 0.003 px thin) had NEES 42
-    with the term along ``d`` only, 48 without it."""
+    a Gaussian of another variance, so the correction is itself uncertain, and not only along its own direction.
+
+    Parameters
+    ----------
+    out : RefineResult
+        The anisotropic refit.
+    iso : RefineResult
+        The isotropic profile fit.
+
+    Returns
+    -------
+    RefineResult
+        ``out`` with the widened covariance (unchanged unless ``r0, c0, a`` are all free).
+    """
     return out.with_move_witness(iso, ANISO_WITNESS)
 
 

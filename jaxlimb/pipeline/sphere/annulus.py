@@ -70,7 +70,20 @@ MAX_EDGE_OFFSET_PX = 0.75
 
 
 def annulus_halfwidth(radius: float, residual_rms: float) -> float:
-    """Half-width ``dr`` (px) of the fitted annulus (module docstring, rule 1)."""
+    r"""Half-width ``dr`` (px) of the fitted annulus (module docstring, rule 1).
+
+    Parameters
+    ----------
+    radius : float
+        Initial radius :math:`\hat r` (px).
+    residual_rms : float
+        RMS radial residual of the front end's Taubin circle (px).
+
+    Returns
+    -------
+    float
+        :math:`\max(6, 0.02 \hat r, 4\,\mathrm{rms})`, capped at :math:`\max(6, \hat r / 2)` (px).
+    """
     dr = max(ANNULUS_MIN_PX, ANNULUS_FRAC * radius, 4.0 * float(residual_rms))
     return float(min(dr, max(ANNULUS_MIN_PX, 0.5 * radius)))
 
@@ -81,7 +94,21 @@ def lit_halfangle(phase_rad: float | None, radius: float, dr: float, horn_margin
     ``pi/2 - horn_margin`` for a gibbous body; for a crescent (phase > 90 deg) also no more
     than the angle where the terminator comes within ``dr + 2`` px of the limb (the inner
     quarter of the annulus, where ``ymax`` is measured, must lie on the lit band); ``pi`` for a full
-    body (phase below ``atan(1/radius)``: the dark sliver is under a pixel).
+    body (the unlit sliver ``radius (1 - cos phase)`` under half a pixel).
+
+    Parameters
+    ----------
+    phase_rad : float or None
+        Phase angle (rad); ``None``: unknown (the gibbous value).
+    radius, dr : float
+        Radius and annulus half-width (px).
+    horn_margin_deg : float
+        Angle (deg) left out at each horn.
+
+    Returns
+    -------
+    float
+        Half-angle in ``[0, pi]`` (rad); 0 when no part of a crescent is thick enough.
     """
     base = math.pi / 2 - math.radians(horn_margin_deg)
     if phase_rad is None:
@@ -110,11 +137,26 @@ def select_annulus(
     halfangle: float,
     mask: np.ndarray | None = None,
 ) -> AnnulusSelection:
-    """Pixels of the annulus ``radius +- dr`` on the lit side (module docstring, rules 1-3).
+    """Pixels of the annulus ``radius +- dr`` on the lit side (module docstring, rules 1-4).
 
-    ``mask`` (``True`` = measured pixel, :mod:`jaxlimb.imaging.formats`): invalid pixels (line prefixes,
-    missing lines, zero-filled readout windows) are left out of the annulus -- neither limb nor background
-    (they enter neither the bins' levels nor the fit).
+    Parameters
+    ----------
+    image : np.ndarray (rows, cols)
+    center_rc : (float, float)
+        Centre ``(row, col)`` of the initial circle (px).
+    radius, dr : float
+        Its radius and the annulus half-width (px).
+    direction : (float, float) or None
+        Unit ``(d_row, d_col)`` toward the lit side; ``None``: all round.
+    halfangle : float
+        Half-angle (rad) of the lit-side window about ``direction``.
+    mask : np.ndarray of bool, optional
+        ``True`` = measured pixel (:mod:`jaxlimb.imaging.formats`); invalid pixels are neither limb nor background.
+
+    Returns
+    -------
+    AnnulusSelection
+        The kept pixels, their bins' levels and the arc's middle direction.
 
     Raises
     ------
@@ -159,8 +201,8 @@ def _mid_direction(ang: np.ndarray) -> tuple[float, float] | None:
 NEAR_SKY_PX = 1.5
 """Where a validity mask leaves an angular bin fewer than two pixels in the annulus's outer half (a product whose
 off-body pixels are blanked 1-2 px outside the limb, ``resampled_hmi.fits``), its sky level is taken from its valid
-pixels this far (px) or farther outside the limb.  Without a mask nothing changes (a bin cut by the frame's border
-is dropped as before)."""
+pixels this far (px) or farther outside the limb.  Without a mask the rule does not apply (a bin cut by the frame's
+border is dropped)."""
 
 
 def _outer_pixels(dsel: np.ndarray, bins: np.ndarray, nb: int, radius: float, dr: float, masked: bool) -> np.ndarray:
@@ -253,10 +295,10 @@ def _edge_offsets(e_b: np.ndarray, ok: np.ndarray, nb: int, tol: float = 0.75, n
     from all ``ok`` bins), and then its 75th percentile residual: the initial circle of a crescent or a cropped
     limb is often off by 1-3 px (a Taubin circle through a short noisy arc), and its ``e_b`` then trend with the
     angle across the arc; measured against a constant, more than half of such an arc lies :data:`MAX_EDGE_OFFSET_PX`
-    inward and was dropped (benchmark row ``cropped`` 0: 149 deg phase, 25 of ~100 deg of lit limb kept).
+    inward and would be dropped (benchmark row ``cropped`` 0: 149 deg phase, 25 of ~100 deg of lit limb kept).
     Fewer than 6 bins, a third or less of them inward of the 75th percentile by ``tol``, or a trend ``hypot(b, c)``
-    within ``tol`` (a good initial circle): the constant of the 75th percentile alone, as before (a terminator or
-    dark limb entering at the ends of the arc is a minority of the bins; the trend fit moved the centre of
+    within ``tol`` (a good initial circle): the constant of the 75th percentile alone (a terminator or dark limb
+    entering at the ends of the arc is a minority of the bins; there the trend fit would take the centre error of
     benchmark row ``combined`` 3 from 0.016 to 0.026 px without need)."""
     idx = np.nonzero(ok)[0]
     off = np.full(nb, np.nan)
@@ -279,7 +321,21 @@ def _edge_offsets(e_b: np.ndarray, ok: np.ndarray, nb: int, tol: float = 0.75, n
 
 
 def bin_median(bins: np.ndarray, values: np.ndarray, nb: int) -> tuple[np.ndarray, np.ndarray]:
-    """Median of ``values`` in each of ``nb`` bins (NaN where empty) and the counts (one sort)."""
+    """Median of ``values`` in each of ``nb`` bins (NaN where empty) and the counts (one sort).
+
+    Parameters
+    ----------
+    bins : np.ndarray of int (n,)
+        Each value's bin in ``[0, nb)``.
+    values : np.ndarray (n,)
+    nb : int
+        Number of bins.
+
+    Returns
+    -------
+    median : np.ndarray (nb,)
+    counts : np.ndarray of int (nb,)
+    """
     counts = np.bincount(bins, minlength=nb)
     med = np.full(nb, np.nan)
     if values.size == 0:

@@ -25,33 +25,179 @@ class Sphere(Body[LimbPixels, EdgeFit]):
     name: ClassVar[str] = "sphere"
 
     def prepare(self, frame: Frame) -> Frame:
+        """The frame unchanged (a round body is measured on the observed grid).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+
+        Returns
+        -------
+        Frame
+            ``frame``.
+        """
         return frame
 
     def candidates(self, frame: Frame) -> Any:
+        """Stage 2: the chosen front end, the other as fallback (:func:`jaxlimb.pipeline.frame.candidates`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+
+        Returns
+        -------
+        LimbCandidates
+            Limb points, initial circle, lit direction (Checks 1-4 passed).
+        """
         return candidates(frame)
 
     def limb_pixels(self, frame: Frame, cand: Any) -> LimbPixels:
+        """Stage 3: the annulus on the lit side (:func:`~jaxlimb.pipeline.sphere.edge.limb_pixels`; the shorter lit arc
+        of the profile refit accepted when ``physical``).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        cand : LimbCandidates
+            The front end's answer (:meth:`candidates`).
+
+        Returns
+        -------
+        LimbPixels
+            The annulus on the lit side and its window.
+        """
         return limb_pixels(frame, cand, self.physical)
 
     def edge_fit(self, frame: Frame, cand: Any, pixels: LimbPixels) -> EdgeFit:
+        """Stage 4: the circular sigmoid (Eq. 16 of the illuminated-ellipsoid paper) on the annulus
+        (:func:`~jaxlimb.pipeline.sphere.edge.edge_fit`), then Checks 5, 1, 3/4 and 4
+        (:func:`~jaxlimb.pipeline.sphere.edge.check_edge`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        cand : LimbCandidates
+            The front end's answer (:meth:`candidates`).
+        pixels : LimbPixels
+            The annulus (:meth:`limb_pixels`).
+
+        Returns
+        -------
+        EdgeFit
+            The fit, its annulus, the arc and the jump with its limit.
+        """
         return check_edge(frame, cand, edge_fit(frame, pixels))
 
     def report(self, frame: Frame, cand: Any, edge: EdgeFit) -> dict[str, Any]:
+        """The initial circle, circle fit, annulus and checks' numbers for ``extras``
+        (:func:`~jaxlimb.pipeline.sphere.edge.edge_report`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        cand : LimbCandidates
+            The front end's answer (:meth:`candidates`).
+        edge : EdgeFit
+            The checked circular-sigmoid fit (:meth:`edge_fit`).
+
+        Returns
+        -------
+        dict
+            Name -> JSON-ready value.
+        """
         return edge_report(frame, cand, edge)
 
     def refit(self, frame: Frame, cand: Any, edge: EdgeFit, extras: dict[str, Any]) -> RefineResult:
+        """Stage "profile refit": the lunar-Lambert limb profile when ``physical``; if not (or rejected) the
+        sphere-shaped ESF with a camera, else the circle; ``model="ellipse"``: then the free ESF
+        (:func:`~jaxlimb.pipeline.sphere.refit.sphere_refit`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        cand : LimbCandidates
+            The front end's answer (:meth:`candidates`).
+        edge : EdgeFit
+            The checked circular-sigmoid fit (:meth:`edge_fit`).
+        extras : dict
+            The report; the refit adds its own numbers to it.
+
+        Returns
+        -------
+        RefineResult
+            The answering fit: the refit, or ``edge.circ`` when none applies.
+        """
         return sphere_refit(frame, cand, edge, self.physical, extras)
 
     def body_center(self, frame: Frame, edge: EdgeFit, final: RefineResult) -> BodyCenter:
+        """Stage "body-centre mapping": the fitted limb -> the sphere's centre image, radius, LOS and range (exact with
+        a camera; :func:`~jaxlimb.pipeline.sphere.refit.sphere_center_of`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        edge : EdgeFit
+            The edge fit (unused: the map needs only ``final``).
+        final : RefineResult
+            The fit that answers (:meth:`refit`).
+
+        Returns
+        -------
+        BodyCenter
+            Centre ``(row, col)``, radius (px), LOS, range (km) and the map's Jacobian.
+        """
         return sphere_center_of(frame, final)
 
     def check(self, frame: Frame, levels: Levels, cov: Covariance) -> None:
+        """Stage "checks": the fit is physical (levels, edge blur) and the centre's sigma within
+        ``max_center_sigma_px`` (:func:`~jaxlimb.pipeline.report.check_physical`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        levels : Levels
+            The fitted edge.
+        cov : Covariance
+            The reported covariance.
+        """
         check_physical(frame, levels, cov, self.name)
 
     def iterations(self, edge: EdgeFit, final: RefineResult) -> int:
+        """The solver steps of the answer (:func:`round_iterations`).
+
+        Parameters
+        ----------
+        edge : EdgeFit
+        final : RefineResult
+
+        Returns
+        -------
+        int
+        """
         return round_iterations(edge, final)
 
     def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
+        """The dark-limb check on the measured circle (:func:`~jaxlimb.pipeline.sphere.dark_limb.check_measurement`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        meas : LimbMeasurement
+
+        Returns
+        -------
+        LimbMeasurement
+        """
         return check_measurement(frame, meas)
 
 
@@ -64,38 +210,195 @@ class Disc(Body[LimbPixels, EdgeFit]):
     name: ClassVar[str] = "disc"
 
     def prepare(self, frame: Frame) -> Frame:
+        """The frame unchanged (a round body is measured on the observed grid).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+
+        Returns
+        -------
+        Frame
+            ``frame``.
+        """
         return frame
 
     def candidates(self, frame: Frame) -> Any:
+        """Stage 2: the chosen front end, the other as fallback (:func:`jaxlimb.pipeline.frame.candidates`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+
+        Returns
+        -------
+        LimbCandidates
+            Limb points, initial circle, lit direction (Checks 1-4 passed).
+        """
         return candidates(frame)
 
     def limb_pixels(self, frame: Frame, cand: Any) -> LimbPixels:
+        """Stage 3: the annulus on the lit side (:func:`~jaxlimb.pipeline.sphere.edge.limb_pixels`, sigmoid arc limit).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        cand : LimbCandidates
+            The front end's answer (:meth:`candidates`).
+
+        Returns
+        -------
+        LimbPixels
+            The annulus on the lit side and its window.
+        """
         return limb_pixels(frame, cand, False)
 
     def edge_fit(self, frame: Frame, cand: Any, pixels: LimbPixels) -> EdgeFit:
+        """Stage 4: the circular sigmoid (Eq. 16 of the illuminated-ellipsoid paper) on the annulus
+        (:func:`~jaxlimb.pipeline.sphere.edge.edge_fit`), then Checks 5, 1, 3/4 and 4
+        (:func:`~jaxlimb.pipeline.sphere.edge.check_edge`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        cand : LimbCandidates
+            The front end's answer (:meth:`candidates`).
+        pixels : LimbPixels
+            The annulus (:meth:`limb_pixels`).
+
+        Returns
+        -------
+        EdgeFit
+            The fit, its annulus, the arc and the jump with its limit.
+        """
         return check_edge(frame, cand, edge_fit(frame, pixels))
 
     def report(self, frame: Frame, cand: Any, edge: EdgeFit) -> dict[str, Any]:
+        """The initial circle, circle fit, annulus and checks' numbers for ``extras``
+        (:func:`~jaxlimb.pipeline.sphere.edge.edge_report`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        cand : LimbCandidates
+            The front end's answer (:meth:`candidates`).
+        edge : EdgeFit
+            The checked circular-sigmoid fit (:meth:`edge_fit`).
+
+        Returns
+        -------
+        dict
+            Name -> JSON-ready value.
+        """
         return edge_report(frame, cand, edge)
 
     def refit(self, frame: Frame, cand: Any, edge: EdgeFit, extras: dict[str, Any]) -> RefineResult:
+        """Stage "profile refit": the limb-darkened disc's profile on the full annulus
+        (:func:`~jaxlimb.pipeline.sphere.refit.disc_refit`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        cand : LimbCandidates
+            The front end's answer (:meth:`candidates`).
+        edge : EdgeFit
+            The checked circular-sigmoid fit (:meth:`edge_fit`).
+        extras : dict
+            The report; the refit adds its own numbers to it.
+
+        Returns
+        -------
+        RefineResult
+            The limb-darkened disc's fit and its pixels.
+        """
         return disc_refit(frame, edge, extras)
 
     def body_center(self, frame: Frame, edge: EdgeFit, final: RefineResult) -> BodyCenter:
+        """Stage "body-centre mapping": the disc's centre is the body's; range from the radius with a camera
+        (:func:`~jaxlimb.pipeline.sphere.refit.disc_center_of`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        edge : EdgeFit
+            The edge fit (unused: the map needs only ``final``).
+        final : RefineResult
+            The fit that answers (:meth:`refit`).
+
+        Returns
+        -------
+        BodyCenter
+            Centre ``(row, col)``, radius (px), LOS, range (km) and the map's Jacobian.
+        """
         return disc_center_of(frame, final)
 
     def check(self, frame: Frame, levels: Levels, cov: Covariance) -> None:
+        """Stage "checks": the fit is physical (levels, edge blur) and the centre's sigma within
+        ``max_center_sigma_px`` (:func:`~jaxlimb.pipeline.report.check_physical`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        levels : Levels
+            The fitted edge.
+        cov : Covariance
+            The reported covariance.
+        """
         check_physical(frame, levels, cov, self.name)
 
     def iterations(self, edge: EdgeFit, final: RefineResult) -> int:
+        """The solver steps of the answer (:func:`round_iterations`).
+
+        Parameters
+        ----------
+        edge : EdgeFit
+        final : RefineResult
+
+        Returns
+        -------
+        int
+        """
         return round_iterations(edge, final)
 
     def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
+        """The measurement unchanged (a self-luminous disc has no dark limb).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        meas : LimbMeasurement
+
+        Returns
+        -------
+        LimbMeasurement
+        """
         return meas
 
 
 def round_iterations(edge: EdgeFit, final: RefineResult) -> int:
-    """The circle fit's steps, and the refit's when one answered."""
+    """The circle fit's steps, and the refit's when one answered.
+
+    Parameters
+    ----------
+    edge : EdgeFit
+        The circular-sigmoid fit.
+    final : RefineResult
+        The answering fit (``edge.circ`` or a refit).
+
+    Returns
+    -------
+    int
+        Total solver steps.
+    """
     return int(edge.circ.fit.n_steps) + (int(final.fit.n_steps) if final is not edge.circ else 0)
 
 

@@ -35,8 +35,24 @@ def circle_center(frame: Frame, center_rc, radius_px: float, params: tuple[str, 
                   range_from_radius: bool = False) -> BodyCenter:
     """No body-centre correction: the fitted circle's centre (the disc of the Sun, a frame without camera).
 
-    ``params``: the fit's names of the centre and radius; ``range_from_radius``: the range
-    ``R / sin(atan(radius / f))`` (the Sun's orthographic disc)."""
+    Parameters
+    ----------
+    frame : Frame
+        Camera (line of sight, range) and body radius, when known.
+    center_rc : (float, float)
+        Fitted circle centre ``(row, col)`` (px).
+    radius_px : float
+        Fitted radius (px).
+    params : (str, str, str)
+        The fit's names of the centre and radius (the identity map's parameters).
+    range_from_radius : bool
+        Report the range ``R / sin(atan(radius / f))`` (the Sun's orthographic disc; camera and radius known).
+
+    Returns
+    -------
+    BodyCenter
+        Outputs ``center_r, center_c, radius`` with an identity Jacobian.
+    """
     rng = None
     if range_from_radius and frame.cam is not None and frame.body_radius_km is not None:
         rng = float(frame.body_radius_km / math.sin(math.atan(radius_px / frame.cam.focal_px)))
@@ -45,7 +61,23 @@ def circle_center(frame: Frame, center_rc, radius_px: float, params: tuple[str, 
 
 
 def sphere_center(frame: Frame, x0: np.ndarray, params: tuple[str, str, str]) -> BodyCenter:
-    """A sphere's limb ellipse of centre ``x0[:2]`` and semi-axis ``x0[2]`` (ideal px) -> body centre (exact)."""
+    """A sphere's limb ellipse of centre ``x0[:2]`` and semi-axis ``x0[2]`` (ideal px) -> body centre (exact).
+
+    Parameters
+    ----------
+    frame : Frame
+        Needs a camera; ``body_radius_km`` gives the range.
+    x0 : np.ndarray (3,)
+        ``(r0, c0, a)``: the fitted limb ellipse's centre and semi-major axis in ideal (pinhole) pixels.
+    params : (str, str, str)
+        The fit's names of those three parameters.
+
+    Returns
+    -------
+    BodyCenter
+        Observed body-centre image, on-axis-equivalent radius ``b^2/a`` (px), LOS, range ``R / sin(alpha)`` (km),
+        the central-difference Jacobian, the limb ellipse in ``extras``.
+    """
     pin = frame.pin
     assert pin is not None
 
@@ -81,7 +113,21 @@ def _body_from_ellipse(pin: Camera, d: dict[str, float]) -> tuple[float, float]:
 
 def free_ellipse_center(frame: Frame, fp: Any, free: tuple[str, ...]) -> BodyCenter:
     """The free elliptical sigmoid (``model="ellipse"``): the ellipse as fitted; with a camera the body
-    centre of the sphere whose limb it is (exact), its line of sight and range."""
+    centre of the sphere whose limb it is (exact), its line of sight and range.
+
+    Parameters
+    ----------
+    frame : Frame
+    fp : EllipseParams
+        The fitted ESF (``r0, c0, a, theta, rho``; ideal pixels).
+    free : tuple of str
+        The fit's free parameters.
+
+    Returns
+    -------
+    BodyCenter
+        Outputs ``center_r, center_c, a, rho, theta`` and the ellipse (``a >= b``; observed pixels).
+    """
     geo = tuple(n for n in ("r0", "c0", "a", "theta", "rho") if n in free)
     full = {n: float(getattr(fp, n)) for n in ("r0", "c0", "a", "theta", "rho")}
     a_, rho_, th_ = _ellipse_axes(full["a"], full["rho"], full["theta"])

@@ -6,7 +6,7 @@ sky) and the dark arc (disc darker than the sky).  The lit-limb stages of :func:
 (front end, annulus on the lit side, circular sigmoid; Aerospace 2015 §4-6) fit a circle to the lit arc
 only.  On a short arc the circle's radius and centre trade off (Christian & Robinson's short-arc
 geometry), and a limb that is not a circle -- a triaxial body (Enceladus' 256 x 247 x 245 km image to a
-limb ~4 % out of round) -- biases both: the issue's 304.6 px circle, ~15 px outside the dark disc
+limb ~4 % out of round) -- biases both: on a Cassini frame, a 304.6 px circle ~15 px outside the dark disc
 opposite the crescent, with a centre sigma of 0.1 px.
 
 The check searches the edge of largest |gradient| along the normals of the fitted circle
@@ -47,7 +47,25 @@ MAX_DARK_OFFSET_FRAC = 0.01
 def dark_limb_offset(image: np.ndarray, center_rc, radius_px: float, mask: np.ndarray | None = None,
                      search_px: float | None = None) -> dict[str, Any]:
     """Edges along the normals of the circle ``(center_rc, radius_px)``: the number of dark-limb bins (disc
-    darker than the sky) and their median signed radial offset from the circle (px; < 0 inside)."""
+    darker than the sky) and their median signed radial offset from the circle (px; < 0 inside).
+
+    Parameters
+    ----------
+    image : np.ndarray (rows, cols)
+    center_rc : (float, float)
+        Fitted circle centre ``(row, col)`` (px).
+    radius_px : float
+    mask : np.ndarray of bool, optional
+        ``True`` = measured pixel.
+    search_px : float, optional
+        Half-length of the search along each normal (px); default ``0.1 radius`` clipped to ``[10, 30]``.
+
+    Returns
+    -------
+    dict
+        ``n_bins``, ``n_lit_bins``, ``search_px``, ``median_offset_px`` and ``median_contrast_dn`` (sky minus disc,
+        ``None`` without dark bins), ``noise_dn``.
+    """
     r = float(radius_px)
     s = float(search_px) if search_px is not None else float(np.clip(0.1 * r, 10.0, 30.0))
     c = (float(center_rc[0]), float(center_rc[1]))
@@ -74,6 +92,20 @@ def _median_contrast(img: np.ndarray, pts: np.ndarray, center: tuple[float, floa
 def check_dark_limb(image: np.ndarray, center_rc, radius_px: float, mask: np.ndarray | None = None) -> dict[str, Any]:
     """The check of the module docstring; returns :func:`dark_limb_offset`'s numbers when it passes.
 
+    Parameters
+    ----------
+    image : np.ndarray (rows, cols)
+    center_rc : (float, float)
+        Fitted circle centre ``(row, col)`` (px).
+    radius_px : float
+    mask : np.ndarray of bool, optional
+        ``True`` = measured pixel.
+
+    Returns
+    -------
+    dict
+        :func:`dark_limb_offset`'s numbers with ``limit_px`` and ``is_limb`` (enough contrasted dark bins).
+
     Raises
     ------
     DarkLimbInconsistentError
@@ -96,7 +128,19 @@ def check_dark_limb(image: np.ndarray, center_rc, radius_px: float, mask: np.nda
 
 
 def check_measurement(frame: Any, meas: Any) -> Any:
-    """Stage "checks" of a sphere: :func:`check_dark_limb` on the measured circle; the numbers in ``extras``."""
+    """Stage "checks" of a sphere: :func:`check_dark_limb` on the measured circle; the numbers in ``extras``.
+
+    Parameters
+    ----------
+    frame : Frame
+    meas : LimbMeasurement
+        Unchecked when it has no finite radius (an ellipse).
+
+    Returns
+    -------
+    LimbMeasurement
+        ``meas``, its ``extras["dark_limb"]`` set.
+    """
 
     if meas.radius_px is None or not math.isfinite(meas.radius_px):
         return meas

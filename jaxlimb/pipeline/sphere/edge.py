@@ -49,13 +49,29 @@ def crescent_halfwidth(phase: float | None, radius: float, dr: float, min_arc_de
     ``dr + 2`` px inside the limb.  A thin crescent (``R (1 - |cos phase|) < dr + 2`` at the Sun direction; e.g.
     benchmark row ``jpeg`` 5, 145 deg phase, R ~ 40 px: a 7 px thick band for a 6 px annulus) then has no
     usable direction at all although its whole lit limb is in the frame.  When the usable arc is below
-    ``min_arc_deg`` the inner band is narrowed to the PSF's width: the half-width is lowered (never below ``CRESCENT_MIN_DR``) to the one for which the lit limb is
-    usable over ``CRESCENT_HALF_DEG`` about the Sun direction (terminator at ``R/sqrt(cos^2 psi/cos^2 phase +
-    sin^2 psi)`` along the ray at ``psi``, :mod:`jaxlimb.pipeline.sphere.annulus` rule 2)."""
+    ``min_arc_deg`` the inner band is narrowed to the PSF's width: the half-width is lowered (never below
+    ``CRESCENT_MIN_DR``) to the one for which the lit limb is usable over ``CRESCENT_HALF_DEG`` about the Sun
+    direction (terminator at ``R/sqrt(cos^2 psi/cos^2 phase + sin^2 psi)`` along the ray at ``psi``,
+    :mod:`jaxlimb.pipeline.sphere.annulus` rule 2).
+
+    Parameters
+    ----------
+    phase : float or None
+        Phase angle (rad); ``None`` or gibbous: ``dr`` unchanged.
+    radius, dr : float
+        Initial radius and annulus half-width (px).
+    min_arc_deg : float
+        Shortest lit arc accepted (deg).
+
+    Returns
+    -------
+    float
+        Half-width of the inner band (px), ``CRESCENT_MIN_DR <= result <= dr`` when narrowed.
+    """
     if phase is None or phase <= math.pi / 2 or dr <= CRESCENT_MIN_DR:
         return dr
     if 2.0 * math.degrees(lit_halfangle(phase, radius, dr)) >= min_arc_deg:
-        return dr  # usable as it is (narrowing further moved benchmark row airy 1 from 0.017 to 0.069 px)
+        return dr  # usable as it is (narrowing further takes benchmark row airy 1 from 0.017 to 0.069 px)
     psi = math.radians(CRESCENT_HALF_DEG)
     c2 = max(math.cos(phase) ** 2, 1e-300)
     thick = radius * (1.0 - 1.0 / math.sqrt(math.cos(psi) ** 2 / c2 + math.sin(psi) ** 2))
@@ -63,7 +79,25 @@ def crescent_halfwidth(phase: float | None, radius: float, dr: float, min_arc_de
 
 
 def lit_window(frame: Frame, cand: Any, dr: float) -> tuple[tuple[float, float] | None, float, float | None]:
-    """The lit side: ``(direction, half-angle, phase)`` from the Sun direction, else from the image."""
+    """The lit side: ``(direction, half-angle, phase)`` from the Sun direction, else from the image.
+
+    Parameters
+    ----------
+    frame : Frame
+    cand : LimbCandidates
+        The front end's circle, lit direction and arc, and its prior (image phase) in ``info``.
+    dr : float
+        Annulus half-width (px), for the crescent's horn margin.
+
+    Returns
+    -------
+    direction : (float, float) or None
+        Unit ``(d_row, d_col)`` toward the lit side; ``None``: all round (half-angle ``pi``).
+    half : float
+        Half-angle of the window (rad).
+    phase : float or None
+        Phase angle (rad) from the hints' Sun direction, else from the image; ``None``: unknown.
+    """
     prior = cand.info.get("prior")
     phase = frame.phase(cand.center_rc) if frame.sun_known else (prior.phase_rad if prior is not None else None)
     direction = cand.lit_direction
@@ -81,7 +115,27 @@ def lit_window(frame: Frame, cand: Any, dr: float) -> tuple[tuple[float, float] 
 def limb_pixels(frame: Frame, cand: Any, physical_profile: bool) -> LimbPixels:
     """Stage 3: the annulus ``r_hat +- dr`` on the lit side (:func:`~jaxlimb.pipeline.sphere.annulus.select_annulus`),
     and the lit-arc check before any fit (cropped body, Sun-facing side out of the frame): on the front end's
-    limb points (:func:`check_front_end_arc`), then on the annulus."""
+    limb points (:func:`check_front_end_arc`), then on the annulus.
+
+    Parameters
+    ----------
+    frame : Frame
+    cand : LimbCandidates
+        The front end's circle and lit direction.
+    physical_profile : bool
+        The lunar-Lambert profile will be fitted: its shorter lit-arc limit applies.
+
+    Returns
+    -------
+    LimbPixels
+        The annulus and its window; a thin crescent's band ``[r - dr_in, r + dr]`` as its half-width and shift.
+
+    Raises
+    ------
+    ArcTooShortError
+        Too little lit limb (a crescent too thin, a cropped body); :class:`InitialCircleOffError` when the lit-side
+        annulus is in the frame but its bins lack a lit edge.
+    """
     opt = frame.opt
     dr = dr_in = annulus_halfwidth(cand.radius, cand.residual_rms)
     min_arc = float(opt.min_lit_arc_deg) if opt.min_lit_arc_deg is not None else (
@@ -119,7 +173,24 @@ def thin_crescent_message(phase: float | None, radius: float, dr: float, half: f
     """The failure when too little of the lit limb is usable: the crescent is thinner than the annulus (even the
     narrowed one of :func:`crescent_halfwidth`) over all but ``2 half`` (rad) of it; the limb is in the frame.
     E.g. 150 deg at 40 px (``tests/pipeline/test_crescent.py``): a 37 deg window, on which the circle sigmoid
-    wandered to a 250 px radius and stopped as ``no_convergence``."""
+    wandered to a 250 px radius and stopped as ``no_convergence``.
+
+    Parameters
+    ----------
+    phase : float or None
+        Phase angle (rad).
+    radius, dr : float
+        Radius and annulus half-width (px).
+    half : float
+        Usable half-angle of the lit limb (rad).
+    min_arc_deg : float, optional
+        The arc limit, quoted when given.
+
+    Returns
+    -------
+    str
+        The message of the :class:`~jaxlimb.errors.ArcTooShortError`.
+    """
     ph = math.degrees(phase) if phase is not None else float("nan")
     thick = radius * (1.0 - abs(math.cos(phase))) if phase is not None else float("nan")
     arc = f", a {2.0 * math.degrees(half):.0f} deg arc below min_lit_arc_deg = {min_arc_deg:.0f} deg" if (
@@ -151,10 +222,25 @@ def check_front_end_arc(cand: Any, min_arc_deg: float, half: float) -> float | N
     circle through a short arc is itself poorly determined.  Benchmark row ``cropped`` 2
     (``benchmarks/families.py``; a 54 px Moon 23 px beyond the bottom edge, Sun toward the bottom edge): the
     front end's 32 points lie on 17 deg of lit limb (24-34 deg of it are in the frame), its Taubin circle has a
-    radius of 77 px for 54, and the annulus about that circle spans 120 deg (3 of 33 bins with an edge) and
-    passed; the circle sigmoid then wandered (no convergence in 100-150 steps, an 86 px jump at 400), so the
-    frame failed as ``no_convergence`` instead of ``arc_too_short``.  On every other Moon frame of the benchmark
-    the front end's points span 66 deg or more (118 deg or more outside the ``cropped`` family)."""
+    radius of 77 px for 54, and the annulus about that circle spans 120 deg (3 of 33 bins with an edge); the
+    circle sigmoid then wanders (no convergence in 100-150 steps, an 86 px jump at 400), so without this check
+    the frame fails as ``no_convergence`` instead of ``arc_too_short``.  On every other Moon frame of the
+    benchmark the front end's points span 66 deg or more (118 deg or more outside the ``cropped`` family).
+
+    Parameters
+    ----------
+    cand : LimbCandidates
+        ``points_rc`` ``(m, 2)`` and the circle centre.
+    min_arc_deg : float
+        Shortest arc accepted (deg).
+    half : float
+        Half-angle of the lit-side window (rad).
+
+    Returns
+    -------
+    float or None
+        The points' arc (deg).
+    """
     pts = cand.points_rc
     if len(pts) < 2:
         return None
@@ -172,7 +258,21 @@ def _reselect(frame: Frame, pix: LimbPixels, circ: RefineResult, dr: float) -> t
 def edge_fit(frame: Frame, pix: LimbPixels) -> EdgeFit:
     """Stage 4: the circular sigmoid on the annulus; the annulus widened to ``EDGE_SIGMAS`` edge sigmas
     when the fitted edge is broader, and re-centred on the fitted circle when the limb moved by more than
-    half a pixel (the annulus was built on the front end's circle); the lit-arc check on the fitted pixels."""
+    half a pixel (the annulus was built on the front end's circle); the lit-arc check on the fitted pixels.
+
+    The model is the circular sigmoid (CSF, Eq. 16 of the illuminated-ellipsoid paper; Aerospace 2015 §6).
+
+    Parameters
+    ----------
+    frame : Frame
+    pix : LimbPixels
+        The annulus (:func:`limb_pixels`).
+
+    Returns
+    -------
+    EdgeFit
+        The fit, its (possibly re-selected) annulus, whether it was widened / re-centred, and the arc (deg).
+    """
     opt = frame.opt
     circ = fit_circle_annulus(pix.sel, opt)
     widened = recentered = False
@@ -195,7 +295,21 @@ def edge_fit(frame: Frame, pix: LimbPixels) -> EdgeFit:
 
 def check_edge(frame: Frame, cand: Any, edge: EdgeFit) -> EdgeFit:
     """Checks 5 (jump from the front end's circle), 1 (size), 3/4 (radius in the prior's band) and 4
-    (centre in the field) on the fitted circle; returns ``edge`` with the jump and its limit."""
+    (centre in the field) on the fitted circle; returns ``edge`` with the jump and its limit.
+
+    Parameters
+    ----------
+    frame : Frame
+    cand : LimbCandidates
+        The front end's circle and prior.
+    edge : EdgeFit
+        The unchecked fit of :func:`edge_fit`.
+
+    Returns
+    -------
+    EdgeFit
+        ``edge`` with ``jump_px`` and ``jump_limit_px`` set.
+    """
     thr = jump_threshold(edge.pixels.dr)
     # a thin crescent's band lies ``shift`` outside the front end's circle: the jump is from the band's middle
     jump = check_jump(cand.center_rc, cand.radius + edge.pixels.shift, edge.center_rc, edge.radius, edge.pixels.sel.angles(), thr)
@@ -208,7 +322,19 @@ def check_edge(frame: Frame, cand: Any, edge: EdgeFit) -> EdgeFit:
 
 
 def edge_report(frame: Frame, cand: Any, edge: EdgeFit) -> dict[str, Any]:
-    """The intermediate values of the round limb's first stages, for ``extras``."""
+    """The intermediate values of the round limb's first stages, for ``extras``.
+
+    Parameters
+    ----------
+    frame : Frame
+    cand : LimbCandidates
+    edge : EdgeFit
+
+    Returns
+    -------
+    dict
+        Initial circle, circle fit, annulus, lit window, phase, bins, outliers, jump, prior source.
+    """
     circ, pix = edge.circ, edge.pixels
     prior = cand.info.get("prior")
     return {

@@ -21,7 +21,19 @@ K_FIXED = 3.0
 
 
 def fit_data(sel: AnnulusSelection) -> FitData:
-    """The level-normalised data of ``sel`` (each angular bin divided by its contrast; :class:`FitData`)."""
+    """The level-normalised data of ``sel`` (each angular bin divided by its contrast; :class:`FitData`).
+
+    Parameters
+    ----------
+    sel : AnnulusSelection
+        Without per-pixel bin levels the data are the raw DN (unit weights).
+
+    Returns
+    -------
+    FitData
+        ``z_n = (z - O_bin) / (I_bin - O_bin)``, weights ``(I_bin - O_bin) / C_ref``, offset the median outer
+        level and scale ``C_ref`` (the median contrast, DN).
+    """
     if sel.pixel_inner is None or sel.pixel_outer is None:
         return FitData(sel.coords, sel.z, None, 0.0, 1.0)
     c = sel.pixel_inner - sel.pixel_outer
@@ -33,7 +45,22 @@ def fit_data(sel: AnnulusSelection) -> FitData:
 def initial_levels(sel: AnnulusSelection, data: FitData, options: LocateOptions) -> tuple[float, float, float]:
     """The fit's start ``(k, ymax, ymin)``: :data:`~jaxlimb.pipeline.sigmoid.K_INIT` and the levels (1, 0 for
     level-normalised data) with ``estimate_k``; else :data:`K_FIXED` and the means of the pixels within 1 px of the
-    annulus' inner and outer radii (held in the fit, the paper's setting)."""
+    annulus' inner and outer radii (held in the fit, the illuminated-ellipsoid paper's setting, §VI).
+
+    Parameters
+    ----------
+    sel : AnnulusSelection
+    data : FitData
+        The data to be fitted (:func:`fit_data`).
+    options : LocateOptions
+
+    Returns
+    -------
+    k : float
+        Steepness (1/px).
+    ymax, ymin : float
+        Inside and outside levels, in the units of ``data.z``.
+    """
     if options.estimate_k:
         if data.weights is not None:
             return K_INIT, 1.0, 0.0
@@ -49,7 +76,27 @@ def initial_levels(sel: AnnulusSelection, data: FitData, options: LocateOptions)
 def outlier_pass(model, data: FitData, res: LimbFit, options: LocateOptions, fixed) -> tuple[LimbFit, FitData, int]:
     """Check 3: pixels whose residual exceeds :data:`~jaxlimb.pipeline.checks.OUTLIER_SIGMA` robust sigmas are dropped
     and the fit repeated; more than :data:`~jaxlimb.pipeline.checks.MAX_OUTLIER_FRACTION` of them (beyond the local
-    misfit of the edge model's shape, :func:`local_misfit`) is a :class:`~jaxlimb.errors.TooManyOutliersError`."""
+    misfit of the edge model's shape, :func:`local_misfit`) is a :class:`~jaxlimb.errors.TooManyOutliersError`.
+
+    Parameters
+    ----------
+    model : LimbModel
+        The fitted model (CSF or ESF).
+    data : FitData
+    res : LimbFit
+        The fit on all of ``data``.
+    options : LocateOptions
+    fixed : tuple of str
+        Parameters held fixed.
+
+    Returns
+    -------
+    fit : LimbFit
+        The refit without the outliers (``res`` when there are none).
+    data : FitData
+        The pixels kept.
+    n_outliers : int
+    """
     pred = predict(model, res.params, data.coords)
     r = data.z - pred
     if data.weights is not None:
@@ -101,14 +148,30 @@ def local_misfit(r: np.ndarray, coords: np.ndarray, params) -> np.ndarray:
     :data:`MISFIT_BIN_PX` in distance from the fitted centre by :data:`MISFIT_SECTORS` sectors about it.
 
     Why: Check 3's outliers are stars, hot pixels and cosmic rays, pixels unlike their neighbours.  A limb whose
-    radial shape the sigmoid cannot follow misfits whole bands of the annulus instead, each pixel by about as much as
-    its neighbours: the bright rim of a Minnaert crescent (``benchmarks/families.py`` Moon ``minnaert`` 4 of seed 2028,
-    38 px at phase 134 deg, 8 bit) left the bands 1-2 px and 5-6 px inside the limb 5-9 robust sigmas off (the
-    sky's noise sets the MAD), 24 % of the annulus: a typed failure.  About their cells' medians 1.2 % are; the
-    profile refit that follows fits that rim (its Minnaert exponent) and put the centre 0.013 px off.  Used only
-    when the plain test fails Check 3 (no frame that passes it changes), with the plain test's sigma and a smaller
-    share (:data:`MISFIT_OUTLIER_SHARE`): a model wrong everywhere (a bright square,
-    ``test_check3_too_many_outliers``) leaves its cells' pixels far apart still."""
+    radial shape the sigmoid cannot follow misfits whole bands of the annulus instead, each pixel by about as much
+    as
+    its neighbours: the bright rim of a Minnaert crescent (``benchmarks/families.py`` Moon ``minnaert`` 4 of seed
+    2028,
+    38 px at phase 134 deg, 8 bit) leaves the bands 1-2 px and 5-6 px inside the limb 5-9 robust sigmas off (the
+    sky's noise sets the MAD), 24 % of the annulus; about their cells' medians 1.2 % are, and the profile refit that
+    follows fits that rim (its Minnaert exponent).  Used only when the plain test fails Check 3, with the plain
+    test's sigma and a smaller share (:data:`MISFIT_OUTLIER_SHARE`): a model wrong everywhere (a bright square,
+    ``test_check3_too_many_outliers``) leaves its cells' pixels far apart still.
+
+    Parameters
+    ----------
+    r : np.ndarray (n,)
+        Residuals (weighted, as tested).
+    coords : np.ndarray (n, 2)
+        Pixels ``(row, col)``.
+    params : CircleParams or EllipseParams
+        The fit (centre ``r0, c0`` and ``radius`` or ``a``).
+
+    Returns
+    -------
+    np.ndarray (n,)
+        Each pixel's cell median.
+    """
     c = np.asarray(coords, float)
     r0, c0 = float(params.r0), float(params.c0)
     rad = float(params.radius) if isinstance(params, CircleParams) else float(params.a)
@@ -124,7 +187,21 @@ def local_misfit(r: np.ndarray, coords: np.ndarray, params) -> np.ndarray:
 
 
 def fit_circle_annulus(sel: AnnulusSelection, options: LocateOptions) -> RefineResult:
-    """Circular sigmoid (Eq. 16) on the selected pixels, from the annulus circle; outlier pass."""
+    """Circular sigmoid (CSF, Eq. 16 of the illuminated-ellipsoid paper) on the selected pixels, from the annulus
+    circle;
+    outlier pass.
+
+    Parameters
+    ----------
+    sel : AnnulusSelection
+    options : LocateOptions
+        Solver, ``max_steps``, ``estimate_k``.
+
+    Returns
+    -------
+    RefineResult
+        The fit on the level-normalised data (:func:`fit_data`), outliers removed.
+    """
     fixed = levels_held(options)
     data = fit_data(sel)
     k0, ymax0, ymin0 = initial_levels(sel, data, options)
@@ -135,7 +212,22 @@ def fit_circle_annulus(sel: AnnulusSelection, options: LocateOptions) -> RefineR
 
 
 def sphere_shape(focal_px: float, principal_point_rc, center_rc, a: float) -> SphereImage:
-    """Shorthand for :func:`~jaxlimb.geometry.sphere_image.sphere_from_ellipse_center`."""
+    """Shorthand for :func:`~jaxlimb.geometry.sphere_image.sphere_from_ellipse_center`.
+
+    Parameters
+    ----------
+    focal_px : float
+        Focal length (px).
+    principal_point_rc : (float, float)
+    center_rc : (float, float)
+        Limb ellipse centre (ideal px).
+    a : float
+        Its semi-major axis (px).
+
+    Returns
+    -------
+    SphereImage
+    """
     return sphere_from_ellipse_center(focal_px, principal_point_rc, center_rc, a)
 
 
@@ -149,14 +241,31 @@ def fit_sphere_annulus(
 ) -> RefineResult:
     """Elliptical sigmoid with the axis ratio and orientation of the image of a sphere.
 
-    The ESF (Sec. V-C) is fitted with ``rho`` and ``theta`` held at the values of the sphere
-    image whose ellipse centre and radial semi-axis are the current estimate
+    The ESF (the illuminated-ellipsoid paper, Sec. V-C) is fitted with ``rho`` and ``theta`` held at the values of
+    the sphere image whose ellipse centre and radial semi-axis are the current estimate
     (:func:`~jaxlimb.geometry.sphere_image.sphere_from_ellipse_center`), free ``r0, c0, a`` (and
     ``k, ymax, ymin`` unless fixed); then ``rho``, ``theta`` are recomputed from the new
     estimate and the fit repeated (``n_iter`` fits in all).  ``rho`` changes by
     ~``1e-4 x`` the centre change in px at the corner of the default camera, so after
-    the second fit the held shape is exact to ~1e-8 px.  ``data.coords`` are pinhole
-    (undistorted) pixel coordinates.
+    the second fit the held shape is exact to ~1e-8 px.
+
+    Parameters
+    ----------
+    data : FitData
+        Pixels in pinhole (undistorted) coordinates.
+    circle : CircleParams
+        The circular sigmoid's fit, the start (its radius taken as the mean of the semi-axes).
+    focal_px : float
+        Focal length (px).
+    principal_point_rc : (float, float)
+    options : LocateOptions
+    n_iter : int
+        Number of fits.
+
+    Returns
+    -------
+    RefineResult
+        The last fit (no outlier pass) and the :class:`~jaxlimb.geometry.sphere_image.SphereImage` of its estimate.
     """
     fixed = ("theta", "rho") + levels_held(options)
     sph = sphere_shape(focal_px, principal_point_rc, (float(circle.r0), float(circle.c0)), float(circle.radius))
@@ -176,7 +285,18 @@ def fit_sphere_annulus(
 
 
 def fit_ellipse_annulus(data: FitData, start: EllipseParams, options: LocateOptions) -> RefineResult:
-    """Elliptical sigmoid with every geometric parameter free (``rho``, ``theta`` too)."""
+    """Elliptical sigmoid with every geometric parameter free (``rho``, ``theta`` too); outlier pass.
+
+    Parameters
+    ----------
+    data : FitData
+    start : EllipseParams
+    options : LocateOptions
+
+    Returns
+    -------
+    RefineResult
+    """
     fixed = levels_held(options)
     res = run_fit(ELLIPSE, data, start, options, fixed)
     res, data2, nb = outlier_pass(ELLIPSE, data, res, options, fixed)

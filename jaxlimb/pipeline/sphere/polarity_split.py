@@ -41,7 +41,31 @@ def pixel_polarity(img: np.ndarray, mask: np.ndarray | None, shape, dr: float, n
                    n_bins: int = 180, min_snr: float = 5.0) -> np.ndarray:
     """+1 (lit: disc brighter than the sky), -1 (dark) or 0 for each of ``coords``, from its angular bin's
     inner and outer levels on the annulus ``|d| <= dr`` about ``shape`` (as
-    :func:`jaxlimb.pipeline.sphere.whole_limb.select_whole_limb` classifies the bins)."""
+    :func:`jaxlimb.pipeline.sphere.whole_limb.select_whole_limb` classifies the bins).
+
+    Parameters
+    ----------
+    img : np.ndarray (rows, cols)
+    mask : np.ndarray of bool or None
+        ``True`` = measured pixel.
+    shape : LimbShape
+        The fitted limb ellipse.
+    dr : float
+        Annulus half-width (px).
+    noise : float
+        Image noise (DN).
+    coords : np.ndarray (n, 2)
+        Pixels ``(row, col)`` to classify.
+    n_bins : int
+        Angular bins about the ellipse.
+    min_snr : float
+        Smallest step, in noise sigmas, for a bin to have a polarity.
+
+    Returns
+    -------
+    np.ndarray (n,)
+        ``+1.0``, ``-1.0`` or ``0.0``.
+    """
     _, _, _, _, c, good, _ = binned_limb_steps(img, mask, shape, dr, noise, n_bins, min_snr)
     pol = np.where(good, np.sign(np.nan_to_num(c)), 0.0)
     _, phi_p = ellipse_distance(shape, coords)
@@ -51,8 +75,25 @@ def pixel_polarity(img: np.ndarray, mask: np.ndarray | None, shape, dr: float, n
 
 def polarity_split(img: np.ndarray, mask: np.ndarray | None, res, shape, dr: float, noise: float, opt,
                    fixed: tuple[str, ...]) -> dict[str, Any] | None:
-    """The split of the module docstring for the whole-limb fit ``res`` (a
-    :class:`~jaxlimb.pipeline.stages.RefineResult`); ``None`` when a polarity has too few pixels."""
+    r"""The split of the module docstring for the whole-limb fit ``res`` (a
+    :class:`~jaxlimb.pipeline.stages.RefineResult`); ``None`` when a polarity has too few pixels.
+
+    Parameters
+    ----------
+    img, mask, shape, dr, noise
+        As :func:`pixel_polarity`.
+    res : RefineResult
+        The joint (whole-limb) ESF fit.
+    opt : LocateOptions
+    fixed : tuple of str
+        Parameters held in the joint fit (``a`` is held as well).
+
+    Returns
+    -------
+    dict or None
+        Lit and dark centres ``(row, col)``, their pixel counts, ``delta_rc_px``, ``chi2``, ``disagree`` and
+        ``model_error_cov_px2`` (:math:`\Delta\Delta^\top`, px^2).
+    """
     pol = pixel_polarity(img, mask, shape, dr, noise, res.data.coords)
     held = tuple(dict.fromkeys(tuple(fixed) + ("a",)))
     out: dict[str, Any] = {}

@@ -69,7 +69,20 @@ DEFAULT_RADIUS_UNCERTAINTY = 0.05
 
 
 def predicted_frame(frame: Frame, arc: bool) -> Frame:
-    """Stage "prepare" (module docstring)."""
+    """Stage "prepare" (module docstring).
+
+    Parameters
+    ----------
+    frame : Frame
+        Needs a camera and hints (range, radius).
+    arc : bool
+        A body larger than the frame: its start centre is found on the visible arc.
+
+    Returns
+    -------
+    Frame
+        In float64, ``max_steps >= MIN_MAX_STEPS``; for an arc, ``hints.expected_center_rc`` found by RANSAC.
+    """
     img = np.asarray(frame.img, dtype=np.float64)
     opt = replace(frame.opt, max_steps=max(frame.opt.max_steps, MIN_MAX_STEPS))
     hints = frame.hints
@@ -83,7 +96,16 @@ def predicted_frame(frame: Frame, arc: bool) -> Frame:
 
 
 def predicted_candidates(frame: Frame) -> PredictedCandidates:
-    """Stage "candidates": the predicted limb, its edges and the predicted shape fitted to them."""
+    """Stage "candidates": the predicted limb, its edges and the predicted shape fitted to them.
+
+    Parameters
+    ----------
+    frame : Frame
+
+    Returns
+    -------
+    PredictedCandidates
+    """
     assert frame.cam is not None and frame.hints is not None
     pred = predicted_limb(frame.cam, frame.hints)
     pts, step, _ = limb_edges(frame.img, pred, mask=frame.mask, search_px=SEARCH_PX)
@@ -93,8 +115,26 @@ def predicted_candidates(frame: Frame) -> PredictedCandidates:
 
 
 def whole_limb_edge(frame: Frame, cand: PredictedCandidates, pix: PredictedPixels) -> PredictedEdge:
-    """Stage "edge fit": :data:`N_PASSES` whole-limb fits, then Check 4 (the scale within 3 ``u`` of the
-    prediction, ``u`` the hints' ``expected_radius_uncertainty_frac``)."""
+    """Stage "edge fit": :data:`N_PASSES` whole-limb fits, then Check 4 (the scale within 3 ``u`` of the prediction,
+    ``u`` the hints' ``expected_radius_uncertainty_frac``).
+
+    Parameters
+    ----------
+    frame : Frame
+    cand : PredictedCandidates
+    pix : PredictedPixels
+        The first annulus.
+
+    Returns
+    -------
+    PredictedEdge
+        The last pass's fit, the fitted limb, the last half-width, the arc's edge-bias gains.
+
+    Raises
+    ------
+    RadiusInconsistentError
+        Check 4.
+    """
     shape, dr, res, counts = pix.shape, pix.dr, None, None
     for _ in range(N_PASSES):
         res, shape, counts = fit_pass(frame.img, frame.mask, shape, dr, cand.noise, frame.opt)
@@ -111,7 +151,18 @@ def whole_limb_edge(frame: Frame, cand: PredictedCandidates, pix: PredictedPixel
 
 
 def predicted_report(frame: Frame, cand: PredictedCandidates, edge: PredictedEdge) -> dict[str, Any]:
-    """The intermediate values of the predicted limb's first stages, for ``extras``."""
+    """The intermediate values of the predicted limb's first stages, for ``extras``.
+
+    Parameters
+    ----------
+    frame : Frame
+    cand : PredictedCandidates
+    edge : PredictedEdge
+
+    Returns
+    -------
+    dict
+    """
     pred, coarse, used, step = cand.predicted, cand.shape, cand.used, cand.step
     return {"edge_bias_gain": np.asarray(edge.gain).tolist(), "edge_model_sigma_px": EDGE_MODEL_SIGMA_PX,
             "predicted_limb": {"center_rc": list(pred.center_rc), "semi_axes_px": [pred.a, pred.a * pred.rho],
@@ -125,7 +176,19 @@ def predicted_report(frame: Frame, cand: PredictedCandidates, edge: PredictedEdg
 
 
 def sunlit_sphere(hints: Hints, counts: dict[str, int]) -> bool:
-    """A sphere (equal radii) with the Sun direction known, measured on its lit limb only."""
+    """A sphere (equal radii) with the Sun direction known, measured on its lit limb only.
+
+    Parameters
+    ----------
+    hints : Hints
+        Radii (or the body table's), Sun direction.
+    counts : dict of str to int
+        The angular bins' counts (``bins_dark``: dark-limb bins).
+
+    Returns
+    -------
+    bool
+    """
     radii = hints.body_radii_km
     if radii is None and hints.body in BODY_TABLE:
         radii = BODY_TABLE[hints.body].radii_km
@@ -135,8 +198,19 @@ def sunlit_sphere(hints: Hints, counts: dict[str, int]) -> bool:
 
 def lit_limb_profile(frame: Frame, edge: PredictedEdge) -> RefineResult:
     """The lunar-Lambert limb profile on the lit limb's annulus, started from the whole-limb fit's circle (the
-    pipeline's own refit, :func:`~jaxlimb.pipeline.profile.fit.fit_lunar_profile`): removes the flat-topped sigmoid's
-    edge bias (0.35-0.5 px on short arcs)."""
+    pipeline's own refit, :func:`~jaxlimb.pipeline.profile.fit.fit_lunar_profile`): removes the flat-topped
+    sigmoid's edge bias (0.35-0.5 px on short arcs).
+
+    Parameters
+    ----------
+    frame : Frame
+    edge : PredictedEdge
+
+    Returns
+    -------
+    RefineResult
+        The profile fit (DN, unit weights).
+    """
     data, _ = select_whole_limb(frame.img, frame.mask, edge.shape, FIRST_ANNULUS_PX, edge.noise)
     res, shape = edge.fit, edge.shape
     p = res.fit.params
@@ -152,8 +226,21 @@ def lit_limb_profile(frame: Frame, edge: PredictedEdge) -> RefineResult:
 
 
 def larger_covariance(rr: RefineResult, cov_cluster: np.ndarray, extras: dict[str, Any]) -> RefineResult:
-    """``rr`` with the cluster-robust covariance when its centre block is the larger (trace), the fit's own kept as
-    the noise-only one; both centre sigmas in ``extras``."""
+    """``rr`` with the cluster-robust covariance when its centre block is the larger (trace), the fit's own kept as the
+    noise-only one; both centre sigmas in ``extras``.
+
+    Parameters
+    ----------
+    rr : RefineResult
+    cov_cluster : np.ndarray (p, p)
+        Cluster-robust covariance of ``rr``'s free parameters.
+    extras : dict
+        Updated with both centre sigmas (px).
+
+    Returns
+    -------
+    RefineResult
+    """
     cov_fit = np.asarray(rr.fit.covariance)
     extras["sigma_center_pixel_independent_px"] = [float(math.sqrt(cov_fit[i, i])) for i in (0, 1)]
     extras["sigma_center_cluster_robust_px"] = [float(math.sqrt(cov_cluster[i, i])) for i in (0, 1)]
@@ -164,7 +251,19 @@ def larger_covariance(rr: RefineResult, cov_cluster: np.ndarray, extras: dict[st
 
 def predicted_refit(frame: Frame, edge: PredictedEdge, extras: dict[str, Any]) -> RefineResult:
     """Stage "profile refit" (module docstring): the lit limb's profile of a sunlit sphere, else the whole-limb fit;
-    the covariance the larger of the pixel-independent and the cluster-robust one."""
+    the covariance the larger of the pixel-independent and the cluster-robust one.
+
+    Parameters
+    ----------
+    frame : Frame
+    edge : PredictedEdge
+    extras : dict
+        Updated with the covariance model or the profile's rejection.
+
+    Returns
+    -------
+    RefineResult
+    """
     assert frame.hints is not None
     if sunlit_sphere(frame.hints, edge.counts):
         try:
@@ -179,7 +278,19 @@ def predicted_refit(frame: Frame, edge: PredictedEdge, extras: dict[str, Any]) -
 
 def predicted_center(frame: Frame, edge: PredictedEdge, final: RefineResult) -> BodyCenter:
     """Stage "body-centre mapping" (module docstring), with the edge's model error and, for the sigmoid, the split of
-    the two polarities (``extras["polarity_split"]``) in ``model_cov``."""
+    the two polarities (``extras["polarity_split"]``) in ``model_cov``.
+
+    Parameters
+    ----------
+    frame : Frame
+    edge : PredictedEdge
+    final : RefineResult
+        The profile (exact sphere map) or the whole-limb ESF (scaled prediction).
+
+    Returns
+    -------
+    BodyCenter
+    """
     model_cov = np.zeros((3, 3))
     model_cov[:2, :2] = EDGE_MODEL_SIGMA_PX**2 * np.asarray(edge.gain).T @ np.asarray(edge.gain)
     p = final.fit.params
@@ -221,36 +332,145 @@ class PredictedLimbSphere(Body[PredictedPixels, PredictedEdge]):
     name: ClassVar[str] = "whole-limb"
 
     def prepare(self, frame: Frame) -> Frame:
+        """Stage "prepare": :func:`predicted_frame`.
+
+        Parameters
+        ----------
+        frame : Frame
+
+        Returns
+        -------
+        Frame
+        """
         return predicted_frame(frame, self.arc)
 
     def candidates(self, frame: Frame) -> PredictedCandidates:
+        """Stage "candidates": :func:`predicted_candidates`.
+
+        Parameters
+        ----------
+        frame : Frame
+
+        Returns
+        -------
+        PredictedCandidates
+        """
         return predicted_candidates(frame)
 
     def limb_pixels(self, frame: Frame, cand: PredictedCandidates) -> PredictedPixels:
+        """The first annulus: :data:`FIRST_ANNULUS_PX` about the fitted predicted shape.
+
+        Parameters
+        ----------
+        frame : Frame
+        cand : PredictedCandidates
+
+        Returns
+        -------
+        PredictedPixels
+        """
         return PredictedPixels(cand.shape, FIRST_ANNULUS_PX)
 
     def edge_fit(self, frame: Frame, cand: PredictedCandidates, pixels: PredictedPixels) -> PredictedEdge:
+        """Stage "edge fit": :func:`whole_limb_edge`.
+
+        Parameters
+        ----------
+        frame : Frame
+        cand : PredictedCandidates
+        pixels : PredictedPixels
+
+        Returns
+        -------
+        PredictedEdge
+        """
         return whole_limb_edge(frame, cand, pixels)
 
     def report(self, frame: Frame, cand: PredictedCandidates, edge: PredictedEdge) -> dict[str, Any]:
+        """The first stages' numbers: :func:`predicted_report`.
+
+        Parameters
+        ----------
+        frame : Frame
+        cand : PredictedCandidates
+        edge : PredictedEdge
+
+        Returns
+        -------
+        dict
+        """
         return predicted_report(frame, cand, edge)
 
     def refit(self, frame: Frame, cand: PredictedCandidates, edge: PredictedEdge, extras: dict[str, Any]) -> RefineResult:
+        """Stage "profile refit": :func:`predicted_refit`.
+
+        Parameters
+        ----------
+        frame : Frame
+        cand : PredictedCandidates
+        edge : PredictedEdge
+        extras : dict
+
+        Returns
+        -------
+        RefineResult
+        """
         return predicted_refit(frame, edge, extras)
 
     def body_center(self, frame: Frame, edge: PredictedEdge, final: RefineResult) -> BodyCenter:
+        """Stage "body-centre mapping": :func:`predicted_center`.
+
+        Parameters
+        ----------
+        frame : Frame
+        edge : PredictedEdge
+        final : RefineResult
+
+        Returns
+        -------
+        BodyCenter
+        """
         return predicted_center(frame, edge, final)
 
     def check(self, frame: Frame, levels: Levels, cov: Covariance) -> None:
         """The fit is physical (levels, edge blur); no tolerance on the centre's sigma: the covariance carries the
-        edge's and the polarities' model errors, which make it honest rather than small."""
+        edge's and the polarities' model errors, which make it honest rather than small.
+
+        Parameters
+        ----------
+        frame : Frame
+        levels : Levels
+        cov : Covariance
+        """
         check_levels(levels.ymax, levels.ymin, self.name)
         check_edge_width(levels.psf_sigma_px, self.name)
 
     def iterations(self, edge: PredictedEdge, final: RefineResult) -> int:
+        """The final fit's solver steps.
+
+        Parameters
+        ----------
+        edge : PredictedEdge
+        final : RefineResult
+
+        Returns
+        -------
+        int
+        """
         return int(final.fit.n_steps)
 
     def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
+        """For an arc, the start centre in ``extras["arc_start_center_rc"]``.
+
+        Parameters
+        ----------
+        frame : Frame
+        meas : LimbMeasurement
+
+        Returns
+        -------
+        LimbMeasurement
+        """
         if not self.arc:
             return meas
         assert frame.hints is not None and frame.hints.expected_center_rc is not None

@@ -48,7 +48,22 @@ def _saturation(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> float | 
 
 def lunar_profile_refit(frame: Frame, edge: EdgeFit, sat: float | None, extras: dict[str, Any]) -> RefineResult | None:
     """The physical profile on the edge fit's pixels, or ``None`` (``profile="auto"``: it failed or its
-    ``L`` is outside the band of lunar-Lambert-like limbs; ``extras["profile_rejected"]`` says why)."""
+    ``L`` is outside the band of lunar-Lambert-like limbs; ``extras["profile_rejected"]`` says why).
+
+    Parameters
+    ----------
+    frame : Frame
+    edge : EdgeFit
+        The circular sigmoid fit whose pixels and parameters start the profile fit.
+    sat : float or None
+        The image's clip level (clipped pixels are left out).
+    extras : dict
+        Updated with the rejection or the clipped-pixel count.
+
+    Returns
+    -------
+    RefineResult or None
+    """
     opt = frame.opt
     try:
         res, n_clipped = fit_lunar_profile(frame, edge.circ.fit.params, edge.circ.data, sat)
@@ -69,7 +84,25 @@ def lunar_profile_refit(frame: Frame, edge: EdgeFit, sat: float | None, extras: 
 
 
 def sphere_refit(frame: Frame, cand: Any, edge: EdgeFit, physical: bool, extras: dict[str, Any]) -> RefineResult:
-    """Stage "profile refit" of a sphere (module docstring)."""
+    """Stage "profile refit" of a sphere (module docstring).
+
+    Parameters
+    ----------
+    frame : Frame
+    cand : LimbCandidates
+        The front end's answer (the free ellipse's start orientation).
+    edge : EdgeFit
+        The circular-sigmoid fit.
+    physical : bool
+        Try the lunar-Lambert profile first.
+    extras : dict
+        Updated with saturation, profile rejection and outlier counts.
+
+    Returns
+    -------
+    RefineResult
+        The profile, the sphere-shaped ESF (camera), the free ESF (``model="ellipse"``) or ``edge.circ``.
+    """
     opt, circ = frame.opt, edge.circ
     sat = _saturation(frame, edge, extras)
     final = lunar_profile_refit(frame, edge, sat, extras) if physical else None
@@ -123,7 +156,19 @@ def _orientation(points_rc: Any) -> float:
 
 
 def sphere_center_of(frame: Frame, final: RefineResult) -> BodyCenter:
-    """Stage "body-centre mapping" of a sphere: by the kind of the final fit."""
+    """Stage "body-centre mapping" of a sphere: by the kind of the final fit.
+
+    Parameters
+    ----------
+    frame : Frame
+    final : RefineResult
+        A circle (:func:`~jaxlimb.pipeline.sphere.center.circle_center`), a free ellipse, a profile without camera
+        (its circle) or a sphere-shaped limb (:func:`~jaxlimb.pipeline.sphere.center.sphere_center`).
+
+    Returns
+    -------
+    BodyCenter
+    """
     fp = final.fit.params
     free = tuple(final.fit.free)
     if isinstance(fp, CircleParams):
@@ -137,7 +182,21 @@ def sphere_center_of(frame: Frame, final: RefineResult) -> BodyCenter:
 
 
 def disc_refit(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> RefineResult:
-    """Stage "profile refit" of a self-luminous disc: the limb-darkened disc on a full annulus."""
+    """Stage "profile refit" of a self-luminous disc: the limb-darkened disc on a full annulus.
+
+    Parameters
+    ----------
+    frame : Frame
+    edge : EdgeFit
+        The circular sigmoid fit (start centre and radius).
+    extras : dict
+        Updated with the saturation numbers.
+
+    Returns
+    -------
+    RefineResult
+        The :data:`~jaxlimb.models.LIMB_DARKENED` fit and its annulus pixels (unit weights, DN).
+    """
     opt = frame.opt
     _saturation(frame, edge, extras)
     mask = frame_mask(frame)
@@ -151,7 +210,18 @@ def disc_refit(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> RefineRes
 
 
 def disc_center_of(frame: Frame, final: RefineResult) -> BodyCenter:
-    """Stage "body-centre mapping" of a disc: its centre, the line of sight, the range from the radius."""
+    """Stage "body-centre mapping" of a disc: its centre, the line of sight, the range from the radius.
+
+    Parameters
+    ----------
+    frame : Frame
+    final : RefineResult
+        The limb-darkened disc's fit (``r0, c0, a``).
+
+    Returns
+    -------
+    BodyCenter
+    """
     fp = final.fit.params
     return circle_center(frame, (fp.r0, fp.c0), float(fp.a), range_from_radius=True)
 

@@ -47,7 +47,24 @@ class SunLimbFit:
 
 
 def select_sun_annulus(img: np.ndarray, center_rc, radius_px: float, annulus_px: float):
-    """Finite pixels with ``|d - radius_px| <= annulus_px`` (full 360 deg): ``(coords (n, 2), z (n,))``."""
+    """Finite pixels with ``|d - radius_px| <= annulus_px`` (full 360 deg) about ``center_rc``.
+
+    Parameters
+    ----------
+    img : np.ndarray (rows, cols)
+        Non-finite pixels (masked ones set to NaN) are left out.
+    center_rc : (float, float)
+        Disc centre ``(row, col)`` (px).
+    radius_px, annulus_px : float
+        Limb radius and annulus half-width (px).
+
+    Returns
+    -------
+    coords : np.ndarray (n, 2)
+        Pixels ``(row, col)``.
+    z : np.ndarray (n,)
+        Their values.
+    """
     img = np.asarray(img, dtype=float)
     r0, c0 = (float(v) for v in center_rc)
     R, h = float(radius_px), float(annulus_px)

@@ -68,7 +68,22 @@ SHAPE_FIXED = ("theta", "rho")
 
 
 def ellipse_distance(shape: LimbShape, coords: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Signed distance (px, + outside) to the ellipse to first order, and the eccentric anomaly."""
+    r"""Signed distance (px, + outside) to the ellipse to first order, and the eccentric anomaly.
+
+    Parameters
+    ----------
+    shape : LimbShape
+        The limb ellipse (centre, ``a``, ``rho``, ``theta``).
+    coords : np.ndarray (n, 2)
+        Pixels ``(row, col)``.
+
+    Returns
+    -------
+    d : np.ndarray (n,)
+        :math:`(\beta - \rho a)/|\nabla\beta|` (px, module docstring step 2).
+    phi : np.ndarray (n,)
+        Eccentric anomaly (rad) in the ellipse's frame.
+    """
     x, y = shape.to_frame(coords)
     rho, a = shape.rho, shape.a
     beta = np.hypot(rho * x, y)
@@ -101,10 +116,28 @@ def binned_limb_steps(img: np.ndarray, mask: np.ndarray | None, shape: LimbShape
                       n_bins: int = 180, min_snr: float = 5.0):  # noqa: ANN201
     """The annulus ``|d| <= dr`` about ``shape`` in ``n_bins`` angular bins and each bin's limb step.
 
-    Returns ``(coords, z, d, bins, step, significant, sky)``: the annulus pixels, their signed distance
-    to the limb and bin index, the bins' inner-minus-outer median level (> 0 where the disc is brighter
-    than the sky), whether it exceeds ``min_snr`` times its noise (two medians of >= 3 pixels), and the
-    bins' outer (sky-side) median level.
+    Parameters
+    ----------
+    img : np.ndarray (rows, cols)
+    mask : np.ndarray of bool or None
+        ``True`` = measured pixel.
+    shape : LimbShape
+        The limb ellipse.
+    dr : float
+        Annulus half-width (px).
+    noise : float
+        Image noise (DN).
+    n_bins : int
+    min_snr : float
+        Smallest step, in its noise sigmas, of a significant bin.
+
+    Returns
+    -------
+    tuple
+        ``(coords, z, d, bins, step, significant, sky)``: the annulus pixels ``(n, 2)``, their values, signed
+        distance to the limb and bin index ``(n,)``; the bins' inner-minus-outer median level ``(n_bins,)``
+        (> 0 where the disc is brighter than the sky), whether it exceeds ``min_snr`` times its noise (two
+        medians of >= 3 pixels), and the bins' outer (sky-side) median level.
     """
     coords, z, d, phi = _annulus(img, mask, shape, dr)
     bins = np.minimum(((phi + math.pi) / (2 * math.pi) * n_bins).astype(np.int64), n_bins - 1)
@@ -121,6 +154,18 @@ def binned_limb_steps(img: np.ndarray, mask: np.ndarray | None, shape: LimbShape
 def select_whole_limb(img: np.ndarray, mask: np.ndarray | None, shape: LimbShape, dr: float, noise: float,
                       n_bins: int = 180, min_snr: float = 5.0) -> tuple[FitData, dict[str, int]]:
     """Level-normalised annulus data of both polarities (module docstring, steps 2-3).
+
+    Parameters
+    ----------
+    img, mask, shape, dr, noise, n_bins, min_snr
+        As :func:`binned_limb_steps`.
+
+    Returns
+    -------
+    data : FitData
+        Pixels of the significant bins, ``z_n = (z - O)/(I - O)``, weights ``|I - O| / C_ref``.
+    counts : dict of str to int
+        ``bins_lit``, ``bins_dark`` and ``bins``.
 
     Raises
     ------
@@ -170,7 +215,29 @@ def _outlier_pass_by_stretch(data: FitData, res, shape: LimbShape, opt: LocateOp
 
 def fit_pass(img, mask, shape: LimbShape, dr: float, noise: float, opt: LocateOptions):
     """One pass of steps 2-4 (module docstring) about ``shape``: the fit, the limb it puts at the fitted place and
-    scale (the shape held) and the bins' counts of each polarity."""
+    scale (the shape held) and the bins' counts of each polarity.
+
+    Parameters
+    ----------
+    img : np.ndarray (rows, cols)
+    mask : np.ndarray of bool or None
+    shape : LimbShape
+        The current limb (predicted, or the last pass's).
+    dr : float
+        Annulus half-width (px).
+    noise : float
+        Image noise (DN).
+    opt : LocateOptions
+
+    Returns
+    -------
+    fit : RefineResult
+        The ESF with ``theta``, ``rho`` held, after the outlier pass by stretch.
+    shape : LimbShape
+        ``shape`` moved to the fitted centre and ``a``.
+    counts : dict of str to int
+        As :func:`select_whole_limb`.
+    """
     data, counts = select_whole_limb(img, mask, shape, dr, noise)
     init = EllipseParams(r0=shape.center_rc[0], c0=shape.center_rc[1], a=shape.a, theta=shape.theta, rho=shape.rho,
                          k=K_INIT, ymax=1.0, ymin=0.0)
@@ -191,6 +258,24 @@ def cluster_covariance(final: RefineResult, shape: LimbShape, cluster_deg: float
     (Liang & Zeger 1986, *Biometrika* 73:13): errors may be correlated arbitrarily *within* a
     stretch of limb (texture, banding, compression blocks), which the pixel-independent
     :math:`\hat\sigma^2 (J^\top J)^{-1}` ignores.  ``J`` by central differences over ``free``.
+
+    Parameters
+    ----------
+    final : RefineResult
+        The fit and its data.
+    shape : LimbShape
+        The limb the angles are measured on.
+    cluster_deg : float
+        Length of a stretch (deg).
+    h : float
+        Central-difference step of each parameter.
+    model : LimbModel
+        The fitted model (the ESF, or a limb profile's).
+
+    Returns
+    -------
+    np.ndarray (p, p)
+        Over the fit's free parameters.
     """
     p, free, data = final.fit.params, list(final.fit.free), final.data
     w = np.ones(len(data.z)) if data.weights is None else np.asarray(data.weights)

@@ -82,10 +82,9 @@ def _window(tm, pin, margin: int) -> tuple[int, int, int, int]:
 def _rays(pin, win, s: int, rng: np.random.Generator) -> np.ndarray:
     """Unit ray directions ``(h, w, s*s, 3)``: stratified sub-pixel samples, jittered in every pixel independently.
 
-    One jitter pattern shared by all pixels (as before RENDER_VERSION 4 of ``benchmarks/irregular_independent.py``)
-    samples every pixel at the same mean offset, ~0.03 px per axis for ``s = 3``: the whole frame was displaced
-    from its truth by it (three renders of one Eros view at 90 deg phase registered 0.08 / 0.07 / 0.17 px off, their
-    truths corrected by the pattern's mean 0.12 / 0.15 / 0.14 px)."""
+    Why per pixel: one jitter pattern shared by all pixels samples every pixel at the same mean offset (~0.03 px
+    per axis for ``s = 3``), which displaces the whole frame from its truth: a bias of the renderer that a
+    registration against that truth would report as the measurement's."""
     r0, r1, c0, c1 = win
     h, w = r1 - r0, c1 - c0
     cell = (np.arange(s) + 0.5) / s - 0.5
