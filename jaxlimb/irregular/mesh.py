@@ -399,17 +399,14 @@ def _check_closed(n: int, f: np.ndarray, name: str) -> None:
 
 
 def _check_manifold_vertices(faces: np.ndarray, name: str) -> None:
-    """Every vertex's faces form one fan (closed, consistently wound faces assumed): a vertex whose faces fall
-    in two fans joined only at it (a "bow-tie": two bodies touching at a point) is a :class:`MeshError`.
+    """Every vertex's faces form one fan (closed, consistently wound faces assumed): a vertex whose faces fall in two
+    fans joined only at it (a "bow-tie": two bodies touching at a point) is a :class:`MeshError`.
 
-    Around a vertex ``v`` the corner of face ``(v, a, .)`` is followed by the corner of ``v`` in the face across
-    the edge ``v a`` (the one traversing ``a -> v``): a permutation of the corners whose cycles are the fans.  A
-    manifold surface has one cycle per vertex; cycles are labelled by their smallest corner (pointer doubling, a
-    few passes over the corners, without a graph library: importing ``scipy.sparse`` costs a ``los locate``
-    process, which validates the mesh of its database, more than the check itself).
-    """
-    m = faces.shape[0]
-    corner = np.arange(3 * m)
+    Around ``v`` the corner of face ``(v, a, .)`` is followed by the corner of ``v`` in the face traversing
+    ``a -> v``: a permutation of the corners whose cycles are the fans, one per vertex on a manifold, labelled by
+    their smallest corner (pointer doubling; no graph library: importing ``scipy.sparse`` costs a ``los locate``
+    process, which verifies the mesh of its database, more than the check)."""
+    corner = np.arange(3 * faces.shape[0])
     f, i = corner // 3, corner % 3
     v, a = faces[f, i], faces[f, (i + 1) % 3]  # corner ``3 f + i`` at vertex ``v``, its edge ``v -> a``
     n = int(faces.max()) + 1
