@@ -399,31 +399,30 @@ def _check_closed(n: int, f: np.ndarray, name: str) -> None:
 
 
 def _check_manifold_vertices(faces: np.ndarray, name: str) -> None:
-    """Every vertex's faces form one fan (closed, consistently wound faces assumed): a vertex whose faces fall
-    in two fans joined only at it (a "bow-tie": two bodies touching at a point) is a :class:`MeshError`.
+    """Every vertex's faces form one fan (closed, consistently wound faces assumed): a vertex whose faces fall in two
+    fans joined only at it (a "bow-tie": two bodies touching at a point) is a :class:`MeshError`.
 
-    The corners ``(face, vertex)`` are joined across each shared edge; a manifold surface has one group of
-    corners per vertex (``scipy.sparse.csgraph.connected_components``).
-    """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    m = faces.shape[0]
-    edges, adjacent = edge_faces(faces)
-    fa, fb = adjacent[:, 0], adjacent[:, 1]
-
-    def corner_of(f_idx: np.ndarray, vert: np.ndarray) -> np.ndarray:
-        return f_idx * 3 + np.argmax(faces[f_idx] == vert[:, None], axis=1)
-
-    rows = np.concatenate([corner_of(fa, edges[:, 0]), corner_of(fa, edges[:, 1])])
-    cols = np.concatenate([corner_of(fb, edges[:, 0]), corner_of(fb, edges[:, 1])])
-    graph = coo_matrix((np.ones(rows.size, dtype=np.int8), (rows, cols)), shape=(3 * m, 3 * m))
-    n_groups, label = connected_components(graph, directed=False)
-    used = np.unique(faces)
-    if n_groups != used.size:
-        vert_of_group = np.zeros(n_groups, dtype=np.int64)
-        vert_of_group[label] = faces.ravel()
-        counts = np.bincount(vert_of_group, minlength=int(faces.max()) + 1)
+    Around ``v`` the corner of face ``(v, a, .)`` is followed by the corner of ``v`` in the face traversing
+    ``a -> v``: a permutation of the corners whose cycles are the fans, one per vertex on a manifold, labelled by
+    their smallest corner (pointer doubling; no graph library: importing ``scipy.sparse`` costs a ``los locate``
+    process, which verifies the mesh of its database, more than the check)."""
+    corner = np.arange(3 * faces.shape[0])
+    f, i = corner // 3, corner % 3
+    v, a = faces[f, i], faces[f, (i + 1) % 3]  # corner ``3 f + i`` at vertex ``v``, its edge ``v -> a``
+    n = int(faces.max()) + 1
+    key = v.astype(np.int64) * n + a
+    order = np.argsort(key)
+    twin = order[np.searchsorted(key[order], a.astype(np.int64) * n + v)]  # corner of ``a`` traversing ``a -> v``
+    nxt = 3 * (twin // 3) + (twin % 3 + 1) % 3  # the corner of ``v`` in that face
+    label = corner.copy()
+    while True:  # label = min over 2^k successors; stable labels are the cycle minima
+        new = np.minimum(label, label[nxt])
+        if np.array_equal(new, label):
+            break
+        label, nxt = new, nxt[nxt]
+    roots = faces.ravel()[label == corner]  # the vertex of each fan
+    if roots.size != np.unique(faces).size:
+        counts = np.bincount(roots, minlength=n)
         bad = np.flatnonzero(counts > 1)
         raise MeshError(f"{name}: {bad.size} vertices (e.g. vertex {int(bad[0])}, 0-based) join separate fans of faces "
                         "(a bow-tie: parts touching at a single vertex); the surface is not a manifold")

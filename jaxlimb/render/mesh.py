@@ -195,38 +195,44 @@ def _edge_coefficients(sub: np.ndarray, F: np.ndarray) -> np.ndarray:
     return out
 
 
-_ROW9 = np.dtype((np.void, 36))  # one row of 9 float32 edge coefficients, gathered as one item
-
-
 def _contains(coef: np.ndarray, label: np.ndarray, r: np.ndarray, c: np.ndarray) -> np.ndarray:
     """Whether facet ``label - 1`` (``label`` 0: sky, never) contains the sub-pixel centres ``(r, c)`` (edges included,
-    to 1e-3 sub-pixel: float32 distances of coordinates up to a few thousand are good to ~3e-4)."""
-    k = np.take(coef.view(_ROW9).ravel(), label).view(np.float32).reshape(*np.shape(label), 9)  # rows as 36-byte items
+    to 1e-3 sub-pixel: float32 distances of coordinates up to a few thousand are good to ~3e-4).  ``coef``:
+    ``(faces + 1, 9)``, each coefficient gathered from its own contiguous column."""
+    cols = np.ascontiguousarray(coef.T)
     ok = None
     for i in range(3):
-        e = k[..., 3 * i] * r + k[..., 3 * i + 1] * c + k[..., 3 * i + 2] >= -1e-3
+        a, b, d = (np.take(cols[3 * i + j], label) for j in range(3))
+        e = a * r + b * c + d >= -1e-3
         ok = e if ok is None else ok & e
     return ok
 
 
 _RING1 = [(dr, dc) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dr or dc]
 _RING2 = [(dr, dc) for dr in (-2, -1, 0, 1, 2) for dc in (-2, -1, 0, 1, 2) if max(abs(dr), abs(dc)) == 2]
+_PAD = 2  # the widest ring
 
 
-def _nearest_containing(buf, coef, depth, rr, cc, own, ring):  # type: ignore[no-untyped-def]
-    """Label of the nearest facet (``depth``, per label) drawn at offsets ``ring`` of each sub-pixel ``(rr, cc)``
-    that contains its centre; -1 where none does.  Only the neighbours' labels other than ``own`` (the
-    sub-pixel's, known not to contain it) and the sky are tested: about a third of them."""
-    h, w = buf.shape
-    cand = np.stack([buf[np.clip(rr + dr, 0, h - 1), np.clip(cc + dc, 0, w - 1)] for dr, dc in ring], axis=1)
-    ii, jj = np.nonzero((cand > 0) & (cand != own[:, None]))
-    lab = cand[ii, jj]
-    ok = _contains(coef, lab, rr[ii].astype(np.float32), cc[ii].astype(np.float32))
+def _nearest_containing(padded, coef, depth, flat, rc, own, ring):  # type: ignore[no-untyped-def]
+    """Label of the nearest facet (``depth``, per label) drawn at offsets ``ring`` of each sub-pixel that contains
+    its centre (``rc``: float32 rows and columns); -1 where none does.  ``padded``: the buffer edge-padded by
+    ``_PAD`` (a neighbour beyond the edge is the edge's sub-pixel), ``flat`` the sub-pixels' indices in it.  Only
+    the neighbours' labels other than ``own`` (the sub-pixel's, known not to contain it), the sky and a label
+    already met earlier in the ring are tested (the first of equally near candidates wins either way)."""
+    w = padded.shape[1]
+    cand = np.stack([np.take(padded, flat + (dr * w + dc)) for dr, dc in ring])  # (ring, sub-pixels)
+    test = (cand > 0) & (cand != own)
+    for j in range(1, len(ring)):
+        for i in range(j):
+            test[j] &= cand[j] != cand[i]
+    jj, ii = np.nonzero(test)
+    lab = cand[jj, ii]
+    ok = _contains(coef, lab, rc[0][ii], rc[1][ii])
     key = np.full(cand.shape, np.inf)
-    key[ii[ok], jj[ok]] = depth[lab[ok]]
-    best = np.argmin(key, axis=1)
-    i = np.arange(rr.size)
-    return np.where(np.isfinite(key[i, best]), cand[i, best], -1)
+    key[jj[ok], ii[ok]] = depth[lab[ok]]
+    best = np.argmin(key, axis=0)
+    i = np.arange(own.size)
+    return np.where(np.isfinite(key[best, i]), cand[best, i], -1)
 
 
 def _exact_edges(buf: np.ndarray, sub: np.ndarray, F: np.ndarray, depth: np.ndarray) -> None:
@@ -248,14 +254,17 @@ def _exact_edges(buf: np.ndarray, sub: np.ndarray, F: np.ndarray, depth: np.ndar
     out = ~_contains(coef, own, rr.astype(np.float32), cc.astype(np.float32))
     rr, cc, own = rr[out], cc[out], own[out]
     dep = np.concatenate([[np.inf], depth])
-    new = _nearest_containing(buf, coef, dep, rr, cc, own, _RING1)
+    padded = np.pad(buf, _PAD, mode="edge")  # the neighbours of the unchanged buffer, read flat
+    w = padded.shape[1]
+    flat = (rr + _PAD) * w + (cc + _PAD)
+    rc = np.stack([rr, cc]).astype(np.float32)
+    new = _nearest_containing(padded, coef, dep, flat, rc, own, _RING1)
     far = np.nonzero(new < 0)[0]
     if far.size:
-        new[far] = _nearest_containing(buf, coef, dep, rr[far], cc[far], own[far], _RING2)
-    h, w = buf.shape
+        new[far] = _nearest_containing(padded, coef, dep, flat[far], rc[:, far], own[far], _RING2)
     sky = np.zeros(rr.size, bool)
-    for dr, dc in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-        sky |= buf[np.clip(rr + dr, 0, h - 1), np.clip(cc + dc, 0, w - 1)] == 0
+    for d in (w, -w, 1, -1):
+        sky |= np.take(padded, flat + d) == 0
     buf[rr, cc] = np.where(new >= 0, new, np.where(sky, 0, own))
 
 

@@ -197,7 +197,8 @@ def test_locate_checked_modes_and_wrong_body(scene, capsys, tmp_path):
 
 def test_locate_process_never_starts_jax(scene, capsys, tmp_path):
     """``los locate`` is numpy + OpenCV only (<= 3 s per call): a whole checked call in a fresh
-    process imports neither JAX nor the limb pipeline (which pulls JAX in: 0.8 s of a 3 s call)."""
+    process imports neither JAX nor the limb pipeline (which pulls JAX in: 0.8 s of a 3 s call), nor
+    ``scipy.sparse`` (the database's mesh is verified without a graph library: its import costs more than the check)."""
     import os
     import subprocess
     import sys
@@ -209,7 +210,7 @@ def test_locate_process_never_starts_jax(scene, capsys, tmp_path):
     argv = ["los", "locate", str(d / "img.png"), "--db", str(db), "--camera", str(d / "camera.json"), "--json"]
     code = ("import contextlib, io, json, sys\nfrom jaxlimb.cli import main\n"
             f"with contextlib.redirect_stdout(io.StringIO()) as out:\n    rc = main({argv!r})\n"
-            "print(json.dumps([rc, out.getvalue(), sorted(m for m in sys.modules if m == 'jax' or m.startswith(('jax.', 'jaxlimb.pipeline')))]))")
+            "print(json.dumps([rc, out.getvalue(), sorted(m for m in sys.modules if m in ('jax', 'scipy.sparse') or m.startswith(('jax.', 'jaxlimb.pipeline')))]))")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
                        env={**os.environ, "JAXLIMB_CACHE": str(tmp_path / "cache")})
     rc, out, jax_modules = json.loads(p.stdout.strip().splitlines()[-1])

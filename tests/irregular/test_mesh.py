@@ -158,6 +158,30 @@ def test_bow_tie_vertex_is_refused_with_or_without_repair():
             validate_mesh(v, f, MeshOptions(repair=repair))
 
 
+def _bipyramid(n: int, apex: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """A closed, outward bipyramid over an ``n``-gon: its two apices have valence ``n``."""
+    ang = 2 * np.pi * np.arange(n) / n
+    v = np.concatenate([[[0, 0, 1], [0, 0, -1]], np.stack([np.cos(ang), np.sin(ang), np.zeros(n)], axis=1)])
+    ring = 2 + np.arange(n)
+    nxt = 2 + (np.arange(n) + 1) % n
+    f = np.concatenate([np.stack([np.zeros(n, int), ring, nxt], axis=1), np.stack([np.ones(n, int), nxt, ring], axis=1)])
+    return v, f
+
+
+def test_long_fans_are_one_fan_and_three_fans_at_a_vertex_are_refused():
+    """Fans of 64 faces (the apices) are one fan each; three bipyramids sharing an apex are a bow-tie there."""
+    v, f = _bipyramid(64)
+    assert validate_mesh(v, f, MeshOptions(repair=False)).n_faces == 128
+    vs, fs = [v], [f]
+    for k in (1, 2):  # two more bipyramids whose top apex is vertex 0 of the first
+        vk, fk = _bipyramid(64)
+        fk = np.where(fk == 0, 0, fk + len(np.concatenate(vs)) - 1)
+        vs.append(vk[1:] + [3.0 * k, 0.0, 0.0])
+        fs.append(fk)
+    with pytest.raises(MeshError, match="1 vertices \\(e.g. vertex 0, 0-based\\).*bow-tie"):
+        validate_mesh(np.concatenate(vs), np.concatenate(fs), MeshOptions(repair=False))
+
+
 def test_obj_index_zero_is_refused_before_trimesh_reads_it_as_the_last_vertex(tmp_path):
     verts, faces = _box()
     lines = [f"v {x} {y} {z}" for x, y, z in verts] + [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
