@@ -2,7 +2,7 @@
 
 Wu et al. (Sec. 3.2) load an STL triangle mesh and use only its vertices ``V`` and edges ``E``.  This module reads
 OBJ, STL (binary and ASCII) and PLY through :mod:`trimesh`, and the PDS-style plate tables (``v x y z`` / ``f i j k``
-lines with **0-based** face indices, e.g. ``eros007790.tab``) with its own reader.
+lines with **0-based** face indices, e.g. ``eros007790.tab``) with its own reader (both in :mod:`._mesh_files`).
 
 Every mesh is validated before use (:func:`validate_mesh`):
 
@@ -32,17 +32,13 @@ from __future__ import annotations
 
 import hashlib
 import os
-import re
-import warnings
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from ..errors import MeshError
+from ._mesh_files import TABLE_EXT, TRIMESH_EXT, declared_faces, read_table, read_trimesh
 
-_TRIMESH_EXT = {".obj", ".stl", ".ply", ".off", ".glb", ".gltf"}
-_TABLE_EXT = {".tab", ".txt", ".dat"}
 #: Most faces of a shape model jaxlimb reads: a 512-px template resolves ~10^5 faces, so a finer model only
 #: costs memory and time (decimate it first).
 MAX_FACES = 1_000_000
@@ -115,7 +111,18 @@ class Mesh:
 
 # --------------------------------------------------------------------------- geometry helpers
 def face_normals(vertices: np.ndarray, faces: np.ndarray, normalize: bool = True) -> np.ndarray:
-    """Face normals ``(v1 - v0) x (v2 - v0)`` (outward for CCW faces), optionally unit."""
+    """Face normals ``(v1 - v0) x (v2 - v0)`` (outward for CCW faces), optionally unit.
+
+    Parameters
+    ----------
+    vertices, faces, normalize : np.ndarray (N, 3), np.ndarray (M, 3) of int, bool
+        Vertex coordinates, vertex indices of each face, and whether to return unit vectors.
+
+    Returns
+    -------
+    np.ndarray (M, 3)
+        Normals (length: twice the face area unless ``normalize``).
+    """
     v0, v1, v2 = (vertices[faces[:, i]] for i in range(3))
     n = np.cross(v1 - v0, v2 - v0)
     if normalize:
@@ -124,7 +131,17 @@ def face_normals(vertices: np.ndarray, faces: np.ndarray, normalize: bool = True
 
 
 def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
-    """Signed volume ``sum_f v0 . (v1 x v2) / 6`` (divergence theorem)."""
+    """Signed volume ``sum_f v0 . (v1 x v2) / 6`` (divergence theorem), positive for outward normals.
+
+    Parameters
+    ----------
+    vertices, faces : np.ndarray (N, 3), np.ndarray (M, 3) of int
+        A closed mesh (km).
+
+    Returns
+    -------
+    float
+    """
     v0, v1, v2 = (vertices[faces[:, i]] for i in range(3))
     return float(np.einsum("ij,ij->", v0, np.cross(v1, v2)) / 6.0)
 
@@ -170,104 +187,7 @@ def edge_faces(faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return directed[first], np.stack([owner[first], partner[first]], axis=1)
 
 
-# --------------------------------------------------------------------------- readers
-def _read_table(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Read a PDS-style plate table: ``v x y z`` and ``f i j k`` lines, 0-based faces."""
-    verts: list[list[float]] = []
-    faces: list[list[int]] = []
-    try:
-        with open(path, encoding="ascii", errors="strict") as fh:
-            for lineno, line in enumerate(fh, 1):
-                parts = line.split()
-                if not parts or parts[0].startswith("#"):
-                    continue
-                tag = parts[0].lower()
-                if tag == "v" and len(parts) >= 4:
-                    verts.append([float(p) for p in parts[1:4]])
-                elif tag == "f" and len(parts) >= 4:
-                    faces.append([int(p) for p in parts[1:4]])
-                else:
-                    raise MeshError(f"mesh table {str(path)!r}: unrecognised line {lineno}: {line.strip()[:60]!r}")
-    except (UnicodeDecodeError, ValueError) as e:
-        raise MeshError(f"mesh table {str(path)!r} is not a `v x y z` / `f i j k` table: {e}") from None
-    if not verts or not faces:
-        raise MeshError(f"mesh table {str(path)!r} has {len(verts)} vertices and {len(faces)} faces; need both")
-    return np.asarray(verts, dtype=np.float64), np.asarray(faces, dtype=np.int64)
-
-
-#: Formats that are text only: a file that is not UTF-8 text is not a mesh of that format.
-_TEXT_EXT = {".obj", ".off", ".gltf"}
-
-
-def _check_text(path: Path) -> None:
-    """A text-only format (OBJ ...) that is binary garbage is "not a mesh" (trimesh would try to
-    guess its encoding and fail with an unrelated error)."""
-    head = path.read_bytes()[: 1 << 16]
-    try:
-        ok = b"\0" not in head and head.decode("utf-8", errors="strict") is not None
-    except UnicodeDecodeError as e:
-        ok = e.start > len(head) - 4  # a multi-byte character cut by the 64 KiB window
-    if not ok:
-        raise MeshError(f"{str(path)!r} is not a mesh: a {path.suffix} file must be text, this one is binary")
-
-
-def _read_trimesh(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    import trimesh
-
-    if path.suffix.lower() in _TEXT_EXT:
-        _check_text(path)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            tm = trimesh.load(str(path), force="mesh", process=False)
-    except Exception as e:  # trimesh raises many types on bad files
-        raise MeshError(f"{str(path)!r} is not a readable mesh: {type(e).__name__}: {e}") from None
-    if not isinstance(tm, trimesh.Trimesh) or len(tm.faces) == 0:
-        raise MeshError(f"{str(path)!r} is not a mesh: it holds no triangles")
-    bad = ~np.isfinite(np.asarray(tm.vertices, dtype=np.float64)).all(axis=1)
-    if bad.any():  # trimesh's processing would drop them silently and leave a hole
-        raise MeshError(f"{path.name}: {int(bad.sum())} vertices are not finite (NaN/inf), e.g. vertex {int(np.argmax(bad)) + 1}")
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        tm.process()  # merges duplicate vertices (STL stores each triangle on its own)
-    return np.asarray(tm.vertices, dtype=np.float64), np.asarray(tm.faces, dtype=np.int64)
-
-
-_OBJ_ZERO_INDEX = re.compile(rb"(?m)^f[ \t][^\n]*?[ \t]0(?:/|[ \t]|\r?$)")
-_PLY_FACES = re.compile(rb"(?m)^element\s+face\s+(\d+)")
-
-
-def _declared_faces(path: Path, ext: str) -> int | None:
-    """Faces a mesh file declares, from its header or its ``f`` lines, without parsing it; ``None`` if unknown.
-
-    Raises :class:`~jaxlimb.errors.MeshError` for an OBJ face with the index 0 (OBJ counts from 1).
-    """
-    size = path.stat().st_size
-    if ext == ".stl":
-        with open(path, "rb") as fh:
-            head = fh.read(84)
-        n = int.from_bytes(head[80:84], "little") if len(head) == 84 else 0
-        if size == 84 + 50 * n:
-            return n
-        return path.read_bytes().count(b"facet normal")
-    if ext == ".ply":
-        m = _PLY_FACES.search(path.read_bytes()[:65536])
-        return int(m.group(1)) if m else None
-    if ext in (".obj", *_TABLE_EXT):
-        data = path.read_bytes()
-        if ext == ".obj":
-            bad = _OBJ_ZERO_INDEX.search(data)
-            if bad:
-                line = data.count(b"\n", 0, bad.start()) + 1
-                raise MeshError(f"{path.name}: face on line {line} uses the vertex index 0; OBJ indices start at 1")
-        return data.count(b"\nf ") + data.count(b"\nf\t") + data.startswith((b"f ", b"f\t"))
-    if ext == ".off":
-        words = [w for ln in path.read_bytes()[:4096].splitlines() if not ln.strip().startswith(b"#")
-                 for w in ln.split()]
-        return int(words[2]) if len(words) > 2 and words[2].isdigit() else None
-    return None
-
-
+# --------------------------------------------------------------------------- reading (readers: ._mesh_files)
 def _check_face_count(n: int | None, name: str) -> None:
     from .._validate import check_memory
 
@@ -304,12 +224,12 @@ def load_mesh(path: str | os.PathLike[str], options: MeshOptions = MeshOptions()
 
     p = input_file(path, "mesh file", error=MeshError)
     ext = p.suffix.lower()
-    if ext in _TABLE_EXT or ext in _TRIMESH_EXT:
-        _check_face_count(_declared_faces(p, ext), p.name)  # before any parsing
-    if ext in _TABLE_EXT:
-        v, f = _read_table(p)
-    elif ext in _TRIMESH_EXT:
-        v, f = _read_trimesh(p)
+    if ext in TABLE_EXT or ext in TRIMESH_EXT:
+        _check_face_count(declared_faces(p, ext), p.name)  # before any parsing
+    if ext in TABLE_EXT:
+        v, f = read_table(p)
+    elif ext in TRIMESH_EXT:
+        v, f = read_trimesh(p)
     else:
         raise MeshError(f"mesh file {str(p)!r}: unsupported extension {ext!r}; use .obj, .stl, .ply or .tab")
     return validate_mesh(v, f, options, source=p.name)
@@ -321,6 +241,22 @@ def validate_mesh(
     """Validate (and optionally repair) a triangle mesh; see the module docstring.
 
     Unused vertices are kept (they never affect a silhouette).
+
+    Parameters
+    ----------
+    vertices, faces : np.ndarray (N, 3), np.ndarray (M, 3) of int
+        Coordinates (km, body frame) and 0-based vertex indices.
+    options, source : MeshOptions, str
+        Validation and repair options; the name in messages and in :attr:`Mesh.source`.
+
+    Returns
+    -------
+    Mesh
+
+    Raises
+    ------
+    MeshError
+        A defect that cannot be repaired, or any defect with ``options.repair=False``.
     """
     name = source or "mesh"
     v, f = _checked_arrays(vertices, faces, name)

@@ -196,12 +196,13 @@ def test_obj_index_zero_is_refused_before_trimesh_reads_it_as_the_last_vertex(tm
 
 def test_face_count_is_bounded_from_the_header_before_parsing(tmp_path, monkeypatch):
     import jaxlimb.irregular.mesh as mesh_mod
+    from jaxlimb.irregular._mesh_files import declared_faces
 
     box = trimesh.Trimesh(*_box(), process=False)
     for fmt in ("stl", "ply", "obj", "off"):
         p = tmp_path / f"box.{fmt}"
         box.export(p)
-        assert mesh_mod._declared_faces(p, f".{fmt}") == len(box.faces)
+        assert declared_faces(p, f".{fmt}") == len(box.faces)
     monkeypatch.setattr(mesh_mod, "MAX_FACES", len(box.faces) - 1)
     with pytest.raises(MeshError, match=f"{len(box.faces)} faces, more than"):
         load_mesh(tmp_path / "box.stl")
