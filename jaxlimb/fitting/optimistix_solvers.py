@@ -65,9 +65,29 @@ class StepStop(optx.AbstractLeastSquaresSolver):  # type: ignore[misc]
     norm: Callable[[PyTree], Scalar] = optx.max_norm
 
     def init(self, fn, y, args, options, f_struct, aux_struct, tags):  # type: ignore[no-untyped-def]
+        """``solver``'s state, with the stop and last-step flags.
+
+        Parameters
+        ----------
+        fn, y, args, options, f_struct, aux_struct, tags : as ``optimistix.AbstractLeastSquaresSolver.init``.
+
+        Returns
+        -------
+        tuple : ``(solver state, stop, take the last proposed step)``.
+        """
         return self.solver.init(fn, y, args, options, f_struct, aux_struct, tags), jnp.array(False), jnp.array(False)
 
     def step(self, fn, y, args, options, state, tags):  # type: ignore[no-untyped-def]
+        """``solver``'s step, then the stopping tests on the step it proposes next (class docstring).
+
+        Parameters
+        ----------
+        fn, y, args, options, state, tags : as ``optimistix.AbstractLeastSquaresSolver.step``.
+
+        Returns
+        -------
+        tuple : ``(y, state, aux)`` as ``solver.step``, the state with this class's flags.
+        """
         y, inner, aux = self.solver.step(fn, y, args, options, state[0], tags)
         step = inner.y_eval - y
         small = self.norm(step) <= self.atol + self.rtol * self.norm(y)
@@ -79,10 +99,30 @@ class StepStop(optx.AbstractLeastSquaresSolver):  # type: ignore[misc]
         return y, (inner, (~inner.first_step & small) | undecidable, undecidable), aux
 
     def terminate(self, fn, y, args, options, state, tags):  # type: ignore[no-untyped-def]
+        """Whether to stop (this class's rule) and ``solver``'s result.
+
+        Parameters
+        ----------
+        fn, y, args, options, state, tags : as ``optimistix.AbstractLeastSquaresSolver.terminate``.
+
+        Returns
+        -------
+        tuple : ``(stop, result)``.
+        """
         del fn, y, args, options, tags
         return state[1], state[0].result
 
     def postprocess(self, fn, y, aux, args, options, state, tags, result):  # type: ignore[no-untyped-def]
+        """``solver``'s postprocess of ``y``, or of ``y + delta`` when the last step was undecidable.
+
+        Parameters
+        ----------
+        fn, y, aux, args, options, state, tags, result : as ``optimistix.AbstractLeastSquaresSolver.postprocess``.
+
+        Returns
+        -------
+        tuple : ``(y, aux, stats)``.
+        """
         y = jax.tree.map(lambda a, b: jnp.where(state[2], a, b), state[0].y_eval, y)  # the undecidable last step
         return self.solver.postprocess(fn, y, aux, args, options, state[0], tags, result)
 
