@@ -3,10 +3,13 @@
 The nominal problem of ``benchmarks/solvers.py`` (400x400, radius 150, +-6 px band, sigma 10),
 ``--n`` realisations from the same start, every solver run on each in turn (round-robin, so that load
 on a shared machine falls on all alike); ms per fit (median wall and CPU, after compilation), steps, and the
-largest difference of the estimates from NormalLM's.  ``package default`` is ``Optimistix(solver)`` (fused
-Jacobian, normal equations, coarse-to-fine start, ``OPTX_ATOL``); ``as it comes`` is
-``Optimistix(solver, fused=False, normal=False, coarse_stride=1)``; the other rows remove one
-ingredient each.
+largest difference of the estimates from NormalLM's.  ``package default`` is ``Optimistix(solver)`` at
+NormalLM's tolerances (``rtol = atol = 1e-10``), as ``--solver optx-lm`` / ``dogleg`` build it: fused Jacobian,
+normal equations, coarse-to-fine start, NormalLM's stopping rule on the parameter step (``StepStop``); ``as it
+comes`` is ``Optimistix(solver, fused=False, normal=False, coarse_stride=1, step_stop=False)`` (optimistix's
+Cauchy test at ``OPTX_ATOL``);
+the other rows remove one ingredient each (``Cauchy test, atol=1e-10``: optimistix's own test at NormalLM's
+tolerances).
 
 Run:  python benchmarks/optimistix_plumbing.py [--n 40]
 Writes benchmarks/results/optimistix_plumbing.json.
@@ -39,16 +42,19 @@ def main(argv: list[str] | None = None) -> dict:
     model, truth, init, coords, _ = model_problem(ModelStudyOptions())
     clean = np.asarray(model.intensity(truth, jnp.asarray(coords)))
     data = clean[None] + 10.0 * np.random.default_rng(0).standard_normal((args.n, clean.size))
-    lm_ = lambda atol=OPTX_ATOL: optx.LevenbergMarquardt(rtol=OPTX_RTOL, atol=atol)  # noqa: E731
-    dl_ = lambda atol=OPTX_ATOL: optx.Dogleg(rtol=OPTX_RTOL, atol=atol)  # noqa: E731
-    plain = {"fused": False, "normal": False, "coarse_stride": 1}
+    tol = NormalLM.rtol, NormalLM.atol
+    lm_ = lambda rtol=tol[0], atol=tol[1]: optx.LevenbergMarquardt(rtol=rtol, atol=atol)  # noqa: E731
+    dl_ = lambda rtol=tol[0], atol=tol[1]: optx.Dogleg(rtol=rtol, atol=atol)  # noqa: E731
+    plain = {"fused": False, "normal": False, "coarse_stride": 1, "step_stop": False}
     solvers = {"NormalLM": NormalLM(), "LevenbergMarquardt (package default)": Optimistix(lm_()),
                "LevenbergMarquardt, no coarse phase": Optimistix(lm_(), coarse_stride=1),
-               "LevenbergMarquardt, atol=1e-10": Optimistix(lm_(1e-10)),
-               "LevenbergMarquardt as it comes": Optimistix(lm_(), **plain),
+               "LevenbergMarquardt, Cauchy test, atol=1e-10": Optimistix(lm_(), step_stop=False),
+               f"LevenbergMarquardt, Cauchy test, atol={OPTX_ATOL:g}": Optimistix(lm_(OPTX_RTOL, OPTX_ATOL), step_stop=False),
+               "LevenbergMarquardt as it comes": Optimistix(lm_(OPTX_RTOL, OPTX_ATOL), **plain),
                "Dogleg (package default)": Optimistix(dl_()),
                "Dogleg, no coarse phase": Optimistix(dl_(), coarse_stride=1),
-               "Dogleg as it comes": Optimistix(dl_(), **plain)}
+               f"Dogleg, Cauchy test, atol={OPTX_ATOL:g}": Optimistix(dl_(OPTX_RTOL, OPTX_ATOL), step_stop=False),
+               "Dogleg as it comes": Optimistix(dl_(OPTX_RTOL, OPTX_ATOL), **plain)}
     load0 = Path("/proc/loadavg").read_text().split()[:3]
     for s in solvers.values():  # compile every program first
         jax.block_until_ready(fit(model, coords, data[0], init, s, throw=False).params.r0)
@@ -66,14 +72,15 @@ def main(argv: list[str] | None = None) -> dict:
     for name, v in rec.items():
         rows.append({"solver": name, "ms_per_fit": 1e3 * float(np.median(v["wall"])),
                      "cpu_ms_per_fit": 1e3 * float(np.median(v["cpu"])), "steps_mean": float(np.mean(v["steps"])),
+                     "steps_max": int(np.max(v["steps"])),
                      "max_abs_diff_vs_normal_lm": float(np.abs(np.asarray(v["est"]) - ref)[:, :3].max()),
                      "median_ratio_per_fit": float(np.median(np.asarray(v["wall"]) / np.asarray(rec["NormalLM"]["wall"])))})
     for r in rows:
         r["over_normal_lm"] = r["ms_per_fit"] / rows[0]["ms_per_fit"]
         r["cpu_over_normal_lm"] = r["cpu_ms_per_fit"] / rows[0]["cpu_ms_per_fit"]
-        print(f"{r['solver']:38s} {r['ms_per_fit']:8.2f} ms/fit  {r['over_normal_lm']:6.2f}x NormalLM "
+        print(f"{r['solver']:45s} {r['ms_per_fit']:8.2f} ms/fit  {r['over_normal_lm']:6.2f}x NormalLM "
               f"(CPU {r['cpu_over_normal_lm']:5.2f}x, per-fit median {r['median_ratio_per_fit']:5.2f}x)  "
-              f"steps {r['steps_mean']:5.1f}  max|d| {r['max_abs_diff_vs_normal_lm']:.1e} px")
+              f"steps {r['steps_mean']:5.1f} (max {r['steps_max']:3d})  max|d| {r['max_abs_diff_vs_normal_lm']:.1e} px")
     out = {"rows": rows, "n": args.n, "loadavg_before": load0, "loadavg_after": Path("/proc/loadavg").read_text().split()[:3],
            "environment": environment()}
     print(f"load {out['loadavg_before']} -> {out['loadavg_after']}; wrote {save('optimistix_plumbing', out)}")

@@ -363,9 +363,10 @@ def solvers(rel: str = "solvers.json") -> str:
 @renderer
 def optimistix_plumbing(rel: str = "optimistix_plumbing.json") -> str:
     d = load(rel)
-    rows = [[r["solver"], f(r["ms_per_fit"], 2), f(r["steps_mean"], 1), f(r["over_normal_lm"], 2),
-             f(r["cpu_over_normal_lm"], 2), g(r["max_abs_diff_vs_normal_lm"], 1)] for r in d["rows"]]
-    head = ["solver", "ms / fit", "steps", "wall / NormalLM", "CPU / NormalLM", "max |Δ| vs NormalLM (px)"]
+    rows = [[r["solver"], f(r["ms_per_fit"], 2), f(r["steps_mean"], 1), str(r.get("steps_max", "–")),
+             f(r["over_normal_lm"], 2), f(r["cpu_over_normal_lm"], 2), g(r["max_abs_diff_vs_normal_lm"], 1)]
+            for r in d["rows"]]
+    head = ["solver", "ms / fit", "steps", "max steps", "wall / NormalLM", "CPU / NormalLM", "max |Δ| vs NormalLM (px)"]
     return table(head, rows) + source(rel, d) + f"*{d['n']} realisations.*\n"
 
 

@@ -227,7 +227,8 @@ def _fmt(v: Any, spec: str, width: int) -> str:
 
 
 def compare_table(result: dict[str, Any], params: Sequence[str] | None = None) -> str:
-    """The comparison as a text table (ms/fit: median of the interleaved timings, wall and CPU).
+    """The comparison as a text table (ms/fit: median of the interleaved timings, wall and CPU; ``x REF``: ms/fit
+    over the first solver's, measured in the same run; ``max it``: the slowest fit, which a vmapped chunk waits for).
 
     Parameters
     ----------
@@ -244,13 +245,15 @@ def compare_table(result: dict[str, Any], params: Sequence[str] | None = None) -
     """
     free = list(params or [p for p in result["problem"]["free"] if p in ("r0", "c0", "radius", "a", "xt")]
                 or result["problem"]["free"][:3])
-    head = (f"{'solver':>15} {'ok':>6} {'iter':>6} {'ms/fit':>8} {'CPU ms':>8} {'x first':>7} {'compile s':>9} "
+    ref = "x " + result["rows"][0]["solver"]  # ms/fit over the reference's (the first solver), in this run
+    head = (f"{'solver':>15} {'ok':>6} {'iter':>6} {'max it':>6} {'ms/fit':>8} {'CPU ms':>8} {ref:>9} {'compile s':>9} "
             + " ".join(f"{'RMS/CRLB ' + p:>14}" for p in free) + f" {'max|d| px':>10}  failures")
     lines = [head]
     for r in result["rows"]:
         fails = ", ".join(f"{k} {v}" for k, v in r["failures"].items()) or "-"
         lines.append(f"{r['solver']:>15} {r['success_rate']:6.1%} {_fmt(r['iterations_mean'], '.1f', 6)} "
-                     f"{r['ms_per_fit']:8.2f} {r['cpu_ms_per_fit']:8.2f} {r['ms_over_first']:7.2f} {r['compile_s']:9.1f} "
+                     f"{_fmt(r['iterations_max'], 'd', 6)} {r['ms_per_fit']:8.2f} {r['cpu_ms_per_fit']:8.2f} "
+                     f"{r['ms_over_first']:9.2f} {r['compile_s']:9.1f} "
                      + " ".join(_fmt(r["params"][p]["rms_over_crlb"], ".3f", 14) for p in free)
                      + f" {_fmt(r['max_abs_diff_vs_first_px'], '.1e', 10)}  {fails}")
     return "\n".join(lines)

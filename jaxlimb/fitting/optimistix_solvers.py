@@ -2,7 +2,8 @@
 
 :class:`Optimistix` runs any optimistix least-squares solver or minimiser on the limb problem
 with what the default solver has (fused analytic Jacobian, normal equations, coarse-to-fine
-start); :func:`optimistix_normal_lm` runs the default's Marquardt-scaled Cholesky descent inside
+start, the stopping rule on the parameter step: :class:`StepStop`);
+:func:`optimistix_normal_lm` runs the default's Marquardt-scaled Cholesky descent inside
 optimistix's Gauss--Newton machinery.  Kept apart from :mod:`jaxlimb.fitting.solvers` so that the
 default path does not import optimistix and lineax (~0.06 s of every command's start-up).
 """
@@ -23,18 +24,107 @@ from .problem import AbstractLimbSolver, FitResult, coarse_problem, finish_resul
 
 OPTX_RTOL = 1e-10
 OPTX_ATOL = 1e-6
-r"""Tolerances of the optimistix solvers registered by name (``--solver optx-lm`` ...).
+r"""Tolerances of the optimistix solvers that keep optimistix's own stopping test (``bfgs``).
 
 optimistix's Cauchy test stops on an *accepted* step with
 :math:`|\Delta y_j| < atol + rtol|y_j|` for every parameter **and**
 :math:`|\Delta r_i| < atol + rtol|r_i|` for every pixel residual.  Residuals near zero make
 ``atol`` an absolute bound in DN on every pixel: with ``atol = 1e-10`` the last steps' changes
-sit at the rounding level, the loss goes up or down by 1e-9 of itself at random, steps are
-rejected and the trust region shrinks for ~20 extra steps (``benchmarks/optimistix_plumbing.py``
-shows the row).  ``atol = 1e-6`` (px and DN, far below any noise) stops where the estimate
-has converged: the answers agree with :class:`NormalLM` (``rtol = atol = 1e-10`` on the
-step) to ~1e-9 px.
+sit at the rounding level of the loss and are accepted or rejected at random.  ``atol = 1e-6``
+(px and DN, far below any noise) stops where the estimate has converged.  The Gauss--Newton
+family is stopped by :class:`StepStop` instead, with :class:`NormalLM`'s tolerances.
 """
+
+
+class StepStop(optx.AbstractLeastSquaresSolver):  # type: ignore[misc]
+    r"""An optimistix Gauss--Newton-family solver stopped by :class:`NormalLM`'s rule on the parameter step.
+
+    ``solver``'s own ``init``/``step`` run unchanged (its descent, damping and trust region); only the
+    stopping test differs.  Stop when the step :math:`\delta` proposed from the current point ``y``
+    (``y_eval - y`` after the search's update: the next trial) satisfies
+    :math:`\max|\delta| \le atol + rtol\max|y|` in the parameters' own units (px, DN, 1/px): as
+    :class:`NormalLM`'s test on its damped step and MINPACK's ``xtol`` test on the trust region, a
+    step shortened by the trust region counts.  Or when, right after an accepted step, the local
+    model's predicted reduction of :math:`\delta`, :math:`-(r^\top J\delta + \tfrac12\|J\delta\|^2)`,
+    is below the rounding bound of the loss, :math:`\gamma_n = n\,\epsilon` times
+    :math:`\tfrac12\|r\|^2` for :math:`n` residuals (Higham 2002, Sec. 4.2): the trust-region
+    ratio cannot tell such a step from rounding (MINPACK stops there too, ``info = 6``), and the
+    answer is then ``y + delta``, the minimiser of a local model that is exact to rounding.
+
+    optimistix's Cauchy test (``solver.terminate``) instead needs one more *accepted* step with
+    every pixel's residual change below ``atol`` DN.  At the minimum of a non-zero-residual problem
+    (~10^4 pixels of noise) that step's reduction is below the loss's rounding, the ratio test
+    accepts or rejects it at random and each rejection shrinks the region by 4: up to ~20 steps
+    after the estimate has converged, the tail of the step counts that a vmapped batch waits for
+    (``benchmarks/optimistix_plumbing.py``).
+    """
+
+    solver: optx.AbstractGaussNewton
+    rtol: float
+    atol: float
+    norm: Callable[[PyTree], Scalar] = optx.max_norm
+
+    def init(self, fn, y, args, options, f_struct, aux_struct, tags):  # type: ignore[no-untyped-def]
+        """``solver``'s state, with the stop and last-step flags.
+
+        Parameters
+        ----------
+        fn, y, args, options, f_struct, aux_struct, tags : as ``optimistix.AbstractLeastSquaresSolver.init``.
+
+        Returns
+        -------
+        tuple : ``(solver state, stop, take the last proposed step)``.
+        """
+        return self.solver.init(fn, y, args, options, f_struct, aux_struct, tags), jnp.array(False), jnp.array(False)
+
+    def step(self, fn, y, args, options, state, tags):  # type: ignore[no-untyped-def]
+        """``solver``'s step, then the stopping tests on the step it proposes next (class docstring).
+
+        Parameters
+        ----------
+        fn, y, args, options, state, tags : as ``optimistix.AbstractLeastSquaresSolver.step``.
+
+        Returns
+        -------
+        tuple : ``(y, state, aux)`` as ``solver.step``, the state with this class's flags.
+        """
+        y, inner, aux = self.solver.step(fn, y, args, options, state[0], tags)
+        step = inner.y_eval - y
+        small = self.norm(step) <= self.atol + self.rtol * self.norm(y)
+        r = inner.f_info.residual  # at the accepted point y
+        jd = inner.f_info.jac.mv(step)
+        predicted = -(jnp.vdot(r, jd) + 0.5 * jnp.vdot(jd, jd))  # of the local model, without cancellation
+        floor = r.size * jnp.finfo(r.dtype).eps * 0.5 * jnp.vdot(r, r)  # rounding bound of the loss (gamma_n)
+        undecidable = ~inner.first_step & (inner.num_steps_since_acceptance == 0) & (predicted <= floor)
+        return y, (inner, (~inner.first_step & small) | undecidable, undecidable), aux
+
+    def terminate(self, fn, y, args, options, state, tags):  # type: ignore[no-untyped-def]
+        """Whether to stop (this class's rule) and ``solver``'s result.
+
+        Parameters
+        ----------
+        fn, y, args, options, state, tags : as ``optimistix.AbstractLeastSquaresSolver.terminate``.
+
+        Returns
+        -------
+        tuple : ``(stop, result)``.
+        """
+        del fn, y, args, options, tags
+        return state[1], state[0].result
+
+    def postprocess(self, fn, y, aux, args, options, state, tags, result):  # type: ignore[no-untyped-def]
+        """``solver``'s postprocess of ``y``, or of ``y + delta`` when the last step was undecidable.
+
+        Parameters
+        ----------
+        fn, y, aux, args, options, state, tags, result : as ``optimistix.AbstractLeastSquaresSolver.postprocess``.
+
+        Returns
+        -------
+        tuple : ``(y, aux, stats)``.
+        """
+        y = jax.tree.map(lambda a, b: jnp.where(state[2], a, b), state[0].y_eval, y)  # the undecidable last step
+        return self.solver.postprocess(fn, y, aux, args, options, state[0], tags, result)
 
 
 class Optimistix(AbstractLimbSolver):
@@ -48,20 +138,21 @@ class Optimistix(AbstractLimbSolver):
     (``LevenbergMarquardt``, ``Dogleg``, ``GaussNewton``: their ``descent.linear_solver``) is
     replaced by ``lineax.Normal(lineax.Cholesky())``: the ``q x q`` normal equations by
     Cholesky instead of a QR of the ``n x q`` (or stacked ``(n + q) x q``) operator.  Both
-    change the cost of a step, not the algorithm (its steps, damping and stopping rule).  So
-    ``benchmarks/solvers.py`` compares algorithms, not plumbing (the remaining gap to
-    :class:`NormalLM` is mostly the number of steps: optimistix's trust region starts at radius
-    1 and its stopping rule, and :class:`NormalLM`'s coarse-to-fine phase).
-    ``Optimistix(solver, fused=False, normal=False, coarse_stride=1)`` is optimistix as it
-    comes.  With ``coarse_stride > 1`` (default 4, as :class:`NormalLM`) the solver first runs
-    on every ``coarse_stride``-th pixel to ``coarse_tol_px``, then on all pixels from there
-    (:meth:`_coarse_phase`); ``n_steps`` counts both phases.  Choose ``atol`` with
-    :data:`OPTX_ATOL` in mind: it bounds every pixel's residual change in DN.
+    change the cost of a step, not the algorithm.  With ``step_stop=True`` (default) a
+    Gauss--Newton-family solver (``LevenbergMarquardt``, ``Dogleg``, ``GaussNewton``) is stopped
+    by :class:`NormalLM`'s rule on the parameter step instead of optimistix's Cauchy test
+    (:class:`StepStop`), its steps, damping and trust-region search unchanged: the Cauchy test
+    spends the tail of the step counts after convergence.  ``Optimistix(solver, fused=False,
+    normal=False, coarse_stride=1, step_stop=False)`` is optimistix as it comes.  With
+    ``coarse_stride > 1`` (default 4, as :class:`NormalLM`) the solver first runs on every
+    ``coarse_stride``-th pixel to ``coarse_tol_px``, then on all pixels from there
+    (:meth:`_coarse_phase`); ``n_steps`` counts both phases.  With ``step_stop=False`` choose
+    ``atol`` with :data:`OPTX_ATOL` in mind: it bounds every pixel's residual change in DN.
 
     Examples
     --------
     >>> import optimistix as optx
-    >>> Optimistix(optx.Dogleg(rtol=OPTX_RTOL, atol=OPTX_ATOL))  # doctest: +SKIP
+    >>> Optimistix(optx.Dogleg(rtol=1e-10, atol=1e-10))  # doctest: +SKIP
     """
 
     solver: optx.AbstractLeastSquaresSolver | optx.AbstractMinimiser
@@ -70,6 +161,7 @@ class Optimistix(AbstractLimbSolver):
     coarse_stride: int = eqx.field(static=True, default=4)
     coarse_tol_px: float = eqx.field(static=True, default=1e-2)
     coarse_min_pixels: int = eqx.field(static=True, default=1024)
+    step_stop: bool = eqx.field(static=True, default=True)
 
     @property
     def name(self) -> str:
@@ -113,6 +205,8 @@ class Optimistix(AbstractLimbSolver):
         residual = (fused_residual_fn(problem.model, problem.free_idx) if self.fused and problem.analytic
                     else problem.residual)
         solver = self.configured()
+        if self.step_stop and isinstance(solver, optx.AbstractGaussNewton):
+            solver = StepStop(solver, solver.rtol, solver.atol)
         y0, steps = self._coarse_phase(residual, solver, problem, y0, max_steps)
         sol = optx.least_squares(residual, solver, y0, args=problem.args, max_steps=max_steps, throw=False)
         return sol.value, steps + sol.stats["num_steps"], finish_result(problem, sol.value, fit_result(sol.result))

@@ -201,12 +201,18 @@ def __getattr__(name: str) -> Any:
 
 
 def _optx_solver(kind: str) -> Callable[[], AbstractLimbSolver]:
+    """optimistix's ``kind``: the Gauss--Newton family with :class:`NormalLM`'s stopping rule and tolerances
+    (``StepStop``), BFGS with its own Cauchy test at ``OPTX_RTOL``/``OPTX_ATOL``."""
+
     def make() -> AbstractLimbSolver:
         import optimistix as optx
 
         from .optimistix_solvers import OPTX_ATOL, OPTX_RTOL, Optimistix
 
-        return Optimistix(getattr(optx, kind)(rtol=OPTX_RTOL, atol=OPTX_ATOL))
+        cls = getattr(optx, kind)
+        if issubclass(cls, optx.AbstractGaussNewton):
+            return Optimistix(cls(rtol=NormalLM.rtol, atol=NormalLM.atol))
+        return Optimistix(cls(rtol=OPTX_RTOL, atol=OPTX_ATOL))
 
     return make
 

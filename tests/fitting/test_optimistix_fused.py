@@ -6,7 +6,7 @@ import optimistix as optx
 import pytest
 
 from jaxlimb.fitting import NormalLM, Optimistix, fit
-from jaxlimb.fitting.solvers import OPTX_ATOL, OPTX_RTOL
+from jaxlimb.fitting.solvers import OPTX_ATOL, OPTX_RTOL, solver_from_name
 from jaxlimb.models import CIRCLE, ELLIPSE
 
 from .helpers import circle_problem, ellipse_problem
@@ -61,14 +61,40 @@ def test_coarse_phase_changes_the_cost_not_the_answer(make):
     np.testing.assert_allclose(c, a, atol=1e-6)
 
 
-def test_tolerance_at_the_rounding_floor_still_converges_to_the_same_answer():
-    """atol = 1e-10 DN per pixel: more steps (OPTX_ATOL's note), the same minimum."""
+def test_optimistix_own_stopping_test_reaches_the_same_minimum_in_more_steps():
+    """optimistix's Cauchy test at 1e-10 (every pixel's residual change, one more accepted step) vs StepStop:
+    the same minimum, no fewer steps for the former."""
     coords, z, truth = circle_problem(radius=60.0, shape=(160, 160), seed=3)
     init = truth.replace(r0=truth.r0 + 0.4, k=2.5)
-    tight = fit(CIRCLE, coords, z, init, Optimistix(optx.LevenbergMarquardt(rtol=1e-10, atol=1e-10)))
-    loose = fit(CIRCLE, coords, z, init, Optimistix(optx.LevenbergMarquardt(rtol=OPTX_RTOL, atol=OPTX_ATOL)))
-    assert int(loose.n_steps) <= int(tight.n_steps)
-    np.testing.assert_allclose(np.asarray(loose.params.to_vector()), np.asarray(tight.params.to_vector()), atol=1e-6)
+    lm = optx.LevenbergMarquardt(rtol=1e-10, atol=1e-10)
+    own = fit(CIRCLE, coords, z, init, Optimistix(lm, step_stop=False))
+    ours = fit(CIRCLE, coords, z, init, Optimistix(lm))
+    assert own.converged and ours.converged and int(ours.n_steps) <= int(own.n_steps)
+    np.testing.assert_allclose(np.asarray(ours.params.to_vector()), np.asarray(own.params.to_vector()), atol=1e-6)
+
+
+def test_the_registry_runs_optimistix_lm_and_dogleg_configured_not_replaced():
+    for name, cls in (("optx-lm", optx.LevenbergMarquardt), ("dogleg", optx.Dogleg)):
+        s = solver_from_name(name)
+        assert type(s.solver) is cls and s.name == cls.__name__  # optimistix's algorithm: its descent and search
+        assert s.step_stop and (s.solver.rtol, s.solver.atol) == (NormalLM.rtol, NormalLM.atol)  # the default's rule
+
+
+def test_the_step_count_tail_of_optimistix_lm_and_dogleg_is_the_defaults():
+    """A vmapped batch runs until its slowest fit stops: the tail of the step counts is the cost."""
+    steps, params = {}, {}
+    for name in ("lm", "optx-lm", "dogleg"):
+        solver = solver_from_name(name)
+        fits = []
+        for seed in range(6):
+            coords, z, truth = circle_problem(seed=seed)
+            init = truth.replace(r0=truth.r0 + 0.35, c0=truth.c0 - 0.35, radius=truth.radius + 0.5)
+            fits.append(fit(CIRCLE, coords, z, init, solver))
+        steps[name] = np.array([int(f.n_steps) for f in fits])
+        params[name] = np.array([np.asarray(f.params.to_vector())[:3] for f in fits])
+    for name in ("optx-lm", "dogleg"):
+        assert steps[name].max() <= steps["lm"].max() + 3, (name, steps)
+        np.testing.assert_allclose(params[name], params["lm"], atol=1e-6)
 
 
 def test_optimistix_results_keep_their_names_as_fit_results():
