@@ -33,7 +33,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar, Generic, TypeVar
 
 import equinox as eqx
-import jax.numpy as jnp
+import jax
 import numpy as np
 
 from ..fitting import LimbFit
@@ -232,7 +232,7 @@ class RefineResult:
     def with_covariance(self, C: np.ndarray, **changes) -> "RefineResult":
         """A copy whose fit's covariance is ``C`` (and whose other fields are ``changes``, e.g. the
         ``noise_covariance`` it widened): the one setter of the model-error terms."""
-        return replace(self, fit=eqx.tree_at(lambda x: x.covariance, self.fit, jnp.asarray(C)), **changes)
+        return replace(self, fit=eqx.tree_at(lambda x: x.covariance, self.fit, C if isinstance(C, jax.Array) else jax.device_put(np.asarray(C))), **changes)
 
     def with_move_witness(self, other: "RefineResult", frac: float) -> "RefineResult":
         """A copy with ``(frac |d|)^2`` added to the variances of ``r0`` and ``c0`` and ``(frac d_a)^2`` to that of

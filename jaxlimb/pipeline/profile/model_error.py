@@ -5,12 +5,14 @@ widening gates."""
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any
 
 import jax
 import numpy as np
 
+from ..._programs import stored_jit
 from ...fitting import bucket_size
 from ...model_error import cluster_robust_covariance, hausman_term, sector_groups, with_model_error as widen
 from ...geometry.conic import ellipse_signed_distance
@@ -34,17 +36,18 @@ limb (the sky side and the edge) and those inside ``+c`` (the edge and the disc)
 _GEOMETRIC = ("r0", "c0", "a", "theta", "rho")
 
 
-_COLUMNS: dict[str, Any] = {}
+@stored_jit
+def _columns(model: LimbModel, params: Any, coords: Any):
+    return model.intensity_and_jacobian_columns(params, coords)
 
 
 def columns(model: LimbModel):
-    """``model``'s jitted ``(intensity, columns)`` (one compiled program per model)."""
-    if model.name not in _COLUMNS:
-        _COLUMNS[model.name] = jax.jit(model.intensity_and_jacobian_columns)
-    return _COLUMNS[model.name]
+    """``model``'s jitted ``(intensity, columns)`` (one compiled program per model and bucket, stored:
+    :func:`jaxlimb._programs.stored_jit`)."""
+    return functools.partial(_columns, model)
 
 
-@jax.jit
+@stored_jit
 def _signed_profile(p, rc):
     g = limb_geometry(p, rc)
     return g[4] - g[6]
