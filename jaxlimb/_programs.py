@@ -26,6 +26,7 @@ that cannot be serialised, an output that cannot be rebuilt) falls back to ``jax
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import hashlib
@@ -39,6 +40,8 @@ import jax
 import numpy as np
 
 _WHAT = "compiled-program cache"
+MAX_BYTES = 256 << 20
+"""Size limit of the stored executables (least recently used entries are evicted beyond it)."""
 _DIGEST: dict[str, str] = {}
 _SETTINGS: dict[str, Callable[[], str]] = {}
 
@@ -219,8 +222,26 @@ def compile_and_store(path: Path | None, lowered: Any, out_tree: Callable[[], An
     shape = pickle.dumps(jax.tree_util.tree_unflatten(tree, list(range(tree.num_leaves))))
     if jax.tree_util.tree_structure(pickle.loads(shape)) == tree:
         payload, _, _ = serialize(compiled)
-        write_sealed(path, pickle.dumps((payload, shape, tree.num_leaves)), _WHAT)
+        if write_sealed(path, pickle.dumps((payload, shape, tree.num_leaves)), _WHAT):
+            _evict(path.parent)
     return compiled
+
+
+def _evict(folder: Path) -> None:
+    """Delete the least recently used entries (modification time, touched on every load) beyond :data:`MAX_BYTES`:
+    each new version of the sources stores its own."""
+    entries = []
+    for p in folder.glob("*.bin"):
+        with contextlib.suppress(OSError):
+            st = p.stat()
+            entries.append((st.st_mtime_ns, st.st_size, p))
+    total = sum(size for _, size, _ in entries)
+    for _, size, p in sorted(entries):
+        if total <= MAX_BYTES * 9 // 10:
+            break
+        with contextlib.suppress(OSError):
+            p.unlink()
+        total -= size
 
 
 def _lapack_ready() -> None:
@@ -241,6 +262,8 @@ def load_program(path: Path, n_in: int) -> tuple[Any, Any] | None:
     payload = read_sealed(path, _WHAT)  # checked before deserialising
     if payload is None:
         return None
+    with contextlib.suppress(OSError):
+        os.utime(path)  # least recently used: the modification time
     try:
         _lapack_ready()
         exe, shape, n_out = pickle.loads(payload)
@@ -262,5 +285,5 @@ def stored_jit(fn: Callable[..., Any] | None = None, *, static_non_arrays: bool 
     return StoredJit(fn, static_non_arrays)
 
 
-__all__ = ["StoredJit", "array_signature", "compile_and_store", "load_program", "program_key", "program_path", "register_trace_setting", "source_digest",
+__all__ = ["MAX_BYTES", "StoredJit", "array_signature", "compile_and_store", "load_program", "program_key", "program_path", "register_trace_setting", "source_digest",
            "stored_jit"]

@@ -97,3 +97,14 @@ def test_a_closure_is_never_stored(folder):
     f = pg.StoredJit(lambda p, x: _fn(p, x)["y"] * scale)  # the captured value is not in any key
     f(*_args())
     assert not list(folder.glob("*.bin"))
+
+
+def test_the_least_recently_used_entries_are_evicted_beyond_the_limit(folder, monkeypatch):
+    _run()
+    (old,) = folder.glob("*.bin")
+    monkeypatch.setattr(pg, "MAX_BYTES", int(old.stat().st_size * 1.5))
+    import os
+
+    os.utime(old, (1, 1))  # long unused
+    pg.StoredJit(_fn)({"a": 1.5, "m": np.eye(3)}, jnp.linspace(0.0, 1.0, 17))  # another program: over the limit
+    assert not old.exists() and len(list(folder.glob("*.bin"))) == 1
