@@ -171,7 +171,15 @@ class StoredJit:
         if loaded is None:
             return lambda *dyn: self._jit(*_merge(treedef, leaves, mask, dyn))
         compiled, out_tree = loaded
-        return lambda *dyn: jax.tree_util.tree_unflatten(out_tree, compiled(*dyn))
+
+        def call(*dyn: Any) -> Any:
+            try:
+                out = compiled(*dyn)
+            except (TypeError, ValueError):  # arguments the executable was not made for (another device): jit
+                return self._jit(*_merge(treedef, leaves, mask, dyn))
+            return jax.tree_util.tree_unflatten(out_tree, out)
+
+        return call
 
     def _compile_and_store(self, path: Path, leaves: list[Any], mask: list[bool], treedef: Any) -> Any:
         box: dict[str, Any] = {}

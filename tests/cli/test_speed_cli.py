@@ -152,8 +152,11 @@ def test_fit_core_is_traced_once_per_machine(tmp_path):
     env = {"JAXLIMB_CACHE_DIR": str(tmp_path / "c")}
     first = json.loads(_run(FIT_SCRIPT, env))
     assert first["traces"] == 1 and list((tmp_path / "c" / "exported").glob("*.bin"))
-    second = json.loads(_run(FIT_SCRIPT, env))
+    stored = list((tmp_path / "c" / "programs").glob("*.bin"))  # its executable (jaxlimb/_programs.py)
+    assert stored
+    second = json.loads(_run(FIT_SCRIPT, env))  # loads the executable: a LAPACK call in it runs (no crash)
     assert second["traces"] == 0  # loaded: no trace
+    assert list((tmp_path / "c" / "programs").glob("*.bin")) == stored  # nothing compiled again
     # same numbers to rounding: identical on a quiet machine, but one run under heavy load (load ~10, three
     # other processes) saw a difference that failed a bit-for-bit comparison
     np.testing.assert_allclose(second["x"], first["x"], rtol=1e-13, atol=1e-13)
