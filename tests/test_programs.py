@@ -108,3 +108,15 @@ def test_the_least_recently_used_entries_are_evicted_beyond_the_limit(folder, mo
     os.utime(old, (1, 1))  # long unused
     pg.StoredJit(_fn)({"a": 1.5, "m": np.eye(3)}, jnp.linspace(0.0, 1.0, 17))  # another program: over the limit
     assert not old.exists() and len(list(folder.glob("*.bin"))) == 1
+
+
+def test_the_functions_a_warm_locate_calls_are_stored():
+    """What a later ``jaxlimb locate`` process would otherwise trace and lower again (the profile's columns, its
+    Fisher matrix, the glow and brightening score columns; the fit cores: tests/cli/test_speed_cli.py)."""
+    from jaxlimb.models import lunar_lambert
+    from jaxlimb.pipeline import sigmoid
+    from jaxlimb.pipeline.profile import glow, model_error
+
+    for f in (sigmoid._fisher_jit, sigmoid._predict_jit, model_error._columns, model_error._signed_profile,
+              glow.glow_columns, lunar_lambert.brightening_column, lunar_lambert.glow_column):
+        assert isinstance(f, pg.StoredJit), f

@@ -25,6 +25,16 @@ def test_help_does_not_import_jax():
     assert out.strip().endswith("NOJAX")
 
 
+def test_locate_imports_no_heavy_optional_package():
+    """The modules of ``jaxlimb locate`` load none of the packages other commands use (plots, SPICE, meshes,
+    Dask, optimistix, SciPy's linalg/optimize packages): their import would be paid by every process."""
+    heavy = ("matplotlib", "astropy", "trimesh", "optimistix", "lineax", "dask", "spiceypy", "emcee", "diffrax",
+             "scipy.linalg", "scipy.optimize", "tqdm", "mkdocs")
+    out = _run("import sys\nimport jaxlimb.cli._locate, jaxlimb.pipeline\n"
+               f"print(*[m for m in {heavy!r} if m in sys.modules])")
+    assert out.split() == []
+
+
 def test_process_entry_freezes_the_collector_and_main_does_not():
     """``entry`` (the command's process) freezes JAX's objects for the garbage collector once JAX has started
     (and all at the end); :func:`main` in a session (tests, notebooks) freezes nothing."""
