@@ -53,7 +53,23 @@ def glow_step(rr: RefineResult, system=None) -> list[tuple[float, float]]:
 
 @stored_jit
 def glow_columns(p, rc, h):
-    """:func:`~jaxlimb.models.lunar_lambert.glow_column` at each scale height ``h`` (px, a vector)."""
+    """:func:`~jaxlimb.models.lunar_lambert.glow_column` at each scale height ``h``: the score-test columns of
+    :func:`glow_step` (one compiled program, stored: :func:`jaxlimb._programs.stored_jit`).
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        The fitted profile.
+    rc : array (n, 2)
+        Pixel coordinates (row, column).
+    h : array (k,)
+        Scale heights of the glow (px).
+
+    Returns
+    -------
+    array (k, n)
+        The glow column at each scale height.
+    """
     return jax.vmap(glow_column, in_axes=(None, None, 0))(p, rc, jnp.log(h))
 
 
