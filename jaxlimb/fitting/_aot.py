@@ -5,9 +5,11 @@ new process still traces and lowers every function before it can look the progra
 fit cores of ``locate`` (sigmoid and physical limb profiles) that is seconds per process.  When
 the cache is on, :class:`ExportedCore` serialises the traced and lowered fit core
 (``jax.export``) to ``<cache dir>/exported/<digest>.bin`` on first use, keyed by the jaxlimb
-source, the JAX version, the solver, model, free set, step limit and the argument shapes; a
-later process deserialises it (milliseconds), and its compilation hits the persistent cache.
-The result is the same program, so the same numbers.
+source, the JAX version, the solver, model, free set, step limit and the argument shapes, and
+the executable compiled from it beside the other stored programs (:mod:`jaxlimb._programs`); a
+later process loads that executable (no tracing, no lowering), or, without it, deserialises the
+export (milliseconds) and compiles it (a persistent-cache hit).  The result is the same
+program, so the same numbers.
 
 Every file is sealed (:func:`jaxlimb._jaxcache.seal`: SHA-256 of the JAX/jaxlib versions and of the
 bytes) and checked *before* it is deserialised: a damaged or foreign file never reaches
@@ -20,28 +22,22 @@ back to plain ``jax.jit``; a tracer argument (a fit inside another ``jit``) alwa
 
 from __future__ import annotations
 
-import hashlib
+import contextlib
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import jax
-import numpy as np
 
-_SOURCE: dict[str, str] = {}
+from .._programs import (
+    array_signature,
+    compile_and_store,
+    load_program,
+    program_key,
+    program_path,
+)
+
 _WHAT = "exported-program cache"
-
-
-def _source_digest() -> str:
-    """Digest of the jaxlimb sources (a changed package never loads an old export)."""
-    if "d" not in _SOURCE:
-        h = hashlib.sha256(jax.__version__.encode())
-        root = Path(__file__).resolve().parents[1]
-        for p in sorted(root.rglob("*.py")):
-            h.update(p.relative_to(root).as_posix().encode())
-            h.update(p.read_bytes())
-        _SOURCE["d"] = h.hexdigest()
-    return _SOURCE["d"]
 
 
 def _cache_dir() -> Path | None:
@@ -65,7 +61,7 @@ class ExportedCore:
     def __call__(self, *args: Any) -> Any:
         if _cache_dir() is None or any(isinstance(a, jax.core.Tracer) for a in args):
             return self._jit(*args)
-        sig = tuple((tuple(np.shape(a)), str(a.dtype)) for a in args)
+        sig = tuple(array_signature(a) for a in args)
         fn = self._by_shape.get(sig)
         if fn is None:
             fn = self._by_shape[sig] = self._build(sig, args)
@@ -77,8 +73,12 @@ class ExportedCore:
             return self._jit
         try:
             treedef = jax.tree_util.tree_structure(self._template(*args))
-            key = hashlib.sha256(f"{_source_digest()}|{self._ident}|{sig}|{jax.config.jax_enable_x64}".encode())
-            path = folder / f"{key.hexdigest()[:40]}.bin"
+            key = program_key("exported", self._ident, repr(sig))
+            program = program_path("exported-executable", key)
+            loaded = load_program(program, len(args)) if program is not None and program.exists() else None
+            if loaded is not None:  # the executable of an earlier process: no export to read, nothing to lower
+                return self._calling(loaded[0], treedef)
+            path = folder / f"{key}.bin"
             exp = self._load(path) if path.exists() else None
             if exp is None:
                 exp = self._export(path, treedef, args)
@@ -87,7 +87,20 @@ class ExportedCore:
         if exp is None:
             return self._jit
         call = jax.jit(exp.call)
+        with contextlib.suppress(Exception):
+            flat = jax.tree_util.tree_structure(list(range(treedef.num_leaves)))
+            return self._calling(compile_and_store(program, call.lower(*args), lambda: flat), treedef)
         return lambda *a: jax.tree_util.tree_unflatten(treedef, call(*a))
+
+    def _calling(self, compiled: Any, treedef: Any) -> Callable[..., Any]:
+        def fn(*a: Any) -> Any:
+            try:
+                out = compiled(*a)
+            except (TypeError, ValueError):  # arguments the executable was not made for (another device): jit
+                return self._jit(*a)
+            return jax.tree_util.tree_unflatten(treedef, out)
+
+        return fn
 
     @staticmethod
     def _load(path: Path) -> Any:

@@ -97,6 +97,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .._programs import register_trace_setting, stored_jit
 from ._base import LimbModel
 from .profile_params import (PHYSICAL_L, PROFILE_FIXED, AnisoProfileParams, GlowProfileParams, LimbProfileParams,
                              MinnaertProfileParams, glow_fields, lunar_lambert_weight)
@@ -125,6 +126,9 @@ def quadrature_nodes(n: int) -> Iterator[None]:
         yield
     finally:
         _GL_X, _GL_W = old
+
+
+register_trace_setting("lunar_lambert.quadrature_nodes", lambda: str(len(_GL_X)))  # traced programs depend on it
 
 
 def _window(d, R, se, lit=None, partials: bool = False):
@@ -340,7 +344,7 @@ def limb_profile_intensity(p: LimbProfileParams, rc):
     return p.ymin + p.amp * F
 
 
-@jax.jit
+@stored_jit
 def brightening_column(p: LimbProfileParams, rc):
     r"""The column of ``kappa`` (:class:`MinnaertProfileParams`) at ``kappa = 0``: the derivative of the
     profile ``p`` toward Minnaert-like limb brightening, for a score test (the whole brightened Jacobian
@@ -463,7 +467,7 @@ def profile_model(p: LimbProfileParams) -> LimbModel:
     return LIMB_PROFILE_GLOW if isinstance(p, GlowProfileParams) else LIMB_PROFILE
 
 
-@jax.jit
+@stored_jit
 def glow_column(p: LimbProfileParams, rc, log_h):
     r"""The column of ``glow`` (:class:`GlowProfileParams`) at ``glow = 0`` and scale height ``exp(log_h)`` px:
     the derivative of the profile ``p`` toward a glow, for a score test (the intensity's cost).

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import equinox as eqx
-import jax.numpy as jnp
+import jax
 import numpy as np
 
 from ..fitting import LimbFit
@@ -168,7 +168,8 @@ class RefineResult:
         -------
         RefineResult
         """
-        return replace(self, fit=eqx.tree_at(lambda x: x.covariance, self.fit, jnp.asarray(C)), **changes)
+        cov = C if isinstance(C, jax.Array) else jax.device_put(np.asarray(C))  # no program compiled per process
+        return replace(self, fit=eqx.tree_at(lambda x: x.covariance, self.fit, cov), **changes)
 
     def with_move_witness(self, other: "RefineResult", frac: float) -> "RefineResult":
         """A copy with ``(frac |d|)^2`` added to the variances of ``r0`` and ``c0`` and ``(frac d_a)^2`` to that of

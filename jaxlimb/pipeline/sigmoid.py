@@ -3,11 +3,10 @@ programs across images), Check 5 on its convergence, the model's intensities and
 
 from __future__ import annotations
 
-import equinox as eqx
 import jax
-import jax.numpy as jnp
 import numpy as np
 
+from .._programs import stored_jit
 from ..errors import ConvergenceError
 from ..fitting import bucket_size, fit, LimbFit, solver_from_name
 from .options import LocateOptions
@@ -113,12 +112,12 @@ def run_fit(model, data: FitData, init, options: LocateOptions, fixed, solver=No
     return res
 
 
-@eqx.filter_jit
+@stored_jit(static_non_arrays=True)
 def _predict_jit(model, params, coords):
     return model.intensity(params, coords)
 
 
-@eqx.filter_jit
+@stored_jit(static_non_arrays=True)
 def _fisher_jit(model, params, coords, w2, free_idx):
     jac = model.jacobian(params, coords)[:, free_idx]
     return jac.T @ (jac * w2[:, None])
@@ -166,8 +165,8 @@ def fisher_information(model, params, data: FitData, fixed: tuple[str, ...], sig
         ``p`` the number of free parameters, in the model's parameter order.
     """
     cp, _, w = pad_bucket(data)
-    idx = jnp.asarray(model.free_indices(fixed))
-    F = np.asarray(_fisher_jit(model, params, jnp.asarray(cp), jnp.asarray(w * w), idx))
+    idx = jax.device_put(np.asarray(model.free_indices(fixed), dtype=np.int64))  # host data: no program per shape
+    F = np.asarray(_fisher_jit(model, params, jax.device_put(np.asarray(cp)), jax.device_put(np.asarray(w * w)), idx))
     return F / sigma**2
 
 

@@ -25,6 +25,16 @@ def test_help_does_not_import_jax():
     assert out.strip().endswith("NOJAX")
 
 
+def test_locate_imports_no_heavy_optional_package():
+    """The modules of ``jaxlimb locate`` load none of the packages other commands use (plots, SPICE, meshes,
+    Dask, optimistix, SciPy's linalg/optimize packages): their import would be paid by every process."""
+    heavy = ("matplotlib", "astropy", "trimesh", "optimistix", "lineax", "dask", "spiceypy", "emcee", "diffrax",
+             "scipy.linalg", "scipy.optimize", "tqdm", "mkdocs")
+    out = _run("import sys\nimport jaxlimb.cli._locate, jaxlimb.pipeline\n"
+               f"print(*[m for m in {heavy!r} if m in sys.modules])")
+    assert out.split() == []
+
+
 def test_process_entry_freezes_the_collector_and_main_does_not():
     """``entry`` (the command's process) freezes JAX's objects for the garbage collector once JAX has started
     (and all at the end); :func:`main` in a session (tests, notebooks) freezes nothing."""
@@ -152,8 +162,11 @@ def test_fit_core_is_traced_once_per_machine(tmp_path):
     env = {"JAXLIMB_CACHE_DIR": str(tmp_path / "c")}
     first = json.loads(_run(FIT_SCRIPT, env))
     assert first["traces"] == 1 and list((tmp_path / "c" / "exported").glob("*.bin"))
-    second = json.loads(_run(FIT_SCRIPT, env))
+    stored = list((tmp_path / "c" / "programs").glob("*.bin"))  # its executable (jaxlimb/_programs.py)
+    assert stored
+    second = json.loads(_run(FIT_SCRIPT, env))  # loads the executable: a LAPACK call in it runs (no crash)
     assert second["traces"] == 0  # loaded: no trace
+    assert list((tmp_path / "c" / "programs").glob("*.bin")) == stored  # nothing compiled again
     # same numbers to rounding: identical on a quiet machine, but one run under heavy load (load ~10, three
     # other processes) saw a difference that failed a bit-for-bit comparison
     np.testing.assert_allclose(second["x"], first["x"], rtol=1e-13, atol=1e-13)

@@ -344,7 +344,7 @@ def with_unresolved_glow(body: EllipsoidModel, rr: RefineResult, system=None) ->
         return rr
     J, r, padded, w = weighted_system(rr, profile_model(p)) if system is None else system
     q = LimbProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()])  # (a smear's column: round)
-    cols = np.asarray(glow_columns(q, padded, jnp.log(jnp.asarray(h))))[:, : r.size] * w
+    cols = np.asarray(glow_columns(q, padded, np.asarray(h, float)))[:, : r.size] * w
     C = np.array(rr.fit.covariance)
     for c in cols:
         G = np.linalg.lstsq(J, c, rcond=None)[0]

@@ -10,6 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..._programs import stored_jit
 from ...errors import ConvergenceError
 from ...models import GlowProfileParams, LIMB_PROFILE, LIMB_PROFILE_GLOW, LimbProfileParams
 from ...models.lunar_lambert import glow_column
@@ -58,11 +59,30 @@ def glow_step(rr: RefineResult, system=None) -> list[tuple[float, float]]:
         ``(step, z)`` per scale height of :data:`GLOW_H0` (the glow in units of ``amp``).
     """
     J, r, padded, w = weighted_system(rr, LIMB_PROFILE) if system is None else system
-    cols = np.asarray(glow_columns(rr.fit.params, padded, jnp.log(jnp.asarray(GLOW_H0))))[:, : r.size] * w
+    cols = np.asarray(glow_columns(rr.fit.params, padded, np.asarray(GLOW_H0, float)))[:, : r.size] * w
     return [last_step(np.concatenate([J, c[:, None]], axis=1), r) for c in cols]
 
 
-glow_columns = jax.jit(jax.vmap(glow_column, in_axes=(None, None, 0)))
+@stored_jit
+def glow_columns(p, rc, h):
+    """:func:`~jaxlimb.models.lunar_lambert.glow_column` at each scale height ``h``: the score-test columns of
+    :func:`glow_step` (one compiled program, stored: :func:`jaxlimb._programs.stored_jit`).
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        The fitted profile.
+    rc : array (n, 2)
+        Pixel coordinates (row, column).
+    h : array (k,)
+        Scale heights of the glow (px).
+
+    Returns
+    -------
+    array (k, n)
+        The glow column at each scale height.
+    """
+    return jax.vmap(glow_column, in_axes=(None, None, 0))(p, rc, jnp.log(h))
 
 
 def widen_glow(frame: Frame, rr: RefineResult, solver, system=None) -> RefineResult:

@@ -5,12 +5,14 @@ widening gates."""
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any
 
 import jax
 import numpy as np
 
+from ..._programs import stored_jit
 from ...fitting import bucket_size
 from ...model_error import cluster_robust_covariance, hausman_term, sector_groups, with_model_error as widen
 from ...geometry.conic import ellipse_signed_distance
@@ -34,11 +36,14 @@ that lives at one depth of the profile (a glow, a rim) better than one; tuned on
 _GEOMETRIC = ("r0", "c0", "a", "theta", "rho")
 
 
-_COLUMNS: dict[str, Any] = {}
+@stored_jit
+def _columns(model: LimbModel, params: Any, coords: Any):
+    return model.intensity_and_jacobian_columns(params, coords)
 
 
 def columns(model: LimbModel):
-    """``model``'s jitted ``(intensity, columns)`` (one compiled program per model).
+    """``model``'s jitted ``(intensity, columns)`` (one compiled program per model and bucket, stored:
+    :func:`jaxlimb._programs.stored_jit`).
 
     Parameters
     ----------
@@ -48,14 +53,12 @@ def columns(model: LimbModel):
     Returns
     -------
     callable
-        ``(params, coords) -> (intensity (n,), columns)``, jitted and cached by the model's name.
+        ``(params, coords) -> (intensity (n,), columns)``.
     """
-    if model.name not in _COLUMNS:
-        _COLUMNS[model.name] = jax.jit(model.intensity_and_jacobian_columns)
-    return _COLUMNS[model.name]
+    return functools.partial(_columns, model)
 
 
-@jax.jit
+@stored_jit
 def _signed_profile(p, rc):
     g = limb_geometry(p, rc)
     return g[4] - g[6]

@@ -8,7 +8,6 @@ import math
 
 import equinox as eqx
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from ...fitting import bucket_size
@@ -223,7 +222,7 @@ def _gauss_newton_step(evaluate, p, free, r, J, w):
         return None
     if not np.all(np.isfinite(step)):
         return None
-    q = p.replace(**{k: jnp.asarray(getattr(p, k) + d, dtype=jnp.float64) for k, d in zip(free, step)})
+    q = p.replace(**{k: jax.device_put(np.float64(np.asarray(getattr(p, k), np.float64) + d)) for k, d in zip(free, step)})
     r_new, J_new = evaluate(q)
     if not float(np.sum((r_new * w) ** 2)) <= float(np.sum(rw * rw)) * (1.0 + 1e-9):
         return None
@@ -246,7 +245,7 @@ def _reweighted_result(frame: Frame, rr: RefineResult, p, r, J, w, padded) -> Re
     rss = float(rw @ rw)
     s2 = rss / (n - q)
     fit = eqx.tree_at(lambda x: (x.params, x.covariance, x.sigma2, x.rms), rr.fit,
-                      (p, jax.device_put(s2 * np.linalg.inv(Jw.T @ Jw)), jnp.asarray(s2), jnp.asarray(math.sqrt(rss / n))))
+                      (p, jax.device_put(s2 * np.linalg.inv(Jw.T @ Jw)), jax.device_put(s2), jax.device_put(math.sqrt(rss / n))))
     data = FitData(rr.data.coords, rr.data.z, w, rr.data.offset, rr.data.scale)
     return RefineResult(fit, data, 0, rr.fixed, sphere=sph)
 
