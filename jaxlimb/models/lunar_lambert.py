@@ -5,9 +5,8 @@ limb is not flat-topped: seen from a finite range, the limb is at emission :math
 while the incidence there is :math:`< 90^\circ` (the view rays converge, the Sun's are
 parallel), so the Lommel-Seeliger term :math:`2\mu_0/(\mu_0 + \mu)` of the lunar-Lambert law
 reaches 2 in a rim a fraction of a pixel wide; and at larger phases the Lambert term dims
-the limb toward the horns.  Blurred, the rim moves the sigmoid's 50 % point outward
-(measured 0.03-0.13 px at zero phase, 0.2-0.3 px at 90 deg, ~0.65 px at 120 deg; see
-``benchmarks/locate_accuracy.py``).  This model fits the profile itself.
+the limb toward the horns.  Blurred, the rim moves the sigmoid's 50 % point outward by a phase-dependent
+fraction of a pixel (``benchmarks/locate_accuracy.py``).  This model fits the profile itself.
 
 Geometry (circle model, small angles).  A pixel at distance ``d`` from the centre of the
 body's image, polar direction at angle :math:`\psi'` from the Sun's image direction.  With
@@ -35,9 +34,8 @@ by 20-point Gauss-Legendre quadrature, :math:`v_{0,1} = \sqrt{\max(0, R - d \mp 
 (the substitution removes the square-root behaviour of :math:`\mu` at the limb; the window is cut to
 its lit side of the terminator, :func:`~jaxlimb.models.profile_radiance.lit_limits`), and
 :math:`\sigma_e^2 = \sigma^2 + 1/12` (pixel integration as a box), plus the first-order
-curvature term of the 2-D blur, :math:`\sigma_e^2/(2d)\,\partial f/\partial d` (without it the
-radius of a 33 px Moon came out 0.01-0.024 px short; with it |bias| <= 0.008 px from 33 to 210 px,
-``benchmarks/locate_accuracy.py`` bias study).  Parameters
+curvature term of the 2-D blur, :math:`\sigma_e^2/(2d)\,\partial f/\partial d` (without it small discs come out
+short: ``benchmarks/locate_accuracy.py``'s bias study).  Parameters
 ``(r0, c0, a, sigma, amp, ymin)`` are estimated; ``theta, rho`` (limb ellipse shape),
 ``sun_r, sun_c`` (unit image direction of the Sun), ``phase`` (rad), ``inv_f`` (1/focal px;
 0 = orthographic) and ``L`` are held fixed (``fixed=PROFILE_FIXED``).
@@ -74,9 +72,7 @@ radiance; the sky side blurred in closed form.  The pipeline adds the glow only 
 position angle :math:`\psi` from the Sun's image direction the solar elevation over the tangent point is
 :math:`\sin^{-1}(\sin\alpha\cos\psi)` (phase :math:`\alpha`), so the glow is brighter toward the Sun.  To first
 order in ``cpsi`` :math:`= \cos\psi` its radiance is ``glow (1 + glow_tilt cpsi)`` (``glow_tilt`` fitted; 0 is a
-uniform glow).  Why: on the nearly full Earth of ``benchmarks/earth_full_disc.py`` (phase 4-12 deg) a glow lit as
-``clip((n.s + 0.2)/0.4)`` (the independent renderer) put the uniform-glow fit's centre 0.03-0.19 px sunward with
-its sigma 0.01-0.06 px (NEES 6.5-17); rendered with a uniform glow, the same frames were 0.006 and 0.017 px off.
+uniform glow): a glow lit by the Sun but fitted as uniform pulls the centre sunward (``benchmarks/earth_full_disc.py``).
 
 Off the optical axis the limb is an ellipse (``a - b`` reaches ~5 px at the corner of the
 default imager for the Moon at 60 000 km): the model carries the ellipse ``(r0, c0, a, theta,
