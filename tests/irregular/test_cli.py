@@ -45,8 +45,9 @@ def _run(capsys, argv):
     return code, cap.out, cap.err
 
 
-def test_build_then_locate_json(scene, capsys, tmp_path):
+def test_build_then_locate_json(scene, capsys, tmp_path, monkeypatch):
     d, truth = scene
+    monkeypatch.setenv("JAXLIMB_PROGRESS", "1")  # bars on, as on a terminal: the build's bar is checked
     db = tmp_path / "db.npz"
     code, out, err = _run(capsys, ["los", "build-db", str(d / "lumpy.obj"), "--step-deg", "10", "--template-size", "256", "--out", str(db), "--json"])
     assert code == 0, out + err
@@ -68,6 +69,7 @@ def test_locate_with_mesh_builds_cache_once(scene, capsys, tmp_path, monkeypatch
     a record whose database is gone falls back to reading the mesh (and building again)."""
     import jaxlimb.irregular.mesh as mesh_module
 
+    monkeypatch.setenv("JAXLIMB_PROGRESS", "1")  # bars on, as on a terminal: the bar witnesses a build
     d, _ = scene
     argv = ["los", "locate", str(d / "img.png"), "--mesh", str(d / "lumpy.obj"), "--camera", str(d / "camera.json"), "--step-deg", "30", "--template-size", "128", "--json", "--no-refine"]
     code, out, err = _run(capsys, argv)
