@@ -170,16 +170,7 @@ class StoredJit:
             loaded = None
         if loaded is None:
             return lambda *dyn: self._jit(*_merge(treedef, leaves, mask, dyn))
-        compiled, out_tree = loaded
-
-        def call(*dyn: Any) -> Any:
-            try:
-                out = compiled(*dyn)
-            except (TypeError, ValueError):  # arguments the executable was not made for (another device): jit
-                return self._jit(*_merge(treedef, leaves, mask, dyn))
-            return jax.tree_util.tree_unflatten(out_tree, out)
-
-        return call
+        return guarded_call(loaded[0], loaded[1], lambda *dyn: self._jit(*_merge(treedef, leaves, mask, dyn)))
 
     def _compile_and_store(self, path: Path, leaves: list[Any], mask: list[bool], treedef: Any) -> Any:
         box: dict[str, Any] = {}
@@ -190,6 +181,31 @@ class StoredJit:
 
         lowered = jax.jit(flat).lower(*[v for v, m in zip(leaves, mask) if m])
         return compile_and_store(path, lowered, lambda: box["tree"]), box["tree"]
+
+
+def guarded_call(compiled: Any, out_tree: Any, fallback: Callable[..., Any]) -> Callable[..., Any]:
+    """``f(*args)``: the stored executable ``compiled`` on ``args``, its flat results rebuilt as ``out_tree``;
+    ``fallback(*args)`` (plain ``jit``) for arguments the executable was not made for (another device).
+
+    Parameters
+    ----------
+    compiled : a loaded or compiled executable of flat array arguments returning a flat list.
+    out_tree : the tree structure of the results.
+    fallback : the function's ``jit``, called with the same arguments.
+
+    Returns
+    -------
+    The function of the arguments.
+    """
+
+    def call(*args: Any) -> Any:
+        try:
+            out = compiled(*args)
+        except (TypeError, ValueError):
+            return fallback(*args)
+        return jax.tree_util.tree_unflatten(out_tree, out)
+
+    return call
 
 
 def _merge(treedef: Any, leaves: list[Any], mask: list[bool], dyn: tuple[Any, ...]) -> tuple[Any, ...]:
@@ -293,5 +309,5 @@ def stored_jit(fn: Callable[..., Any] | None = None, *, static_non_arrays: bool 
     return StoredJit(fn, static_non_arrays)
 
 
-__all__ = ["MAX_BYTES", "StoredJit", "array_signature", "compile_and_store", "load_program", "program_key", "program_path", "register_trace_setting", "source_digest",
+__all__ = ["MAX_BYTES", "StoredJit", "array_signature", "compile_and_store", "guarded_call", "load_program", "program_key", "program_path", "register_trace_setting", "source_digest",
            "stored_jit"]

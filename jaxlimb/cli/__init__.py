@@ -100,9 +100,10 @@ def _add_quiet(sub: argparse._SubParsersAction) -> None:
 
 
 def show_progress(args: argparse.Namespace) -> bool:
-    """Whether a command draws progress bars (on stderr): never with ``--quiet``; else ``JAXLIMB_PROGRESS=1``
-    always and ``0`` never; else only when stderr is a terminal -- a bar in a log file or a pipe is noise."""
-    if getattr(args, "quiet", False):
+    """Whether a command draws progress bars (on stderr): never with ``--quiet`` (or ``los``'s ``--no-progress``);
+    else ``JAXLIMB_PROGRESS=1`` always and ``0`` never; else only when stderr is a terminal -- a bar in a log file or
+    a pipe is noise."""
+    if getattr(args, "quiet", False) or getattr(args, "no_progress", False):
         return False
     forced = os.environ.get("JAXLIMB_PROGRESS", "").strip().lower()
     if forced in ("1", "yes", "on", "always"):

@@ -113,7 +113,7 @@ def run_build(args: argparse.Namespace) -> int:
     mesh = load_mesh(args.mesh)
     with exclusive_output(target):  # a second build of the same --out is refused; stale temporaries removed
         t0 = time.perf_counter()
-        db = build_database(mesh, opts, progress=show_progress(args) and not args.no_progress)
+        db = build_database(mesh, opts, progress=show_progress(args))
         dt = time.perf_counter() - t0
         out = save_database(db, target)
     summary = {
@@ -271,7 +271,7 @@ def _locate_one(args: argparse.Namespace, path: str, image: np.ndarray, memo: di
         if args.db is not None:
             memo["db"] = load_database(args.db)
         else:
-            memo["db"] = _database_for_mesh_file(args.mesh, _db_options(args), progress=show_progress(args) and not args.no_progress)
+            memo["db"] = _database_for_mesh_file(args.mesh, _db_options(args), progress=show_progress(args))
     db = memo["db"]
     t0 = time.perf_counter()
     body = _locate_unchecked(image, db, camera) if args.no_refine else _locate_checked(image, db, camera, hints)

@@ -32,6 +32,7 @@ import jax
 from .._programs import (
     array_signature,
     compile_and_store,
+    guarded_call,
     load_program,
     program_key,
     program_path,
@@ -77,7 +78,7 @@ class ExportedCore:
             program = program_path("exported-executable", key)
             loaded = load_program(program, len(args)) if program is not None and program.exists() else None
             if loaded is not None:  # the executable of an earlier process: no export to read, nothing to lower
-                return self._calling(loaded[0], treedef)
+                return guarded_call(loaded[0], treedef, self._jit)
             path = folder / f"{key}.bin"
             exp = self._load(path) if path.exists() else None
             if exp is None:
@@ -89,18 +90,8 @@ class ExportedCore:
         call = jax.jit(exp.call)
         with contextlib.suppress(Exception):
             flat = jax.tree_util.tree_structure(list(range(treedef.num_leaves)))
-            return self._calling(compile_and_store(program, call.lower(*args), lambda: flat), treedef)
+            return guarded_call(compile_and_store(program, call.lower(*args), lambda: flat), treedef, self._jit)
         return lambda *a: jax.tree_util.tree_unflatten(treedef, call(*a))
-
-    def _calling(self, compiled: Any, treedef: Any) -> Callable[..., Any]:
-        def fn(*a: Any) -> Any:
-            try:
-                out = compiled(*a)
-            except (TypeError, ValueError):  # arguments the executable was not made for (another device): jit
-                return self._jit(*a)
-            return jax.tree_util.tree_unflatten(treedef, out)
-
-        return fn
 
     @staticmethod
     def _load(path: Path) -> Any:
