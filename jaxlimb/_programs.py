@@ -247,13 +247,19 @@ def compile_and_store(path: Path | None, lowered: Any, out_tree: Callable[[], An
     if jax.tree_util.tree_structure(pickle.loads(shape)) == tree:
         payload, _, _ = serialize(compiled)
         if write_sealed(path, pickle.dumps((payload, shape, tree.num_leaves)), _WHAT):
-            _evict(path.parent)
+            evict_least_recent(path.parent)
     return compiled
 
 
-def _evict(folder: Path) -> None:
-    """Delete the least recently used entries (modification time, touched on every load) beyond :data:`MAX_BYTES`:
-    each new version of the sources stores its own."""
+def evict_least_recent(folder: Path) -> None:
+    """Delete the least recently used ``*.bin`` entries of ``folder`` (modification time, touched on every load)
+    beyond :data:`MAX_BYTES`, down to 90 % of it: each new version of the sources stores its own.
+
+    Parameters
+    ----------
+    folder : Path
+        A folder of sealed entries (stored executables, exported fit cores).
+    """
     entries = []
     for p in folder.glob("*.bin"):
         with contextlib.suppress(OSError):
@@ -309,5 +315,5 @@ def stored_jit(fn: Callable[..., Any] | None = None, *, static_non_arrays: bool 
     return StoredJit(fn, static_non_arrays)
 
 
-__all__ = ["MAX_BYTES", "StoredJit", "array_signature", "compile_and_store", "guarded_call", "load_program", "program_key", "program_path", "register_trace_setting", "source_digest",
+__all__ = ["MAX_BYTES", "StoredJit", "array_signature", "compile_and_store", "evict_least_recent", "guarded_call", "load_program", "program_key", "program_path", "register_trace_setting", "source_digest",
            "stored_jit"]

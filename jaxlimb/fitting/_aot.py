@@ -14,7 +14,8 @@ program, so the same numbers.
 Every file is sealed (:func:`jaxlimb._jaxcache.seal`: SHA-256 of the JAX/jaxlib versions and of the
 bytes) and checked *before* it is deserialised: a damaged or foreign file never reaches
 ``jax.export.deserialize`` (which can abort the process) and never changes an answer; it is
-deleted, the core is exported again, and one warning says so.
+deleted, the core is exported again, and one warning says so.  The folder is bounded like the stored
+executables: the least recently used exports are deleted beyond :data:`jaxlimb._programs.MAX_BYTES`.
 
 Anything unexpected (an output structure that cannot be rebuilt, a failed export or read) falls
 back to plain ``jax.jit``; a tracer argument (a fit inside another ``jit``) always uses it.
@@ -23,6 +24,7 @@ back to plain ``jax.jit``; a tracer argument (a fit inside another ``jit``) alwa
 from __future__ import annotations
 
 import contextlib
+import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -32,6 +34,7 @@ import jax
 from .._programs import (
     array_signature,
     compile_and_store,
+    evict_least_recent,
     guarded_call,
     load_program,
     program_key,
@@ -100,6 +103,8 @@ class ExportedCore:
         payload = read_sealed(path, _WHAT)  # checked before deserialising
         if payload is None:
             return None
+        with contextlib.suppress(OSError):
+            os.utime(path)  # least recently used: the modification time
         try:
             return jax.export.deserialize(bytearray(payload))
         except Exception:  # noqa: BLE001 - sealed by another jaxlimb that wrote something else: export again
@@ -119,7 +124,8 @@ class ExportedCore:
         exp = jax.export.export(jax.jit(flat))(*args)
         if seen.get("treedef") != treedef:  # the template does not rebuild this output: no export
             return None
-        write_sealed(path, bytes(exp.serialize()), _WHAT)
+        if write_sealed(path, bytes(exp.serialize()), _WHAT):
+            evict_least_recent(path.parent)
         return exp
 
 

@@ -29,6 +29,7 @@ import cv2
 import numpy as np
 
 from .._identity_cache import IdentityCache
+from .._validate import Range, number
 from ..render.mesh import rasterise, shade, shadow_fractions
 from .mesh import Mesh
 from .model_levels import clustered_mesh, downsample, level_camera, window_camera
@@ -173,15 +174,13 @@ def mix_laws(n: int) -> tuple[str, ...]:
     Parameters
     ----------
     n : int
-        ``0 <= n <= len(MIX_LAWS)``, else a ``ValueError``.
+        ``0 <= n <= len(MIX_LAWS)``, else a :class:`~jaxlimb.errors.ConfigError`.
 
     Returns
     -------
     tuple of str
     """
-    if not 0 <= n <= len(MIX_LAWS):
-        raise ValueError(f"a photometric mix of {n} laws (at most {len(MIX_LAWS)})")
-    return MIX_LAWS[:n]
+    return MIX_LAWS[: number(n, "mix_laws", Range(0, len(MIX_LAWS)), integer=True)]
 
 
 def _basis(mu0: np.ndarray, mu: np.ndarray, law: str) -> np.ndarray:

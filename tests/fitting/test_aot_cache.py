@@ -60,3 +60,17 @@ def test_damaged_export_is_replaced_with_the_same_answer(folder, monkeypatch, wh
     monkeypatch.setattr(jc, "_WARNED", set())
     third = _run(x)  # loaded from the repaired file, quietly (a warning is an error under pytest's filters)
     np.testing.assert_array_equal(third["y"], first["y"])
+
+
+def test_the_export_folder_keeps_the_least_recently_used_entries_within_the_limit(folder, monkeypatch):
+    """Every version of the sources exports its own cores: the folder is bounded like the stored executables."""
+    import os
+
+    from jaxlimb import _programs
+
+    _run(jnp.linspace(0.0, 1.0, 7))
+    (old,) = folder.glob("*.bin")
+    monkeypatch.setattr(_programs, "MAX_BYTES", int(old.stat().st_size * 1.5))
+    os.utime(old, (1, 1))  # long unused
+    _run(jnp.linspace(0.0, 1.0, 9))  # another shape: another entry, over the limit
+    assert not old.exists() and len(list(folder.glob("*.bin"))) == 1

@@ -9,7 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from jaxlimb.errors import MatchError
+from jaxlimb.errors import ConfigError, MatchError
 from jaxlimb.geometry.camera import Camera
 from jaxlimb.irregular import locate as locate_mod
 from jaxlimb.irregular.model_render import MIX_LAWS, MixedLaw, _basis, render_window
@@ -164,8 +164,11 @@ def test_minnaert_body_at_zero_phase_needs_the_third_law():
 
 def test_mix_laws_count_checked():
     from jaxlimb.irregular.model_render import mix_laws
+    from jaxlimb.irregular.register import RegisterOptions
 
     assert mix_laws(2) == ("lambert", "minnaert-half")
     assert len(mix_laws(len(MIX_LAWS))) == 3
-    with pytest.raises(ValueError):
+    with pytest.raises(ConfigError, match=r"mix_laws must be an integer in \[0, 3\], got 4"):
         mix_laws(len(MIX_LAWS) + 1)
+    with pytest.raises(ConfigError, match="mix_laws"):  # refused when the options are made, not mid-registration
+        RegisterOptions(mix_laws=-1)

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..model_render import mix_laws
+
 
 @dataclass(frozen=True)
 class RegisterOptions:
@@ -83,6 +85,9 @@ class RegisterOptions:
     fit_pedestal: bool = True
     exact_coverage: bool = True
     limb_min_phase_deg: float | None = 75.0
+
+    def __post_init__(self) -> None:
+        mix_laws(self.mix_laws)  # a ConfigError now rather than in the middle of a registration
 
 
 @dataclass(frozen=True)
