@@ -7,7 +7,12 @@ import pytest
 
 from jaxlimb.geometry.camera import Camera
 from jaxlimb.irregular.shapes import gaussian_sphere
-from jaxlimb.render.mesh import cross_rows, look_at_rotation, rasterise, shadow_fractions
+from jaxlimb.render.mesh import (
+    cross_rows,
+    look_at_rotation,
+    rasterise,
+    shadow_fractions,
+)
 
 
 @pytest.mark.parametrize("shape_b", [(500, 3), (3,)])
