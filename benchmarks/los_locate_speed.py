@@ -4,9 +4,10 @@ Frames of ``benchmarks/irregular_los.py`` (:func:`irregular_los.make_view`: Lomm
 focal 1500 px): Thebe, Phobos and Eros at phase 0, 30 and 60 deg, 3x the long axis, off-centre; the hints give the
 Sun direction and a range prior (attitude unknown: the template search).  Every process is run ``--repeats``
 times after one warm-up (which builds the database of a body once, in ``$JAXLIMB_CACHE``); with ``--before DIR``
-(e.g. ``git archive BASE | tar -x -C DIR``) the processes of that checkout run interleaved with this one's, on
-the same frames, so that both see the same machine load.  Medians per frame; CPU is user + system of the process
-(less sensitive to other jobs on a shared machine).
+(e.g. ``git archive BASE | tar -x -C /tmp/BASE``: the directory's name is recorded) the processes of that checkout
+run interleaved with this one's, on the same frames, so that both see the same machine load.  Medians per frame; CPU is user + system of the process
+(less sensitive to other jobs on a shared machine).  A run over every frame writes
+``benchmarks/results/los_locate_speed.json`` (a run with ``--only`` writes nothing).
 
 Run::
 
@@ -29,6 +30,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import environment, save  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[1]
 BODIES = (("thebe", "thebe.obj", "y"), ("phobos", "phobos.obj", "y"), ("eros", "eros007790.tab", "z"))
 
@@ -103,9 +106,12 @@ def main(argv: list[str] | None = None) -> int:
     for r in rows:
         cells = " | ".join(f"{r[v]['wall_s']:.2f} / {r[v]['cpu_s']:.2f}" for v in versions)
         print(f"| {r['frame']} | {cells} | {r['after']['error_px']:.3f} |")
-    for v in versions:
-        print(f"{v}: median over frames wall {statistics.median(r[v]['wall_s'] for r in rows):.2f} s, "
-              f"CPU {statistics.median(r[v]['cpu_s'] for r in rows):.2f} s")  # fmt: skip
+    summary = {v: {k: statistics.median(r[v][k] for r in rows) for k in ("wall_s", "cpu_s")} for v in versions}
+    for v, m in summary.items():
+        print(f"{v}: median over frames wall {m['wall_s']:.2f} s, CPU {m['cpu_s']:.2f} s")
+    if not args.only:
+        save("los_locate_speed", {"environment": environment(), "args": {"repeats": args.repeats, "before": args.before and Path(args.before).name},
+                                  "rows": rows, "median": summary, "load_after": os.getloadavg()[0]})  # fmt: skip
     return 0
 
 

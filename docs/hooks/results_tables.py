@@ -413,6 +413,19 @@ def irregular_speed(rel: str = "irregular_speed.json") -> str:
 
 
 @renderer
+def los_locate_speed(rel: str = "los_locate_speed.json") -> str:
+    d = load(rel)
+    versions = [v for v in ("after", "before") if v in d["rows"][0]]
+    name = {"after": "this commit", "before": f"`{d['args']['before']}`"}
+    rows = [[f"`{r['frame']}`", *(f"{f(r[v]['wall_s'], 2)} / {f(r[v]['cpu_s'], 2)}" for v in versions),
+             f(r["after"]["error_px"], 3), f(r["load"], 1)] for r in d["rows"]]  # fmt: skip
+    head = ["frame", *(f"{name[v]}: wall / CPU (s)" for v in versions), "error (px)", "load average"]
+    med = "; ".join(f"{name[v]} wall {f(d['median'][v]['wall_s'], 2)} s, CPU {f(d['median'][v]['cpu_s'], 2)} s" for v in versions)
+    return table(head, rows) + f"\nMedians over the frames: {med}.\n" + source(rel, d) + \
+        f"*Medians of {d['args']['repeats']} processes per frame and version.*\n"
+
+
+@renderer
 def dask_montecarlo(rel: str = "dask_montecarlo.json") -> str:
     d = load(rel)
     rows = [[w, len(runs), " / ".join(f(r["process_s"], 1) for r in runs), f(d["median_process_s"][w], 1)]

@@ -52,6 +52,25 @@ class Pyramid:
         return self.levels[k]
 
 
+_PYRAMIDS = IdentityCache(maxsize=1)
+
+
+def frame_pyramid(image: np.ndarray, camera: object, mask: np.ndarray) -> Pyramid:
+    """The :class:`Pyramid` of a frame, shared by the registrations of its template hypotheses (kept for the last
+    frame): each level is box-averaged once, and its figure keeps one ``mask`` object (:func:`bbox` remembers it).
+
+    Parameters
+    ----------
+    image, camera, mask : np.ndarray (rows, cols), Camera, np.ndarray (rows, cols) of bool
+        The frame (float), its camera and its lit figure; the same objects give the same pyramid.
+
+    Returns
+    -------
+    Pyramid
+    """
+    return _PYRAMIDS.get((image, camera, mask), lambda: Pyramid(image, camera, mask))
+
+
 _BBOX = IdentityCache(maxsize=17)
 
 
@@ -303,6 +322,6 @@ def render_level(
 
 __all__ = [
     "COARSE_MIN_LEVEL", "MARGIN_PX", "PYRAMID_BLUR_PX", "SUPERSAMPLE", "Level", "LevelModel", "Pyramid", "bbox",
-    "blur_schedule", "figure_size", "half_resolution_allowed", "level_center", "level_of", "pose", "render_level",
+    "blur_schedule", "figure_size", "frame_pyramid", "half_resolution_allowed", "level_center", "level_of", "pose", "render_level",
     "render_model", "window",
 ]  # fmt: skip

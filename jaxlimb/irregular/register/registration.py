@@ -19,7 +19,7 @@ from ..mesh import Mesh
 from .checks import finish_registration
 from .gauss_newton import GNState, Guard, Problem, coarse_stage, fine_stage, initial_mix
 from .options import RegisterOptions, RegisterResult
-from .pyramid import Pyramid, pose
+from .pyramid import Pyramid, frame_pyramid, pose
 from .start import coarse_ncc, lit_figure, start_pose, sun_phase_deg
 
 # the lit limb's points: model radiance inside at least this fraction of the body's, profiles of +-_LIMB_HALF_PX
@@ -184,7 +184,7 @@ def start_search_registration(
     """
     img = np.asarray(image, dtype=float)
     R = np.asarray(R, dtype=float)
-    problem = Problem(Pyramid(img, camera, segmentation[0]), mesh, sun, options, fit_attitude=True, wide=True)
+    problem = Problem(frame_pyramid(img, camera, segmentation[0]), mesh, sun, options, fit_attitude=True, wide=True)
     P, D, ncc = coarse_ncc(problem, R, initial)
     st = coarse_stage(problem, GNState(np.asarray(P, dtype=float), float(D), R, mix=initial_mix(options)))
     return Registration(problem, segmentation[1], st, ncc)
