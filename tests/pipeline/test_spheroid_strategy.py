@@ -73,3 +73,24 @@ def test_jupiter_frame_is_located_on_its_limb_by_the_ellipsoid():
     P = np.array([[m.covariance[a][b] for b in ("center_r", "center_c")] for a in ("center_r", "center_c")])
     assert np.hypot(*err) < 1.0
     assert float(err @ np.linalg.solve(P, err)) < 25.0  # within 5 sigma
+
+
+def test_navigate_maps_a_spheroid_measurement_through_its_range():
+    # a giant planet's measurement (the ellipsoid's: centre and range, no radius) gives the observer from the range
+    from types import SimpleNamespace
+
+    from jaxlimb.cli._observer import measurement_map, ranged
+
+    cam = Camera(focal_length_mm=2000.0, pixel_pitch_mm=0.012, rows=1024, cols=1024)
+    names = ("center_r", "center_c", "range_km")
+    meas = SimpleNamespace(covariance={a: {b: float(a == b) for b in names} for a in names}, range_km=5.3e7,
+                           radius_px=None)
+    assert ranged("jupiter", meas) and ranged("earth", meas)
+    got, fn = measurement_map("jupiter", cam, meas)
+    x = np.array([500.0, 520.0, 5.3e7])
+    assert got == list(names) and np.allclose(fn(x), 5.3e7 * cam.los(x[:2]))
+    # a round body's: centre and radius
+    names = ("center_r", "center_c", "radius")
+    moon = SimpleNamespace(covariance={a: {b: float(a == b) for b in names} for a in names}, range_km=4.0e5,
+                           radius_px=100.0)
+    assert not ranged("moon", moon) and measurement_map("moon", cam, moon)[0] == list(names)
