@@ -9,8 +9,8 @@ Mortari, D'Souza & Zanetti's step 7 with the body at the origin:
 
 ``C`` the J2000 -> camera rotation (the reconstructed pointing of the CK, or ``--attitude``), ``u_c`` and
 ``D`` the measured line of sight and range.  The covariance maps the measurement's
-``(center_r, center_c, radius)`` covariance through the Jacobian of ``(centre, radius) -> D u_c``
-(:func:`jaxlimb.cli._observer.measurement_map`), plus the attitude term of
+``(center_r, center_c, radius)`` covariance through the Jacobian of ``(centre, radius) -> D u_c`` (of
+``(centre, range)`` for a spheroid the ellipsoid strategy measured: :func:`jaxlimb.cli._observer.measurement_map`), plus the attitude term of
 :func:`jaxlimb.geometry.navigation.navigate` for ``--attitude-sigma-arcsec``.  Reported beside SPICE's
 observer position (their difference is the pointing and range error of the prediction), and the
 measured - predicted pointing of ``locate``.

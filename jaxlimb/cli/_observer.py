@@ -1,6 +1,7 @@
 r"""The observer's position from a limb measurement (Mortari, D'Souza & Zanetti 2016, step 7) for ``jaxlimb navigate``:
 the attitude argument, the map from the measured ``(centre, X)`` to the observer-to-body vector ``r_om = D u_c``
-(``X`` the range for the Earth, the on-axis-equivalent radius for other bodies), and the position
+(``X`` the range for the ellipsoid strategy's measurement -- the Earth, a giant planet --, the on-axis-equivalent
+radius for a round body's), and the position
 
 .. math:: r_o = r_b - C^\top r_{om}
 
@@ -63,12 +64,19 @@ def parse_attitude(text: str) -> tuple[np.ndarray, str]:
     raise ConfigError(f"--attitude must be a quaternion (4 numbers) or a 3x3 C_ci, got shape {a.shape}")
 
 
+def ranged(body: str, meas) -> bool:  # noqa: ANN001
+    """The measurement's third quantity is the range (the ellipsoid strategy's: the Earth, any spheroid it measured),
+    not the radius."""
+    return body == "earth" or ("range_km" in meas.covariance and "radius" not in meas.covariance)
+
+
 def measurement_map(body: str, camera, meas) -> tuple[list[str], Any]:
     """Names of the measured quantities and ``x -> r_om`` (camera frame, km): ``(center_r, center_c, range_km)`` for
-    the Earth, ``(center_r, center_c, radius)`` for any other body (the range from the radius, the body's size fixed)."""
+    the Earth or any spheroid the ellipsoid strategy measured (:func:`ranged`), ``(center_r, center_c, radius)`` for
+    any other body (the range from the radius, the body's size fixed)."""
 
     cov = meas.covariance
-    if body == "earth":
+    if ranged(body, meas):
         names = ["center_r", "center_c", "range_km"]
 
         def fn(x: np.ndarray) -> np.ndarray:
@@ -100,9 +108,10 @@ def observer_position(body: str, meas, camera, C_ci: np.ndarray, r_body: np.ndar
     if meas.los_camera is None or meas.range_km is None:
         raise CheckFailed("the limb measurement has no line of sight / range (camera or body size unknown)")
     names, fn = measurement_map(body, camera, meas)
-    x0 = np.array([meas.center_rc[0], meas.center_rc[1], meas.range_km if body == "earth" else meas.radius_px], float)
+    rng = ranged(body, meas)
+    x0 = np.array([meas.center_rc[0], meas.center_rc[1], meas.range_km if rng else meas.radius_px], float)
     P = np.array([[meas.covariance[a][b] for b in names] for a in names])
-    G = numerical_jacobian(fn, x0, np.array([1e-3, 1e-3, 1e-3 if body != "earth" else 1e-3 * max(1.0, x0[2] * 1e-6)]))
+    G = numerical_jacobian(fn, x0, np.array([1e-3, 1e-3, 1e-3 * max(1.0, x0[2] * 1e-6) if rng else 1e-3]))
     r_om = fn(x0)
     D = float(np.linalg.norm(r_om))
     sol = navigate(r_body, C_ci, r_om / D, D, attitude_cov_rad2=attitude_sigma_rad if attitude_sigma_rad > 0 else None)
@@ -122,4 +131,4 @@ def observer_position(body: str, meas, camera, C_ci: np.ndarray, r_body: np.ndar
     }
 
 
-__all__ = ["measurement_map", "observer_position", "parse_attitude"]
+__all__ = ["measurement_map", "observer_position", "parse_attitude", "ranged"]

@@ -54,8 +54,9 @@ class Profile(_Choice):
 
 
 class BodyShape(_Choice):
-    """The body strategy of :func:`~jaxlimb.pipeline.locate`: ``auto`` (the Sun: ``disc``; the Earth:
-    ``ellipsoid``; any other body: ``sphere``), or one of them."""
+    """The body strategy of :func:`~jaxlimb.pipeline.locate`: ``auto`` (the Sun: ``disc``; the Earth, and a spheroid
+    whose flattening the frame resolves: ``ellipsoid``; any other body: ``sphere``;
+    :func:`~jaxlimb.pipeline.bodies.body_strategy`), or one of them."""
 
     AUTO = "auto"
     SPHERE = "sphere"

@@ -1,10 +1,12 @@
-r"""The ellipsoid strategy of :func:`jaxlimb.pipeline.locate`: the Earth (any spheroid), its limb an ellipse.
+r"""The ellipsoid strategy of :func:`jaxlimb.pipeline.locate`: the Earth and any spheroid whose flattening the frame
+resolves (a giant planet; :func:`jaxlimb.pipeline.bodies.body_strategy`), its limb an ellipse.
 
 Mortari, D'Souza & Zanetti, "Image Processing of Illuminated Ellipsoid" (J. Spacecraft and Rockets 53(3), 2016,
 doi:10.2514/1.A33342), §III-V and Fig. 1-2:
 
 1. **Limb candidates**: a front end of :mod:`jaxlimb.imaging` (the Earth is a circle to 0.34 %), or, when it
-   lands on cloud edges, the disc's sunward extreme and the range prior's radius (:mod:`.start`); the start
+   lands on cloud edges, the disc's sunward extreme and the range prior's radius (:mod:`.start`); for another body
+   whose limb the hints predict (SPICE), the predicted-limb front end (:mod:`.predicted_start`); the start
    ellipse traced against the sky (:mod:`.trace`: the outermost edge along rays from the centre).
 2. **Predicted shape** (Eq. 2-9): with ``R_body_to_camera`` the limb cone of the spheroid at the current position
    gives the image ellipse's axis ratio ``rho`` and orientation ``theta``

@@ -7,7 +7,9 @@ Earth offset and range iteration of Mortari, D'Souza & Zanetti 2016 §IV, Fig. 2
   onto the ideal pixel grid (the limb is a conic only there) and ``finish`` maps the centre and its
   covariance back through the distortion's Jacobian.
 * **candidates**: the shared front end; when it fails on the radius or the outliers (its circle on cloud
-  edges), the range prior's radius behind the disc's sunward extreme (:func:`blob_candidates`).
+  edges), the range prior's radius behind the disc's sunward extreme (:func:`blob_candidates`).  A body other than
+  the Earth whose limb the hints predict (SPICE) starts from the predicted-limb front end instead
+  (:mod:`jaxlimb.pipeline.ellipsoid.predicted_start`).
 * **limb pixels**: the lit window from the Sun direction (else the front end's arc) less
   ``arc_margin_deg`` at each horn (:class:`~jaxlimb.errors.ArcTooShortError` when nothing is left),
   and the band of half-width ``band_px`` about the current ellipse (:func:`~jaxlimb.pipeline.ellipsoid.band.band_pixels`).
@@ -50,8 +52,9 @@ from ..stages import Body, BodyCenter, Covariance, EllipsePixels, EllipsoidEdge,
 from .center import ellipsoid_center
 from .edge import ellipsoid_edge
 from .model import EllipsoidModel, earth_hints
+from .predicted_start import spheroid_candidates
 from .profile import fit_profile_ellipsoid, floor_center_var
-from .start import ellipse_pixels, ellipsoid_candidates
+from .start import ellipse_pixels
 
 
 def ellipsoid_prepare(frame: Frame) -> Frame:
@@ -191,7 +194,7 @@ class Ellipsoid(Body[EllipsePixels, EllipsoidEdge]):
         return ellipsoid_prepare(frame)
 
     def candidates(self, frame: Frame) -> Any:
-        """Stage "candidates" (:func:`~jaxlimb.pipeline.ellipsoid.start.ellipsoid_candidates`).
+        """Stage "candidates" (:func:`~jaxlimb.pipeline.ellipsoid.predicted_start.spheroid_candidates`).
 
         Parameters
         ----------
@@ -203,7 +206,7 @@ class Ellipsoid(Body[EllipsePixels, EllipsoidEdge]):
         Any
             The front end's candidates and initial circle.
         """
-        return ellipsoid_candidates(self.model, frame)
+        return spheroid_candidates(self.model, frame)
 
     def limb_pixels(self, frame: Frame, cand: Any) -> EllipsePixels:
         """Stage "limb pixels" (:func:`~jaxlimb.pipeline.ellipsoid.start.ellipse_pixels`).

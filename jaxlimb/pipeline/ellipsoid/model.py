@@ -12,6 +12,7 @@ import numpy as np
 from ...errors import ConfigError, ConvergenceError, GeometryError, LimbInputError
 from ...fitting import solver_from_name
 from ...geometry.camera import Camera
+from ...geometry.bodies import BODY_TABLE
 from ...geometry.earth import EARTH_EQUATORIAL_KM, EARTH_POLAR_KM
 from ...geometry.earth_cone import earth_position_from_ellipse
 from ...geometry.ellipsoid import check_rotation, image_conic
@@ -62,8 +63,8 @@ class EllipsoidModel:
         """
         opt, h = frame.opt, frame.hints
         if frame.cam is None:
-            raise ConfigError("the ellipsoid strategy (hints body 'earth') needs a camera (`camera`; the CLI's --camera): "
-                              "it measures the range")
+            raise ConfigError("the ellipsoid strategy (a spheroid: the Earth, a giant planet) needs a camera (`camera`; "
+                              "the CLI's --camera): it measures the range")
         if not opt.estimate_k:
             raise ConfigError("estimate_k = False (the papers' fixed-k sphere setting) is not available for the "
                               "ellipsoid: its edge model estimates the kernel with the interior ramp")
@@ -212,7 +213,8 @@ def spheroid(hints: Hints) -> tuple[float, float, float]:
     Parameters
     ----------
     hints : Hints
-        ``body_radii_km`` (default WGS-84) and ``atmosphere_km`` (default 0).
+        ``body_radii_km`` (default: the named body's, :data:`~jaxlimb.geometry.bodies.BODY_TABLE`, else WGS-84) and
+        ``atmosphere_km`` (default 0: the limb height is the Earth's clouds or haze only when the hints say so).
 
     Returns
     -------
@@ -224,11 +226,15 @@ def spheroid(hints: Hints) -> tuple[float, float, float]:
     GeometryError
         The first two radii differ (not a spheroid).
     """
-    radii = hints.body_radii_km if hints.body_radii_km is not None else (EARTH_EQUATORIAL_KM, EARTH_EQUATORIAL_KM, EARTH_POLAR_KM)
+    radii = hints.body_radii_km
+    if radii is None and hints.body is not None and hints.body in BODY_TABLE:
+        radii = BODY_TABLE[hints.body].radii_km
+    if radii is None:
+        radii = (EARTH_EQUATORIAL_KM, EARTH_EQUATORIAL_KM, EARTH_POLAR_KM)
     a, b, c = (float(v) for v in radii)
     if abs(a - b) > 1e-9 * a:
         raise GeometryError(
-            f"the Earth pipeline needs a spheroid with body_radii_km[0] == body_radii_km[1], got {list(radii)}"
+            f"the ellipsoid strategy needs a spheroid with body_radii_km[0] == body_radii_km[1], got {list(radii)}"
         )
     h = float(hints.atmosphere_km or 0.0)
     return a, c, h
