@@ -163,7 +163,7 @@ class ScaledBFGS(optx.AbstractBFGS):  # type: ignore[misc]
         return f_info, jnp.array(True)
 
     def update_hessian(self, y, y_eval, f_info, f_eval_info, hessian_update_state):  # type: ignore[no-untyped-def]
-        """BFGS's update (``optimistix.AbstractBFGS.update_hessian``), the first from :math:`I/\|g_0\|_\infty`.
+        r"""BFGS's update (``optimistix.AbstractBFGS.update_hessian``), the first from :math:`I/\|g_0\|_\infty`.
 
         Parameters
         ----------
