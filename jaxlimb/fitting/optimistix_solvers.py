@@ -4,7 +4,8 @@
 with what the default solver has (fused analytic Jacobian, normal equations, coarse-to-fine
 start, the stopping rule on the parameter step: :class:`StepStop`);
 :func:`optimistix_normal_lm` runs the default's Marquardt-scaled Cholesky descent inside
-optimistix's Gauss--Newton machinery.  Kept apart from :mod:`jaxlimb.fitting.solvers` so that the
+optimistix's Gauss--Newton machinery; :class:`ScaledBFGS` is optimistix's BFGS started at the
+loss's scale.  Kept apart from :mod:`jaxlimb.fitting.solvers` so that the
 default path does not import optimistix and lineax (~0.06 s of every command's start-up).
 """
 
