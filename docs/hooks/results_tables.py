@@ -382,6 +382,22 @@ def montecarlo_cli(rel: str = "montecarlo_cli.json") -> str:
 
 
 @renderer
+def compare_cli(rel: str = "compare.json", run: str = "off") -> str:
+    """``jaxlimb compare``'s rows of one run (default: no compilation cache) and every run's process time."""
+    d = load(rel)
+    res = d["runs"][run]["result"]
+    rows = [[r["solver"], f"{100 * r['success_rate']:.1f} %", f(r["iterations_mean"], 1), str(r["iterations_max"]),
+             f(r["ms_per_fit"], 2), f(r["cpu_ms_per_fit"], 2), f(r["ms_over_first"], 2), f(r["compile_s"], 1),
+             g(r["max_abs_diff_vs_first_px"], 1), failures(r["failures"])] for r in res["rows"]]
+    head = ["solver", "ok", "iterations", "max it", "ms / fit", "CPU ms / fit", f"× {res['rows'][0]['solver']}",
+            "compile s", "max |Δ| vs first (px)", "failures"]
+    procs = "; ".join(f"{k} cache: wall {f(v['process_wall_s'], 1)} s, CPU {f(v['process_cpu_s'], 1)} s, load "
+                      f"{v['loadavg_before'][0]:.1f} → {v['loadavg_after'][0]:.1f}" for k, v in d["runs"].items())
+    return (table(head, rows) + source(rel, d) + f"*{d['n']} realisations, {res['devices']} XLA CPU devices; "
+            f"rows of the run with the cache {run}. Whole process: {procs}.*\n")
+
+
+@renderer
 def cli_speed(rel: str = "cli_speed.json") -> str:
     d = load(rel)
     rows = [[f"`{k}`", f(d["median_s"][k], 2), f(d["first_call_s"][k], 2), f(d["ratio_to_jax_start"][k], 2),

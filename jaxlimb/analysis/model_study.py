@@ -108,6 +108,7 @@ class SeededFits:
     program: Any
     shared: tuple[Any, ...]
     padded: _Padded
+    max_steps: int = 256
 
     def __call__(self, seeds: np.ndarray) -> dict[str, np.ndarray]:
         """``{"params": (b, p), "converged", "n_steps", "result"}`` of the realisations of ``seeds``."""
@@ -124,9 +125,10 @@ class SeededFits:
         return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
     def _one_by_one(self, seeds: np.ndarray) -> dict[str, np.ndarray]:
+        """One :func:`~jaxlimb.fitting.fit` per seed, its realisation drawn just before (one compiled draw)."""
         p, pad = self.problem, self.padded
-        z = noisy_intensities(seeds, pad.clean, pad.scale)[:, : pad.n]
-        fits = [fit(p.model, p.coords, zi, p.init, self.solver, fixed=p.fixed, weights=p.weights, throw=False) for zi in z]
+        fits = [fit(p.model, p.coords, noisy_intensities(s[None], pad.clean, pad.scale)[0, : pad.n], p.init, self.solver,
+                    fixed=p.fixed, weights=p.weights, max_steps=self.max_steps, throw=False) for s in seeds]
         return {"params": np.stack([np.asarray(f.params.to_vector()) for f in fits]),
                 "converged": np.array([bool(f.converged) for f in fits]),
                 "n_steps": np.array([int(f.n_steps) for f in fits]),
@@ -162,7 +164,7 @@ def seeded_fits(problem: StudyProblem, solver: AbstractLimbSolver, batch: int, m
         seeds = jax.ShapeDtypeStruct((width,), jnp.int64)
         jitted = per_device(_run_fn(problem, solver, max_steps), (seeds, *shared), (True,) + (False,) * 5)
         program = jitted.lower(seeds, *shared).compile()
-    return SeededFits(problem, solver, width, program, shared, pad)
+    return SeededFits(problem, solver, width, program, shared, pad, max_steps)
 
 
 def _batch_trial(fits: SeededFits, names: Sequence[str]) -> Callable[[np.ndarray, np.ndarray], dict[str, np.ndarray]]:

@@ -106,7 +106,7 @@ def run_comparison(args: argparse.Namespace, opt, problem, extra: dict | None = 
     else:
         print(f"{res['problem']['label']}: {opt.n} realisations x {len(opt.solvers)} solvers ({opt.mode}, "
               f"{res['devices']} device(s), chunks of {opt.chunk} timed {opt.repeats}x, interleaved); "
-              f"wall {res['wall_s']:.1f} s; load {res['loadavg'][0]:.1f}")
+              f"wall {res['wall_s']:.1f} s (compiling {res['compile_wall_s']:.1f} s); load {res['loadavg'][0]:.1f}")
         print(compare_table(res))
     return report_after_result(plot_error)
 

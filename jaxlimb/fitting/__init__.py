@@ -26,8 +26,8 @@ from .solvers import (
 
 
 def __getattr__(name: str):  # noqa: ANN202
-    """``Optimistix``, ``optimistix_normal_lm``, ``MarquardtCholeskyDescent``: imported on first use
+    """``Optimistix``, ``optimistix_normal_lm``, ``MarquardtCholeskyDescent``, ``ScaledBFGS``: imported on first use
     (:mod:`jaxlimb.fitting.optimistix_solvers`; the default path never imports optimistix)."""
-    if name in ("Optimistix", "optimistix_normal_lm", "MarquardtCholeskyDescent"):
+    if name in ("Optimistix", "optimistix_normal_lm", "MarquardtCholeskyDescent", "ScaledBFGS"):
         return getattr(solvers, name)  # the lazy attributes of jaxlimb.fitting.solvers
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -139,6 +139,38 @@ def residual_fn(model: LimbModel, free_idx: tuple[int, ...], analytic: bool):  #
     return residual
 
 
+def residual_and_jacobian_t(model: LimbModel, free_idx: tuple[int, ...]):  # noqa: ANN201
+    r"""``parts(y, args) -> (r, J^T)``: the weighted residuals and the transposed analytic Jacobian in one pass.
+
+    The pass :class:`~jaxlimb.fitting.NormalLM` makes over the pixels
+    (:meth:`~jaxlimb.models.LimbModel.intensity_and_jacobian_columns`: the paper's Eq. 14/17 columns
+    computed with the intensities).
+
+    Parameters
+    ----------
+    model : LimbModel
+        The limb model (its analytic columns are used).
+    free_idx : tuple of int
+        Indices of the free parameters.
+
+    Returns
+    -------
+    callable
+        ``parts(y, args)`` with ``args = (theta0, coords, z, w)``: ``r`` ``(n,)``,
+        :math:`r_i = w_i (f(\theta(y), x_i) - z_i)`, and ``J^T`` ``(q, n)``, :math:`w_i\,\partial f_i/\partial y_j`.
+    """
+    ptype = model.params_type
+
+    def parts(y: Array, args: tuple[Array, Array, Array, Array]) -> tuple[Array, Array]:
+        theta0, coords, z, w = args
+        params = ptype.from_vector(expand(theta0, free_idx, y))
+        f, cols = model.intensity_and_jacobian_columns(params, coords)
+        jt = jnp.stack([cols[i] for i in free_idx], axis=0) * w  # (q, n)
+        return w * (f - z), jt
+
+    return parts
+
+
 def fused_residual_fn(model: LimbModel, free_idx: tuple[int, ...]):  # noqa: ANN201
     """``residual(y, args)`` as :func:`residual_fn` with the analytic Jacobian, fused.
 
@@ -162,14 +194,7 @@ def fused_residual_fn(model: LimbModel, free_idx: tuple[int, ...]):  # noqa: ANN
     callable
         ``residual(y, args) -> (n,)``, ``args = (theta0, coords, z, w)``.
     """
-    ptype = model.params_type
-
-    def parts(y: Array, args: tuple[Array, Array, Array, Array]) -> tuple[Array, Array]:
-        theta0, coords, z, w = args
-        params = ptype.from_vector(expand(theta0, free_idx, y))
-        f, cols = model.intensity_and_jacobian_columns(params, coords)
-        jt = jnp.stack([cols[i] for i in free_idx], axis=0) * w  # (q, n)
-        return w * (f - z), jt
+    parts = residual_and_jacobian_t(model, free_idx)
 
     @jax.custom_jvp
     def residual(y: Array, args: tuple[Array, Array, Array, Array]) -> Array:

@@ -35,13 +35,12 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any, ClassVar
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
-import numpy as np
 from jaxtyping import Array
 
 from .problem import AbstractLimbSolver, FitResult, LimbProblem, coarse_problem, finish_result
+from .scipy_solver import ScipyLeastSquares
 
 
 class NormalLM(AbstractLimbSolver):
@@ -187,7 +186,8 @@ class NormalLM(AbstractLimbSolver):
 
 
 # ============================================================================ optimistix (lazy)
-_LAZY = frozenset({"Optimistix", "optimistix_normal_lm", "MarquardtCholeskyDescent", "OPTX_RTOL", "OPTX_ATOL", "fit_result"})
+_LAZY = frozenset({"Optimistix", "optimistix_normal_lm", "MarquardtCholeskyDescent", "OPTX_RTOL", "OPTX_ATOL", "fit_result",
+                   "ScaledBFGS"})
 
 
 def __getattr__(name: str) -> Any:
@@ -202,14 +202,15 @@ def __getattr__(name: str) -> Any:
 
 def _optx_solver(kind: str) -> Callable[[], AbstractLimbSolver]:
     """optimistix's ``kind``: the Gauss--Newton family with :class:`NormalLM`'s stopping rule and tolerances
-    (``StepStop``), BFGS with its own Cauchy test at ``OPTX_RTOL``/``OPTX_ATOL``."""
+    (``StepStop``), BFGS (:class:`~jaxlimb.fitting.optimistix_solvers.ScaledBFGS`: started at the loss's scale)
+    with its own Cauchy test at ``OPTX_RTOL``/``OPTX_ATOL``."""
 
     def make() -> AbstractLimbSolver:
         import optimistix as optx
 
-        from .optimistix_solvers import OPTX_ATOL, OPTX_RTOL, Optimistix
+        from .optimistix_solvers import OPTX_ATOL, OPTX_RTOL, Optimistix, ScaledBFGS
 
-        cls = getattr(optx, kind)
+        cls = ScaledBFGS if kind == "BFGS" else getattr(optx, kind)
         if issubclass(cls, optx.AbstractGaussNewton):
             return Optimistix(cls(rtol=NormalLM.rtol, atol=NormalLM.atol))
         return Optimistix(cls(rtol=OPTX_RTOL, atol=OPTX_ATOL))
@@ -311,86 +312,6 @@ class PaperGaussNewton(AbstractLimbSolver):
             bad, FitResult.diverged, FitResult.where(done, FitResult.successful, FitResult.max_steps_reached)
         )
         return y, n, result, hist
-
-
-# ============================================================================ scipy
-class ScipyLeastSquares(AbstractLimbSolver):
-    """Baseline: :func:`scipy.optimize.least_squares` with the paper's analytic Jacobian.
-
-    ``method="lm"`` is MINPACK's QR-based Levenberg--Marquardt.  The residual and
-    Jacobian are the same jit-compiled JAX functions the other solvers use,
-    called from SciPy's Python loop.  Not jittable, not vmappable.
-    """
-
-    jittable: ClassVar[bool] = False
-    method: str = eqx.field(static=True, default="lm")
-    xtol: float = 1e-12
-    ftol: float = 1e-12
-    gtol: float = 1e-12
-
-    def solve(self, problem, y0, max_steps):  # type: ignore[no-untyped-def]
-        """Run :func:`scipy.optimize.least_squares` from ``y0`` (on the host, not jittable).
-
-        Parameters
-        ----------
-        problem : LimbProblem
-            The problem.
-        y0 : jax.Array (q,)
-            Start of the free parameters.
-        max_steps : int
-            Iteration limit; SciPy's ``max_nfev`` is ``max_steps (q + 1)`` for ``method="lm"``.
-
-        Returns
-        -------
-        y : jax.Array (q,)
-            The estimate.
-        n_steps : jax.Array () of int
-            Jacobian evaluations (function evaluations if SciPy does not report them).
-        result : FitResult
-            ``successful`` (converged and admissible), ``max_steps_reached`` or ``diverged``.
-        """
-        from scipy.optimize import least_squares
-
-        res_j, jac_j, ok_j = _scipy_callables(problem)
-        args = problem.args
-        sol = least_squares(
-            lambda y: np.asarray(res_j(y, args)),
-            np.asarray(y0, dtype=float),
-            jac=lambda y: np.asarray(jac_j(y, args)),
-            method=self.method,
-            xtol=self.xtol,
-            ftol=self.ftol,
-            gtol=self.gtol,
-            max_nfev=max_steps * (len(problem.free_idx) + 1) if self.method == "lm" else max_steps,
-        )
-        y = jnp.asarray(sol.x)
-        if sol.status > 0 and bool(ok_j(y, args)):
-            result = FitResult.successful
-        elif sol.status == 0:
-            result = FitResult.max_steps_reached
-        else:
-            result = FitResult.diverged
-        return y, jnp.asarray(sol.njev if sol.njev is not None else sol.nfev), result
-
-
-_SCIPY_CACHE: dict[Any, tuple[Callable, Callable, Callable]] = {}
-
-
-def _scipy_callables(problem: LimbProblem):  # noqa: ANN202
-    key = (problem.model.name, problem.free_idx, problem.analytic)
-    if key not in _SCIPY_CACHE:
-        res = problem.residual
-
-        def jac(y, args):  # type: ignore[no-untyped-def]
-            p = LimbProblem(problem.model, problem.free_idx, problem.analytic, *args)
-            return p.jacobian(y)
-
-        def ok(y, args):  # type: ignore[no-untyped-def]
-            p = LimbProblem(problem.model, problem.free_idx, problem.analytic, *args)
-            return p.admissible(y)
-
-        _SCIPY_CACHE[key] = (jax.jit(res), jax.jit(jac), jax.jit(ok))
-    return _SCIPY_CACHE[key]
 
 
 # ============================================================================ names
