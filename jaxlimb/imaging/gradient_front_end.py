@@ -41,7 +41,7 @@ Decisions:
   (Check 2).  The limb lies on the outline of the lit region found by thresholding (contours of the Eq. (10)
   region, as ``cv2.findContours`` gives it), so steps 3-5 are repeated with the gradient zeroed outside a band of
   ``max(8 px, 6 %)`` of the region's radius about its outline (:func:`~.front_end_common.outline_band`); only
-  a frame whose first attempt failed takes this path.
+  a frame whose first attempt failed takes this path, and only with the region inside the frame.
 * Check 4 ("radius inconsistent with the expected value") uses the prior's band
   (:attr:`~jaxlimb.imaging.prior.Prior.radius_range`: ``p_r (1 -/+ 3 u)`` for
   hints; for a prior measured on the image see
@@ -254,7 +254,7 @@ def gradient_front_end(
     win, pts, n_box = _outline_retry(img, region, st, opt, mask, win)
     t_box = time.perf_counter()
     inl, fit, res, n_dark = _ransac_taubin(pts, n_box, win.offset_rc, pri, st, band, hints, camera, opt)
-    if not (win.outline or region.dark_surface):
+    if not (win.outline or region.dark_surface or region.touches_border):
         fits = (win, pts, n_box, inl, fit, res, n_dark)
         win, pts, n_box, inl, fit, res, n_dark = _interior_circle_retry(img, region, st, opt, mask, fits,
                                                                        (pri, band, hints, camera))
@@ -309,12 +309,13 @@ def _outline_retry(img: np.ndarray, region: BodyRegion, st, opt: GradientOptions
     the lit region's outline (:func:`outline_band`, ``info["outline_retry"]``): a limb lies on the outline of the lit
     region, and a disc whose interior edges are sharper than its limb (cloud against ocean on a full-disc Earth, a
     soft hazy limb) gives the ``N`` strongest gradients all inside (the box filter then keeps a few of 1500: the EPIC
-    frames of ``../shared/data/epic``).  If that fails too, the first failure stands.  Returns the window used and its
-    points."""
+    frames of ``../shared/data/epic``).  Not for a region cut by the frame: its outline is partly the frame's edge (and a
+    terminator with the lit limb outside the frame is no limb).  If that fails too, the first failure stands.  Returns
+    the window used and its points."""
     try:
         return _masked_retry(img, region, st, opt, mask, win)
     except TooManyOutliersError as err:
-        if region.dark_surface:  # the gradient was in the outline band already
+        if region.dark_surface or region.touches_border:  # in the band already; an outline partly the frame's edge
             raise
         first = err
     band = _gradient_window(img, region, st, mask, outline=True)
