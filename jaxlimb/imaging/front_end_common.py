@@ -44,16 +44,23 @@ def check_region_inside(center_rc, radius: float, region: BodyRegion, max_outsid
     limb can do."""
     if not region.dark_surface:  # a crescent's first circle may be poor yet refined well: only a variegated body's
         return
-    f = region.factor
-    rr, cc = np.nonzero(region.mask_small)
-    if rr.size == 0:
-        return
-    d = np.hypot(rr * f + 0.5 * (f - 1) - center_rc[0], cc * f + 0.5 * (f - 1) - center_rc[1])
-    out = float(np.mean(d > radius + max(3.0, 0.03 * radius) + f))
+    out = region_outside_fraction(center_rc, radius, region)
     if out > max_outside_frac:
         raise TooManyOutliersError(
             f"Check 3: the circle through the strongest edges (radius {radius:.1f} px) leaves {100 * out:.0f} % of the "
             "lit region outside it: those edges lie inside the body (albedo or cloud edges), not on its limb")
+
+
+def region_outside_fraction(center_rc, radius: float, region: BodyRegion) -> float:
+    """The fraction of the lit region of :func:`~.crop.detect_body` outside the circle (beyond a margin of
+    ``max(3 px, 3 %)`` of the radius and one working-image block, for a glow and the block averaging); 0 for an
+    empty region."""
+    f = region.factor
+    rr, cc = np.nonzero(region.mask_small)
+    if rr.size == 0:
+        return 0.0
+    d = np.hypot(rr * f + 0.5 * (f - 1) - center_rc[0], cc * f + 0.5 * (f - 1) - center_rc[1])
+    return float(np.mean(d > radius + max(3.0, 0.03 * radius) + f))
 
 
 def radius_band(prior: Prior, region: BodyRegion) -> tuple[float, float]:
@@ -98,4 +105,5 @@ def outline_band(region: BodyRegion, window: tuple[int, int, int, int], frac: fl
     return band_small[np.ix_(rows, cols)]
 
 
-__all__ = ["check_radius", "check_region_inside", "outline_band", "radius_band", "resolve_prior", "valid_zone"]
+__all__ = ["check_radius", "check_region_inside", "outline_band", "radius_band", "region_outside_fraction",
+           "resolve_prior", "valid_zone"]

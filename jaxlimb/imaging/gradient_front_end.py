@@ -11,7 +11,8 @@ Pipeline (:func:`gradient_front_end`):
    extrapolation (Eq. 18-22, :func:`richardson_gradient`);
 4. the N strongest gradient pixels, refined to sub-pixel position along the
    gradient direction (parabola through three samples);
-5. the box-based outlier filter (§4.2, :mod:`jaxlimb.imaging.boxfilter`); Check 2;
+5. the box-based outlier filter (§4.2, :mod:`jaxlimb.imaging.boxfilter`); Check 2 (failing, steps 3-5 once more
+   with the gradient kept in the band about the lit region's outline);
 6. RANSAC with index rotation (§4.3, :func:`jaxlimb.conics.ransac_circle`); Check 3;
 7. Taubin's fit (Eq. 26-35) on the inliers after a final 3-sigma trim; Check 4.
 
@@ -35,6 +36,12 @@ Decisions:
   the edge is the terminator, up to ``R (1 - cos phase)`` inside the limb, and when the
   Sun-facing side of a cropped body is outside the frame those points dominate the
   circle and shorten its radius.
+* Outline retry (not in the paper): a disc whose interior edges are sharper than its limb (clouds against ocean,
+  a hazy or limb-darkened edge) has its N strongest gradients inside, and the box filter keeps a handful of them
+  (Check 2).  The limb lies on the outline of the lit region found by thresholding (contours of the Eq. (10)
+  region, as ``cv2.findContours`` gives it), so steps 3-5 are repeated with the gradient zeroed outside a band of
+  ``max(8 px, 6 %)`` of the region's radius about its outline (:func:`~.front_end_common.outline_band`); only
+  a frame whose first attempt failed takes this path, and only with the region inside the frame.
 * Check 4 ("radius inconsistent with the expected value") uses the prior's band
   (:attr:`~jaxlimb.imaging.prior.Prior.radius_range`: ``p_r (1 -/+ 3 u)`` for
   hints; for a prior measured on the image see
@@ -70,12 +77,13 @@ import numpy as np
 
 from ..conics.ransac import RansacOptions, ransac_circle
 from ..conics.taubin import circle_residuals, fit_circle_taubin
-from ..errors import ConfigError, TooManyOutliersError
+from ..errors import CheckFailed, ConfigError, TooManyOutliersError
 from ..geometry.camera import Camera
 from .boxfilter import box_filter
 from .candidates import LimbCandidates, lit_arc
 from .crop import BodyRegion, DetectOptions, detect_body, nearest_fill
-from .front_end_common import check_radius, check_region_inside, outline_band, radius_band, resolve_prior, valid_zone
+from .front_end_common import (check_radius, check_region_inside, outline_band, radius_band, region_outside_fraction,
+                               resolve_prior, valid_zone)
 from .gradient import richardson_gradient, strongest_pixels, subpixel_refine
 from .io import validate_image
 from .prior import Hints, Prior, PriorOptions, derived_settings, ransac_tests, sun_direction_image
@@ -90,6 +98,9 @@ MIN_INLIERS = 10
 MIN_INLIER_FRACTION = 0.15
 #: Floor (px) of the final 3-sigma trim of the inliers.
 TRIM_MIN_PX = 1.0
+#: A circle leaving more than this fraction of the lit region outside it lies on interior edges
+#: (:func:`_interior_circle_retry`): a limb circle leaves none of it (a glow's few per cent at most).
+INTERIOR_CIRCLE_FRAC = 0.5
 #: Check 3 of a variegated body: largest fraction of the detected region outside the fitted circle
 #: (:func:`check_region_inside`).
 MAX_REGION_OUTSIDE_FRAC = 0.05
@@ -179,6 +190,7 @@ def _stage_info(pri, st, win, region, n_box, res, inl, n_dark, fit, shape) -> di
         "ransac_dmax": st.ransac_dmax,
         "presmooth_sigma": win.presmooth_sigma,
         "masked_retry": win.near_mask,
+        "outline_retry": win.outline,
         "residual_max": fit.max_abs,
         "cropped": region.crop,
         "center_in_image": bool(0 <= fit.center_rc[0] + win.offset_rc[0] <= shape[0] - 1
@@ -239,9 +251,13 @@ def gradient_front_end(
     band = radius_band(pri, region)
     win = _gradient_window(img, region, st, mask)
     t_grad = time.perf_counter()
-    win, pts, n_box = _masked_retry(img, region, st, opt, mask, win)
+    win, pts, n_box = _outline_retry(img, region, st, opt, mask, win)
     t_box = time.perf_counter()
     inl, fit, res, n_dark = _ransac_taubin(pts, n_box, win.offset_rc, pri, st, band, hints, camera, opt)
+    if not (win.outline or region.dark_surface or region.touches_border):
+        fits = (win, pts, n_box, inl, fit, res, n_dark)
+        win, pts, n_box, inl, fit, res, n_dark = _interior_circle_retry(img, region, st, opt, mask, fits,
+                                                                       (pri, band, hints, camera))
     t_fit = time.perf_counter()
     check_radius(fit.radius, pri, band)
     times = {"detect": t_detect - t0, "gradient": t_grad - t_detect, "box": t_box - t_grad, "ransac_taubin": t_fit - t_box}
@@ -280,10 +296,52 @@ class _GradientWindow:
     valid: np.ndarray | None
     presmooth_sigma: float
     near_mask: bool = False
+    outline: bool = False
 
     @property
     def offset_rc(self) -> tuple[int, int]:
         return self.roi[0], self.roi[2]
+
+
+def _outline_retry(img: np.ndarray, region: BodyRegion, st, opt: GradientOptions, mask: np.ndarray | None,
+                   win: _GradientWindow) -> tuple[_GradientWindow, np.ndarray, int]:
+    """Step 5 (:func:`_masked_retry`); when Check 2 fails, steps 3-5 again with the gradient kept only in the band about
+    the lit region's outline (:func:`outline_band`, ``info["outline_retry"]``): a limb lies on the outline of the lit
+    region, and a disc whose interior edges are sharper than its limb (cloud against ocean on a full-disc Earth, a
+    soft hazy limb) gives the ``N`` strongest gradients all inside (the box filter then keeps a few of 1500: the EPIC
+    frames of ``../shared/data/epic``).  Not for a region cut by the frame: its outline is partly the frame's edge (and a
+    terminator with the lit limb outside the frame is no limb).  If that fails too, the first failure stands.  Returns
+    the window used and its points."""
+    try:
+        return _masked_retry(img, region, st, opt, mask, win)
+    except TooManyOutliersError as err:
+        if region.dark_surface or region.touches_border:  # in the band already; an outline partly the frame's edge
+            raise
+        first = err
+    band = _gradient_window(img, region, st, mask, outline=True)
+    try:
+        return (band, *_box_filtered_points(band, region, st, opt))
+    except TooManyOutliersError:
+        raise first from None
+
+
+def _interior_circle_retry(img: np.ndarray, region: BodyRegion, st, opt: GradientOptions, mask: np.ndarray | None,
+                           fits: tuple, prior: tuple) -> tuple:
+    """Steps 3-7 once more in the band about the lit region's outline (:func:`_outline_retry`) when the circle of
+    ``fits`` (``win, pts, n_box, inl, fit, res, n_dark``) leaves more than :data:`INTERIOR_CIRCLE_FRAC` of the lit
+    region outside it: no limb circle does, a circle through interior edges does (cloud edges of a full-disc Earth:
+    a 158 px circle in a 399 px disc).  The retry's answer when it succeeds, else ``fits`` unchanged."""
+    win, fit = fits[0], fits[4]
+    center = (fit.center_rc[0] + win.offset_rc[0], fit.center_rc[1] + win.offset_rc[1])
+    if region_outside_fraction(center, float(fit.radius), region) <= INTERIOR_CIRCLE_FRAC:
+        return fits
+    pri, band, hints, camera = prior
+    try:
+        o = _gradient_window(img, region, st, mask, outline=True)
+        pts, n_box = _box_filtered_points(o, region, st, opt)
+        return (o, pts, n_box, *_ransac_taubin(pts, n_box, o.offset_rc, pri, st, band, hints, camera, opt))
+    except CheckFailed:
+        return fits
 
 
 def _masked_retry(img: np.ndarray, region: BodyRegion, st, opt: GradientOptions, mask: np.ndarray | None,
@@ -307,9 +365,10 @@ def _masked_retry(img: np.ndarray, region: BodyRegion, st, opt: GradientOptions,
 
 
 def _gradient_window(img: np.ndarray, region: BodyRegion, st, mask: np.ndarray | None,
-                     near_mask: bool = False) -> _GradientWindow:
+                     near_mask: bool = False, outline: bool = False) -> _GradientWindow:
     """Steps 3-4: the ROI padded for the box filter, pre-smoothed, differentiated (Eq. 18-22), and its
-    ``N`` strongest gradient pixels; the gradient near an invalid pixel is zeroed.  ``near_mask``
+    ``N`` strongest gradient pixels; the gradient near an invalid pixel is zeroed, and outside the band about the
+    lit region's outline for a variegated body's region or with ``outline`` (:func:`_outline_retry`).  ``near_mask``
     (:func:`_masked_retry`): the invalid pixels hold their nearest valid pixel's value, only their own gradient is
     zeroed, and the box filter is not given the mask."""
     r0, r1, c0, c1 = region.roi
@@ -331,11 +390,11 @@ def _gradient_window(img: np.ndarray, region: BodyRegion, st, mask: np.ndarray |
     if mask is not None:
         vsub = np.asarray(mask, bool)[r0:r1, c0:c1]
         g = np.where(vsub if near_mask else valid_zone(vsub, 4 + int(math.ceil(3 * sigma_pre))), g, 0)
-    if region.dark_surface:
+    if region.dark_surface or outline:
         g = np.where(outline_band(region, (r0, r1, c0, c1)), g, 0)
     n_req = int(min(st.n_points, max(10, g.size // 4)))
     return _GradientWindow((r0, r1, c0, c1), sub_s, g, gr, gc, strongest_pixels(g, n_req),
-                           None if near_mask else vsub, sigma_pre, near_mask)
+                           None if near_mask else vsub, sigma_pre, near_mask, outline)
 
 
 def _masked_limb_note(win: _GradientWindow, region: BodyRegion) -> str:

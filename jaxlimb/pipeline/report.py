@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from .._validate import check_center_sigma
-from ..models import (AnisoProfileParams, CIRCLE, CircleParams, ELLIPSE, ELLIPSE_RAMP, EllipseRampParams,
-                      LimbDarkenedParams, LimbProfileParams, MinnaertProfileParams)
+from ..models import (AnisoProfileParams, CIRCLE, CircleParams, ELLIPSE, ELLIPSE_RAMP, ellipse_coords,
+                      EllipseRampParams, LimbDarkenedParams, LimbProfileParams, MinnaertProfileParams)
 from ..models.lunar_lambert import glow_fields, profile_model
 from .checks import check_edge_width, check_levels
 from .result import LimbMeasurement
@@ -130,7 +130,38 @@ def levels(final: RefineResult) -> Levels:
     k = float(fp.k)
     s_e = (1.0 / abs(k)) if isinstance(fp, EllipseRampParams) else LOGISTIC_TO_GAUSS / abs(k) if k != 0 else math.inf
     sig = math.sqrt(max(s_e * s_e - 1.0 / 12.0, 0.0)) if k > 0 else math.inf
-    return Levels(k, float(d.offset + d.scale * float(fp.ymax)), float(d.offset + d.scale * float(fp.ymin)), sig, None)
+    inside = ramp_inside_level(fp, d) if isinstance(fp, EllipseRampParams) else None
+    return Levels(k, float(d.offset + d.scale * float(fp.ymax)), float(d.offset + d.scale * float(fp.ymin)), sig, None,
+                  inside)
+
+
+def ramp_inside_level(fp: EllipseRampParams, data: Any) -> float | None:
+    """The interior ramp's brightness inside the limb (DN): the median of the fitted model over the fit's pixels
+    more than two blur sigmas (``2 / k``) inside the ellipse.  Its limb level ``ymax`` is not the body's brightness:
+    a Lambert limb near zero phase rises from ~0 as ``g_2 sqrt(u)`` (:func:`~jaxlimb.models.ellipse_ramp_intensity`),
+    and its ``ymax`` may fit below the sky while the disc is bright.
+
+    Parameters
+    ----------
+    fp : EllipseRampParams
+        The fitted parameters.
+    data : FitData
+        The fit's pixels and the DN scale.
+
+    Returns
+    -------
+    float or None
+        The level (DN); ``None`` when no pixel lies that deep or ``k <= 0``.
+    """
+    if not float(fp.k) > 0:
+        return None
+    x, y = ellipse_coords(fp, data.coords)
+    depth = float(fp.rho) * float(fp.a) - np.sqrt(float(fp.rho) ** 2 * np.asarray(x) ** 2 + np.asarray(y) ** 2)
+    deep = depth > 2.0 / float(fp.k)
+    if not deep.any():
+        return None
+    z = np.asarray(ELLIPSE_RAMP.intensity(fp, data.coords[deep]))
+    return float(data.offset + data.scale * float(np.median(z)))
 
 
 def check_physical(frame: Frame, lev: Levels, cov: Covariance, what: str) -> None:
@@ -152,7 +183,7 @@ def check_physical(frame: Frame, lev: Levels, cov: Covariance, what: str) -> Non
     ------
     NonPhysicalFitError, CenterTooUncertainError
     """
-    check_levels(lev.ymax, lev.ymin, what)
+    check_levels(lev.ymax if lev.inside is None else lev.inside, lev.ymin, what)
     if lev.profile is not None and float(lev.profile["amp"]) <= 0:
         check_levels(lev.ymin + float(lev.profile["amp"]), lev.ymin, what)
     check_edge_width(lev.psf_sigma_px, what)

@@ -233,13 +233,16 @@ class Covariance:
 
 @dataclass(frozen=True)
 class Levels:
-    """The edge in the units of the result: logistic ``k``, inside/outside levels (DN) and the PSF sigma."""
+    """The edge in the units of the result: logistic ``k``, inside/outside levels (DN) and the PSF sigma;
+    ``inside`` (DN): the fitted brightness inside the edge where the fit sees it, when the model's limb level
+    ``ymax`` is not it (the interior ramp's, whose limb level may be ~0 under a rising interior), else ``None``."""
 
     k: float
     ymax: float
     ymin: float
     psf_sigma_px: float
     profile: dict[str, Any] | None
+    inside: float | None = None
 
 
 # =============================================================================== the strategies

@@ -27,6 +27,15 @@ from .trace_fit import fit_traced
 PATCHY_SHADING_L = 0.0
 
 
+#: Without the Sun direction (no shading model for the trace's flatness test), the smallest share of the wide trace's
+#: rays kept for the trace to start the fit: on a Lambert limb near zero phase (the sunlit Earth from deep space) the
+#: brightness rises inward as the square root of the depth and the plain test keeps 2-4 % of the rays, those beside a
+#: bright cloud; an ellipse through them ran 7 px off (``epic_earth_20220910.jpg``), the band fit about the front
+#: end's ellipse is within 1 px.  (Cf. :meth:`~jaxlimb.pipeline.ellipsoid.trace.TracedLimb.patchy`, whose rule for
+#: one ray in ten is the same.)
+MIN_UNSHADED_SHARE = 0.1
+
+
 def ellipsoid_candidates(body: EllipsoidModel, frame: Frame) -> Any:
     """Stage "candidates" of the ellipsoid: the shared front end; when it fails on the limb's size or outliers (its
     circle on cloud edges) the disc's outermost lit pixel and the range prior's radius (:func:`blob_candidates`)
@@ -71,9 +80,11 @@ def ellipsoid_candidates(body: EllipsoidModel, frame: Frame) -> Any:
 
 def ellipse_pixels(body: EllipsoidModel, frame: Frame, cand: Any) -> EllipsePixels:
     """Stage "limb pixels" of the ellipsoid: the position prior (range prior, else the radius of the candidates'
-    circle), the lit window (the Sun's image direction, else the front end's arc, less ``arc_margin_deg`` at each
-    horn) and the initial ellipse (shape predicted with a known attitude) traced against the sky
-    (:func:`traced_start`).
+    circle), the lit window (the half-circle about the Sun's image direction less ``arc_margin_deg`` at each horn;
+    without the Sun, the front end's arc, at most a half-circle: it ends where the front end found no lit edge, and a
+    margin there would leave a full-disc Earth's free ellipse a third of its lit limb: 2-4 px off the EPIC product
+    centres of ``../shared/data/epic``, 0.5-0.8 px with the whole arc) and the initial ellipse (shape predicted with
+    a known attitude) traced against the sky (:func:`traced_start`).
 
     Parameters
     ----------
@@ -106,10 +117,11 @@ def ellipse_pixels(body: EllipsoidModel, frame: Frame, cand: Any) -> EllipsePixe
     p0 = -D0 * cam.los(c_rc)  # observer relative to the body centre, camera frame
     lit_dir, half = cand.lit_direction, cand.lit_halfangle
     sd = sun_direction_image(h.sun_dir_camera, cam, tuple(c_rc)) if h.sun_dir_camera is not None else None
-    if sd is not None:
-        lit_dir, half = sd, math.pi / 2
+    if sd is not None:  # the lit half-circle, less the margin at its ends: the horns
+        lit_dir, half = sd, math.pi / 2 - math.radians(eo.arc_margin_deg)
+    elif lit_dir is not None:  # the front end's arc: its ends are where it found lit edges, not horns
+        half = min(half, math.pi / 2)
     if lit_dir is not None:
-        half = min(half, math.pi / 2) - math.radians(eo.arc_margin_deg)
         if half <= math.radians(5):
             raise ArcTooShortError(
                 f"the lit limb arc left after {eo.arc_margin_deg:g} deg at each horn spans "
@@ -235,7 +247,8 @@ def traced_start(img: np.ndarray, ell: tuple, lit_dir, half: float, band: float,
                   shade: Any = None) -> tuple[tuple, Any]:
     """The initial ellipse from the limb against the sky (:mod:`jaxlimb.pipeline.ellipsoid.trace`): a wide trace
     about the front end's ellipse (it may lie on cloud edges: the search reaches 20 % of the radius;
-    :func:`wide_trace`), a fit, a narrow trace about it and a second fit.  A front-end ellipse within 1 px (median)
+    :func:`wide_trace`), a fit, a narrow trace about it and a second fit.  Without the shading model (no Sun
+    direction) a wide trace keeping fewer than :data:`MIN_UNSHADED_SHARE` of its rays is not used.  A front-end ellipse within 1 px (median)
     of the traced points, whose rays' fit also lies within 1 px, is kept (a fit of few traced rays may run off).
 
     Parameters
@@ -264,6 +277,8 @@ def traced_start(img: np.ndarray, ell: tuple, lit_dir, half: float, band: float,
 
     try:
         tr = wide_trace(img, ell, lit_dir, half, shade)
+        if shade is None and tr.ok.mean() < MIN_UNSHADED_SHARE:
+            return ell, None
         narrow = max(6.0, 2.0 * band)
         on_limb = bool(tr.ok.sum()) and np.median(np.abs(ellipse_signed_distance(tr.points[tr.ok], ell))) < 1.0
         if on_limb and tr.ok.sum() < 20:
