@@ -16,15 +16,22 @@ strategy                 bodies                               limb, profile, bod
                                                               lunar-Lambert profile; Earth offset and range
                                                               iteration (Mortari et al. §IV, Fig. 2)
 ``Disc``                 the Sun                              full annulus; CSF; limb-darkened disc; its centre
+``SmallBody``            a body of a few pixels (expected     the whole blob: the blurred lit disc at the phase; its
+                         radius below 5 px, or too small for  centre of brightness corrected for the phase when that
+                         a limb in the image)                 fit fails
 =======================  ===================================  ==========================================================
 """
 
 from __future__ import annotations
 
-from ..errors import ConfigError
+import numpy as np
+
+from ..errors import CheckFailed, ConfigError, TooSmallError
+from ..imaging.crop import detect_body
 from .ellipsoid.body import Ellipsoid
-from .frame import arc_only, limb_predicted
+from .frame import arc_only, expected_radius_px, limb_predicted, small_expected
 from .options import BodyShape
+from .small.body import SmallBody
 from .sphere.body import Disc, Sphere
 from .sphere.predicted import PredictedLimbSphere
 from .stages import Body, Frame
@@ -48,7 +55,21 @@ def _shape(frame: Frame) -> BodyShape:
         return BodyShape.DISC
     if h is not None and h.body == "earth":
         return BodyShape.ELLIPSOID
+    if small_expected(frame) or (expected_radius_px(frame) is None and _too_small_for_a_limb(frame)):
+        return BodyShape.SMALL
     return BodyShape.SPHERE
+
+
+def _too_small_for_a_limb(frame: Frame) -> bool:
+    """The image's Check 1 (:func:`~jaxlimb.imaging.detect_body`) finds the lit region too small for a limb (the hints
+    give no size)."""
+    try:
+        detect_body(np.asarray(frame.img, dtype=float))
+    except TooSmallError:
+        return True
+    except CheckFailed:  # any other refusal is the front end's to give
+        return False
+    return False
 
 
 def body_strategy(frame: Frame) -> Body:
@@ -80,6 +101,8 @@ def body_strategy(frame: Frame) -> Body:
         return Disc()
     if shape == BodyShape.ELLIPSOID:
         return Ellipsoid.for_frame(frame)
+    if shape == BodyShape.SMALL:
+        return SmallBody()
     if frame.opt.profile == "limb-darkened":
         raise ConfigError("profile = 'limb-darkened' is the disc strategy's (shape = 'disc' or hints body 'sun')")
     if limb_predicted(frame) or arc_only(frame):

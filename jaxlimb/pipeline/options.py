@@ -55,12 +55,13 @@ class Profile(_Choice):
 
 class BodyShape(_Choice):
     """The body strategy of :func:`~jaxlimb.pipeline.locate`: ``auto`` (the Sun: ``disc``; the Earth:
-    ``ellipsoid``; any other body: ``sphere``), or one of them."""
+    ``ellipsoid``; a body of a few pixels: ``small``; any other body: ``sphere``), or one of them."""
 
     AUTO = "auto"
     SPHERE = "sphere"
     ELLIPSOID = "ellipsoid"
     DISC = "disc"
+    SMALL = "small"
 
 
 FRONT_ENDS = tuple(m.value for m in FrontEnd)
