@@ -40,8 +40,9 @@ from jaxtyping import ArrayLike
 
 from ._base import LimbModel, LimbParams
 
-#: Cells of the radiance grid along each axis.
-N_SUB = 96
+#: Cells of the radiance grid along each axis: the model's phase offset within 0.006 px of the exact (supersampled,
+#: perspective) renders' for radii 1-3 px at phases 5-85 deg (0.014 px with 96 cells).
+N_SUB = 192
 #: Side (px) of the square window of pixels the model predicts.
 WINDOW = 40
 #: Floor (px) added in quadrature to ``sigma``: keeps the pixel box's edges differentiable at ``sigma = 0``.
@@ -76,6 +77,7 @@ def grid_half_extent(a: float) -> float:
     return 1.25 * float(a) + 1.5
 
 
+@jax.jit
 def radiance_grid(p: SmallDiscParams):
     """Cell centres ``(ys, xs)`` (px) and the radiance times the covered area of each cell, ``(N_SUB, N_SUB)``."""
     h = p.grid_h
@@ -121,18 +123,29 @@ def small_disc_intensity(p: SmallDiscParams, rc):
     return p.ymin + p.amp * M[ir, ic]
 
 
+@jax.jit
+def _offset(p: SmallDiscParams):
+    ys, xs, S = radiance_grid(p)
+    tot = jnp.sum(S)
+    return jnp.stack([jnp.sum(S * (ys[:, None] - p.r0)) / tot, jnp.sum(S * (xs[None, :] - p.c0)) / tot])
+
+
 def photocentre_offset(p: SmallDiscParams) -> tuple[float, float]:
     """The centre of brightness of the model's disc minus its centre ``(d_row, d_col)`` (px): the phase offset of a
     moment (centroid) measurement; the PSF, being symmetric, does not move it."""
-    ys, xs, S = radiance_grid(p)
-    tot = jnp.sum(S)
-    return (float(jnp.sum(S * (ys[:, None] - p.r0)) / tot), float(jnp.sum(S * (xs[None, :] - p.c0)) / tot))
+    d = _offset(p)
+    return float(d[0]), float(d[1])
+
+
+#: :func:`small_disc_intensity` compiled, for calls outside a fit (the noise model, the residuals).
+small_disc_predict = jax.jit(small_disc_intensity)
 
 
 def _intensity_vec(theta, rc):
     return small_disc_intensity(SmallDiscParams.from_vector(theta), rc)
 
 
+@jax.jit
 def _jacobian(p: SmallDiscParams, rc):
     return jax.jacfwd(_intensity_vec)(p.to_vector(), rc)
 
@@ -154,5 +167,6 @@ def sun_angle_params(sun_rc, phase_rad: float) -> tuple[float, float, float]:
 
 
 __all__ = ["N_SUB", "SMALL_DISC", "SMALL_DISC_FIXED", "SmallDiscParams", "WINDOW", "grid_half_extent",
-           "photocentre_offset", "pixel_gaussian", "radiance_grid", "small_disc_intensity", "small_disc_window",
+           "photocentre_offset", "pixel_gaussian", "radiance_grid", "small_disc_intensity", "small_disc_predict",
+           "small_disc_window",
            "sun_angle_params"]

@@ -17,19 +17,16 @@ strategy                 bodies                               limb, profile, bod
                                                               iteration (Mortari et al. §IV, Fig. 2)
 ``Disc``                 the Sun                              full annulus; CSF; limb-darkened disc; its centre
 ``SmallBody``            a body of a few pixels (expected     the whole blob: the blurred lit disc at the phase; its
-                         radius below 5 px, or too small for  centre of brightness corrected for the phase when that
-                         a limb in the image)                 fit fails
+                         radius below 6 px, Sun direction     centre of brightness corrected for the phase when that
+                         known)                               fit fails
 =======================  ===================================  ==========================================================
 """
 
 from __future__ import annotations
 
-import numpy as np
-
-from ..errors import CheckFailed, ConfigError, TooSmallError
-from ..imaging.crop import detect_body
+from ..errors import ConfigError
 from .ellipsoid.body import Ellipsoid
-from .frame import arc_only, expected_radius_px, limb_predicted, small_expected
+from .frame import arc_only, limb_predicted, small_expected
 from .options import BodyShape
 from .small.body import SmallBody
 from .sphere.body import Disc, Sphere
@@ -55,21 +52,9 @@ def _shape(frame: Frame) -> BodyShape:
         return BodyShape.DISC
     if h is not None and h.body == "earth":
         return BodyShape.ELLIPSOID
-    if small_expected(frame) or (expected_radius_px(frame) is None and _too_small_for_a_limb(frame)):
+    if small_expected(frame):
         return BodyShape.SMALL
     return BodyShape.SPHERE
-
-
-def _too_small_for_a_limb(frame: Frame) -> bool:
-    """The image's Check 1 (:func:`~jaxlimb.imaging.detect_body`) finds the lit region too small for a limb (the hints
-    give no size)."""
-    try:
-        detect_body(np.asarray(frame.img, dtype=float))
-    except TooSmallError:
-        return True
-    except CheckFailed:  # any other refusal is the front end's to give
-        return False
-    return False
 
 
 def body_strategy(frame: Frame) -> Body:
@@ -85,7 +70,7 @@ def body_strategy(frame: Frame) -> Body:
     Returns
     -------
     Body
-        ``Disc``, ``Ellipsoid``, ``PredictedLimbSphere`` or ``Sphere`` (with the lunar-Lambert profile when
+        ``Disc``, ``Ellipsoid``, ``SmallBody``, ``PredictedLimbSphere`` or ``Sphere`` (with the lunar-Lambert profile when
         ``profile="auto"`` and the Sun direction is known).
 
     Raises

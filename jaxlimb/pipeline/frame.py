@@ -183,8 +183,9 @@ def arc_only(frame: Frame) -> bool:
 
 
 #: Expected apparent radius (px) below which a body is measured as a whole (:mod:`jaxlimb.pipeline.small`), not on its
-#: limb: there the PSF is as wide as the rim (``benchmarks/small_bodies.py``).
-SMALL_RADIUS_MAX_PX = 5.0
+#: limb: below it the limb strategy refuses the body (Check 1, a 10 px diameter) or, by a range prior a few per cent
+#: off, may; from 7 px up the limb fit is as accurate and its covariance more faithful (``benchmarks/small_bodies.py``).
+SMALL_RADIUS_MAX_PX = 6.0
 
 
 def expected_radius_px(frame: Frame) -> float | None:
@@ -202,9 +203,10 @@ def expected_radius_px(frame: Frame) -> float | None:
 
 
 def small_expected(frame: Frame) -> bool:
-    """The hints put the body below :data:`SMALL_RADIUS_MAX_PX` of apparent radius."""
+    """The hints put the body below :data:`SMALL_RADIUS_MAX_PX` of apparent radius and give the Sun direction (the
+    few-pixel strategy's phase); without it such a body is refused by Check 1, as too small for a limb."""
     pr = expected_radius_px(frame)
-    return pr is not None and pr < SMALL_RADIUS_MAX_PX
+    return pr is not None and pr < SMALL_RADIUS_MAX_PX and frame.sun_known
 
 
 def frame_mask(frame: Frame) -> np.ndarray | None:

@@ -5,6 +5,7 @@ Candidates.  The image smoothed by a Gaussian of ``max(1, a/2)`` px (about the m
 ``a`` blurred by a ~1 px PSF); its highest point (within :data:`SEARCH_PX` of the hints' ``expected_center_rc`` when
 given, invalid pixels left out); the sky and the noise from the ring :data:`SKY_RING_PX` around it (median, MAD).
 Check "no body": the brightest raw pixel near the peak less than :data:`MIN_PEAK_SNR` noise sigmas above the sky.
+Check "size": the blob much larger than the hints' expected radius (:data:`MAX_SIZE_RATIO`): a resolved body.
 
 Centre of brightness (GIANT's moment algorithm, ``giant.relative_opnav.estimators.moment_algorithm``): the first
 moment of ``z - sky`` over the pixels of the connected region above ``sky + 3 noise`` about the peak, dilated by
@@ -24,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import NoBodyError
+from ...errors import NoBodyError, RadiusInconsistentError
 
 #: Radius (px) of the search about the hints' ``expected_center_rc``.
 SEARCH_PX = 30.0
@@ -34,6 +35,10 @@ SKY_RING_PX = (8.0, 20.0)
 MIN_PEAK_SNR = 5.0
 #: Dilation (px) of the region above ``sky + 3 noise`` over which the first moment is taken.
 MOMENT_DILATE_PX = 2
+#: Check "size": the region above ``sky + 3 noise`` about the peak, as the radius of a disc of its area, at most this
+#: times the expected radius plus :data:`MAX_SIZE_PAD_PX` (the PSF's and the noise's widening).
+MAX_SIZE_RATIO = 2.0
+MAX_SIZE_PAD_PX = 4.0
 #: 1-sigma of the lunar-Lambert weight ``L`` (the law between Lambert, 0, and Lommel-Seeliger, 1) in the covariance
 #: of the phase correction: a quarter of its range.
 LAW_SIGMA = 0.25
@@ -93,7 +98,7 @@ def _ring(img: np.ndarray, valid: np.ndarray | None, peak, a: float) -> tuple[fl
 
 def centre_of_brightness(img: np.ndarray, valid: np.ndarray | None, peak, sky: float, noise: float):
     """First moment of ``z - sky`` over the blob about ``peak`` (module docstring): ``(centre, covariance 2x2, flux,
-    second moment per axis)``."""
+    second moment per axis, pixels above sky + 3 noise)``."""
     from scipy import ndimage
 
     above = img > sky + 3.0 * noise
@@ -102,6 +107,7 @@ def centre_of_brightness(img: np.ndarray, valid: np.ndarray | None, peak, sky: f
     lab, _ = ndimage.label(above)
     region = lab == lab[peak] if lab[peak] else np.zeros_like(above)
     region[peak] = True
+    area = int(np.count_nonzero(region))
     region = ndimage.binary_dilation(region, iterations=MOMENT_DILATE_PX)
     if valid is not None:
         region &= valid
@@ -114,7 +120,7 @@ def centre_of_brightness(img: np.ndarray, valid: np.ndarray | None, peak, sky: f
     dr, dc = rr - r_bar, cc - c_bar
     cov = noise * noise / (F * F) * np.array([[np.sum(dr * dr), np.sum(dr * dc)], [np.sum(dr * dc), np.sum(dc * dc)]])
     m2 = float(0.5 * (w * (dr * dr + dc * dc)).sum() / F)
-    return (r_bar, c_bar), cov, F, m2
+    return (r_bar, c_bar), cov, F, m2, area
 
 
 def find_blob(img: np.ndarray, valid: np.ndarray | None, expected_radius_px: float | None, radius_uncertainty: float,
@@ -130,7 +136,12 @@ def find_blob(img: np.ndarray, valid: np.ndarray | None, expected_radius_px: flo
     if not snr >= MIN_PEAK_SNR:
         raise NoBodyError(f"no body: the brightest point is {snr:.3g} noise sigmas above the sky, fewer than "
                           f"{MIN_PEAK_SNR:g}")
-    cen, cov, F, m2 = centre_of_brightness(img, valid, peak, sky, noise)
+    cen, cov, F, m2, area = centre_of_brightness(img, valid, peak, sky, noise)
+    r_eq = math.sqrt(area / math.pi)
+    if expected_radius_px is not None and r_eq > MAX_SIZE_RATIO * a + MAX_SIZE_PAD_PX:
+        raise RadiusInconsistentError(f"the blob at the brightest point is {r_eq:.3g} px in radius above the sky, more "
+                                      f"than {MAX_SIZE_RATIO:g} x the {a:.3g} px the hints expect + {MAX_SIZE_PAD_PX:g} px "
+                                      "of blur: not a few-pixel body")
     return BlobCandidates(peak, cen, cov, sky, noise, F, float(snr), m2, expected_radius_px, radius_uncertainty)
 
 

@@ -1,6 +1,6 @@
 r"""The few-pixel body strategy of :func:`jaxlimb.pipeline.locate`: a body whose expected apparent radius is below
-:data:`~jaxlimb.pipeline.frame.SMALL_RADIUS_MAX_PX` (or, without a size in the hints, one the image's Check 1 finds too
-small for a limb), measured as a whole: the blurred lit disc at the hints' phase, fitted to a window of pixels about
+:data:`~jaxlimb.pipeline.frame.SMALL_RADIUS_MAX_PX` (the Sun direction known; or any body with ``shape="small"``),
+measured as a whole: the blurred lit disc at the hints' phase, fitted to a window of pixels about
 it (:mod:`jaxlimb.pipeline.small.fit`); when that fit fails, the centre of brightness corrected for the phase
 (:mod:`jaxlimb.pipeline.small.blob`, GIANT's moment algorithm).
 
@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..._validate import check_center_sigma
-from ...errors import ConvergenceError
+from ...errors import ConfigError, ConvergenceError
 from ...fitting import FitResult, LimbFit
 from ..checks import check_edge_width, check_levels
 from ..frame import expected_radius_px, frame_mask
@@ -46,6 +46,9 @@ class SmallEdge:
 def small_candidates(frame: Frame) -> BlobCandidates:
     """Stage "candidates": the blob (:func:`~jaxlimb.pipeline.small.blob.find_blob`) with the hints' size."""
     h = frame.hints
+    if not frame.sun_known:
+        raise ConfigError("the few-pixel strategy needs the Sun direction (hints sun_dir_camera): a body of a few "
+                          "pixels' centre of light lies up to half its radius sunward of its centre")
     u = (h.expected_radius_uncertainty_frac if h is not None else None) or DEFAULT_RADIUS_UNCERTAINTY
     near = h.expected_center_rc if h is not None else None
     cand = find_blob(frame.img, frame_mask(frame), expected_radius_px(frame), u, near)
@@ -75,12 +78,17 @@ def moments_result(frame: Frame, cand: BlobCandidates, pix: SmallPixels, reason:
 
 
 def small_edge(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> SmallEdge:
-    """Stage "edge fit": the disc fit; the centre of brightness when it does not converge."""
+    """Stage "edge fit": the disc fit; the centre of brightness corrected for the phase when it does not converge
+    (reported beside the disc fit's answer otherwise)."""
     try:
         rr, info = fit_small_disc(frame, cand, pix)
     except ConvergenceError as e:
         return moments_result(frame, cand, pix, str(e))
     frame.mark("refine")
+    mom = moments_result(frame, cand, pix, "")
+    p, C = mom.result.fit.params, np.asarray(mom.result.fit.covariance)
+    info = {**info, "moments_rc": [float(p.r0), float(p.c0)], "moments_cov": C.tolist(),
+            "phase_offset_rc": mom.info["phase_offset_rc"]}
     return SmallEdge(rr, "disc", info)
 
 

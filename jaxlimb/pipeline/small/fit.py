@@ -27,7 +27,7 @@ import numpy as np
 from ...fitting import fit
 from ...models import lunar_lambert_weight
 from ...models.small_disc import (N_SUB, SMALL_DISC, SMALL_DISC_FIXED, WINDOW, SmallDiscParams, grid_half_extent,
-                                  photocentre_offset, radiance_grid, small_disc_intensity)
+                                  photocentre_offset, radiance_grid, small_disc_predict)
 from ..profile.fit import profile_sun_direction
 from ..stages import FitData, Frame, RefineResult
 from .blob import LAW_SIGMA, BlobCandidates
@@ -50,8 +50,10 @@ class SmallPixels:
 
 
 def window_pixels(img: np.ndarray, valid: np.ndarray | None, peak) -> SmallPixels:
-    """The valid pixels of the ``WINDOW x WINDOW`` window centred on ``peak`` inside the frame."""
-    wr, wc = int(peak[0]) - WINDOW // 2, int(peak[1]) - WINDOW // 2
+    """The valid pixels of the ``WINDOW x WINDOW`` window centred on ``peak``, moved inside the frame when the frame
+    holds it (one pixel count: one compiled fit)."""
+    wr, wc = (int(peak[i]) - WINDOW // 2 for i in range(2))
+    wr, wc = (max(0, min(w, n - WINDOW)) if n >= WINDOW else w for w, n in zip((wr, wc), img.shape))
     rr, cc = np.mgrid[wr: wr + WINDOW, wc: wc + WINDOW]
     ok = (rr >= 0) & (rr < img.shape[0]) & (cc >= 0) & (cc < img.shape[1])
     rr, cc = rr[ok], cc[ok]
@@ -113,7 +115,7 @@ def start(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> SmallDiscPara
 
 def noise_weights(p: SmallDiscParams, pix: SmallPixels) -> tuple[np.ndarray, dict[str, float]]:
     """``1 / sqrt(s0^2 + g m)`` (module docstring) and ``{s0, g}``."""
-    m = np.asarray(small_disc_intensity(p, pix.coords)) - float(p.ymin)
+    m = np.asarray(small_disc_predict(p, pix.coords)) - float(p.ymin)
     r = pix.z - (m + float(p.ymin))
     top = float(np.max(m)) if m.size else 0.0
     sky = m < 0.01 * top
@@ -148,13 +150,15 @@ def fit_small_disc(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> tupl
     """The passes of the module docstring: the :class:`~jaxlimb.pipeline.stages.RefineResult` (its covariance with the
     consider terms; the noise-only one kept) and what to report."""
     a_free = cand.expected_radius_px is None or cand.expected_radius_px >= FREE_RADIUS_MIN_PX
-    fixed = SMALL_DISC_FIXED + (() if a_free else ("a",))
+    held = () if a_free else ("a",)  # a run-time mask: one compiled fit whether the radius is held or not
+    fixed = SMALL_DISC_FIXED + held
     p = start(frame, cand, pix)
-    res = fit(SMALL_DISC, pix.coords, pix.z, p, fixed=fixed, max_steps=MAX_STEPS, throw=False)
+    res = fit(SMALL_DISC, pix.coords, pix.z, p, fixed=SMALL_DISC_FIXED, held=held, max_steps=MAX_STEPS, throw=False)
     p = regrid(res.params)
     w, noise = noise_weights(p, pix)
     for _ in range(2):  # the grid follows the estimate
-        res = fit(SMALL_DISC, pix.coords, pix.z, p, fixed=fixed, weights=w, max_steps=MAX_STEPS, throw=True)
+        res = fit(SMALL_DISC, pix.coords, pix.z, p, fixed=SMALL_DISC_FIXED, held=held, weights=w, max_steps=MAX_STEPS,
+                  throw=True)
         moved = math.hypot(float(res.params.r0) - float(p.grid_r), float(res.params.c0) - float(p.grid_c))
         p = regrid(res.params)
         if moved < 0.05 * float(p.grid_h) * N_SUB / 2:
