@@ -461,3 +461,18 @@ def locate_montecarlo(rel: str = "locate_montecarlo.json") -> str:
     head = ["frames", "size", "σ (DN)", "ms / frame", "first call (s)", "mean error row, col, radius (px)",
             "std row, col, radius (px)"]
     return table(head, rows) + source(rel, d)
+
+
+@renderer
+def small_bodies(rel: str = "small_bodies.json") -> str:
+    d = load(rel)
+    rows = []
+    for r in d["rows"]:
+        s = r["summary"]
+        e, m = s["center_err_px"], s["moments_err_px"]
+        rows.append([r["label"], r["shape"], f"{s['n_ok']}/{s['n']}", f"{f(e['median'])} / {f(e['p90'])} / {f(e['max'])}",
+                     f(s["nees_mean"], 2), f(s["fallback_share"], 2), f"{f(m['median'])} / {f(m['p90'])}",
+                     f(s["moments_nees_mean"], 2), failures(s["failures"])])
+    head = ["radius (px)", "strategy", "answered", "centre error median / p90 / max (px)", "NEES mean",
+            "fallback share", "centre of brightness, phase-corrected: median / p90 (px)", "its NEES mean", "typed refusals"]
+    return table(head, rows) + source(rel, d)

@@ -18,6 +18,9 @@ strategy                 bodies                               limb, profile, bod
                          Saturn, Mars)                        (Mortari et al. §IV, Fig. 2); started from the predicted
                                                               limb when the hints predict it (not the Earth)
 ``Disc``                 the Sun                              full annulus; CSF; limb-darkened disc; its centre
+``SmallBody``            a body of a few pixels (expected     the whole blob: the blurred lit disc at the phase; its
+                         radius below 6 px, Sun direction     centre of brightness corrected for the phase when that
+                         known)                               fit fails
 =======================  ===================================  ==========================================================
 
 A spheroid (``a = b != c``) is measured as one when the largest difference of its limb from a circle, the apparent
@@ -35,8 +38,9 @@ import math
 from ..errors import ConfigError
 from ..geometry.bodies import BODY_TABLE
 from .ellipsoid.body import Ellipsoid
-from .frame import arc_only, limb_predicted, min_diameter_px
+from .frame import arc_only, limb_predicted, min_diameter_px, small_expected
 from .options import BodyShape
+from .small.body import SmallBody
 from .sphere.body import Disc, Sphere
 from .sphere.predicted import EDGE_MODEL_SIGMA_PX, PredictedLimbSphere
 from .stages import Body, Frame
@@ -95,6 +99,8 @@ def _shape(frame: Frame) -> BodyShape:
         return BodyShape.DISC
     if h is not None and h.body == "earth":
         return BodyShape.ELLIPSOID
+    if small_expected(frame):
+        return BodyShape.SMALL
     if (opt.estimate_k and opt.profile != "limb-darkened" and not arc_only(frame)
             and spheroid_departure_px(frame) > EDGE_MODEL_SIGMA_PX):
         return BodyShape.ELLIPSOID
@@ -114,7 +120,7 @@ def body_strategy(frame: Frame) -> Body:
     Returns
     -------
     Body
-        ``Disc``, ``Ellipsoid``, ``PredictedLimbSphere`` or ``Sphere`` (with the lunar-Lambert profile when
+        ``Disc``, ``Ellipsoid``, ``SmallBody``, ``PredictedLimbSphere`` or ``Sphere`` (with the lunar-Lambert profile when
         ``profile="auto"`` and the Sun direction is known).
 
     Raises
@@ -130,6 +136,8 @@ def body_strategy(frame: Frame) -> Body:
         return Disc()
     if shape == BodyShape.ELLIPSOID:
         return Ellipsoid.for_frame(frame)
+    if shape == BodyShape.SMALL:
+        return SmallBody()
     if frame.opt.profile == "limb-darkened":
         raise ConfigError("profile = 'limb-darkened' is the disc strategy's (shape = 'disc' or hints body 'sun')")
     if limb_predicted(frame) or arc_only(frame):

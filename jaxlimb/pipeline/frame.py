@@ -109,7 +109,7 @@ def prepare(image: Any, camera: Any, hints: Any, options: Any, mask: Any = None)
     if mask is not None and not mask.all():
         img = fill_invalid(img, mask)
     frame = Frame(img, cam, hin, opt, t0, mask=mask)
-    if hin is not None and not arc_only(frame):  # (a disc larger than the frame: its arc is measured)
+    if hin is not None and not arc_only(frame) and not small_expected(frame):  # (its arc / the whole blob is measured)
         fe = frame.front_end_options()
         popt = None if fe is None else fe.prior
         pri0 = prior_from_hints(hin, cam, options=popt, check=True)
@@ -180,6 +180,33 @@ def arc_only(frame: Frame) -> bool:
         return False
     rkm, rng = h.radius_km(), h.range_prior_km
     return rng > rkm and cam.focal_px * math.tan(math.asin(rkm / rng)) > 0.5 * math.hypot(*frame.img.shape)
+
+
+#: Expected apparent radius (px) below which a body is measured as a whole (:mod:`jaxlimb.pipeline.small`), not on its
+#: limb: below it the limb strategy refuses the body (Check 1, a 10 px diameter) or, by a range prior a few per cent
+#: off, may; from 7 px up the limb fit is as accurate and its covariance more faithful (``benchmarks/small_bodies.py``).
+SMALL_RADIUS_MAX_PX = 6.0
+
+
+def expected_radius_px(frame: Frame) -> float | None:
+    """The apparent radius (px) the hints give: ``expected_radius_px``, else from the camera, the range and the radius
+    (Aerospace 2015 Eq. 1); ``None`` when they fix none."""
+    cam, h = frame.cam, frame.hints
+    if h is None:
+        return None
+    if h.expected_radius_px is not None:
+        return float(h.expected_radius_px)
+    rkm, rng = h.radius_km(), h.range_prior_km
+    if cam is None or rkm is None or rng is None or rng <= rkm:
+        return None
+    return float(cam.focal_px * math.tan(math.asin(rkm / rng)))
+
+
+def small_expected(frame: Frame) -> bool:
+    """The hints put the body below :data:`SMALL_RADIUS_MAX_PX` of apparent radius and give the Sun direction (the
+    few-pixel strategy's phase); without it such a body is refused by Check 1, as too small for a limb."""
+    pr = expected_radius_px(frame)
+    return pr is not None and pr < SMALL_RADIUS_MAX_PX and frame.sun_known
 
 
 def frame_mask(frame: Frame) -> np.ndarray | None:
@@ -327,5 +354,6 @@ def arc_angles(coords: np.ndarray, center_rc) -> np.ndarray:
     return np.arctan2(coords[:, 0] - float(center_rc[0]), coords[:, 1] - float(center_rc[1]))
 
 
-__all__ = ["arc_angles", "as_camera", "as_hints", "candidates", "frame_mask", "limb_predicted", "min_diameter_px",
-           "other_candidates", "other_front_end", "prepare"]
+__all__ = ["SMALL_RADIUS_MAX_PX", "arc_angles", "as_camera", "as_hints", "candidates", "expected_radius_px",
+           "frame_mask", "limb_predicted", "min_diameter_px", "other_candidates", "other_front_end", "prepare",
+           "small_expected"]

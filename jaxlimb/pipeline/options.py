@@ -55,13 +55,14 @@ class Profile(_Choice):
 
 class BodyShape(_Choice):
     """The body strategy of :func:`~jaxlimb.pipeline.locate`: ``auto`` (the Sun: ``disc``; the Earth, and a spheroid
-    whose flattening the frame resolves: ``ellipsoid``; any other body: ``sphere``;
-    :func:`~jaxlimb.pipeline.bodies.body_strategy`), or one of them."""
+    whose flattening the frame resolves: ``ellipsoid``; a body of a few pixels: ``small``; any other body:
+    ``sphere``; :func:`~jaxlimb.pipeline.bodies.body_strategy`), or one of them."""
 
     AUTO = "auto"
     SPHERE = "sphere"
     ELLIPSOID = "ellipsoid"
     DISC = "disc"
+    SMALL = "small"
 
 
 FRONT_ENDS = tuple(m.value for m in FrontEnd)

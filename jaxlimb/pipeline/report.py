@@ -21,6 +21,7 @@ from .._validate import check_center_sigma
 from ..models import (AnisoProfileParams, CIRCLE, CircleParams, ELLIPSE, ELLIPSE_RAMP, ellipse_coords,
                       EllipseRampParams, LimbDarkenedParams, LimbProfileParams, MinnaertProfileParams)
 from ..models.lunar_lambert import glow_fields, profile_model
+from ..models.small_disc import SmallDiscParams
 from .checks import check_edge_width, check_levels
 from .result import LimbMeasurement
 from .sigmoid import LOGISTIC_TO_GAUSS, fisher_information
@@ -114,6 +115,8 @@ def levels(final: RefineResult) -> Levels:
         profile, its parameters as a dict.
     """
     fp = final.fit.params
+    if isinstance(fp, SmallDiscParams):
+        return small_disc_levels(fp)
     if isinstance(fp, (LimbProfileParams, LimbDarkenedParams)):
         sig = abs(float(fp.sigma))
         s_e = math.sqrt(sig * sig + 1.0 / 12.0)
@@ -162,6 +165,16 @@ def ramp_inside_level(fp: EllipseRampParams, data: Any) -> float | None:
         return None
     z = np.asarray(ELLIPSE_RAMP.intensity(fp, data.coords[deep]))
     return float(data.offset + data.scale * float(np.median(z)))
+
+
+def small_disc_levels(fp: SmallDiscParams) -> Levels:
+    """The few-pixel disc's fit as ``k`` (the logistic equivalent of its Gaussian PSF with the pixel box), ``ymax``
+    (``ymin + amp``), ``ymin``, and its numbers (:mod:`jaxlimb.models.small_disc`)."""
+    sig = abs(float(fp.sigma))
+    s_e = math.sqrt(sig * sig + 1.0 / 12.0)
+    prof = {"model": "small-disc", "psf_sigma_px": sig, "amp": float(fp.amp), "phase_deg": math.degrees(float(fp.phase)),
+            "L": float(fp.L), "radius_px": float(fp.a)}
+    return Levels(LOGISTIC_TO_GAUSS / s_e, float(fp.ymin) + float(fp.amp), float(fp.ymin), sig, prof)
 
 
 def check_physical(frame: Frame, lev: Levels, cov: Covariance, what: str) -> None:

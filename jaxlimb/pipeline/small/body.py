@@ -1,0 +1,157 @@
+r"""The few-pixel body strategy of :func:`jaxlimb.pipeline.locate`: a body whose expected apparent radius is below
+:data:`~jaxlimb.pipeline.frame.SMALL_RADIUS_MAX_PX` (the Sun direction known; or any body with ``shape="small"``),
+measured as a whole: the blurred lit disc at the hints' phase, fitted to a window of pixels about
+it (:mod:`jaxlimb.pipeline.small.fit`); when that fit fails, the centre of brightness corrected for the phase
+(:mod:`jaxlimb.pipeline.small.blob`, GIANT's moment algorithm).
+
+The stages: **prepare** the frame in float64; **candidates** the blob (Check "no body"); **limb pixels** the window;
+**edge fit** the disc fit, or the centre of brightness; **profile refit** none (the disc fit is the physical model);
+**body-centre mapping** the disc's centre is the image of the body centre (orthographic: the perspective offset of a
+sphere's image is ``~a^2 x / f^2``, below 1e-3 px here), the line of sight through it, the radius and the range from
+it when the radius was fitted; **checks** levels, PSF width, the centre's sigma.
+
+Accuracy: ``benchmarks/small_bodies.py`` (independent renders of Moon-like spheres of radius 1-10 px).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any, ClassVar, final
+
+import jax.numpy as jnp
+import numpy as np
+
+from ..._validate import check_center_sigma
+from ...errors import ConfigError, ConvergenceError
+from ...fitting import FitResult, LimbFit
+from ..checks import check_edge_width, check_levels
+from ..frame import expected_radius_px, frame_mask
+from ..result import LimbMeasurement
+from ..stages import Body, BodyCenter, Covariance, FitData, Frame, Levels, RefineResult
+from .blob import BlobCandidates, find_blob, phase_corrected
+from .fit import (DEFAULT_RADIUS_UNCERTAINTY, SmallPixels, disc_at, fit_small_disc, offset_and_gradients, sun_geometry,
+                  window_pixels)
+
+
+@dataclass(frozen=True)
+class SmallEdge:
+    """The measurement of the blob: the result, how it was made (``"disc"`` or ``"moments"``) and what to report."""
+
+    result: RefineResult
+    method: str
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+def small_candidates(frame: Frame) -> BlobCandidates:
+    """Stage "candidates": the blob (:func:`~jaxlimb.pipeline.small.blob.find_blob`) with the hints' size."""
+    h = frame.hints
+    if not frame.sun_known:
+        raise ConfigError("the few-pixel strategy needs the Sun direction (hints sun_dir_camera): a body of a few "
+                          "pixels' centre of light lies up to half its radius sunward of its centre")
+    u = (h.expected_radius_uncertainty_frac if h is not None else None) or DEFAULT_RADIUS_UNCERTAINTY
+    near = h.expected_center_rc if h is not None else None
+    cand = find_blob(frame.img, frame_mask(frame), expected_radius_px(frame), u, near)
+    frame.mark("front_end")
+    return cand
+
+
+def moments_result(frame: Frame, cand: BlobCandidates, pix: SmallPixels, reason: str) -> SmallEdge:
+    """The centre of brightness corrected for the phase, as a :class:`~jaxlimb.pipeline.stages.RefineResult` over
+    ``(r0, c0)`` (the fallback of :func:`small_edge`)."""
+    sun = sun_geometry(frame, cand.centroid_rc)
+    a = cand.expected_radius_px
+    if a is None:  # the blob's second moment less a ~1 px PSF: a uniform disc's variance per axis is a^2/4
+        a = 2.0 * math.sqrt(max(cand.second_moment - 0.64 - 1.0 / 12.0, 0.25))
+        cand = replace(cand, expected_radius_px=a, radius_uncertainty=0.5)
+    p = disc_at(cand, pix, cand.centroid_rc, a, 0.8, sun)
+    off, g_a, g_l = offset_and_gradients(p)
+    center, C = phase_corrected(cand, off, g_a, g_l)
+    p = p.replace(r0=center[0], c0=center[1])
+    fit = LimbFit(params=p, free=("r0", "c0"), covariance=jnp.asarray(C), sigma2=jnp.asarray(cand.noise ** 2),
+                  rms=jnp.asarray(cand.noise), n_pixels=jnp.asarray(int(pix.z.size)), n_steps=jnp.asarray(0),
+                  result=FitResult.successful, solver="moments")
+    rr = RefineResult(fit, FitData(pix.coords, pix.z, None, 0.0, 1.0), 0, ("a", "sigma", "amp", "ymin"))
+    info = {"fallback_reason": reason, "centre_of_brightness_rc": list(cand.centroid_rc),
+            "phase_offset_rc": [float(v) for v in off]}
+    return SmallEdge(rr, "moments", info)
+
+
+def small_edge(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> SmallEdge:
+    """Stage "edge fit": the disc fit; the centre of brightness corrected for the phase when it does not converge
+    (reported beside the disc fit's answer otherwise)."""
+    try:
+        rr, info = fit_small_disc(frame, cand, pix)
+    except ConvergenceError as e:
+        return moments_result(frame, cand, pix, str(e))
+    frame.mark("refine")
+    mom = moments_result(frame, cand, pix, "")
+    p, C = mom.result.fit.params, np.asarray(mom.result.fit.covariance)
+    info = {**info, "moments_rc": [float(p.r0), float(p.c0)], "moments_cov": C.tolist(),
+            "phase_offset_rc": mom.info["phase_offset_rc"]}
+    return SmallEdge(rr, "disc", info)
+
+
+def small_report(cand: BlobCandidates, edge: SmallEdge) -> dict[str, Any]:
+    """The intermediate values worth reporting (``extras``)."""
+    return {"small_body": {"method": edge.method, "peak_rc": list(cand.peak_rc), "snr_peak": cand.snr,
+                           "centre_of_brightness_rc": list(cand.centroid_rc), "sky": cand.sky, "noise": cand.noise,
+                           "expected_radius_px": cand.expected_radius_px, **edge.info},
+            "n_outliers": 0}
+
+
+def small_center(frame: Frame, final: RefineResult) -> BodyCenter:
+    """Stage "body-centre mapping" (module docstring)."""
+    p = final.fit.params
+    c = (float(p.r0), float(p.c0))
+    los = None if frame.cam is None else tuple(float(v) for v in frame.cam.los(np.asarray(c)))
+    a_free = "a" in final.fit.free
+    rng = None
+    if a_free and frame.cam is not None and frame.body_radius_km is not None:
+        rng = float(frame.body_radius_km / math.sin(math.atan(float(p.a) / frame.cam.focal_px)))
+    outputs = ("center_r", "center_c", "radius") if a_free else ("center_r", "center_c")
+    params = ("r0", "c0", "a") if a_free else ("r0", "c0")
+    return BodyCenter(c, float(p.a), None, los, rng, outputs, params, np.eye(len(params)))
+
+
+@final
+@dataclass(frozen=True)
+class SmallBody(Body[SmallPixels, SmallEdge]):
+    """A few-pixel body measured as a whole (module docstring)."""
+
+    name: ClassVar[str] = "small body"
+
+    def prepare(self, frame: Frame) -> Frame:
+        return replace(frame, img=np.asarray(frame.img, dtype=np.float64))
+
+    def candidates(self, frame: Frame) -> BlobCandidates:
+        return small_candidates(frame)
+
+    def limb_pixels(self, frame: Frame, cand: BlobCandidates) -> SmallPixels:
+        return window_pixels(frame.img, frame_mask(frame), cand.peak_rc)
+
+    def edge_fit(self, frame: Frame, cand: BlobCandidates, pixels: SmallPixels) -> SmallEdge:
+        return small_edge(frame, cand, pixels)
+
+    def report(self, frame: Frame, cand: BlobCandidates, edge: SmallEdge) -> dict[str, Any]:
+        return small_report(cand, edge)
+
+    def refit(self, frame: Frame, cand: BlobCandidates, edge: SmallEdge, extras: dict[str, Any]) -> RefineResult:
+        return edge.result
+
+    def body_center(self, frame: Frame, edge: SmallEdge, final: RefineResult) -> BodyCenter:
+        return small_center(frame, final)
+
+    def check(self, frame: Frame, levels: Levels, cov: Covariance) -> None:
+        check_levels(levels.ymax, levels.ymin, self.name)
+        check_edge_width(levels.psf_sigma_px, self.name)
+        check_center_sigma(cov.block(("center_r", "center_c")), frame.opt.max_center_sigma_px)
+
+    def iterations(self, edge: SmallEdge, final: RefineResult) -> int:
+        return int(final.fit.n_steps)
+
+    def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
+        return meas
+
+
+__all__ = ["SmallBody", "SmallEdge", "small_center"]

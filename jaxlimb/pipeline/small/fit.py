@@ -1,0 +1,176 @@
+r"""The fit of a few-pixel body: the blurred lit disc of :mod:`jaxlimb.models.small_disc` over a window of pixels
+about the blob, its noise model and its covariance.
+
+Passes.  (1) Unweighted, from the centre of brightness less the phase offset, the expected radius (or the blob's
+second moment) and the blob's flux; the sample grid then re-centred on the estimate.  (2) Weighted by a noise model
+estimated from pass 1's residuals, :math:`\mathrm{var}_i = s_0^2 + g\,m_i` with ``m_i`` the model's signal at pixel
+``i`` above the sky (read noise and photon noise): ``s0`` from the residuals of the sky pixels (1.4826 MAD), ``g``
+the least-squares slope of the squared residuals of the body's pixels on ``m`` (``>= 0``).  Without it the sky's
+pixels, which outnumber the body's, set :math:`\hat\sigma` and a photon-noise-limited blob's centre sigma comes out
+too small.
+
+Radius.  Free when the disc is resolved (expected radius at least :data:`FREE_RADIUS_MIN_PX`) or when the hints give
+no size; else held at the expected radius (camera, range, body radius), its uncertainty (the hints' fraction, default
+5 %) carried into the covariance as a consider parameter: :math:`\Delta C = s s^\top \sigma_a^2` with
+:math:`s = -(J_f^\top W J_f)^{-1} J_f^\top W j_a` the free parameters' response to a change of ``a``.  The
+photometric law's weight ``L`` is a consider parameter the same way (:data:`~jaxlimb.pipeline.small.blob.LAW_SIGMA`):
+the phase offset of a crescent depends on the law, which a few pixels do not measure.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...fitting import fit
+from ...models import lunar_lambert_weight
+from ...models.small_disc import (N_SUB, SMALL_DISC, SMALL_DISC_FIXED, WINDOW, SmallDiscParams, grid_half_extent,
+                                  photocentre_offset, radiance_grid, small_disc_predict)
+from ..profile.fit import profile_sun_direction
+from ..stages import FitData, Frame, RefineResult
+from .blob import LAW_SIGMA, BlobCandidates
+
+#: Expected radius (px) from which the disc's radius is fitted (below it: held, a consider parameter).
+FREE_RADIUS_MIN_PX = 3.0
+#: Default fractional 1-sigma of the expected radius when the hints give none.
+DEFAULT_RADIUS_UNCERTAINTY = 0.05
+#: Solver steps per pass.
+MAX_STEPS = 200
+
+
+@dataclass(frozen=True)
+class SmallPixels:
+    """The window of pixels the disc is fitted to: ``coords`` ``(n, 2)``, ``z``, the window's top-left pixel."""
+
+    coords: np.ndarray
+    z: np.ndarray
+    win_rc: tuple[int, int]
+
+
+def window_pixels(img: np.ndarray, valid: np.ndarray | None, peak) -> SmallPixels:
+    """The valid pixels of the ``WINDOW x WINDOW`` window centred on ``peak``, moved inside the frame when the frame
+    holds it (one pixel count: one compiled fit)."""
+    wr, wc = (int(peak[i]) - WINDOW // 2 for i in range(2))
+    wr, wc = (max(0, min(w, n - WINDOW)) if n >= WINDOW else w for w, n in zip((wr, wc), img.shape))
+    rr, cc = np.mgrid[wr: wr + WINDOW, wc: wc + WINDOW]
+    ok = (rr >= 0) & (rr < img.shape[0]) & (cc >= 0) & (cc < img.shape[1])
+    rr, cc = rr[ok], cc[ok]
+    if valid is not None:
+        keep = valid[rr, cc]
+        rr, cc = rr[keep], cc[keep]
+    return SmallPixels(np.stack([rr, cc], axis=1).astype(np.float64), img[rr, cc].astype(np.float64), (wr, wc))
+
+
+def sun_geometry(frame: Frame, center_rc) -> tuple[float, float, float]:
+    """``(sun_r, sun_c, phase)`` at ``center_rc`` from the hints (``(1, 0, 0)``: full phase when unknown)."""
+    if not frame.sun_known:
+        return 1.0, 0.0, 0.0
+    assert frame.hints is not None
+    sun_rc = profile_sun_direction(frame.hints.sun_dir_camera, frame.cam, center_rc if frame.cam is not None else None)
+    return float(sun_rc[0]), float(sun_rc[1]), float(frame.phase(center_rc))
+
+
+def disc_at(cand: BlobCandidates, pix: SmallPixels, center_rc, a: float, sigma: float, sun) -> SmallDiscParams:
+    """The disc of radius ``a`` at ``center_rc`` (its sample grid about it), its amplitude from the blob's flux."""
+    L = lunar_lambert_weight(sun[2])
+    p = SmallDiscParams(r0=float(center_rc[0]), c0=float(center_rc[1]), a=float(a), sigma=float(sigma), amp=1.0,
+                        ymin=float(cand.sky), sun_r=sun[0], sun_c=sun[1], phase=sun[2], L=L,
+                        win_r=float(pix.win_rc[0]), win_c=float(pix.win_rc[1]), grid_r=float(center_rc[0]),
+                        grid_c=float(center_rc[1]), grid_h=2.0 * grid_half_extent(a) / N_SUB)
+    unit = float(np.sum(np.asarray(radiance_grid(p)[2])))
+    return p.replace(amp=float(cand.flux) / max(unit, 1e-300))
+
+
+def regrid(p: SmallDiscParams) -> SmallDiscParams:
+    """``p`` with its sample grid centred on its disc and sized for its radius."""
+    return p.replace(grid_r=float(p.r0), grid_c=float(p.c0), grid_h=2.0 * grid_half_extent(float(p.a)) / N_SUB)
+
+
+def offset_and_gradients(p: SmallDiscParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The disc's phase offset (:func:`~jaxlimb.models.small_disc.photocentre_offset`) and its change per px of radius
+    and per unit of ``L`` (central differences)."""
+    off = np.array(photocentre_offset(p))
+    a, L = float(p.a), float(p.L)
+    da = 0.01 * a
+    g_a = (np.array(photocentre_offset(regrid(p.replace(a=a + da)))) -
+           np.array(photocentre_offset(regrid(p.replace(a=a - da))))) / (2 * da)
+    g_l = (np.array(photocentre_offset(p.replace(L=L + 0.05))) - np.array(photocentre_offset(p.replace(L=L - 0.05)))) / 0.1
+    return off, g_a, g_l
+
+
+def start(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> SmallDiscParams:
+    """Pass 1's start (module docstring)."""
+    sun = sun_geometry(frame, cand.centroid_rc)
+    sigma0 = 0.8
+    if cand.expected_radius_px is not None:
+        a0 = float(cand.expected_radius_px)
+    else:  # a uniform disc's variance per axis is a^2/4; the PSF and the pixel add theirs
+        a0 = 2.0 * math.sqrt(max(cand.second_moment - sigma0 * sigma0 - 1.0 / 12.0, 0.25))
+    p = disc_at(cand, pix, cand.centroid_rc, a0, sigma0, sun)
+    off = photocentre_offset(p)
+    return disc_at(cand, pix, (cand.centroid_rc[0] - off[0], cand.centroid_rc[1] - off[1]), a0, sigma0, sun)
+
+
+def noise_weights(p: SmallDiscParams, pix: SmallPixels) -> tuple[np.ndarray, dict[str, float]]:
+    """``1 / sqrt(s0^2 + g m)`` (module docstring) and ``{s0, g}``."""
+    m = np.asarray(small_disc_predict(p, pix.coords)) - float(p.ymin)
+    r = pix.z - (m + float(p.ymin))
+    top = float(np.max(m)) if m.size else 0.0
+    sky = m < 0.01 * top
+    rs = r[sky] if np.count_nonzero(sky) >= 20 else r
+    s0 = max(1.4826 * float(np.median(np.abs(rs - np.median(rs)))), 1e-12)
+    body = m > 0.1 * top
+    g = 0.0
+    if np.count_nonzero(body) >= 3:
+        mb = m[body]
+        g = max(float(np.sum((r[body] ** 2 - s0 * s0) * mb) / np.sum(mb * mb)), 0.0)
+    return 1.0 / np.sqrt(s0 * s0 + g * np.maximum(m, 0.0)), {"s0": s0, "g": g}
+
+
+def consider_terms(res, pix: SmallPixels, weights: np.ndarray, sigmas: dict[str, float]) -> np.ndarray:
+    """The covariance (over the fit's free parameters) of held parameters' uncertainties (module docstring)."""
+    p = res.params
+    names = SmallDiscParams.field_names()
+    J = np.asarray(SMALL_DISC.jacobian(p, pix.coords)) * weights[:, None]
+    free = [names.index(n) for n in res.free]
+    Jf = J[:, free]
+    N = Jf.T @ Jf
+    out = np.zeros((len(free), len(free)))
+    for name, s in sigmas.items():
+        if name in res.free or s <= 0:
+            continue
+        sk = -np.linalg.solve(N, Jf.T @ J[:, names.index(name)])
+        out += np.outer(sk, sk) * s * s
+    return out
+
+
+def fit_small_disc(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> tuple[RefineResult, dict]:
+    """The passes of the module docstring: the :class:`~jaxlimb.pipeline.stages.RefineResult` (its covariance with the
+    consider terms; the noise-only one kept) and what to report."""
+    a_free = cand.expected_radius_px is None or cand.expected_radius_px >= FREE_RADIUS_MIN_PX
+    held = () if a_free else ("a",)  # a run-time mask: one compiled fit whether the radius is held or not
+    fixed = SMALL_DISC_FIXED + held
+    p = start(frame, cand, pix)
+    res = fit(SMALL_DISC, pix.coords, pix.z, p, fixed=SMALL_DISC_FIXED, held=held, max_steps=MAX_STEPS, throw=False)
+    p = regrid(res.params)
+    w, noise = noise_weights(p, pix)
+    for _ in range(2):  # the grid follows the estimate
+        res = fit(SMALL_DISC, pix.coords, pix.z, p, fixed=SMALL_DISC_FIXED, held=held, weights=w, max_steps=MAX_STEPS,
+                  throw=True)
+        moved = math.hypot(float(res.params.r0) - float(p.grid_r), float(res.params.c0) - float(p.grid_c))
+        p = regrid(res.params)
+        if moved < 0.05 * float(p.grid_h) * N_SUB / 2:
+            break
+    a = float(res.params.a)
+    u = cand.radius_uncertainty
+    C_fit = np.asarray(res.covariance)
+    C = C_fit + consider_terms(res, pix, w, {"a": u * a, "L": LAW_SIGMA})
+    data = FitData(pix.coords, pix.z, None, 0.0, 1.0)  # (the weights are the noise model's: in ``res``, not here)
+    rr = RefineResult(res, data, 0, tuple(fixed)).with_covariance(C, noise_covariance=C_fit)
+    return rr, {"noise_model": noise, "radius_free": a_free, "radius_uncertainty_frac": u, "law_sigma_L": LAW_SIGMA}
+
+
+__all__ = ["DEFAULT_RADIUS_UNCERTAINTY", "FREE_RADIUS_MIN_PX", "SmallPixels", "disc_at", "fit_small_disc",
+           "offset_and_gradients", "regrid", "start", "sun_geometry", "window_pixels"]

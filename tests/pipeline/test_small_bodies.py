@@ -1,0 +1,120 @@
+"""Few-pixel bodies (:mod:`jaxlimb.pipeline.small`): located on independent renders at 2 and 5 px of radius (the
+image of the body centre, within a few sigma), the phase offset of the model against the renderer's, the model's
+derivatives, a frame of noise only refused with a type (exit 3 from the command), and the switch radius."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from jaxlimb.cli import main
+from jaxlimb.errors import NoBodyError
+from jaxlimb.models import lunar_lambert_weight
+from jaxlimb.models.small_disc import SMALL_DISC, SmallDiscParams, grid_half_extent, N_SUB, photocentre_offset
+from jaxlimb.pipeline import LocateOptions, locate
+from jaxlimb.pipeline.bodies import body_strategy
+from jaxlimb.pipeline.frame import SMALL_RADIUS_MAX_PX, prepare
+from jaxlimb.pipeline.profile.fit import profile_sun_direction
+from jaxlimb.pipeline.small.body import SmallBody
+from jaxlimb.render.independent import small_bodies as sb
+
+
+def _case(radius_px: float, phase_deg: float, seed: int, **kw):
+    return sb.small_body_case(radius_px, phase_deg, np.random.default_rng(seed), **kw)
+
+
+def _center_cov(m) -> np.ndarray:
+    c = m.covariance
+    return np.array([[c["center_r"]["center_r"], c["center_r"]["center_c"]],
+                     [c["center_c"]["center_r"], c["center_c"]["center_c"]]])
+
+
+@pytest.mark.parametrize(("radius", "phase", "seed"), [(2.0, 40.0, 11), (5.0, 60.0, 12)])
+def test_located_within_tolerance(radius, phase, seed):
+    case = _case(radius, phase, seed, snr=70.0)
+    m = locate(case.image, case.camera, case.hints)
+    sbx = m.extras["small_body"]
+    assert sbx["method"] == "disc"
+    err = np.subtract(m.center_rc, case.truth.body_center_rc)
+    nees = float(err @ np.linalg.solve(_center_cov(m), err))
+    # the centre of light is 0.1-1 px sunward of the body centre at these phases: the answer is the body centre
+    off = np.hypot(*sbx["phase_offset_rc"])
+    assert off > 0.1
+    assert np.hypot(*err) < 0.08 and nees < 13.8  # chi-square, 2 dof: 13.8 is its 0.999 quantile
+    assert abs(m.radius_px - radius) < 0.1 * radius
+    mom = np.subtract(sbx["moments_rc"], case.truth.body_center_rc)  # the fallback, reported beside
+    assert np.hypot(*mom) < 0.15 and float(mom @ np.linalg.solve(np.asarray(sbx["moments_cov"]), mom)) < 13.8
+
+
+def test_model_phase_offset_matches_the_renderer():
+    """The lunar-Lambert disc's centre of light less its centre against the exact render's (ray casting,
+    supersampled, perspective) at 2 px, noise-free."""
+    got = {}
+    orig = sb.render_radiance
+
+    def grab(*a, **k):
+        got["rad"] = orig(*a, **k)
+        return got["rad"]
+
+    sb.render_radiance = grab
+    try:
+        for phase, seed in ((20.0, 1), (70.0, 2)):
+            case = _case(2.0, phase, seed)
+            rad = got["rad"]
+            rr, cc = np.indices(rad.shape)
+            t = np.asarray(case.truth.body_center_rc)
+            render = np.array([np.sum(rad * rr), np.sum(rad * cc)]) / rad.sum() - t
+            fr = prepare(case.image, case.camera, case.hints, None)
+            s, ph = profile_sun_direction(fr.hints.sun_dir_camera, fr.cam, t), float(fr.phase(t))
+            p = SmallDiscParams(r0=t[0], c0=t[1], a=2.0, sigma=1.0, amp=1.0, ymin=0.0, sun_r=float(s[0]),
+                                sun_c=float(s[1]), phase=ph, L=lunar_lambert_weight(ph), win_r=0.0, win_c=0.0,
+                                grid_r=t[0], grid_c=t[1], grid_h=2 * grid_half_extent(2.0) / N_SUB)
+            assert np.hypot(*render) > 0.1
+            assert np.hypot(*(np.array(photocentre_offset(p)) - render)) < 0.01
+    finally:
+        sb.render_radiance = orig
+
+
+def test_model_derivatives_match_central_differences():
+    """``jax.jacfwd`` through the sample grid is the derivative of the discretised image: central differences of
+    1e-7 agree (wider steps straddle the kinks of the cells' cover at the limb, where the radiance has a square root:
+    1e-4 px steps differ by 1 % of a column)."""
+    p = SmallDiscParams(r0=20.3, c0=19.6, a=2.4, sigma=0.9, amp=1000.0, ymin=50.0, sun_r=0.6, sun_c=0.8, phase=0.7,
+                        L=0.6, win_r=0.0, win_c=0.0, grid_r=20.0, grid_c=20.0, grid_h=2 * grid_half_extent(2.4) / N_SUB)
+    rc = np.argwhere(np.ones((40, 40)))[::7].astype(float)
+    J = np.asarray(SMALL_DISC.jacobian(p, rc))
+    theta = np.asarray(p.to_vector())
+    names = SmallDiscParams.field_names()
+    for name in ("r0", "c0", "a", "sigma", "amp", "ymin"):
+        i = names.index(name)
+        h = 1e-7 * max(abs(theta[i]) / 20.0, 1.0)
+        up, dn = theta.copy(), theta.copy()
+        up[i] += h
+        dn[i] -= h
+        fd = (np.asarray(SMALL_DISC.intensity(SmallDiscParams.from_vector(up), rc)) -
+              np.asarray(SMALL_DISC.intensity(SmallDiscParams.from_vector(dn), rc))) / (2 * h)
+        scale = np.max(np.abs(J[:, i]))
+        assert scale > 0 and np.max(np.abs(fd - J[:, i])) < 1e-6 * scale, name
+
+
+def test_noise_only_is_a_typed_refusal(tmp_path):
+    case = _case(3.0, 30.0, 5, empty=True)
+    with pytest.raises(NoBodyError):
+        locate(case.image, case.camera, case.hints)
+    cv2.imwrite(str(tmp_path / "sky.png"), case.image)
+    (tmp_path / "camera.json").write_text(json.dumps(case.camera.to_dict()))
+    (tmp_path / "hints.json").write_text(json.dumps(case.hints))
+    code = main(["locate", str(tmp_path / "sky.png"), "--camera", str(tmp_path / "camera.json"),
+                 "--hints", str(tmp_path / "hints.json")])
+    assert code == 3
+
+
+def test_switch_radius():
+    """Below ``SMALL_RADIUS_MAX_PX`` of expected radius the few-pixel strategy, from it the limb strategies."""
+    for radius, small in ((SMALL_RADIUS_MAX_PX - 0.5, True), (SMALL_RADIUS_MAX_PX + 1.0, False)):
+        case = _case(radius, 30.0, 3, range_error_frac=0.0)
+        frame = prepare(case.image, case.camera, case.hints, LocateOptions())
+        assert isinstance(body_strategy(frame), SmallBody) is small
