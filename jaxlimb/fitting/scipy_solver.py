@@ -112,11 +112,33 @@ class HostResidual:
         return self._points[key]
 
     def residual(self, y: np.ndarray) -> np.ndarray:
-        """The weighted residuals ``(n,)`` at ``y``."""
+        """The weighted residuals ``(n,)`` at ``y``.
+
+        Parameters
+        ----------
+        y : numpy.ndarray
+            The free parameters ``(q,)`` in the solver's scaled coordinates.
+
+        Returns
+        -------
+        numpy.ndarray
+            The weighted residuals ``(n,)``.
+        """
         return self._at(y)[0]
 
     def jacobian(self, y: np.ndarray) -> np.ndarray:
-        """The weighted Jacobian ``(n, q)`` at ``y`` (column-major)."""
+        """The weighted Jacobian ``(n, q)`` at ``y`` (column-major).
+
+        Parameters
+        ----------
+        y : numpy.ndarray
+            The free parameters ``(q,)`` in the solver's scaled coordinates.
+
+        Returns
+        -------
+        numpy.ndarray
+            The Jacobian ``(n, q)`` of the weighted residuals, in Fortran (column-major) order.
+        """
         return self._at(y)[1]
 
 

@@ -73,13 +73,38 @@ class SmallDiscParams(LimbParams):
 
 def grid_half_extent(a: float) -> float:
     """Half-side (px) of the radiance grid for a disc of radius ``a``: room for the radius to grow by a quarter and
-    the centre to move by 1.5 px from the start."""
+    the centre to move by 1.5 px from the start.
+
+    Parameters
+    ----------
+    a : float
+        Apparent radius (px) of the disc at the start.
+
+    Returns
+    -------
+    float
+        Half-side (px) of the grid; ``grid_h`` is twice this over ``N_SUB``.
+    """
     return 1.25 * float(a) + 1.5
 
 
 @jax.jit
 def radiance_grid(p: SmallDiscParams):
-    """Cell centres ``(ys, xs)`` (px) and the radiance times the covered area of each cell, ``(N_SUB, N_SUB)``."""
+    """Cell centres ``(ys, xs)`` (px) and the radiance times the covered area of each cell, ``(N_SUB, N_SUB)``.
+
+    Parameters
+    ----------
+    p : SmallDiscParams
+        The model's parameters (module docstring).
+
+    Returns
+    -------
+    ys, xs : jax.Array
+        Row and column coordinates (px) of the cell centres, ``(N_SUB,)`` each.
+    S : jax.Array
+        Lunar-Lambert radiance (1 at normal incidence and emission) times the area (px^2) of each cell inside the disc,
+        ``(N_SUB, N_SUB)``.
+    """
     h = p.grid_h
     k = (jnp.arange(N_SUB) + 0.5 - 0.5 * N_SUB) * h
     ys, xs = p.grid_r + k, p.grid_c + k
@@ -99,13 +124,38 @@ def radiance_grid(p: SmallDiscParams):
 
 
 def pixel_gaussian(x, sigma):
-    """The Gaussian of ``sigma`` integrated over a pixel of unit width centred ``x`` away (module docstring)."""
+    """The Gaussian of ``sigma`` integrated over a pixel of unit width centred ``x`` away (module docstring).
+
+    Parameters
+    ----------
+    x : array_like
+        Offsets (px) of the pixel centres from the Gaussian's centre.
+    sigma : array_like
+        PSF standard deviation (px); ``SIGMA_FLOOR`` is added in quadrature.
+
+    Returns
+    -------
+    jax.Array
+        The fraction of the Gaussian's mass in each pixel, shaped like ``x``.
+    """
     s = jnp.sqrt(2.0) * jnp.sqrt(sigma * sigma + SIGMA_FLOOR * SIGMA_FLOOR)
     return 0.5 * (erf((x + 0.5) / s) - erf((x - 0.5) / s))
 
 
 def small_disc_window(p: SmallDiscParams):
-    """The model over the whole ``WINDOW x WINDOW`` window, without ``ymin`` and ``amp``."""
+    """The model over the whole ``WINDOW x WINDOW`` window, without ``ymin`` and ``amp``.
+
+    Parameters
+    ----------
+    p : SmallDiscParams
+        The model's parameters (module docstring).
+
+    Returns
+    -------
+    jax.Array
+        The PSF-blurred, pixel-integrated disc ``G_r S G_c^T``, ``(WINDOW, WINDOW)``; row ``i``, column ``j`` is
+        the pixel ``(win_r + i, win_c + j)``.
+    """
     ys, xs, S = radiance_grid(p)
     rows = p.win_r + jnp.arange(WINDOW)
     cols = p.win_c + jnp.arange(WINDOW)
@@ -115,7 +165,20 @@ def small_disc_window(p: SmallDiscParams):
 
 
 def small_disc_intensity(p: SmallDiscParams, rc):
-    """The model (module docstring) at pixels ``rc`` ``(n, 2)`` of the window."""
+    """The model (module docstring) at pixels ``rc`` ``(n, 2)`` of the window.
+
+    Parameters
+    ----------
+    p : SmallDiscParams
+        The model's parameters (module docstring).
+    rc : array_like
+        Pixel coordinates ``(n, 2)`` (row, column; px) inside the window; rounded and clipped to it.
+
+    Returns
+    -------
+    jax.Array
+        The predicted intensity ``ymin + amp * M`` (DN) at each pixel, ``(n,)``.
+    """
     rc = jnp.asarray(rc)
     M = small_disc_window(p)
     ir = jnp.clip(jnp.round(rc[..., 0] - p.win_r), 0, WINDOW - 1).astype(jnp.int32)
@@ -132,7 +195,18 @@ def _offset(p: SmallDiscParams):
 
 def photocentre_offset(p: SmallDiscParams) -> tuple[float, float]:
     """The centre of brightness of the model's disc minus its centre ``(d_row, d_col)`` (px): the phase offset of a
-    moment (centroid) measurement; the PSF, being symmetric, does not move it."""
+    moment (centroid) measurement; the PSF, being symmetric, does not move it.
+
+    Parameters
+    ----------
+    p : SmallDiscParams
+        The model's parameters (module docstring).
+
+    Returns
+    -------
+    tuple of float
+        ``(d_row, d_col)`` (px).
+    """
     d = _offset(p)
     return float(d[0]), float(d[1])
 
@@ -159,7 +233,21 @@ SMALL_DISC = LimbModel("small_disc", SmallDiscParams, small_disc_intensity, _jac
 
 
 def sun_angle_params(sun_rc, phase_rad: float) -> tuple[float, float, float]:
-    """``(sun_r, sun_c, phase)`` with a unit image direction (``(1, 0)`` when undefined)."""
+    """``(sun_r, sun_c, phase)`` with a unit image direction (``(1, 0)`` when undefined).
+
+    Parameters
+    ----------
+    sun_rc : array_like or None
+        Image direction ``(row, col)`` toward the Sun, any length; ``None`` or zero when unknown.
+    phase_rad : float
+        Sun phase angle (rad).
+
+    Returns
+    -------
+    tuple of float
+        ``(sun_r, sun_c, phase)``: the unit direction and the phase (rad), the held parameters of
+        :class:`SmallDiscParams`.
+    """
     n = math.hypot(float(sun_rc[0]), float(sun_rc[1])) if sun_rc is not None else 0.0
     if n < 1e-12:
         return 1.0, 0.0, float(phase_rad)

@@ -190,7 +190,18 @@ SMALL_RADIUS_MAX_PX = 6.0
 
 def expected_radius_px(frame: Frame) -> float | None:
     """The apparent radius (px) the hints give: ``expected_radius_px``, else from the camera, the range and the radius
-    (Aerospace 2015 Eq. 1); ``None`` when they fix none."""
+    (Aerospace 2015 Eq. 1); ``None`` when they fix none.
+
+    Parameters
+    ----------
+    frame : Frame
+        Its hints (and camera) give the radius.
+
+    Returns
+    -------
+    float or None
+        Apparent radius (px).
+    """
     cam, h = frame.cam, frame.hints
     if h is None:
         return None
@@ -204,7 +215,18 @@ def expected_radius_px(frame: Frame) -> float | None:
 
 def small_expected(frame: Frame) -> bool:
     """The hints put the body below :data:`SMALL_RADIUS_MAX_PX` of apparent radius and give the Sun direction (the
-    few-pixel strategy's phase); without it such a body is refused by Check 1, as too small for a limb."""
+    few-pixel strategy's phase); without it such a body is refused by Check 1, as too small for a limb.
+
+    Parameters
+    ----------
+    frame : Frame
+        Its hints give the expected radius and the Sun direction.
+
+    Returns
+    -------
+    bool
+        ``True`` when the few-pixel strategy applies.
+    """
     pr = expected_radius_px(frame)
     return pr is not None and pr < SMALL_RADIUS_MAX_PX and frame.sun_known
 

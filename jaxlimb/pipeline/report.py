@@ -169,7 +169,19 @@ def ramp_inside_level(fp: EllipseRampParams, data: Any) -> float | None:
 
 def small_disc_levels(fp: SmallDiscParams) -> Levels:
     """The few-pixel disc's fit as ``k`` (the logistic equivalent of its Gaussian PSF with the pixel box), ``ymax``
-    (``ymin + amp``), ``ymin``, and its numbers (:mod:`jaxlimb.models.small_disc`)."""
+    (``ymin + amp``), ``ymin``, and its numbers (:mod:`jaxlimb.models.small_disc`).
+
+    Parameters
+    ----------
+    fp : SmallDiscParams
+        The fitted few-pixel disc.
+
+    Returns
+    -------
+    Levels
+        ``k`` (1/px), ``ymax`` and ``ymin`` (DN), the PSF sigma (px) and the profile (model, PSF sigma, ``amp``,
+        phase in degrees, ``L``, radius in px).
+    """
     sig = abs(float(fp.sigma))
     s_e = math.sqrt(sig * sig + 1.0 / 12.0)
     prof = {"model": "small-disc", "psf_sigma_px": sig, "amp": float(fp.amp), "phase_deg": math.degrees(float(fp.phase)),

@@ -98,7 +98,37 @@ def _ring(img: np.ndarray, valid: np.ndarray | None, peak, a: float) -> tuple[fl
 
 def centre_of_brightness(img: np.ndarray, valid: np.ndarray | None, peak, sky: float, noise: float):
     """First moment of ``z - sky`` over the blob about ``peak`` (module docstring): ``(centre, covariance 2x2, flux,
-    second moment per axis, pixels above sky + 3 noise)``."""
+    second moment per axis, pixels above sky + 3 noise)``.
+
+    Parameters
+    ----------
+    img : numpy.ndarray
+        The image ``(rows, cols)`` (DN).
+    valid : numpy.ndarray of bool or None
+        Valid pixels (``None``: all).
+    peak : tuple of int
+        ``(row, col)`` of the smoothed peak; the blob is the region connected to it.
+    sky, noise : float
+        Sky level and noise sigma (DN).
+
+    Returns
+    -------
+    centre : tuple of float
+        ``(row, col)`` (px) of the centre of brightness.
+    cov : numpy.ndarray
+        Its ``2 x 2`` covariance (px^2) from the noise.
+    flux : float
+        Sum of ``z - sky`` over the blob (DN).
+    second_moment : float
+        Mean second moment per axis (px^2).
+    area : int
+        Number of pixels above ``sky + 3 noise`` in the region, before the dilation.
+
+    Raises
+    ------
+    NoBodyError
+        The blob holds no flux above the sky.
+    """
     from scipy import ndimage
 
     above = img > sky + 3.0 * noise
@@ -125,7 +155,32 @@ def centre_of_brightness(img: np.ndarray, valid: np.ndarray | None, peak, sky: f
 
 def find_blob(img: np.ndarray, valid: np.ndarray | None, expected_radius_px: float | None, radius_uncertainty: float,
               near_rc=None) -> BlobCandidates:
-    """Stage "candidates" of the small body (module docstring)."""
+    """Stage "candidates" of the small body (module docstring).
+
+    Parameters
+    ----------
+    img : numpy.ndarray
+        The image ``(rows, cols)`` (DN).
+    valid : numpy.ndarray of bool or None
+        Valid pixels (``None``: all).
+    expected_radius_px : float or None
+        Apparent radius (px) from the hints (``None``: unknown, 3 px assumed for the search and the ring).
+    radius_uncertainty : float
+        Fractional 1-sigma of ``expected_radius_px``.
+    near_rc : tuple of float, optional
+        ``(row, col)`` (px) the search is restricted to within :data:`SEARCH_PX`.
+
+    Returns
+    -------
+    BlobCandidates
+
+    Raises
+    ------
+    NoBodyError
+        The brightest point is fewer than :data:`MIN_PEAK_SNR` noise sigmas above the sky.
+    RadiusInconsistentError
+        The blob is much larger than the expected radius (check "size").
+    """
     a = float(expected_radius_px) if expected_radius_px is not None else 3.0
     peak = _peak(img, valid, a, near_rc)
     sky, noise = _ring(img, valid, peak, a)
@@ -147,7 +202,26 @@ def find_blob(img: np.ndarray, valid: np.ndarray | None, expected_radius_px: flo
 
 def phase_corrected(cand: BlobCandidates, offset_rc, d_offset_da, d_offset_dl) -> tuple[tuple[float, float], np.ndarray]:
     """The centre of brightness less the phase offset, and its covariance (module docstring): ``d_offset_da`` and
-    ``d_offset_dl`` the offset's change per px of radius and per unit of ``L``."""
+    ``d_offset_dl`` the offset's change per px of radius and per unit of ``L``.
+
+    Parameters
+    ----------
+    cand : BlobCandidates
+        The blob, with its centre of brightness and covariance.
+    offset_rc : array_like
+        Phase offset ``(d_row, d_col)`` (px) of the disc's centre of brightness from its centre.
+    d_offset_da : array_like
+        Change of the offset ``(2,)`` per px of radius.
+    d_offset_dl : array_like
+        Change of the offset ``(2,)`` per unit of ``L``.
+
+    Returns
+    -------
+    centre : tuple of float
+        ``(row, col)`` (px) of the body centre.
+    cov : numpy.ndarray
+        Its ``2 x 2`` covariance (px^2).
+    """
     c = (cand.centroid_rc[0] - float(offset_rc[0]), cand.centroid_rc[1] - float(offset_rc[1]))
     a = cand.expected_radius_px or 0.0
     ga = np.asarray(d_offset_da, float) * cand.radius_uncertainty * a

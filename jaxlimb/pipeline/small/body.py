@@ -44,7 +44,22 @@ class SmallEdge:
 
 
 def small_candidates(frame: Frame) -> BlobCandidates:
-    """Stage "candidates": the blob (:func:`~jaxlimb.pipeline.small.blob.find_blob`) with the hints' size."""
+    """Stage "candidates": the blob (:func:`~jaxlimb.pipeline.small.blob.find_blob`) with the hints' size.
+
+    Parameters
+    ----------
+    frame : Frame
+        The prepared inputs; its hints give the Sun direction, expected radius and centre.
+
+    Returns
+    -------
+    BlobCandidates
+
+    Raises
+    ------
+    ConfigError
+        The Sun direction is unknown.
+    """
     h = frame.hints
     if not frame.sun_known:
         raise ConfigError("the few-pixel strategy needs the Sun direction (hints sun_dir_camera): a body of a few "
@@ -58,7 +73,24 @@ def small_candidates(frame: Frame) -> BlobCandidates:
 
 def moments_result(frame: Frame, cand: BlobCandidates, pix: SmallPixels, reason: str) -> SmallEdge:
     """The centre of brightness corrected for the phase, as a :class:`~jaxlimb.pipeline.stages.RefineResult` over
-    ``(r0, c0)`` (the fallback of :func:`small_edge`)."""
+    ``(r0, c0)`` (the fallback of :func:`small_edge`).
+
+    Parameters
+    ----------
+    frame : Frame
+        The prepared inputs.
+    cand : BlobCandidates
+        The blob; its radius comes from its second moment when the hints give none.
+    pix : SmallPixels
+        The window.
+    reason : str
+        Why the disc fit was not used (empty when it was), reported as ``fallback_reason``.
+
+    Returns
+    -------
+    SmallEdge
+        Method ``"moments"``: the corrected centre (px) and its covariance (px^2) over ``(r0, c0)``.
+    """
     sun = sun_geometry(frame, cand.centroid_rc)
     a = cand.expected_radius_px
     if a is None:  # the blob's second moment less a ~1 px PSF: a uniform disc's variance per axis is a^2/4
@@ -79,7 +111,22 @@ def moments_result(frame: Frame, cand: BlobCandidates, pix: SmallPixels, reason:
 
 def small_edge(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> SmallEdge:
     """Stage "edge fit": the disc fit; the centre of brightness corrected for the phase when it does not converge
-    (reported beside the disc fit's answer otherwise)."""
+    (reported beside the disc fit's answer otherwise).
+
+    Parameters
+    ----------
+    frame : Frame
+        The prepared inputs.
+    cand : BlobCandidates
+        The blob.
+    pix : SmallPixels
+        The window.
+
+    Returns
+    -------
+    SmallEdge
+        Method ``"disc"`` or ``"moments"``.
+    """
     try:
         rr, info = fit_small_disc(frame, cand, pix)
     except ConvergenceError as e:
@@ -93,7 +140,20 @@ def small_edge(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> SmallEdg
 
 
 def small_report(cand: BlobCandidates, edge: SmallEdge) -> dict[str, Any]:
-    """The intermediate values worth reporting (``extras``)."""
+    """The intermediate values worth reporting (``extras``).
+
+    Parameters
+    ----------
+    cand : BlobCandidates
+        The blob.
+    edge : SmallEdge
+        The measurement (:func:`small_edge`).
+
+    Returns
+    -------
+    dict
+        Name -> JSON-ready value.
+    """
     return {"small_body": {"method": edge.method, "peak_rc": list(cand.peak_rc), "snr_peak": cand.snr,
                            "centre_of_brightness_rc": list(cand.centroid_rc), "sky": cand.sky, "noise": cand.noise,
                            "expected_radius_px": cand.expected_radius_px, **edge.info},
@@ -101,7 +161,20 @@ def small_report(cand: BlobCandidates, edge: SmallEdge) -> dict[str, Any]:
 
 
 def small_center(frame: Frame, final: RefineResult) -> BodyCenter:
-    """Stage "body-centre mapping" (module docstring)."""
+    """Stage "body-centre mapping" (module docstring).
+
+    Parameters
+    ----------
+    frame : Frame
+        The prepared inputs; its camera gives the LOS and, with the body radius, the range.
+    final : RefineResult
+        The fit that answers.
+
+    Returns
+    -------
+    BodyCenter
+        Centre ``(row, col)`` (px), radius (px), LOS, range (km, when the radius was fitted) and the identity map.
+    """
     p = final.fit.params
     c = (float(p.r0), float(p.c0))
     los = None if frame.cam is None else tuple(float(v) for v in frame.cam.los(np.asarray(c)))
@@ -122,35 +195,173 @@ class SmallBody(Body[SmallPixels, SmallEdge]):
     name: ClassVar[str] = "small body"
 
     def prepare(self, frame: Frame) -> Frame:
+        """The frame with its image in float64.
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+
+        Returns
+        -------
+        Frame
+        """
         return replace(frame, img=np.asarray(frame.img, dtype=np.float64))
 
     def candidates(self, frame: Frame) -> BlobCandidates:
+        """Stage 2: the blob and Check "no body" (:func:`small_candidates`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+
+        Returns
+        -------
+        BlobCandidates
+            Peak, centre of brightness, sky and noise (DN), expected radius (px).
+        """
         return small_candidates(frame)
 
     def limb_pixels(self, frame: Frame, cand: BlobCandidates) -> SmallPixels:
+        """Stage 3: the window about the blob (:func:`~jaxlimb.pipeline.small.fit.window_pixels`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        cand : BlobCandidates
+            The blob (:meth:`candidates`).
+
+        Returns
+        -------
+        SmallPixels
+            The valid pixels of the window.
+        """
         return window_pixels(frame.img, frame_mask(frame), cand.peak_rc)
 
     def edge_fit(self, frame: Frame, cand: BlobCandidates, pixels: SmallPixels) -> SmallEdge:
+        """Stage 4: the disc fit, or the centre of brightness corrected for the phase (:func:`small_edge`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        cand : BlobCandidates
+            The blob (:meth:`candidates`).
+        pixels : SmallPixels
+            The window (:meth:`limb_pixels`).
+
+        Returns
+        -------
+        SmallEdge
+            The measurement and how it was made.
+        """
         return small_edge(frame, cand, pixels)
 
     def report(self, frame: Frame, cand: BlobCandidates, edge: SmallEdge) -> dict[str, Any]:
+        """The blob's and the fit's numbers for ``extras`` (:func:`small_report`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        cand : BlobCandidates
+            The blob (:meth:`candidates`).
+        edge : SmallEdge
+            The disc fit or the centre of brightness (:meth:`edge_fit`).
+
+        Returns
+        -------
+        dict
+            Name -> JSON-ready value.
+        """
         return small_report(cand, edge)
 
     def refit(self, frame: Frame, cand: BlobCandidates, edge: SmallEdge, extras: dict[str, Any]) -> RefineResult:
+        """Stage "profile refit": none, the disc fit is the physical model.
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        cand : BlobCandidates
+            The blob (:meth:`candidates`).
+        edge : SmallEdge
+            The disc fit or the centre of brightness (:meth:`edge_fit`).
+        extras : dict
+            The report (unchanged).
+
+        Returns
+        -------
+        RefineResult
+            ``edge.result``.
+        """
         return edge.result
 
     def body_center(self, frame: Frame, edge: SmallEdge, final: RefineResult) -> BodyCenter:
+        """Stage "body-centre mapping": the disc's centre is the body's (:func:`small_center`).
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        edge : SmallEdge
+            The measurement (unused: the map needs only ``final``).
+        final : RefineResult
+            The fit that answers (:meth:`refit`).
+
+        Returns
+        -------
+        BodyCenter
+            Centre ``(row, col)``, radius (px), LOS, range (km) and the map's Jacobian.
+        """
         return small_center(frame, final)
 
     def check(self, frame: Frame, levels: Levels, cov: Covariance) -> None:
+        """Stage "checks": levels, PSF width and the centre's sigma within ``max_center_sigma_px``.
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        levels : Levels
+            The fitted edge.
+        cov : Covariance
+            The reported covariance.
+        """
         check_levels(levels.ymax, levels.ymin, self.name)
         check_edge_width(levels.psf_sigma_px, self.name)
         check_center_sigma(cov.block(("center_r", "center_c")), frame.opt.max_center_sigma_px)
 
     def iterations(self, edge: SmallEdge, final: RefineResult) -> int:
+        """The solver steps of the answering fit (0 for the centre of brightness).
+
+        Parameters
+        ----------
+        edge : SmallEdge
+        final : RefineResult
+
+        Returns
+        -------
+        int
+        """
         return int(final.fit.n_steps)
 
     def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
+        """The measurement unchanged.
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        meas : LimbMeasurement
+
+        Returns
+        -------
+        LimbMeasurement
+            ``meas``.
+        """
         return meas
 
 

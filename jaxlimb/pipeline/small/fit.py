@@ -51,7 +51,22 @@ class SmallPixels:
 
 def window_pixels(img: np.ndarray, valid: np.ndarray | None, peak) -> SmallPixels:
     """The valid pixels of the ``WINDOW x WINDOW`` window centred on ``peak``, moved inside the frame when the frame
-    holds it (one pixel count: one compiled fit)."""
+    holds it (one pixel count: one compiled fit).
+
+    Parameters
+    ----------
+    img : numpy.ndarray
+        The image ``(rows, cols)`` (DN).
+    valid : numpy.ndarray of bool or None
+        Valid pixels (``None``: all).
+    peak : tuple of int
+        ``(row, col)`` of the blob's smoothed peak.
+
+    Returns
+    -------
+    SmallPixels
+        Pixel coordinates ``(n, 2)`` (px), their values (DN, float64) and the window's top-left pixel.
+    """
     wr, wc = (int(peak[i]) - WINDOW // 2 for i in range(2))
     wr, wc = (max(0, min(w, n - WINDOW)) if n >= WINDOW else w for w, n in zip((wr, wc), img.shape))
     rr, cc = np.mgrid[wr: wr + WINDOW, wc: wc + WINDOW]
@@ -64,7 +79,20 @@ def window_pixels(img: np.ndarray, valid: np.ndarray | None, peak) -> SmallPixel
 
 
 def sun_geometry(frame: Frame, center_rc) -> tuple[float, float, float]:
-    """``(sun_r, sun_c, phase)`` at ``center_rc`` from the hints (``(1, 0, 0)``: full phase when unknown)."""
+    """``(sun_r, sun_c, phase)`` at ``center_rc`` from the hints (``(1, 0, 0)``: full phase when unknown).
+
+    Parameters
+    ----------
+    frame : Frame
+        Its hints give the Sun direction (and its camera the line of sight).
+    center_rc : tuple of float
+        Body centre ``(row, col)`` (px).
+
+    Returns
+    -------
+    tuple of float
+        Unit image direction ``(sun_r, sun_c)`` toward the Sun and the phase angle (rad).
+    """
     if not frame.sun_known:
         return 1.0, 0.0, 0.0
     assert frame.hints is not None
@@ -73,7 +101,28 @@ def sun_geometry(frame: Frame, center_rc) -> tuple[float, float, float]:
 
 
 def disc_at(cand: BlobCandidates, pix: SmallPixels, center_rc, a: float, sigma: float, sun) -> SmallDiscParams:
-    """The disc of radius ``a`` at ``center_rc`` (its sample grid about it), its amplitude from the blob's flux."""
+    """The disc of radius ``a`` at ``center_rc`` (its sample grid about it), its amplitude from the blob's flux.
+
+    Parameters
+    ----------
+    cand : BlobCandidates
+        The blob: its sky (``ymin``) and flux (``amp``).
+    pix : SmallPixels
+        The window (its top-left pixel).
+    center_rc : tuple of float
+        Disc centre ``(row, col)`` (px).
+    a : float
+        Apparent radius (px).
+    sigma : float
+        PSF sigma (px).
+    sun : tuple of float
+        ``(sun_r, sun_c, phase)``: unit image direction toward the Sun and phase (rad) (:func:`sun_geometry`).
+
+    Returns
+    -------
+    SmallDiscParams
+        The disc, its lunar-Lambert weight ``L`` from the phase.
+    """
     L = lunar_lambert_weight(sun[2])
     p = SmallDiscParams(r0=float(center_rc[0]), c0=float(center_rc[1]), a=float(a), sigma=float(sigma), amp=1.0,
                         ymin=float(cand.sky), sun_r=sun[0], sun_c=sun[1], phase=sun[2], L=L,
@@ -84,13 +133,39 @@ def disc_at(cand: BlobCandidates, pix: SmallPixels, center_rc, a: float, sigma: 
 
 
 def regrid(p: SmallDiscParams) -> SmallDiscParams:
-    """``p`` with its sample grid centred on its disc and sized for its radius."""
+    """``p`` with its sample grid centred on its disc and sized for its radius.
+
+    Parameters
+    ----------
+    p : SmallDiscParams
+
+    Returns
+    -------
+    SmallDiscParams
+        ``p`` with ``grid_r, grid_c`` at ``(r0, c0)`` and ``grid_h`` from
+        :func:`~jaxlimb.models.small_disc.grid_half_extent` of ``a``.
+    """
     return p.replace(grid_r=float(p.r0), grid_c=float(p.c0), grid_h=2.0 * grid_half_extent(float(p.a)) / N_SUB)
 
 
 def offset_and_gradients(p: SmallDiscParams) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The disc's phase offset (:func:`~jaxlimb.models.small_disc.photocentre_offset`) and its change per px of radius
-    and per unit of ``L`` (central differences)."""
+    and per unit of ``L`` (central differences).
+
+    Parameters
+    ----------
+    p : SmallDiscParams
+        The disc.
+
+    Returns
+    -------
+    offset : numpy.ndarray
+        Phase offset ``(d_row, d_col)`` (px).
+    d_offset_da : numpy.ndarray
+        Its change ``(2,)`` per px of radius.
+    d_offset_dl : numpy.ndarray
+        Its change ``(2,)`` (px) per unit of ``L``.
+    """
     off = np.array(photocentre_offset(p))
     a, L = float(p.a), float(p.L)
     da = 0.01 * a
@@ -101,7 +176,23 @@ def offset_and_gradients(p: SmallDiscParams) -> tuple[np.ndarray, np.ndarray, np
 
 
 def start(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> SmallDiscParams:
-    """Pass 1's start (module docstring)."""
+    """Pass 1's start (module docstring).
+
+    Parameters
+    ----------
+    frame : Frame
+        Its hints give the Sun direction and phase.
+    cand : BlobCandidates
+        The blob: centre of brightness, expected radius or second moment, flux, sky.
+    pix : SmallPixels
+        The window.
+
+    Returns
+    -------
+    SmallDiscParams
+        The disc at the centre of brightness less its phase offset, with the expected (or moment) radius and
+        ``sigma = 0.8`` px.
+    """
     sun = sun_geometry(frame, cand.centroid_rc)
     sigma0 = 0.8
     if cand.expected_radius_px is not None:
@@ -114,7 +205,22 @@ def start(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> SmallDiscPara
 
 
 def noise_weights(p: SmallDiscParams, pix: SmallPixels) -> tuple[np.ndarray, dict[str, float]]:
-    """``1 / sqrt(s0^2 + g m)`` (module docstring) and ``{s0, g}``."""
+    """``1 / sqrt(s0^2 + g m)`` (module docstring) and ``{s0, g}``.
+
+    Parameters
+    ----------
+    p : SmallDiscParams
+        Pass 1's disc.
+    pix : SmallPixels
+        The window.
+
+    Returns
+    -------
+    weights : numpy.ndarray
+        Per-pixel weight ``(n,)`` (1/DN).
+    noise : dict
+        ``s0`` (DN) and ``g`` (DN per DN of signal) of the noise model.
+    """
     m = np.asarray(small_disc_predict(p, pix.coords)) - float(p.ymin)
     r = pix.z - (m + float(p.ymin))
     top = float(np.max(m)) if m.size else 0.0
@@ -130,7 +236,24 @@ def noise_weights(p: SmallDiscParams, pix: SmallPixels) -> tuple[np.ndarray, dic
 
 
 def consider_terms(res, pix: SmallPixels, weights: np.ndarray, sigmas: dict[str, float]) -> np.ndarray:
-    """The covariance (over the fit's free parameters) of held parameters' uncertainties (module docstring)."""
+    """The covariance (over the fit's free parameters) of held parameters' uncertainties (module docstring).
+
+    Parameters
+    ----------
+    res : LimbFit
+        The weighted fit: its parameters and free set.
+    pix : SmallPixels
+        The window.
+    weights : numpy.ndarray
+        Per-pixel weight ``(n,)`` of the fit (1/DN).
+    sigmas : dict
+        Parameter name -> 1-sigma of a held parameter (``a`` in px, ``L``); free ones and zeros are skipped.
+
+    Returns
+    -------
+    numpy.ndarray
+        The added covariance ``(q, q)`` over the free parameters, in their order.
+    """
     p = res.params
     names = SmallDiscParams.field_names()
     J = np.asarray(SMALL_DISC.jacobian(p, pix.coords)) * weights[:, None]
@@ -148,7 +271,29 @@ def consider_terms(res, pix: SmallPixels, weights: np.ndarray, sigmas: dict[str,
 
 def fit_small_disc(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> tuple[RefineResult, dict]:
     """The passes of the module docstring: the :class:`~jaxlimb.pipeline.stages.RefineResult` (its covariance with the
-    consider terms; the noise-only one kept) and what to report."""
+    consider terms; the noise-only one kept) and what to report.
+
+    Parameters
+    ----------
+    frame : Frame
+        The prepared inputs.
+    cand : BlobCandidates
+        The blob (:func:`~jaxlimb.pipeline.small.blob.find_blob`).
+    pix : SmallPixels
+        The window (:func:`window_pixels`).
+
+    Returns
+    -------
+    result : RefineResult
+        The weighted disc fit with the consider covariance.
+    info : dict
+        The noise model, whether the radius was free, the radius's fractional and ``L``'s 1-sigma.
+
+    Raises
+    ------
+    ConvergenceError
+        A weighted pass does not converge.
+    """
     a_free = cand.expected_radius_px is None or cand.expected_radius_px >= FREE_RADIUS_MIN_PX
     held = () if a_free else ("a",)  # a run-time mask: one compiled fit whether the radius is held or not
     fixed = SMALL_DISC_FIXED + held
