@@ -119,6 +119,8 @@ def test_covariance_is_one_square_matrix_and_a_stated_tolerance_fails_the_frame(
 
 
 def test_earth_short_arc_is_arc_too_short():
+    """Without the Sun the lit window is the arc the front end found (its ends are where it found no lit edge, not
+    horns: no margin); with the Sun, the lit half-circle less the margin at each horn."""
     from jaxlimb.pipeline.bodies import body_strategy
     from jaxlimb.pipeline.frame import prepare
 
@@ -126,8 +128,8 @@ def test_earth_short_arc_is_arc_too_short():
     frame = prepare(np.zeros((400, 400), np.uint8), cam, {"body": "earth"}, None)
     body = body_strategy(frame)
     cand = SimpleNamespace(center_rc=(200.0, 200.0), radius=120.0, lit_direction=(0.0, 1.0),
-                           lit_halfangle=math.radians(33.0), info={})
-    with pytest.raises(ArcTooShortError) as e:
+                           lit_halfangle=math.radians(4.0), info={})
+    with pytest.raises(ArcTooShortError, match="the lit limb arc the front end found spans 8 deg") as e:
         body.limb_pixels(frame, cand)
     assert e.value.check == "arc_too_short"
 

@@ -123,9 +123,9 @@ def ellipse_pixels(body: EllipsoidModel, frame: Frame, cand: Any) -> EllipsePixe
         half = min(half, math.pi / 2)
     if lit_dir is not None:
         if half <= math.radians(5):
-            raise ArcTooShortError(
-                f"the lit limb arc left after {eo.arc_margin_deg:g} deg at each horn spans "
-                f"{max(0.0, 2 * math.degrees(half)):.3g} deg (at least 10 deg needed): too short for the ellipse")
+            left = f"left after {eo.arc_margin_deg:g} deg at each horn " if sd is not None else "the front end found "
+            raise ArcTooShortError(f"the lit limb arc {left}spans {max(0.0, 2 * math.degrees(half)):.3g} deg "
+                                   "(at least 10 deg needed): too short for the ellipse")
     rho, th = (0.999, 0.0) if body.R is None else body.predicted_shape(cam, -p0)
     a0 = cand.radius / math.sqrt(rho)
     half = half if lit_dir is not None else math.pi
