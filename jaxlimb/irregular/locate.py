@@ -231,9 +231,9 @@ def register_hypotheses(frame: Frame, db: TemplateDatabase, hyps: list[PoseHypot
     """Coarse stage for every hypothesis, then the full-resolution stage in order of the coarse residual.
 
     A hypothesis is not refined further when its coarse residual exceeds the best one's by
-    ``_PRUNE_RMS_FRAC`` (it could pass neither the residual check nor the ambiguity test), or when its centre
+    ``_PRUNE_RMS_FRAC`` (it could pass neither the residual check nor the ambiguity test), when its centre
     is already within ``_SAME_CENTER_PX`` of an accepted fit (the same answer: it cannot make the match
-    ambiguous).
+    ambiguous), or when :func:`runner_up_guard` abandons it, from its coarse stage on.
 
     Parameters
     ----------
@@ -270,8 +270,11 @@ def register_hypotheses(frame: Frame, db: TemplateDatabase, hyps: list[PoseHypot
             continue
         if any(float(np.linalg.norm(st.P - f.center_rc)) < _SAME_CENTER_PX for f, _ in fits):
             continue
+        guard = runner_up_guard(accepted, options) if accepted else None
         try:
-            fit = complete_search_registration(reg, runner_up_guard(accepted, options) if accepted else None)
+            if guard is not None:
+                guard(st, math.inf)  # its coarse stage, against theirs: the residual alone (blurred)
+            fit = complete_search_registration(reg, guard)
         except CheckFailed as e:
             errors.append(e)
             continue
@@ -283,12 +286,12 @@ def register_hypotheses(frame: Frame, db: TemplateDatabase, hyps: list[PoseHypot
 def runner_up_guard(accepted: list[GNState], options: LosOptions) -> Guard:
     """Abandon a further hypothesis that cannot change the answer (:func:`register_hypotheses`).
 
-    After each iteration of the candidate:
+    After the candidate's coarse stage and each of its later iterations:
 
     * at full resolution (blur below ``2 PYRAMID_BLUR_PX``), its centre within ``_SAME_CENTER_PX`` of an
       accepted fit: the same answer;
-    * from its second iteration on, an RMS residual (fraction of the contrast) above that of every accepted
-      fit at the same iteration (same blur; the last one for later sharp iterations) by ``3 ambiguity_margin``.
+    * an RMS residual (fraction of the contrast) above that of every accepted fit at the same iteration
+      (same blur and pyramid level; the last one for later sharp iterations) by ``3 ambiguity_margin``.
       On sharp iterations its residual excess then exceeds theirs by more than the margin too
       (``excess^2 = rms^2 - noise^2`` with ``excess <= rms``): it can neither win nor make the match ambiguous.
 
@@ -302,19 +305,17 @@ def runner_up_guard(accepted: list[GNState], options: LosOptions) -> Guard:
     Returns
     -------
     Guard
-        ``guard(state, sigma)``, called after each iteration; raises :class:`~jaxlimb.errors.MatchError` to
-        abandon the candidate.
+        ``guard(state, sigma)``, called after the coarse stage (``sigma`` infinite) and each later iteration;
+        raises :class:`~jaxlimb.errors.MatchError` to abandon the candidate.
     """
-    count = [0]
     full_res = 2.0 * PYRAMID_BLUR_PX
 
     def guard(st: GNState, sigma: float) -> None:
-        count[0] += 1
         if sigma < full_res and any(float(np.linalg.norm(st.P - a.P)) < _SAME_CENTER_PX for a in accepted):
             raise MatchError("the hypothesis converges to an accepted fit")
         i = len(st.history) - 1
         ref = min(a.history[min(i, len(a.history) - 1)] for a in accepted)
-        if count[0] >= 2 and st.rms_frac > ref + 3.0 * options.ambiguity_margin:
+        if st.rms_frac > ref + 3.0 * options.ambiguity_margin:
             raise MatchError(f"residual {st.rms_frac:.3f} of the contrast against {ref:.3f} of an accepted fit")
 
     return guard

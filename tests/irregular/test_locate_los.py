@@ -152,7 +152,7 @@ def test_frame_of_another_body_fails_typed(body_db):
 
 def test_runner_up_guard_abandons_only_hypotheses_that_cannot_change_the_answer():
     """Same centre as an accepted fit at full resolution, or a residual 3 margins worse than the accepted fit's
-    at the same iteration: abandoned; otherwise kept."""
+    at the same iteration (the first one too): abandoned; otherwise kept."""
     from types import SimpleNamespace
 
     from jaxlimb.irregular.locate import LosOptions, runner_up_guard
@@ -165,11 +165,15 @@ def test_runner_up_guard_abandons_only_hypotheses_that_cannot_change_the_answer(
         return st, rms
 
     g = runner_up_guard(accepted, o)
+    first = SimpleNamespace(P=np.array([110.0, 100.0]), history=[0.5], rms_frac=0.5)
+    with pytest.raises(MatchError):
+        g(first, np.inf)  # the coarse state, 0.48 worse than the accepted fit's at the same iteration
     st, _ = cand(0)
-    for i, (rms, sigma) in enumerate([(0.5, 8.0), (0.005 + 2.5 * o.ambiguity_margin, 4.0), (0.01 + 2.9 * o.ambiguity_margin, 0.0)]):
+    for i, (rms, sigma) in enumerate([(0.02 + 2.9 * o.ambiguity_margin, np.inf), (0.005 + 2.5 * o.ambiguity_margin, 4.0),
+                                      (0.01 + 2.9 * o.ambiguity_margin, 0.0)]):
         st.history.append(rms)
         st.rms_frac = rms
-        g(st, sigma)  # the first iteration is never judged; then within 3 margins of the accepted history: kept
+        g(st, sigma)  # within 3 margins of the accepted history: kept
     st.history.append(0.05)
     st.rms_frac = 0.05
     with pytest.raises(MatchError):
