@@ -39,7 +39,7 @@ from .register import (
     register_known_attitude,
     start_search_registration,
 )
-from .register.gauss_newton import GNState, Guard
+from .register.gauss_newton import GNState, Guard, coarse_schedule, coarse_stage
 from .register.pyramid import PYRAMID_BLUR_PX
 from .silhouette import figure_center
 
@@ -48,7 +48,7 @@ _MIN_PHASE_DEG = 5.0  # below this phase the lit figure is treated as the silhou
 # flat cost along some rotations) moves the centre by more than the noise (calibrated on
 # benchmarks/irregular_los.py --views 2: mean error^2 / trace(cov) about 1)
 _SEARCH_FLOOR_PX = 0.008
-# after the coarse stage a hypothesis whose RMS residual (fraction of the contrast) exceeds the best one's by
+# after each coarse iteration a hypothesis whose RMS residual (fraction of the contrast) exceeds the best one's by
 # _PRUNE_RMS_FRAC, or exceeds _PRUNE_MAX_RMS_FRAC, is dropped (a correct pose: 0.001-0.04, a wrong one: 0.09-0.13)
 _PRUNE_RMS_FRAC = 0.04
 _PRUNE_MAX_RMS_FRAC = 0.1
@@ -228,12 +228,12 @@ def search_hypotheses(frame: Frame, db: TemplateDatabase, options: LosOptions) -
 
 
 def register_hypotheses(frame: Frame, db: TemplateDatabase, hyps: list[PoseHypothesis], options: LosOptions):  # type: ignore[no-untyped-def]
-    """Coarse stage for every hypothesis, then the full-resolution stage in order of the coarse residual.
+    """Coarse stage for every hypothesis (:func:`coarse_hypotheses`), then the full-resolution stage in order of
+    the coarse residual.
 
-    A hypothesis is not refined further when its coarse residual exceeds the best one's by
-    ``_PRUNE_RMS_FRAC`` (it could pass neither the residual check nor the ambiguity test), when its centre
-    is already within ``_SAME_CENTER_PX`` of an accepted fit (the same answer: it cannot make the match
-    ambiguous), or when :func:`runner_up_guard` abandons it, from its coarse stage on.
+    A hypothesis is not refined further when its centre is already within ``_SAME_CENTER_PX`` of an accepted fit
+    (the same answer: it cannot make the match ambiguous), or when :func:`runner_up_guard` abandons it, from its
+    coarse stage on.
 
     Parameters
     ----------
@@ -253,21 +253,11 @@ def register_hypotheses(frame: Frame, db: TemplateDatabase, hyps: list[PoseHypot
     errors : list of CheckFailed
         Why each rejected hypothesis failed.
     """
-    regs, errors = [], []
-    for h in hyps:
-        try:
-            regs.append((start_search_registration(frame.image, db.mesh, frame.camera, h.R_body_to_camera, frame.sun,
-                                                   (h.center_rc, h.range_km), frame.segmentation, options.search), h))  # fmt: skip
-        except CheckFailed as e:
-            errors.append(e)
-    regs.sort(key=lambda r: r[0].state.rms_frac if math.isfinite(r[0].state.rms_frac) else math.inf)
+    regs, errors = coarse_hypotheses(frame, db, hyps, options)
     fits: list[tuple[RegisterResult, int]] = []
     accepted: list[GNState] = []
     for reg, h in regs:
-        st, best = reg.state, regs[0][0].state.rms_frac
-        if st.rms_frac > min(best + _PRUNE_RMS_FRAC, _PRUNE_MAX_RMS_FRAC):
-            errors.append(MatchError(f"coarse residual {st.rms_frac:.3f} of the contrast, the best hypothesis {best:.3f}"))
-            continue
+        st = reg.state
         if any(float(np.linalg.norm(st.P - f.center_rc)) < _SAME_CENTER_PX for f, _ in fits):
             continue
         guard = runner_up_guard(accepted, options) if accepted else None
@@ -281,6 +271,59 @@ def register_hypotheses(frame: Frame, db: TemplateDatabase, hyps: list[PoseHypot
         fits.append((fit, h.template_index))
         accepted.append(reg.state)
     return fits, errors
+
+
+def coarse_hypotheses(frame: Frame, db: TemplateDatabase, hyps: list[PoseHypothesis], options: LosOptions):  # type: ignore[no-untyped-def]
+    """NCC and coarse stage of every hypothesis, one iteration at a time, each followed by :func:`prune_coarse`.
+
+    Parameters
+    ----------
+    frame, db, hyps, options
+        As :func:`register_hypotheses`.
+
+    Returns
+    -------
+    regs : list of (Registration, PoseHypothesis)
+        The hypotheses left after their coarse stage, best coarse residual first.
+    errors : list of CheckFailed
+        Why each dropped hypothesis failed.
+    """
+    regs, errors = [], []
+    for h in hyps:
+        try:
+            regs.append((start_search_registration(frame.image, db.mesh, frame.camera, h.R_body_to_camera, frame.sun,
+                                                   (h.center_rc, h.range_km), frame.segmentation, options.search, 1), h))  # fmt: skip
+        except CheckFailed as e:
+            errors.append(e)
+    n_coarse = len(coarse_schedule(regs[0][0].problem)) if regs else 0  # the same figure: the same schedule
+    for n in range(2, n_coarse + 1):
+        going = []
+        for reg, h in prune_coarse(regs, errors):
+            try:
+                coarse_stage(reg.problem, reg.state, n)
+            except CheckFailed as e:
+                errors.append(e)
+                continue
+            going.append((reg, h))
+        regs = going
+    return prune_coarse(regs, errors), errors
+
+
+def prune_coarse(regs: list, errors: list) -> list:  # type: ignore[type-arg]
+    """The hypotheses ``(Registration, PoseHypothesis)`` in order of their residual at the same coarse iteration,
+    without those whose residual exceeds the best one's by ``_PRUNE_RMS_FRAC`` or exceeds ``_PRUNE_MAX_RMS_FRAC``
+    (they could pass neither the residual check nor the ambiguity test; a :class:`~jaxlimb.errors.MatchError`
+    each is appended to ``errors``)."""
+    regs = sorted(regs, key=lambda r: r[0].state.rms_frac if math.isfinite(r[0].state.rms_frac) else math.inf)
+    if not regs:
+        return regs
+    best, kept = regs[0][0].state.rms_frac, []
+    for reg, h in regs:
+        if reg.state.rms_frac > min(best + _PRUNE_RMS_FRAC, _PRUNE_MAX_RMS_FRAC):
+            errors.append(MatchError(f"coarse residual {reg.state.rms_frac:.3f} of the contrast, the best hypothesis {best:.3f}"))
+        else:
+            kept.append((reg, h))
+    return kept
 
 
 def runner_up_guard(accepted: list[GNState], options: LosOptions) -> Guard:
@@ -343,6 +386,6 @@ def _choose(fits, errors, n_tried, options) -> LosResult:  # type: ignore[no-unt
 
 
 __all__ = [
-    "Frame", "LosMode", "LosOptions", "LosResult", "locate_los", "phase_angle_deg", "register_hypotheses", "runner_up_guard",
-    "search_hypotheses",
+    "Frame", "LosMode", "LosOptions", "LosResult", "coarse_hypotheses", "locate_los", "phase_angle_deg", "prune_coarse",
+    "register_hypotheses", "runner_up_guard", "search_hypotheses",
 ]  # fmt: skip
