@@ -65,7 +65,7 @@ class LosMode(str, Enum):
 def _search_register_options() -> RegisterOptions:
     """The registration of a template hypothesis (attitude fitted): :attr:`LosOptions.search`'s default."""
     return RegisterOptions(max_iterations=24, sharp_level2_iterations=6, max_excess_frac=0.06, surge_widths=(), mix_laws=2,
-                           exact_coverage=False)  # fmt: skip
+                           exact_coverage=False, coarse_cast_shadows=False)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -91,8 +91,9 @@ class LosOptions:
         acceptance (three free rotation angles can twist another body's model into a better fit than a given
         attitude allows), more iterations (a template 20-40 deg off turns by at most 3 deg per iteration),
         unblurred iterations on the half-resolution frame first, and none of the surge columns, the third
-        photometric law or exact coverage (with three rotation columns the first two let the search go astray;
-        the last costs a third more time for an error far inside this mode's).
+        photometric law, exact coverage or cast shadows on the coarse levels (with three rotation columns the first
+        two let the search go astray; the last two cost a third and a tenth more time for an error far inside this
+        mode's: the coarse levels rank the hypotheses, the finer ones cast shadows).
     """
 
     n_verify: int = 10
