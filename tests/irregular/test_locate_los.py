@@ -202,7 +202,13 @@ def test_prune_coarse_orders_and_drops_hypotheses_by_their_residual():
 def test_coarse_stage_resumed_equals_one_call(body):
     """The coarse stage stopped after its first iteration and resumed gives the same state to the last bit."""
     from jaxlimb.irregular.register import lit_figure
-    from jaxlimb.irregular.register.gauss_newton import GNState, Problem, coarse_schedule, coarse_stage, initial_mix
+    from jaxlimb.irregular.register.gauss_newton import (
+        GNState,
+        Problem,
+        coarse_schedule,
+        coarse_stage,
+        initial_mix,
+    )
     from jaxlimb.irregular.register.pyramid import Pyramid
 
     cam = Camera(focal_length_mm=16.0, pixel_pitch_mm=2.2e-3, rows=600, cols=600)  # a figure ~400 px across: two coarse levels
