@@ -6,7 +6,10 @@ Sun direction and a range prior (attitude unknown: the template search).  Every 
 times after one warm-up (which builds the database of a body once, in ``$JAXLIMB_CACHE``); with ``--before DIR``
 (e.g. ``git archive BASE | tar -x -C /tmp/BASE``: the directory's name is recorded) the processes of that checkout
 run interleaved with this one's, on the same frames, so that both see the same machine load.  Medians per frame; CPU is user + system of the process
-(less sensitive to other jobs on a shared machine).  A run over every frame writes
+(less sensitive to other jobs on a shared machine).  The processes run as from an installed package: Python's
+bytecode cached (a per-run ``PYTHONPYCACHEPREFIX`` per checkout, filled by the warm-up, whatever
+``PYTHONDONTWRITEBYTECODE`` says); ``--no-bytecode-cache`` keeps the environment as it is (with
+``PYTHONDONTWRITEBYTECODE=1`` every process then compiles the package from source).  A run over every frame writes
 ``benchmarks/results/los_locate_speed.json`` (a run with ``--only`` writes nothing).
 
 Run::
@@ -60,11 +63,11 @@ def frames(d: Path) -> list[dict]:
     return out
 
 
-def run(cmd: list[str], pythonpath: str) -> tuple[float, float, dict]:
-    """Wall and CPU seconds of one process and its JSON answer."""
+def run(cmd: list[str], env: dict[str, str]) -> tuple[float, float, dict]:
+    """Wall and CPU seconds of one process (environment ``env``) and its JSON answer."""
     ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
-    p = subprocess.run(cmd, capture_output=True, text=True, cwd=tempfile.gettempdir(), env={**os.environ, "PYTHONPATH": pythonpath})
+    p = subprocess.run(cmd, check=False, capture_output=True, text=True, cwd=tempfile.gettempdir(), env=env)
     wall = time.perf_counter() - t0
     ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if p.returncode not in (0, 3):
@@ -73,14 +76,25 @@ def run(cmd: list[str], pythonpath: str) -> tuple[float, float, dict]:
     return wall, cpu, json.loads(p.stdout.strip().splitlines()[-1])
 
 
+def environment_of(root: str, pycache: Path | None) -> dict[str, str]:
+    """The environment of a process of the checkout ``root``: bytecode cached under ``pycache`` (``None``: as it is)."""
+    env = {**os.environ, "PYTHONPATH": root}
+    if pycache is not None:
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
+        env["PYTHONPYCACHEPREFIX"] = str(pycache)
+    return env
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--before", metavar="DIR", help="an earlier checkout, run interleaved")
     ap.add_argument("--only", nargs="*", help="frame tags (e.g. thebe_30)")
+    ap.add_argument("--no-bytecode-cache", action="store_true", help="run the processes in this environment as it is")
     args = ap.parse_args(argv)
     d = Path(tempfile.mkdtemp(prefix="los_locate_speed_"))
-    versions = {"after": str(ROOT)} | ({"before": str(Path(args.before).resolve())} if args.before else {})
+    roots = {"after": str(ROOT)} | ({"before": str(Path(args.before).resolve())} if args.before else {})
+    versions = {v: environment_of(root, None if args.no_bytecode_cache else d / f"pycache-{v}") for v, root in roots.items()}
     rows = []
     for f in frames(d):
         if args.only and f["tag"] not in args.only:
@@ -89,11 +103,11 @@ def main(argv: list[str] | None = None) -> int:
                f["pole"], "--camera", str(d / "camera.json"), "--hints", str(d / f"{f['tag']}.json"), "--json", "--no-progress"]  # fmt: skip
         times: dict[str, list[tuple[float, float]]] = {v: [] for v in versions}
         answers = {}
-        for v, pp in versions.items():
-            answers[v] = run(cmd, pp)[2]  # warm-up (database built or cached)
+        for v, env in versions.items():
+            answers[v] = run(cmd, env)[2]  # warm-up (database built or cached)
         for _ in range(args.repeats):
-            for v, pp in versions.items():
-                times[v].append(run(cmd, pp)[:2])
+            for v, env in versions.items():
+                times[v].append(run(cmd, env)[:2])
         row = {"frame": f["tag"], "load": os.getloadavg()[0]}
         for v in versions:
             a = answers[v]
@@ -101,16 +115,18 @@ def main(argv: list[str] | None = None) -> int:
                       "status": a.get("status"), "error_px": float(np.linalg.norm(np.subtract(a["center_rc"], f["truth"]))) if "center_rc" in a else None}  # fmt: skip
         rows.append(row)
         print(json.dumps(row), flush=True)
-    print("| frame | " + " | ".join(f"{v} wall / CPU s" for v in versions) + " | error px |")
-    print("|---|" + "---|" * len(versions) + "---|")
+    print("| frame | " + " | ".join(f"{v} wall / CPU s" for v in versions) + " | " + " | ".join(f"{v} error px" for v in versions) + " |")
+    print("|---|" + "---|" * 2 * len(versions))
     for r in rows:
         cells = " | ".join(f"{r[v]['wall_s']:.2f} / {r[v]['cpu_s']:.2f}" for v in versions)
-        print(f"| {r['frame']} | {cells} | {r['after']['error_px']:.3f} |")
+        errors = " | ".join("-" if r[v]["error_px"] is None else f"{r[v]['error_px']:.3f}" for v in versions)
+        print(f"| {r['frame']} | {cells} | {errors} |")
     summary = {v: {k: statistics.median(r[v][k] for r in rows) for k in ("wall_s", "cpu_s")} for v in versions}
     for v, m in summary.items():
         print(f"{v}: median over frames wall {m['wall_s']:.2f} s, CPU {m['cpu_s']:.2f} s")
     if not args.only:
-        save("los_locate_speed", {"environment": environment(), "args": {"repeats": args.repeats, "before": args.before and Path(args.before).name},
+        save("los_locate_speed", {"environment": environment(), "args": {"repeats": args.repeats, "before": args.before and Path(args.before).name,
+                                                                          "bytecode_cache": not args.no_bytecode_cache},
                                   "rows": rows, "median": summary, "load_after": os.getloadavg()[0]})  # fmt: skip
     return 0
 

@@ -39,7 +39,7 @@ from .register import (
     register_known_attitude,
     start_search_registration,
 )
-from .register.gauss_newton import GNState, Guard
+from .register.gauss_newton import GNState, Guard, coarse_schedule, coarse_stage
 from .register.pyramid import PYRAMID_BLUR_PX
 from .silhouette import figure_center
 
@@ -48,7 +48,7 @@ _MIN_PHASE_DEG = 5.0  # below this phase the lit figure is treated as the silhou
 # flat cost along some rotations) moves the centre by more than the noise (calibrated on
 # benchmarks/irregular_los.py --views 2: mean error^2 / trace(cov) about 1)
 _SEARCH_FLOOR_PX = 0.008
-# after the coarse stage a hypothesis whose RMS residual (fraction of the contrast) exceeds the best one's by
+# after each coarse iteration a hypothesis whose RMS residual (fraction of the contrast) exceeds the best one's by
 # _PRUNE_RMS_FRAC, or exceeds _PRUNE_MAX_RMS_FRAC, is dropped (a correct pose: 0.001-0.04, a wrong one: 0.09-0.13)
 _PRUNE_RMS_FRAC = 0.04
 _PRUNE_MAX_RMS_FRAC = 0.1
@@ -65,7 +65,7 @@ class LosMode(str, Enum):
 def _search_register_options() -> RegisterOptions:
     """The registration of a template hypothesis (attitude fitted): :attr:`LosOptions.search`'s default."""
     return RegisterOptions(max_iterations=24, sharp_level2_iterations=6, max_excess_frac=0.06, surge_widths=(), mix_laws=2,
-                           exact_coverage=False)  # fmt: skip
+                           exact_coverage=False, coarse_cast_shadows=False)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -91,8 +91,9 @@ class LosOptions:
         acceptance (three free rotation angles can twist another body's model into a better fit than a given
         attitude allows), more iterations (a template 20-40 deg off turns by at most 3 deg per iteration),
         unblurred iterations on the half-resolution frame first, and none of the surge columns, the third
-        photometric law or exact coverage (with three rotation columns the first two let the search go astray;
-        the last costs a third more time for an error far inside this mode's).
+        photometric law, exact coverage or cast shadows on the coarse levels (with three rotation columns the first
+        two let the search go astray; the last two cost a third and a tenth more time for an error far inside this
+        mode's: the coarse levels rank the hypotheses, the finer ones cast shadows).
     """
 
     n_verify: int = 10
@@ -228,12 +229,12 @@ def search_hypotheses(frame: Frame, db: TemplateDatabase, options: LosOptions) -
 
 
 def register_hypotheses(frame: Frame, db: TemplateDatabase, hyps: list[PoseHypothesis], options: LosOptions):  # type: ignore[no-untyped-def]
-    """Coarse stage for every hypothesis, then the full-resolution stage in order of the coarse residual.
+    """Coarse stage for every hypothesis (:func:`coarse_hypotheses`), then the full-resolution stage in order of
+    the coarse residual.
 
-    A hypothesis is not refined further when its coarse residual exceeds the best one's by
-    ``_PRUNE_RMS_FRAC`` (it could pass neither the residual check nor the ambiguity test), or when its centre
-    is already within ``_SAME_CENTER_PX`` of an accepted fit (the same answer: it cannot make the match
-    ambiguous).
+    A hypothesis is not refined further when its centre is already within ``_SAME_CENTER_PX`` of an accepted fit
+    (the same answer: it cannot make the match ambiguous), or when :func:`runner_up_guard` abandons it, from its
+    coarse stage on.
 
     Parameters
     ----------
@@ -253,25 +254,18 @@ def register_hypotheses(frame: Frame, db: TemplateDatabase, hyps: list[PoseHypot
     errors : list of CheckFailed
         Why each rejected hypothesis failed.
     """
-    regs, errors = [], []
-    for h in hyps:
-        try:
-            regs.append((start_search_registration(frame.image, db.mesh, frame.camera, h.R_body_to_camera, frame.sun,
-                                                   (h.center_rc, h.range_km), frame.segmentation, options.search), h))  # fmt: skip
-        except CheckFailed as e:
-            errors.append(e)
-    regs.sort(key=lambda r: r[0].state.rms_frac if math.isfinite(r[0].state.rms_frac) else math.inf)
+    regs, errors = coarse_hypotheses(frame, db, hyps, options)
     fits: list[tuple[RegisterResult, int]] = []
     accepted: list[GNState] = []
     for reg, h in regs:
-        st, best = reg.state, regs[0][0].state.rms_frac
-        if st.rms_frac > min(best + _PRUNE_RMS_FRAC, _PRUNE_MAX_RMS_FRAC):
-            errors.append(MatchError(f"coarse residual {st.rms_frac:.3f} of the contrast, the best hypothesis {best:.3f}"))
-            continue
+        st = reg.state
         if any(float(np.linalg.norm(st.P - f.center_rc)) < _SAME_CENTER_PX for f, _ in fits):
             continue
+        guard = runner_up_guard(accepted, options) if accepted else None
         try:
-            fit = complete_search_registration(reg, runner_up_guard(accepted, options) if accepted else None)
+            if guard is not None:
+                guard(st, math.inf)  # its coarse stage, against theirs: the residual alone (blurred)
+            fit = complete_search_registration(reg, guard)
         except CheckFailed as e:
             errors.append(e)
             continue
@@ -280,15 +274,68 @@ def register_hypotheses(frame: Frame, db: TemplateDatabase, hyps: list[PoseHypot
     return fits, errors
 
 
+def coarse_hypotheses(frame: Frame, db: TemplateDatabase, hyps: list[PoseHypothesis], options: LosOptions):  # type: ignore[no-untyped-def]
+    """NCC and coarse stage of every hypothesis, one iteration at a time, each followed by :func:`prune_coarse`.
+
+    Parameters
+    ----------
+    frame, db, hyps, options
+        As :func:`register_hypotheses`.
+
+    Returns
+    -------
+    regs : list of (Registration, PoseHypothesis)
+        The hypotheses left after their coarse stage, best coarse residual first.
+    errors : list of CheckFailed
+        Why each dropped hypothesis failed.
+    """
+    regs, errors = [], []
+    for h in hyps:
+        try:
+            regs.append((start_search_registration(frame.image, db.mesh, frame.camera, h.R_body_to_camera, frame.sun,
+                                                   (h.center_rc, h.range_km), frame.segmentation, options.search, 1), h))  # fmt: skip
+        except CheckFailed as e:
+            errors.append(e)
+    n_coarse = len(coarse_schedule(regs[0][0].problem)) if regs else 0  # the same figure: the same schedule
+    for n in range(2, n_coarse + 1):
+        going = []
+        for reg, h in prune_coarse(regs, errors):
+            try:
+                coarse_stage(reg.problem, reg.state, n)
+            except CheckFailed as e:
+                errors.append(e)
+                continue
+            going.append((reg, h))
+        regs = going
+    return prune_coarse(regs, errors), errors
+
+
+def prune_coarse(regs: list, errors: list) -> list:  # type: ignore[type-arg]
+    """The hypotheses ``(Registration, PoseHypothesis)`` in order of their residual at the same coarse iteration,
+    without those whose residual exceeds the best one's by ``_PRUNE_RMS_FRAC`` or exceeds ``_PRUNE_MAX_RMS_FRAC``
+    (they could pass neither the residual check nor the ambiguity test; a :class:`~jaxlimb.errors.MatchError`
+    each is appended to ``errors``)."""
+    regs = sorted(regs, key=lambda r: r[0].state.rms_frac if math.isfinite(r[0].state.rms_frac) else math.inf)
+    if not regs:
+        return regs
+    best, kept = regs[0][0].state.rms_frac, []
+    for reg, h in regs:
+        if reg.state.rms_frac > min(best + _PRUNE_RMS_FRAC, _PRUNE_MAX_RMS_FRAC):
+            errors.append(MatchError(f"coarse residual {reg.state.rms_frac:.3f} of the contrast, the best hypothesis {best:.3f}"))
+        else:
+            kept.append((reg, h))
+    return kept
+
+
 def runner_up_guard(accepted: list[GNState], options: LosOptions) -> Guard:
     """Abandon a further hypothesis that cannot change the answer (:func:`register_hypotheses`).
 
-    After each iteration of the candidate:
+    After the candidate's coarse stage and each of its later iterations:
 
     * at full resolution (blur below ``2 PYRAMID_BLUR_PX``), its centre within ``_SAME_CENTER_PX`` of an
       accepted fit: the same answer;
-    * from its second iteration on, an RMS residual (fraction of the contrast) above that of every accepted
-      fit at the same iteration (same blur; the last one for later sharp iterations) by ``3 ambiguity_margin``.
+    * an RMS residual (fraction of the contrast) above that of every accepted fit at the same iteration
+      (same blur and pyramid level; the last one for later sharp iterations) by ``3 ambiguity_margin``.
       On sharp iterations its residual excess then exceeds theirs by more than the margin too
       (``excess^2 = rms^2 - noise^2`` with ``excess <= rms``): it can neither win nor make the match ambiguous.
 
@@ -302,19 +349,17 @@ def runner_up_guard(accepted: list[GNState], options: LosOptions) -> Guard:
     Returns
     -------
     Guard
-        ``guard(state, sigma)``, called after each iteration; raises :class:`~jaxlimb.errors.MatchError` to
-        abandon the candidate.
+        ``guard(state, sigma)``, called after the coarse stage (``sigma`` infinite) and each later iteration;
+        raises :class:`~jaxlimb.errors.MatchError` to abandon the candidate.
     """
-    count = [0]
     full_res = 2.0 * PYRAMID_BLUR_PX
 
     def guard(st: GNState, sigma: float) -> None:
-        count[0] += 1
         if sigma < full_res and any(float(np.linalg.norm(st.P - a.P)) < _SAME_CENTER_PX for a in accepted):
             raise MatchError("the hypothesis converges to an accepted fit")
         i = len(st.history) - 1
         ref = min(a.history[min(i, len(a.history) - 1)] for a in accepted)
-        if count[0] >= 2 and st.rms_frac > ref + 3.0 * options.ambiguity_margin:
+        if st.rms_frac > ref + 3.0 * options.ambiguity_margin:
             raise MatchError(f"residual {st.rms_frac:.3f} of the contrast against {ref:.3f} of an accepted fit")
 
     return guard
@@ -342,6 +387,6 @@ def _choose(fits, errors, n_tried, options) -> LosResult:  # type: ignore[no-unt
 
 
 __all__ = [
-    "Frame", "LosMode", "LosOptions", "LosResult", "locate_los", "phase_angle_deg", "register_hypotheses", "runner_up_guard",
-    "search_hypotheses",
+    "Frame", "LosMode", "LosOptions", "LosResult", "coarse_hypotheses", "locate_los", "phase_angle_deg", "prune_coarse",
+    "register_hypotheses", "runner_up_guard", "search_hypotheses",
 ]  # fmt: skip

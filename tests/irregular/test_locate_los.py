@@ -152,7 +152,7 @@ def test_frame_of_another_body_fails_typed(body_db):
 
 def test_runner_up_guard_abandons_only_hypotheses_that_cannot_change_the_answer():
     """Same centre as an accepted fit at full resolution, or a residual 3 margins worse than the accepted fit's
-    at the same iteration: abandoned; otherwise kept."""
+    at the same iteration (the first one too): abandoned; otherwise kept."""
     from types import SimpleNamespace
 
     from jaxlimb.irregular.locate import LosOptions, runner_up_guard
@@ -165,11 +165,15 @@ def test_runner_up_guard_abandons_only_hypotheses_that_cannot_change_the_answer(
         return st, rms
 
     g = runner_up_guard(accepted, o)
+    first = SimpleNamespace(P=np.array([110.0, 100.0]), history=[0.5], rms_frac=0.5)
+    with pytest.raises(MatchError):
+        g(first, np.inf)  # the coarse state, 0.48 worse than the accepted fit's at the same iteration
     st, _ = cand(0)
-    for i, (rms, sigma) in enumerate([(0.5, 8.0), (0.005 + 2.5 * o.ambiguity_margin, 4.0), (0.01 + 2.9 * o.ambiguity_margin, 0.0)]):
+    for i, (rms, sigma) in enumerate([(0.02 + 2.9 * o.ambiguity_margin, np.inf), (0.005 + 2.5 * o.ambiguity_margin, 4.0),
+                                      (0.01 + 2.9 * o.ambiguity_margin, 0.0)]):
         st.history.append(rms)
         st.rms_frac = rms
-        g(st, sigma)  # the first iteration is never judged; then within 3 margins of the accepted history: kept
+        g(st, sigma)  # within 3 margins of the accepted history: kept
     st.history.append(0.05)
     st.rms_frac = 0.05
     with pytest.raises(MatchError):
@@ -179,6 +183,51 @@ def test_runner_up_guard_abandons_only_hypotheses_that_cannot_change_the_answer(
     g(near, 8.0)  # blurred (pyramid) iteration: the centre is not judged yet
     with pytest.raises(MatchError):
         g(near, 0.0)  # the same answer
+
+
+def test_prune_coarse_orders_and_drops_hypotheses_by_their_residual():
+    """Best residual first; above the best one's by the prune margin, or above the absolute limit: dropped, said."""
+    from types import SimpleNamespace
+
+    from jaxlimb.irregular.locate import prune_coarse
+
+    regs = [(SimpleNamespace(state=SimpleNamespace(rms_frac=r)), i) for i, r in enumerate([0.06, 0.01, math.nan, 0.049, 0.2])]
+    errors: list = []
+    kept = prune_coarse(regs, errors)
+    assert [h for _, h in kept] == [1, 3, 2]  # 0.06 is 0.05 above 0.01; 0.2 above 0.1; NaN (a failed solve) is not judged
+    assert len(errors) == 2 and all(isinstance(e, MatchError) for e in errors)
+    assert prune_coarse([], errors) == []
+
+
+def test_coarse_stage_resumed_equals_one_call(body):
+    """The coarse stage stopped after its first iteration and resumed gives the same state to the last bit."""
+    from jaxlimb.irregular.register import lit_figure
+    from jaxlimb.irregular.register.gauss_newton import (
+        GNState,
+        Problem,
+        coarse_schedule,
+        coarse_stage,
+        initial_mix,
+    )
+    from jaxlimb.irregular.register.pyramid import Pyramid
+
+    cam = Camera(focal_length_mm=16.0, pixel_pitch_mm=2.2e-3, rows=600, cols=600)  # a figure ~400 px across: two coarse levels
+    R, t, sun = _rot([0.3, 1.0, 0.2], 40.0), np.array([0.0, 0.0, 2.0 * body.max_radius * cam.focal_px / 520.0]), None
+    frame = render_mesh(body.vertices, body.faces, cam, R, t, sun, MeshRenderOptions(noise_sigma=2.0))
+    img, truth = frame.image, frame.center_rc
+    opts = RegisterOptions(exact_coverage=False)
+    problem = Problem(Pyramid(img, cam, lit_figure(img)[0]), body, sun, opts, fit_attitude=True, wide=True)
+    assert len(coarse_schedule(problem)) >= 2
+
+    def state() -> GNState:
+        return GNState(truth + np.array([1.5, -1.0]), float(np.linalg.norm(t)) * 1.02, _rot([1.0, 0.0, 0.0], 2.0) @ R,
+                       mix=initial_mix(opts))  # fmt: skip
+
+    whole, parts = coarse_stage(problem, state()), coarse_stage(problem, state(), 1)
+    assert parts.it == 1
+    coarse_stage(problem, parts)
+    assert whole.it == parts.it == len(coarse_schedule(problem))
+    assert np.array_equal(whole.P, parts.P) and np.array_equal(whole.R, parts.R) and whole.history == parts.history
 
 
 @pytest.mark.parametrize("phase", [30.0, 60.0])

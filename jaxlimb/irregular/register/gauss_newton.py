@@ -311,27 +311,48 @@ def _move(st: GNState, beta: np.ndarray, sigma: float, k: int, fit_attitude: boo
     return sigma == 0 and abs(ds) < 1e-4 and ((n < TOL_PX and dw < 1e-4) or max(n, prev) < 2.0 * TOL_PX)
 
 
-def coarse_stage(problem: Problem, st: GNState) -> GNState:
-    """The first blurred iteration of the blur schedule and those after it at pyramid factors of at least
-    :data:`.pyramid.COARSE_MIN_LEVEL` (cheap: a 600 px figure is 75-120 px across there).
+def coarse_schedule(problem: Problem) -> tuple[float, ...]:
+    """Blurs (px) of the coarse stage: the first of the blur schedule and those after it at pyramid factors of at
+    least :data:`.pyramid.COARSE_MIN_LEVEL` (cheap: a 600 px figure is 75-120 px across there).
+
+    Parameters
+    ----------
+    problem : Problem
+        The registration problem (its lit figure and blur schedule).
+
+    Returns
+    -------
+    tuple of float
+        Gaussian blur (px, full resolution) of each coarse iteration, widest first.
+    """
+    mask = problem.pyramid[1].mask
+    size = figure_size(mask)
+    out: list[float] = []
+    for sigma in blur_schedule(mask, problem.wide):
+        if out and level_of(sigma, size) < COARSE_MIN_LEVEL:
+            break
+        out.append(sigma)
+    return tuple(out)
+
+
+def coarse_stage(problem: Problem, st: GNState, max_iterations: int | None = None) -> GNState:
+    """The iterations of :func:`coarse_schedule` from ``st``'s next one on.
 
     Parameters
     ----------
     problem : Problem
         The registration problem.
     st : GNState
-        Starting state, moved in place.
+        State (a new one, or one stopped by ``max_iterations``), moved in place.
+    max_iterations : int, optional
+        Stop when ``st`` has made this many iterations (a later call resumes the stage); default: all of them.
 
     Returns
     -------
     GNState
         ``st``.
     """
-    mask = problem.pyramid[1].mask
-    size = figure_size(mask)
-    for sigma in blur_schedule(mask, problem.wide):
-        if st.it and level_of(sigma, size) < COARSE_MIN_LEVEL:
-            break
+    for sigma in coarse_schedule(problem)[st.it : max_iterations]:
         iterate(problem, st, sigma)
     return st
 
@@ -390,6 +411,6 @@ def fine_stage(problem: Problem, st: GNState, guard: Guard | None = None) -> GNS
 
 
 __all__ = [
-    "PEDESTAL_MIN_DARK_FRAC", "TOL_PX", "GNState", "Guard", "Problem", "coarse_stage", "estimate_psf", "fine_stage",
-    "gn_step", "initial_mix", "iterate", "pedestal_frac", "render_state", "rotvec_matrix",
+    "PEDESTAL_MIN_DARK_FRAC", "TOL_PX", "GNState", "Guard", "Problem", "coarse_schedule", "coarse_stage", "estimate_psf",
+    "fine_stage", "gn_step", "initial_mix", "iterate", "pedestal_frac", "render_state", "rotvec_matrix",
 ]  # fmt: skip

@@ -151,7 +151,7 @@ class Registration:
 
 def start_search_registration(
     image: np.ndarray, mesh: Mesh, camera: object, R: np.ndarray, sun: np.ndarray | None, initial: tuple[np.ndarray, float],
-    segmentation: tuple[np.ndarray, float], options: RegisterOptions = RegisterOptions(),
+    segmentation: tuple[np.ndarray, float], options: RegisterOptions = RegisterOptions(), coarse_iterations: int | None = None,
 ) -> Registration:  # fmt: skip
     """NCC and the coarse (pyramid) iterations of a template hypothesis, attitude fitted; cheap.
 
@@ -176,6 +176,8 @@ def start_search_registration(
         ``(mask, threshold)`` of :func:`~.start.lit_figure`.
     options : RegisterOptions
         Registration settings.
+    coarse_iterations : int, optional
+        Stop after this many coarse iterations (:func:`~.gauss_newton.coarse_stage` resumes); default: all.
 
     Returns
     -------
@@ -186,7 +188,7 @@ def start_search_registration(
     R = np.asarray(R, dtype=float)
     problem = Problem(frame_pyramid(img, camera, segmentation[0]), mesh, sun, options, fit_attitude=True, wide=True)
     P, D, ncc = coarse_ncc(problem, R, initial)
-    st = coarse_stage(problem, GNState(np.asarray(P, dtype=float), float(D), R, mix=initial_mix(options)))
+    st = coarse_stage(problem, GNState(np.asarray(P, dtype=float), float(D), R, mix=initial_mix(options)), coarse_iterations)
     return Registration(problem, segmentation[1], st, ncc)
 
 
