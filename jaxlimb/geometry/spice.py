@@ -23,7 +23,7 @@ What is computed (CSPICE through ``spiceypy``; Acton 1996, *Planet. Space Sci.* 
   (``pck00007.tpc``, ``cpck01Oct2002.tpc``) give Enceladus 256.3 x 247.3 x 244.6 km (Voyager), the IAU
   2015 report 256.6 x 251.4 x 248.3 km from Cassini's own limbs (Thomas et al. 2007, *Icarus* 190:573); the
   limb those older radii predict is 1.5 % small across the pole, a range 0.3 % short and a centre
-  3 px off along the held shape (``benchmarks/cassini_enceladus.py``, ``with_iau2015_radii``).
+  3 px off along the held shape (``benchmarks/cassini_enceladus.py``, ``with_kernel_pck_radii``).
 
 Camera-frame convention (verify per instrument).  jaxlimb's camera frame has ``+x`` toward
 ``+col`` and ``+y`` toward ``+row`` (docs/design.md).  The instrument frame of SPICE need not:

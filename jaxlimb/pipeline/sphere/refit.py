@@ -204,7 +204,7 @@ def disc_refit(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> RefineRes
 
     Notes
     -----
-    The noise-only :math:`\hat\sigma^2 (J^\top J)^{-1}` of thousands of limb pixels is ~0.001 px on a 200 px
+    The noise-only covariance of thousands of limb pixels is ~0.001 px on a 200 px
     white-light disc: far below what the pixels' errors allow when they are not the model's white noise --
     lossy compression (JPEG 2000 wavelet blocks), a resampling's interpolation kernel, granulation and spots, a
     limb-darkening law other than the quadratic one near the limb.  All of these are correlated along a
