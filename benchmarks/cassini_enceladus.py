@@ -55,7 +55,7 @@ def _one(name: str):
         "edges_from_measured_limb": _edge_offsets(fr, _shapes(g, m)[0]),
         "edges_from_predicted_limb": _edge_offsets(fr, _shapes(g, m)[1]),
         "ck": _ck_probe(fr, g),
-        "with_iau2015_radii": _iau_shape(fr, g),
+        "with_kernel_pck_radii": _kernel_shape(fr, g),
         "extras": {k: m.extras.get(k) for k in ("edge_fit", "angular_bins", "sigma_center_pixel_independent_px",
                                              "sigma_center_cluster_robust_px", "scale_vs_predicted", "polarity_split")},
     }
@@ -116,21 +116,22 @@ def _ck_probe(fr, g) -> dict:
             "predicted_center_shift_px": shifts}
 
 
-def _iau_shape(fr, g) -> dict:
-    """The same frame with the held limb shape from the IAU 2015 radii (Archinal et al. 2018, the
-    package's table) instead of the kernels' 2002 PCK: how much of the residual is the shape model."""
+def _kernel_shape(fr, g) -> dict:
+    """The same frame with the held limb shape from the kernels' 2002 PCK radii (``pck00007.tpc``: Voyager's)
+    instead of the IAU 2015 table's (Archinal et al. 2018) that the prediction takes: how much of the residual the
+    older shape model makes."""
     from dataclasses import replace
 
-    from jaxlimb.geometry.bodies import body_radii_km
-    from jaxlimb.geometry.spice import pointing_residual
+    from jaxlimb.geometry.spice import loaded_kernels, spice_body_radii
 
-    radii = body_radii_km(g.target.lower())
+    with loaded_kernels(KERNELS):
+        radii = spice_body_radii(g.target)
     m = locate(fr.data, g.camera, replace(g.hints(), body_radii_km=radii), mask=fr.mask_or_none)
     c = m.covariance
     cov = [[c["center_r"]["center_r"], c["center_r"]["center_c"]], [c["center_c"]["center_r"], c["center_c"]["center_c"]]]
     s = m.extras.get("polarity_split") or {}
     return {"radii_km": list(radii), "measured_center_rc": list(m.center_rc), "center_covariance_px2": cov,
-            "radius_px": m.radius_px, "measured_minus_predicted": pointing_residual(g, m.center_rc, cov),
+            "radius_px": m.radius_px, "range_km": m.range_km, "measured_minus_predicted": pointing_residual(g, m.center_rc, cov),
             "polarity_split_delta_rc_px": s.get("delta_rc_px"), "polarity_split_chi2": s.get("chi2")}
 
 
@@ -222,9 +223,9 @@ def main() -> dict:
           "; predicted - registration", np.round(out["predicted_minus_registration_px"], 2), "px =",
           round(out["predicted_minus_registration_urad"], 1), "urad")
     for f, r in out["frames"].items():
-        w = r["with_iau2015_radii"]
+        w = r["with_kernel_pck_radii"]
         d = w["measured_minus_predicted"]["delta_rc_px"]
-        print(f"{f} with the IAU 2015 radii: centre {w['measured_center_rc'][0]:.2f} {w['measured_center_rc'][1]:.2f} px, "
+        print(f"{f} with the kernels' 2002 PCK radii: range {w['range_km']:.0f} km, centre {w['measured_center_rc'][0]:.2f} {w['measured_center_rc'][1]:.2f} px, "
               f"measured - SPICE {d[0]:+.2f} {d[1]:+.2f} px; lit - dark split "
               f"{w['polarity_split_delta_rc_px'][0]:+.2f} {w['polarity_split_delta_rc_px'][1]:+.2f} px (chi2 {w['polarity_split_chi2']:.0f})")
     for f, r in out["frames"].items():

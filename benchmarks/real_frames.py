@@ -5,7 +5,10 @@ kernels with ``--kernels``, the EPIC camera and hints, ``--body`` for the Sun an
 Enceladus frame once more with ``jaxlimb navigate``.  Truth, independent of jaxlimb's measurement:
 
 * SDO (``sun/``): the FITS header's WCS (:func:`jaxlimb.imaging.sdo.sun_truth_from_header`; the 512 px HMI
-  image's MANIFEST numbers).
+  image's MANIFEST numbers).  ``resampled_hmi.fits`` with its ``CROTA2 = 179.93`` dropped: the resampling kept the
+  rotation keyword but not a rotated pixel grid; the circle bounding the HMI pipeline's off-disc NaN mask (drawn
+  about the pipeline's own disc centre, apart from this file's WCS) is 0.004 px from the centre without it and
+  0.30 px from the one with it (``benchmarks/sun_limb.py``: ``nan_mask_circle``).
 * EPIC (``epic/``): the product centre (``product_center_rc``, good to ``product_center_quality_px`` = 2 px, added
   in quadrature to the measurement's sigma) and ``range_km`` from the product's metadata; the apparent radius
   times the range, the same in every frame.
@@ -115,13 +118,13 @@ def _range_verdict(rng: float, sigma: float | None, truth: float) -> dict:
 
 
 def _truth_sun(fr: dict) -> tuple[tuple[float, float], float]:
-    from jaxlimb.imaging.sdo import hmi_512_truth, sun_truth_from_header
+    from jaxlimb.imaging.sdo import RESAMPLED_HMI_FITS, hmi_512_truth, sun_truth_from_header
 
     if fr["path"].suffix == ".fits":
         from astropy.io import fits
 
         with fits.open(fr["path"]) as h:
-            t = sun_truth_from_header(h[0].header)
+            t = sun_truth_from_header(h[0].header, ignore_rotation=fr["path"].name == RESAMPLED_HMI_FITS)
     else:
         t = hmi_512_truth()
     return t.center_rc, t.radius_px

@@ -11,7 +11,9 @@ Mortari, D'Souza & Zanetti's step 7 with the body at the origin:
 ``D`` the measured line of sight and range.  The covariance maps the measurement's
 ``(center_r, center_c, radius)`` covariance through the Jacobian of ``(centre, radius) -> D u_c`` (of
 ``(centre, range)`` for a spheroid the ellipsoid strategy measured: :func:`jaxlimb.cli._observer.measurement_map`), plus the attitude term of
-:func:`jaxlimb.geometry.navigation.navigate` for ``--attitude-sigma-arcsec``.  Reported beside SPICE's
+:func:`jaxlimb.geometry.navigation.navigate` for ``--attitude-sigma-arcsec``, plus the camera's scale along the
+line of sight when the camera is the IK's and the IK states its focal-length uncertainty
+(``INS<id>_FL_UNCERTAINTY``: the range from an apparent size scales with the focal length).  Reported beside SPICE's
 observer position (their difference is the pointing and range error of the prediction), and the
 measured - predicted pointing of ``locate``.
 """
@@ -50,7 +52,9 @@ def run_spice(args: argparse.Namespace) -> int:
         C_ci, att_kind = np.asarray(geom.C_camera_from_j2000, float), f"SPICE CK ({geom.instrument})"
     with warnings_to_stderr(SaturationWarning):
         meas = locate(frame.data, camera, hints, None, mask=frame.mask_or_none)
-    sol = observer_position("body", meas, camera, C_ci, np.zeros(3), math.radians(args.attitude_sigma_arcsec / 3600.0))
+    s_f = geom.focal_length_sigma_mm if args.camera is None and geom.focal_length_sigma_mm else 0.0
+    sol = observer_position("body", meas, camera, C_ci, np.zeros(3), math.radians(args.attitude_sigma_arcsec / 3600.0),
+                            scale_sigma_frac=s_f / camera.focal_length_mm)
     spice = spice_report(geom, meas)
     ref = np.asarray(geom.observer_j2000_km, float)
     diff = np.asarray(sol["position_km"]) - ref

@@ -6,7 +6,9 @@ radius for a round body's), and the position
 .. math:: r_o = r_b - C^\top r_{om}
 
 with its covariance: the measurement's through the central-difference Jacobian of that map, rotated by
-``C^T``, plus the attitude term of :func:`jaxlimb.geometry.navigation.navigate`."""
+``C^T``, plus the attitude term of :func:`jaxlimb.geometry.navigation.navigate`, plus the camera's scale: a
+range from an apparent size is ``D ~ R f / r``, so a relative focal-length error ``s = sigma_f / f`` (the IK's
+stated uncertainty) is one of the range, ``(s D)^2 u u^T`` along the line of sight."""
 
 from __future__ import annotations
 
@@ -96,9 +98,10 @@ def measurement_map(body: str, camera, meas) -> tuple[list[str], Any]:
 
 
 def observer_position(body: str, meas, camera, C_ci: np.ndarray, r_body: np.ndarray,  # noqa: ANN001
-                      attitude_sigma_rad: float = 0.0) -> dict[str, Any]:
-    """The observer position ``r_b - C^T r_om`` (the frame of ``C_ci``, km), its covariance and parts, the range,
-    the line of sight and the measured centre (module docstring).
+                      attitude_sigma_rad: float = 0.0, scale_sigma_frac: float = 0.0) -> dict[str, Any]:
+    """The observer position ``r_b - C^T r_om`` (the frame of ``C_ci``, km), its covariance and parts
+    (``measurement``, ``attitude``, ``camera_scale``: ``scale_sigma_frac`` the camera's relative focal-length
+    sigma), the range, the line of sight and the measured centre (module docstring).
 
     Raises
     ------
@@ -117,7 +120,9 @@ def observer_position(body: str, meas, camera, C_ci: np.ndarray, r_body: np.ndar
     sol = navigate(r_body, C_ci, r_om / D, D, attitude_cov_rad2=attitude_sigma_rad if attitude_sigma_rad > 0 else None)
     C = np.asarray(C_ci, float)
     P_meas = C.T @ G @ P @ G.T @ C
-    Ptot = P_meas + sol.contributions_km2["attitude"]
+    u_i = C.T @ (r_om / D)
+    P_scale = (scale_sigma_frac * D) ** 2 * np.outer(u_i, u_i)
+    Ptot = P_meas + sol.contributions_km2["attitude"] + P_scale
     Ptot = 0.5 * (Ptot + Ptot.T)
 
     def m(a: np.ndarray) -> list[list[float]]:
@@ -127,7 +132,8 @@ def observer_position(body: str, meas, camera, C_ci: np.ndarray, r_body: np.ndar
         "position_km": [float(v) for v in sol.position_km], "covariance_km2": m(Ptot),
         "sigma_km": [float(math.sqrt(max(Ptot[i, i], 0.0))) for i in range(3)], "range_km": D,
         "los_camera": [float(v) for v in r_om / D], "center_rc": [float(v) for v in meas.center_rc],
-        "covariance_parts_km2": {"measurement": m(P_meas), "attitude": m(sol.contributions_km2["attitude"])},
+        "covariance_parts_km2": {"measurement": m(P_meas), "attitude": m(sol.contributions_km2["attitude"]),
+                                 "camera_scale": m(P_scale)},
     }
 
 

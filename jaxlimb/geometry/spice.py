@@ -17,7 +17,13 @@ What is computed (CSPICE through ``spiceypy``; Acton 1996, *Planet. Space Sci.* 
 * the Sun direction from the body, ``spkpos("SUN", et - lt, "J2000", "CN+S", target)``
   rotated to the camera frame;
 * the predicted limb ellipse (:func:`jaxlimb.geometry.ellipsoid.image_conic`) and the
-  image of the body centre, with the body's radii from the kernel pool (``bodvrd``).
+  image of the body centre, with the body's radii of the shipped IAU 2015 table
+  (:data:`jaxlimb.geometry.bodies.BODY_TABLE`) for a body it knows, else the kernel pool's (``bodvrd``).
+  A mission's PCK may carry radii decades older than the IAU's: the Cassini PCKs of 2002
+  (``pck00007.tpc``, ``cpck01Oct2002.tpc``) give Enceladus 256.3 x 247.3 x 244.6 km (Voyager), the IAU
+  2015 report 256.6 x 251.4 x 248.3 km from Cassini's own limbs (Thomas et al. 2007, *Icarus* 190:573); the
+  limb those older radii predict is 1.5 % small across the pole, a range 0.3 % short and a centre
+  3 px off along the held shape (``benchmarks/cassini_enceladus.py``, ``with_kernel_pck_radii``).
 
 Camera-frame convention (verify per instrument).  jaxlimb's camera frame has ``+x`` toward
 ``+col`` and ``+y`` toward ``+row`` (docs/design.md).  The instrument frame of SPICE need not:
@@ -45,7 +51,7 @@ from typing import Any, Iterator, Sequence
 import numpy as np
 
 from ..errors import SpiceError
-from .bodies import body_radii_km
+from .bodies import BODY_TABLE, body_radii_km
 from .camera import Camera
 from .ellipsoid import image_conic
 from .hints import Hints
@@ -189,6 +195,17 @@ def camera_from_ik(instrument: Instrument) -> Camera:
     return Camera(f_mm, pitch_mm, rows, cols, (float(l0), float(s0)))
 
 
+def focal_length_sigma_from_ik(instrument: Instrument) -> float | None:
+    """``INS<id>_FL_UNCERTAINTY`` (mm) of ``instrument``'s loaded IK, or ``None`` when the IK does not state it."""
+    import spiceypy as sp
+
+    try:
+        v = float(_ik(sp, int(sp.bods2c(instrument.spice_name)), "FL_UNCERTAINTY", 1)[0])
+    except (SpiceError, sp.utils.exceptions.SpiceyError):
+        return None
+    return v if math.isfinite(v) and v >= 0 else None
+
+
 # ----------------------------------------------------------------------------- geometry
 @dataclass(frozen=True)
 class SpiceGeometry:
@@ -221,6 +238,10 @@ class SpiceGeometry:
         Image of the body centre (px).
     limb
         The predicted limb ellipse (:class:`~jaxlimb.geometry.ellipsoid.ImageConic`).
+    radii_source
+        ``"iau2015"`` (the shipped table) or ``"kernel"`` (the kernel pool's ``BODY<id>_RADII``).
+    focal_length_sigma_mm
+        The IK's stated focal-length uncertainty (mm), ``None`` when it states none.
     """
 
     camera: Camera
@@ -238,6 +259,8 @@ class SpiceGeometry:
     observer_j2000_km: tuple[float, float, float]
     center_rc: tuple[float, float]
     limb: Any = field(repr=False)
+    radii_source: str = "kernel"
+    focal_length_sigma_mm: float | None = None
 
     def hints(self, *, radius_uncertainty_frac: float = 0.05):
         """:class:`~jaxlimb.geometry.hints.Hints` from the prediction: body, radii, range, Sun, orientation."""
@@ -256,7 +279,8 @@ class SpiceGeometry:
         return {
             "instrument": self.instrument, "target": self.target, "observer": self.observer, "utc": self.utc,
             "et": self.et, "center_rc": list(self.center_rc), "range_km": self.range_km,
-            "radii_km": list(self.radii_km), "sun_dir_camera": list(self.sun_dir_camera),
+            "radii_km": list(self.radii_km), "radii_source": self.radii_source,
+            "focal_length_sigma_mm": self.focal_length_sigma_mm, "sun_dir_camera": list(self.sun_dir_camera),
             "ellipse": {"center_rc": list(self.limb.center_rc), "semi_axes_px": list(self.limb.semi_axes_px),
                         "angle_rad": self.limb.angle_rad},
             "camera": self.camera.to_dict(),
@@ -307,7 +331,7 @@ def predict_loaded(utc: str, instrument: Instrument, target: str) -> SpiceGeomet
     sun_j, _ = _coverage(lambda: sp.spkpos("SUN", et - lt, "J2000", "CN+S", tgt), f"the Sun seen from {tgt}", utc)
     s = C @ np.asarray(sun_j, float)
     obs_j = -(C.T @ c_cam)  # the observer seen from the body along the apparent line of sight
-    radii = spice_body_radii(tgt) or body_radii_km(tgt)  # the kernels' PCK first, else the shipped table
+    radii, source = body_radii(tgt)
     limb = image_conic(cam, radii, c_cam, Rb)
     rc = cam.project(c_cam)
     t3 = lambda v: tuple(float(x) for x in v)  # noqa: E731
@@ -316,8 +340,24 @@ def predict_loaded(utc: str, instrument: Instrument, target: str) -> SpiceGeomet
         body_center_cam=t3(c_cam), range_km=float(np.linalg.norm(c_cam)), radii_km=t3(radii),
         sun_dir_camera=t3(s / np.linalg.norm(s)), R_body_to_camera=tuple(t3(r) for r in Rb),
         C_camera_from_j2000=tuple(t3(r) for r in C), observer_j2000_km=t3(obs_j),
-        center_rc=(float(rc[0]), float(rc[1])), limb=limb,
+        center_rc=(float(rc[0]), float(rc[1])), limb=limb, radii_source=source,
+        focal_length_sigma_mm=focal_length_sigma_from_ik(instrument),
     )
+
+
+def body_radii(target: str) -> tuple[tuple[float, float, float], str]:
+    """The radii of ``target`` for the prediction and their source (module docstring): the shipped IAU 2015 table
+    (``"iau2015"``) for a body it knows, else the loaded kernel pool's (``"kernel"``).
+
+    Raises
+    ------
+    UnknownBodyError
+        Neither the table nor the kernel pool has the body's radii.
+    """
+    if str(target).lower() in BODY_TABLE:
+        return body_radii_km(str(target).lower()), "iau2015"
+    r = spice_body_radii(target)
+    return (r, "kernel") if r is not None else (body_radii_km(target), "iau2015")
 
 
 def spice_geometry(kernels, utc: str | None, instrument: str, target: str | None) -> SpiceGeometry:
@@ -400,7 +440,9 @@ __all__ = [
     "LABEL_INSTRUMENTS",
     "Instrument",
     "SpiceGeometry",
+    "body_radii",
     "camera_from_ik",
+    "focal_length_sigma_from_ik",
     "instrument_from",
     "loaded_kernels",
     "observer_from_measurement",

@@ -11,7 +11,7 @@ from jaxlimb._data import shared_data_dir
 from jaxlimb.cli import main
 from jaxlimb.errors import SpiceError, UnknownBodyError
 from jaxlimb.geometry.bodies import body_from_table, body_radii_km
-from jaxlimb.geometry.spice import instrument_from, loaded_kernels, spice_body_radii, spice_geometry
+from jaxlimb.geometry.spice import body_radii, instrument_from, loaded_kernels, spice_body_radii, spice_geometry
 from jaxlimb.imaging import Hints
 
 CASSINI = shared_data_dir() / "cassini"
@@ -28,13 +28,18 @@ def test_body_table_and_overrides():
         body_from_table("vulcan")
 
 
-def test_spice_radii_win_over_the_table_when_kernels_are_loaded():
+def test_table_radii_win_over_an_older_kernel_pck():
     with loaded_kernels(KERNELS):
         r = spice_body_radii("ENCELADUS")
-    assert r == pytest.approx((256.3, 247.3, 244.6))  # the Cassini PCK of the shared kernels
+        assert body_radii("ENCELADUS") == (body_radii_km("enceladus"), "iau2015")  # a body the table knows
+        assert body_radii("PAN") == (spice_body_radii("PAN"), "kernel")  # one it does not: the kernel pool's
+    assert r == pytest.approx((256.3, 247.3, 244.6))  # the Cassini PCK of 2002 (Voyager radii)
     assert r != body_radii_km("enceladus")  # (the table's IAU 2015 radii)
     assert spice_body_radii("ENCELADUS") is None  # unloaded again
-    assert spice_geometry(KERNELS, T1, "ISSNA", "ENCELADUS").radii_km == r  # the prediction takes the kernels' radii
+    g = spice_geometry(KERNELS, T1, "ISSNA", "ENCELADUS")
+    assert (g.radii_km, g.radii_source) == ((256.6, 251.4, 248.3), "iau2015")
+    assert g.focal_length_sigma_mm == 4.4  # cas_iss_v08.ti: INS-82360_FL_UNCERTAINTY
+    assert g.to_json()["radii_source"] == "iau2015"
 
 
 def test_cassini_prediction_is_consistent():
@@ -42,10 +47,10 @@ def test_cassini_prediction_is_consistent():
     cam = g.camera
     assert (cam.focal_length_mm, cam.pixel_pitch_mm, cam.rows, cam.principal_point_rc) == (2000.0, 0.012, 1024, (511.5, 511.5))
     assert 140_000 < g.range_km < 150_000
-    # the disc is near the frame centre, radius ~288 px (MANIFEST)
+    # the disc is near the frame centre, radius ~291 px (MANIFEST: ~288 px, with the 2002 PCK's smaller radii)
     assert abs(g.center_rc[0] - 512) < 40 and abs(g.center_rc[1] - 512) < 60
     r_eq = cam.focal_px * math.tan(math.asin(np.mean(g.radii_km) / g.range_km))
-    assert r_eq == pytest.approx(288, abs=3)
+    assert r_eq == pytest.approx(291, abs=3)
     # high phase, crescent toward +row (the lit crescent is at the bottom of the frame)
     s = np.array(g.sun_dir_camera)
     u = np.array(g.body_center_cam) / g.range_km

@@ -37,15 +37,19 @@ def test_both_frames_located_against_the_spice_prediction(results):
         assert r["status"] == "ok" and r["front_end"] == "predicted"
         # Cassini's reconstructed pointing: the measured disc is ~10 px from the prediction
         assert d["delta_px"] < 15.0, (f, d)
-        # the radius agrees with the range (the issue's confident 304.6 px is gone)
-        assert r["radius_px"] == pytest.approx(288.3, rel=0.02)
-        assert r["range_km"] == pytest.approx(pred["range_km"], rel=0.02)
+        # the radius agrees with the range: the IAU 2015 radii (291.4 px at SPICE's range, not the 2002 PCK's
+        # 288.3 px) and the dark limb's scale; the lit limb's is 0.8-1.2 % larger (the crescent's profile)
+        assert pred["radii_source"] == "iau2015"
+        assert r["radius_px"] == pytest.approx(291.4, rel=0.005)
+        assert r["range_km"] == pytest.approx(pred["range_km"], rel=0.004)
+        split = r["extras"]["polarity_split"]
+        assert 0.005 < split["joint_a_px"] / split["dark_a_px"] - 1.0 < 0.015
         sig = np.sqrt([r["covariance"]["center_r"]["center_r"], r["covariance"]["center_c"]["center_c"]])
-        # the lit and the dark limb disagree by 1-2 px (the kernels' 2002 PCK shape, the crescent's profile):
-        # that split is the centre's model error, in the covariance (pipeline.sphere.polarity_split)
-        split = np.array(r["extras"]["polarity_split"]["delta_rc_px"])
-        assert 0.5 < np.hypot(*split) < 3.0
-        assert (sig >= np.abs(split) * 0.99).all() and (sig < 2.5).all()
+        # the lit and the dark limb's centres: 0.3 px apart on the whole frame, 3 px on the one with 38 missing
+        # lines; that split is the centre's model error, in the covariance (pipeline.sphere.polarity_split)
+        delta = np.array(split["delta_rc_px"])
+        assert np.hypot(*delta) < 3.5
+        assert (sig >= np.abs(delta) * 0.99).all() and (sig < 3.0).all()
         assert r["extras"]["edge_fit"]["n_lit"] > 50 and r["extras"]["edge_fit"]["n_dark"] > 50
 
 

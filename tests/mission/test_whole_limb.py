@@ -112,6 +112,9 @@ def test_lit_dark_split_puts_the_crescent_bias_in_the_covariance():
     err = np.subtract(m.center_rc, ic.body_center_rc)
     sig_r = math.sqrt(m.covariance["center_r"]["center_r"])
     assert abs(err[0]) > 0.2 and abs(err[0]) < 2.0 * sig_r  # without the split: 0.35 px at sigma 0.05 px
+    # the range from the dark limb's own scale (the lit limb's is moved outward by the crescent's profile)
+    assert abs(split["dark_a_px"] - ic.semi_axes_px[0]) < 3.0 * split["dark_sigma_a_px"] + 0.05
+    assert m.range_km == pytest.approx(300_000.0, rel=0.003)
 
 
 def test_no_split_without_a_dark_limb():

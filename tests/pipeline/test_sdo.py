@@ -46,7 +46,14 @@ def test_sdo_hmi_with_the_limb_darkened_profile():
     assert m.extras["profile"]["model"] == "limb-darkened"
     assert np.hypot(*np.subtract(m.center_rc, tr.center_rc)) <= 0.05
     assert abs(m.radius_px - tr.radius_px) <= 0.1
-    assert 0.0 < np.sqrt(m.covariance["radius"]["radius"]) < 0.01
+    # the noise-only sigma (~0.001 px) widened by the model-error terms (8-bit JPEG 2000, resampled): the centre's
+    # error is within 5 of the reported covariance, not 16 of the noise-only one
+    c = m.covariance
+    P = np.array([[c["center_r"]["center_r"], c["center_r"]["center_c"]], [c["center_c"]["center_r"], c["center_c"]["center_c"]]])
+    e = np.subtract(m.center_rc, tr.center_rc)
+    assert m.crlb["center_r"] < 0.002 and np.sqrt(P[0, 0]) > 2 * m.crlb["center_r"]
+    assert float(np.sqrt(e @ np.linalg.solve(P, e))) < 5.0
+    assert abs(m.radius_px - tr.radius_px) < 3 * np.sqrt(c["radius"]["radius"]) < 1.5
 
 
 HMI_FITS = shared_data_dir() / "sun/resampled_hmi.fits"

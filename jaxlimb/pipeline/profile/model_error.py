@@ -16,7 +16,7 @@ from ..._programs import stored_jit
 from ...fitting import bucket_size
 from ...model_error import cluster_robust_covariance, hausman_term, sector_groups, with_model_error as widen
 from ...geometry.conic import ellipse_signed_distance
-from ...models import CircleParams, EllipseRampParams, LimbModel, LimbProfileParams
+from ...models import CircleParams, EllipseRampParams, LimbDarkenedParams, LimbModel, LimbProfileParams
 from ...models.lunar_lambert import limb_geometry, profile_model
 from ..sigmoid import LOGISTIC_TO_GAUSS
 from ..stages import RefineResult
@@ -66,11 +66,12 @@ def _signed_profile(p, rc):
 
 def signed_distance(params: Any, coords: np.ndarray, padded: np.ndarray) -> np.ndarray:
     """Signed distance (px, positive outside) of the pixels to the fitted limb: the profile's own radius in each
-    pixel's direction; the ellipse (first order) of an elliptical sigmoid/ramp; the circle's radius.
+    pixel's direction; the ellipse (first order) of an elliptical sigmoid/ramp; the circle's (the limb-darkened
+    disc's) radius.
 
     Parameters
     ----------
-    params : LimbProfileParams, EllipseParams, EllipseRampParams or CircleParams
+    params : LimbProfileParams, EllipseParams, EllipseRampParams, CircleParams or LimbDarkenedParams
         The fitted parameters.
     coords : np.ndarray (n, 2)
         The pixels ``(row, col)``.
@@ -85,6 +86,8 @@ def signed_distance(params: Any, coords: np.ndarray, padded: np.ndarray) -> np.n
     if isinstance(params, LimbProfileParams):
         return np.asarray(_signed_profile(params, padded))[: coords.shape[0]]
     c = np.asarray(coords, float)
+    if isinstance(params, LimbDarkenedParams):
+        return np.hypot(c[:, 0] - float(params.r0), c[:, 1] - float(params.c0)) - float(params.a)
     if not isinstance(params, CircleParams):  # an elliptical sigmoid or ramp
         a = float(params.a)
         ell = ((float(params.r0), float(params.c0)), (a, a * float(params.rho)), float(params.theta))
@@ -94,11 +97,11 @@ def signed_distance(params: Any, coords: np.ndarray, padded: np.ndarray) -> np.n
 
 def edge_sigma(params: Any) -> float:
     """The effective (pixel box included) Gaussian sigma of the fitted edge: ``sqrt(sigma^2 + 1/12)`` for the
-    profile, ``1/k`` for the ramp's kernel, ``LOGISTIC_TO_GAUSS / k`` for a logistic.
+    profile and the limb-darkened disc, ``1/k`` for the ramp's kernel, ``LOGISTIC_TO_GAUSS / k`` for a logistic.
 
     Parameters
     ----------
-    params : LimbProfileParams, EllipseRampParams, CircleParams or EllipseParams
+    params : LimbProfileParams, LimbDarkenedParams, EllipseRampParams, CircleParams or EllipseParams
         The fitted parameters.
 
     Returns
@@ -106,7 +109,7 @@ def edge_sigma(params: Any) -> float:
     float
         The sigma (px).
     """
-    if isinstance(params, LimbProfileParams):
+    if isinstance(params, (LimbProfileParams, LimbDarkenedParams)):
         return math.sqrt(float(params.sigma) ** 2 + 1.0 / 12.0)
     k = abs(float(params.k))
     return (1.0 if isinstance(params, EllipseRampParams) else LOGISTIC_TO_GAUSS) / max(k, 1e-6)

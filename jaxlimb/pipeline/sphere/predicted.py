@@ -14,9 +14,9 @@ The stages (:mod:`jaxlimb.pipeline.sphere.whole_limb` has the fits and the metho
   (:func:`jaxlimb.pipeline.profile.fit.fit_lunar_profile`); the covariance the larger of the pixel-independent
   and the cluster-robust one (:func:`~jaxlimb.pipeline.sphere.whole_limb.cluster_covariance`);
 * **body-centre mapping**: the sphere's exact map (profile), or the ellipse centre plus the predicted offset with
-  the radius and range scaled by ``a / a_pred`` (sigmoid); model errors of the edge
-  (:data:`EDGE_MODEL_SIGMA_PX` through the arc's gains) and, with both polarities, of their split
-  (:mod:`jaxlimb.pipeline.sphere.polarity_split`).
+  the radius and range scaled by ``a / a_pred`` (sigmoid; with both polarities, ``a`` the dark limb's own: the lit
+  limb's profile moves the joint scale, :mod:`jaxlimb.pipeline.sphere.polarity_split`); model errors of the edge
+  (:data:`EDGE_MODEL_SIGMA_PX` through the arc's gains) and, with both polarities, of their split.
 
 Accuracy: ``tests/mission/test_whole_limb.py`` (renders with exact truth), ``benchmarks/limb_arc.py`` (arcs of a
 body larger than the frame) and ``benchmarks/cassini_enceladus.py`` (real frames).
@@ -307,19 +307,25 @@ def predicted_center(frame: Frame, edge: PredictedEdge, final: RefineResult) -> 
 def _scaled_center(frame: Frame, edge: PredictedEdge, final: RefineResult, model_cov: np.ndarray,
                    extras: dict[str, Any]) -> BodyCenter:
     """The whole-limb sigmoid's map: the ellipse centre plus the predicted body-centre offset; the on-axis radius and
-    the range scaled by ``a / a_pred``."""
+    the range scaled by ``a / a_pred``, ``a`` the dark limb's when the split measured it (its pixel-noise variance
+    added to the joint ``a``'s in ``model_cov``)."""
     cam, hints, shape, pred = frame.cam, frame.hints, edge.shape, edge.predicted
     assert cam is not None and hints is not None and hints.range_prior_km is not None
     p = final.fit.params
-    scale = shape.a / pred.a
+    split = extras.get("polarity_split") or {}
+    a = float(split.get("dark_a_px", shape.a))
+    scale = a / pred.a
     rkm = hints.radius_km()
     r_eq = cam.focal_px * math.tan(math.asin(rkm / hints.range_prior_km)) * scale if rkm else pred.a * pred.rho * scale
     center = (float(p.r0) + shape.body_offset_rc[0], float(p.c0) + shape.body_offset_rc[1])
     ell = EllipseResult(center_rc=(float(p.r0), float(p.c0)), semi_axes_px=(shape.a, shape.a * shape.rho),
                         angle_rad=float(shape.theta % math.pi))
+    if "dark_a_px" in split:
+        model_cov = model_cov.copy()
+        model_cov[2, 2] += (r_eq / a * split["dark_sigma_a_px"]) ** 2
     return BodyCenter(center, float(r_eq), ell, tuple(float(v) for v in cam.los(np.array(center))),
                       float(hints.range_prior_km / scale), ROUND_OUTPUTS, ("r0", "c0", "a"),
-                      np.diag([1.0, 1.0, r_eq / shape.a]), model_cov, extras)
+                      np.diag([1.0, 1.0, r_eq / a]), model_cov, extras)
 
 
 @final

@@ -7,7 +7,9 @@ r"""The profile-refit and body-centre stages of the two round bodies of :func:`j
   ``model="ellipse"``: the free elliptical sigmoid.  Then the exact sphere map of
   :mod:`jaxlimb.pipeline.sphere.center`.
 * **Disc** (the Sun): the blurred limb-darkened disc (:data:`jaxlimb.models.LIMB_DARKENED`) on a full
-  annulus; the disc's centre is the body's (orthographic: ``(R/f)^2 ~ 1e-5``).
+  annulus, its covariance widened by the model-error terms of :mod:`jaxlimb.model_error` (the cluster-robust
+  sandwich over sectors of the limb and the split witness); the disc's centre is the body's (orthographic:
+  ``(R/f)^2 ~ 1e-5``).
 """
 
 from __future__ import annotations
@@ -20,10 +22,11 @@ import numpy as np
 
 from ...errors import ConvergenceError, SaturationWarning
 from ...fitting import solver_from_name
-from ...models import CircleParams, EllipseParams, LimbDarkenedParams, LimbProfileParams
+from ...models import LIMB_DARKENED, CircleParams, EllipseParams, LimbDarkenedParams, LimbProfileParams
 from ..checks import MIN_LIT_ARC_DEG, check_lit_arc
 from ..frame import arc_angles, frame_mask
 from ..profile.fit import fit_lunar_profile
+from ..profile.model_error import with_model_error
 from ..profile.passes import l_band, saturation_level
 from ..stages import BodyCenter, EdgeFit, FitData, Frame, RefineResult
 from .center import circle_center, free_ellipse_center, sphere_center
@@ -195,7 +198,18 @@ def disc_refit(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> RefineRes
     Returns
     -------
     RefineResult
-        The :data:`~jaxlimb.models.LIMB_DARKENED` fit and its annulus pixels (unit weights, DN).
+        The :data:`~jaxlimb.models.LIMB_DARKENED` fit and its annulus pixels (unit weights, DN); its covariance
+        widened by :func:`~jaxlimb.pipeline.profile.model_error.with_model_error`, the noise-only one kept as
+        ``noise_covariance``.
+
+    Notes
+    -----
+    The noise-only covariance of thousands of limb pixels is ~0.001 px on a 200 px
+    white-light disc: far below what the pixels' errors allow when they are not the model's white noise --
+    lossy compression (JPEG 2000 wavelet blocks), a resampling's interpolation kernel, granulation and spots, a
+    limb-darkening law other than the quadratic one near the limb.  All of these are correlated along a
+    stretch of limb (the sector sandwich sees them) or are the same all along it and move the edge with depth
+    (the split witness refits the sky side and the disc side and sees them).
     """
     opt = frame.opt
     _saturation(frame, edge, extras)
@@ -206,7 +220,7 @@ def disc_refit(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> RefineRes
                             solver=None if opt.solver == "lm" else solver_from_name(opt.solver))
     coords, z = select_sun_annulus(img, edge.center_rc, edge.radius, sun.annulus_px)
     held = tuple(n for n in LimbDarkenedParams.field_names() if n not in sun.fit.free)
-    return RefineResult(sun.fit, FitData(coords, z, None, 0.0, 1.0), 0, held)
+    return with_model_error(RefineResult(sun.fit, FitData(coords, z, None, 0.0, 1.0), 0, held), model=LIMB_DARKENED)
 
 
 def disc_center_of(frame: Frame, final: RefineResult) -> BodyCenter:
