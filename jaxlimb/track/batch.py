@@ -42,8 +42,8 @@ import numpy as np
 import optimistix as optx
 
 from ..errors import ConfigError, ConvergenceError
-from .dynamics import Propagator
 from .bias import BiasModel, bias_model
+from .dynamics import Propagator
 from .filter import gate_threshold
 from .measurement import CAMERA_PARAMS, Frames, predict, total_covariance
 

@@ -35,8 +35,8 @@ import numpy as np
 from scipy.stats import chi2
 
 from ..errors import ConfigError
-from .dynamics import Propagator
 from .bias import BiasModel, bias_model
+from .dynamics import Propagator
 from .measurement import Frames, predict, total_covariance
 
 

@@ -4,30 +4,24 @@ the filter with the bias states recovers it and stays consistent, the filter wit
 
 from __future__ import annotations
 
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import jax.numpy as jnp
-
-from jaxlimb.geometry.ephemeris import epoch_to_jd_tdb
-from jaxlimb.track import Frames, Propagator, make_arc, make_transfer, nees, predict, run_filter
+from jaxlimb.track import (
+    Frames,
+    nees,
+    predict,
+    run_filter,
+)
 from jaxlimb.track.bias import apparent_radius_px, bias_model
 from jaxlimb.track.measurement import sun_direction_px
 from jaxlimb.track.scenario import perturb_attitudes, true_measurements
 
-THETA = np.array([1000.0, 127.5, 127.5, 0.0])
-N = 24
+from .conftest import THETA, N
+
 NOISE_PX, MODEL_PX = 0.03, 0.1  # per-frame noise and model-error sigma of the centre and the radius (px)
 MOON_SUN_OFFSET = 5e-3  # the injected bias: the Moon's centre moved along the Sun by 0.5 % of its radius
-
-
-@pytest.fixture(scope="module")
-def setup():
-    jd = epoch_to_jd_tdb("2026-03-07T12:00:00Z")
-    arc = make_arc(jd, jd + 3.6)
-    prop = Propagator(arc.table)
-    tr = make_transfer(arc, prop, N, THETA, 256, 256, rng=np.random.default_rng(5))
-    return arc, prop, tr
 
 
 def _covariances(tr, sigma_px: float) -> np.ndarray:  # noqa: ANN001
@@ -73,8 +67,10 @@ def test_prior_is_the_model_error_part(setup):
     assert bm.names == ("earth.sun_offset", "earth.scale", "moon.sun_offset", "moon.scale")
     size = apparent_radius_px(fr)
     moon = fr.is_range == 0
-    np.testing.assert_allclose(bm.sigma[2], MODEL_PX / np.median(size[moon]) if moon.sum() % 2 else
-                               np.sqrt(np.median((MODEL_PX / size[moon]) ** 2)), rtol=1e-9)
+    # the centre's model-error sigma over the radius, the size's over the size (median over the body's frames)
+    np.testing.assert_allclose(bm.sigma[2], np.sqrt(np.median((MODEL_PX / size[moon]) ** 2)), rtol=1e-9)
+    np.testing.assert_allclose(bm.sigma[3], np.sqrt(np.median((MODEL_PX / fr.z[moon, 2]) ** 2)), rtol=1e-2)
+    np.testing.assert_allclose(bm.sigma[1], np.sqrt(np.median((MODEL_PX / size[~moon]) ** 2)), rtol=1e-2)
     assert bm.select.shape == (N, 2, 4) and np.all(bm.select.sum(axis=(1, 2)) == 2)
     # no split into noise and model error, or asked not to: no bias state
     assert len(bias_model(Frames(**{**fr.__dict__, "R_noise": None}))) == 0
