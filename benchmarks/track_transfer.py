@@ -27,7 +27,8 @@ Self-calibration: the draw measured with the nominal camera (focal length +1 %, 
 measured frames (``--resume`` on a measurements file: the time after ``locate``), in a subprocess, twice: with
 an empty compilation cache, then with the cache the first run filled.
 
-``python benchmarks/track_transfer.py --cache /tmp/track-cache`` -> ``benchmarks/results/track_transfer.json``.
+``python benchmarks/track_transfer.py --cache /tmp/track-cache`` -> ``benchmarks/results/track_transfer.json``
+(``--no-bias``: ``track_transfer_no_bias.json``).
 """
 
 from __future__ import annotations
@@ -208,18 +209,25 @@ def self_calibration(arc, prop, tr, nominal: dict[int, dict], draw0: dict[int, d
 
 def cli_speed(arc, tr, draw: dict[int, dict], keep) -> dict:  # noqa: ANN001
     """``jaxlimb track`` on the measured frames after ``locate`` (a measurements file and ``--resume``)."""
+    from jaxlimb.cli._batch import run_settings
+    from jaxlimb.cli._track import measurement_namespace
     from jaxlimb.geometry.attitude import dcm_to_quat
 
     with tempfile.TemporaryDirectory() as d:
         d = Path(d)
         (d / "camera.json").write_text(json.dumps(camera(THETA_TRUE).to_dict()))
-        with open(d / "frames.jsonl", "w") as ff, open(d / "m.jsonl", "w") as fm:
+        with open(d / "frames.jsonl", "w") as ff:
             for k in keep:
-                img = str(d / f"frame{k:04d}.png")
                 q = dcm_to_quat(tr.C_true[k])
-                ff.write(json.dumps({"image": img, "epoch": arc.jd0 + tr.t[k] / 86400.0, "body": tr.bodies[k],
-                                     "attitude": {"quaternion": q.tolist()}, "true_state": tr.states[k].tolist()}) + "\n")
-                fm.write(json.dumps({**draw[k], "image": img}) + "\n")
+                ff.write(json.dumps({"image": str(d / f"frame{k:04d}.png"), "epoch": arc.jd0 + tr.t[k] / 86400.0,
+                                     "body": tr.bodies[k], "attitude": {"quaternion": q.tolist()},
+                                     "true_state": tr.states[k].tolist()}) + "\n")
+        # the records carry the digest of the settings that made them, as ``jaxlimb track`` writes them (--resume)
+        ns = argparse.Namespace(frames=str(d / "frames.jsonl"), camera=str(d / "camera.json"), ephemeris=None)
+        settings = run_settings(measurement_namespace(ns, d / "m.jsonl"))
+        with open(d / "m.jsonl", "w") as fm:
+            for k in keep:
+                fm.write(json.dumps({**draw[k], "image": str(d / f"frame{k:04d}.png"), "run_settings": settings}) + "\n")
         cmd = [sys.executable, "-m", "jaxlimb.cli", "track", "--frames", str(d / "frames.jsonl"), "--camera",
                str(d / "camera.json"), "--measurements", str(d / "m.jsonl"), "--resume", "--out", str(d / "t.jsonl"),
                "--plot", str(d / "t.png"), "--json"]
@@ -272,7 +280,7 @@ def main(argv: list[str] | None = None) -> int:
     if "cli" not in skip:
         out["cli"] = cli_speed(arc, tr, draws[0], [k for k in keep if draws[0].get(k, {}).get("status") == "ok"])
         print("cli", out["cli"], flush=True)
-    print(save("track_transfer", out))
+    print(save("track_transfer_no_bias" if a.no_bias else "track_transfer", out))
     return 0
 
 
