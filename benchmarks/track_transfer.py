@@ -15,6 +15,10 @@ What is rendered and what is drawn:
 * drawn: the same sequences with Gaussian measurements drawn from the covariance ``locate`` reported (the
   filter's own consistency, with a measurement model that holds by construction).
 
+The filter, smoother and batch fit carry the bodies' bias states (:mod:`jaxlimb.track.bias`; ``--no-bias``: the
+filter that takes every frame's error as independent); the posterior CRB is that of the same model.
+``measurement_errors_draw0``: ``locate``'s errors on draw 0 against the truth, per body (:func:`measurement_errors`).
+
 Statistics: per epoch, the average over sequences of the filtered 6-state NEES and of the NIS, against the
 two-sided 95 % band of the ``N``-run average (:func:`jaxlimb.track.average_band`); the grand means; the
 smoother's RMS position error against the posterior CRB (:func:`jaxlimb.track.posterior_crlb`).
@@ -23,7 +27,8 @@ Self-calibration: the draw measured with the nominal camera (focal length +1 %, 
 measured frames (``--resume`` on a measurements file: the time after ``locate``), in a subprocess, twice: with
 an empty compilation cache, then with the cache the first run filled.
 
-``python benchmarks/track_transfer.py --cache /tmp/track-cache`` -> ``benchmarks/results/track_transfer.json``.
+``python benchmarks/track_transfer.py --cache /tmp/track-cache`` -> ``benchmarks/results/track_transfer.json``
+(``--no-bias``: ``track_transfer_no_bias.json``).
 """
 
 from __future__ import annotations
@@ -71,14 +76,14 @@ def as_frames(arc, tr, recs: list[dict], C: np.ndarray, theta: np.ndarray, att_s
     return frames_from_records(rows, arc, camera(theta), attitude_sigma_rad=att_sigma)
 
 
-def monte_carlo(arc, prop, tr, draws, keep, n_seq: int, seed: int, drawn: bool) -> dict:  # noqa: ANN001
+def monte_carlo(arc, prop, tr, draws, keep, n_seq: int, seed: int, drawn: bool, bias: bool = True) -> dict:  # noqa: ANN001
     from jaxlimb.track import average_band, nees, posterior_crlb, run_filter
     from jaxlimb.track.scenario import perturb_attitudes, true_measurements
 
     rng = np.random.default_rng([seed, int(drawn)])
     P0 = np.diag([1000.0**2] * 3 + [1e-3**2] * 3)
     z_true = true_measurements(tr)[keep]
-    N_f, N_nis, E_s, crb_tr, used, mnees = [], [], [], [], [], []
+    N_f, N_nis, E_s, crb_tr, used, mnees, b_s = [], [], [], [], [], [], []
     for s in range(n_seq):
         recs = [_pick(draws, k, rng) for k in keep]
         C = perturb_attitudes(tr.C_true[keep], 1e-5, rng)
@@ -86,13 +91,15 @@ def monte_carlo(arc, prop, tr, draws, keep, n_seq: int, seed: int, drawn: bool) 
         if drawn:
             fr.z[:] = z_true + np.einsum("kij,kj->ki", np.linalg.cholesky(fr.R), rng.standard_normal(fr.z.shape))
         x0 = tr.x0 + np.linalg.cholesky(P0) @ rng.standard_normal(6)
-        res = run_filter(fr, prop, x0, P0, 0.0, q=Q_PSD)
+        res = run_filter(fr, prop, x0, P0, 0.0, q=Q_PSD, bias=bias)
         truth = tr.states[keep]
         N_f.append(nees(res.x_filt, res.P_filt, truth))
         N_nis.append(np.where(res.used, res.nis, np.nan))
         E_s.append(res.x_smooth[:, :3] - truth[:, :3])
-        pc = posterior_crlb(fr, prop, tr.x0, 0.0, P0)
+        pc = posterior_crlb(fr, prop, tr.x0, 0.0, P0, bias=bias)
         crb_tr.append(np.trace(pc[:, :3, :3], axis1=1, axis2=2))
+        if res.bias is not None:
+            b_s.append(res.bias.to_json(res.b_smooth, res.b_smooth_cov))
         used.append(res.used)
         d = fr.z - z_true
         mnees.append(float(np.mean(np.einsum("ki,ki->k", d, np.linalg.solve(fr.R, d[..., None])[..., 0]))))
@@ -113,10 +120,52 @@ def monte_carlo(arc, prop, tr, draws, keep, n_seq: int, seed: int, drawn: bool) 
         "gated_fraction": float(1 - np.mean(used)),
         "smoother_rms_pos_km": float(np.sqrt(err2.mean())), "pcrb_rms_pos_km": float(np.sqrt(crb_tr.mean())),
         "smoother_over_pcrb": float(np.sqrt(err2.mean() / crb_tr.mean())),
+        "bias_states": bias,
+        "bias_smoothed": {n: {k: float(np.mean([b[n][k] for b in b_s])) for k in ("value", "sigma", "prior_sigma")}
+                          for n in (b_s[0] if b_s else {})},
         "smoother_over_pcrb_epochs_median_max": [float(np.median(ratio_k)), float(np.max(ratio_k))],
         "measurement_nees_mean": float(np.mean(mnees)),
         "epoch_nees": a_nees.tolist(), "epoch_nis": a_nis.tolist(),
     }
+
+
+def measurement_errors(arc, tr, draw: dict[int, dict], keep) -> dict:  # noqa: ANN001
+    """``locate``'s errors against the truth on one draw, per body: each component normalised by its sigma (mean =
+    a bias; RMS), the centre's error along the Sun's image direction as a fraction of the apparent radius (the
+    ``sun_offset`` of :mod:`jaxlimb.track.bias`) and the relative size error (``scale``), with the standard error
+    of their means, and the autocorrelation of the normalised errors against the lag in frames of that body."""
+    from jaxlimb.track.bias import apparent_radius_px
+    from jaxlimb.track.measurement import sun_direction_px
+    from jaxlimb.track.scenario import true_measurements
+
+    ks = [k for k in keep if draw.get(k, {}).get("status") == "ok"]
+    fr = as_frames(arc, tr, [draw[k] for k in ks], tr.C_true[ks], THETA_TRUE, 0.0)
+    e = fr.z - true_measurements(tr)[ks]
+    sd = np.sqrt(np.einsum("kii->ki", fr.R))
+    size = apparent_radius_px(fr)
+    d = np.array([np.asarray(sun_direction_px(fr.C[i] @ (fr.body_pos[i] - tr.states[k, :3]),
+                                              fr.C[i] @ (fr.sun_pos[i] - tr.states[k, :3]))) for i, k in enumerate(ks)])
+    along = np.einsum("ki,ki->k", e[:, :2], d)
+    along_sd = np.sqrt(np.einsum("ki,kij,kj->k", d, fr.R[:, :2, :2], d))
+    out = {}
+    for b in ("earth", "moon"):
+        m = np.array([tr.bodies[k] == b for k in ks])
+        n = e[m] / sd[m]
+        na = along[m] / along_sd[m]
+
+        def ac(x: np.ndarray) -> list[float]:
+            x = x - x.mean()
+            return [float(np.mean(x[:-lag] * x[lag:]) / np.mean(x * x)) for lag in (1, 2, 3, 5, 10, 20)]
+
+        so, sc = along[m] / size[m], e[m, 2] / fr.z[m, 2]
+        out[b] = {"frames": int(m.sum()), "mean_normalised_row_col_X": n.mean(0).tolist(),
+                  "rms_normalised_row_col_X": np.sqrt((n**2).mean(0)).tolist(),
+                  "mean_normalised_along_sun": float(na.mean()), "along_sun_px_mean": float(along[m].mean()),
+                  "sun_offset_mean_se": [float(so.mean()), float(so.std(ddof=1) / np.sqrt(m.sum()))],
+                  "scale_mean_se": [float(sc.mean()), float(sc.std(ddof=1) / np.sqrt(m.sum()))],
+                  "autocorrelation_lags": [1, 2, 3, 5, 10, 20], "autocorrelation_along_sun": ac(na),
+                  "autocorrelation_X": ac(n[:, 2])}
+    return out
 
 
 def _pick(draws: list[dict[int, dict]], k: int, rng: np.random.Generator) -> dict:
@@ -160,18 +209,25 @@ def self_calibration(arc, prop, tr, nominal: dict[int, dict], draw0: dict[int, d
 
 def cli_speed(arc, tr, draw: dict[int, dict], keep) -> dict:  # noqa: ANN001
     """``jaxlimb track`` on the measured frames after ``locate`` (a measurements file and ``--resume``)."""
+    from jaxlimb.cli._batch import run_settings
+    from jaxlimb.cli._track import measurement_namespace
     from jaxlimb.geometry.attitude import dcm_to_quat
 
     with tempfile.TemporaryDirectory() as d:
         d = Path(d)
         (d / "camera.json").write_text(json.dumps(camera(THETA_TRUE).to_dict()))
-        with open(d / "frames.jsonl", "w") as ff, open(d / "m.jsonl", "w") as fm:
+        with open(d / "frames.jsonl", "w") as ff:
             for k in keep:
-                img = str(d / f"frame{k:04d}.png")
                 q = dcm_to_quat(tr.C_true[k])
-                ff.write(json.dumps({"image": img, "epoch": arc.jd0 + tr.t[k] / 86400.0, "body": tr.bodies[k],
-                                     "attitude": {"quaternion": q.tolist()}, "true_state": tr.states[k].tolist()}) + "\n")
-                fm.write(json.dumps({**draw[k], "image": img}) + "\n")
+                ff.write(json.dumps({"image": str(d / f"frame{k:04d}.png"), "epoch": arc.jd0 + tr.t[k] / 86400.0,
+                                     "body": tr.bodies[k], "attitude": {"quaternion": q.tolist()},
+                                     "true_state": tr.states[k].tolist()}) + "\n")
+        # the records carry the digest of the settings that made them, as ``jaxlimb track`` writes them (--resume)
+        ns = argparse.Namespace(frames=str(d / "frames.jsonl"), camera=str(d / "camera.json"), ephemeris=None)
+        settings = run_settings(measurement_namespace(ns, d / "m.jsonl"))
+        with open(d / "m.jsonl", "w") as fm:
+            for k in keep:
+                fm.write(json.dumps({**draw[k], "image": str(d / f"frame{k:04d}.png"), "run_settings": settings}) + "\n")
         cmd = [sys.executable, "-m", "jaxlimb.cli", "track", "--frames", str(d / "frames.jsonl"), "--camera",
                str(d / "camera.json"), "--measurements", str(d / "m.jsonl"), "--resume", "--out", str(d / "t.jsonl"),
                "--plot", str(d / "t.png"), "--json"]
@@ -199,6 +255,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--n-frames", type=int, default=200)
     ap.add_argument("--sequences", type=int, default=50)
     ap.add_argument("--seed", type=int, default=38)
+    ap.add_argument("--no-bias", action="store_true", help="the filter without the bodies' bias states")
     ap.add_argument("--skip", default="", help="comma-separated parts to skip: rendered,drawn,selfcal,cli")
     a = ap.parse_args(argv)
     arc, prop, tr = scenario(a.n_frames, a.seed)
@@ -206,12 +263,16 @@ def main(argv: list[str] | None = None) -> int:
     draws = [v for k, v in recs.items() if k != "nominal"]
     keep = [k for k in range(a.n_frames) if any(d.get(k, {}).get("status") == "ok" for d in draws)]
     skip = set(a.skip.split(","))
+    out_errors = measurement_errors(arc, tr, draws[0], keep)
+    print("errors", out_errors, flush=True)
     out = {"seed": a.seed, "environment": environment(), "frames_rendered": a.n_frames, "draws": len(draws),
            "frames_measured": len(keep),
-           "failed_checks": sorted({d[k]["check"] for d in draws for k in d if d[k].get("status") != "ok"})}
+           "failed_checks": sorted({d[k]["check"] for d in draws for k in d if d[k].get("status") != "ok"}),
+           "measurement_errors_draw0": out_errors}
     for name, drawn in (("rendered", False), ("drawn", True)):
         if name not in skip:
-            out[f"monte_carlo_{name}"] = monte_carlo(arc, prop, tr, draws, keep, a.sequences, a.seed, drawn)
+            out[f"monte_carlo_{name}"] = monte_carlo(arc, prop, tr, draws, keep, a.sequences, a.seed, drawn,
+                                                       not a.no_bias)
             print(name, {k: v for k, v in out[f"monte_carlo_{name}"].items() if not k.startswith("epoch_")}, flush=True)
     if "selfcal" not in skip:
         out["self_calibration"] = self_calibration(arc, prop, tr, recs.get("nominal", {}), draws[0], keep, a.seed)
@@ -219,7 +280,7 @@ def main(argv: list[str] | None = None) -> int:
     if "cli" not in skip:
         out["cli"] = cli_speed(arc, tr, draws[0], [k for k in keep if draws[0].get(k, {}).get("status") == "ok"])
         print("cli", out["cli"], flush=True)
-    print(save("track_transfer", out))
+    print(save("track_transfer_no_bias" if a.no_bias else "track_transfer", out))
     return 0
 
 

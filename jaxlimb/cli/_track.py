@@ -12,7 +12,7 @@ per frame appended to ``--measurements FILE.jsonl`` as ``locate --out`` does (:m
 run (or by ``jaxlimb locate IMAGES --out``) is used as it is.  Stage 2, the trajectory
 (:func:`jaxlimb.track.track`): initial orbit, iterated EKF with NIS gating, RTS smoother, batch least squares of
 the arc (``--self-calibrate``: with the focal length, principal point and k1, and what the sequence cannot
-observe named).  ``--out TRACK.jsonl`` receives one line per frame epoch (:func:`jaxlimb.track.epoch_records`),
+observe named), each with a constant image bias per body (:mod:`jaxlimb.track.bias`; ``--no-bias``: none).  ``--out TRACK.jsonl`` receives one line per frame epoch (:func:`jaxlimb.track.epoch_records`),
 written atomically; ``--plot`` the position error (with ``true_state``) or the filter-minus-smoother departure,
 with 3-sigma envelopes.
 
@@ -52,6 +52,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--self-calibrate", action="store_true", dest="calibrate",
                    help="estimate focal length, principal point and k1 with the trajectory (batch fit)")
     p.add_argument("--no-batch", action="store_true", help="filter and smoother only")
+    p.add_argument("--no-bias", action="store_true",
+                   help="no bias states: every frame's error independent (default: a constant image bias per body, "
+                   "its prior the model-error part of locate's covariance)")
     p.add_argument("--attitude-sigma-urad", type=arg_number(Range(0.0, 1e5)), default=10.0,
                    help="per-axis attitude knowledge, microradians (default 10)")
     p.add_argument("--process-noise", type=arg_number(Range(0.0, 1e-3)), default=1e-15,
@@ -178,6 +181,8 @@ def _summary(res, frames, t_elapsed: float, truth) -> dict[str, Any]:  # noqa: A
         out["batch"] = {"t_s": res.fit.t0, "state_km_kms": res.fit.x0.tolist(),
                         "sigma_km_kms": np.sqrt(np.diag(res.fit.P0)).tolist(), "residual_rms": res.fit.residual_rms,
                         "used": int(res.fit.used.sum())}
+        if res.fit.bias:
+            out["bias"] = res.fit.bias
         if res.fit.camera is not None:
             out["camera"] = res.fit.camera
             out["observability"] = res.fit.observability.to_json()
@@ -231,7 +236,7 @@ def _run(args: argparse.Namespace) -> int:
         truth = np.array([by[lab] for lab in frames.labels])
     prop = trk.Propagator(arc.table)
     res = trk.track(frames, prop, prior=_prior(args.prior, eph, arc), batch=not args.no_batch, calibrate=args.calibrate,
-                    q=args.process_noise, gate_probability=args.gate_probability)
+                    q=args.process_noise, gate_probability=args.gate_probability, bias=not args.no_bias)
     bstates = res.fit.states(prop, res.frames.t) if res.fit is not None else None
     records = trk.epoch_records(res.frames, res.filt, res.fit, arc.jd0, bstates, truth)
     if args.out:

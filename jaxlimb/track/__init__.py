@@ -6,12 +6,14 @@ Public API::
     Propagator(arc.table)                       # diffrax dynamics; step_with_stm: STM by jax.jacfwd
     Frames, frames_from_records, predict        # measurements (locate's centre + radius/range) and their model
     run_filter(frames, prop, x0, P0, t0) -> FilterResult     # EKF with NIS gating + RTS smoother
+    bias_model(frames) -> BiasModel             # a constant image bias per body, its prior from locate's model error
     fit_arc(frames, prop, t0, x_guess, calibrate=...) -> ArcFit   # batch least squares (+ self-calibration)
     track(frames, prop, calibrate=...) -> TrackResult       # initial orbit, batch, filter, smoother in one call
     consistency: nees, average_band, posterior_crlb; report: epoch_records, plot_track
     make_transfer, drawn_frames                 # a cislunar transfer to test them on
 """
 
+from .bias import BiasModel as BiasModel, bias_model as bias_model
 from .batch import ArcFit as ArcFit, Observability as Observability, fit_arc as fit_arc, observability as observability
 from .dynamics import Arc as Arc, BodyTable as BodyTable, Propagator as Propagator, acceleration as acceleration, make_arc as make_arc
 from .filter import FilterResult as FilterResult, gate_threshold as gate_threshold, run_filter as run_filter
@@ -28,6 +30,6 @@ from .report import epoch_records as epoch_records, plot_track as plot_track
 from .sequence import TrackResult as TrackResult, initial_guess as initial_guess, track as track
 from .scenario import Transfer as Transfer, drawn_frames as drawn_frames, make_transfer as make_transfer, nominal_noise as nominal_noise
 
-__all__ = ["CAMERA_PARAMS", "Arc", "ArcFit", "BodyTable", "FilterResult", "Frames", "Observability", "Propagator",
-           "TrackResult", "Transfer", "average_band", "epoch_records", "initial_guess", "nees", "plot_track", "posterior_crlb", "track", "acceleration", "camera_theta", "drawn_frames", "fit_arc", "frames_from_records", "gate_threshold",
+__all__ = ["CAMERA_PARAMS", "Arc", "ArcFit", "BiasModel", "BodyTable", "FilterResult", "Frames", "Observability", "Propagator",
+           "TrackResult", "Transfer", "average_band", "epoch_records", "initial_guess", "nees", "plot_track", "posterior_crlb", "track", "acceleration", "bias_model", "camera_theta", "drawn_frames", "fit_arc", "frames_from_records", "gate_threshold",
            "make_arc", "make_transfer", "nominal_noise", "observability", "predict", "run_filter", "single_frame_position"]

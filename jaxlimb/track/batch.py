@@ -25,6 +25,11 @@ scale) is *unobservable*; it is returned as a direction, and the fit moves the c
 observable subspace (``theta = theta_0 + S V_obs beta``).  A parameter is reported with a number and a sigma
 only when its own axis lies in the observable subspace (projection on the unobservable one below 0.1);
 otherwise it is ``None`` and named in ``unobservable``.
+
+Bias states (:mod:`jaxlimb.track.bias`).  The bodies' constant image biases ``b`` are unknowns of the same
+least squares, with their prior as whitened residuals ``b_i / sigma_i``; the state's covariance is then the
+marginal over them, and the camera's observability is the information on ``theta`` with the state and the
+biases unknown.
 """
 
 from __future__ import annotations
@@ -37,6 +42,7 @@ import numpy as np
 import optimistix as optx
 
 from ..errors import ConfigError, ConvergenceError
+from .bias import BiasModel, bias_model
 from .dynamics import Propagator
 from .filter import gate_threshold
 from .measurement import CAMERA_PARAMS, Frames, predict, total_covariance
@@ -92,6 +98,7 @@ class ArcFit:
     observability : the eigen-analysis (self-calibration) or ``None``.
     used : frames kept (after outlier removal); residual_rms : of the whitened residuals of the kept frames.
     n_steps : optimiser steps of the last pass; passes : fits run.
+    bias : the bias states' ``{name: {"value", "sigma", "prior_sigma"}}`` (empty without them).
     """
 
     t0: float
@@ -106,6 +113,7 @@ class ArcFit:
     n_steps: int
     passes: int
     chi2: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    bias: dict = field(default_factory=dict)
 
     def states(self, prop: Propagator, ts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """States and covariances at ``ts`` (mapped by the state transition matrices; camera uncertainty not
@@ -129,13 +137,21 @@ def _whiteners(frames: Frames, X: np.ndarray, theta: np.ndarray) -> np.ndarray:
 
 def _residuals(p, args):  # noqa: ANN001, ANN202
     """Whitened residuals of every frame (zero weight: removed) and of the prior (module docstring)."""
-    prop, t0, ts, z, W, weights, x_ref, Dx, theta0, basis, frame_args, prior_x, prior_L = args
+    prop, t0, ts, z, W, weights, x_ref, Dx, theta0, basis, frame_args, prior_x, prior_L, b_ref, b_sig, sun, E = args
     x0 = x_ref + Dx * p[:6]
-    theta = jnp.broadcast_to(theta0 + basis @ p[6:], (ts.shape[0], 4))
+    theta = jnp.broadcast_to(theta0 + basis @ p[6:10], (ts.shape[0], 4))
+    b = b_ref + b_sig * p[10:]
     X = prop.trajectory(x0, t0, ts)
-    h = jax.vmap(predict)(X[:, :3], theta, *frame_args)
+    h = _predict_all(X, theta, frame_args, sun, E, b)
     r = jnp.einsum("kij,kj->ki", W, z - h) * weights[:, None]
-    return jnp.concatenate([r.reshape(-1), prior_L @ (x0 - prior_x)])
+    return jnp.concatenate([r.reshape(-1), prior_L @ (x0 - prior_x), b / b_sig])
+
+
+def _predict_all(X, theta, frame_args, sun, E, b):  # noqa: ANN001, ANN202
+    """``h`` of every frame (with the frames' biases ``E_k b`` when there are bias states)."""
+    if E.shape[-1] == 0:
+        return jax.vmap(predict)(X[:, :3], theta, *frame_args)
+    return jax.vmap(predict)(X[:, :3], theta, *frame_args, sun, jnp.einsum("kij,j->ki", E, b))
 
 
 _jacobian = jax.jit(jax.jacfwd(_residuals))
@@ -149,10 +165,11 @@ def _solve(args, m: int, max_steps: int):  # noqa: ANN001, ANN202
     return np.asarray(sol.value), int(sol.stats["num_steps"])
 
 
-def observability(F: np.ndarray, names: tuple[str, ...], unobservable_sigma: float = 0.1) -> Observability:
-    """Eigen-analysis of the camera block of the Fisher information ``F`` over ``(x0 (6), theta)``, ``theta``
-    in units of its a-priori scales (module docstring)."""
-    Fxx, Fxt, Ftt = F[:6, :6], F[:6, 6:], F[6:, 6:]
+def observability(F: np.ndarray, names: tuple[str, ...], unobservable_sigma: float = 0.1, n_nuisance: int = 6) -> Observability:
+    """Eigen-analysis of the camera block of the Fisher information ``F`` over ``(nuisance, theta)`` (the
+    nuisance: ``x0`` (6) and the bias states), ``theta`` in units of its a-priori scales (module docstring)."""
+    m = n_nuisance
+    Fxx, Fxt, Ftt = F[:m, :m], F[:m, m:], F[m:, m:]
     Fc = Ftt - Fxt.T @ np.linalg.solve(Fxx, Fxt)
     lam, V = np.linalg.eigh(0.5 * (Fc + Fc.T))
     sig = 1.0 / np.sqrt(np.maximum(lam, 1e-300))
@@ -167,32 +184,48 @@ def camera_scales(theta: np.ndarray) -> np.ndarray:
 class _Problem:
     """The pieces of the arc's cost that stay fixed during one optimiser run."""
 
-    def __init__(self, prop, frames, t0, weights, prior) -> None:  # noqa: ANN001
+    def __init__(self, prop, frames, t0, weights, prior, bias: BiasModel) -> None:  # noqa: ANN001
         self.prop, self.frames, self.t0, self.weights, self.prior = prop, frames, float(t0), weights, prior
         self.Dx = np.array([1e3] * 3 + [1e-2] * 3)  # km, km/s: the solver's unit step
+        self.bias, self.b_ref = bias, np.zeros(len(bias))
+        self.m = 10 + len(bias)
 
     def args(self, x_ref, theta, basis, W):  # noqa: ANN001, ANN201
         f = self.frames
         px, pL = self.prior if self.prior is not None else (jnp.zeros(6), jnp.zeros((6, 6)))
+        sun = f.sun_pos if f.sun_pos is not None else np.zeros((len(f), 3))
         return (self.prop, jnp.asarray(self.t0), jnp.asarray(f.t), jnp.asarray(f.z), jnp.asarray(W),
                 jnp.asarray(self.weights), jnp.asarray(x_ref), jnp.asarray(self.Dx), jnp.asarray(theta),
-                jnp.asarray(basis), f.arrays(), px, pL)
+                jnp.asarray(basis), f.arrays(), px, pL, jnp.asarray(self.b_ref), jnp.asarray(self.bias.sigma),
+                jnp.asarray(sun), jnp.asarray(self.bias.select))
 
     def whiteners(self, x_ref, theta) -> np.ndarray:  # noqa: ANN001
         X = np.asarray(self.prop.trajectory(jnp.asarray(x_ref), jnp.asarray(self.t0), jnp.asarray(self.frames.t)))
         return _whiteners(self.frames, X, np.broadcast_to(theta, self.frames.theta.shape))
 
     def fit(self, x_ref, theta, basis, W, max_steps):  # noqa: ANN001, ANN201
-        p, n = _solve(self.args(x_ref, theta, basis, W), 10, max_steps)
-        return x_ref + self.Dx * p[:6], theta + basis @ p[6:], n
+        p, n = _solve(self.args(x_ref, theta, basis, W), self.m, max_steps)
+        self.b_ref = self.b_ref + self.bias.sigma * p[10:]
+        return x_ref + self.Dx * p[:6], theta + basis @ p[6:10], n
 
     def jacobian(self, x_ref, theta, basis, W) -> np.ndarray:  # noqa: ANN001
-        return np.asarray(_jacobian(jnp.zeros(10), self.args(x_ref, theta, basis, W)))
+        return np.asarray(_jacobian(jnp.zeros(self.m), self.args(x_ref, theta, basis, W)))
+
+    def chi2(self, x0, theta, W) -> np.ndarray:  # noqa: ANN001
+        """Each frame's whitened squared residual at ``(x0, theta)`` and the current biases."""
+        f = self.frames
+        X = self.prop.trajectory(jnp.asarray(x0), jnp.asarray(self.t0), jnp.asarray(f.t))
+        th = jnp.broadcast_to(jnp.asarray(theta), f.theta.shape)
+        a = self.args(x0, theta, np.zeros((4, 4)), W)
+        h = _predict_all(X, th, f.arrays(), a[-2], a[-1], a[-4])
+        r = np.einsum("kij,kj->ki", W, f.z - np.asarray(h))
+        return np.sum(r * r, axis=1)
 
 
 def fit_arc(frames: Frames, prop: Propagator, t0: float, x_guess, *, prior=None, calibrate: bool = False,
             gate_probability: float = 0.999, max_passes: int = 3, max_steps: int = 200,
-            unobservable_sigma: float = 0.1, max_outlier_fraction: float = 0.2, use: np.ndarray | None = None) -> ArcFit:
+            unobservable_sigma: float = 0.1, max_outlier_fraction: float = 0.2, use: np.ndarray | None = None,
+            bias: bool | BiasModel = True) -> ArcFit:
     """Batch least squares of the arc, with the camera if ``calibrate`` (module docstring).
 
     Parameters
@@ -212,6 +245,8 @@ def fit_arc(frames: Frames, prop: Propagator, t0: float, x_guess, *, prior=None,
         Observability threshold (module docstring).
     use
         Frames to fit (boolean mask; default all): a sub-arc keeps the compiled problem of the whole one.
+    bias
+        Estimate the bodies' bias states (module docstring; as :func:`~jaxlimb.track.filter.run_filter`'s).
 
     Raises
     ------
@@ -223,7 +258,8 @@ def fit_arc(frames: Frames, prop: Propagator, t0: float, x_guess, *, prior=None,
         raise ConfigError("self-calibration needs every frame to share one camera")
     gate = gate_threshold(gate_probability)
     pri = None if prior is None else (jnp.asarray(prior[0], float), jnp.asarray(np.linalg.inv(np.linalg.cholesky(prior[1]))))
-    prob = _Problem(prop, frames, t0, np.ones(len(frames)) if use is None else np.asarray(use, float), pri)
+    bm = bias if isinstance(bias, BiasModel) else bias_model(frames, bool(bias))
+    prob = _Problem(prop, frames, t0, np.ones(len(frames)) if use is None else np.asarray(use, float), pri, bm)
     # the camera moves along the columns of ``basis`` (4x4, zero columns: fixed directions); the problem
     # always has 10 unknowns, so that the state-only and the calibrated fits share one compiled program
     x_ref, basis, obs = np.asarray(x_guess, float), np.zeros((4, 4)), None
@@ -233,13 +269,14 @@ def fit_arc(frames: Frames, prop: Propagator, t0: float, x_guess, *, prior=None,
         for _ in range(3 if calibrate else 0):  # the observable subspace at the solution, refit within it
             S = np.diag(camera_scales(theta[0]))
             J = prob.jacobian(x_ref, theta, S, W)
-            obs = observability(J.T @ J, CAMERA_PARAMS, unobservable_sigma)
+            J = np.concatenate([J[:, :6], J[:, 10:], J[:, 6:10]], 1)  # (x0, b) the nuisance, then theta
+            obs = observability(J.T @ J, CAMERA_PARAMS, unobservable_sigma, 6 + len(bm))
             new = S @ np.where(obs.observable[None, :], obs.eigenvectors, 0.0)
             if np.allclose(new, basis, atol=1e-6 * np.max(np.abs(S))):
                 break
             basis = new
             x_ref, theta, n_steps = prob.fit(x_ref, theta, basis, W, max_steps)
-        chi = _frame_chi2(prop, frames, t0, x_ref, theta, W)
+        chi = prob.chi2(x_ref, theta, W)
         bad = (chi > gate) & (prob.weights > 0)
         if not np.any(bad) or passes == max_passes or bad.sum() > max_outlier_fraction * np.sum(prob.weights > 0):
             break  # nothing to remove, or so much that the model (a camera, a prior), not the frames, is wrong
@@ -247,23 +284,17 @@ def fit_arc(frames: Frames, prop: Propagator, t0: float, x_guess, *, prior=None,
     return _finish(prob, x_ref, theta, basis, W, obs, n_steps, passes, chi)
 
 
-def _frame_chi2(prop, frames, t0, x0, theta, W):  # noqa: ANN001, ANN202
-    X = prop.trajectory(jnp.asarray(x0), jnp.asarray(t0), jnp.asarray(frames.t))
-    th = jnp.broadcast_to(jnp.asarray(theta), frames.theta.shape)
-    h = jax.vmap(predict)(X[:, :3], th, *frames.arrays())
-    r = np.einsum("kij,kj->ki", W, frames.z - np.asarray(h))
-    return np.sum(r * r, axis=1)
-
-
 def _finish(prob, x0, theta, basis, W, obs, n_steps, passes, chi) -> ArcFit:  # noqa: ANN001
-    live = np.concatenate([np.ones(6, bool), np.any(basis != 0, axis=0)])  # the unknowns that move
+    nb = len(prob.bias)
+    live = np.concatenate([np.ones(6, bool), np.any(basis != 0, axis=0), np.ones(nb, bool)])  # the unknowns that move
     J = prob.jacobian(x0, theta, basis, W)[:, live]
-    T = np.zeros((10, 10))
+    m = prob.m
+    T = np.zeros((m, m))
     T[:6, :6] = np.diag(prob.Dx)
-    T[6:, 6:] = basis
+    T[6:10, 6:10] = basis
+    T[10:, 10:] = np.diag(prob.bias.sigma)
     T = T[:, live]
     cov = T @ np.linalg.inv(J.T @ J) @ T.T
-    m = 10
     used = prob.weights > 0
     res = np.asarray(_residuals(jnp.zeros(m), prob.args(x0, theta, basis, W)))[: 3 * len(prob.frames)].reshape(-1, 3)[used]
     th = np.asarray(theta).reshape(-1, 4)[0]
@@ -272,8 +303,9 @@ def _finish(prob, x0, theta, basis, W, obs, n_steps, passes, chi) -> ArcFit:  # 
         ok = obs.parameter_observable()
         camera = {n: ({"value": float(th[i]), "sigma": float(np.sqrt(cov[6 + i, 6 + i]))} if ok[n] else None)
                   for i, n in enumerate(CAMERA_PARAMS)}
-    return ArcFit(prob.t0, np.asarray(x0), cov[:6, :6], th, cov[6:, 6:], camera, obs, used,
-                  float(np.sqrt(np.mean(res * res))) if res.size else float("nan"), n_steps, passes, chi)
+    return ArcFit(prob.t0, np.asarray(x0), cov[:6, :6], th, cov[6:10, 6:10], camera, obs, used,
+                  float(np.sqrt(np.mean(res * res))) if res.size else float("nan"), n_steps, passes, chi,
+                  prob.bias.to_json(prob.b_ref, cov[10:, 10:]) if nb else {})
 
 
 __all__ = ["CAMERA_SCALES", "ArcFit", "Observability", "camera_scales", "fit_arc", "observability"]

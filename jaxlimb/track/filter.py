@@ -18,6 +18,11 @@ the default 0.999, the value a correct measurement exceeds once in a thousand fr
 
 Smoother (Rauch, Tung & Striebel 1965, AIAA J. 3(8)): backward over the frames with
 ``G_k = P+_k Phi_{k+1}^T (P-_{k+1})^-1``.
+
+Bias states.  With a :class:`~jaxlimb.track.bias.BiasModel` the state is ``(r, v, b)``: the constant biases of
+the bodies' images (:mod:`jaxlimb.track.bias`), with ``Phi`` the identity and no process noise on ``b``, the
+prior ``N(0, diag(sigma^2))`` and ``h`` the biased image; the results report ``(r, v)`` (its marginal) and the
+smoothed ``b``.
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ import numpy as np
 from scipy.stats import chi2
 
 from ..errors import ConfigError
+from .bias import BiasModel, bias_model
 from .dynamics import Propagator
 from .measurement import Frames, predict, total_covariance
 
@@ -62,6 +68,8 @@ class FilterResult:
     nis : normalised innovation squared of each frame.
     used : whether the frame passed the gate.
     gate : the NIS threshold used.
+    bias : the bias states (:mod:`jaxlimb.track.bias`); b_smooth, b_smooth_cov : their smoothed estimate and
+        covariance (constant: one for the arc).
     """
 
     t: np.ndarray
@@ -76,11 +84,21 @@ class FilterResult:
     nis: np.ndarray
     used: np.ndarray
     gate: float
+    bias: BiasModel | None = None
+    b_smooth: np.ndarray | None = None
+    b_smooth_cov: np.ndarray | None = None
 
 
-def _update(xp, Pp, z, R, att, theta, args, iterations):  # noqa: ANN001, ANN202
-    def h(x):  # noqa: ANN001, ANN202
-        return predict(x[:3], theta, *args)
+def measurement_function(theta, args, sun, E):  # noqa: ANN001, ANN201
+    """``h(x)`` of one frame for the state ``x = (r, v, b)`` (``E`` (2, n_b) picks the frame's biases; with no
+    bias state, the plain model)."""
+    if E.shape[-1] == 0:
+        return lambda x: predict(x[:3], theta, *args)
+    return lambda x: predict(x[:3], theta, *args, sun, E @ x[6:])
+
+
+def _update(xp, Pp, z, R, att, theta, args, sun, E, iterations):  # noqa: ANN001, ANN202
+    h = measurement_function(theta, args, sun, E)
 
     x = xp
     for _ in range(iterations):  # iterated EKF: relinearise about the latest estimate
@@ -97,17 +115,26 @@ def _update(xp, Pp, z, R, att, theta, args, iterations):  # noqa: ANN001, ANN202
     return x_new, H, Rt, K, nu, S0
 
 
+def _augmented_step(prop, x, tp, t, q):  # noqa: ANN001, ANN202
+    """Propagate ``(r, v, b)``: the dynamics for ``(r, v)``, ``b`` constant (module docstring)."""
+    nb = x.shape[0] - 6
+    xp6, Phi6 = prop.step_with_stm(x[:6], tp, t)
+    Phi = jnp.eye(6 + nb).at[:6, :6].set(Phi6)
+    Q = jnp.zeros((6 + nb, 6 + nb)).at[:6, :6].set(process_noise(q, t - tp))
+    return jnp.concatenate([xp6, x[6:]]), Phi, Q
+
+
 @jax.jit(static_argnames=("iterations",))
-def _forward(prop, x0, P0, t0, q, gate, t, z, R, att, theta, C, body_pos, radius, is_range, f_nom, iterations=1):  # noqa: ANN001, ANN202
+def _forward(prop, x0, P0, t0, q, gate, t, z, R, att, theta, sun, E, C, body_pos, radius, is_range, f_nom, iterations=1):  # noqa: ANN001, ANN202
     def body(carry, k):  # noqa: ANN001, ANN202
         x, P, tp = carry
-        xp, Phi = prop.step_with_stm(x, tp, t[k])
-        Pp = Phi @ P @ Phi.T + process_noise(q, t[k] - tp)
+        xp, Phi, Q = _augmented_step(prop, x, tp, t[k], q)
+        Pp = Phi @ P @ Phi.T + Q
         args = (C[k], body_pos[k], radius[k], is_range[k], f_nom[k])
-        xu, H, Rt, K, nu, S = _update(xp, Pp, z[k], R[k], att[k], theta[k], args, iterations)
+        xu, H, Rt, K, nu, S = _update(xp, Pp, z[k], R[k], att[k], theta[k], args, sun[k], E[k], iterations)
         nis = nu @ jnp.linalg.solve(S, nu)
         ok = nis <= gate
-        IKH = jnp.eye(6) - K @ H
+        IKH = jnp.eye(x.shape[0]) - K @ H
         Pu = IKH @ Pp @ IKH.T + K @ Rt @ K.T
         x_new = jnp.where(ok, xu, xp)
         P_new = jnp.where(ok, 0.5 * (Pu + Pu.T), Pp)
@@ -135,7 +162,7 @@ def _smooth(xf, Pf, xp, Pp, Phi):  # noqa: ANN001, ANN202
 
 
 def run_filter(frames: Frames, prop: Propagator, x0, P0, t0: float, *, q: float = 1e-15,
-               gate_probability: float = 0.999, iterations: int = 3) -> FilterResult:
+               gate_probability: float = 0.999, iterations: int = 3, bias: bool | BiasModel = True) -> FilterResult:
     """Extended Kalman filter over ``frames`` from the prior ``(x0, P0)`` at ``t0``, then the RTS smoother
     (module docstring).
 
@@ -154,6 +181,9 @@ def run_filter(frames: Frames, prop: Propagator, x0, P0, t0: float, *, q: float 
     iterations
         Update relinearisations (1: the EKF; default 3, the iterated EKF: the first frames after a loose prior
         are far from linear).
+    bias
+        Estimate the bodies' bias states (:func:`~jaxlimb.track.bias.bias_model` of ``frames``; a
+        :class:`~jaxlimb.track.bias.BiasModel` to give them; ``False``: none).
     """
     if len(frames) < 2:
         raise ConfigError(f"a track needs at least 2 frames, got {len(frames)}")
@@ -163,11 +193,22 @@ def run_filter(frames: Frames, prop: Propagator, x0, P0, t0: float, *, q: float 
         raise ConfigError(f"the process-noise PSD must be finite and >= 0, got {q!r}")
     gate = gate_threshold(gate_probability)
     f = frames
-    out = _forward(prop, jnp.asarray(x0, float), jnp.asarray(P0, float), jnp.asarray(float(t0)), q, gate,
-                   *map(jnp.asarray, (f.t, f.z, f.R, f.attitude_sigma, f.theta)), *f.arrays(), iterations=iterations)
+    bm = bias if isinstance(bias, BiasModel) else bias_model(f, bool(bias))
+    nb = len(bm)
+    xa = np.concatenate([np.asarray(x0, float), np.zeros(nb)])
+    Pa = np.zeros((6 + nb, 6 + nb))
+    Pa[:6, :6] = P0
+    Pa[6:, 6:] = np.diag(bm.sigma**2)
+    sun = f.sun_pos if f.sun_pos is not None else np.zeros((len(f), 3))
+    out = _forward(prop, jnp.asarray(xa), jnp.asarray(Pa), jnp.asarray(float(t0)), q, gate,
+                   *map(jnp.asarray, (f.t, f.z, f.R, f.attitude_sigma, f.theta, sun, bm.select)), *f.arrays(),
+                   iterations=iterations)
     xp, Pp, xf, Pf, Phi, nu, S, nis, ok = (np.asarray(a) for a in out)
     xs, Ps = (np.asarray(a) for a in _smooth(*map(jnp.asarray, (xf, Pf, xp, Pp, Phi))))
-    return FilterResult(f.t, xf, Pf, xp, Pp, xs, Ps, nu, S, nis, ok.astype(bool), gate)
+    r6 = slice(0, 6)
+    return FilterResult(f.t, xf[:, r6], Pf[:, r6, r6], xp[:, r6], Pp[:, r6, r6], xs[:, r6], Ps[:, r6, r6], nu, S, nis,
+                        ok.astype(bool), gate, bm if nb else None, xs[0, 6:] if nb else None,
+                        Ps[0, 6:, 6:] if nb else None)
 
 
-__all__ = ["FilterResult", "gate_threshold", "process_noise", "run_filter"]
+__all__ = ["FilterResult", "gate_threshold", "measurement_function", "process_noise", "run_filter"]

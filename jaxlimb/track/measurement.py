@@ -68,6 +68,10 @@ class Frames:
     theta : (n, 4) the nominal camera of each frame (``CAMERA_PARAMS``).
     attitude_sigma : (n,) per-axis attitude error (rad, 1 sigma).
     labels : frame names (image paths).
+    sun_pos : (n, 3) geocentric position of the Sun (km), or ``None``: the direction of the bodies' phase offset
+        (:mod:`jaxlimb.track.bias`).
+    R_noise : (n, 3, 3) the noise-only part of ``R`` (``locate``'s Cramér--Rao bound), or ``None``: ``R - R_noise``
+        is the model-error part that sizes the bias states (:mod:`jaxlimb.track.bias`).
     """
 
     t: np.ndarray
@@ -81,6 +85,8 @@ class Frames:
     theta: np.ndarray
     attitude_sigma: np.ndarray
     labels: tuple[str, ...]
+    sun_pos: np.ndarray | None = None
+    R_noise: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.t.shape[0])
@@ -92,14 +98,17 @@ class Frames:
     def subset(self, idx) -> Frames:
         """The frames ``idx`` (an index array or a boolean mask)."""
         idx = np.asarray(idx)
+        opt = {k: None if getattr(self, k) is None else getattr(self, k)[idx] for k in ("sun_pos", "R_noise")}
         return Frames(*(getattr(self, k)[idx] for k in ("t", "z", "R", "C", "body_pos", "radius_km", "is_range",
                                                          "f_nominal", "theta", "attitude_sigma")),
-                      labels=tuple(np.asarray(self.labels, dtype=object)[idx]))
+                      labels=tuple(np.asarray(self.labels, dtype=object)[idx]), **opt)
 
 
 def predict(r: jax.Array, theta: jax.Array, C: jax.Array, body_pos: jax.Array, radius_km: jax.Array,
-            is_range: jax.Array, f_nominal: jax.Array) -> jax.Array:
-    """Predicted ``(center_r, center_c, X)`` of one frame (module docstring)."""
+            is_range: jax.Array, f_nominal: jax.Array, sun_pos: jax.Array | None = None,
+            bias: jax.Array | None = None) -> jax.Array:
+    """Predicted ``(center_r, center_c, X)`` of one frame (module docstring); with ``bias = (b_sun, b_scale)``
+    and ``sun_pos``, the body's biased image (:func:`jaxlimb.track.bias.sun_direction_px`)."""
     f, rc, cc, k1 = theta[0], theta[1], theta[2], theta[3]
     q = C @ (body_pos - r)
     x, y = q[0] / q[2], q[1] / q[2]
@@ -107,8 +116,22 @@ def predict(r: jax.Array, theta: jax.Array, C: jax.Array, body_pos: jax.Array, r
     d = 1.0 + k1 * rho2
     D = jnp.linalg.norm(q)
     size = f * jnp.tan(jnp.arcsin(radius_km / D)) * (1.0 + 2.0 * k1 * rho2)
+    centre = jnp.stack([rc + f * y * d, cc + f * x * d])
+    if bias is not None:  # a centre offset along the Sun's image direction (a fraction of the radius), a size scale
+        centre = centre + bias[0] * size * sun_direction_px(q, C @ (sun_pos - r))
+        size = size * (1.0 + bias[1])
     rng = radius_km / jnp.sin(jnp.arctan(size / f_nominal))
-    return jnp.stack([rc + f * y * d, cc + f * x * d, jnp.where(is_range > 0, rng, size)])
+    return jnp.concatenate([centre, jnp.where(is_range > 0, rng, size)[None]])
+
+
+def sun_direction_px(q_body: jax.Array, q_sun: jax.Array) -> jax.Array:
+    """Unit ``(row, col)`` direction of the Sun in the image about a body seen along ``q_body`` (camera frame):
+    the Sun's direction ``q_sun`` with its component along the line of sight removed."""
+    u = q_body / jnp.linalg.norm(q_body)
+    s = q_sun / jnp.linalg.norm(q_sun)
+    p = s - jnp.dot(s, u) * u
+    d = jnp.stack([p[1], p[0]])
+    return d / jnp.linalg.norm(d)
 
 
 def attitude_jacobian(r: jax.Array, theta: jax.Array, C: jax.Array, *rest: jax.Array) -> jax.Array:
@@ -143,20 +166,25 @@ def frames_from_records(records: list[dict], arc, camera, *, attitude_sigma_rad:
         if not all(a in cov and all(b in cov[a] for b in names) for a in names):
             raise ConfigError(f"frame {rec['image']!r}: the measurement has no covariance of {list(names)}")
         X = m["range_km"] if body == "earth" else m["radius_px"]
+        crlb = m.get("crlb") or {}
+        noise = [crlb[a] ** 2 for a in names] if all(a in crlb for a in names) else None
         rows.append((rec["t_s"], [m["center_rc"][0], m["center_rc"][1], X], [[cov[a][b] for b in names] for a in names],
-                     rec["C_ci"], body, rec["image"]))
+                     rec["C_ci"], body, rec["image"], noise))
     rows.sort(key=lambda row: row[0])
     t = np.array([row[0] for row in rows], float)
     bodies = [row[4] for row in rows]
     body_pos = np.stack([arc.body_position(b, np.array([ti]))[0] for b, ti in zip(bodies, t)]) if rows else np.zeros((0, 3))
     n = len(rows)
+    noise = None if any(row[6] is None for row in rows) or not rows else np.array([np.diag(row[6]) for row in rows])
+    sun = arc.body_position("sun", t) if rows else None
     return Frames(t=t, z=np.array([row[1] for row in rows], float).reshape(n, 3),
                   R=np.array([row[2] for row in rows], float).reshape(n, 3, 3),
                   C=np.array([row[3] for row in rows], float).reshape(n, 3, 3), body_pos=body_pos,
                   radius_km=np.array([BODY_RADIUS_KM[b] for b in bodies], float),
                   is_range=np.array([1.0 if b == "earth" else 0.0 for b in bodies]),
                   f_nominal=np.full(n, theta0[0]), theta=np.tile(theta0, (n, 1)),
-                  attitude_sigma=np.full(n, float(attitude_sigma_rad)), labels=tuple(row[5] for row in rows))
+                  attitude_sigma=np.full(n, float(attitude_sigma_rad)), labels=tuple(row[5] for row in rows),
+                  sun_pos=sun, R_noise=noise)
 
 
 def single_frame_position(frames: Frames, k: int) -> np.ndarray:
@@ -171,4 +199,5 @@ def single_frame_position(frames: Frames, k: int) -> np.ndarray:
 
 
 __all__ = ["BODY_RADIUS_KM", "CAMERA_PARAMS", "EARTH_RADIUS_KM", "MOON_RADIUS_KM", "Frames", "attitude_jacobian",
-           "camera_theta", "frames_from_records", "predict", "single_frame_position", "total_covariance"]
+           "camera_theta", "frames_from_records", "predict", "single_frame_position", "sun_direction_px",
+           "total_covariance"]

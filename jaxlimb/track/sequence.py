@@ -11,6 +11,11 @@ weigh 1 % of their weight a second time: a loose prior, not a second use of the 
 Order.  Filter and smoother run first; the batch fit of the whole arc (and the camera's self-calibration) starts
 from the smoothed state at the reference time, close enough for Gauss--Newton over days of flight; with
 ``calibrate`` the filter and smoother are run again with the calibrated camera.
+
+Bias states.  With ``bias`` (the default) the filter, the smoother and the batch fit estimate the bodies'
+constant image biases with the trajectory (:mod:`jaxlimb.track.bias`): the model-error part of ``locate``'s
+covariance is common to a body's frames, not independent from frame to frame.  Frames without
+``locate``'s noise/model split get none.
 """
 
 from __future__ import annotations
@@ -71,7 +76,7 @@ def initial_orbit(frames: Frames, prop: Propagator, *, n_init: int = 20, inflati
 
 def track(frames: Frames, prop: Propagator, *, prior: tuple[float, np.ndarray, np.ndarray] | None = None,
           batch: bool = True, calibrate: bool = False, q: float = 1e-15, gate_probability: float = 0.999,
-          n_init: int = 20, prior_inflation: float = 100.0) -> TrackResult:
+          n_init: int = 20, prior_inflation: float = 100.0, bias: bool = True) -> TrackResult:
     """Trajectory of ``frames`` (module docstring).
 
     Parameters
@@ -83,24 +88,27 @@ def track(frames: Frames, prop: Propagator, *, prior: tuple[float, np.ndarray, n
         with the calibrated camera).
     q, gate_probability
         :func:`~jaxlimb.track.filter.run_filter`'s process noise and gate.
+    bias
+        Estimate the bodies' bias states (module docstring).
     """
     prior_given = prior
     if prior is None:
         prior = initial_orbit(frames, prop, n_init=n_init, inflation=prior_inflation, gate_probability=gate_probability)
     t0, x0, P0 = prior
     user_prior = None if prior_given is None else (prior_given[1], prior_given[2])
-    filt = run_filter(frames, prop, x0, P0, t0, q=q, gate_probability=gate_probability)
+    filt = run_filter(frames, prop, x0, P0, t0, q=q, gate_probability=gate_probability, bias=bias)
     fit = None
     if batch or calibrate:
         guess = filt.x_smooth[0] if t0 == frames.t[0] else x0
         t_ref = float(frames.t[0]) if t0 == frames.t[0] else t0
-        fit = fit_arc(frames, prop, t_ref, guess, prior=user_prior, calibrate=calibrate, gate_probability=gate_probability)
+        fit = fit_arc(frames, prop, t_ref, guess, prior=user_prior, calibrate=calibrate, gate_probability=gate_probability,
+                      bias=bias)
     if calibrate and fit is not None:
         frames = Frames(**{**frames.__dict__, "theta": np.tile(fit.theta, (len(frames), 1))})
         if prior_given is None:  # the start again, with the calibrated camera
             t0, x0, P0 = initial_orbit(frames, prop, n_init=n_init, inflation=prior_inflation,
                                        gate_probability=gate_probability)
-        filt = run_filter(frames, prop, x0, P0, t0, q=q, gate_probability=gate_probability)
+        filt = run_filter(frames, prop, x0, P0, t0, q=q, gate_probability=gate_probability, bias=bias)
     return TrackResult(frames, filt, fit, (t0, np.asarray(x0), np.asarray(P0)))
 
 

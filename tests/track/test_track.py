@@ -4,37 +4,24 @@ shared (diffrax + jacfwd compile once)."""
 
 from __future__ import annotations
 
+import jax.numpy as jnp
 import numpy as np
 import pytest
 
-import jax.numpy as jnp
-
-from jaxlimb.geometry.ephemeris import body_position, epoch_to_jd_tdb
+from jaxlimb.geometry.ephemeris import body_position
 from jaxlimb.track import (
-    Propagator,
     average_band,
     drawn_frames,
     fit_arc,
-    make_arc,
-    make_transfer,
     nees,
     nominal_noise,
     run_filter,
 )
 
-THETA = np.array([1000.0, 127.5, 127.5, 0.0])
+from .conftest import THETA, N
+
 # compiling diffrax + jacfwd through it (filter, batch, self-calibration) dominates: ~1-2 min on 2 cores
 slow = pytest.mark.slow
-N = 24
-
-
-@pytest.fixture(scope="module")
-def setup():
-    jd = epoch_to_jd_tdb("2026-03-07T12:00:00Z")
-    arc = make_arc(jd, jd + 3.6)
-    prop = Propagator(arc.table)
-    tr = make_transfer(arc, prop, N, THETA, 256, 256, rng=np.random.default_rng(5))
-    return arc, prop, tr
 
 
 def test_table_matches_the_ephemeris(setup):
