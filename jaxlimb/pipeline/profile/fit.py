@@ -99,8 +99,9 @@ def profile_start(frame: Frame, circle: CircleParams, data: FitData, center) -> 
 def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: float | None = None
                       ) -> tuple[RefineResult, int]:
     """Refit the pixels of the CSF (``circle`` fitted to ``data``) with the physical lunar-Lambert limb profile,
-    widened (limb brightening, smear or glow, patchy sectors) when a score test asks for it, with its model-error
-    terms; clipped pixels are left out when the image saturates.
+    widened (limb brightening, smear or glow, patchy sectors) when a score test asks for it, else with a glow thinner
+    than the PSF free (:func:`~jaxlimb.pipeline.profile.glow.fit_unresolved_glow`), with its model-error terms;
+    clipped pixels are left out when the image saturates.
 
     Parameters
     ----------

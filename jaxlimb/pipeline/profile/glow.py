@@ -1,6 +1,6 @@
 """A glow above the limb (exponential in height, optionally tilted toward the Sun): the score test at fixed scale
-heights, the widened profile fit of a round body, the tilt kept or held, and the plausibility bounds shared with the
-ellipsoid's profile."""
+heights, the widened profile fit of a round body, the glow thinner than the PSF always free when no widening is
+taken, the tilt kept or held, and the plausibility bounds shared with the ellipsoid's profile."""
 
 from __future__ import annotations
 
@@ -134,7 +134,9 @@ def widen_glow(frame: Frame, rr: RefineResult, solver, system=None) -> RefineRes
 def fit_unresolved_glow(frame: Frame, rr: RefineResult, solver) -> RefineResult:
     """``rr`` (a round body's profile without a glow) refitted with a glow thinner than the PSF always free: the
     glow's scale height held at the score test's edge height ``GLOW_H0[1]`` and its tilt at 0, its amplitude fitted
-    (either sign) beside the profile, its column in the covariance; ``rr`` itself when the refit does not converge.
+    beside the profile and bounded below at 0 (a glow only adds light), its column in the covariance; ``rr`` itself
+    when the amplitude comes out at most 0 (the bounded fit's answer is then the fit without it) or the refit does
+    not converge.
 
     Why: a glow whose scale height is a fraction of the PSF's sigma adds a blurred line at the limb whose shape
     hardly depends on its height (:func:`~jaxlimb.models.profile_radiance.glow_outside` tends to ``H`` times the
@@ -143,8 +145,9 @@ def fit_unresolved_glow(frame: Frame, rr: RefineResult, solver) -> RefineResult:
     :func:`widen_glow` at a 1 px height does not see it, and a nuisance left out biases the centre by its ``z``
     times the root of the variance it would add (Hausman 1978), so no threshold on ``z`` keeps a glow it misses
     harmless where that variance is comparable to the centre's.  A free amplitude removes the bias to first order
-    whatever the glow; its cost is the variance it adds, which the covariance carries.  Either sign: a line at
-    the limb of negative amplitude is a limb rim darker than the law's, the same nuisance.
+    whatever the glow; its cost is the variance it adds, which the covariance carries.  Not of either sign: a line
+    of negative amplitude is a limb rim darker than the law's (Hapke's limbs, at up to 20 sigma), inside the limb
+    where this column puts its light outside, and moves the centre the wrong way.
 
     Parameters
     ----------
@@ -167,7 +170,7 @@ def fit_unresolved_glow(frame: Frame, rr: RefineResult, solver) -> RefineResult:
         res, sph = profile_passes(frame, rr.data, start, None, None, fixed, solver, LIMB_PROFILE_GLOW)
     except ConvergenceError:
         return rr
-    if not bool(res.converged) or not math.isfinite(float(res.params.glow)):
+    if not (bool(res.converged) and float(res.params.glow) > 0.0):  # (NaN too)
         return rr
     return RefineResult(res, rr.data, 0, fixed, sphere=sph)
 
