@@ -314,7 +314,20 @@ def prune_coarse(regs: list, errors: list) -> list:  # type: ignore[type-arg]
     """The hypotheses ``(Registration, PoseHypothesis)`` in order of their residual at the same coarse iteration,
     without those whose residual exceeds the best one's by ``_PRUNE_RMS_FRAC`` or exceeds ``_PRUNE_MAX_RMS_FRAC``
     (they could pass neither the residual check nor the ambiguity test; a :class:`~jaxlimb.errors.MatchError`
-    each is appended to ``errors``)."""
+    each is appended to ``errors``).
+
+    Parameters
+    ----------
+    regs : list of (Registration, PoseHypothesis)
+        The hypotheses after the same number of coarse iterations.
+    errors : list
+        Receives a :class:`~jaxlimb.errors.MatchError` for each hypothesis pruned.
+
+    Returns
+    -------
+    list of (Registration, PoseHypothesis)
+        The kept hypotheses, best residual first (a non-finite residual last).
+    """
     regs = sorted(regs, key=lambda r: r[0].state.rms_frac if math.isfinite(r[0].state.rms_frac) else math.inf)
     if not regs:
         return regs
