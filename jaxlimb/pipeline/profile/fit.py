@@ -139,7 +139,13 @@ def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: fl
         res, sph = profile_passes(frame, data, init, center, float(p.radius), fixed, solver)
         base, n_clipped = RefineResult(res, data, 0, fixed, sphere=sph), 0
         system = weighted_system(base, LIMB_PROFILE)  # (shared by the score tests and the model-error term)
-        out = _widened(frame, base, fixed, solver, system)
+        out = base
+        if "L" not in fixed:  # the law adapts: widen it to Minnaert-like limbs when the data ask for it
+            out = widen_brightening(frame, out, solver, system)
+        if out is base:  # a motion smear or a glow above the limb, when the data ask for it
+            out = widen_aniso_or_glow(frame, out, solver, system)
+        if out is base:  # else a glow thinner than the PSF, always free
+            out = fit_unresolved_glow(frame, out, solver)
         if out is base:
             reweighted = downweight_patchy_sectors(frame, out, solver, system)
             if reweighted is base:
@@ -151,19 +157,6 @@ def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: fl
         base = out
     final = with_reweighting_witness(with_model_error(downweight_patchy_sectors(frame, out, solver)), out)
     return (with_aniso_blur_witness(final, base) if isinstance(out.fit.params, AnisoProfileParams) else final), n_clipped
-
-
-def _widened(frame: Frame, base: RefineResult, fixed: tuple[str, ...], solver, system) -> RefineResult:
-    """``base`` widened when the data ask for it: to Minnaert-like limbs (``L`` free), else by a motion smear or a
-    glow above the limb, else by a glow thinner than the PSF (always free); ``base`` itself when none is taken."""
-    out = base
-    if "L" not in fixed:
-        out = widen_brightening(frame, out, solver, system)
-    if out is base:
-        out = widen_aniso_or_glow(frame, out, solver, system)
-    if out is base:
-        out = fit_unresolved_glow(frame, out, solver)
-    return out
 
 
 def _fit_clipped(frame: Frame, data: FitData, init: LimbProfileParams, center, radius: float, sat: float,
