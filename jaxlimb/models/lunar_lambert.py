@@ -67,9 +67,8 @@ shell whose emission falls as :math:`e^{-h/H}` with the altitude (a horizon glow
 ``glow`` family of :mod:`jaxlimb.render.independent`): ``glow`` times :math:`e^{-s/H}` at a distance ``s`` above the
 limb, and times half the grazing column, :math:`\tfrac12\mathrm{erfcx}(\sqrt{u/H})`, at a depth ``u`` on the disc
 (:func:`~jaxlimb.models.profile_radiance.glow_inside`, :func:`~jaxlimb.models.profile_radiance.glow_outside`); ``H = exp(log_h)`` px.  The disc side is integrated with the
-radiance; the sky side blurred in closed form.  On a round body the pipeline fits a glow thinner than the PSF
-always (:func:`jaxlimb.pipeline.profile.glow.fit_unresolved_glow`) and frees its scale height when a score test asks
-for it (:func:`jaxlimb.pipeline.profile.glow.widen_glow`).  The shell is lit by the Sun: at the limb point of image
+radiance; the sky side blurred in closed form.  The pipeline adds the glow only when a score test asks for it
+(:func:`jaxlimb.pipeline.profile.glow.widen_glow`).  The shell is lit by the Sun: at the limb point of image
 position angle :math:`\psi` from the Sun's image direction the solar elevation over the tangent point is
 :math:`\sin^{-1}(\sin\alpha\cos\psi)` (phase :math:`\alpha`), so the glow is brighter toward the Sun.  To first
 order in ``cpsi`` :math:`= \cos\psi` its radiance is ``glow (1 + glow_tilt cpsi)`` (``glow_tilt`` fitted; 0 is a

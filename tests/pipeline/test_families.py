@@ -199,37 +199,18 @@ def test_glow_limb_is_fitted_by_the_widened_profile(monkeypatch):
     assert err < 0.03 and nees < 13.8
     assert 0.05 < prof["glow"] < 0.5 and 0.1 < prof["glow_scale_px"] < 5.0
     monkeypatch.setattr(glow, "GLOW_Z", math.inf)
-    monkeypatch.setattr(profile_fit, "fit_unresolved_glow", lambda frame, rr, solver: rr)
     m0 = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert m0.extras["profile"]["glow"] == 0.0
     assert _errors(case, m0)[0] > 5 * err + 0.1
 
 
-def test_glow_thinner_than_the_psf_is_fitted_without_a_gate(monkeypatch):
-    """A glow 0.2 px thick (8.5 km at 313 000 km; 0.23 of a Lambert disc) above a 40 px crescent at 103 deg phase
-    (trial 20 of ``jaxlimb montecarlo --pipeline --families own,hapke,glow --n 36``): the 1 px score test does not
-    see it (z -0.4), yet left out it moves the centre 0.16 px along the Sun at sigma 0.02 (NEES 48.6).  With the
-    amplitude of a glow thinner than the PSF always free the answer is 0.12 px off at sigma 0.04 (NEES 8.8)."""
-    case = moon_case("glow", np.random.default_rng(7515880314730834522))
-    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
-    err, nees = _errors(case, m)
-    assert err < 0.14 and nees < 13.8
-    assert m.extras["profile"]["glow"] > 0.0 and m.extras["profile"]["glow_scale_px"] == pytest.approx(glow.GLOW_H0[1])
-    monkeypatch.setattr(profile_fit, "fit_unresolved_glow", lambda frame, rr, solver: rr)
-    m0 = locate(case.image, case.camera, Hints.from_dict(case.hints))
-    assert m0.extras["profile"]["glow"] == 0.0
-    assert _errors(case, m0)[1] > 30.0
-
-
 @pytest.mark.parametrize("family, idx", [("own", 2), ("hapke", 1), ("maria", 4), ("airy", 4)])
 def test_glow_gate_stays_shut_without_a_glow(family, idx):
-    """No widened glow on lunar-Lambert and Hapke limbs; nor on a maria frame (forced, the glow fit moved its centre
-    from 0.05 to 0.25 px off) or an Airy frame whose edge loses light (from 0.007 to 0.043 px): the profile keeps the
-    glow thinner than the PSF at most (scale height held at ``GLOW_H0[1]``)."""
+    """No glow on lunar-Lambert and Hapke limbs; nor on a maria frame (forced, the glow fit moved its centre from
+    0.05 to 0.25 px off) or an Airy frame whose edge loses light (from 0.007 to 0.043 px)."""
     case = _moon(family, idx)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
-    prof = m.extras["profile"]
-    assert prof["glow"] == 0.0 or prof["glow_scale_px"] == pytest.approx(glow.GLOW_H0[1])
+    assert m.extras["profile"]["glow"] == 0.0
 
 
 def _earth(family: str, idx: int):

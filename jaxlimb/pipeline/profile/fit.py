@@ -16,7 +16,7 @@ from ...models import (AnisoProfileParams, CircleParams, LIMB_PROFILE, LimbProfi
                        PROFILE_FIXED)
 from ..sigmoid import LOGISTIC_TO_GAUSS, predict
 from ..stages import FitData, Frame, RefineResult
-from .glow import fit_unresolved_glow, widen_aniso_or_glow
+from .glow import widen_aniso_or_glow
 from .model_error import weighted_system, with_model_error
 from .passes import gaussian_sigma_of_k, PROFILE_HELD, profile_passes
 from .patchy import downweight_patchy_sectors, with_reweighting_witness
@@ -99,9 +99,8 @@ def profile_start(frame: Frame, circle: CircleParams, data: FitData, center) -> 
 def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: float | None = None
                       ) -> tuple[RefineResult, int]:
     """Refit the pixels of the CSF (``circle`` fitted to ``data``) with the physical lunar-Lambert limb profile,
-    widened (limb brightening, smear or glow, patchy sectors) when a score test asks for it, else with a glow thinner
-    than the PSF free (:func:`~jaxlimb.pipeline.profile.glow.fit_unresolved_glow`), with its model-error terms;
-    clipped pixels are left out when the image saturates.
+    widened (limb brightening, smear or glow, patchy sectors) when a score test asks for it, with its model-error
+    terms; clipped pixels are left out when the image saturates.
 
     Parameters
     ----------
@@ -144,8 +143,6 @@ def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: fl
             out = widen_brightening(frame, out, solver, system)
         if out is base:  # a motion smear or a glow above the limb, when the data ask for it
             out = widen_aniso_or_glow(frame, out, solver, system)
-        if out is base:  # else a glow thinner than the PSF, always free
-            out = fit_unresolved_glow(frame, out, solver)
         if out is base:
             reweighted = downweight_patchy_sectors(frame, out, solver, system)
             if reweighted is base:

@@ -1,6 +1,6 @@
 """A glow above the limb (exponential in height, optionally tilted toward the Sun): the score test at fixed scale
-heights, the widened profile fit of a round body, the glow thinner than the PSF always free when no widening is
-taken, the tilt kept or held, and the plausibility bounds shared with the ellipsoid's profile."""
+heights, the widened profile fit of a round body, the tilt kept or held, and the plausibility bounds shared with the
+ellipsoid's profile."""
 
 from __future__ import annotations
 
@@ -127,50 +127,6 @@ def widen_glow(frame: Frame, rr: RefineResult, solver, system=None) -> RefineRes
     except ConvergenceError:
         return rr
     if not glow_plausible(res.params):
-        return rr
-    return RefineResult(res, rr.data, 0, fixed, sphere=sph)
-
-
-def fit_unresolved_glow(frame: Frame, rr: RefineResult, solver) -> RefineResult:
-    """``rr`` (a round body's profile without a glow) refitted with a glow thinner than the PSF always free: the
-    glow's scale height held at the score test's edge height ``GLOW_H0[1]`` and its tilt at 0, its amplitude fitted
-    beside the profile and bounded below at 0 (a glow only adds light), its column in the covariance; ``rr`` itself
-    when the amplitude comes out at most 0 (the bounded fit's answer is then the fit without it) or the refit does
-    not converge.
-
-    Why: a glow whose scale height is a fraction of the PSF's sigma adds a blurred line at the limb whose shape
-    hardly depends on its height (:func:`~jaxlimb.models.profile_radiance.glow_outside` tends to ``H`` times the
-    PSF as ``H/sigma_e -> 0``), and shifts the edge outward by its light over the limb's radiance, more where the
-    limb is dark (toward the horns): on a crescent the centre moves along the Sun.  The score test of
-    :func:`widen_glow` at a 1 px height does not see it, and a nuisance left out biases the centre by its ``z``
-    times the root of the variance it would add (Hausman 1978), so no threshold on ``z`` keeps a glow it misses
-    harmless where that variance is comparable to the centre's.  A free amplitude removes the bias to first order
-    whatever the glow; its cost is the variance it adds, which the covariance carries.  Not of either sign: a line
-    of negative amplitude is a limb rim darker than the law's (Hapke's limbs, at up to 20 sigma), inside the limb
-    where this column puts its light outside, and moves the centre the wrong way.
-
-    Parameters
-    ----------
-    frame : Frame
-        The frame (camera, options).
-    rr : RefineResult
-        A fit of :data:`~jaxlimb.models.LIMB_PROFILE`.
-    solver : solver or None
-        The solver of the refit.
-
-    Returns
-    -------
-    RefineResult
-        The refit, or ``rr``.
-    """
-    p = rr.fit.params
-    start = GlowProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()], 0.0, math.log(GLOW_H0[1]))
-    fixed = rr.fixed + ("glow_tilt", "log_h")
-    try:
-        res, sph = profile_passes(frame, rr.data, start, None, None, fixed, solver, LIMB_PROFILE_GLOW)
-    except ConvergenceError:
-        return rr
-    if not (bool(res.converged) and float(res.params.glow) > 0.0):  # (NaN too)
         return rr
     return RefineResult(res, rr.data, 0, fixed, sphere=sph)
 
@@ -337,4 +293,4 @@ def widen_aniso_or_glow(frame: Frame, rr: RefineResult, solver, system=None) -> 
     return aniso if float(aniso.fit.rms) < float(glow.fit.rms) else glow
 
 
-__all__ = ["GLOW_H0", "GLOW_H_RANGE", "GLOW_MAX", "GLOW_TILT_MAX", "GLOW_TILT_MIN_H_PX", "GLOW_TILT_Z", "GLOW_Z", "fit_glow_tilt", "fit_unresolved_glow", "glow_columns", "glow_plausible", "glow_start", "glow_step", "tilt_kept", "tilt_significant", "widen_aniso_or_glow", "widen_glow"]
+__all__ = ["GLOW_H0", "GLOW_H_RANGE", "GLOW_MAX", "GLOW_TILT_MAX", "GLOW_TILT_MIN_H_PX", "GLOW_TILT_Z", "GLOW_Z", "fit_glow_tilt", "glow_columns", "glow_plausible", "glow_start", "glow_step", "tilt_kept", "tilt_significant", "widen_aniso_or_glow", "widen_glow"]
