@@ -113,10 +113,10 @@ def test_the_least_recently_used_entries_are_evicted_beyond_the_limit(folder, mo
 def test_the_functions_a_warm_locate_calls_are_stored():
     """What a later ``jaxlimb locate`` process would otherwise trace and lower again (the profile's columns, its
     Fisher matrix, the glow and brightening score columns; the fit cores: tests/cli/test_speed_cli.py)."""
-    from jaxlimb.models import lunar_lambert
+    from jaxlimb.models import lunar_lambert, profile_columns
     from jaxlimb.pipeline import sigmoid
     from jaxlimb.pipeline.profile import glow, model_error
 
     for f in (sigmoid._fisher_jit, sigmoid._predict_jit, model_error._columns, model_error._signed_profile,
-              glow.glow_columns, lunar_lambert.brightening_column, lunar_lambert.glow_column):
+              glow.glow_columns, lunar_lambert.brightening_column, profile_columns.glow_column):
         assert isinstance(f, pg.StoredJit), f

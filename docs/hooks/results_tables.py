@@ -172,6 +172,18 @@ def albedo_invariance(rel: str = "albedo_invariance.json") -> str:
 
 
 @renderer
+def albedo_bound(rel: str = "albedo_bound.json") -> str:
+    """The centre's Cramér--Rao bound without and with the spots family's albedo field marginalised."""
+    d = load(rel)
+    rows = [[f"moon, {s['range_km']:,.0f} km, {s['phase_deg']:.0f}° ({s['radius_px']:.0f} px)", f(s["white_px"], 4),
+             f(s["field_px"], 4), f(s["albedo_part_px"], 4), f(s["ratio"], 2)] for s in d["scenes"]]
+    head = ["scene", "noise-only bound (px, per axis)", "with the albedo field (px)", "albedo's part (px)",
+            "albedo's part / noise-only"]
+    return (table(head, rows) + source(rel, d)
+            + f"*Spots-family prior: relative albedo σ {d['tau']:.3f}, correlation length {d['ell_deg']:.1f}°.*\n")
+
+
+@renderer
 def navigate_e2e(rel: str = "navigate_e2e.json") -> str:
     d = load(rel)
     rows = []

@@ -42,7 +42,8 @@ from ..errors import LimbInputError
 from ..fitting import bucket_size
 from ..numerics import numerical_jacobian
 from ..geometry.navigation import sphere_from_circle
-from ..models import LimbModel, LimbParams
+from ..models import LIMB_PROFILE, PROFILE_FIXED, LimbModel, LimbParams
+from ..models.profile_columns import albedo_field_columns, albedo_nodes, albedo_prior
 
 
 @dataclass(frozen=True)
@@ -175,6 +176,63 @@ def crlb(model: LimbModel, coords: np.ndarray, truth: LimbParams, sigma: float, 
     fisher = jac.T @ (jac / var[:, None])
     cov = np.linalg.inv(fisher)
     return CramerRao(tuple(model.param_names[i] for i in free_idx), fisher, cov)
+
+
+def albedo_field_crlb(coords: np.ndarray, truth, var: np.ndarray, tau: float, ell_rad: float, *,
+                      fixed: Sequence[str] | None = None) -> CramerRao:
+    r"""Cramér--Rao bound of the physical limb profile's free parameters when the surface albedo varies: a
+    zero-mean Gaussian field of relative standard deviation ``tau`` and correlation length ``ell_rad``
+    (:mod:`jaxlimb.models.profile_columns`), marginalised.
+
+    The Bayesian bound of a linear-Gaussian nuisance (Van Trees 1968, Sec. 2.4):
+    ``F = J^T Sigma^-1 J`` with ``Sigma = diag(var) + K C K^T`` (``K`` the albedo field's columns, ``C`` its
+    prior), computed through ``C = L L^T`` as ``J^T D^-1 J - B^T (I + L^T K^T D^-1 K L)^-1 B``,
+    ``B = L^T K^T D^-1 J``.  ``tau = 0`` gives :func:`crlb`'s bound.  No estimator that treats the albedo as
+    unknown within this prior does better; a one-albedo fit has a smaller variance but a bias the bound counts.
+
+    Parameters
+    ----------
+    coords : np.ndarray (n, 2)
+        Pixels as (row, col).
+    truth : LimbProfileParams
+        True profile (lunar-Lambert radiance).
+    var : np.ndarray (n,)
+        Noise variance of each pixel (DN^2), e.g. :func:`pixel_variance`.
+    tau : float
+        Relative albedo standard deviation (>= 0).
+    ell_rad : float
+        Its correlation length on the sphere (rad, > 0).
+    fixed : sequence of str, optional
+        Parameters held known (default: :data:`jaxlimb.models.PROFILE_FIXED`).
+
+    Returns
+    -------
+    CramerRao
+        As :func:`crlb`.
+
+    Raises
+    ------
+    LimbInputError
+        ``tau < 0``, ``ell_rad <= 0`` or a variance not > 0.
+    """
+    var = np.asarray(var, float)
+    if not (tau >= 0 and ell_rad > 0 and np.all(var > 0)):
+        raise LimbInputError(f"albedo field: need tau >= 0, ell_rad > 0, var > 0; got {tau!r}, {ell_rad!r}")
+    coords = np.asarray(coords, float)
+    free_idx = LIMB_PROFILE.free_indices(PROFILE_FIXED if fixed is None else fixed)
+    jac = _padded_eval(LIMB_PROFILE, "jacobian", truth, coords)[:, list(free_idx)]
+    fisher = jac.T @ (jac / var[:, None])
+    if tau > 0:
+        theta, n_psi = albedo_nodes(truth, coords, ell_rad)
+        K = np.asarray(albedo_field_columns(truth, jnp.asarray(coords), jnp.asarray(theta), jnp.zeros(n_psi)))
+        w, V = np.linalg.eigh(albedo_prior(theta, n_psi, tau, ell_rad))
+        keep = w > 1e-12 * w.max()
+        KL = K @ (V[:, keep] * np.sqrt(w[keep]))
+        B = KL.T @ (jac / var[:, None])
+        inner = np.eye(KL.shape[1]) + KL.T @ (KL / var[:, None])
+        fisher = fisher - B.T @ np.linalg.solve(inner, B)
+    fisher = 0.5 * (fisher + fisher.T)
+    return CramerRao(tuple(LIMB_PROFILE.param_names[i] for i in free_idx), fisher, np.linalg.inv(fisher))
 
 
 # =============================================================================== derived quantities

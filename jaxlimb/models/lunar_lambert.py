@@ -127,11 +127,26 @@ def quadrature_nodes(n: int) -> Iterator[None]:
 register_trace_setting("lunar_lambert.quadrature_nodes", lambda: str(len(_GL_X)))  # traced programs depend on it
 
 
-def _window(d, R, se, lit=None, partials: bool = False):
-    """The blur integral's window in ``v`` (depth ``v^2``): ``R - d -+ 6 se``; ``lit = (p, cpsi, alpha0)``: cut to its
-    lit side of the terminator (:func:`~jaxlimb.models.profile_radiance.lit_limits`), for the radiance; ``None`` for
-    the glow, which the terminator does not bound.  With ``partials`` also the ends' partials over
-    :data:`~jaxlimb.models.profile_radiance.WINDOW_KEYS`, ``(6, n)``."""
+def blur_window(d, R, se, lit=None, partials: bool = False):
+    """The blur integral's window in ``v`` (depth ``v^2``): ``R - d -+ 6 se``, cut to its lit side of the terminator
+    (:func:`~jaxlimb.models.profile_radiance.lit_limits`) for the radiance.
+
+    Parameters
+    ----------
+    d, R : jax.Array (n,)
+        Distance of each pixel from the centre and the limb radius along its ray (px).
+    se : float or jax.Array
+        Blur sigma with the pixel's box (px).
+    lit : tuple or None
+        ``(p, cpsi, alpha0)``: cut at the terminator; ``None`` (the glow, which the terminator does not bound): uncut.
+    partials : bool
+        Also the ends' partials over :data:`~jaxlimb.models.profile_radiance.WINDOW_KEYS`, ``(6, n)`` each.
+
+    Returns
+    -------
+    tuple of jax.Array
+        ``(v0, v1)``, with ``partials`` ``(v0, v1, dv0, dv1)``.
+    """
     u0, u1 = R - d - 6.0 * se, R - d + 6.0 * se
     v0, v1 = jnp.sqrt(jnp.maximum(u0, 1e-12)), jnp.sqrt(jnp.maximum(u1, 1e-12))
     if not partials:
@@ -144,10 +159,24 @@ def _window(d, R, se, lit=None, partials: bool = False):
     return lit_limits(lit[0], v0, v1, R, lit[1], lit[2], dv0, dv1)
 
 
-def _blur_nodes(d, R, se, v0, v1):
-    """The quadrature of the radial blur (module docstring) on ``[v0, v1]``: nodes ``v`` ``(n, nodes)``, the
-    Gaussian's argument ``t = (d - R + v^2) / se``, its density ``gauss`` and the weights ``g`` (the density x
-    ``2v dv`` x the rule's weights)."""
+def blur_nodes(d, R, se, v0, v1):
+    """The Gauss-Legendre quadrature of the radial blur (module docstring) on ``[v0, v1]``.
+
+    Parameters
+    ----------
+    d, R : jax.Array (n,)
+        As :func:`blur_window`.
+    se : float or jax.Array
+        Blur sigma (px).
+    v0, v1 : jax.Array (n,)
+        The window (:func:`blur_window`).
+
+    Returns
+    -------
+    tuple of jax.Array (n, nodes)
+        The nodes ``v``, the Gaussian's argument ``t = (d - R + v^2) / se``, its density and the weights ``g`` (the
+        density x ``2v dv`` x the rule's weights): ``sum(h(v) g)`` blurs a radiance ``h`` of the depth ``v^2``.
+    """
     half = 0.5 * (v1 - v0)
     v = half[..., None] * (jnp.asarray(_GL_X) + 1.0) + v0[..., None]  # (n, nodes)
     sn = jnp.asarray(se)[..., None]  # one sigma_e per pixel (AnisoProfileParams) or one for all
@@ -157,7 +186,7 @@ def _blur_nodes(d, R, se, v0, v1):
 
 
 def _blur_moments(J, t, g, se, second: bool):
-    """The blur of ``J`` on the nodes ``(t, g)`` of :func:`_blur_nodes`: ``F1 = int J g`` and ``dF1/dd``; with
+    """The blur of ``J`` on the nodes ``(t, g)`` of :func:`blur_nodes`: ``F1 = int J g`` and ``dF1/dd``; with
     ``second`` also ``d^2F1/dd^2`` and ``-int J t (t^2 - 3) g / se^2`` (the ``se`` partial of ``dF1/dd``, up to the
     chain factor); ``None`` for those otherwise."""
     m0, m1 = jnp.sum(J * g, axis=-1), -jnp.sum(J * t * g / jnp.asarray(se)[..., None], axis=-1)
@@ -196,8 +225,8 @@ def _glow_integrals(p: GlowProfileParams, d, R, se, cpsi, s2d, derivatives: bool
     """The glow's part of the blurred profile (times its radiance ``gl`` at this position angle): on the disc by the
     quadrature on the uncut window, above the limb in closed form; with ``derivatives`` its partials' pieces."""
     gl = p.glow * (1.0 + p.glow_tilt * cpsi)  # the glow at this position angle (GlowProfileParams)
-    win = _window(d, R, se, None, derivatives)
-    nodes = _blur_nodes(d, R, se, win[0], win[1])
+    win = blur_window(d, R, se, None, derivatives)
+    nodes = blur_nodes(d, R, se, win[0], win[1])
     t, g = nodes[1], nodes[3]
     inside = glow_inside(p, nodes[0], node=derivatives)
     G1, G1_d, G1_dd, G1_dse = _blur_moments(inside[0], t, g, se, derivatives)
@@ -276,10 +305,10 @@ def profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brigh
     """
     alpha0 = jnp.arctan(p.rho * p.a * p.inv_f)
     se = jnp.sqrt(p.sigma * p.sigma + 1.0 / 12.0 + (0.0 if s2 is None else s2))
-    win = _window(d, R, se, (p, cpsi, alpha0), derivatives and window)
+    win = blur_window(d, R, se, (p, cpsi, alpha0), derivatives and window)
     if derivatives and window:
         win = jax.lax.optimization_barrier(win)  # the ends' partials: once per pixel, not once per column
-    nodes = _blur_nodes(d, R, se, win[0], win[1])
+    nodes = blur_nodes(d, R, se, win[0], win[1])
     rad = radiance_parts(p, nodes[0], R[..., None], cpsi[..., None], alpha0, brightened)
     F1, F1_d, F1_dd, F1_dse = _blur_moments(rad[0], nodes[1], nodes[3], se, derivatives)
     s2d = se * se / (2.0 * d)
@@ -463,38 +492,7 @@ def profile_model(p: LimbProfileParams) -> LimbModel:
     return LIMB_PROFILE_GLOW if isinstance(p, GlowProfileParams) else LIMB_PROFILE
 
 
-@stored_jit
-def glow_column(p: LimbProfileParams, rc, log_h):
-    r"""The column of ``glow`` (:class:`GlowProfileParams`) at ``glow = 0`` and scale height ``exp(log_h)`` px:
-    the derivative of the profile ``p`` toward a glow, for a score test (the intensity's cost).
-
-    Parameters
-    ----------
-    p : LimbProfileParams
-        The fitted profile (without a glow).
-    rc : jax.Array (n, 2)
-        Pixel coordinates as ``(row, col)``.
-    log_h : float or jax.Array ()
-        Log of the glow's scale height (px).
-
-    Returns
-    -------
-    jax.Array (n,)
-        :math:`\partial f/\partial\,\mathrm{glow}` at each pixel.
-    """
-    q = GlowProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()], 0.0, log_h)
-    _, _, _, _, d, _, R, cpsi = limb_geometry(q, rc)
-    return q.amp * _glow_unit(q, d, R, jnp.sqrt(q.sigma * q.sigma + 1.0 / 12.0))
-
-
-def _glow_unit(p: GlowProfileParams, d, R, se):
-    """The blurred glow of unit ``glow`` (both sides of the limb, curvature term included)."""
-    nodes = _blur_nodes(d, R, se, *_window(d, R, se))
-    F1, F1_d, _, _ = _blur_moments(glow_inside(p, nodes[0])[0], nodes[1], nodes[3], se, False)
-    return F1 + se * se / (2.0 * d) * F1_d + glow_outside(p, d - R, se, d, False)[0]
-
-
 __all__ = ["LIMB_PROFILE", "LIMB_PROFILE_ANISO", "AnisoProfileParams", "LIMB_PROFILE_GLOW", "LIMB_PROFILE_MINNAERT",
-           "GlowProfileParams", "LimbProfileParams", "MinnaertProfileParams", "brightening_column", "glow_column",
-           "glow_fields", "limb_geometry", "PHYSICAL_L", "PROFILE_FIXED", "limb_profile_intensity",
+           "GlowProfileParams", "LimbProfileParams", "MinnaertProfileParams", "blur_nodes", "blur_window",
+           "brightening_column", "glow_fields", "limb_geometry", "PHYSICAL_L", "PROFILE_FIXED", "limb_profile_intensity",
            "lunar_lambert_weight", "profile_integrals", "profile_model", "quadrature_nodes", "window_regime"]

@@ -76,3 +76,36 @@ def test_crlb_los_range_from_model_bound():
     assert b.sigma_range_km == pytest.approx(float(range_sigma_from_radius_sigma(D, sr, cam, MOON_KM)), rel=0.02)
     with pytest.raises(LimbInputError, match="radius"):
         crlb_los_range(crlb(CIRCLE, rc, truth, 10.0, fixed=("radius",)), truth, cam, MOON_KM)
+
+
+def test_albedo_field_bound_is_the_white_bound_without_albedo_and_the_dense_one_with_it():
+    """``tau = 0`` gives :func:`crlb`'s bound; with an albedo field the Woodbury form equals
+    ``(J^T Sigma^-1 J)^-1`` with ``Sigma = D + K C K^T`` formed densely, and the centre's bound grows with ``tau``."""
+    import math
+
+    import jax.numpy as jnp
+
+    from jaxlimb.analysis.crlb import albedo_field_crlb
+    from jaxlimb.models import LIMB_PROFILE, PROFILE_FIXED, LimbProfileParams
+    from jaxlimb.models.profile_columns import albedo_field_columns, albedo_nodes, albedo_prior
+
+    p = LimbProfileParams(r0=100.0, c0=110.0, a=30.0, theta=0.0, rho=1.0, sigma=0.9, amp=1000.0, ymin=5.0, sun_r=0.6,
+                          sun_c=0.8, phase=0.8, inv_f=1e-4, L=0.5)
+    ang = np.linspace(0.0, 2.0 * math.pi, 90, endpoint=False)
+    g = np.stack(np.meshgrid(ang, np.linspace(25.0, 35.0, 5)), -1).reshape(-1, 2)
+    rc = np.column_stack([100.0 + g[:, 1] * np.sin(g[:, 0]), 110.0 + g[:, 1] * np.cos(g[:, 0])])
+    var = np.full(len(rc), 900.0)
+    white = crlb(LIMB_PROFILE, rc, p, 30.0, fixed=PROFILE_FIXED)
+    none = albedo_field_crlb(rc, p, var, 0.0, 0.2)
+    np.testing.assert_allclose(none.covariance, white.covariance, rtol=1e-9)
+    ell = math.radians(20.0)
+    field = albedo_field_crlb(rc, p, var, 0.15, ell)
+    theta, n_psi = albedo_nodes(p, rc, ell)
+    K = np.asarray(albedo_field_columns(p, jnp.asarray(rc), jnp.asarray(theta), jnp.zeros(n_psi)))
+    J = np.asarray(LIMB_PROFILE.jacobian(p, jnp.asarray(rc)))[:, list(LIMB_PROFILE.free_indices(PROFILE_FIXED))]
+    S = np.diag(var) + K @ albedo_prior(theta, n_psi, 0.15, ell) @ K.T
+    np.testing.assert_allclose(field.covariance, np.linalg.inv(J.T @ np.linalg.solve(S, J)), rtol=1e-6)
+    small = albedo_field_crlb(rc, p, var, 0.05, ell)
+    assert white.std["r0"] < small.std["r0"] < field.std["r0"]
+    with pytest.raises(LimbInputError):
+        albedo_field_crlb(rc, p, var, -0.1, ell)

@@ -208,7 +208,7 @@ def test_glow_column_is_the_glow_column_at_zero():
     ``glow = 0`` is the lunar-Lambert profile (its columns against autodiff and central differences:
     tests/models/test_physical_models.py)."""
     from jaxlimb.models import LIMB_PROFILE_GLOW, GlowProfileParams
-    from jaxlimb.models.lunar_lambert import glow_column
+    from jaxlimb.models.profile_columns import glow_column
 
     p, q = _params(math.radians(70.0)), _glow_params(0.0, 0.8)
     rc, _ = _ring(4, n=256)

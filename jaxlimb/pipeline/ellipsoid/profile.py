@@ -306,7 +306,7 @@ def with_unresolved_glow(body: EllipsoidModel, rr: RefineResult, system=None) ->
     fit did not take (``EllipsoidOptions.unresolved_glow = (g_max, H_lo, H_hi)``: brightness uniform on
     ``[0, g_max]`` in units of ``amp``, scale height uniform on ``[H_lo, H_hi]`` km): ``C + mean_k s_k^2 G_k G_k^T``
     over :data:`UNRESOLVED_GLOW_NODES` scale heights ``H_k`` (midpoints of equal bins), ``G_k = (J^T J)^-1 J^T c_k``
-    the fit's response to the unit glow column ``c_k`` (:func:`~jaxlimb.models.lunar_lambert.glow_column`) at
+    the fit's response to the unit glow column ``c_k`` (:func:`~jaxlimb.models.profile_columns.glow_column`) at
     ``h_k = H_k a / R_e`` px and ``s_k = min(g_max / sqrt(3), GLOW_Z s_d,k)``: the root mean square of a glow
     uniform up to ``g_max`` or, where the data would see a smaller one, the largest the glow gate can miss
     (:data:`~jaxlimb.pipeline.profile.glow.GLOW_Z` times ``s_d,k``, the data's own sigma of that glow with the fit's

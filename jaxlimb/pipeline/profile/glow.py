@@ -13,7 +13,7 @@ import numpy as np
 from ..._programs import stored_jit
 from ...errors import ConvergenceError
 from ...models import GlowProfileParams, LIMB_PROFILE, LIMB_PROFILE_GLOW, LimbProfileParams
-from ...models.lunar_lambert import glow_column
+from ...models.profile_columns import glow_column
 from ..stages import Frame, RefineResult
 from .model_error import last_step, weighted_system
 from .passes import profile_passes
@@ -65,7 +65,7 @@ def glow_step(rr: RefineResult, system=None) -> list[tuple[float, float]]:
 
 @stored_jit
 def glow_columns(p, rc, h):
-    """:func:`~jaxlimb.models.lunar_lambert.glow_column` at each scale height ``h``: the score-test columns of
+    """:func:`~jaxlimb.models.profile_columns.glow_column` at each scale height ``h``: the score-test columns of
     :func:`glow_step` (one compiled program, stored: :func:`jaxlimb._programs.stored_jit`).
 
     Parameters

@@ -1,0 +1,160 @@
+r"""Columns of the physical limb profile (:mod:`jaxlimb.models.lunar_lambert`) toward what it does not fit: a glow
+above the limb (a score test's column) and an albedo that varies over the surface (a Gaussian nuisance).
+
+Albedo field.  The profile assumes one albedo.  A real surface's albedo varies across the few pixels inside the
+limb as well as along it, and a fit with one albedo reads an albedo that darkens toward the limb as an edge moved
+inward.  The edge is where the surface ends; the albedo only scales the radiance inside it.  Write the albedo as
+:math:`A\,(1 + a)` with :math:`a` a zero-mean random field on the sphere, represented on nodes
+:math:`(\theta_m, \psi_n)` (surface angle from the limb, :math:`\theta = \sin^{-1}\mu`, and image position angle
+of the ray) by hat functions :math:`h_m(\theta)\,g_n(\psi)`.  The profile is linear in the nodes' values:
+
+.. math:: f_i = f_i^0 + \sum_{mn} K_{i,mn}\, a_{mn}, \qquad
+          K_{i,mn} = A_{\mathrm{amp}}\, g_n(\psi_i)\int I(v)\, h_m(\theta(v))\, N(d_i - R_i + v^2; \sigma_e)\,2v\,dv
+
+(the blur integral of :mod:`jaxlimb.models.lunar_lambert` with the radiance times the hat, curvature term included;
+the hats sum to one, so :math:`\sum_{mn} K_{i,mn}` is the profile's radiance part).  With a Gaussian prior
+:math:`a \sim N(0, C)`, :math:`C_{jk} = \tau^2 \exp(-\gamma_{jk}^2 / 2\ell^2)` (:math:`\gamma` the great-circle
+angle between two nodes, the limb taken as the great circle normal to the line of sight), the pixels' covariance
+is :math:`\Sigma = D + K C K^\top` and the geometry's information :math:`J^\top\Sigma^{-1}J`: the Bayesian
+Cramér--Rao bound with the albedo marginalised (Van Trees 1968, Sec. 2.4), and the weight of the generalised
+least-squares fit that attains it.  The nodes are spaced at a third of :math:`\ell` in both angles, so the hats
+resolve every field the prior allows.
+"""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .._programs import stored_jit
+from .lunar_lambert import blur_nodes, blur_window
+from .profile_params import GlowProfileParams, LimbProfileParams
+from .profile_radiance import glow_inside, glow_outside, limb_geometry, radiance_parts
+
+
+@stored_jit
+def glow_column(p: LimbProfileParams, rc, log_h):
+    r"""The column of ``glow`` (:class:`GlowProfileParams`) at ``glow = 0`` and scale height ``exp(log_h)`` px:
+    the derivative of the profile ``p`` toward a glow, for a score test (the intensity's cost).
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        The fitted profile (without a glow).
+    rc : jax.Array (n, 2)
+        Pixel coordinates as ``(row, col)``.
+    log_h : float or jax.Array ()
+        Log of the glow's scale height (px).
+
+    Returns
+    -------
+    jax.Array (n,)
+        :math:`\partial f/\partial\,\mathrm{glow}` at each pixel.
+    """
+    q = GlowProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()], 0.0, log_h)
+    _, _, _, _, d, _, R, _ = limb_geometry(q, rc)
+    se = jnp.sqrt(q.sigma * q.sigma + 1.0 / 12.0)
+    v, t, _, g = blur_nodes(d, R, se, *blur_window(d, R, se))
+    J = glow_inside(q, v)[0]
+    F1, F1_d = jnp.sum(J * g, axis=-1), -jnp.sum(J * t * g / se, axis=-1)
+    return q.amp * (F1 + se * se / (2.0 * d) * F1_d + glow_outside(q, d - R, se, d, False)[0])
+
+
+def albedo_nodes(p: LimbProfileParams, rc, ell_rad: float) -> tuple[np.ndarray, int]:
+    """The albedo field's nodes for a profile ``p`` on pixels ``rc``: surface angles from the limb to the deepest
+    pixel's window, and the number of position angles, both spaced at ``ell_rad / 3`` (module docstring).
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        The profile (its centre, radius and blur).
+    rc : array_like (n, 2)
+        Pixel coordinates as ``(row, col)``.
+    ell_rad : float
+        The prior's correlation length (rad).
+
+    Returns
+    -------
+    theta : numpy.ndarray (m,)
+        Surface angles from the limb (rad), from 0.
+    n_psi : int
+        Position-angle nodes around the limb.
+    """
+    rc = np.asarray(rc, float)
+    step = ell_rad / 3.0
+    depth = float(p.a) - float(np.min(np.hypot(rc[:, 0] - float(p.r0), rc[:, 1] - float(p.c0))))
+    depth += 6.0 * math.sqrt(float(p.sigma) ** 2 + 1.0 / 12.0)
+    th_max = math.asin(min(1.0, math.sqrt(max(depth, 0.0) * (2.0 * float(p.a) - depth)) / float(p.a)))
+    return np.arange(int(math.ceil(th_max / step)) + 1) * step, max(int(math.ceil(2.0 * math.pi / step)), 3)
+
+
+@jax.jit
+def albedo_field_columns(p: LimbProfileParams, rc, theta, n_psi_onehot):
+    r""":math:`K` of the module docstring: the profile's response to the albedo at each node.
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        The profile (lunar-Lambert radiance, no glow or brightening).
+    rc : jax.Array (n, 2)
+        Pixel coordinates as ``(row, col)``.
+    theta : jax.Array (m,)
+        Node surface angles (rad), evenly spaced from 0 (:func:`albedo_nodes`).
+    n_psi_onehot : jax.Array (k,)
+        Any array of length ``k``, the number of position-angle nodes (its shape carries ``k`` through the trace).
+
+    Returns
+    -------
+    jax.Array (n, m * k)
+        Column ``m * k_index + n_index`` is node ``(theta_m, psi_n)``, ``psi_n = 2 pi n / k``.
+    """
+    dr, dc, _, _, d, _, R, cpsi = limb_geometry(p, rc)
+    alpha0 = jnp.arctan(p.rho * p.a * p.inv_f)
+    se = jnp.sqrt(p.sigma * p.sigma + 1.0 / 12.0)
+    v, t, _, g = blur_nodes(d, R, se, *blur_window(d, R, se, (p, cpsi, alpha0)))
+    I = radiance_parts(p, v, R[..., None], cpsi[..., None], alpha0, False)[0]
+    q = jnp.clip(1.0 - v * v / R[..., None], 0.0, 1.0)
+    th = jnp.arcsin(jnp.clip(v * jnp.sqrt((1.0 + q) / R[..., None]), 0.0, 1.0))
+    m, step = theta.shape[0], theta[1] - theta[0]
+    H = jnp.maximum(0.0, 1.0 - jnp.abs(th[..., None] / step - jnp.arange(m)))
+    H = H.at[..., -1].set(jnp.where(th >= theta[-1], 1.0, H[..., -1]))  # the last hat holds the deepest angles
+    F = jnp.einsum("nq,nqm->nm", I * g, H) - se * se / (2.0 * d)[:, None] * jnp.einsum("nq,nqm->nm", I * t * g / se, H)
+    k = n_psi_onehot.shape[0]
+    x = (jnp.arctan2(-dr, dc) % (2.0 * jnp.pi)) * (k / (2.0 * jnp.pi))
+    B = jnp.maximum(0.0, 1.0 - jnp.abs((x[:, None] - jnp.arange(k) + k / 2.0) % k - k / 2.0))
+    return p.amp * (F[:, :, None] * B[:, None, :]).reshape(rc.shape[0], -1)
+
+
+def albedo_prior(theta: np.ndarray, n_psi: int, tau: float, ell_rad: float) -> np.ndarray:
+    r"""The nodes' prior covariance :math:`C` (module docstring), projected on the positive semidefinite cone (the
+    squared exponential of the great-circle angle is not positive definite on the sphere for every length).
+
+    Parameters
+    ----------
+    theta : numpy.ndarray (m,)
+        Node surface angles from the limb (rad).
+    n_psi : int
+        Position-angle nodes.
+    tau : float
+        The relative albedo's standard deviation.
+    ell_rad : float
+        Its correlation length (rad).
+
+    Returns
+    -------
+    numpy.ndarray (m * n_psi, m * n_psi)
+        In the column order of :func:`albedo_field_columns`.
+    """
+    th = np.repeat(np.asarray(theta, float), n_psi)
+    ps = np.tile(np.arange(n_psi) * 2.0 * math.pi / n_psi, len(theta))
+    cos_g = (np.cos(th)[:, None] * np.cos(th)[None, :] * np.cos(ps[:, None] - ps[None, :])
+             + np.sin(th)[:, None] * np.sin(th)[None, :])
+    gam = np.arccos(np.clip(cos_g, -1.0, 1.0))
+    w, V = np.linalg.eigh(tau * tau * np.exp(-0.5 * (gam / ell_rad) ** 2))
+    return (V * np.maximum(w, 0.0)) @ V.T
+
+
+__all__ = ["albedo_field_columns", "albedo_nodes", "albedo_prior", "glow_column"]

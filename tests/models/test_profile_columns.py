@@ -1,0 +1,48 @@
+"""The albedo field's columns of the physical limb profile and their prior (:mod:`jaxlimb.models.profile_columns`)."""
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxlimb.models import LimbProfileParams, limb_profile_intensity
+from jaxlimb.models.profile_columns import albedo_field_columns, albedo_nodes, albedo_prior
+
+jax.config.update("jax_enable_x64", True)
+
+
+def _limb(a=60.0, phase=0.8):
+    p = LimbProfileParams(r0=300.0, c0=310.0, a=a, theta=0.0, rho=1.0, sigma=0.9, amp=1000.0, ymin=5.0, sun_r=0.6,
+                          sun_c=0.8, phase=phase, inv_f=1e-4, L=0.5)
+    ang = np.linspace(0.0, 2.0 * math.pi, 360, endpoint=False)
+    rr = np.linspace(a - 6.0, a + 6.0, 13)
+    g = np.stack(np.meshgrid(ang, rr), -1).reshape(-1, 2)
+    return p, np.column_stack([300.0 + g[:, 1] * np.sin(g[:, 0]), 310.0 + g[:, 1] * np.cos(g[:, 0])])
+
+
+def test_albedo_columns_sum_to_the_profile_and_each_answers_near_its_node():
+    """The hats partition unity, so a uniform change of albedo (every node's value 1) is the profile's radiance
+    part exactly; and a node's column is zero on rays more than one position-angle step from it."""
+    p, rc = _limb()
+    theta, n_psi = albedo_nodes(p, rc, math.radians(10.0))
+    depth = 6.0 + 6.0 * math.sqrt(0.81 + 1.0 / 12.0)  # the deepest pixel's blur window
+    assert theta[0] == 0.0 and theta[-1] >= math.asin(math.sqrt(depth * (2 * 60 - depth)) / 60) > theta[-2]
+    K = np.asarray(albedo_field_columns(p, jnp.asarray(rc), jnp.asarray(theta), jnp.zeros(n_psi)))
+    f = np.asarray(limb_profile_intensity(p, jnp.asarray(rc))) - p.ymin
+    np.testing.assert_allclose(K.sum(axis=1), f, rtol=0, atol=1e-10 * f.max())
+    psi = np.arctan2(-(rc[:, 0] - p.r0), rc[:, 1] - p.c0) % (2 * math.pi)
+    step = 2 * math.pi / n_psi
+    col = K[:, 2 * n_psi + 5]  # node (theta_2, psi_5)
+    far = np.abs((psi - 5 * step + math.pi) % (2 * math.pi) - math.pi) > step
+    assert np.all(col[far] == 0.0) and col.max() > 0.0
+
+
+def test_albedo_prior_is_a_covariance_with_its_variance_on_the_diagonal():
+    theta = np.arange(6) * math.radians(4.0)
+    C = albedo_prior(theta, 30, 0.2, math.radians(12.0))
+    assert C.shape == (180, 180)
+    np.testing.assert_allclose(C, C.T, atol=1e-15)
+    assert np.linalg.eigvalsh(C).min() > -1e-12
+    np.testing.assert_allclose(np.diag(C), 0.04, rtol=2e-2)
+    assert C[0, 1] < C[0, 0] and C[0, 15] < 0.01 * C[0, 0]  # node 1 is 12 deg along the limb; node 15 is 180 deg
