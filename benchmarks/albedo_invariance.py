@@ -14,6 +14,7 @@ has (body, Sun direction, a range prior 3 % off; the Earth's attitude) and its d
 Run::
 
     python benchmarks/albedo_invariance.py --cache build/albedo_renders       # -> results/albedo_invariance.json
+    python benchmarks/albedo_invariance.py --cache build/albedo_renders --scenes 0,1 --profile albedo-field
 
 (renders are the slow part, ~2-40 s each; ``--cache`` keeps them for the next run).
 """
@@ -34,14 +35,14 @@ from _common import cached, environment, save  # noqa: E402
 SCENES = (("moon", 150_000.0, 45.0), ("moon", 380_000.0, 90.0), ("earth", 40_000.0, 35.0), ("earth", 380_000.0, 50.0))
 
 
-def _measure(case) -> dict:  # type: ignore[no-untyped-def]
+def _measure(case, profile: str = "auto") -> dict:  # type: ignore[no-untyped-def]
     from jaxlimb.analysis.pipeline_study import measurement_errors
     from jaxlimb.errors import CheckFailed
     from jaxlimb.geometry.hints import Hints
-    from jaxlimb.pipeline import locate
+    from jaxlimb.pipeline import LocateOptions, locate
 
     try:
-        m = locate(case.image, case.camera, Hints.from_dict(case.hints))
+        m = locate(case.image, case.camera, Hints.from_dict(case.hints), LocateOptions(profile=profile))
     except CheckFailed as e:
         return {"status": "failed", "check": e.check}
     r = measurement_errors(m, case.truth)  # the pipeline study's numbers of one answer
@@ -67,7 +68,7 @@ def _summary(rows: list[dict]) -> dict:
 
 
 def run_scene(body: str, range_km: float, phase_deg: float, n_noise: int, n_draws: int, cache: Path | None,
-              progress) -> dict:  # type: ignore[no-untyped-def]
+              progress, profile: str = "auto") -> dict:  # type: ignore[no-untyped-def]
     from jaxlimb.render.independent.families import albedo_case
 
     def case(kind: str, a: int, n: int):  # type: ignore[no-untyped-def]
@@ -76,10 +77,10 @@ def run_scene(body: str, range_km: float, phase_deg: float, n_noise: int, n_draw
 
     noise, albedo = [], []
     for n in range(n_noise):
-        noise.append({"noise_seed": n, **_measure(case("uniform", 0, n))})
+        noise.append({"noise_seed": n, **_measure(case("uniform", 0, n), profile)})
         progress.update()
     for a in range(1, n_draws + 1):
-        albedo.append({"albedo_seed": a, **_measure(case("spots", a, 0))})
+        albedo.append({"albedo_seed": a, **_measure(case("spots", a, 0), profile)})
         progress.update()
     s_noise, s_albedo = _summary(noise), _summary(albedo)
     ratio = (s_albedo["spread_px"] / s_noise["spread_px"]
@@ -99,12 +100,15 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--draws", type=int, default=20, help="albedo draws (default 20)")
     ap.add_argument("--scenes", default="all", help="comma-separated scene indices of SCENES (default all)")
     ap.add_argument("--cache", type=Path, default=None, help="directory keeping the renders")
+    ap.add_argument("--profile", choices=("auto", "albedo-field"), default="auto",
+                    help="locate's profile (default auto); albedo-field writes results/albedo_invariance_field.json")
     args = ap.parse_args(argv)
     idx = range(len(SCENES)) if args.scenes == "all" else [int(i) for i in args.scenes.split(",")]
-    out = {"environment": environment(), "noise_draws": args.noise, "albedo_draws": args.draws, "scenes": []}
+    out = {"environment": environment(), "profile": args.profile, "noise_draws": args.noise, "albedo_draws": args.draws,
+           "scenes": []}
     with tqdm(total=len(idx) * (args.noise + args.draws), desc="albedo invariance") as bar:
         for i in idx:
-            out["scenes"].append(run_scene(*SCENES[i], args.noise, args.draws, args.cache, bar))
+            out["scenes"].append(run_scene(*SCENES[i], args.noise, args.draws, args.cache, bar, args.profile))
     for s in out["scenes"]:
         a, n = s["albedo"], s["noise"]
         print(f"{s['body']:5s} {s['range_km']:>9.0f} km {s['phase_deg']:>4.0f} deg: noise mean {n.get('mean_error_px', 0):.3f}"
@@ -112,7 +116,7 @@ def main(argv: list[str] | None = None) -> dict:
               f"{a.get('median_error_px', 0):.3f} p90 {a.get('p90_error_px', 0):.3f} mean {a.get('mean_error_px', 0):.3f} "
               f"spread {a.get('spread_px') or 0:.3f} NEES {a.get('mean_nees', 0):.2f} ratio {s['spread_ratio'] or float('nan'):.1f}"
               f" failures {a['failures']}")
-    save("albedo_invariance", out)
+    save("albedo_invariance" if args.profile == "auto" else "albedo_invariance_field", out)
     return out
 
 

@@ -75,16 +75,18 @@ def _locate(case, hints: dict, options=None):
     return locate(case.image, case.camera, Hints.from_dict(hints), options)
 
 
-def _options(center_floor_px: float | None, unresolved_glow: bool = True):
-    """``LocateOptions`` for ``--center-floor`` (``EllipsoidOptions.center_floor_px``) and ``--no-unresolved-glow``
-    (``EllipsoidOptions.unresolved_glow = None``); ``None``: the defaults."""
+def _options(center_floor_px: float | None, unresolved_glow: bool = True, profile: str = "auto"):
+    """``LocateOptions`` for ``--center-floor`` (``EllipsoidOptions.center_floor_px``), ``--no-unresolved-glow``
+    (``EllipsoidOptions.unresolved_glow = None``) and ``--profile``; ``None``: the defaults."""
     from jaxlimb.pipeline import LocateOptions
     from jaxlimb.pipeline import EllipsoidOptions
 
     kw = {} if center_floor_px is None else {"center_floor_px": center_floor_px}
     if not unresolved_glow:
         kw["unresolved_glow"] = None
-    return LocateOptions(ellipsoid=EllipsoidOptions(**kw)) if kw else None
+    if not kw and profile == "auto":
+        return None
+    return LocateOptions(profile=profile, ellipsoid=EllipsoidOptions(**kw) if kw else None)
 
 
 def nonphysical(m) -> list[str]:
@@ -246,6 +248,7 @@ def main(argv=None) -> int:
                     help="EllipsoidOptions.center_floor_px for the Earth (default: the library's)")
     ap.add_argument("--no-unresolved-glow", action="store_false", dest="unresolved_glow",
                     help="EllipsoidOptions.unresolved_glow = None for the Earth (the fit's covariance alone)")
+    ap.add_argument("--profile", default="auto", help="LocateOptions.profile (default auto)")
     a = ap.parse_args(argv)
     _setup()
     from _common import environment, save
@@ -256,11 +259,11 @@ def main(argv=None) -> int:
         fams = set(QUICK_FAMILIES["moon"]) | set(QUICK_FAMILIES["earth"])
     n = a.n if a.n is not None else (1 if a.quick else 6)
     t0 = time.perf_counter()
-    res = run(bodies, fams, n, a.seed, a.cache, options=_options(a.center_floor, a.unresolved_glow))
+    res = run(bodies, fams, n, a.seed, a.cache, options=_options(a.center_floor, a.unresolved_glow, a.profile))
     print_table(res["summary"])
     out = {"args": {"n": n, "seed": a.seed, "bodies": bodies, "families": sorted(fams) if fams else None,
                     "quick": a.quick, "center_floor_px": a.center_floor,
-                    "unresolved_glow": a.unresolved_glow}, "environment": environment(), "wall_s": time.perf_counter() - t0, **res}
+                    "unresolved_glow": a.unresolved_glow, "profile": a.profile}, "environment": environment(), "wall_s": time.perf_counter() - t0, **res}
     path = save(a.out or ("families_quick" if a.quick else "families"), out)
     print(f"saved {path}")
     return 0

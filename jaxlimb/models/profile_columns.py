@@ -17,8 +17,8 @@ the hats sum to one, so :math:`\sum_{mn} K_{i,mn}` is the profile's radiance par
 angle between two nodes, the limb taken as the great circle normal to the line of sight), the pixels' covariance
 is :math:`\Sigma = D + K C K^\top` and the geometry's information :math:`J^\top\Sigma^{-1}J`: the Bayesian
 Cramér--Rao bound with the albedo marginalised (Van Trees 1968, Sec. 2.4), and the weight of the generalised
-least-squares fit that attains it.  The nodes are spaced at a third of :math:`\ell` in both angles, so the hats
-resolve every field the prior allows.
+least-squares fit that attains it.  The nodes are spaced at half of :math:`\ell` in both angles: the hats'
+piecewise-linear field then follows a squared-exponential field of length :math:`\ell` to a few per cent.
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ def glow_column(p: LimbProfileParams, rc, log_h):
 
 def albedo_nodes(p: LimbProfileParams, rc, ell_rad: float) -> tuple[np.ndarray, int]:
     """The albedo field's nodes for a profile ``p`` on pixels ``rc``: surface angles from the limb to the deepest
-    pixel's window, and the number of position angles, both spaced at ``ell_rad / 3`` (module docstring).
+    pixel's window, and the number of position angles, both spaced at ``ell_rad / 2`` (module docstring).
 
     Parameters
     ----------
@@ -84,7 +84,7 @@ def albedo_nodes(p: LimbProfileParams, rc, ell_rad: float) -> tuple[np.ndarray, 
         Position-angle nodes around the limb.
     """
     rc = np.asarray(rc, float)
-    step = ell_rad / 3.0
+    step = ell_rad / 2.0
     depth = float(p.a) - float(np.min(np.hypot(rc[:, 0] - float(p.r0), rc[:, 1] - float(p.c0))))
     depth += 6.0 * math.sqrt(float(p.sigma) ** 2 + 1.0 / 12.0)
     th_max = math.asin(min(1.0, math.sqrt(max(depth, 0.0) * (2.0 * float(p.a) - depth)) / float(p.a)))

@@ -51,7 +51,7 @@ def _lunar_profile_wanted(frame: Frame) -> bool:
     ``k`` estimated; the papers' fixed-``k`` setting, Table 1, is a sigmoid experiment); else as asked."""
     opt, h = frame.opt, frame.hints
     if opt.profile != "auto":
-        return opt.profile == "lunar-lambert"
+        return opt.profile in ("lunar-lambert", "albedo-field")
     return opt.model == "circle" and opt.estimate_k and frame.sun_known and h is not None and h.body != "sun"
 
 

@@ -50,6 +50,7 @@ class Profile(_Choice):
     AUTO = "auto"
     SIGMOID = "sigmoid"
     LUNAR_LAMBERT = "lunar-lambert"
+    ALBEDO_FIELD = "albedo-field"
     LIMB_DARKENED = "limb-darkened"
 
 
@@ -165,7 +166,10 @@ class LocateOptions:
         sunlit body when the hints give the Sun direction (:mod:`jaxlimb.pipeline.profile`; it removes the sigmoid's
         limb bias, 0.1-0.6 px on realistic Moons, ``benchmarks/locate_accuracy.py``), the limb-darkened disc when
         they say ``body = "sun"`` (:mod:`jaxlimb.pipeline.sphere.sun`); else the sigmoid.  ``"sigmoid"``: the
-        papers' sigmoid limb.  ``"lunar-lambert"``, ``"limb-darkened"``: that profile (circle model only).  With
+        papers' sigmoid limb.  ``"lunar-lambert"``, ``"limb-darkened"``: that profile (circle model only).
+        ``"albedo-field"``: the lunar-Lambert profile with the surface albedo an unknown Gaussian field, marginalised
+        (:mod:`jaxlimb.pipeline.profile.albedo_field`; its covariance replaces the model-error terms; no widening to
+        limb brightening, smear or glow; the sphere strategy: the Earth's ellipsoid keeps its own profile).  With
         ``"auto"`` a profile whose fitted lunar-Lambert weight ``L`` is outside the band of lunar-Lambert-like limbs
         sends the measurement back to the sigmoid (``extras["profile_rejected"]``).
     min_lit_arc_deg
@@ -219,7 +223,7 @@ class LocateOptions:
         if self.solver not in SOLVERS:
             raise ConfigError(f"LocateOptions.solver must be one of {sorted(SOLVERS)}, got {self.solver!r}")
         _pos("max_center_sigma_px", self.max_center_sigma_px, allow_none=True)
-        if self.profile in ("lunar-lambert", "limb-darkened") and self.model != "circle":
+        if self.profile in ("lunar-lambert", "albedo-field", "limb-darkened") and self.model != "circle":
             raise ConfigError(f"LocateOptions.profile = {self.profile!r} supports model = 'circle' only")
         _pos("min_lit_arc_deg", self.min_lit_arc_deg, allow_zero=True, allow_none=True)
         if self.min_lit_arc_deg is not None and self.min_lit_arc_deg > 360:

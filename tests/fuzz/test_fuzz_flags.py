@@ -119,7 +119,7 @@ def test_numeric_flag_outside_its_range_exits_2_naming_it(flag, inputs, tmp_path
 CHOICES = [
     ("locate", "--front-end", ("gradient", "scanline")),
     ("locate", "--model", ("circle", "ellipse")),
-    ("locate", "--profile", ("auto", "sigmoid", "lunar-lambert", "limb-darkened")),
+    ("locate", "--profile", ("auto", "sigmoid", "lunar-lambert", "albedo-field", "limb-darkened")),
     ("locate", "--solver", ()),
     ("montecarlo", "--model", ("circle", "ellipse")),
     ("montecarlo", "--solver", ()),

@@ -16,6 +16,7 @@ from ...models import (AnisoProfileParams, CircleParams, LIMB_PROFILE, LimbProfi
                        PROFILE_FIXED)
 from ..sigmoid import LOGISTIC_TO_GAUSS, predict
 from ..stages import FitData, Frame, RefineResult
+from .albedo_field import albedo_field_refit
 from .glow import widen_aniso_or_glow
 from .model_error import weighted_system, with_model_error
 from .passes import gaussian_sigma_of_k, PROFILE_HELD, profile_passes
@@ -120,7 +121,7 @@ def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: fl
     """
     h, opt = frame.hints, frame.opt
     if h is None or h.sun_dir_camera is None:
-        raise ConfigError("LocateOptions.profile = 'lunar-lambert' needs the Sun direction (hints `sun_dir_camera`)")
+        raise ConfigError(f"LocateOptions.profile = {opt.profile!r} needs the Sun direction (hints `sun_dir_camera`)")
     p = circle
     coords = data.coords
     z = frame.img[coords[:, 0].astype(np.int64), coords[:, 1].astype(np.int64)].astype(np.float64)
@@ -137,6 +138,8 @@ def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: fl
     if sat is None or np.count_nonzero(z >= sat) < 20:  # (a few hot pixels are not a clipped limb)
         res, sph = profile_passes(frame, data, init, center, float(p.radius), fixed, solver)
         base, n_clipped = RefineResult(res, data, 0, fixed, sphere=sph), 0
+        if opt.profile == "albedo-field":
+            return albedo_field_refit(frame, base), n_clipped
         system = weighted_system(base, LIMB_PROFILE)  # (shared by the score tests and the model-error term)
         out = base
         if "L" not in fixed:  # the law adapts: widen it to Minnaert-like limbs when the data ask for it
