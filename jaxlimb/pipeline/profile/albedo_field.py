@@ -1,11 +1,11 @@
-r"""The profile refitted with the surface albedo as an unknown Gaussian field, marginalised (``LocateOptions.albedo =
-"field"``).
+r"""The profile refitted with the surface albedo as an unknown Gaussian field, marginalised
+(``LocateOptions(profile="albedo-field")``).
 
 The one-albedo profile reads an albedo that changes across the few pixels inside the limb as a moved edge.  Here the
 relative albedo is a zero-mean Gaussian field on the sphere (:mod:`jaxlimb.models.profile_columns`: columns ``K``,
 prior ``tau^2 C_ell``), so the pixels' covariance is ``Sigma = s^2 I + tau^2 K C_ell K^T`` and the profile's
 parameters are the generalised least-squares fit under ``Sigma``, with the covariance ``(J^T Sigma^-1 J)^-1``: the
-Bayesian Cramér--Rao bound with the albedo unknown (Van Trees 1968, Sec. 2.4), which the fit attains.
+Bayesian Cramér--Rao bound with the albedo unknown (Van Trees 1968, Sec. 2.4).
 
 Nothing about the albedo is assumed beyond a smooth field: its amplitude ``tau``, the noise ``s`` and the correlation
 length ``ell`` (of :data:`ELL_DEG`) are those of largest marginal likelihood of the one-albedo fit's residuals
@@ -32,6 +32,7 @@ from ...geometry.sphere_image import sphere_from_ellipse_center
 from ...models import LimbProfileParams, limb_profile_intensity
 from ...models.profile_columns import albedo_field_columns, albedo_nodes, albedo_prior
 from ..stages import Frame, RefineResult
+from .model_error import with_model_error
 
 ELL_DEG = (8.0, 16.0, 32.0)
 """Correlation lengths (deg on the surface) among which the marginal likelihood chooses: a factor of two apart,
@@ -116,7 +117,10 @@ def _gls_pass(p: LimbProfileParams, free, coords, z, Q, S, s2, t2):
     program per bucket); its parameters and covariance."""
     n, m = Q.shape
     N, M = bucket_size(n), bucket_size(m)
-    pad = lambda a, rows, cols=None: np.pad(a, ((0, rows - a.shape[0]),) + (((0, cols - a.shape[1]),) if cols else ()))
+
+    def pad(a, rows, cols=None):
+        return np.pad(a, ((0, rows - a.shape[0]),) + (((0, cols - a.shape[1]),) if cols else ()))
+
     rc = np.concatenate([coords, np.repeat(coords[:1], N - n, axis=0)])
     s = math.sqrt(s2)
     d = pad(1.0 - s / np.sqrt(s2 + t2 * S * S), M)
@@ -130,7 +134,8 @@ def _gls_pass(p: LimbProfileParams, free, coords, z, Q, S, s2, t2):
 
 def albedo_field_refit(frame: Frame, rr: RefineResult) -> RefineResult:
     """``rr`` (a one-albedo profile fit) refitted with the albedo as a marginalised Gaussian field (module docstring);
-    ``rr`` itself when its profile is a widened variant, the fit fails, or the field's amplitude is 0.
+    ``rr`` with its model-error terms (:func:`~jaxlimb.pipeline.profile.model_error.with_model_error`) when its
+    profile is a widened variant, its data are weighted or the refit fails.
 
     Parameters
     ----------
@@ -146,7 +151,7 @@ def albedo_field_refit(frame: Frame, rr: RefineResult) -> RefineResult:
     """
     p = rr.fit.params
     if type(p) is not LimbProfileParams or rr.data.weights is not None:
-        return rr
+        return with_model_error(rr)
     coords, z = np.asarray(rr.data.coords, float), np.asarray(rr.data.z, float)
     r = z - np.asarray(limb_profile_intensity(p, jnp.asarray(coords)))
     fits = [(field_basis(p, coords, math.radians(e)), e) for e in ELL_DEG]
@@ -160,7 +165,7 @@ def albedo_field_refit(frame: Frame, rr: RefineResult) -> RefineResult:
         q, C, ok = _gls_pass(q.replace(theta=float(sph.angle_rad), rho=float(sph.rho)), rr.fit.free, coords, z, Q, S,
                              s2, t2)
     if not ok or not np.all(np.isfinite(C)):
-        return rr
+        return with_model_error(rr)
     fit = eqx.tree_at(lambda f: (f.params, f.covariance, f.sigma2), rr.fit, (q, jnp.asarray(C), jnp.asarray(s2)))
     return replace(rr, fit=fit, sphere=sph, noise_covariance=np.asarray(rr.covariance_noise))
 
