@@ -24,8 +24,6 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optimistix as optx
-from scipy.optimize import minimize
 
 from ...fitting import bucket_size
 from ...geometry.sphere_image import sphere_from_ellipse_center
@@ -81,6 +79,8 @@ def field_likelihood(r: np.ndarray, Q: np.ndarray, S: np.ndarray) -> tuple[float
         ``(s2, tau2, nll)``: the noise variance (DN^2), the field's variance and the negative log marginal
         likelihood (up to a constant).
     """
+    from scipy.optimize import minimize  # imported on first use: not on locate's default path
+
     y2, rr, n = (Q.T @ r) ** 2, float(r @ r), r.size
     S2 = S * S
 
@@ -101,6 +101,7 @@ def _solve(p: LimbProfileParams, free: tuple[str, ...], coords, z, mask, Q, d, s
     """The generalised least-squares fit from ``p`` (``free`` varied) under ``Sigma`` (``Q, d, s``: module docstring);
     padded pixels (``mask`` 0) and basis columns (``d`` 0) add nothing.  Its parameters' vector, the whitened
     Jacobian there and whether the solver converged."""
+    import optimistix as optx  # imported on first use: not on locate's default path
 
     def fn(x, _args):
         q = p.replace(**{n: x[i] for i, n in enumerate(free)})
