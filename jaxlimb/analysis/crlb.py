@@ -43,7 +43,7 @@ from ..fitting import bucket_size
 from ..numerics import numerical_jacobian
 from ..geometry.navigation import sphere_from_circle
 from ..models import LIMB_PROFILE, PROFILE_FIXED, LimbModel, LimbParams
-from ..models.profile_columns import albedo_field_columns, albedo_nodes, albedo_prior
+from ..models.profile_columns import albedo_field_factor
 
 
 @dataclass(frozen=True)
@@ -223,11 +223,7 @@ def albedo_field_crlb(coords: np.ndarray, truth, var: np.ndarray, tau: float, el
     jac = _padded_eval(LIMB_PROFILE, "jacobian", truth, coords)[:, list(free_idx)]
     fisher = jac.T @ (jac / var[:, None])
     if tau > 0:
-        theta, n_psi = albedo_nodes(truth, coords, ell_rad)
-        K = np.asarray(albedo_field_columns(truth, jnp.asarray(coords), jnp.asarray(theta), jnp.zeros(n_psi)))
-        w, V = np.linalg.eigh(albedo_prior(theta, n_psi, tau, ell_rad))
-        keep = w > 1e-12 * w.max()
-        KL = K @ (V[:, keep] * np.sqrt(w[keep]))
+        KL = albedo_field_factor(truth, coords, tau, ell_rad)
         B = KL.T @ (jac / var[:, None])
         inner = np.eye(KL.shape[1]) + KL.T @ (KL / var[:, None])
         fisher = fisher - B.T @ np.linalg.solve(inner, B)

@@ -157,4 +157,31 @@ def albedo_prior(theta: np.ndarray, n_psi: int, tau: float, ell_rad: float) -> n
     return (V * np.maximum(w, 0.0)) @ V.T
 
 
-__all__ = ["albedo_field_columns", "albedo_nodes", "albedo_prior", "glow_column"]
+def albedo_field_factor(p: LimbProfileParams, rc, tau: float, ell_rad: float) -> np.ndarray:
+    """``K C^{1/2}`` (module docstring) at the profile ``p``: ``K C K^T`` is its product with its transpose.  The
+    prior's eigenvectors below ``1e-9`` of its largest eigenvalue are left out (they add nothing a fit can see).
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        The profile.
+    rc : array_like (n, 2)
+        Pixel coordinates as ``(row, col)``.
+    tau : float
+        The relative albedo's standard deviation.
+    ell_rad : float
+        Its correlation length (rad).
+
+    Returns
+    -------
+    numpy.ndarray (n, k)
+        One column per kept eigenvector of the prior.
+    """
+    theta, n_psi = albedo_nodes(p, rc, ell_rad)
+    K = np.asarray(albedo_field_columns(p, jnp.asarray(rc, float), jnp.asarray(theta), jnp.zeros(n_psi)))
+    w, V = np.linalg.eigh(albedo_prior(theta, n_psi, tau, ell_rad))
+    keep = w > 1e-9 * w.max()
+    return K @ (V[:, keep] * np.sqrt(w[keep]))
+
+
+__all__ = ["albedo_field_columns", "albedo_field_factor", "albedo_nodes", "albedo_prior", "glow_column"]

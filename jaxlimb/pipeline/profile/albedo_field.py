@@ -28,7 +28,7 @@ import numpy as np
 from ...fitting import bucket_size
 from ...geometry.sphere_image import sphere_from_ellipse_center
 from ...models import LimbProfileParams, limb_profile_intensity
-from ...models.profile_columns import albedo_field_columns, albedo_nodes, albedo_prior
+from ...models.profile_columns import albedo_field_factor
 from ..stages import Frame, RefineResult
 from .model_error import with_model_error
 
@@ -55,11 +55,7 @@ def field_basis(p: LimbProfileParams, coords: np.ndarray, ell_rad: float) -> tup
     Q : np.ndarray (n, m)
     S : np.ndarray (m,)
     """
-    theta, n_psi = albedo_nodes(p, coords, ell_rad)
-    K = np.asarray(albedo_field_columns(p, jnp.asarray(coords), jnp.asarray(theta), jnp.zeros(n_psi)))
-    w, V = np.linalg.eigh(albedo_prior(theta, n_psi, 1.0, ell_rad))
-    keep = w > 1e-9 * w.max()
-    Q, S, _ = np.linalg.svd(K @ (V[:, keep] * np.sqrt(w[keep])), full_matrices=False)
+    Q, S, _ = np.linalg.svd(albedo_field_factor(p, coords, 1.0, ell_rad), full_matrices=False)
     return Q, S
 
 
@@ -155,9 +151,8 @@ def albedo_field_refit(frame: Frame, rr: RefineResult) -> RefineResult:
         return with_model_error(rr)
     coords, z = np.asarray(rr.data.coords, float), np.asarray(rr.data.z, float)
     r = z - np.asarray(limb_profile_intensity(p, jnp.asarray(coords)))
-    fits = [(field_basis(p, coords, math.radians(e)), e) for e in ELL_DEG]
-    (Q, S), _ = min(fits, key=lambda f: field_likelihood(r, *f[0])[2])
-    s2, t2, _ = field_likelihood(r, Q, S)
+    bases = [field_basis(p, coords, math.radians(e)) for e in ELL_DEG]
+    (Q, S), (s2, t2, _) = min(((b, field_likelihood(r, *b)) for b in bases), key=lambda f: f[1][2])
     q, C, ok = _gls_pass(p, rr.fit.free, coords, z, Q, S, s2, t2)
     sph = rr.sphere
     if ok and frame.use_camera:
