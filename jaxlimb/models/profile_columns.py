@@ -128,9 +128,54 @@ def albedo_field_columns(p: LimbProfileParams, rc, theta, n_psi_onehot):
     return p.amp * (F[:, :, None] * B[:, None, :]).reshape(rc.shape[0], -1)
 
 
+def albedo_prior_factor(theta: np.ndarray, n_psi: int, tau: float, ell_rad: float) -> np.ndarray:
+    r"""A factor :math:`F` of the nodes' prior covariance, :math:`C = F F^\top` (module docstring), projected on the
+    positive semidefinite cone (the squared exponential of the great-circle angle is not positive definite on the
+    sphere for every length); eigenvectors below ``1e-9`` of the largest eigenvalue are left out (they add nothing a
+    fit can see).
+
+    The position-angle nodes are evenly spaced, so :math:`C` is block-circulant: the real Fourier vectors in
+    :math:`\psi` times the eigenvectors of one ``m x m`` block per frequency diagonalise it (``n_psi`` small
+    eigenproblems instead of one of size ``m n_psi``).
+
+    Parameters
+    ----------
+    theta : numpy.ndarray (m,)
+        Node surface angles from the limb (rad).
+    n_psi : int
+        Position-angle nodes.
+    tau : float
+        The relative albedo's standard deviation.
+    ell_rad : float
+        Its correlation length (rad).
+
+    Returns
+    -------
+    numpy.ndarray (m * n_psi, r)
+        In the row order of :func:`albedo_field_columns`' columns.
+    """
+    th = np.asarray(theta, float)
+    k = int(n_psi)
+    dpsi = 2.0 * math.pi * np.arange(k) / k
+    cos_g = (np.cos(th)[:, None, None] * np.cos(th)[None, :, None] * np.cos(dpsi)[None, None, :]
+             + np.sin(th)[:, None, None] * np.sin(th)[None, :, None])
+    c = tau * tau * np.exp(-0.5 * (np.arccos(np.clip(cos_g, -1.0, 1.0)) / ell_rad) ** 2)  # (m, m, lag)
+    a = np.arange(k)
+    vecs, vals = [], []
+    for f in range(k // 2 + 1):
+        w, W = np.linalg.eigh(c @ np.cos(2.0 * math.pi * f * a / k))
+        basis = [np.cos(2.0 * math.pi * f * a / k)] + ([np.sin(2.0 * math.pi * f * a / k)] if 0 < 2 * f < k else [])
+        for u in basis:
+            u = u / np.linalg.norm(u)
+            vecs.append(np.einsum("mr,k->mkr", W, u).reshape(th.size * k, -1))
+            vals.append(w)
+    w, V = np.concatenate(vals), np.concatenate(vecs, axis=1)
+    keep = w > 1e-9 * w.max()
+    return V[:, keep] * np.sqrt(w[keep])
+
+
 def albedo_prior(theta: np.ndarray, n_psi: int, tau: float, ell_rad: float) -> np.ndarray:
-    r"""The nodes' prior covariance :math:`C` (module docstring), projected on the positive semidefinite cone (the
-    squared exponential of the great-circle angle is not positive definite on the sphere for every length).
+    """The nodes' prior covariance :math:`C` (module docstring): ``F F^T`` of :func:`albedo_prior_factor`.
 
     Parameters
     ----------
@@ -148,18 +193,13 @@ def albedo_prior(theta: np.ndarray, n_psi: int, tau: float, ell_rad: float) -> n
     numpy.ndarray (m * n_psi, m * n_psi)
         In the column order of :func:`albedo_field_columns`.
     """
-    th = np.repeat(np.asarray(theta, float), n_psi)
-    ps = np.tile(np.arange(n_psi) * 2.0 * math.pi / n_psi, len(theta))
-    cos_g = (np.cos(th)[:, None] * np.cos(th)[None, :] * np.cos(ps[:, None] - ps[None, :])
-             + np.sin(th)[:, None] * np.sin(th)[None, :])
-    gam = np.arccos(np.clip(cos_g, -1.0, 1.0))
-    w, V = np.linalg.eigh(tau * tau * np.exp(-0.5 * (gam / ell_rad) ** 2))
-    return (V * np.maximum(w, 0.0)) @ V.T
+    F = albedo_prior_factor(theta, n_psi, tau, ell_rad)
+    return F @ F.T
 
 
 def albedo_field_factor(p: LimbProfileParams, rc, tau: float, ell_rad: float) -> np.ndarray:
-    """``K C^{1/2}`` (module docstring) at the profile ``p``: ``K C K^T`` is its product with its transpose.  The
-    prior's eigenvectors below ``1e-9`` of its largest eigenvalue are left out (they add nothing a fit can see).
+    """``K C^{1/2}`` (module docstring) at the profile ``p``: ``K C K^T`` is its product with its transpose
+    (:func:`albedo_prior_factor`).
 
     Parameters
     ----------
@@ -174,14 +214,13 @@ def albedo_field_factor(p: LimbProfileParams, rc, tau: float, ell_rad: float) ->
 
     Returns
     -------
-    numpy.ndarray (n, k)
+    numpy.ndarray (n, r)
         One column per kept eigenvector of the prior.
     """
     theta, n_psi = albedo_nodes(p, rc, ell_rad)
     K = np.asarray(albedo_field_columns(p, jnp.asarray(rc, float), jnp.asarray(theta), jnp.zeros(n_psi)))
-    w, V = np.linalg.eigh(albedo_prior(theta, n_psi, tau, ell_rad))
-    keep = w > 1e-9 * w.max()
-    return K @ (V[:, keep] * np.sqrt(w[keep]))
+    return K @ albedo_prior_factor(theta, n_psi, tau, ell_rad)
 
 
-__all__ = ["albedo_field_columns", "albedo_field_factor", "albedo_nodes", "albedo_prior", "glow_column"]
+__all__ = ["albedo_field_columns", "albedo_field_factor", "albedo_nodes", "albedo_prior", "albedo_prior_factor",
+           "glow_column"]

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxlimb.models import LimbProfileParams, limb_profile_intensity
-from jaxlimb.models.profile_columns import albedo_field_columns, albedo_nodes, albedo_prior
+from jaxlimb.models.profile_columns import albedo_field_columns, albedo_nodes, albedo_prior, albedo_prior_factor
 
 jax.config.update("jax_enable_x64", True)
 
@@ -46,3 +46,17 @@ def test_albedo_prior_is_a_covariance_with_its_variance_on_the_diagonal():
     assert np.linalg.eigvalsh(C).min() > -1e-12
     np.testing.assert_allclose(np.diag(C), 0.04, rtol=2e-2)
     assert C[0, 1] < C[0, 0] and C[0, 15] < 0.01 * C[0, 0]  # node 1 is 12 deg along the limb; node 15 is 180 deg
+
+
+def test_albedo_prior_factor_is_the_dense_prior_projected_on_the_psd_cone():
+    """The block-circulant factor equals the eigendecomposition of the whole prior (its negative eigenvalues, which
+    the squared exponential on the sphere has at long lengths, set to zero), for an odd and an even ring of nodes."""
+    for n_psi, ell_deg in ((30, 12.0), (17, 40.0)):
+        theta = np.arange(7) * math.radians(ell_deg / 2.0)
+        th, ps = np.repeat(theta, n_psi), np.tile(np.arange(n_psi) * 2 * math.pi / n_psi, theta.size)
+        cos_g = np.cos(th)[:, None] * np.cos(th) * np.cos(ps[:, None] - ps) + np.sin(th)[:, None] * np.sin(th)
+        w, V = np.linalg.eigh(0.04 * np.exp(-0.5 * (np.arccos(np.clip(cos_g, -1, 1)) / math.radians(ell_deg)) ** 2))
+        dense = (V * np.maximum(w, 0.0)) @ V.T
+        F = albedo_prior_factor(theta, n_psi, 0.2, math.radians(ell_deg))
+        np.testing.assert_allclose(F @ F.T, dense, rtol=0, atol=1e-9 * w.max())
+        assert F.shape[1] <= th.size

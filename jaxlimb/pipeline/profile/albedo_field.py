@@ -13,6 +13,11 @@ length ``ell`` (of :data:`ELL_DEG`) are those of largest marginal likelihood of 
 SVD), ``Sigma`` has eigenvalues ``s^2 + tau^2 S_j^2`` on ``Q`` and ``s^2`` elsewhere, so the likelihood costs ``O(m)``
 per evaluation and the whitened residual is ``(r - Q (d * Q^T r)) / s``, ``d = 1 - s / sqrt(s^2 + tau^2 S^2)``.  A
 uniform albedo gives ``tau`` near 0 and the one-albedo answer back.
+
+The profile under the field is the one the widening chain chose (limb brightening, a glow, a smear), or the
+unwidened one when that explains the pixels better with the field (:func:`albedo_field_refit`): an albedo that darkens
+toward the limb reads as limb brightening to a one-albedo fit.  The fit itself is Gauss--Newton on the whitened system
+with the model's analytic columns; its covariance is the field's, widened by what the field did not explain.
 """
 
 from __future__ import annotations
@@ -21,16 +26,22 @@ import math
 from dataclasses import replace
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from ...fitting import bucket_size
 from ...geometry.sphere_image import sphere_from_ellipse_center
-from ...models import LimbProfileParams, limb_profile_intensity
+from ...model_error import cluster_robust_covariance, sector_groups, with_model_error as widen
+from ...models import LimbModel, LimbProfileParams, MinnaertProfileParams
+from ...models.lunar_lambert import profile_model
 from ...models.profile_columns import albedo_field_factor
 from ..stages import Frame, RefineResult
-from .model_error import with_model_error
+from .model_error import MODEL_ERROR_SECTORS, weighted_system
+
+TAU_MAX = 0.5
+"""The largest relative albedo spread the field may take: an albedo ``A (1 + a)`` stays positive at two of the
+field's sigmas.  A larger amplitude means the residuals are not an albedo (another reflectance law, compression
+artefacts) and the field is not used."""
 
 ELL_DEG = (8.0, 16.0, 32.0)
 """Correlation lengths (deg on the surface) among which the marginal likelihood chooses: a factor of two apart,
@@ -55,8 +66,13 @@ def field_basis(p: LimbProfileParams, coords: np.ndarray, ell_rad: float) -> tup
     Q : np.ndarray (n, m)
     S : np.ndarray (m,)
     """
-    Q, S, _ = np.linalg.svd(albedo_field_factor(p, coords, 1.0, ell_rad), full_matrices=False)
-    return Q, S
+    n = coords.shape[0]
+    padded = np.concatenate([coords, np.repeat(coords[:1], bucket_size(n) - n, axis=0)])  # one program per bucket
+    U = albedo_field_factor(p, padded, 1.0, ell_rad)[:n]
+    w, V = np.linalg.eigh(U.T @ U)  # U = Q S V^T through its Gram matrix: n r^2, not an SVD's n r^2 with QR
+    keep = w > 1e-12 * w.max()  # (directions with S below 1e-6 of the largest are noise only: d ~ 0 there)
+    S = np.sqrt(w[keep])
+    return (U @ V[:, keep]) / S, S
 
 
 def field_likelihood(r: np.ndarray, Q: np.ndarray, S: np.ndarray) -> tuple[float, float, float]:
@@ -92,78 +108,155 @@ def field_likelihood(r: np.ndarray, Q: np.ndarray, S: np.ndarray) -> tuple[float
     return math.exp(best.x[0]), math.exp(best.x[1]), float(best.fun)
 
 
-@eqx.filter_jit
-def _solve(p: LimbProfileParams, free: tuple[str, ...], coords, z, mask, Q, d, s):
-    """The generalised least-squares fit from ``p`` (``free`` varied) under ``Sigma`` (``Q, d, s``: module docstring);
-    padded pixels (``mask`` 0) and basis columns (``d`` 0) add nothing.  Its parameters' vector, the whitened
-    Jacobian there and whether the solver converged."""
-    import optimistix as optx  # imported on first use: not on locate's default path
-
-    def fn(x, _args):
-        q = p.replace(**{n: x[i] for i, n in enumerate(free)})
-        r = mask * (z - limb_profile_intensity(q, coords))
-        return (r - Q @ (d * (Q.T @ r))) / s
-
-    x0 = jnp.stack([jnp.asarray(getattr(p, n), float) for n in free])
-    sol = optx.least_squares(fn, optx.LevenbergMarquardt(rtol=1e-10, atol=1e-9), x0, max_steps=200, throw=False)
-    return sol.value, jax.jacfwd(lambda v: fn(v, None))(sol.value), sol.result == optx.RESULTS.successful
+def _whiten(A: np.ndarray, Q: np.ndarray, d: np.ndarray, s: float) -> np.ndarray:
+    """``Sigma^{-1/2} A`` for residuals or Jacobian columns ``A`` (module docstring)."""
+    return (A - Q @ (d[:, None] * (Q.T @ A) if A.ndim == 2 else d * (Q.T @ A))) / s
 
 
-def _gls_pass(p: LimbProfileParams, free, coords, z, Q, S, s2, t2):
-    """One generalised least-squares fit from ``p`` under ``Sigma`` (held), on pixels and basis padded to buckets (one
-    program per bucket); its parameters and covariance."""
-    n, m = Q.shape
-    N, M = bucket_size(n), bucket_size(m)
-
-    def pad(a, rows, cols=None):
-        return np.pad(a, ((0, rows - a.shape[0]),) + (((0, cols - a.shape[1]),) if cols else ()))
-
-    rc = np.concatenate([coords, np.repeat(coords[:1], N - n, axis=0)])
-    s = math.sqrt(s2)
-    d = pad(1.0 - s / np.sqrt(s2 + t2 * S * S), M)
-    arrays = jax.tree_util.tree_map(lambda v: jnp.asarray(v, float), p)  # traced, not static: one program per bucket
-    x, J, ok = _solve(arrays, tuple(free), jnp.asarray(rc), jnp.asarray(pad(z, N)), jnp.asarray(pad(np.ones(n), N)),
-                      jnp.asarray(pad(Q, N, M)), jnp.asarray(d), jnp.asarray(s))
-    J = np.asarray(J)
-    q = p.replace(**{k: float(x[i]) for i, k in enumerate(free)})
-    return q, np.linalg.inv(J.T @ J), bool(ok)
+def _moved(frame: Frame, rr: RefineResult, x: np.ndarray) -> RefineResult:
+    """``rr`` with its free parameters at ``x``; with a camera the sphere's ellipse shape follows the centre
+    (as :func:`~jaxlimb.pipeline.profile.passes.profile_passes` holds it)."""
+    q = rr.fit.params.replace(**{k: float(x[i]) for i, k in enumerate(rr.fit.free)})
+    sph = rr.sphere
+    if frame.use_camera and "theta" not in rr.fit.free:
+        sph = sphere_from_ellipse_center(frame.cam.focal_px, frame.cam.principal_point_rc, (float(q.r0), float(q.c0)),
+                                         float(q.a))
+        q = q.replace(theta=float(sph.angle_rad), rho=float(sph.rho))
+    return replace(rr, fit=eqx.tree_at(lambda f: f.params, rr.fit, q), sphere=sph)
 
 
-def albedo_field_refit(frame: Frame, rr: RefineResult) -> RefineResult:
-    """``rr`` (a one-albedo profile fit) refitted with the albedo as a marginalised Gaussian field (module docstring);
-    ``rr`` with its model-error terms (:func:`~jaxlimb.pipeline.profile.model_error.with_model_error`) when its
-    profile is a widened variant, its data are weighted or the refit fails.
+def gls_refit(frame: Frame, rr: RefineResult, model: LimbModel, Q, S, s2: float, t2: float, max_iter: int = 30):
+    """The generalised least-squares fit under ``Sigma`` (``Q, S, s2, t2``: module docstring) from ``rr``, by
+    Gauss--Newton steps on the whitened system (each halved until the whitened cost does not rise) with the model's
+    own analytic columns (:func:`~jaxlimb.pipeline.profile.model_error.weighted_system`: no program of its own).
 
     Parameters
     ----------
     frame : Frame
         The frame (its camera sets the sphere's image shape).
     rr : RefineResult
-        The one-albedo fit of :data:`~jaxlimb.models.LIMB_PROFILE`, unweighted.
+        The start: an unweighted fit of ``model``.
+    model : LimbModel
+        The profile model.
+    Q, S : np.ndarray
+        :func:`field_basis`.
+    s2, t2 : float
+        The noise variance and the field's variance (:func:`field_likelihood`).
+    max_iter : int
+        Gauss--Newton steps at most.
 
     Returns
     -------
-    RefineResult
-        The refit, its covariance the field's; ``noise_covariance`` the one-albedo fit's noise-only covariance.
+    tuple
+        The refitted :class:`~jaxlimb.pipeline.stages.RefineResult`, its whitened Jacobian and residuals, and whether
+        the steps converged (``None`` for the result when they did not).
     """
+    s = math.sqrt(s2)
+    d = 1.0 - s / np.sqrt(s2 + t2 * S * S)
+    J, r, _, _ = weighted_system(rr, model)
+    Jw, rw = _whiten(J, Q, d, s), _whiten(r, Q, d, s)
+    x = np.array([float(getattr(rr.fit.params, k)) for k in rr.fit.free])
+    for _ in range(max_iter):
+        step, lam = np.linalg.lstsq(Jw, rw, rcond=None)[0], 1.0
+        while lam > 1e-3:
+            cand = _moved(frame, rr, x + lam * step)
+            Jc, rc, _, _ = weighted_system(cand, model)
+            rwc = _whiten(rc, Q, d, s)
+            if rwc @ rwc <= rw @ rw * (1.0 + 1e-12):
+                break
+            lam *= 0.5
+        else:
+            return rr, Jw, rw, True  # no step lowers the cost: already at its minimum
+        done = float(np.sum((Jw @ (lam * step)) ** 2)) < 1e-8  # the step below 1e-4 of its own sigmas
+        x, rr, Jw, rw = x + lam * step, cand, _whiten(Jc, Q, d, s), rwc
+        if done:
+            return rr, Jw, rw, True
+    return None, Jw, rw, False
+
+
+def model_spread(best: RefineResult, others: list[tuple[float, RefineResult]]) -> np.ndarray:
+    """The model-averaging term of ``best``'s covariance (Hoeting et al. 1999, Eq. 1-2, about the best model): the
+    weighted outer products of the other models' moves of the parameters all of them fit, each weight the other's
+    evidence relative to the best's.
+
+    Parameters
+    ----------
+    best : RefineResult
+        The chosen fit.
+    others : list of (float, RefineResult)
+        Each other model's relative weight (its evidence over the best's, at most 1) and its fit.
+
+    Returns
+    -------
+    np.ndarray (p, p)
+        Over ``best``'s free parameters.
+    """
+    free = best.fit.free
+    T = np.zeros((len(free), len(free)))
+    for w, o in others:
+        idx = [i for i, k in enumerate(free) if k in o.fit.free]
+        dx = np.array([float(getattr(o.fit.params, free[i])) - float(getattr(best.fit.params, free[i])) for i in idx])
+        T[np.ix_(idx, idx)] += w / (1.0 + w) * np.outer(dx, dx)
+    return T
+
+
+def albedo_field_refit(frame: Frame, rr: RefineResult, base: RefineResult | None = None) -> RefineResult | None:
+    """``rr`` (a profile fit, widened or not) refitted with the albedo as a marginalised Gaussian field (module
+    docstring); ``None`` when its data are weighted, the refit fails, the field's amplitude is above
+    :data:`TAU_MAX` or a glow or smear explains the pixels better (the caller keeps the one-albedo fit).
+
+    Limb brightening and an albedo that darkens toward the limb can explain the same pixels; with ``base`` (the fit
+    ``rr`` was widened from) the one of the two whose residuals have the larger marginal likelihood with the field,
+    less one per free parameter (Akaike 1974), is refitted.  A glow (above the limb) or a smear (the PSF) is not what
+    an albedo inside the limb does: such a fit is weighed without the field (its plain likelihood), and when it is
+    the better, the default path answers.  The covariance is
+    the field's, widened by what the field did not explain (the cluster-robust term of the whitened residuals over
+    limb sectors) and by the other model's move weighted by its evidence (:func:`model_spread`).
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame (its camera sets the sphere's image shape).
+    rr : RefineResult
+        The one-albedo fit of a lunar-Lambert profile, unweighted.
+    base : RefineResult or None
+        The unwidened fit ``rr`` was widened from, if it was.
+
+    Returns
+    -------
+    RefineResult or None
+        The refit; ``noise_covariance`` the one-albedo fit's noise-only covariance.
+    """
+    if rr.data.weights is not None:
+        return None
     p = rr.fit.params
-    if type(p) is not LimbProfileParams or rr.data.weights is not None:
-        return with_model_error(rr)
-    coords, z = np.asarray(rr.data.coords, float), np.asarray(rr.data.z, float)
-    r = z - np.asarray(limb_profile_intensity(p, jnp.asarray(coords)))
-    bases = [field_basis(p, coords, math.radians(e)) for e in ELL_DEG]
-    (Q, S), (s2, t2, _) = min(((b, field_likelihood(r, *b)) for b in bases), key=lambda f: f[1][2])
-    q, C, ok = _gls_pass(p, rr.fit.free, coords, z, Q, S, s2, t2)
-    sph = rr.sphere
-    if ok and frame.use_camera:
-        sph = sphere_from_ellipse_center(frame.cam.focal_px, frame.cam.principal_point_rc, (float(q.r0), float(q.c0)),
-                                         float(q.a))
-        q, C, ok = _gls_pass(q.replace(theta=float(sph.angle_rad), rho=float(sph.rho)), rr.fit.free, coords, z, Q, S,
-                             s2, t2)
-    if not ok or not np.all(np.isfinite(C)):
-        return with_model_error(rr)
-    fit = eqx.tree_at(lambda f: (f.params, f.covariance, f.sigma2), rr.fit, (q, jnp.asarray(C), jnp.asarray(s2)))
-    return replace(rr, fit=fit, sphere=sph, noise_covariance=np.asarray(rr.covariance_noise))
+    coords = np.asarray(rr.data.coords, float)
+    proj = LimbProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()])
+    bases = [field_basis(proj, coords, math.radians(e)) for e in ELL_DEG]
+
+    def evidence(c: RefineResult):
+        model = profile_model(c.fit.params)
+        r = weighted_system(c, model)[1]
+        if type(c.fit.params) not in (LimbProfileParams, MinnaertProfileParams):  # a glow or a smear, without field
+            return 0.5 * r.size * (1.0 + math.log(r @ r / r.size)) + len(c.fit.free), c, None, None, None, True, 0.0
+        (Q, S), (s2, t2, nll) = min(((b, field_likelihood(r, *b)) for b in bases), key=lambda f: f[1][2])
+        out, Jw, rw, ok = gls_refit(frame, c, model, Q, S, s2, t2)
+        nll = field_likelihood(weighted_system(out, model)[1], Q, S)[2] if ok and t2 <= TAU_MAX ** 2 else math.inf
+        return nll + len(c.fit.free), c, out, Jw, rw, ok, s2
+
+    cands = sorted((evidence(c) for c in {id(rr): rr, id(base): base or rr}.values()), key=lambda e: e[0])
+    score, rr, out, Jw, rw, _, s2 = cands[0]
+    if not math.isfinite(score) or out is None:
+        return None
+    q = out.fit.params
+    C0 = np.linalg.inv(Jw.T @ Jw)
+    C = widen(C0, cluster_robust_covariance(Jw, rw, sector_groups(coords, (float(q.r0), float(q.c0)),
+                                                                    MODEL_ERROR_SECTORS)))
+    C = C + model_spread(out, [(math.exp(score - e[0]), e[2] or e[1]) for e in cands[1:] if math.isfinite(e[0])])
+    if not np.all(np.isfinite(C)):
+        return None
+    fit = eqx.tree_at(lambda f: (f.covariance, f.sigma2), out.fit, (jnp.asarray(C), jnp.asarray(s2)))
+    return replace(out, fit=fit, noise_covariance=np.asarray(rr.covariance_noise))
 
 
-__all__ = ["ELL_DEG", "albedo_field_refit", "field_basis", "field_likelihood"]
+__all__ = ["ELL_DEG", "TAU_MAX", "albedo_field_refit", "field_basis", "field_likelihood", "gls_refit", "model_spread"]

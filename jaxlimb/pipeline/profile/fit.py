@@ -138,14 +138,15 @@ def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: fl
     if sat is None or np.count_nonzero(z >= sat) < 20:  # (a few hot pixels are not a clipped limb)
         res, sph = profile_passes(frame, data, init, center, float(p.radius), fixed, solver)
         base, n_clipped = RefineResult(res, data, 0, fixed, sphere=sph), 0
-        if opt.profile == "albedo-field":
-            return albedo_field_refit(frame, base), n_clipped
         system = weighted_system(base, LIMB_PROFILE)  # (shared by the score tests and the model-error term)
         out = base
         if "L" not in fixed:  # the law adapts: widen it to Minnaert-like limbs when the data ask for it
             out = widen_brightening(frame, out, solver, system)
         if out is base:  # a motion smear or a glow above the limb, when the data ask for it
             out = widen_aniso_or_glow(frame, out, solver, system)
+        field = albedo_field_refit(frame, out, base) if opt.profile == "albedo-field" else None
+        if field is not None:
+            return field, n_clipped
         if out is base:
             reweighted = downweight_patchy_sectors(frame, out, solver, system)
             if reweighted is base:
