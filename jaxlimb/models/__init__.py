@@ -3,8 +3,9 @@
 * the sigmoid models (LSF, CSF, ESF) of Sec. V of Mortari et al. 2016 (:mod:`.sigmoid`);
 * the elliptical edge with an interior ramp and a varying limb level (:mod:`.ellipse_ramp`);
 * the physical limb profile of a sunlit lunar-Lambert sphere blurred by a PSF, and the same widened by a
-  Minnaert-like limb-brightening exponent (:mod:`.lunar_lambert`), and its columns toward a glow and toward an
-  albedo that varies over the surface (:mod:`.profile_columns`);
+  Minnaert-like limb-brightening exponent (:mod:`.lunar_lambert`; its blur integral's quadrature:
+  :mod:`.blur_quadrature`), and its columns toward a glow and toward an albedo that varies over the surface
+  (:mod:`.profile_columns`);
 * the limb-darkened disc of a self-luminous star (:mod:`.limb_darkened`).
 
 Every model carries its Jacobian beside its intensity and is checked by ``jaxlimb gradcheck``

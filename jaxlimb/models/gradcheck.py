@@ -6,7 +6,7 @@ its widened variants; the limb-darkened disc) we draw random parameter points --
 for each, pixels inside, outside and on the edge of the limb.  The analytic Jacobian (Eq. 14, Eq. 17, Sec. V-C
 of Mortari et al. 2016; the models' own) is compared with ``jax.jacfwd`` of the intensity *as implemented*: the
 physical profiles with the fits' own 20-node quadrature (their columns are the derivative of that rule, nodes
-moving with the window's ends included: :mod:`jaxlimb.models.lunar_lambert`), so every model is held to 1e-9.
+moving with the window's ends included: :mod:`jaxlimb.models.blur_quadrature`), so every model is held to 1e-9.
 
 The relative error of an entry is ``|J_an - J_autodiff| / max(|J_autodiff|, floor * c)``, with ``c`` the largest
 magnitude in that column at that parameter point and ``floor`` 1e-4 (:class:`_Spec`): an entry four orders of

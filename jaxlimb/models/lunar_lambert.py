@@ -30,7 +30,8 @@ direction (1-D: ``R >> sigma``): with the depth :math:`u' = R - d' = v^2`,
 
 .. math:: f(d) = y_{\min} + A \int_{v_0}^{v_1} I(R - v^2)\, N(d - R + v^2; \sigma_e)\, 2v\,dv
 
-by 20-point Gauss-Legendre quadrature, :math:`v_{0,1} = \sqrt{\max(0, R - d \mp 6\sigma_e)}`
+by 20-point Gauss-Legendre quadrature (:mod:`~jaxlimb.models.blur_quadrature`),
+:math:`v_{0,1} = \sqrt{\max(0, R - d \mp 6\sigma_e)}`
 (the substitution removes the square-root behaviour of :math:`\mu` at the limb; the window is cut to
 its lit side of the terminator, :func:`~jaxlimb.models.profile_radiance.lit_limits`), and
 :math:`\sigma_e^2 = \sigma^2 + 1/12` (pixel integration as a box), plus the first-order
@@ -44,17 +45,9 @@ Jacobian.  The columns are computed in the same pass as the intensity (13 column
 cost of the intensity; ``jax.jacfwd`` took 13 times) and are the derivative of the quadrature *as computed*
 (the same nodes and weights): the integrand differentiated at fixed nodes, plus the move of the nodes with the
 window's ends :math:`v_{0,1}`, which depend on ``d``, ``R``, :math:`\sigma_e` and, through the terminator's cut,
-on :math:`\cos\psi'`, :math:`\alpha_0` and the phase.  For :math:`Q = (v_1 - v_0)\sum_i w_i h(v_i)` with
-:math:`v_i = v_0 (1 - x_i)/2 + v_1 (1 + x_i)/2`,
-
-.. math:: \frac{\partial Q}{\partial v_1} = \sum_i w_i h_i + (v_1 - v_0)\sum_i w_i h'(v_i)\frac{1 + x_i}{2},
-          \qquad
-          \frac{\partial Q}{\partial v_0} = -\sum_i w_i h_i + (v_1 - v_0)\sum_i w_i h'(v_i)\frac{1 - x_i}{2}
-
-(:func:`_window_terms`; for the exact integral these are :math:`\pm h(v_{1,0})`, ~0 six sigma out in the
-Gaussian and at the terminator, where the radiance vanishes: the integrand differentiated under the integral
-alone differs from ``jax.jacfwd`` by the rule's error, ~5e-4 of a column at 20 nodes).  ``jaxlimb gradcheck``
-checks the columns against ``jax.jacfwd`` of the intensity at the fits' 20 nodes.
+on :math:`\cos\psi'`, :math:`\alpha_0` and the phase (the rule's derivative in its ends:
+:func:`~jaxlimb.models.blur_quadrature.window_terms`).  ``jaxlimb gradcheck`` checks the columns against
+``jax.jacfwd`` of the intensity at the fits' 20 nodes.
 
 Widened (:data:`LIMB_PROFILE_MINNAERT`, :class:`MinnaertProfileParams`): the radiance times
 :math:`(\mu_0\mu)^{-\kappa}`, at ``L = 0`` Minnaert's law :math:`\mu_0^k\mu^{k-1}` with :math:`k = 1 - \kappa`
@@ -85,132 +78,16 @@ body centre (:func:`jaxlimb.geometry.sphere_image.sphere_from_ellipse_center`). 
 
 from __future__ import annotations
 
-import math
-from collections.abc import Iterator
-from contextlib import contextmanager
-
 import jax
 import jax.numpy as jnp
-import numpy as np
 
-from .._programs import register_trace_setting, stored_jit
+from .._programs import stored_jit
 from ._base import LimbModel
+from .blur_quadrature import blur_moments, blur_nodes, blur_window, curvature_blur, quadrature_nodes, window_terms
 from .profile_params import (PHYSICAL_L, PROFILE_FIXED, AnisoProfileParams, GlowProfileParams, LimbProfileParams,
                              MinnaertProfileParams, glow_fields, lunar_lambert_weight)
 from .profile_radiance import (WINDOW_KEYS, aniso_terms_of, aniso_var, glow_inside, glow_outside, limb_geometry,
-                               lit_limits, radiance_parts, window_regime)
-
-#: Gauss-Legendre nodes of the blur integral (module docstring).
-N_NODES = 20
-_GL_X, _GL_W = np.polynomial.legendre.leggauss(N_NODES)
-
-
-@contextmanager
-def quadrature_nodes(n: int) -> Iterator[None]:
-    """Evaluate the profile with an ``n``-node rule inside the block (functions traced inside it): to measure the
-    rule's error against the integral (the Jacobian is the derivative of whichever rule is used).
-
-    Parameters
-    ----------
-    n : int
-        Gauss-Legendre nodes of the blur integral (default outside the block: :data:`N_NODES`).
-    """
-    global _GL_X, _GL_W
-    old = _GL_X, _GL_W
-    _GL_X, _GL_W = np.polynomial.legendre.leggauss(int(n))
-    try:
-        yield
-    finally:
-        _GL_X, _GL_W = old
-
-
-register_trace_setting("lunar_lambert.quadrature_nodes", lambda: str(len(_GL_X)))  # traced programs depend on it
-
-
-def blur_window(d, R, se, lit=None, partials: bool = False):
-    """The blur integral's window in ``v`` (depth ``v^2``): ``R - d -+ 6 se``, cut to its lit side of the terminator
-    (:func:`~jaxlimb.models.profile_radiance.lit_limits`) for the radiance.
-
-    Parameters
-    ----------
-    d, R : jax.Array (n,)
-        Distance of each pixel from the centre and the limb radius along its ray (px).
-    se : float or jax.Array
-        Blur sigma with the pixel's box (px).
-    lit : tuple or None
-        ``(p, cpsi, alpha0)``: cut at the terminator; ``None`` (the glow, which the terminator does not bound): uncut.
-    partials : bool
-        Also the ends' partials over :data:`~jaxlimb.models.profile_radiance.WINDOW_KEYS`, ``(6, n)`` each.
-
-    Returns
-    -------
-    tuple of jax.Array
-        ``(v0, v1)``, with ``partials`` ``(v0, v1, dv0, dv1)``.
-    """
-    u0, u1 = R - d - 6.0 * se, R - d + 6.0 * se
-    v0, v1 = jnp.sqrt(jnp.maximum(u0, 1e-12)), jnp.sqrt(jnp.maximum(u1, 1e-12))
-    if not partials:
-        return (v0, v1) if lit is None else lit_limits(lit[0], v0, v1, R, lit[1], lit[2])
-    shape = (len(WINDOW_KEYS),) + (1,) * jnp.ndim(u0)  # partials over WINDOW_KEYS, stacked: (6, n)
-    dv0 = jnp.where(u0 > 1e-12, 0.5 / v0, 0.0) * jnp.array([-1.0, 1.0, -6.0, 0.0, 0.0, 0.0]).reshape(shape)
-    dv1 = jnp.where(u1 > 1e-12, 0.5 / v1, 0.0) * jnp.array([-1.0, 1.0, 6.0, 0.0, 0.0, 0.0]).reshape(shape)
-    if lit is None:
-        return v0, v1, dv0, dv1
-    return lit_limits(lit[0], v0, v1, R, lit[1], lit[2], dv0, dv1)
-
-
-def blur_nodes(d, R, se, v0, v1):
-    """The Gauss-Legendre quadrature of the radial blur (module docstring) on ``[v0, v1]``.
-
-    Parameters
-    ----------
-    d, R : jax.Array (n,)
-        As :func:`blur_window`.
-    se : float or jax.Array
-        Blur sigma (px).
-    v0, v1 : jax.Array (n,)
-        The window (:func:`blur_window`).
-
-    Returns
-    -------
-    tuple of jax.Array (n, nodes)
-        The nodes ``v``, the Gaussian's argument ``t = (d - R + v^2) / se``, its density and the weights ``g`` (the
-        density x ``2v dv`` x the rule's weights): ``sum(h(v) g)`` blurs a radiance ``h`` of the depth ``v^2``.
-    """
-    half = 0.5 * (v1 - v0)
-    v = half[..., None] * (jnp.asarray(_GL_X) + 1.0) + v0[..., None]  # (n, nodes)
-    sn = jnp.asarray(se)[..., None]  # one sigma_e per pixel (AnisoProfileParams) or one for all
-    t = (d[..., None] - R[..., None] + v * v) / sn  # (d - d') / se
-    gauss = jnp.exp(-0.5 * t * t) / (sn * math.sqrt(2 * math.pi))
-    return v, t, gauss, gauss * v * (jnp.asarray(_GL_W) * (2.0 * half)[..., None])
-
-
-def _blur_moments(J, t, g, se, second: bool):
-    """The blur of ``J`` on the nodes ``(t, g)`` of :func:`blur_nodes`: ``F1 = int J g`` and ``dF1/dd``; with
-    ``second`` also ``d^2F1/dd^2`` and ``-int J t (t^2 - 3) g / se^2`` (the ``se`` partial of ``dF1/dd``, up to the
-    chain factor); ``None`` for those otherwise."""
-    m0, m1 = jnp.sum(J * g, axis=-1), -jnp.sum(J * t * g / jnp.asarray(se)[..., None], axis=-1)
-    if not second:
-        return m0, m1, None, None
-    return (m0, m1, jnp.sum(J * (t * t - 1.0) * g, axis=-1) / (se * se),
-            -jnp.sum(J * t * (t * t - 3.0) * g, axis=-1) / (se * se))
-
-
-def _window_terms(J, J_v, S, nodes, se, s2d, v0, v1):
-    """``d(F1 + s2d dF1/dd)/dv0`` and ``/dv1`` of the blur of ``J`` (``J_v``: its derivative in ``v``; ``S``: that blur,
-    ``F1 + s2d dF1/dd``) on ``nodes``: the quadrature's change with its ends (module docstring).  With ``N`` the
-    Gaussian density, ``F1 = (v1 - v0) sum_i w_i h_i`` for ``h = J v N``, and ``dF1/dd`` the same sum of
-    ``-h t / se``; ``d(v N)/dv = v N (1/v - 2 v t / se)``, so every sum is one of the blur's weights ``g`` times a
-    factor (the form of the other columns' sums)."""
-    v, t, g = nodes[0], nodes[1], nodes[3]
-    sn, s = jnp.asarray(se)[..., None], s2d[..., None]
-    P = J_v + J * (1.0 / v - 2.0 * v * t / sn)  # h_v / (v N)
-    Q = P - s * (P * t + J * 2.0 * v / sn) / sn  # the v-derivative of the integrand of F1 + s2d dF1/dd, / (v N)
-    Qg = jax.lax.optimization_barrier(Q * g)  # once, for both sums (each would repeat the radiance's chain)
-    A, B = jnp.sum(Qg, axis=-1), jnp.sum(Qg * jnp.asarray(_GL_X), axis=-1)
-    width = v1 - v0
-    S_w = S * jnp.where(width > 0, 1.0 / jnp.where(width > 0, width, 1.0), 0.0)  # (at width 0: dv0 = dv1, no term)
-    return -S_w + 0.5 * (A - B), S_w + 0.5 * (A + B)
+                               radiance_parts, window_regime)
 
 
 def _add_window(parts: dict, terms, dv0, dv1, scale=1.0, keys: int = len(WINDOW_KEYS)) -> None:
@@ -229,15 +106,16 @@ def _glow_integrals(p: GlowProfileParams, d, R, se, cpsi, s2d, derivatives: bool
     nodes = blur_nodes(d, R, se, win[0], win[1])
     t, g = nodes[1], nodes[3]
     inside = glow_inside(p, nodes[0], node=derivatives)
-    G1, G1_d, G1_dd, G1_dse = _blur_moments(inside[0], t, g, se, derivatives)
+    G = blur_moments(inside[0], t, g, se, d, derivatives)
     Go, Po = glow_outside(p, d - R, se, d, derivatives)
-    out = {"gl": gl, "F1": gl * G1, "F1_d": gl * G1_d, "F": gl * Go}
+    out = {"gl": gl, "F1": gl * G.F1, "F1_d": gl * G.F1_d, "F": gl * Go}
     if not derivatives:
         return out
     tg = t * g / jnp.asarray(se)[..., None]
     lh, lh_d = jnp.sum(inside[1] * g, axis=-1), -jnp.sum(inside[1] * tg, axis=-1)
-    out.update(F1_dd=gl * G1_dd, F1_dse=gl * G1_dse, unit=G1 + s2d * G1_d + Go, F_lh=gl * (lh + s2d * lh_d + Po["G_lh"]),
-               Po=Po, terms=_window_terms(inside[0], inside[2], G1 + s2d * G1_d, nodes, se, s2d, win[0], win[1]), dv0=win[2], dv1=win[3])
+    out.update(F1_dd=gl * G.F1_dd, F1_dse=gl * G.F1_dse, unit=G.F + Go, F_lh=gl * (lh + s2d * lh_d + Po["G_lh"]),
+               Po=Po, terms=window_terms(inside[0], inside[2], G.F, nodes, se, s2d, win[0], win[1]), dv0=win[2],
+               dv1=win[3])
     return out
 
 
@@ -278,7 +156,7 @@ def profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brigh
     the blurred disc's edge moves inward by ``sigma_e^2 / 2R``, 0.02 px for ``R = 33 px``,
     ``sigma = 1.2 px``).  Partials ``F_d, F_R`` (at fixed ``d``/``R``), ``F_cpsi, F_se, F_a0,
     F_ph, F_L, F_k``: the integrands differentiated at fixed nodes plus the move of the nodes with the window's
-    ends (:func:`_window_terms`).  ``brightened``: as :func:`~jaxlimb.models.profile_radiance.radiance_parts`.
+    ends (:func:`~jaxlimb.models.blur_quadrature.window_terms`).  ``brightened``: as :func:`~jaxlimb.models.profile_radiance.radiance_parts`.
     ``glowing`` (:class:`GlowProfileParams`): plus ``p.glow`` times the glow on the disc side (in the integrand) and
     above the limb (closed form); partials ``F_glow``, ``F_tilt``, ``F_lh``.  ``s2``: the per-pixel anisotropic
     variance of :class:`AnisoProfileParams`, added to ``sigma_e^2``.  ``window=False``: without the window's terms
@@ -310,20 +188,20 @@ def profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brigh
         win = jax.lax.optimization_barrier(win)  # the ends' partials: once per pixel, not once per column
     nodes = blur_nodes(d, R, se, win[0], win[1])
     rad = radiance_parts(p, nodes[0], R[..., None], cpsi[..., None], alpha0, brightened)
-    F1, F1_d, F1_dd, F1_dse = _blur_moments(rad[0], nodes[1], nodes[3], se, derivatives)
+    S, F1, F1_d, F1_dd, F1_dse = blur_moments(rad[0], nodes[1], nodes[3], se, d, derivatives)  # S: the radiance's F
     s2d = se * se / (2.0 * d)
-    S = F1 + s2d * F1_d  # the radiance's part of F
     glow = _glow_integrals(p, d, R, se, cpsi, s2d, derivatives) if glowing else None
+    F = S
     if glow is not None:
         F1, F1_d = F1 + glow["F1"], F1_d + glow["F1_d"]
-    F = F1 + s2d * F1_d + (glow["F"] if glow is not None else 0.0)
+        F = curvature_blur(F1, F1_d, se, d) + glow["F"]
     if not derivatives:
         return F, None
     if glow is not None:
         F1_dd, F1_dse = F1_dd + glow["F1_dd"], F1_dse + glow["F1_dse"]
     parts = _radiance_partials(rad, nodes, se, s2d, d, F1_d, F1_dd, F1_dse)
     if window:
-        _add_window(parts, _window_terms(rad[0], rad[7], S, nodes, se, s2d, win[0], win[1]), win[2], win[3])
+        _add_window(parts, window_terms(rad[0], rad[7], S, nodes, se, s2d, win[0], win[1]), win[2], win[3])
     if glow is not None:
         _add_glow(parts, glow, p, cpsi)
     # computed once per pixel and read by every column (XLA would repeat the window's terms in each column's fusion)

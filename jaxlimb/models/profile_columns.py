@@ -11,7 +11,7 @@ of the ray) by hat functions :math:`h_m(\theta)\,g_n(\psi)`.  The profile is lin
 .. math:: f_i = f_i^0 + \sum_{mn} K_{i,mn}\, a_{mn}, \qquad
           K_{i,mn} = A_{\mathrm{amp}}\, g_n(\psi_i)\int I(v)\, h_m(\theta(v))\, N(d_i - R_i + v^2; \sigma_e)\,2v\,dv
 
-(the blur integral of :mod:`jaxlimb.models.lunar_lambert` with the radiance times the hat, curvature term included;
+(the blur integral of :mod:`jaxlimb.models.blur_quadrature` with the radiance times the hat, curvature term included;
 the hats sum to one, so :math:`\sum_{mn} K_{i,mn}` is the profile's radiance part).  With a Gaussian prior
 :math:`a \sim N(0, C)`, :math:`C_{jk} = \tau^2 \exp(-\gamma_{jk}^2 / 2\ell^2)` (:math:`\gamma` the great-circle
 angle between two nodes, the limb taken as the great circle normal to the line of sight), the pixels' covariance
@@ -30,7 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .._programs import stored_jit
-from .lunar_lambert import blur_nodes, blur_window
+from .blur_quadrature import blur_moments, blur_nodes, blur_window
 from .profile_params import GlowProfileParams, LimbProfileParams
 from .profile_radiance import glow_inside, glow_outside, limb_geometry, radiance_parts
 
@@ -58,9 +58,7 @@ def glow_column(p: LimbProfileParams, rc, log_h):
     _, _, _, _, d, _, R, _ = limb_geometry(q, rc)
     se = jnp.sqrt(q.sigma * q.sigma + 1.0 / 12.0)
     v, t, _, g = blur_nodes(d, R, se, *blur_window(d, R, se))
-    J = glow_inside(q, v)[0]
-    F1, F1_d = jnp.sum(J * g, axis=-1), -jnp.sum(J * t * g / se, axis=-1)
-    return q.amp * (F1 + se * se / (2.0 * d) * F1_d + glow_outside(q, d - R, se, d, False)[0])
+    return q.amp * (blur_moments(glow_inside(q, v)[0], t, g, se, d).F + glow_outside(q, d - R, se, d, False)[0])
 
 
 def albedo_nodes(p: LimbProfileParams, rc, ell_rad: float) -> tuple[np.ndarray, int]:
@@ -121,7 +119,7 @@ def albedo_field_columns(p: LimbProfileParams, rc, theta, n_psi_onehot):
     m, step = theta.shape[0], theta[1] - theta[0]
     H = jnp.maximum(0.0, 1.0 - jnp.abs(th[..., None] / step - jnp.arange(m)))
     H = H.at[..., -1].set(jnp.where(th >= theta[-1], 1.0, H[..., -1]))  # the last hat holds the deepest angles
-    F = jnp.einsum("nq,nqm->nm", I * g, H) - se * se / (2.0 * d)[:, None] * jnp.einsum("nq,nqm->nm", I * t * g / se, H)
+    F = blur_moments(I, t, g, se, d, basis=H).F
     k = n_psi_onehot.shape[0]
     x = (jnp.arctan2(-dr, dc) % (2.0 * jnp.pi)) * (k / (2.0 * jnp.pi))
     B = jnp.maximum(0.0, 1.0 - jnp.abs((x[:, None] - jnp.arange(k) + k / 2.0) % k - k / 2.0))

@@ -3,7 +3,7 @@ lunar-Lambert radiance and its partial derivatives, the terminator's depth along
 integral cut to its lit side (both with their partial derivatives), the glow above the limb and the anisotropic
 blur's angular terms; and per pixel, its geometry relative to the limb ellipse and the branch its window takes.
 
-The derivatives are those of the functions as written (the quadrature of :mod:`jaxlimb.models.lunar_lambert`
+The derivatives are those of the functions as written (the quadrature of :mod:`jaxlimb.models.blur_quadrature`
 moves its nodes with the window's ends, so its exact Jacobian needs the radiance's derivative in the depth and the
 ends' derivatives in every per-pixel quantity: :func:`radiance_parts`' ``I_v``, :func:`lit_limits`' partials).
 """

@@ -20,7 +20,7 @@ from jaxlimb.models import (
     ellipse_ramp_intensity_jac,
 )
 from jaxlimb.models.gradcheck import SPECS, check_model
-from jaxlimb.models.lunar_lambert import quadrature_nodes
+from jaxlimb.models.blur_quadrature import quadrature_nodes
 
 jax.config.update("jax_enable_x64", True)
 
@@ -52,12 +52,12 @@ def test_gradcheck_catches_a_wrong_ramp_column():
 
 
 def test_quadrature_nodes_is_scoped():
-    import jaxlimb.models.lunar_lambert as ll
+    import jaxlimb.models.blur_quadrature as bq
 
-    n0 = ll._GL_X.size
+    n0 = bq._GL_X.size
     with quadrature_nodes(64):
-        assert ll._GL_X.size == 64
-    assert ll._GL_X.size == n0 == ll.N_NODES
+        assert bq._GL_X.size == 64
+    assert bq._GL_X.size == n0 == bq.N_NODES
 
 
 def test_ramp_jacobian_at_the_table_edges():
@@ -96,7 +96,7 @@ def _horn_case():
 def test_profile_across_the_terminator_is_integrated_on_the_lit_segment_only():
     """Across the terminator's kink a Gauss-Legendre rule converged slowly: 20 nodes put this pixel 0.17 DN
     off and the analytic columns disagreed with autodiff of the 64-node rule by 5.8 % of a column.  Cut to
-    the lit segment (``lunar_lambert._lit_limits``), 20 nodes are within 1e-3 DN of 2048 and the columns agree."""
+    the lit segment (``profile_radiance.lit_limits``), 20 nodes are within 1e-3 DN of 2048 and the columns agree."""
     p, x = _horn_case()
     with quadrature_nodes(2048):
         ref = np.asarray(LIMB_PROFILE.intensity(p, x))
