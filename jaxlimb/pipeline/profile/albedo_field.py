@@ -37,11 +37,12 @@ from ...models.lunar_lambert import profile_model
 from ...models.profile_columns import albedo_field_factor
 from ..stages import Frame, RefineResult
 from .model_error import MODEL_ERROR_SECTORS, weighted_system
+from .passes import l_band
 
 TAU_MAX = 0.5
-"""The largest relative albedo spread the field may take: an albedo ``A (1 + a)`` stays positive at two of the
-field's sigmas.  A larger amplitude means the residuals are not an albedo (another reflectance law, compression
-artefacts) and the field is not used."""
+"""The largest relative albedo spread the field may take (the support of its prior): an albedo ``A (1 + a)`` stays
+positive at two of the field's sigmas.  Residuals that would ask for more are not all albedo (another reflectance
+law, compression artefacts): the rest is left to the noise and to the covariance's cluster-robust term."""
 
 ELL_DEG = (8.0, 16.0, 32.0)
 """Correlation lengths (deg on the surface) among which the marginal likelihood chooses: a factor of two apart,
@@ -76,7 +77,8 @@ def field_basis(p: LimbProfileParams, coords: np.ndarray, ell_rad: float) -> tup
 
 
 def field_likelihood(r: np.ndarray, Q: np.ndarray, S: np.ndarray) -> tuple[float, float, float]:
-    """Type-II maximum likelihood of the noise variance and the albedo field's amplitude for residuals ``r``.
+    """Type-II maximum likelihood of the noise variance and the albedo field's amplitude for residuals ``r``, the
+    amplitude at most :data:`TAU_MAX`.
 
     Parameters
     ----------
@@ -97,7 +99,7 @@ def field_likelihood(r: np.ndarray, Q: np.ndarray, S: np.ndarray) -> tuple[float
     S2 = S * S
 
     def nll(x):
-        s2, t2 = math.exp(x[0]), math.exp(x[1])
+        s2, t2 = math.exp(min(x[0], 700.0)), math.exp(min(x[1], 2.0 * math.log(TAU_MAX)))
         lam = s2 + t2 * S2
         return 0.5 * ((rr - y2.sum()) / s2 + np.sum(y2 / lam) + (n - S.size) * x[0] + np.sum(np.log(lam)))
 
@@ -105,7 +107,7 @@ def field_likelihood(r: np.ndarray, Q: np.ndarray, S: np.ndarray) -> tuple[float
     best = min((minimize(nll, [math.log(s0 * f), math.log(t)], method="Nelder-Mead",
                          options={"xatol": 1e-4, "fatol": 1e-6}) for f in (0.1, 1.0) for t in (1e-4, 1e-2)),
                key=lambda o: o.fun)
-    return math.exp(best.x[0]), math.exp(best.x[1]), float(best.fun)
+    return math.exp(best.x[0]), math.exp(min(best.x[1], 2.0 * math.log(TAU_MAX))), float(best.fun)
 
 
 def _whiten(A: np.ndarray, Q: np.ndarray, d: np.ndarray, s: float) -> np.ndarray:
@@ -200,18 +202,37 @@ def model_spread(best: RefineResult, others: list[tuple[float, RefineResult]]) -
     return T
 
 
+def physical(rr: RefineResult) -> bool:
+    """Whether a fit's lunar-Lambert weight ``L`` is in the band of lunar-Lambert-like limbs
+    (:func:`~jaxlimb.pipeline.profile.passes.l_band`, the default profile's own test), its width from the one-albedo
+    fit's covariance: a field of large amplitude trades with the albedo's mean and its law, and a refit outside the
+    band is the field explaining what is not an albedo (another reflectance law, compression artefacts).
+
+    Parameters
+    ----------
+    rr : RefineResult
+        The fit, with its covariance.
+
+    Returns
+    -------
+    bool
+    """
+    lo, hi = l_band(rr.fit)
+    return bool(lo <= float(rr.fit.params.L) <= hi)
+
+
 def albedo_field_refit(frame: Frame, rr: RefineResult, base: RefineResult | None = None) -> RefineResult | None:
     """``rr`` (a profile fit, widened or not) refitted with the albedo as a marginalised Gaussian field (module
-    docstring); ``None`` when its data are weighted, the refit fails, the field's amplitude is above
-    :data:`TAU_MAX` or a glow or smear explains the pixels better (the caller keeps the one-albedo fit).
+    docstring); ``None`` when its data are weighted, the refit fails or is not physical (:func:`physical`), or a
+    glow or smear explains the pixels better (the caller keeps the one-albedo fit).
 
     Limb brightening and an albedo that darkens toward the limb can explain the same pixels; with ``base`` (the fit
     ``rr`` was widened from) the one of the two whose residuals have the larger marginal likelihood with the field,
     less one per free parameter (Akaike 1974), is refitted.  A glow (above the limb) or a smear (the PSF) is not what
     an albedo inside the limb does: such a fit is weighed without the field (its plain likelihood), and when it is
-    the better, the default path answers.  The covariance is
-    the field's, widened by what the field did not explain (the cluster-robust term of the whitened residuals over
-    limb sectors) and by the other model's move weighted by its evidence (:func:`model_spread`).
+    the better, the default path answers.  The covariance is the field's, widened by what the field did not explain
+    (the cluster-robust term of the whitened residuals over limb sectors) and by the other model's move weighted by its
+    evidence (:func:`model_spread`).
 
     Parameters
     ----------
@@ -241,7 +262,9 @@ def albedo_field_refit(frame: Frame, rr: RefineResult, base: RefineResult | None
             return 0.5 * r.size * (1.0 + math.log(r @ r / r.size)) + len(c.fit.free), c, None, None, None, True, 0.0
         (Q, S), (s2, t2, nll) = min(((b, field_likelihood(r, *b)) for b in bases), key=lambda f: f[1][2])
         out, Jw, rw, ok = gls_refit(frame, c, model, Q, S, s2, t2)
-        nll = field_likelihood(weighted_system(out, model)[1], Q, S)[2] if ok and t2 <= TAU_MAX ** 2 else math.inf
+        if not ok or not physical(out.with_covariance(c.fit.covariance)):  # (the band of the one-albedo fit)
+            return math.inf, c, out, Jw, rw, False, s2
+        nll = field_likelihood(weighted_system(out, model)[1], Q, S)[2]
         return nll + len(c.fit.free), c, out, Jw, rw, ok, s2
 
     cands = sorted((evidence(c) for c in {id(rr): rr, id(base): base or rr}.values()), key=lambda e: e[0])
@@ -259,4 +282,5 @@ def albedo_field_refit(frame: Frame, rr: RefineResult, base: RefineResult | None
     return replace(out, fit=fit, noise_covariance=np.asarray(rr.covariance_noise))
 
 
-__all__ = ["ELL_DEG", "TAU_MAX", "albedo_field_refit", "field_basis", "field_likelihood", "gls_refit", "model_spread"]
+__all__ = ["ELL_DEG", "TAU_MAX", "albedo_field_refit", "field_basis", "field_likelihood", "gls_refit", "model_spread",
+           "physical"]

@@ -132,8 +132,7 @@ def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: fl
     init = profile_start(frame, circle, data, center)
     data = FitData(coords, z, None, 0.0, 1.0)
     fixed = PROFILE_HELD
-    # the default solver with a tolerance on the parameters' own scale (px, DN): 1e-7 is
-    # far below any measurable change; 1e-10 relative costs ~4 more passes for nothing
+    # a tolerance on the parameters' own scale (px, DN): 1e-10 relative costs ~4 more passes for nothing
     solver = NormalLM(rtol=0.0, atol=1e-7, coarse_stride=1) if opt.solver == "lm" else None
     if sat is None or np.count_nonzero(z >= sat) < 20:  # (a few hot pixels are not a clipped limb)
         res, sph = profile_passes(frame, data, init, center, float(p.radius), fixed, solver)
@@ -144,8 +143,7 @@ def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: fl
             out = widen_brightening(frame, out, solver, system)
         if out is base:  # a motion smear or a glow above the limb, when the data ask for it
             out = widen_aniso_or_glow(frame, out, solver, system)
-        field = albedo_field_refit(frame, out, base) if opt.profile == "albedo-field" else None
-        if field is not None:
+        if opt.profile == "albedo-field" and (field := albedo_field_refit(frame, out, base)) is not None:
             return field, n_clipped
         if out is base:
             reweighted = downweight_patchy_sectors(frame, out, solver, system)
