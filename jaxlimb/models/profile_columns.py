@@ -161,9 +161,9 @@ def albedo_prior_factor(theta: np.ndarray, n_psi: int, tau: float, ell_rad: floa
     a = np.arange(k)
     vecs, vals = [], []
     for f in range(k // 2 + 1):
-        w, W = np.linalg.eigh(c @ np.cos(2.0 * math.pi * f * a / k))
-        basis = [np.cos(2.0 * math.pi * f * a / k)] + ([np.sin(2.0 * math.pi * f * a / k)] if 0 < 2 * f < k else [])
-        for u in basis:
+        cf = np.cos(2.0 * math.pi * f * a / k)
+        w, W = np.linalg.eigh(c @ cf)
+        for u in [cf] + ([np.sin(2.0 * math.pi * f * a / k)] if 0 < 2 * f < k else []):
             u = u / np.linalg.norm(u)
             vecs.append(np.einsum("mr,k->mkr", W, u).reshape(th.size * k, -1))
             vals.append(w)

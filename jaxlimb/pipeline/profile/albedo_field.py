@@ -127,7 +127,8 @@ def _moved(frame: Frame, rr: RefineResult, x: np.ndarray) -> RefineResult:
     return replace(rr, fit=eqx.tree_at(lambda f: f.params, rr.fit, q), sphere=sph)
 
 
-def gls_refit(frame: Frame, rr: RefineResult, model: LimbModel, Q, S, s2: float, t2: float, max_iter: int = 30):
+def gls_refit(frame: Frame, rr: RefineResult, model: LimbModel, Q, S, s2: float, t2: float, max_iter: int = 30,
+              system=None):
     """The generalised least-squares fit under ``Sigma`` (``Q, S, s2, t2``: module docstring) from ``rr``, by
     Gauss--Newton steps on the whitened system (each halved until the whitened cost does not rise) with the model's
     own analytic columns (:func:`~jaxlimb.pipeline.profile.model_error.weighted_system`: no program of its own).
@@ -146,16 +147,18 @@ def gls_refit(frame: Frame, rr: RefineResult, model: LimbModel, Q, S, s2: float,
         The noise variance and the field's variance (:func:`field_likelihood`).
     max_iter : int
         Gauss--Newton steps at most.
+    system : tuple or None
+        ``rr``'s :func:`~jaxlimb.pipeline.profile.model_error.weighted_system` under ``model``, if already formed.
 
     Returns
     -------
     tuple
-        The refitted :class:`~jaxlimb.pipeline.stages.RefineResult`, its whitened Jacobian and residuals, and whether
-        the steps converged (``None`` for the result when they did not).
+        The refitted :class:`~jaxlimb.pipeline.stages.RefineResult`, its whitened Jacobian and residuals, whether the
+        steps converged (``None`` for the result when they did not) and its residuals (DN).
     """
     s = math.sqrt(s2)
     d = 1.0 - s / np.sqrt(s2 + t2 * S * S)
-    J, r, _, _ = weighted_system(rr, model)
+    J, r, _, _ = weighted_system(rr, model) if system is None else system
     Jw, rw = _whiten(J, Q, d, s), _whiten(r, Q, d, s)
     x = np.array([float(getattr(rr.fit.params, k)) for k in rr.fit.free])
     for _ in range(max_iter):
@@ -168,12 +171,12 @@ def gls_refit(frame: Frame, rr: RefineResult, model: LimbModel, Q, S, s2: float,
                 break
             lam *= 0.5
         else:
-            return rr, Jw, rw, True  # no step lowers the cost: already at its minimum
+            return rr, Jw, rw, True, r  # no step lowers the cost: already at its minimum
         done = float(np.sum((Jw @ (lam * step)) ** 2)) < 1e-8  # the step below 1e-4 of its own sigmas
-        x, rr, Jw, rw = x + lam * step, cand, _whiten(Jc, Q, d, s), rwc
+        x, rr, Jw, rw, r = x + lam * step, cand, _whiten(Jc, Q, d, s), rwc, rc
         if done:
-            return rr, Jw, rw, True
-    return None, Jw, rw, False
+            return rr, Jw, rw, True, r
+    return None, Jw, rw, False, r
 
 
 def model_spread(best: RefineResult, others: list[tuple[float, RefineResult]]) -> np.ndarray:
@@ -257,14 +260,15 @@ def albedo_field_refit(frame: Frame, rr: RefineResult, base: RefineResult | None
 
     def evidence(c: RefineResult):
         model = profile_model(c.fit.params)
-        r = weighted_system(c, model)[1]
+        system = weighted_system(c, model)
+        r = system[1]
         if type(c.fit.params) not in (LimbProfileParams, MinnaertProfileParams):  # a glow or a smear, without field
             return 0.5 * r.size * (1.0 + math.log(r @ r / r.size)) + len(c.fit.free), c, None, None, None, True, 0.0
         (Q, S), (s2, t2, nll) = min(((b, field_likelihood(r, *b)) for b in bases), key=lambda f: f[1][2])
-        out, Jw, rw, ok = gls_refit(frame, c, model, Q, S, s2, t2)
+        out, Jw, rw, ok, r_out = gls_refit(frame, c, model, Q, S, s2, t2, system=system)
         if not ok or not physical(out.with_covariance(c.fit.covariance)):  # (the band of the one-albedo fit)
             return math.inf, c, out, Jw, rw, False, s2
-        nll = field_likelihood(weighted_system(out, model)[1], Q, S)[2]
+        nll = field_likelihood(r_out, Q, S)[2]
         return nll + len(c.fit.free), c, out, Jw, rw, ok, s2
 
     cands = sorted((evidence(c) for c in {id(rr): rr, id(base): base or rr}.values()), key=lambda e: e[0])
