@@ -41,6 +41,19 @@ def environment() -> dict[str, Any]:
     }
 
 
+def process_environment(pycache: Path | None, **extra: str) -> dict[str, str]:
+    """The environment of a timed process: Python's bytecode cached under ``pycache``, as an installed package has it.
+
+    ``PYTHONDONTWRITEBYTECODE`` is dropped (a sandbox may set it; every process would then compile the package from
+    source, while JAX's own bytecode was written when it was installed); ``pycache=None`` keeps the environment as it
+    is.  The first process fills the cache for every module, JAX's included, so baselines and commands compare alike."""
+    env = {**os.environ, **extra}
+    if pycache is not None:
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
+        env["PYTHONPYCACHEPREFIX"] = str(pycache)
+    return env
+
+
 def save(name: str, obj: dict[str, Any]) -> Path:
     """Write ``benchmarks/results/<name>.json`` atomically and return the path."""
     from jaxlimb._io import write_json_atomic

@@ -14,7 +14,9 @@ Same run, interleaved (so that every ratio compares commands under the same mach
 Each command runs ``--repeats`` times after one warm-up; medians are reported with the ratio to
 the JAX start-up median and the load average before and after, for the wall time and for the
 CPU time of the process (user + system: less sensitive to other jobs on a shared machine).  The compile cache of the runs is
-a fresh directory (``JAXLIMB_CACHE_DIR``), filled by the warm-ups.
+a fresh directory (``JAXLIMB_CACHE_DIR``), filled by the warm-ups, and so is Python's bytecode cache
+(``PYTHONPYCACHEPREFIX``, for JAX and jaxlimb alike, as an installed package has it; ``--no-bytecode-cache``: the
+environment as it is).
 
 Run:  python benchmarks/cli_speed.py [--repeats 5] [--frames 30] [--only locate_sun]
 Writes benchmarks/results/cli_speed.json.
@@ -24,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import resource
 import subprocess
 import sys
@@ -34,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from _common import environment, save
+from _common import environment, process_environment, save
 
 JAXLIMB = [sys.executable, "-m", "jaxlimb.cli"]
 
@@ -141,9 +142,11 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--frames", type=int, default=30)
     ap.add_argument("--only", default=None, help="comma-separated rows (jax_start is always run), e.g. "
                     "locate_sun: no many-frame part, nothing written to results/")
+    ap.add_argument("--no-bytecode-cache", action="store_true", help="run the processes in this environment as it is "
+                    "(by default Python's bytecode is cached, as an installed package has it)")
     args = ap.parse_args(argv)
     d = Path(tempfile.mkdtemp(prefix="cli_speed_"))
-    env = {**os.environ, "JAXLIMB_CACHE_DIR": str(d / "jaxcache")}
+    env = process_environment(None if args.no_bytecode_cache else d / "pycache", JAXLIMB_CACHE_DIR=str(d / "jaxcache"))
     only = None if args.only is None else {"jax_start", *args.only.split(",")}
     cmds = _make_inputs(d, args.frames, only)
     if only is not None:
@@ -174,7 +177,7 @@ def main(argv: list[str] | None = None) -> dict:
         "many_frames": {"n": args.frames, "one_frame_call_s": t_one, "n_frame_call_s": t_many,
                         "frames_per_s_after_first": fps, "frame": [1944, 2592]},
         "loadavg_before": load_before, "loadavg_after": load_after, "commands": {k: " ".join(c) for k, c in cmds.items()},
-        "environment": environment(),
+        "environment": environment(), "bytecode_cache": not args.no_bytecode_cache,
     }
     print(f"load average before {load_before}, after {load_after}")
     for k in cmds:

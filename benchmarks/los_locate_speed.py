@@ -1,7 +1,8 @@
 """Wall and CPU time of one ``jaxlimb los locate FRAME --mesh MESH`` process, its database cached.
 
 Frames of ``benchmarks/irregular_los.py`` (:func:`irregular_los.make_view`: Lommel-Seeliger, 2 DN noise, 1024^2,
-focal 1500 px): Thebe, Phobos and Eros at phase 0, 30 and 60 deg, 3x the long axis, off-centre; the hints give the
+focal 1500 px): Thebe, Phobos and Eros at phase 0, 30 and 60 deg, 3x the long axis, off-centre; and a cratered body
+the pipeline was never developed on, rendered by the independent ray caster (:func:`unseen_frames`); the hints give the
 Sun direction and a range prior (attitude unknown: the template search).  Every process is run ``--repeats``
 times after one warm-up (which builds the database of a body once, in ``$JAXLIMB_CACHE``); with ``--before DIR``
 (e.g. ``git archive BASE | tar -x -C /tmp/BASE``: the directory's name is recorded) the processes of that checkout
@@ -33,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import environment, save  # noqa: E402
+from _common import environment, process_environment, save  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 BODIES = (("thebe", "thebe.obj", "y"), ("phobos", "phobos.obj", "y"), ("eros", "eros007790.tab", "z"))
@@ -60,6 +61,35 @@ def frames(d: Path) -> list[dict]:
             (d / f"{tag}.json").write_text(json.dumps({"sun_dir_camera": [float(v) for v in sun],
                                                        "range_prior_km": float(np.linalg.norm(t)) * 1.05}))  # fmt: skip
             out.append({"tag": tag, "mesh": str(path), "pole": pole, "truth": [float(v) for v in truth]})
+    return out + unseen_frames(d, cam)
+
+
+def unseen_frames(d: Path, cam) -> list[dict]:
+    """A cratered body no part of the pipeline was developed on, rendered by the independent ray caster.
+
+    The body, the photometric law, PSF and sensor are those of ``benchmarks/irregular_independent.py`` (seed 101,
+    its ``new:cratered-a``); phases 0/30/60 at 3x the long axis, off-centre."""
+    import cv2
+    import trimesh
+    from irregular_independent import _scene
+
+    from jaxlimb.irregular.mesh import validate_mesh
+    from jaxlimb.render.independent.geometry import Pinhole
+    from jaxlimb.render.independent.mesh_rays import cratered_body, render_mesh_frame
+
+    V, F = cratered_body(101, subdivisions=4)
+    path = d / "cratered-a.obj"
+    trimesh.Trimesh(V, F, process=False).export(path)
+    model, out = validate_mesh(V, F, source="cratered-a"), []
+    for ph in (0, 30, 60):
+        rng = np.random.default_rng([7, 9, ph])
+        scene, _ = _scene(V, F, model.max_radius, cam, ph, 3.0, True, rng)
+        img, truth = render_mesh_frame(scene, Pinhole.from_camera(cam), rng)
+        tag = f"cratered-a_{ph}"
+        cv2.imwrite(str(d / f"{tag}.png"), np.clip(np.round(img), 0, 65535).astype(np.uint16))
+        (d / f"{tag}.json").write_text(json.dumps({"sun_dir_camera": [float(v) for v in scene.sun_dir_camera],
+                                                   "range_prior_km": float(np.linalg.norm(scene.t_camera_km)) * 1.05}))  # fmt: skip
+        out.append({"tag": tag, "mesh": str(path), "pole": "z", "truth": [float(v) for v in truth]})
     return out
 
 
@@ -76,15 +106,6 @@ def run(cmd: list[str], env: dict[str, str]) -> tuple[float, float, dict]:
     return wall, cpu, json.loads(p.stdout.strip().splitlines()[-1])
 
 
-def environment_of(root: str, pycache: Path | None) -> dict[str, str]:
-    """The environment of a process of the checkout ``root``: bytecode cached under ``pycache`` (``None``: as it is)."""
-    env = {**os.environ, "PYTHONPATH": root}
-    if pycache is not None:
-        env.pop("PYTHONDONTWRITEBYTECODE", None)
-        env["PYTHONPYCACHEPREFIX"] = str(pycache)
-    return env
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3)
@@ -94,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     d = Path(tempfile.mkdtemp(prefix="los_locate_speed_"))
     roots = {"after": str(ROOT)} | ({"before": str(Path(args.before).resolve())} if args.before else {})
-    versions = {v: environment_of(root, None if args.no_bytecode_cache else d / f"pycache-{v}") for v, root in roots.items()}
+    versions = {v: process_environment(None if args.no_bytecode_cache else d / f"pycache-{v}", PYTHONPATH=root) for v, root in roots.items()}
     rows = []
     for f in frames(d):
         if args.only and f["tag"] not in args.only:
