@@ -17,7 +17,7 @@ from ...models import (AnisoProfileParams, CircleParams, LIMB_PROFILE, LimbProfi
 from ..sigmoid import LOGISTIC_TO_GAUSS, predict
 from ..stages import FitData, Frame, RefineResult
 from .albedo_field import albedo_field_refit
-from .glow import widen_aniso_or_glow
+from .glow import widen_aniso_or_glow, with_edge_glow_spread
 from .model_error import weighted_system, with_model_error
 from .passes import gaussian_sigma_of_k, PROFILE_HELD, profile_passes
 from .patchy import downweight_patchy_sectors, with_reweighting_witness
@@ -101,7 +101,9 @@ def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: fl
                       ) -> tuple[RefineResult, int]:
     """Refit the pixels of the CSF (``circle`` fitted to ``data``) with the physical lunar-Lambert limb profile,
     widened (limb brightening, smear or glow, patchy sectors) when a score test asks for it, with its model-error
-    terms; clipped pixels are left out when the image saturates.
+    terms (unwidened: also the move of a glow thinner than the PSF,
+    :func:`~jaxlimb.pipeline.profile.glow.with_edge_glow_spread`); clipped pixels are left out when the image
+    saturates.
 
     Parameters
     ----------
@@ -146,16 +148,23 @@ def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: fl
         if opt.profile == "albedo-field" and (field := albedo_field_refit(frame, out, base)) is not None:
             return field, n_clipped
         if out is base:
-            reweighted = downweight_patchy_sectors(frame, out, solver, system)
-            if reweighted is base:
-                return with_model_error(out, system=system), n_clipped
-            return with_reweighting_witness(with_model_error(reweighted), out), n_clipped
+            return _unwidened(frame, base, solver, system), n_clipped
     else:
         s_e = LOGISTIC_TO_GAUSS / max(float(p.k), 1e-6)
         out, n_clipped = _fit_clipped(frame, data, init, center, float(p.radius), sat, s_e, solver)
         base = out
     final = with_reweighting_witness(with_model_error(downweight_patchy_sectors(frame, out, solver)), out)
     return (with_aniso_blur_witness(final, base) if isinstance(out.fit.params, AnisoProfileParams) else final), n_clipped
+
+
+def _unwidened(frame: Frame, base: RefineResult, solver, system) -> RefineResult:
+    """The answer of a round profile no widening gate took: its patchy sectors down-weighted (with the weighting's
+    witness), its model-error terms, and the move of a glow thinner than the PSF
+    (:func:`~jaxlimb.pipeline.profile.glow.with_edge_glow_spread`)."""
+    reweighted = downweight_patchy_sectors(frame, base, solver, system)
+    answer = (with_model_error(base, system=system) if reweighted is base
+              else with_reweighting_witness(with_model_error(reweighted), base))
+    return with_edge_glow_spread(answer, base, system)
 
 
 def _fit_clipped(frame: Frame, data: FitData, init: LimbProfileParams, center, radius: float, sat: float,

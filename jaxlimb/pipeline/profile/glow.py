@@ -131,6 +131,47 @@ def widen_glow(frame: Frame, rr: RefineResult, solver, system=None) -> RefineRes
     return RefineResult(res, rr.data, 0, fixed, sphere=sph)
 
 
+def with_edge_glow_spread(out: RefineResult, base: RefineResult, system=None) -> RefineResult:
+    """``out`` (the answer of a round profile no widening gate took) with the move a glow thinner than the PSF would
+    make added to its covariance: ``C + d d^T``, ``d`` the change of ``base``'s free parameters when the glow column at
+    the edge height ``GLOW_H0[1]`` is fitted beside them (one Gauss--Newton step from ``base``); nothing when that
+    glow comes out at most 0 (a glow only adds light).  The estimate is not moved.
+
+    Why: light a fraction of a pixel above the edge is a glow, or the wing of a PSF that is not Gaussian (a defocus
+    disc), or an albedo darker just inside the limb; the data fit each about as well (the glow column is significant
+    at 4-8 sigma on all three kinds of frame) and they move the centre the same way, so the fit cannot say which
+    one it sees.  Fitting the glow helps where it is a glow and costs where it is not; left out, a glow at ``z`` biases
+    the centre by about ``z`` times the sigma it would add, whatever the gate's threshold.  The two answers are both
+    carried: the unwidened one, and the move to the other as a model-uncertainty term (a consider term whose size is
+    the data's own estimate: Tapley, Schutz & Born 2004, Sec. 6.3).
+
+    Parameters
+    ----------
+    out : RefineResult
+        The answer (``base``, or ``base`` with its patchy sectors down-weighted), with its model-error terms.
+    base : RefineResult
+        The unwidened fit of :data:`~jaxlimb.models.LIMB_PROFILE`.
+    system : tuple or None
+        ``base``'s weighted system, if formed.
+
+    Returns
+    -------
+    RefineResult
+        ``out`` with the widened covariance, or ``out`` itself.
+    """
+    J, r, padded, w = weighted_system(base, LIMB_PROFILE) if system is None else system
+    if J.shape[0] < max(50, 2 * J.shape[1] + 2):
+        return out
+    c = np.asarray(glow_columns(base.fit.params, padded, np.asarray(GLOW_H0[1:], float)))[0, : r.size] * w
+    with_glow = np.linalg.lstsq(np.concatenate([J, c[:, None]], axis=1), r, rcond=None)[0]
+    if not with_glow[-1] > 0.0:
+        return out
+    d = dict(zip(base.fit.free, with_glow[:-1] - np.linalg.lstsq(J, r, rcond=None)[0]))
+    free = list(out.fit.free)
+    v = np.array([d.get(n, 0.0) for n in free])
+    return out.with_covariance(np.array(out.fit.covariance) + np.outer(v, v))
+
+
 GLOW_TILT_Z = 2.0
 """The z-score (tilt over its sigma) below which :func:`widen_glow` refits a round body's glow with its tilt held at 0
 (:func:`tilt_significant`; the two-sided 95 % test).  A tilt the data do not resolve is a free direction the centre
@@ -293,4 +334,4 @@ def widen_aniso_or_glow(frame: Frame, rr: RefineResult, solver, system=None) -> 
     return aniso if float(aniso.fit.rms) < float(glow.fit.rms) else glow
 
 
-__all__ = ["GLOW_H0", "GLOW_H_RANGE", "GLOW_MAX", "GLOW_TILT_MAX", "GLOW_TILT_MIN_H_PX", "GLOW_TILT_Z", "GLOW_Z", "fit_glow_tilt", "glow_columns", "glow_plausible", "glow_start", "glow_step", "tilt_kept", "tilt_significant", "widen_aniso_or_glow", "widen_glow"]
+__all__ = ["GLOW_H0", "GLOW_H_RANGE", "GLOW_MAX", "GLOW_TILT_MAX", "GLOW_TILT_MIN_H_PX", "GLOW_TILT_Z", "GLOW_Z", "fit_glow_tilt", "glow_columns", "glow_plausible", "glow_start", "glow_step", "tilt_kept", "tilt_significant", "widen_aniso_or_glow", "widen_glow", "with_edge_glow_spread"]
