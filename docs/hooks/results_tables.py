@@ -465,6 +465,24 @@ def dask_montecarlo(rel: str = "dask_montecarlo.json") -> str:
 
 
 @renderer
+def pipeline_families(*rels: str) -> str:
+    """One table per results file of ``benchmarks/pipeline_families.py``: the centre per family."""
+    out = []
+    for rel in rels or ("pipeline_families.json",):
+        d = load(rel)
+        rows = [[f"`{k}`", f"{s['n_ok']} / {s['n']}", f"{f(s['row']['bias'], 3, True)}, {f(s['col']['bias'], 3, True)}",
+                 f"{f(s['row']['rms'])}, {f(s['col']['rms'])}", f"{f(s['sigma_row_mean'])}, {f(s['sigma_col_mean'])}",
+                 f"{f(s['crlb_row_mean'])}, {f(s['crlb_col_mean'])}", f(s["nees_mean"], 2), f(s["nees_median"], 2),
+                 f"{f(s['coverage']['68'], 2)} / {f(s['coverage']['95'], 2)}"] for k, s in d["summary"].items()]
+        head = ["family", "answered", "bias row, col (px)", "RMS row, col (px)", "mean σ row, col (px)",
+                "mean CRLB row, col (px)", "mean NEES", "median NEES", "inside 68 % / 95 %"]
+        fails = ", ".join(f"{k} {v}" for k, v in d.get("failures", {}).items()) or "none"
+        out.append(f"`{d['command']}`\n\n" + table(head, rows) + source(rel, d)
+                   + f"*Typed failures: {fails}; process wall time {f(d['process_wall_s'], 0)} s.*\n")
+    return "\n".join(out)
+
+
+@renderer
 def locate_montecarlo(rel: str = "locate_montecarlo.json") -> str:
     d = load(rel)
     rows = [[d["n"], f"{d['frame'][0]}×{d['frame'][1]}", f(d["sigma_dn"], 0), f(d["ms_per_frame"], 0),
