@@ -138,12 +138,13 @@ def with_edge_glow_spread(out: RefineResult, base: RefineResult, system=None) ->
     glow comes out at most 0 (a glow only adds light).  The estimate is not moved.
 
     Why: light a fraction of a pixel above the edge is a glow, or the wing of a PSF that is not Gaussian (a defocus
-    disc), or an albedo darker just inside the limb; the data fit each about as well (the glow column is significant
-    at 4-8 sigma on all three kinds of frame) and they move the centre the same way, so the fit cannot say which
-    one it sees.  Fitting the glow helps where it is a glow and costs where it is not; left out, a glow at ``z`` biases
-    the centre by about ``z`` times the sigma it would add, whatever the gate's threshold.  The two answers are both
-    carried: the unwidened one, and the move to the other as a model-uncertainty term (a consider term whose size is
-    the data's own estimate: Tapley, Schutz & Born 2004, Sec. 6.3).
+    disc), or an albedo darker just inside the limb.  The glow column is as significant on the independent renderer's
+    defocus and maria frames as on its glow frames, and it moves the centre the same way on all three, so the fit
+    cannot say which one it sees.  Fitting the glow helps where it is a glow and costs where it is not (on defocus
+    frames the centre moves off and its sigma grows several times); left out, a glow at ``z`` biases the
+    centre by about ``z`` times the sigma it would add, whatever the gate's threshold.  So the unwidened answer is
+    kept and the move to the other carried as a model-uncertainty term: a consider term whose size is the data's own
+    estimate (Tapley, Schutz & Born 2004, Sec. 6.3).
 
     Parameters
     ----------
