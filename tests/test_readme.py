@@ -86,7 +86,8 @@ def test_summary_numbers_are_the_results_files():
     expected = [
         f"**{acc['phys_center_p90']:.3f} px** with the physical profile, {acc['center_p90']:.3f} px with the papers' sigmoid",
         f"centre error median {moon['center_median_px']:.3f} px, p90 {moon['center_p90_px']:.3f} px; "
-        f"{moon['n_ok']} of {moon['n']} frames answered, {moon['n'] - moon['n_ok']} typed refusal; mean NEES {moon['nees_mean']:.1f}",
+        f"{moon['n_ok']} of {moon['n']} frames answered, {moon['n'] - moon['n_ok']} typed refusal"
+        f"{'' if moon['n'] - moon['n_ok'] == 1 else 's'}; mean NEES {moon['nees_mean']:.1f}",
         f"centre error median {earth['center_median_px']:.3f} px, p90 {earth['center_p90_px']:.3f} px; "
         f"{earth['n_ok']} of {earth['n']} answered",
         f"centre error median {irregular.group(1)} px, p90 {irregular.group(2)} px",
