@@ -49,9 +49,11 @@ def _saturation(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> float | 
     return sat
 
 
-def lunar_profile_refit(frame: Frame, edge: EdgeFit, sat: float | None, extras: dict[str, Any]) -> RefineResult | None:
-    """The physical profile on the edge fit's pixels, or ``None`` (``profile="auto"``: it failed or its
-    ``L`` is outside the band of lunar-Lambert-like limbs; ``extras["profile_rejected"]`` says why).
+def lunar_profile_refit(frame: Frame, edge: EdgeFit, sat: float | None, extras: dict[str, Any]
+                        ) -> tuple[RefineResult | None, RefineResult | None]:
+    """The physical profile on the edge fit's pixels: ``(accepted, rejected)``.  ``accepted`` is ``None`` when
+    (``profile="auto"``) the fit failed or its ``L`` is outside the band of lunar-Lambert-like limbs
+    (``extras["profile_rejected"]`` says why); ``rejected`` is the fit in the second case, else ``None``.
 
     Parameters
     ----------
@@ -65,7 +67,8 @@ def lunar_profile_refit(frame: Frame, edge: EdgeFit, sat: float | None, extras: 
 
     Returns
     -------
-    RefineResult or None
+    tuple
+        ``(accepted, rejected)``, each a :class:`~jaxlimb.pipeline.stages.RefineResult` or ``None``.
     """
     opt = frame.opt
     try:
@@ -74,7 +77,7 @@ def lunar_profile_refit(frame: Frame, edge: EdgeFit, sat: float | None, extras: 
         if opt.profile != "auto":
             raise
         extras["profile_rejected"] = {"model": "lunar-lambert", "reason": str(e)}
-        return None
+        return None, None
     if n_clipped and "saturation" in extras:
         extras["saturation"]["n_left_out_of_profile_fit"] = n_clipped
     band = l_band(res.fit)
@@ -82,8 +85,8 @@ def lunar_profile_refit(frame: Frame, edge: EdgeFit, sat: float | None, extras: 
     if opt.profile == "auto" and not band[0] <= L <= band[1]:
         # the limb is not lunar-Lambert-like (e.g. a flat disc): keep the sigmoid, say why
         extras["profile_rejected"] = {"model": "lunar-lambert", "L": L, "allowed_L": list(band)}
-        return None
-    return res
+        return None, res
+    return res, None
 
 
 def sphere_refit(frame: Frame, cand: Any, edge: EdgeFit, physical: bool, extras: dict[str, Any]) -> RefineResult:
@@ -105,10 +108,17 @@ def sphere_refit(frame: Frame, cand: Any, edge: EdgeFit, physical: bool, extras:
     -------
     RefineResult
         The profile, the sphere-shaped ESF (camera), the free ESF (``model="ellipse"``) or ``edge.circ``.
+
+    Notes
+    -----
+    When the profile was fitted but rejected for its ``L``, the sigmoid that answers instead carries the move between
+    the two in its covariance (:meth:`~jaxlimb.pipeline.stages.RefineResult.with_move_witness`, the whole move as its
+    sigma): the sigmoid's centre lies off the limb's by the shading it does not model (up to a pixel past 90 deg of
+    phase, Mortari et al. 2016 Sec. V), and the profile that would correct it is the one the band refused.
     """
     opt, circ = frame.opt, edge.circ
     sat = _saturation(frame, edge, extras)
-    final = lunar_profile_refit(frame, edge, sat, extras) if physical else None
+    final, rejected = lunar_profile_refit(frame, edge, sat, extras) if physical else (None, None)
     if physical and final is None and opt.min_lit_arc_deg is None:
         # back on the sigmoid: its own (longer) shortest arc applies
         check_lit_arc(arc_angles(circ.coords, edge.center_rc), MIN_LIT_ARC_DEG, edge.pixels.half)
@@ -124,7 +134,7 @@ def sphere_refit(frame: Frame, cand: Any, edge: EdgeFit, physical: bool, extras:
     if opt.model == "ellipse":
         final = fit_ellipse_annulus(final.data, _ellipse_start(final, edge, cand), opt)
     extras["n_outliers"] += int(final.n_outliers) if final is not circ else 0
-    return final
+    return final if rejected is None else final.with_move_witness(rejected, 1.0)
 
 
 def _ellipse_start(final: RefineResult, edge: EdgeFit, cand: Any) -> EllipseParams:
