@@ -113,8 +113,8 @@ def sphere_refit(frame: Frame, cand: Any, edge: EdgeFit, physical: bool, extras:
     -----
     When the profile was fitted but rejected for its ``L``, the sigmoid that answers instead carries the move between
     the two in its covariance (:meth:`~jaxlimb.pipeline.stages.RefineResult.with_move_witness`, the whole move as its
-    sigma): the sigmoid's centre lies off the limb's by the shading it does not model (up to a pixel past 90 deg of
-    phase, Mortari et al. 2016 Sec. V), and the profile that would correct it is the one the band refused.
+    sigma): the sigmoid's centre lies off the limb's by the shading it does not model, a bias that grows with the
+    phase, and the profile that would correct it is the one the band refused.
     """
     opt, circ = frame.opt, edge.circ
     sat = _saturation(frame, edge, extras)
