@@ -163,7 +163,8 @@ def with_edge_glow_spread(out: RefineResult, base: RefineResult, system=None) ->
     J, r, padded, w = weighted_system(base, LIMB_PROFILE) if system is None else system
     if J.shape[0] < max(50, 2 * J.shape[1] + 2):
         return out
-    c = np.asarray(glow_columns(base.fit.params, padded, np.asarray(GLOW_H0[1:], float)))[0, : r.size] * w
+    # (both heights, as the score test: the program compiled for it, not one more of another shape)
+    c = np.asarray(glow_columns(base.fit.params, padded, np.asarray(GLOW_H0, float)))[1, : r.size] * w
     with_glow = np.linalg.lstsq(np.concatenate([J, c[:, None]], axis=1), r, rcond=None)[0]
     if not with_glow[-1] > 0.0:
         return out
