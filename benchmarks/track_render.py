@@ -1,8 +1,9 @@
 """Render a cislunar transfer with the independent renderer and measure every frame with ``locate`` (cached).
 
 What is rendered: one transfer (``jaxlimb.track.make_transfer``: 100 000 km from the Earth to 40 000 km from the
-Moon in 3.5 days from 2026-03-07 12:00 UTC, arriving near first quarter: both bodies half lit), ``--n-frames`` frames alternating Earth / Moon, 256 x 256 px, focal length
-1000 px, each body at a random place of the frame with a random roll.  The Earth: WGS-84 ellipsoid oriented by
+Moon in 3.5 days from 2026-03-07 12:00 UTC: the Earth about half lit, the Moon gibbous to nearly full from the
+spacecraft; ``benchmarks/track_transfer.py`` reports the phase angles), ``--n-frames`` frames alternating
+Earth / Moon, 256 x 256 px, focal length 1000 px, each body at a random place of the frame with a random roll.  The Earth: WGS-84 ellipsoid oriented by
 its true rotation (skyfield ITRS), Lambert, uniform albedo; the Moon: Hapke law (not the pipeline's
 lunar-Lambert profile); Sun from DE421; Gaussian PSF sigma 0.8 px, 12 bits with read noise.  The radiance of
 each frame is rendered once (``--cache``); ``--realizations`` noise draws of it are digitised and measured by

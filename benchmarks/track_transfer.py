@@ -15,8 +15,10 @@ What is rendered and what is drawn:
 * drawn: the same sequences with Gaussian measurements drawn from the covariance ``locate`` reported (the
   filter's own consistency, with a measurement model that holds by construction).
 
-The filter, smoother and batch fit carry the bodies' bias states (:mod:`jaxlimb.track.bias`; ``--no-bias``: the
-filter that takes every frame's error as independent); the posterior CRB is that of the same model.
+The filter, smoother and batch fit carry the bodies' bias states (:mod:`jaxlimb.track.bias`), with the split of
+``locate``'s model error into independent, constant and walking parts estimated from each sequence
+(:func:`jaxlimb.track.filter_with_split`; ``--no-bias``: the filter that takes every frame's error as independent);
+the posterior CRB is that of the same model (each sequence's split).
 ``measurement_errors_draw0``: ``locate``'s errors on draw 0 against the truth, per body (:func:`measurement_errors`).
 
 Statistics: per epoch, the average over sequences of the filtered 6-state NEES and of the NIS, against the
@@ -77,13 +79,13 @@ def as_frames(arc, tr, recs: list[dict], C: np.ndarray, theta: np.ndarray, att_s
 
 
 def monte_carlo(arc, prop, tr, draws, keep, n_seq: int, seed: int, drawn: bool, bias: bool = True) -> dict:  # noqa: ANN001
-    from jaxlimb.track import average_band, nees, posterior_crlb, run_filter
+    from jaxlimb.track import average_band, filter_with_split, nees, posterior_crlb
     from jaxlimb.track.scenario import perturb_attitudes, true_measurements
 
     rng = np.random.default_rng([seed, int(drawn)])
     P0 = np.diag([1000.0**2] * 3 + [1e-3**2] * 3)
     z_true = true_measurements(tr)[keep]
-    N_f, N_nis, E_s, crb_tr, used, mnees, b_s = [], [], [], [], [], [], []
+    N_f, N_nis, E_s, crb_tr, used, mnees, b_s, splits, S_n = [], [], [], [], [], [], [], [], []
     for s in range(n_seq):
         recs = [_pick(draws, k, rng) for k in keep]
         C = perturb_attitudes(tr.C_true[keep], 1e-5, rng)
@@ -91,18 +93,22 @@ def monte_carlo(arc, prop, tr, draws, keep, n_seq: int, seed: int, drawn: bool, 
         if drawn:
             fr.z[:] = z_true + np.einsum("kij,kj->ki", np.linalg.cholesky(fr.R), rng.standard_normal(fr.z.shape))
         x0 = tr.x0 + np.linalg.cholesky(P0) @ rng.standard_normal(6)
-        res = run_filter(fr, prop, x0, P0, 0.0, q=Q_PSD, bias=bias)
+        measured = fr
+        fr, bm, res, split = filter_with_split(measured, prop, (0.0, x0, P0), bias, q=Q_PSD)
+        if split is not None:
+            splits.append(split.to_json())
         truth = tr.states[keep]
         N_f.append(nees(res.x_filt, res.P_filt, truth))
         N_nis.append(np.where(res.used, res.nis, np.nan))
         E_s.append(res.x_smooth[:, :3] - truth[:, :3])
-        pc = posterior_crlb(fr, prop, tr.x0, 0.0, P0, bias=bias)
+        S_n.append(nees(res.x_smooth[:, :3], res.P_smooth[:, :3, :3], truth[:, :3]).mean())
+        pc = posterior_crlb(fr, prop, tr.x0, 0.0, P0, bias=bm)
         crb_tr.append(np.trace(pc[:, :3, :3], axis1=1, axis2=2))
         if res.bias is not None:
             b_s.append(res.bias.to_json(res.b_smooth, res.b_smooth_cov))
         used.append(res.used)
-        d = fr.z - z_true
-        mnees.append(float(np.mean(np.einsum("ki,ki->k", d, np.linalg.solve(fr.R, d[..., None])[..., 0]))))
+        d = measured.z - z_true  # against the covariance locate reported
+        mnees.append(float(np.mean(np.einsum("ki,ki->k", d, np.linalg.solve(measured.R, d[..., None])[..., 0]))))
     N_f, N_nis, E_s, crb_tr = np.array(N_f), np.array(N_nis), np.array(E_s), np.array(crb_tr)
     lo6, hi6 = average_band(n_seq, 6)
     lo3, hi3 = average_band(n_seq, 3)
@@ -121,10 +127,14 @@ def monte_carlo(arc, prop, tr, draws, keep, n_seq: int, seed: int, drawn: bool, 
         "smoother_rms_pos_km": float(np.sqrt(err2.mean())), "pcrb_rms_pos_km": float(np.sqrt(crb_tr.mean())),
         "smoother_over_pcrb": float(np.sqrt(err2.mean() / crb_tr.mean())),
         "bias_states": bias,
-        "bias_smoothed": {n: {k: float(np.mean([b[n][k] for b in b_s])) for k in ("value", "sigma", "prior_sigma")}
-                          for n in (b_s[0] if b_s else {})},
+        "bias_smoothed": {n: {k: float(np.mean([b[n][k] for b in b_s if n in b])) for k in ("value", "sigma", "prior_sigma")}
+                          | {"sequences": sum(n in b for b in b_s)} for n in dict.fromkeys(x for b in b_s for x in b)},
         "smoother_over_pcrb_epochs_median_max": [float(np.median(ratio_k)), float(np.max(ratio_k))],
         "measurement_nees_mean": float(np.mean(mnees)),
+        "model_error_split": {b: {k: [float(np.mean(v)), float(np.min(v)), float(np.max(v))]
+                                  for k, v in ((k, [x[b][k] for x in splits]) for k in splits[0][b])}
+                              for b in (splits[0] if splits else {})},
+        "smoother_nees_position_mean": float(np.mean(S_n)),
         "epoch_nees": a_nees.tolist(), "epoch_nis": a_nis.tolist(),
     }
 
@@ -158,7 +168,15 @@ def measurement_errors(arc, tr, draw: dict[int, dict], keep) -> dict:  # noqa: A
             return [float(np.mean(x[:-lag] * x[lag:]) / np.mean(x * x)) for lag in (1, 2, 3, 5, 10, 20)]
 
         so, sc = along[m] / size[m], e[m, 2] / fr.z[m, 2]
-        out[b] = {"frames": int(m.sum()), "mean_normalised_row_col_X": n.mean(0).tolist(),
+        r_sc = tr.states[np.array(ks)[m], :3]
+        u, s_ = fr.body_pos[m] - r_sc, fr.sun_pos[m] - fr.body_pos[m]  # observer -> body, body -> Sun
+        phase = np.degrees(np.arccos(np.clip(np.einsum("ki,ki->k", -u, s_) / np.linalg.norm(u, axis=1)
+                                             / np.linalg.norm(s_, axis=1), -1, 1)))
+        out[b] = {"frames": int(m.sum()), "phase_deg_first_last_min_max": [float(phase[0]), float(phase[-1]),
+                                                                          float(phase.min()), float(phase.max())],
+                  "sun_offset_by_fifth_of_the_arc_mean_se": [[float(q.mean()), float(q.std(ddof=1) / np.sqrt(q.size))]
+                                                              for q in np.array_split(along[m] / size[m], 5)],
+                  "mean_normalised_row_col_X": n.mean(0).tolist(),
                   "rms_normalised_row_col_X": np.sqrt((n**2).mean(0)).tolist(),
                   "mean_normalised_along_sun": float(na.mean()), "along_sun_px_mean": float(along[m].mean()),
                   "sun_offset_mean_se": [float(so.mean()), float(so.std(ddof=1) / np.sqrt(m.sum()))],
@@ -193,6 +211,7 @@ def self_calibration(arc, prop, tr, nominal: dict[int, dict], draw0: dict[int, d
     res = track(fr, prop, calibrate=True)
     cam = res.fit.camera
     out = {"measurements": source, "frames": len(ks), "seconds": time.perf_counter() - t, "camera": cam,
+           "model_error_split": res.split.to_json() if res.split is not None else None,
            "observability": res.fit.observability.to_json(), "nominal": THETA_NOMINAL.tolist(), "true": THETA_TRUE.tolist()}
     if cam["focal_px"] is not None:
         f = cam["focal_px"]

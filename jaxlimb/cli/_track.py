@@ -12,7 +12,9 @@ per frame appended to ``--measurements FILE.jsonl`` as ``locate --out`` does (:m
 run (or by ``jaxlimb locate IMAGES --out``) is used as it is.  Stage 2, the trajectory
 (:func:`jaxlimb.track.track`): initial orbit, iterated EKF with NIS gating, RTS smoother, batch least squares of
 the arc (``--self-calibrate``: with the focal length, principal point and k1, and what the sequence cannot
-observe named), each with a constant image bias per body (:mod:`jaxlimb.track.bias`; ``--no-bias``: none).  ``--out TRACK.jsonl`` receives one line per frame epoch (:func:`jaxlimb.track.epoch_records`),
+observe named), each with an image bias per body (:mod:`jaxlimb.track.bias`) and the split of ``locate``'s model
+error into independent, constant and walking parts estimated from the arc (:mod:`jaxlimb.track.variance`;
+``--no-bias``: neither).  ``--out TRACK.jsonl`` receives one line per frame epoch (:func:`jaxlimb.track.epoch_records`),
 written atomically; ``--plot`` the position error (with ``true_state``) or the filter-minus-smoother departure,
 with 3-sigma envelopes.
 
@@ -53,8 +55,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="estimate focal length, principal point and k1 with the trajectory (batch fit)")
     p.add_argument("--no-batch", action="store_true", help="filter and smoother only")
     p.add_argument("--no-bias", action="store_true",
-                   help="no bias states: every frame's error independent (default: a constant image bias per body, "
-                   "its prior the model-error part of locate's covariance)")
+                   help="no bias states: every frame's error independent (default: an image bias per body, constant "
+                   "and walking, with how much of locate's model error each part takes estimated from the arc)")
     p.add_argument("--attitude-sigma-urad", type=arg_number(Range(0.0, 1e5)), default=10.0,
                    help="per-axis attitude knowledge, microradians (default 10)")
     p.add_argument("--process-noise", type=arg_number(Range(0.0, 1e-3)), default=1e-15,
@@ -183,6 +185,8 @@ def _summary(res, frames, t_elapsed: float, truth) -> dict[str, Any]:  # noqa: A
                         "used": int(res.fit.used.sum())}
         if res.fit.bias:
             out["bias"] = res.fit.bias
+    if res.split is not None:
+        out["model_error_split"] = res.split.to_json()
         if res.fit.camera is not None:
             out["camera"] = res.fit.camera
             out["observability"] = res.fit.observability.to_json()

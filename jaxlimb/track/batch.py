@@ -29,7 +29,10 @@ otherwise it is ``None`` and named in ``unobservable``.
 Bias states (:mod:`jaxlimb.track.bias`).  The bodies' constant image biases ``b`` are unknowns of the same
 least squares, with their prior as whitened residuals ``b_i / sigma_i``; the state's covariance is then the
 marginal over them, and the camera's observability is the information on ``theta`` with the state and the
-biases unknown.
+biases unknown.  A walking bias (:mod:`jaxlimb.track.variance`) is not estimated here: its constant part is,
+and its walk is carried in the covariance as a consider term (Tapley, Schutz & Born 2004, §6.3): with the
+whitened Jacobian ``J`` and the walk's whitened columns ``U`` (:func:`~jaxlimb.track.bias.random_effects`), the
+covariance of the estimate is ``A + A J^T U U^T J A``, ``A = (J^T J)^-1``.
 """
 
 from __future__ import annotations
@@ -42,7 +45,8 @@ import numpy as np
 import optimistix as optx
 
 from ..errors import ConfigError, ConvergenceError
-from .bias import BiasModel, bias_model
+from .bias import BiasModel, bias_model, walk_columns
+from .consistency import linearise
 from .dynamics import Propagator
 from .filter import gate_threshold
 from .measurement import CAMERA_PARAMS, Frames, predict, total_covariance
@@ -188,6 +192,7 @@ class _Problem:
         self.prop, self.frames, self.t0, self.weights, self.prior = prop, frames, float(t0), weights, prior
         self.Dx = np.array([1e3] * 3 + [1e-2] * 3)  # km, km/s: the solver's unit step
         self.bias, self.b_ref = bias, np.zeros(len(bias))
+        self.walk: BiasModel | None = None
         self.m = 10 + len(bias)
 
     def args(self, x_ref, theta, basis, W):  # noqa: ANN001, ANN201
@@ -259,7 +264,9 @@ def fit_arc(frames: Frames, prop: Propagator, t0: float, x_guess, *, prior=None,
     gate = gate_threshold(gate_probability)
     pri = None if prior is None else (jnp.asarray(prior[0], float), jnp.asarray(np.linalg.inv(np.linalg.cholesky(prior[1]))))
     bm = bias if isinstance(bias, BiasModel) else bias_model(frames, bool(bias))
-    prob = _Problem(prop, frames, t0, np.ones(len(frames)) if use is None else np.asarray(use, float), pri, bm)
+    prob = _Problem(prop, frames, t0, np.ones(len(frames)) if use is None else np.asarray(use, float), pri,
+                    bm.constant_part())
+    prob.walk = bm if bm.walk is not None and np.any(bm.walk > 0) else None
     # the camera moves along the columns of ``basis`` (4x4, zero columns: fixed directions); the problem
     # always has 10 unknowns, so that the state-only and the calibrated fits share one compiled program
     x_ref, basis, obs = np.asarray(x_guess, float), np.zeros((4, 4)), None
@@ -284,6 +291,16 @@ def fit_arc(frames: Frames, prop: Propagator, t0: float, x_guess, *, prior=None,
     return _finish(prob, x_ref, theta, basis, W, obs, n_steps, passes, chi)
 
 
+def _walk_rows(prob, x0, theta, W, n_rows: int) -> np.ndarray:  # noqa: ANN001
+    """The bias walk's unit-variance columns in the fit's whitened residual rows (zero on the prior rows)."""
+    f, bm = prob.frames, prob.walk
+    lin = linearise(f, prob.prop, np.asarray(x0), prob.t0, BiasModel(bm.names, np.zeros(len(bm)), bm.select),
+                    np.asarray(theta).reshape(-1, 4)[0])
+    Uk, owner = walk_columns(lin.E, f.t)
+    U = np.einsum("kij,kjm->kim", W, Uk * np.sqrt(bm.walk[owner])) * prob.weights[:, None, None]
+    return np.concatenate([U.reshape(3 * len(f), -1), np.zeros((n_rows - 3 * len(f), U.shape[-1]))], 0)
+
+
 def _finish(prob, x0, theta, basis, W, obs, n_steps, passes, chi) -> ArcFit:  # noqa: ANN001
     nb = len(prob.bias)
     live = np.concatenate([np.ones(6, bool), np.any(basis != 0, axis=0), np.ones(nb, bool)])  # the unknowns that move
@@ -294,7 +311,11 @@ def _finish(prob, x0, theta, basis, W, obs, n_steps, passes, chi) -> ArcFit:  # 
     T[6:10, 6:10] = basis
     T[10:, 10:] = np.diag(prob.bias.sigma)
     T = T[:, live]
-    cov = T @ np.linalg.inv(J.T @ J) @ T.T
+    A = np.linalg.inv(J.T @ J)
+    if prob.walk is not None:  # the walk as a consider term (module docstring)
+        K = J.T @ _walk_rows(prob, x0, theta, W, J.shape[0])
+        A = A + A @ K @ K.T @ A
+    cov = T @ A @ T.T
     used = prob.weights > 0
     res = np.asarray(_residuals(jnp.zeros(m), prob.args(x0, theta, basis, W)))[: 3 * len(prob.frames)].reshape(-1, 3)[used]
     th = np.asarray(theta).reshape(-1, 4)[0]

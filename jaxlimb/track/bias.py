@@ -6,9 +6,10 @@ independent from frame to frame; the model error is not: the same body under slo
 mis-modelled the same way (a Hapke Moon fitted with a lunar-Lambert profile, a Lambert Earth against its
 limb model), and a filter that takes it as independent averages it away and becomes overconfident.
 
-Each imaged body ``b`` gets two constant states, estimated with the trajectory
-(Bar-Shalom, Li & Kirubarajan 2001, §8.2, state augmentation with a constant bias; Tapley, Schutz & Born 2004,
-§4.12, consider/solve-for parameters):
+Each imaged body ``b`` gets two states, estimated with the trajectory
+(Bar-Shalom, Li & Kirubarajan 2001, §8.2, state augmentation with a bias; Tapley, Schutz & Born 2004,
+§4.12, consider/solve-for parameters), each a constant and, when ``walk`` is set, a random walk (a bias that
+follows the slowly changing geometry):
 
 * ``sun_offset``: the centre moved along the Sun's direction in the image
   (:func:`~jaxlimb.track.measurement.sun_direction_px`) by ``b_sun`` times the apparent radius: the
@@ -19,8 +20,10 @@ Each imaged body ``b`` gets two constant states, estimated with the trajectory
 Their prior is zero mean with the size of the model-error part of ``locate``'s own covariance
 (``R - R_noise``): per frame the centre's model-error variance (the mean of the row and column variances)
 over the squared apparent radius, and the size's over the squared size; the median over the body's frames
-is the prior variance.  No constant is chosen: a frame set without a noise/model split (``R_noise`` None)
-or without a model-error part gets no bias states, and the filter is the plain one.
+is the prior variance: all of the model error, an upper bound.  How much of it the frames share, as a constant
+or as a walk, is estimated from the arc (:mod:`jaxlimb.track.variance`).  No constant is chosen: a frame set
+without a noise/model split (``R_noise`` None) or without a model-error part gets no bias states, and the filter
+is the plain one.
 """
 
 from __future__ import annotations
@@ -45,14 +48,21 @@ class BiasModel:
     names : ``"<body>.<component>"`` of each state.
     sigma : (n_b,) prior standard deviation of each state (dimensionless).
     select : (n, 2, n_b) maps the states to a frame's ``(b_sun, b_scale)``.
+    walk : (n_b,) power spectral density (1/s) of each state's random walk, or ``None``: constant states.
     """
 
     names: tuple[str, ...]
     sigma: np.ndarray
     select: np.ndarray
+    walk: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.names)
+
+    def constant_part(self) -> BiasModel:
+        """The constant part alone: the states with a constant prior, no walk."""
+        keep = self.sigma > 0
+        return BiasModel(tuple(np.asarray(self.names, dtype=object)[keep]), self.sigma[keep], self.select[..., keep])
 
     def to_json(self, value: np.ndarray, cov: np.ndarray) -> dict[str, dict[str, float]]:
         """Each state's estimate and sigma, with its prior sigma."""
@@ -60,7 +70,36 @@ class BiasModel:
                     "prior_sigma": float(self.sigma[i])} for i, n in enumerate(self.names)}
 
 
-def _body_names(frames: Frames) -> list[str]:
+def walk_columns(E: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The random walk of each bias state as columns of unit-variance effects: ``(W, owner)`` with ``W``
+    ``(n, 3, m)`` and ``owner`` ``(m,)`` the state of each column.  ``E`` ``(n, 3, n_b)`` the measurements' bias
+    columns at the frames' times ``t``; state ``j``'s walk at frame ``k`` is the sum of the increments
+    ``sqrt(t_i - t_{i-1}) e_i`` over the frames ``i <= k`` that see it (``t_{i-1}`` the previous such frame, for the
+    first one ``t[0]``; seconds: multiplied by ``sqrt(walk_j)`` the columns are the walk of PSD ``walk_j``, started
+    at the first frame as the filter's)."""
+    cols, owner = [], []
+    for j in range(E.shape[-1]):
+        seen = np.flatnonzero(np.any(E[:, :, j] != 0, axis=1))
+        for b, dt in zip(seen, np.diff(t[seen], prepend=t[0])):
+            if dt > 0:
+                cols.append(E[:, :, j] * (np.arange(len(t)) >= b)[:, None] * np.sqrt(dt))
+                owner.append(j)
+    W = np.stack(cols, -1) if cols else np.zeros((E.shape[0], 3, 0))
+    return W, np.array(owner, int)
+
+
+def random_effects(E: np.ndarray, t: np.ndarray, bias: BiasModel) -> np.ndarray:
+    """The bias states as unit-variance effects ``(n, 3, m)``: ``E sigma`` (constant part) beside the walk
+    (:func:`walk_columns` times ``sqrt(walk)``); ``z = h + W u + e`` with ``u ~ N(0, I)``."""
+    W = E * bias.sigma[None, None, :]
+    if bias.walk is None or not np.any(bias.walk > 0):
+        return W
+    Wk, owner = walk_columns(E, t)
+    return np.concatenate([W, Wk * np.sqrt(bias.walk[owner])[None, None, :]], -1)
+
+
+def body_names(frames: Frames) -> list[str]:
+    """The imaged body of each frame (by its radius)."""
     names = list(BODY_RADIUS_KM)
     radii = np.array([BODY_RADIUS_KM[n] for n in names])
     return [names[int(np.argmin(np.abs(radii - r)))] for r in frames.radius_km]
@@ -83,7 +122,7 @@ def bias_model(frames: Frames, enabled: bool = True) -> BiasModel:
     size = apparent_radius_px(frames)
     var_sun = np.maximum(0.5 * (model[:, 0, 0] + model[:, 1, 1]), 0.0) / size**2
     var_scale = np.maximum(model[:, 2, 2], 0.0) / frames.z[:, 2] ** 2
-    bodies = np.array(_body_names(frames))
+    bodies = np.array(body_names(frames))
     names, sigma, cols = [], [], []
     for b in dict.fromkeys(bodies):
         m = bodies == b
@@ -99,4 +138,4 @@ def bias_model(frames: Frames, enabled: bool = True) -> BiasModel:
     return BiasModel(tuple(names), np.array(sigma), select)
 
 
-__all__ = ["BIAS_COMPONENTS", "BiasModel", "apparent_radius_px", "bias_model"]
+__all__ = ["BIAS_COMPONENTS", "BiasModel", "apparent_radius_px", "bias_model", "body_names", "random_effects", "walk_columns"]

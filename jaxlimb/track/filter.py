@@ -19,10 +19,10 @@ the default 0.999, the value a correct measurement exceeds once in a thousand fr
 Smoother (Rauch, Tung & Striebel 1965, AIAA J. 3(8)): backward over the frames with
 ``G_k = P+_k Phi_{k+1}^T (P-_{k+1})^-1``.
 
-Bias states.  With a :class:`~jaxlimb.track.bias.BiasModel` the state is ``(r, v, b)``: the constant biases of
-the bodies' images (:mod:`jaxlimb.track.bias`), with ``Phi`` the identity and no process noise on ``b``, the
-prior ``N(0, diag(sigma^2))`` and ``h`` the biased image; the results report ``(r, v)`` (its marginal) and the
-smoothed ``b``.
+Bias states.  With a :class:`~jaxlimb.track.bias.BiasModel` the state is ``(r, v, b)``: the biases of the
+bodies' images (:mod:`jaxlimb.track.bias`), with ``Phi`` the identity on ``b``, process noise ``walk dt`` (none
+for constant biases), the prior ``N(0, diag(sigma^2))`` and ``h`` the biased image; the results report ``(r, v)``
+(its marginal) and the smoothed ``b`` at the first frame.
 """
 
 from __future__ import annotations
@@ -115,20 +115,20 @@ def _update(xp, Pp, z, R, att, theta, args, sun, E, iterations):  # noqa: ANN001
     return x_new, H, Rt, K, nu, S0
 
 
-def _augmented_step(prop, x, tp, t, q):  # noqa: ANN001, ANN202
-    """Propagate ``(r, v, b)``: the dynamics for ``(r, v)``, ``b`` constant (module docstring)."""
+def _augmented_step(prop, x, tp, t, q, qb):  # noqa: ANN001, ANN202
+    """Propagate ``(r, v, b)``: the dynamics for ``(r, v)``, ``b`` a random walk of PSD ``qb`` (module docstring)."""
     nb = x.shape[0] - 6
     xp6, Phi6 = prop.step_with_stm(x[:6], tp, t)
     Phi = jnp.eye(6 + nb).at[:6, :6].set(Phi6)
-    Q = jnp.zeros((6 + nb, 6 + nb)).at[:6, :6].set(process_noise(q, t - tp))
+    Q = jnp.zeros((6 + nb, 6 + nb)).at[:6, :6].set(process_noise(q, t - tp)).at[6:, 6:].set(jnp.diag(qb * jnp.abs(t - tp)))
     return jnp.concatenate([xp6, x[6:]]), Phi, Q
 
 
 @jax.jit(static_argnames=("iterations",))
-def _forward(prop, x0, P0, t0, q, gate, t, z, R, att, theta, sun, E, C, body_pos, radius, is_range, f_nom, iterations=1):  # noqa: ANN001, ANN202
+def _forward(prop, x0, P0, t0, q, qb, gate, t, z, R, att, theta, sun, E, C, body_pos, radius, is_range, f_nom, iterations=1):  # noqa: ANN001, ANN202
     def body(carry, k):  # noqa: ANN001, ANN202
         x, P, tp = carry
-        xp, Phi, Q = _augmented_step(prop, x, tp, t[k], q)
+        xp, Phi, Q = _augmented_step(prop, x, tp, t[k], q, qb)
         Pp = Phi @ P @ Phi.T + Q
         args = (C[k], body_pos[k], radius[k], is_range[k], f_nom[k])
         xu, H, Rt, K, nu, S = _update(xp, Pp, z[k], R[k], att[k], theta[k], args, sun[k], E[k], iterations)
@@ -200,7 +200,8 @@ def run_filter(frames: Frames, prop: Propagator, x0, P0, t0: float, *, q: float 
     Pa[:6, :6] = P0
     Pa[6:, 6:] = np.diag(bm.sigma**2)
     sun = f.sun_pos if f.sun_pos is not None else np.zeros((len(f), 3))
-    out = _forward(prop, jnp.asarray(xa), jnp.asarray(Pa), jnp.asarray(float(t0)), q, gate,
+    qb = jnp.asarray(bm.walk if bm.walk is not None else np.zeros(nb))
+    out = _forward(prop, jnp.asarray(xa), jnp.asarray(Pa), jnp.asarray(float(t0)), q, qb, gate,
                    *map(jnp.asarray, (f.t, f.z, f.R, f.attitude_sigma, f.theta, sun, bm.select)), *f.arrays(),
                    iterations=iterations)
     xp, Pp, xf, Pf, Phi, nu, S, nis, ok = (np.asarray(a) for a in out)

@@ -10,25 +10,30 @@ weigh 1 % of their weight a second time: a loose prior, not a second use of the 
 
 Order.  Filter and smoother run first; the batch fit of the whole arc (and the camera's self-calibration) starts
 from the smoothed state at the reference time, close enough for Gauss--Newton over days of flight; with
-``calibrate`` the filter and smoother are run again with the calibrated camera.
+``calibrate`` the split, the filter and the smoother are run again with the calibrated camera.
 
 Bias states.  With ``bias`` (the default) the filter, the smoother and the batch fit estimate the bodies'
-constant image biases with the trajectory (:mod:`jaxlimb.track.bias`): the model-error part of ``locate``'s
-covariance is common to a body's frames, not independent from frame to frame.  Frames without
-``locate``'s noise/model split get none.
+image biases with the trajectory (:mod:`jaxlimb.track.bias`).  How much of ``locate``'s model error is
+independent from frame to frame, common to a body's frames, or common and slowly varying is estimated from the
+arc (:mod:`jaxlimb.track.variance`): a first filter and smoother with the whole model error in both the frames'
+covariances and the bias prior give the trajectory the split is linearised about; the filter, the smoother and
+the batch fit then run with the split.  Frames without ``locate``'s noise/model split get no bias states and
+no split.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..errors import ConfigError
 from .batch import ArcFit, fit_arc
+from .bias import BiasModel, bias_model
 from .dynamics import Propagator
 from .filter import FilterResult, run_filter
 from .measurement import Frames, single_frame_position
+from .variance import VarianceSplit, variance_split
 
 
 @dataclass(frozen=True)
@@ -41,12 +46,14 @@ class TrackResult:
     filt : filter and smoother.
     fit : the batch fit of the whole arc (``None`` when not asked).
     prior : ``(t0, x0, P0)`` the filter started from.
+    split : the estimated split of the bodies' model error (``None`` without bias states or a noise/model split).
     """
 
     frames: Frames
     filt: FilterResult
     fit: ArcFit | None
     prior: tuple[float, np.ndarray, np.ndarray]
+    split: VarianceSplit | None = None
 
 
 def initial_guess(frames: Frames, n_line: int = 12) -> np.ndarray:
@@ -96,20 +103,39 @@ def track(frames: Frames, prop: Propagator, *, prior: tuple[float, np.ndarray, n
         prior = initial_orbit(frames, prop, n_init=n_init, inflation=prior_inflation, gate_probability=gate_probability)
     t0, x0, P0 = prior
     user_prior = None if prior_given is None else (prior_given[1], prior_given[2])
-    filt = run_filter(frames, prop, x0, P0, t0, q=q, gate_probability=gate_probability, bias=bias)
+    kw = {"q": q, "gate_probability": gate_probability}
+    measured = frames
+    frames, bm, filt, split = filter_with_split(measured, prop, (t0, x0, P0), bias, **kw)
     fit = None
     if batch or calibrate:
         guess = filt.x_smooth[0] if t0 == frames.t[0] else x0
         t_ref = float(frames.t[0]) if t0 == frames.t[0] else t0
         fit = fit_arc(frames, prop, t_ref, guess, prior=user_prior, calibrate=calibrate, gate_probability=gate_probability,
-                      bias=bias)
-    if calibrate and fit is not None:
-        frames = Frames(**{**frames.__dict__, "theta": np.tile(fit.theta, (len(frames), 1))})
-        if prior_given is None:  # the start again, with the calibrated camera
-            t0, x0, P0 = initial_orbit(frames, prop, n_init=n_init, inflation=prior_inflation,
+                      bias=bm)
+    if calibrate and fit is not None:  # the start and the split again, with the calibrated camera
+        measured = replace(measured, theta=np.tile(fit.theta, (len(measured), 1)))
+        if prior_given is None:
+            t0, x0, P0 = initial_orbit(measured, prop, n_init=n_init, inflation=prior_inflation,
                                        gate_probability=gate_probability)
-        filt = run_filter(frames, prop, x0, P0, t0, q=q, gate_probability=gate_probability, bias=bias)
-    return TrackResult(frames, filt, fit, (t0, np.asarray(x0), np.asarray(P0)))
+        frames, bm, filt, split = filter_with_split(measured, prop, (t0, x0, P0), bias, **kw)
+    return TrackResult(frames, filt, fit, (t0, np.asarray(x0), np.asarray(P0)), split)
 
 
-__all__ = ["TrackResult", "initial_guess", "initial_orbit", "track"]
+def filter_with_split(frames: Frames, prop: Propagator, prior: tuple[float, np.ndarray, np.ndarray], bias: bool,
+                      **kw: float) -> tuple[Frames, BiasModel | bool, FilterResult, VarianceSplit | None]:
+    """Filter and smoother with the bodies' model error split (module docstring): ``(frames, bias, filt, split)``,
+    the frames with the split's covariances and the bias states with its prior and walk (``bias`` False: the
+    plain filter, no split)."""
+    t0, x0, P0 = prior
+    filt = run_filter(frames, prop, x0, P0, t0, bias=bias, **kw)
+    if not bias:
+        return frames, False, filt, None
+    bm = bias_model(frames)
+    split = variance_split(frames, prop, filt.x_smooth[0], float(frames.t[0]), bm, filt.used)
+    if split is None:
+        return frames, bm, filt, None
+    frames, bm = split.apply(frames, bm)
+    return frames, bm, run_filter(frames, prop, x0, P0, t0, bias=bm, **kw), split
+
+
+__all__ = ["TrackResult", "filter_with_split", "initial_guess", "initial_orbit", "track"]

@@ -8,48 +8,13 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from jaxlimb.track import (
-    Frames,
-    nees,
-    predict,
-    run_filter,
-)
+from jaxlimb.track import Frames, nees, run_filter
 from jaxlimb.track.bias import apparent_radius_px, bias_model
 from jaxlimb.track.measurement import sun_direction_px
-from jaxlimb.track.scenario import perturb_attitudes, true_measurements
 
-from .conftest import THETA, N
+from .conftest import MODEL_PX, N, locate_like_frames
 
-NOISE_PX, MODEL_PX = 0.03, 0.1  # per-frame noise and model-error sigma of the centre and the radius (px)
 MOON_SUN_OFFSET = 5e-3  # the injected bias: the Moon's centre moved along the Sun by 0.5 % of its radius
-
-
-def _covariances(tr, sigma_px: float) -> np.ndarray:  # noqa: ANN001
-    z = true_measurements(tr)
-    out = []
-    for k, b in enumerate(tr.bodies):
-        size = THETA[0] * np.tan(np.arcsin(6378.137 / z[k, 2])) if b == "earth" else z[k, 2]
-        s3 = z[k, 2] * sigma_px / size if b == "earth" else sigma_px
-        out.append(np.diag([sigma_px**2, sigma_px**2, s3**2]))
-    return np.array(out)
-
-
-def _frames(arc, tr, rng: np.random.Generator, offset: float) -> Frames:  # noqa: ANN001
-    """Measurements with the noise of ``NOISE_PX``, the Moon's centres moved by ``offset`` (sun_offset), and the
-    covariance ``locate`` would report: noise plus the model error of ``MODEL_PX``."""
-    sun = arc.body_position("sun", tr.t)
-    bp = tr.body_positions()
-    is_range = np.array([1.0 if b == "earth" else 0.0 for b in tr.bodies])
-    radius = np.array([6378.137 if b == "earth" else 1737.4 for b in tr.bodies])
-    z = np.array([np.asarray(predict(jnp.asarray(tr.states[k, :3]), jnp.asarray(THETA), jnp.asarray(tr.C_true[k]),
-                                     jnp.asarray(bp[k]), radius[k], is_range[k], THETA[0], jnp.asarray(sun[k]),
-                                     jnp.asarray([offset * (b == "moon"), 0.0]))) for k, b in enumerate(tr.bodies)])
-    noise = _covariances(tr, NOISE_PX)
-    z = z + np.einsum("kij,kj->ki", np.linalg.cholesky(noise), rng.standard_normal(z.shape))
-    R = noise + _covariances(tr, MODEL_PX)
-    return Frames(t=tr.t.copy(), z=z, R=R, C=perturb_attitudes(tr.C_true, 1e-6, rng), body_pos=bp, radius_km=radius,
-                  is_range=is_range, f_nominal=np.full(N, THETA[0]), theta=np.tile(THETA, (N, 1)),
-                  attitude_sigma=np.full(N, 1e-6), labels=tuple(f"f{k}" for k in range(N)), sun_pos=sun, R_noise=noise)
 
 
 def test_sun_direction_in_the_image():
@@ -62,7 +27,7 @@ def test_sun_direction_in_the_image():
 
 def test_prior_is_the_model_error_part(setup):
     arc, _, tr = setup
-    fr = _frames(arc, tr, np.random.default_rng(0), 0.0)
+    fr = locate_like_frames(arc, tr, np.random.default_rng(0), 0.0)
     bm = bias_model(fr)
     assert bm.names == ("earth.sun_offset", "earth.scale", "moon.sun_offset", "moon.scale")
     size = apparent_radius_px(fr)
@@ -85,7 +50,7 @@ def test_bias_state_recovers_a_moon_offset(setup):
     with_b, without, est = [], [], []
     for seed in range(4):
         rng = np.random.default_rng(seed)
-        fr = _frames(arc, tr, rng, MOON_SUN_OFFSET)
+        fr = locate_like_frames(arc, tr, rng, MOON_SUN_OFFSET)
         x0 = tr.x0 + np.linalg.cholesky(P0) @ rng.standard_normal(6)
         res = run_filter(fr, prop, x0, P0, 0.0)
         with_b.append(nees(res.x_smooth[-1], res.P_smooth[-1], tr.states[-1]))

@@ -1,0 +1,81 @@
+"""The tables of the track page (``docs/track.md``), read from ``benchmarks/results/track_transfer*.json``.
+
+Registered with :mod:`results_tables` (loaded first by the docs hook): ``<!-- results: track_transfer -->``,
+``track_selfcal`` and ``track_cli``.
+"""
+
+from __future__ import annotations
+
+import jaxlimb_results_tables as rt  # the sibling the hook loaded before this one
+
+COLUMNS = (("track_transfer_no_bias.json", "monte_carlo_rendered", "rendered, `--no-bias`"),
+           ("track_transfer_whole_prior.json", "monte_carlo_rendered", "rendered, whole model error as bias prior"),
+           ("track_transfer.json", "monte_carlo_rendered", "rendered, split (default)"),
+           ("track_transfer.json", "monte_carlo_drawn", "drawn, split (default)"),
+           ("track_transfer_no_bias.json", "monte_carlo_drawn", "drawn, `--no-bias`"))
+
+
+def _rows(runs: list[dict]) -> list[list[str]]:
+    def band(m: dict, key: str) -> str:
+        lo, hi = m[key]
+        return f"[{lo:.2f}, {hi:.2f}]"
+
+    def ratio(m: dict) -> str:
+        return f"{m['smoother_rms_pos_km']:.2f} / {m['pcrb_rms_pos_km']:.2f} = **{m['smoother_over_pcrb']:.2f}**"
+
+    rows = [("sequences × frames", lambda m: f"{m['sequences']} × {m['frames']}", "≥ 50 × ≥ 200"),
+            ("mean NEES of the filtered state (6 expected)", lambda m: f"**{m['mean_nees_filtered']:.2f}**",
+             band(runs[0], "nees_band_95") + " (95 % band of a 50-run average)"),
+            ("epochs whose run-average NEES is in that band", lambda m: f"{m['epochs_nees_in_band']:.0%}", ""),
+            ("mean NIS (3 expected)", lambda m: f"**{m['mean_nis']:.2f}**", band(runs[0], "nis_band_95")),
+            ("epochs whose run-average NIS is in its band", lambda m: f"{m['epochs_nis_in_band']:.0%}", ""),
+            ("frames gated", lambda m: f"{m['gated_fraction']:.1%}", ""),
+            ("measurement NEES of `locate` against the truth (3 expected)",
+             lambda m: f"{m['measurement_nees_mean']:.2f}", ""),
+            ("smoother RMS position error / posterior CRB (km)", ratio, "≤ 1.2"),
+            ("NEES of the smoothed position (3 expected)",
+             lambda m: rt.f(m.get("smoother_nees_position_mean"), 2), "")]
+    return [[name] + [fn(m) for m in runs] + [target] for name, fn, target in rows]
+
+
+@rt.renderer
+def track_transfer() -> str:
+    """The Monte Carlo of ``benchmarks/track_transfer.py``: the filters side by side (``COLUMNS``)."""
+    files = {rel: rt.load(rel) for rel, _, _ in COLUMNS}
+    runs = [files[rel][part] for rel, part, _ in COLUMNS]
+    head = ["quantity"] + [c for _, _, c in COLUMNS] + ["target"]
+    split = files["track_transfer.json"]["monte_carlo_rendered"].get("model_error_split", {})
+    parts = "; ".join(f"{b}: " + ", ".join(f"{k} {v[0]:.2f} [{v[1]:.2f}, {v[2]:.2f}]" for k, v in s.items())
+                      for b, s in split.items())
+    return (rt.table(head, _rows(runs)) + f"\n*The split on the rendered sequences (mean [min, max] over the 50): "
+            f"{parts}.*\n" + "".join(rt.source(rel, d) for rel, d in files.items()))
+
+
+@rt.renderer
+def track_selfcal(rel: str = "track_transfer.json") -> str:
+    """The self-calibration row of ``benchmarks/track_transfer.py``."""
+    d = rt.load(rel)
+    s = d["self_calibration"]
+    cam = s["camera"]
+
+    def cell(name: str, i: int) -> str:
+        c = cam[name]
+        if c is None:
+            return "unobservable"
+        err = c["value"] - s["true"][i]
+        return f"{c['value']:.4f} ± {c['sigma']:.4f} (error {err:+.4f}, {err / c['sigma']:+.2f} σ)"
+
+    rows = [[f"{s['frames']}", s["measurements"], ", ".join(f"{v:g}" for v in s["nominal"]),
+             cell("focal_px", 0), cell("principal_r", 1), cell("principal_c", 2), cell("k1", 3)]]
+    head = ["frames", "measurements", "started at (f, r_c, c_c, k1)", "focal length (px)", "principal r (px)",
+            "principal c (px)", "k1"]
+    return "\n\n" + rt.table(head, rows) + rt.source(rel, d)
+
+
+@rt.renderer
+def track_cli(rel: str = "track_transfer.json") -> str:
+    """The wall time of ``jaxlimb track`` on the measured frames, cold and warm compilation cache."""
+    d = rt.load(rel)
+    cold, warm = d["cli"]["wall_s_cold_warm"]
+    return (f"**{cold:.0f} s** with an empty compilation cache and **{warm:.0f} s** with the cache the first run "
+            f"filled (exit {d['cli']['exit']}; `benchmarks/results/{rel}`, commit `{rt.commit_of(d)}`)")

@@ -1,0 +1,70 @@
+"""The split of the bodies' model error (:mod:`jaxlimb.track.variance`): the walk's columns are a random walk,
+the bound marginalises the walking biases, and on drawn sequences whose model error is known to be independent,
+or a constant Moon offset, the restricted likelihood finds which it is."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from jaxlimb.track import filter_with_split, nees, posterior_crlb, variance_split
+from jaxlimb.track.bias import BiasModel, bias_model, random_effects, walk_columns
+
+from .conftest import locate_like_frames
+
+def test_walk_columns_are_a_random_walk():
+    rng = np.random.default_rng(1)
+    t = np.array([0.0, 1.0, 2.5, 4.0, 7.0, 8.0])
+    E = np.zeros((6, 3, 2))
+    E[[1, 3, 4], :, 0] = rng.standard_normal((3, 3))  # state 0 seen by frames 1, 3, 4
+    E[[0, 2, 5], :, 1] = rng.standard_normal((3, 3))
+    sigma, walk = np.array([0.3, 0.0]), np.array([0.02, 0.05])
+    W = random_effects(E, t, BiasModel(("a.x", "b.x"), sigma, np.zeros((6, 2, 2)), walk))
+    cov = np.einsum("kim,ljm->kilj", W, W)
+    for k in range(6):
+        for l in range(6):
+            want = sum(np.outer(E[k, :, j], E[l, :, j]) * (sigma[j] ** 2 + walk[j] * (min(t[k], t[l]) - t[0]))
+                       for j in range(2))
+            np.testing.assert_allclose(cov[k, :, l, :], want, atol=1e-12)
+    _, owner = walk_columns(E, t)
+    assert list(owner) == [0, 0, 0, 1, 1]  # frame 0 starts state 1's walk at t[0]: no increment
+
+
+def test_bound_with_a_walk_is_wider(setup):
+    arc, prop, tr = setup
+    fr = locate_like_frames(arc, tr, np.random.default_rng(0), 0.0, independent=1.0)
+    P0 = np.diag([500.0**2] * 3 + [5e-3**2] * 3)
+    bm = bias_model(fr)
+    still = posterior_crlb(fr, prop, tr.x0, 0.0, P0, bias=bm)
+    walking = posterior_crlb(fr, prop, tr.x0, 0.0, P0, bias=BiasModel(bm.names, bm.sigma, bm.select,
+                                                                       bm.sigma**2 / (tr.t[-1] - tr.t[0])))
+    none = posterior_crlb(fr, prop, tr.x0, 0.0, P0, bias=False)
+    tr3 = [np.trace(p[:, :3, :3], axis1=1, axis2=2).mean() for p in (none, still, walking)]
+    assert tr3[0] < tr3[1] < tr3[2], tr3
+
+
+@pytest.mark.slow
+def test_split_finds_independent_and_common_error(setup):
+    arc, prop, tr = setup
+    P0 = np.diag([500.0**2] * 3 + [5e-3**2] * 3)
+    indep, common, err_default, err_split, nees_split = [], [], [], [], []
+    for seed in range(4):
+        rng = np.random.default_rng(seed)
+        x0 = tr.x0 + np.linalg.cholesky(P0) @ rng.standard_normal(6)
+        fr = locate_like_frames(arc, tr, rng, 0.0, independent=1.0)  # all of the model error independent from frame to frame
+        split = variance_split(fr, prop, tr.x0, 0.0, bias_model(fr))
+        indep.append(split.alpha)
+        fr = locate_like_frames(arc, tr, rng, 5e-3)  # none independent: a constant Moon offset
+        split = variance_split(fr, prop, tr.x0, 0.0, bias_model(fr))
+        moon = split.bodies.index("moon")
+        common.append((split.alpha[moon], split.beta[moon] + split.gamma[moon]))
+        frs, bm, res, _ = filter_with_split(fr, prop, (0.0, x0, P0), True)
+        nees_split.append(nees(res.x_smooth[-1], res.P_smooth[-1], tr.states[-1]))
+        base = filter_with_split(fr, prop, (0.0, x0, P0), False)[2]
+        err_default.append(np.linalg.norm(base.x_smooth[:, :3] - tr.states[:, :3], axis=1).mean())
+        err_split.append(np.linalg.norm(res.x_smooth[:, :3] - tr.states[:, :3], axis=1).mean())
+    assert np.mean(indep) > 0.6, indep  # independent model error: found independent
+    alpha_moon, shared = np.array(common).T
+    assert np.mean(alpha_moon) < 0.3 and np.mean(shared) > 0.1, common  # a constant offset: found common
+    assert np.mean(nees_split) < 14.0, nees_split  # chi2(6) average of 4 runs: 95 % below ~10
+    assert np.mean(err_split) < np.mean(err_default), (err_split, err_default)
