@@ -79,3 +79,23 @@ def track_cli(rel: str = "track_transfer.json") -> str:
     cold, warm = d["cli"]["wall_s_cold_warm"]
     return (f"**{cold:.0f} s** with an empty compilation cache and **{warm:.0f} s** with the cache the first run "
             f"filled (exit {d['cli']['exit']}; `benchmarks/results/{rel}`, commit `{rt.commit_of(d)}`)")
+
+
+@rt.renderer
+def track_epic(rel: str = "track_epic.json") -> str:
+    """DSCOVR's position from each EPIC frame against its metadata (``benchmarks/track_epic.py``)."""
+    d = rt.load(rel)
+    rows = []
+    for fr in d["frames"]:
+        date = fr["frame"].rsplit("_", 1)[-1]
+        day = f"{date[:4]}-{date[4:6]}-{date[6:]}"
+        if fr["status"] != "ok":
+            rows.append([day, f"refused: `{fr['check']}`", "", "", "", "", rt.f(fr["boresight_vs_metadata_rad"] * 1e6, 0)])
+            continue
+        rows.append([day, f"{fr['error_range_km']:+,.0f}", f"{fr['sigma_range_km']:,.0f}", f"{fr['error_lateral_km']:,.0f}",
+                     f"{fr['sigma_lateral_km']:,.0f}", "yes" if fr["within_3_sigma"] else "**no**",
+                     rt.f(fr["boresight_vs_metadata_rad"] * 1e6, 0)])
+    head = ["frame", "range error (km)", "range sigma (km)", "lateral error (km)", "lateral sigma per axis (km)",
+            "within 3 sigma", "boresight vs metadata (µrad)"]
+    return (rt.table(head, rows) + f"\n*{d['measured']} of {len(d['frames'])} frames measured, {d['within_3_sigma']} "
+            f"within 3 sigma; attitude sigma {d['attitude_sigma_rad']:g} rad.*\n" + rt.source(rel, d))
