@@ -23,7 +23,8 @@ the posterior CRB is that of the same model (each sequence's split).
 
 Statistics: per epoch, the average over sequences of the filtered 6-state NEES and of the NIS, against the
 two-sided 95 % band of the ``N``-run average (:func:`jaxlimb.track.average_band`); the grand means; the
-smoother's RMS position error against the posterior CRB (:func:`jaxlimb.track.posterior_crlb`).
+smoother's and the batch fit's RMS position error against the posterior CRB (:func:`jaxlimb.track.posterior_crlb`),
+and the NEES of their positions.
 Self-calibration: the draw measured with the nominal camera (focal length +1 %, principal point off by
 (+2.0, -1.5) px), :func:`jaxlimb.track.track` with ``calibrate=True``.  Speed: ``jaxlimb track`` on the
 measured frames (``--resume`` on a measurements file: the time after ``locate``), in a subprocess, twice: with
@@ -79,13 +80,13 @@ def as_frames(arc, tr, recs: list[dict], C: np.ndarray, theta: np.ndarray, att_s
 
 
 def monte_carlo(arc, prop, tr, draws, keep, n_seq: int, seed: int, drawn: bool, bias: bool = True) -> dict:  # noqa: ANN001
-    from jaxlimb.track import average_band, filter_with_split, nees, posterior_crlb
+    from jaxlimb.track import average_band, filter_with_split, fit_arc, nees, posterior_crlb
     from jaxlimb.track.scenario import perturb_attitudes, true_measurements
 
     rng = np.random.default_rng([seed, int(drawn)])
     P0 = np.diag([1000.0**2] * 3 + [1e-3**2] * 3)
     z_true = true_measurements(tr)[keep]
-    N_f, N_nis, E_s, crb_tr, used, mnees, b_s, splits, S_n = [], [], [], [], [], [], [], [], []
+    N_f, N_nis, E_s, crb_tr, used, mnees, b_s, splits, S_n, E_b, B_n = [], [], [], [], [], [], [], [], [], [], []
     for s in range(n_seq):
         recs = [_pick(draws, k, rng) for k in keep]
         C = perturb_attitudes(tr.C_true[keep], 1e-5, rng)
@@ -101,6 +102,10 @@ def monte_carlo(arc, prop, tr, draws, keep, n_seq: int, seed: int, drawn: bool, 
         N_f.append(nees(res.x_filt, res.P_filt, truth))
         N_nis.append(np.where(res.used, res.nis, np.nan))
         E_s.append(res.x_smooth[:, :3] - truth[:, :3])
+        fit = fit_arc(fr, prop, float(fr.t[0]), res.x_smooth[0], bias=bm)
+        Xb, Pb = fit.states(prop, fr.t)
+        E_b.append(Xb[:, :3] - truth[:, :3])
+        B_n.append(nees(Xb[:, :3], Pb[:, :3, :3], truth[:, :3]).mean())
         S_n.append(nees(res.x_smooth[:, :3], res.P_smooth[:, :3, :3], truth[:, :3]).mean())
         pc = posterior_crlb(fr, prop, tr.x0, 0.0, P0, bias=bm)
         crb_tr.append(np.trace(pc[:, :3, :3], axis1=1, axis2=2))
@@ -126,6 +131,9 @@ def monte_carlo(arc, prop, tr, draws, keep, n_seq: int, seed: int, drawn: bool, 
         "gated_fraction": float(1 - np.mean(used)),
         "smoother_rms_pos_km": float(np.sqrt(err2.mean())), "pcrb_rms_pos_km": float(np.sqrt(crb_tr.mean())),
         "smoother_over_pcrb": float(np.sqrt(err2.mean() / crb_tr.mean())),
+        "batch_rms_pos_km": float(np.sqrt(np.mean(np.sum(np.array(E_b) ** 2, -1)))),
+        "batch_over_pcrb": float(np.sqrt(np.mean(np.sum(np.array(E_b) ** 2, -1)) / crb_tr.mean())),
+        "batch_nees_position_mean": float(np.mean(B_n)),
         "bias_states": bias,
         "bias_smoothed": {n: {k: float(np.mean([b[n][k] for b in b_s if n in b])) for k in ("value", "sigma", "prior_sigma")}
                           | {"sequences": sum(n in b for b in b_s)} for n in dict.fromkeys(x for b in b_s for x in b)},

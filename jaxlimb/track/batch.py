@@ -29,10 +29,12 @@ otherwise it is ``None`` and named in ``unobservable``.
 Bias states (:mod:`jaxlimb.track.bias`).  The bodies' constant image biases ``b`` are unknowns of the same
 least squares, with their prior as whitened residuals ``b_i / sigma_i``; the state's covariance is then the
 marginal over them, and the camera's observability is the information on ``theta`` with the state and the
-biases unknown.  A walking bias (:mod:`jaxlimb.track.variance`) is not estimated here: its constant part is,
-and its walk is carried in the covariance as a consider term (Tapley, Schutz & Born 2004, §6.3): with the
-whitened Jacobian ``J`` and the walk's whitened columns ``U`` (:func:`~jaxlimb.track.bias.random_effects`), the
-covariance of the estimate is ``A + A J^T U U^T J A``, ``A = (J^T J)^-1``.
+biases unknown.  A walking bias (:mod:`jaxlimb.track.variance`) has its constant part among the unknowns and
+its walk marginalised: the frames' residuals, whitened frame by frame, are correlated by the walk's whitened
+columns ``U`` (:func:`~jaxlimb.track.bias.walk_columns`), ``cov = I + U U^T``; with the thin SVD
+``U = Q S V^T`` the whitening of that covariance is ``I - Q diag(1 - (1 + s^2)^-1/2) Q^T`` (generalised least
+squares; recomputed with the frame whiteners at each pass), so the estimate and its covariance are those of the
+model the filter uses.
 """
 
 from __future__ import annotations
@@ -141,14 +143,15 @@ def _whiteners(frames: Frames, X: np.ndarray, theta: np.ndarray) -> np.ndarray:
 
 def _residuals(p, args):  # noqa: ANN001, ANN202
     """Whitened residuals of every frame (zero weight: removed) and of the prior (module docstring)."""
-    prop, t0, ts, z, W, weights, x_ref, Dx, theta0, basis, frame_args, prior_x, prior_L, b_ref, b_sig, sun, E = args
+    prop, t0, ts, z, W, Q, c, weights, x_ref, Dx, theta0, basis, frame_args, prior_x, prior_L, b_ref, b_sig, sun, E = args
     x0 = x_ref + Dx * p[:6]
     theta = jnp.broadcast_to(theta0 + basis @ p[6:10], (ts.shape[0], 4))
     b = b_ref + b_sig * p[10:]
     X = prop.trajectory(x0, t0, ts)
     h = _predict_all(X, theta, frame_args, sun, E, b)
-    r = jnp.einsum("kij,kj->ki", W, z - h) * weights[:, None]
-    return jnp.concatenate([r.reshape(-1), prior_L @ (x0 - prior_x), b / b_sig])
+    r = (jnp.einsum("kij,kj->ki", W, z - h) * weights[:, None]).reshape(-1)
+    r = r - Q @ (c * (Q.T @ r))  # the walk's correlation (module docstring); Q empty without a walk
+    return jnp.concatenate([r, prior_L @ (x0 - prior_x), b / b_sig])
 
 
 def _predict_all(X, theta, frame_args, sun, E, b):  # noqa: ANN001, ANN202
@@ -193,6 +196,7 @@ class _Problem:
         self.Dx = np.array([1e3] * 3 + [1e-2] * 3)  # km, km/s: the solver's unit step
         self.bias, self.b_ref = bias, np.zeros(len(bias))
         self.walk: BiasModel | None = None
+        self.Q, self.c = np.zeros((3 * len(frames), 0)), np.zeros(0)
         self.m = 10 + len(bias)
 
     def args(self, x_ref, theta, basis, W):  # noqa: ANN001, ANN201
@@ -200,13 +204,20 @@ class _Problem:
         px, pL = self.prior if self.prior is not None else (jnp.zeros(6), jnp.zeros((6, 6)))
         sun = f.sun_pos if f.sun_pos is not None else np.zeros((len(f), 3))
         return (self.prop, jnp.asarray(self.t0), jnp.asarray(f.t), jnp.asarray(f.z), jnp.asarray(W),
-                jnp.asarray(self.weights), jnp.asarray(x_ref), jnp.asarray(self.Dx), jnp.asarray(theta),
+                jnp.asarray(self.Q), jnp.asarray(self.c), jnp.asarray(self.weights), jnp.asarray(x_ref),
+                jnp.asarray(self.Dx), jnp.asarray(theta),
                 jnp.asarray(basis), f.arrays(), px, pL, jnp.asarray(self.b_ref), jnp.asarray(self.bias.sigma),
                 jnp.asarray(sun), jnp.asarray(self.bias.select))
 
     def whiteners(self, x_ref, theta) -> np.ndarray:  # noqa: ANN001
+        """Each frame's ``L_k^-1`` at ``x_ref`` and, with a walk, the low-rank whitening of its correlation
+        (``Q``, ``c``: module docstring) over the frames in use."""
         X = np.asarray(self.prop.trajectory(jnp.asarray(x_ref), jnp.asarray(self.t0), jnp.asarray(self.frames.t)))
-        return _whiteners(self.frames, X, np.broadcast_to(theta, self.frames.theta.shape))
+        W = _whiteners(self.frames, X, np.broadcast_to(theta, self.frames.theta.shape))
+        if self.walk is not None:
+            Q, s, _ = np.linalg.svd(_walk_rows(self, x_ref, theta, W), full_matrices=False)
+            self.Q, self.c = Q, 1.0 - 1.0 / np.sqrt(1.0 + s**2)
+        return W
 
     def fit(self, x_ref, theta, basis, W, max_steps):  # noqa: ANN001, ANN201
         p, n = _solve(self.args(x_ref, theta, basis, W), self.m, max_steps)
@@ -291,14 +302,14 @@ def fit_arc(frames: Frames, prop: Propagator, t0: float, x_guess, *, prior=None,
     return _finish(prob, x_ref, theta, basis, W, obs, n_steps, passes, chi)
 
 
-def _walk_rows(prob, x0, theta, W, n_rows: int) -> np.ndarray:  # noqa: ANN001
-    """The bias walk's unit-variance columns in the fit's whitened residual rows (zero on the prior rows)."""
+def _walk_rows(prob, x0, theta, W) -> np.ndarray:  # noqa: ANN001
+    """The bias walk's unit-variance columns in the fit's whitened frame rows (zero for a removed frame)."""
     f, bm = prob.frames, prob.walk
     lin = linearise(f, prob.prop, np.asarray(x0), prob.t0, BiasModel(bm.names, np.zeros(len(bm)), bm.select),
                     np.asarray(theta).reshape(-1, 4)[0])
     Uk, owner = walk_columns(lin.E, f.t)
     U = np.einsum("kij,kjm->kim", W, Uk * np.sqrt(bm.walk[owner])) * prob.weights[:, None, None]
-    return np.concatenate([U.reshape(3 * len(f), -1), np.zeros((n_rows - 3 * len(f), U.shape[-1]))], 0)
+    return U.reshape(3 * len(f), -1)
 
 
 def _finish(prob, x0, theta, basis, W, obs, n_steps, passes, chi) -> ArcFit:  # noqa: ANN001
@@ -311,11 +322,7 @@ def _finish(prob, x0, theta, basis, W, obs, n_steps, passes, chi) -> ArcFit:  # 
     T[6:10, 6:10] = basis
     T[10:, 10:] = np.diag(prob.bias.sigma)
     T = T[:, live]
-    A = np.linalg.inv(J.T @ J)
-    if prob.walk is not None:  # the walk as a consider term (module docstring)
-        K = J.T @ _walk_rows(prob, x0, theta, W, J.shape[0])
-        A = A + A @ K @ K.T @ A
-    cov = T @ A @ T.T
+    cov = T @ np.linalg.inv(J.T @ J) @ T.T
     used = prob.weights > 0
     res = np.asarray(_residuals(jnp.zeros(m), prob.args(x0, theta, basis, W)))[: 3 * len(prob.frames)].reshape(-1, 3)[used]
     th = np.asarray(theta).reshape(-1, 4)[0]

@@ -1,13 +1,14 @@
 """The split of the bodies' model error (:mod:`jaxlimb.track.variance`): the walk's columns are a random walk,
 the bound marginalises the walking biases, and on drawn sequences whose model error is known to be independent,
-or a constant Moon offset, the restricted likelihood finds which it is."""
+or a constant Moon offset, the restricted likelihood finds which it is; the batch fit with a walk agrees with the
+smoother."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from jaxlimb.track import filter_with_split, nees, posterior_crlb, variance_split
+from jaxlimb.track import filter_with_split, fit_arc, nees, posterior_crlb, run_filter, variance_split
 from jaxlimb.track.bias import BiasModel, bias_model, random_effects, walk_columns
 
 from .conftest import locate_like_frames
@@ -68,3 +69,22 @@ def test_split_finds_independent_and_common_error(setup):
     assert np.mean(alpha_moon) < 0.3 and np.mean(shared) > 0.1, common  # a constant offset: found common
     assert np.mean(nees_split) < 14.0, nees_split  # chi2(6) average of 4 runs: 95 % below ~10
     assert np.mean(err_split) < np.mean(err_default), (err_split, err_default)
+
+
+def test_batch_with_a_walk_agrees_with_the_smoother(setup):
+    # the batch marginalises the walk as the filter models it: with the same prior and deterministic dynamics,
+    # the estimate and its sigma are the smoother's (a linear-Gaussian arc: batch = smoother)
+    arc, prop, tr = setup
+    P0 = np.diag([500.0**2] * 3 + [5e-3**2] * 3)
+    rng = np.random.default_rng(3)
+    fr = locate_like_frames(arc, tr, rng, 5e-3)
+    bm = bias_model(fr)
+    walking = BiasModel(bm.names, bm.sigma * 0.5, bm.select, 0.5 * bm.sigma**2 / (tr.t[-1] - tr.t[0]))
+    x0 = tr.x0 + np.linalg.cholesky(P0) @ rng.standard_normal(6)
+    res = run_filter(fr, prop, x0, P0, 0.0, q=0.0, bias=walking)  # deterministic dynamics, as the batch
+    fit = fit_arc(fr, prop, 0.0, res.x_smooth[0], bias=walking, prior=(x0, P0))
+    still = fit_arc(fr, prop, 0.0, res.x_smooth[0], bias=BiasModel(bm.names, bm.sigma * 0.5, bm.select), prior=(x0, P0))
+    sig = np.sqrt(np.diag(fit.P0))
+    assert np.all(np.abs(fit.x0 - res.x_smooth[0]) < 0.03 * sig), (fit.x0 - res.x_smooth[0]) / sig
+    np.testing.assert_allclose(sig, np.sqrt(np.diag(res.P_smooth[0])), rtol=0.01)
+    assert np.all(np.diag(fit.P0)[:3] > np.diag(still.P0)[:3])  # the walk widens the arc's covariance
