@@ -185,11 +185,11 @@ def _summary(res, frames, t_elapsed: float, truth) -> dict[str, Any]:  # noqa: A
                         "used": int(res.fit.used.sum())}
         if res.fit.bias:
             out["bias"] = res.fit.bias
-    if res.split is not None:
-        out["model_error_split"] = res.split.to_json()
         if res.fit.camera is not None:
             out["camera"] = res.fit.camera
             out["observability"] = res.fit.observability.to_json()
+    if res.split is not None:
+        out["model_error_split"] = res.split.to_json()
     if truth is not None:
         out["mean_nees_filtered"] = float(np.mean(nees(f.x_filt, f.P_filt, truth)))
         out["rms_position_error_smoothed_km"] = float(np.sqrt(np.mean(np.sum((f.x_smooth - truth)[:, :3] ** 2, 1))))

@@ -74,3 +74,20 @@ def test_track_input_errors(tmp_path, capsys):
 def test_track_bad_flags(tmp_path, flag, capsys):
     code = main(["track", "--frames", "x.jsonl", "--camera", "c.json", *flag])
     assert code == 2
+
+
+def test_summary_reports_the_camera_with_or_without_a_split():
+    # the self-calibrated camera is in the summary whether or not the model error was split (--no-bias: no split)
+    from types import SimpleNamespace
+
+    from jaxlimb.cli._track import _summary
+
+    filt = SimpleNamespace(used=np.ones(3, bool), nis=np.ones(3), gate=16.3)
+    obs = SimpleNamespace(to_json=lambda: {"observable": [True]})
+    fit = SimpleNamespace(t0=0.0, x0=np.zeros(6), P0=np.eye(6), residual_rms=1.0, used=np.ones(3, bool), bias={},
+                          camera={"focal_px": {"value": 1000.0, "sigma": 0.1}}, observability=obs)
+    split = SimpleNamespace(to_json=lambda: {"moon": {"independent": 0.3, "common": 0.1, "walk": 0.0}})
+    for s in (None, split):
+        out = _summary(SimpleNamespace(filt=filt, fit=fit, split=s), ["a", "b", "c"], 1.0, None)
+        assert out["camera"] == fit.camera and out["observability"] == {"observable": [True]}
+        assert ("model_error_split" in out) == (s is not None)
