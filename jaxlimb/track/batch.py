@@ -31,7 +31,7 @@ least squares, with their prior as whitened residuals ``b_i / sigma_i``; the sta
 marginal over them, and the camera's observability is the information on ``theta`` with the state and the
 biases unknown.  A walking bias (:mod:`jaxlimb.track.variance`) has its constant part among the unknowns and
 its walk marginalised: the frames' residuals, whitened frame by frame, are correlated by the walk's whitened
-columns ``U`` (:func:`~jaxlimb.track.bias.walk_columns`), ``cov = I + U U^T``; with the thin SVD
+columns ``U`` (:func:`~jaxlimb.track.bias.walk_effects`), ``cov = I + U U^T``; with the thin SVD
 ``U = Q S V^T`` the whitening of that covariance is ``I - Q diag(1 - (1 + s^2)^-1/2) Q^T`` (generalised least
 squares; recomputed with the frame whiteners at each pass), so the estimate and its covariance are those of the
 model the filter uses.
@@ -47,8 +47,8 @@ import numpy as np
 import optimistix as optx
 
 from ..errors import ConfigError, ConvergenceError
-from .bias import BiasModel, bias_model, walk_columns
-from .consistency import linearise
+from .bias import BiasModel, bias_model, walk_effects
+from .consistency import measurement_jacobians
 from .dynamics import Propagator
 from .filter import gate_threshold
 from .measurement import CAMERA_PARAMS, Frames, predict, total_covariance
@@ -215,7 +215,7 @@ class _Problem:
         X = np.asarray(self.prop.trajectory(jnp.asarray(x_ref), jnp.asarray(self.t0), jnp.asarray(self.frames.t)))
         W = _whiteners(self.frames, X, np.broadcast_to(theta, self.frames.theta.shape))
         if self.walk is not None:
-            Q, s, _ = np.linalg.svd(_walk_rows(self, x_ref, theta, W), full_matrices=False)
+            Q, s, _ = np.linalg.svd(_walk_rows(self, X, theta, W), full_matrices=False)
             self.Q, self.c = Q, 1.0 - 1.0 / np.sqrt(1.0 + s**2)
         return W
 
@@ -302,13 +302,12 @@ def fit_arc(frames: Frames, prop: Propagator, t0: float, x_guess, *, prior=None,
     return _finish(prob, x_ref, theta, basis, W, obs, n_steps, passes, chi)
 
 
-def _walk_rows(prob, x0, theta, W) -> np.ndarray:  # noqa: ANN001
-    """The bias walk's unit-variance columns in the fit's whitened frame rows (zero for a removed frame)."""
-    f, bm = prob.frames, prob.walk
-    lin = linearise(f, prob.prop, np.asarray(x0), prob.t0, BiasModel(bm.names, np.zeros(len(bm)), bm.select),
-                    np.asarray(theta).reshape(-1, 4)[0])
-    Uk, owner = walk_columns(lin.E, f.t)
-    U = np.einsum("kij,kjm->kim", W, Uk * np.sqrt(bm.walk[owner])) * prob.weights[:, None, None]
+def _walk_rows(prob, X, theta, W) -> np.ndarray:  # noqa: ANN001
+    """The bias walk's unit-variance columns in the fit's whitened frame rows at the states ``X`` (zero for a
+    removed frame)."""
+    f = prob.frames
+    E = measurement_jacobians(f, X, prob.walk, np.asarray(theta).reshape(-1, 4)[0])[1][:, :, 6:]
+    U = np.einsum("kij,kjm->kim", W, walk_effects(E, f.t, prob.walk)) * prob.weights[:, None, None]
     return U.reshape(3 * len(f), -1)
 
 

@@ -88,14 +88,19 @@ def walk_columns(E: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return W, np.array(owner, int)
 
 
+def walk_effects(E: np.ndarray, t: np.ndarray, bias: BiasModel) -> np.ndarray:
+    """The walk of ``bias`` as unit-variance effects ``(n, 3, m)``: :func:`walk_columns` times ``sqrt(walk)``
+    (no column without a walk)."""
+    if bias.walk is None or not np.any(bias.walk > 0):
+        return np.zeros((E.shape[0], 3, 0))
+    Wk, owner = walk_columns(E, t)
+    return Wk * np.sqrt(bias.walk[owner])[None, None, :]
+
+
 def random_effects(E: np.ndarray, t: np.ndarray, bias: BiasModel) -> np.ndarray:
     """The bias states as unit-variance effects ``(n, 3, m)``: ``E sigma`` (constant part) beside the walk
-    (:func:`walk_columns` times ``sqrt(walk)``); ``z = h + W u + e`` with ``u ~ N(0, I)``."""
-    W = E * bias.sigma[None, None, :]
-    if bias.walk is None or not np.any(bias.walk > 0):
-        return W
-    Wk, owner = walk_columns(E, t)
-    return np.concatenate([W, Wk * np.sqrt(bias.walk[owner])[None, None, :]], -1)
+    (:func:`walk_effects`); ``z = h + W u + e`` with ``u ~ N(0, I)``."""
+    return np.concatenate([E * bias.sigma[None, None, :], walk_effects(E, t, bias)], -1)
 
 
 def body_names(frames: Frames) -> list[str]:
@@ -138,4 +143,4 @@ def bias_model(frames: Frames, enabled: bool = True) -> BiasModel:
     return BiasModel(tuple(names), np.array(sigma), select)
 
 
-__all__ = ["BIAS_COMPONENTS", "BiasModel", "apparent_radius_px", "bias_model", "body_names", "random_effects", "walk_columns"]
+__all__ = ["BIAS_COMPONENTS", "BiasModel", "apparent_radius_px", "bias_model", "body_names", "random_effects", "walk_columns", "walk_effects"]

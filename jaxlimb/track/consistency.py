@@ -70,13 +70,20 @@ def linearise(frames: Frames, prop: Propagator, x0: np.ndarray, t0: float, bias:
         return prop.trajectory(x, jnp.asarray(float(t0)), ts)
 
     x0 = jnp.asarray(x0, float)
-    X = traj(x0)
     Phi = np.asarray(jax.jacfwd(traj)(x0))
+    h, H, A = measurement_jacobians(frames, np.asarray(traj(x0)), bias, theta)
+    return Linearisation(Phi, frames.z - h, np.einsum("kij,kjl->kil", H[:, :, :6], Phi), H[:, :, 6:], A)
+
+
+def measurement_jacobians(frames: Frames, X: np.ndarray, bias: BiasModel,
+                          theta: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """At the states ``X`` (n, 6) of the frames: the predicted measurements ``h`` (n, 3) with no bias, their
+    Jacobian ``H`` (n, 3, 6 + n_b) over ``(r, v, b)`` and the attitude term ``A`` (n, 3, 3) of their covariance."""
     th = jnp.asarray(frames.theta if theta is None else np.broadcast_to(theta, frames.theta.shape))
     args = frames.arrays()
-    nb = len(bias)
     sun = jnp.asarray(frames.sun_pos if frames.sun_pos is not None else np.zeros((len(frames), 3)))
-    Xa = jnp.concatenate([X, jnp.zeros((X.shape[0], nb))], 1)
+    X = jnp.asarray(X, float)
+    Xa = jnp.concatenate([X, jnp.zeros((X.shape[0], len(bias)))], 1)
 
     def h_and_jac(x, th_, s, E, *a):  # noqa: ANN001, ANN202
         h = measurement_function(th_, a, s, E)
@@ -85,7 +92,7 @@ def linearise(frames: Frames, prop: Propagator, x0: np.ndarray, t0: float, bias:
     h, H = (np.asarray(v) for v in jax.vmap(h_and_jac)(Xa, th, sun, jnp.asarray(bias.select), *args))
     A = np.asarray(jax.vmap(total_covariance)(X[:, :3], th, jnp.zeros((len(frames), 3, 3)),
                                               jnp.asarray(frames.attitude_sigma), *args))
-    return Linearisation(Phi, frames.z - h, np.einsum("kij,kjl->kil", H[:, :, :6], Phi), H[:, :, 6:], A)
+    return h, H, A
 
 
 def posterior_crlb(frames: Frames, prop: Propagator, x0_true: np.ndarray, t0: float, P0: np.ndarray,
@@ -105,4 +112,4 @@ def posterior_crlb(frames: Frames, prop: Propagator, x0_true: np.ndarray, t0: fl
     return np.einsum("kij,jl,kml->kim", lin.Phi, np.linalg.inv(J0), lin.Phi)
 
 
-__all__ = ["Linearisation", "average_band", "linearise", "nees", "posterior_crlb"]
+__all__ = ["Linearisation", "average_band", "linearise", "measurement_jacobians", "nees", "posterior_crlb"]
