@@ -236,6 +236,7 @@ def self_calibration(arc, prop, tr, nominal: dict[int, dict], draw0: dict[int, d
 
 def cli_speed(arc, tr, draw: dict[int, dict], keep) -> dict:  # noqa: ANN001
     """``jaxlimb track`` on the measured frames after ``locate`` (a measurements file and ``--resume``)."""
+    from jaxlimb.cli import build_parser
     from jaxlimb.cli._batch import run_settings
     from jaxlimb.cli._track import measurement_namespace
     from jaxlimb.geometry.attitude import dcm_to_quat
@@ -250,7 +251,7 @@ def cli_speed(arc, tr, draw: dict[int, dict], keep) -> dict:  # noqa: ANN001
                                      "body": tr.bodies[k], "attitude": {"quaternion": q.tolist()},
                                      "true_state": tr.states[k].tolist()}) + "\n")
         # the records carry the digest of the settings that made them, as ``jaxlimb track`` writes them (--resume)
-        ns = argparse.Namespace(frames=str(d / "frames.jsonl"), camera=str(d / "camera.json"), ephemeris=None)
+        ns = build_parser().parse_args(["track", "--frames", str(d / "frames.jsonl"), "--camera", str(d / "camera.json")])
         settings = run_settings(measurement_namespace(ns, d / "m.jsonl"))
         with open(d / "m.jsonl", "w") as fm:
             for k in keep:

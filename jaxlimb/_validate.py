@@ -312,7 +312,8 @@ def check_center_sigma(cov_rc: np.ndarray, tol_px: float | None) -> float:
     if not math.isfinite(s) or (tol_px is not None and s > tol_px):
         raise CenterTooUncertainError(
             f"the centre's 1-sigma is {s:.4g} px, above max_center_sigma_px = {tol_px} px: the frame does not measure "
-            "the centre to the stated tolerance (raise the tolerance to accept it with its covariance)")
+            "the centre to the stated tolerance (raise it, --max-center-sigma-px PX|none on the command line, to accept "
+            "the centre with its covariance)")
     return s
 
 

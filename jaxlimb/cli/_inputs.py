@@ -1,12 +1,15 @@
 """The inputs of ``jaxlimb locate`` and ``jaxlimb navigate``: the hints with ``--body``, a frame read from its file,
-the SPICE prediction of a labelled frame (``--kernels``) and its report beside the measurement.
+the SPICE prediction of a labelled frame (``--kernels``) and its report beside the measurement, the centre's stated
+tolerance (``--max-center-sigma-px``).
 
 The image readers and SPICE are imported when a command runs (``jaxlimb --help`` imports neither)."""
 
 from __future__ import annotations
 
+import argparse
 from dataclasses import replace
 
+from .._validate import Range, arg_number
 from ..errors import ConfigError
 from ..geometry.bodies import body_from_table
 from ..geometry.hints import Hints
@@ -33,6 +36,33 @@ def read_hints(path: str | None, body: str | None, base: Hints | None = None) ->
     if hints.body_radii_km is None:
         body_from_table(hints.body)
     return hints
+
+
+def add_center_tolerance(p: argparse.ArgumentParser, default: str | None = None) -> None:
+    """``--max-center-sigma-px PX|none``: ``LocateOptions.max_center_sigma_px``, the stated tolerance on the centre
+    (a frame whose centre 1-sigma exceeds it is refused, ``center_too_uncertain``); ``none``: no limit, the covariance
+    says how good the centre is.  ``default`` ``None``: the flag is absent from the namespace unless given (the
+    library's default applies, :func:`locate_options_given`); else ``"none"`` or a number, as typed."""
+    p.add_argument("--max-center-sigma-px", type=center_tolerance, metavar="PX|none",
+                   default=argparse.SUPPRESS if default is None else center_tolerance(default),
+                   help="refuse a frame whose centre 1-sigma (px, larger axis) exceeds PX (center_too_uncertain); "
+                   "none: no limit, the covariance says how good the centre is (default "
+                   f"{'1, the library' + chr(39) + 's' if default is None else default})")
+
+
+def locate_options_given(args: argparse.Namespace) -> dict:
+    """The ``LocateOptions`` fields the command line set explicitly (today ``max_center_sigma_px``)."""
+    return {k: getattr(args, k) for k in ("max_center_sigma_px",) if k in vars(args)}
+
+
+def center_tolerance(text: str) -> float | None:
+    """``--max-center-sigma-px``'s value: a number > 0, or ``none``."""
+    if text.strip().lower() == "none":
+        return None
+    try:
+        return arg_number(Range(0.0, None, lo_open=True))(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0 or none, got {text!r}") from None
 
 
 def read_frame_file(path: str):  # noqa: ANN201

@@ -14,7 +14,8 @@ from .._validate import Range, arg_number
 from ..errors import ConfigError, SaturationWarning
 from ..geometry.camera import Camera
 from . import _batch, emit_json, figure_path, report_after_result, try_save, warnings_to_stderr
-from ._inputs import read_frame_file, read_hints, spice_prediction, spice_report
+from ._inputs import (add_center_tolerance, locate_options_given, read_frame_file, read_hints, spice_prediction,
+                      spice_report)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -67,6 +68,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="Earth (or spheroid): the glow above the edge carried in the covariance when the fit has none: "
                    "brightness up to G_MAX of the disc's radiance, scale height H_LO_KM to H_HI_KM (default: "
                    "EllipsoidOptions', 0.4,6,25; none for a body without an atmosphere)")
+    add_center_tolerance(p)
     p.add_argument("--figure", metavar="PATH", help="also save a picture of the fit (PNG/PDF)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     _batch.add_batch_arguments(p)
@@ -155,7 +157,8 @@ def _measure_frame(args: argparse.Namespace, frame):
     glow = {"unresolved_glow": args.unresolved_glow} if "unresolved_glow" in vars(args) else {}  # else the library's
     ellipsoid = EllipsoidOptions(sun_declination_max_deg=args.sun_declination_max, **glow)
     options = LocateOptions(front_end=args.front_end, front_end_fallback=args.front_end_fallback, model=args.model,
-                            solver=args.solver, estimate_k=not args.fixed_k, profile=args.profile, ellipsoid=ellipsoid)
+                            solver=args.solver, estimate_k=not args.fixed_k, profile=args.profile, ellipsoid=ellipsoid,
+                            **locate_options_given(args))
     with warnings_to_stderr(SaturationWarning):
         meas = locate(image, camera, hints, options, mask=frame.mask_or_none)
     return meas, (spice_report(geom, meas) if geom is not None else None), image

@@ -44,7 +44,7 @@ from ..errors import CheckFailed, ConfigError, SaturationWarning, UsageError
 from ..geometry.camera import Camera
 from ..geometry.hints import Hints
 from . import emit_json, warnings_to_stderr
-from ._inputs import read_hints
+from ._inputs import add_center_tolerance, locate_options_given, read_hints
 from ._navigate_spice import run_spice
 from ._observer import observer_position, parse_attitude
 
@@ -81,6 +81,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"per-axis 1-sigma attitude error added to the covariance, arcsec {_ATT_SIGMA} (default 0)")
     p.add_argument("--ephemeris", metavar="BSP", default=None,
                    help="JPL kernel (.bsp) or its directory (default: DE421 from skyfield-data)")
+    add_center_tolerance(p)
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)
 
@@ -121,12 +122,13 @@ def navigate_measurement(body: str, meas, camera, C_ci: np.ndarray, epoch: Any, 
             "frame": "ICRF/J2000, geocentric (km)", **sol, "body_position_km": [float(v) for v in r_body]}
 
 
-def locate_body(body: str, image: np.ndarray, camera, hints) -> Any:
+def locate_body(body: str, image: np.ndarray, camera, hints, options: dict | None = None) -> Any:
     """The limb measurement: :func:`jaxlimb.pipeline.locate` (the hints' body picks the strategy: the
-    Earth's ellipsoid, the Moon's sphere)."""
-    from ..pipeline import locate
+    Earth's ellipsoid, the Moon's sphere), with the ``LocateOptions`` fields ``options`` sets."""
+    from ..pipeline import LocateOptions, locate
 
-    return locate(image, camera, replace(hints, body=body) if hints.body != body else hints, None)
+    return locate(image, camera, replace(hints, body=body) if hints.body != body else hints,
+                  LocateOptions(**options) if options else None)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -176,7 +178,7 @@ def _run(args: argparse.Namespace) -> int:
     if (camera.rows, camera.cols) != tuple(image.shape[:2]):
         raise ConfigError(f"camera size {camera.rows}x{camera.cols} does not match the image size {image.shape[0]}x{image.shape[1]}")
     with warnings_to_stderr(SaturationWarning):
-        meas = locate_body(body, image, camera, hints)
+        meas = locate_body(body, image, camera, hints, locate_options_given(args))
     out = navigate_measurement(
         body, meas, camera, C_ci, epoch,
         attitude_sigma_rad=math.radians(args.attitude_sigma_arcsec / 3600.0), ephemeris_path=args.ephemeris,

@@ -28,13 +28,13 @@ import numpy as np
 from ..errors import ConfigError, SaturationWarning, UsageError
 from ..geometry.camera import Camera
 from . import emit_json, warnings_to_stderr
-from ._inputs import read_frame_file, read_hints, spice_prediction, spice_report
+from ._inputs import locate_options_given, read_frame_file, read_hints, spice_prediction, spice_report
 from ._observer import observer_position, parse_attitude
 
 
 def run_spice(args: argparse.Namespace) -> int:
     """``navigate --kernels`` (module docstring)."""
-    from ..pipeline import locate
+    from ..pipeline import LocateOptions, locate
 
     if args.epoch is not None:
         raise UsageError("--epoch is read from the label with --kernels (the image time); leave it out")
@@ -51,7 +51,7 @@ def run_spice(args: argparse.Namespace) -> int:
     else:
         C_ci, att_kind = np.asarray(geom.C_camera_from_j2000, float), f"SPICE CK ({geom.instrument})"
     with warnings_to_stderr(SaturationWarning):
-        meas = locate(frame.data, camera, hints, None, mask=frame.mask_or_none)
+        meas = locate(frame.data, camera, hints, LocateOptions(**locate_options_given(args)), mask=frame.mask_or_none)
     s_f = geom.focal_length_sigma_mm if args.camera is None and geom.focal_length_sigma_mm else 0.0
     sol = observer_position("body", meas, camera, C_ci, np.zeros(3), math.radians(args.attitude_sigma_arcsec / 3600.0),
                             scale_sigma_frac=s_f / camera.focal_length_mm)

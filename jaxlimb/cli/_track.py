@@ -6,7 +6,9 @@ of ``locate``; optional ``"true_state"``: ``[x, y, z, vx, vy, vz]`` km, km/s, ge
 errors and NEES are then reported and plotted).  Relative image paths are taken from the FRAMES file's folder.
 
 Stage 1, the measurements: every frame is measured by :func:`jaxlimb.pipeline.locate` (the Sun's direction from
-DE421 and the attitude; for the Earth its orientation from skyfield's ITRS, as ``navigate`` does), one JSON line
+DE421 and the attitude; for the Earth its orientation from skyfield's ITRS, as ``navigate`` does; no tolerance on
+the centre's sigma unless ``--max-center-sigma-px`` sets one: the filter weighs each frame by its covariance and
+gates it by its NIS), one JSON line
 per frame appended to ``--measurements FILE.jsonl`` as ``locate --out`` does (:mod:`jaxlimb.cli._batch`):
 ``--resume`` skips the frames the file holds, so an interrupted run continues, and a file made by an earlier
 run (or by ``jaxlimb locate IMAGES --out``) is used as it is.  Stage 2, the trajectory
@@ -32,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from .._validate import Range, arg_number
+from ._inputs import add_center_tolerance, locate_options_given
 
 _PROB = Range(0.5, 1.0, hi_open=True)
 
@@ -64,6 +67,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--gate-probability", type=arg_number(_PROB), default=0.999,
                    help=f"NIS gate: chi-square quantile, {_PROB} (default 0.999: 16.27 for 3 dof)")
     p.add_argument("--ephemeris", metavar="BSP", default=None, help="JPL kernel (default: DE421 from skyfield-data)")
+    add_center_tolerance(p, "none")  # the filter weighs each frame by its covariance and gates it by its NIS
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.set_defaults(func=run)
 
@@ -101,7 +105,7 @@ def _attitude(rec: dict[str, Any]) -> np.ndarray:
     return parse_attitude(att if isinstance(att, str) else json.dumps(att))[0]
 
 
-def _measure_fn(frames: dict[str, dict], camera, ephemeris: str | None):  # noqa: ANN001, ANN202
+def _measure_fn(frames: dict[str, dict], camera, ephemeris: str | None, options: dict):  # noqa: ANN001, ANN202
     """``measure(path, image)`` for :func:`~jaxlimb.cli._batch.run_frames`: ``locate`` with the frame's hints."""
     from dataclasses import replace
 
@@ -117,7 +121,7 @@ def _measure_fn(frames: dict[str, dict], camera, ephemeris: str | None):  # noqa
         if rec["body"] == "earth" and hints.R_body_to_camera is None:
             R = C @ earth_rotation_icrf_to_itrs(rec["epoch"], ephemeris).T
             hints = replace(hints, R_body_to_camera=tuple(map(tuple, R.tolist())))
-        m = locate_body(rec["body"], image, camera, hints)
+        m = locate_body(rec["body"], image, camera, hints, options)
         return {**m.to_json(), "epoch": rec["epoch"], "body": rec["body"]}
 
     return measure
@@ -127,8 +131,8 @@ def measurement_namespace(args: argparse.Namespace, path: Path) -> argparse.Name
     """The settings that decide each frame's measurement (the frames file with its attitudes and hints, the camera,
     the ephemeris), as the batch runner's namespace: their digest is every measurement record's ``run_settings``."""
     return argparse.Namespace(command="track-measure", frames=args.frames, camera=args.camera,
-                              ephemeris=args.ephemeris, out=str(path), resume=True, workers=None, scheduler=None,
-                              quiet=getattr(args, "quiet", False))
+                              ephemeris=args.ephemeris, **locate_options_given(args), out=str(path), resume=True,
+                              workers=None, scheduler=None, quiet=getattr(args, "quiet", False))
 
 
 def measure_frames(frames: list[dict], camera, args: argparse.Namespace, path: Path) -> dict[str, dict]:  # noqa: ANN001
@@ -142,7 +146,7 @@ def measure_frames(frames: list[dict], camera, args: argparse.Namespace, path: P
     def read(p: str) -> np.ndarray:
         return load_image(p, reject_constant=False)[0]
 
-    run_frames(list(by_image), ns, read, _measure_fn(by_image, camera, args.ephemeris))
+    run_frames(list(by_image), ns, read, _measure_fn(by_image, camera, args.ephemeris, locate_options_given(args)))
     recs = {}
     for line in path.read_text().splitlines():
         try:

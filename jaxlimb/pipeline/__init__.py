@@ -9,7 +9,8 @@ Public API::
     LocateOptions(front_end, model, profile, shape, ellipsoid, gradient, scanline, ...)
     FrontEnd, LimbModelKind, Profile, BodyShape   (the options' Enums); EllipsoidOptions
     LimbMeasurement, EllipseResult           (result types, ``to_json()``)
-    save_locate_figure(image, measurement, path, selected_pixels=None, truth=None)
+    save_locate_figure(image, measurement, path, selected_pixels=None, truth=None)   (with edge_residuals: the
+        image's own edge along the fitted limb's normals against that limb)
     checks: CenterOutOfFieldError, check_jump, check_radius_prior, check_size, check_center_in_field
     the round limb's fits: select_annulus, annulus_halfwidth, lit_halfangle, fit_circle_annulus, fit_sphere_annulus,
         fit_ellipse_annulus, AnnulusSelection, RefineResult
@@ -28,7 +29,7 @@ from .checks import (
     jump_threshold as jump_threshold,
 )
 from .options import EllipsoidOptions as EllipsoidOptions
-from .figure import save_locate_figure as save_locate_figure
+from .figure import edge_residuals as edge_residuals, save_locate_figure as save_locate_figure
 from .locate import locate as locate
 from .options import (
     BodyShape as BodyShape,
@@ -65,6 +66,7 @@ __all__ = [
     "check_jump",
     "check_radius_prior",
     "check_size",
+    "edge_residuals",
     "fit_circle_annulus",
     "fit_ellipse_annulus",
     "fit_limb_darkened",

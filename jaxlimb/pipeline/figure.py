@@ -1,4 +1,5 @@
-"""A picture of a ``locate`` result: the image around the body, the fitted pixels and limb, the truth."""
+"""A picture of a ``locate`` result: the image around the body, the fitted pixels and limb, the truth, and the
+image's own edge along the fitted limb's normals against that limb (:func:`edge_residuals`)."""
 
 from __future__ import annotations
 
@@ -65,6 +66,98 @@ def _zoom_box(measurement: LimbMeasurement, limb: np.ndarray) -> tuple[float, fl
     return pr - 15, pr + 15, pc - 15, pc + 15
 
 
+def _limb_normals(limb: np.ndarray, center_rc) -> np.ndarray:
+    """Unit outward normals ``(row, col)`` of the closed curve ``limb`` (its last point repeats the first)."""
+    p = limb[:-1]
+    tan = np.roll(p, -1, axis=0) - np.roll(p, 1, axis=0)
+    nrm = np.stack([tan[:, 1], -tan[:, 0]], axis=1)
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-300)
+    out = np.sum((p - np.asarray(center_rc, float)) * nrm, axis=1) >= 0
+    return np.where(out[:, None], nrm, -nrm)
+
+
+def edge_residuals(image: np.ndarray, measurement: LimbMeasurement, selected_pixels: np.ndarray | None = None,
+                   n: int = 720, half_px: float = 6.0) -> tuple[np.ndarray, np.ndarray]:
+    """The image's edge against the fitted limb, independent of any limb model: along the fitted limb's outward
+    normal at ``n`` points, the position (px, positive outward) where the profile (cubic-spline samples every
+    0.1 px within ``half_px``) crosses the level halfway between its inner and outer 1.5 px, the crossing nearest
+    the limb, linearly interpolated.  Only points within 2 px of a fitted pixel (the lit limb; all when there are
+    none) whose whole profile lies in the frame.  A centre error shows as a sinusoid of the position angle, a
+    radius error as an offset; the half-level of a limb-darkened or -brightened edge sits off the limb by a
+    fraction of its blur, the same all along it.
+
+    Parameters
+    ----------
+    image : np.ndarray (rows, cols)
+    measurement : LimbMeasurement
+        ``locate``'s answer (its ellipse, else its circle).
+    selected_pixels : np.ndarray (m, 2), optional
+        Fitted pixels ``(row, col)``; default ``measurement.selected_pixels_rc``.
+    n : int
+        Points along the limb.
+    half_px : float
+        Half-length of each normal profile (px).
+
+    Returns
+    -------
+    angle_deg : np.ndarray (k,)
+        Position angle of each kept point about the centre, counter-clockwise from +col as displayed (deg).
+    residual_px : np.ndarray (k,)
+        Edge minus fitted limb along the normal (px).
+    """
+    from scipy.ndimage import map_coordinates
+    from scipy.spatial import cKDTree
+
+    img = np.asarray(image, dtype=float)
+    cen = np.asarray(measurement.center_rc, float)
+    limb = _limb_points(measurement, n + 1)
+    p, nrm = limb[:-1], _limb_normals(limb, cen)
+    pix = measurement.selected_pixels_rc if selected_pixels is None else selected_pixels
+    if pix is not None and len(pix):
+        p_keep = cKDTree(np.asarray(pix, float)).query(p, distance_upper_bound=2.0)[0] < np.inf
+        p, nrm = p[p_keep], nrm[p_keep]
+    s = np.arange(-half_px, half_px + 1e-9, 0.1)
+    pts = p[:, None, :] + s[None, :, None] * nrm[:, None, :]
+    inside = np.all((pts >= 0) & (pts <= np.asarray(img.shape, float) - 1), axis=(1, 2))
+    p, pts = p[inside], pts[inside]
+    prof = map_coordinates(img, [pts[..., 0].ravel(), pts[..., 1].ravel()], order=3).reshape(pts.shape[:2])
+    side = max(3, int(round(1.5 / (s[1] - s[0]))))
+    mid = 0.5 * (prof[:, :side].mean(axis=1) + prof[:, -side:].mean(axis=1))
+    above = prof >= mid[:, None]
+    cross = above[:, 1:] != above[:, :-1]
+    j = np.argmin(np.where(cross, np.abs(s[:-1] + 0.5 * (s[1] - s[0]))[None, :], np.inf), axis=1)
+    ok = cross[np.arange(j.size), j]
+    y0, y1 = prof[np.arange(j.size), j] - mid, prof[np.arange(j.size), j + 1] - mid
+    res = s[j] + (s[1] - s[0]) * y0 / np.where(y0 == y1, 1.0, y0 - y1)
+    p, res = p[ok], res[ok]
+    ang = np.degrees(np.arctan2(-(p[:, 0] - cen[0]), p[:, 1] - cen[1])) % 360.0
+    return ang, res
+
+
+def _residual_panel(ax: Any, ang: np.ndarray, res: np.ndarray) -> None:
+    """Edge minus fitted limb against the position angle (in (-180, 180] when the arc crosses 0), with medians in
+    10-degree bins (broken where a bin has fewer than 5 normals)."""
+    if ang.size and (np.ptp(ang) > 180.0) and np.ptp((ang + 180.0) % 360.0) < np.ptp(ang):
+        ang = (ang + 180.0) % 360.0 - 180.0
+    ax.plot(ang, res, ".", ms=2, color="0.4", alpha=0.6, label="per normal")
+    lo_a = -180.0 if ang.size and ang.min() < 0 else 0.0
+    bins = np.arange(lo_a, lo_a + 361.0, 10.0)
+    idx = np.digitize(ang, bins) - 1
+    med = np.array([float(np.median(res[idx == i])) if np.count_nonzero(idx == i) >= 5 else np.nan
+                    for i in range(bins.size - 1)])
+    ax.plot(0.5 * (bins[1:] + bins[:-1]), med, "o-", color="red", ms=3, lw=1.0, label="median, 10 deg bins")
+    ax.axhline(0.0, color="k", lw=0.6)
+    if res.size:
+        lo, hi = np.percentile(res, [2, 98])
+        pad = 0.2 * max(hi - lo, 0.2)
+        ax.set_ylim(lo - pad, hi + pad)
+        ax.set_xlim(ang.min() - 5.0, ang.max() + 5.0)
+    ax.legend(loc="upper right", fontsize=7, framealpha=0.6)
+    ax.set_xlabel("position angle (deg, counter-clockwise from +col)")
+    ax.set_ylabel("image edge - fitted limb (px, outward)")
+    ax.set_title("the image's own edge along the limb's normals", fontsize=9)
+
+
 def _panel(ax: Any, img: np.ndarray, vrange, measurement: LimbMeasurement, limb, pix, tpts, tcen, box, zoom: bool) -> None:
     """One panel: the image, the fitted pixels, the fitted and true limbs and centres, in ``box``."""
     R, C = img.shape
@@ -87,6 +180,16 @@ def _panel(ax: Any, img: np.ndarray, vrange, measurement: LimbMeasurement, limb,
     ax.set_ylabel("row (px)")
 
 
+def _title(measurement: LimbMeasurement, tcen) -> str:
+    """Centre, radius and, with a truth, the centre's error."""
+    txt = f"centre ({measurement.center_rc[0]:.3f}, {measurement.center_rc[1]:.3f})"
+    if measurement.radius_px is not None:
+        txt += f", radius {measurement.radius_px:.3f} px"
+    if tcen is not None:
+        txt += f"\nerror vs truth: {math.hypot(measurement.center_rc[0] - tcen[0], measurement.center_rc[1] - tcen[1]):.3f} px"
+    return txt
+
+
 def save_locate_figure(
     image: np.ndarray,
     measurement: LimbMeasurement,
@@ -100,7 +203,8 @@ def save_locate_figure(
     """Save a PNG/PDF picture of ``measurement`` on ``image`` (matplotlib, Agg; atomic write).
 
     Left: the body, fitted pixels, limb and centre (red), truth (cyan), titled ``title`` (default: centre, radius,
-    error); right: 30 x 30 px of the lit limb.  A non-2-D ``image``: :class:`~jaxlimb.errors.LimbInputError`.
+    error); middle: 30 x 30 px of the lit limb; right: the image's own edge against the fitted limb
+    (:func:`edge_residuals`).  A non-2-D ``image``: :class:`~jaxlimb.errors.LimbInputError`.
 
     Parameters
     ----------
@@ -128,20 +232,15 @@ def save_locate_figure(
     limb = _limb_points(measurement)
     tpts, tcen = _truth_points(truth)
     r0, r1, c0, c1 = _crop(limb, img.shape)
-    fig, axes = plt.subplots(1, 2, figsize=(11, 5.2), gridspec_kw={"width_ratios": [1.6, 1]})
+    fig, axes = plt.subplots(1, 3, figsize=(16, 5.2), gridspec_kw={"width_ratios": [1.6, 1, 1.3]})
     vmin, vmax = np.percentile(img[r0:r1, c0:c1], [0.5, 99.8])
-    for ax, zoom in zip(axes, (False, True)):
+    for ax, zoom in zip(axes[:2], (False, True)):
         _panel(ax, img, (vmin, vmax), measurement, limb, pix, tpts, tcen,
                _zoom_box(measurement, limb) if zoom else (r0 - 0.5, r1 - 0.5, c0 - 0.5, c1 - 0.5), zoom)
     axes[0].legend(loc="upper right", fontsize=8, framealpha=0.6)
     axes[1].set_title("zoom on the lit limb", fontsize=9)
-    r = measurement.radius_px
-    txt = f"centre ({measurement.center_rc[0]:.3f}, {measurement.center_rc[1]:.3f})"
-    if r is not None:
-        txt += f", radius {r:.3f} px"
-    if tcen is not None:
-        txt += f"\nerror vs truth: {math.hypot(measurement.center_rc[0] - tcen[0], measurement.center_rc[1] - tcen[1]):.3f} px"
-    axes[0].set_title(title or txt, fontsize=9)
+    _residual_panel(axes[2], *edge_residuals(img, measurement, pix))
+    axes[0].set_title(title or _title(measurement, tcen), fontsize=9)
     fig.tight_layout()
     suffix = os.path.splitext(os.fspath(path))[1] or ".png"
     with atomic_path(path) as tmp:
@@ -149,4 +248,4 @@ def save_locate_figure(
     plt.close(fig)
 
 
-__all__ = ["save_locate_figure"]
+__all__ = ["edge_residuals", "save_locate_figure"]

@@ -20,7 +20,7 @@ import pytest
 from jaxlimb._schema import validate
 from jaxlimb.cli import main
 
-from ._scenes import SMALL_CAMERA, scene
+from ._scenes import SMALL_CAMERA, scene, sun_hints
 
 
 @pytest.fixture(scope="module")
@@ -105,6 +105,10 @@ CASES = [
     ("moon.png", ("--unresolved-glow", "0.4,-3,25"), 2, "bad_arguments"),
     ("moon.png", ("--unresolved-glow", "0.4,25,6"), 2, "bad_arguments"),
     ("moon.png", ("--unresolved-glow", "nan,6,25"), 2, "bad_arguments"),
+    ("moon.png", ("--max-center-sigma-px", "0"), 2, "bad_arguments"),
+    ("moon.png", ("--max-center-sigma-px", "-1"), 2, "bad_arguments"),
+    ("moon.png", ("--max-center-sigma-px", "inf"), 2, "bad_arguments"),
+    ("moon.png", ("--max-center-sigma-px", "1e-6"), 3, "center_too_uncertain"),
 ]
 
 
@@ -122,6 +126,24 @@ def test_failures_json_and_plain(files, capsys, name, extra, code, check):
     got, out, err = _run(capsys, "locate", d / name, *extra)
     assert got == code and out == ""
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+
+
+def test_center_tolerance_is_the_users(files, capsys):
+    """``--max-center-sigma-px``: the same frame is refused under a tolerance below its centre sigma (the message
+    names the flag) and answered, with the same covariance, under one above it or ``none``."""
+    d, _ = files
+    base = ["locate", d / "moon.png", "--camera", d / "camera.json", "--hints", d / "hints.json", "--json"]
+    code, out, _ = _run(capsys, *base)
+    assert code == 0
+    j = json.loads(out)
+    s = np.sqrt(max(np.linalg.eigvalsh([[j["covariance"]["center_r"]["center_r"], j["covariance"]["center_r"]["center_c"]],
+                                        [j["covariance"]["center_c"]["center_r"], j["covariance"]["center_c"]["center_c"]]])))
+    code, out, _ = _run(capsys, *base, "--max-center-sigma-px", f"{0.5 * s:.6g}")
+    r = json.loads(out)
+    assert code == 3 and r["check"] == "center_too_uncertain" and "--max-center-sigma-px" in r["message"]
+    for tol in (f"{2 * s:.6g}", "none", "NONE"):
+        code, out, _ = _run(capsys, *base, "--max-center-sigma-px", tol)
+        assert code == 0 and json.loads(out)["covariance"] == j["covariance"]
 
 
 def test_real_process_no_traceback(files):
@@ -148,3 +170,23 @@ def test_figure(files, tmp_path):
     a = cv2.imread(str(out))
     assert a is not None and a.shape[0] > 200 and a.shape[1] > 400
     assert not list(tmp_path.glob(".fig.png.*"))  # atomic: no temporary left behind
+
+
+def test_edge_residuals_see_a_centre_error_as_its_sinusoid():
+    """The figure's residual panel: the image's own edge along the fitted limb's normals is on the fitted limb
+    (median within 0.01 px on a uniform disc), and a limb moved by 0.5 px in col leaves -0.5 cos(angle)."""
+    import dataclasses
+
+    from jaxlimb.pipeline import locate
+    from jaxlimb.pipeline.figure import edge_residuals
+
+    img, tr = scene(30000.0, 30.0, (190.0, 260.0), 20.0, "uniform")
+    m = locate(img, SMALL_CAMERA, sun_hints(tr))
+    ang, res = edge_residuals(img, m)
+    assert ang.size > 100 and abs(np.median(res)) < 0.01 and np.std(res) < 0.1
+    le = dict(m.extras["limb_ellipse"])
+    le["center_rc"] = [le["center_rc"][0], le["center_rc"][1] + 0.5]
+    ang, res = edge_residuals(img, dataclasses.replace(m, extras={**m.extras, "limb_ellipse": le}))
+    a = np.radians(ang)
+    coef = np.linalg.lstsq(np.column_stack([np.ones_like(a), np.cos(a), np.sin(a)]), res, rcond=None)[0]
+    assert coef[1] == pytest.approx(-0.5, abs=0.03) and abs(coef[0]) < 0.03 and abs(coef[2]) < 0.05

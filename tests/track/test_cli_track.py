@@ -3,13 +3,12 @@ measurements file (the "after locate" mode: ``--resume`` measures nothing), and 
 
 from __future__ import annotations
 
-import argparse
 import json
 
 import numpy as np
 import pytest
 
-from jaxlimb.cli import main
+from jaxlimb.cli import build_parser, main
 from jaxlimb.cli._batch import run_settings
 from jaxlimb.cli._track import measurement_namespace
 from jaxlimb.geometry.attitude import dcm_to_quat
@@ -41,7 +40,8 @@ def _write_inputs(tmp_path, n=N):
                                         for i, a in enumerate(names)},
                          ("range_km" if tr.bodies[k] == "earth" else "radius_px"): float(fr.z[k, 2])})
     # the records as track's measurement stage writes them: stamped with the digest of its settings
-    args = argparse.Namespace(frames=str(tmp_path / "frames.jsonl"), camera=str(tmp_path / "camera.json"), ephemeris=None)
+    args = build_parser().parse_args(["track", "--frames", str(tmp_path / "frames.jsonl"), "--camera",
+                                      str(tmp_path / "camera.json")])
     settings = run_settings(measurement_namespace(args, tmp_path / "m.jsonl"))
     (tmp_path / "m.jsonl").write_text("".join(json.dumps({**r, "run_settings": settings}) + "\n" for r in recs))
     return tmp_path
@@ -91,3 +91,22 @@ def test_summary_reports_the_camera_with_or_without_a_split():
         out = _summary(SimpleNamespace(filt=filt, fit=fit, split=s), ["a", "b", "c"], 1.0, None)
         assert out["camera"] == fit.camera and out["observability"] == {"observable": [True]}
         assert ("model_error_split" in out) == (s is not None)
+
+
+def test_track_takes_every_frame_with_its_covariance_unless_told(tmp_path):
+    """``jaxlimb track`` sets no tolerance on a frame's centre sigma (the filter weighs and gates); a tolerance
+    given is ``locate``'s, and it changes the measurements' digest (``--resume`` will not mix the two)."""
+    base = ["track", "--frames", "f.jsonl", "--camera", "c.json"]
+    default, told = build_parser().parse_args(base), build_parser().parse_args([*base, "--max-center-sigma-px", "2"])
+    assert default.max_center_sigma_px is None and told.max_center_sigma_px == 2.0
+    assert run_settings(measurement_namespace(default, tmp_path / "m.jsonl")) != run_settings(
+        measurement_namespace(told, tmp_path / "m.jsonl"))
+
+
+def test_navigate_passes_a_centre_tolerance_only_when_given():
+    from jaxlimb.cli._inputs import locate_options_given
+
+    base = ["navigate", "x.png", "--camera", "c.json"]
+    assert locate_options_given(build_parser().parse_args(base)) == {}
+    assert locate_options_given(build_parser().parse_args([*base, "--max-center-sigma-px", "none"])) == {
+        "max_center_sigma_px": None}
