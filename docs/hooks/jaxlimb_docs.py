@@ -49,6 +49,7 @@ def _load_sibling(module: str, file: str):  # noqa: ANN202
 
 results_tables = _load_sibling("jaxlimb_results_tables", "results_tables.py")
 track_tables = _load_sibling("jaxlimb_track_tables", "track_tables.py")  # registers the track page's tables
+real_frames_tables = _load_sibling("jaxlimb_real_frames_tables", "real_frames_tables.py")  # the real-frames page's
 schema_tables = _load_sibling("jaxlimb_schema_tables", "schema_tables.py")
 
 

@@ -12,7 +12,12 @@ import numpy as np
 from .._io import atomic_path
 from ..errors import LimbInputError
 from ..geometry.conic import ellipse_points
+from ..imaging.crop import estimate_noise
 from .result import LimbMeasurement
+
+#: A normal's edge is located only where its inner and outer levels differ by this many noise sigmas (the frame's
+#: pixel-difference estimate): an unlit limb has no edge to cross.
+EDGE_CONTRAST_SIGMAS = 5.0
 
 
 def _limb_points(meas: LimbMeasurement, n: int = 720) -> np.ndarray:
@@ -81,8 +86,8 @@ def edge_residuals(image: np.ndarray, measurement: LimbMeasurement, selected_pix
     """The image's edge against the fitted limb, independent of any limb model: along the fitted limb's outward
     normal at ``n`` points, the position (px, positive outward) where the profile (cubic-spline samples every
     0.1 px within ``half_px``) crosses the level halfway between its inner and outer 1.5 px, the crossing nearest
-    the limb, linearly interpolated.  Only points within 2 px of a fitted pixel (the lit limb; all when there are
-    none) whose whole profile lies in the frame.  A centre error shows as a sinusoid of the position angle, a
+    the limb, linearly interpolated.  Only points within 2 px of a fitted pixel (all when there are none) whose
+    whole profile lies in the frame and whose two levels differ by :data:`EDGE_CONTRAST_SIGMAS` noise sigmas.  A centre error shows as a sinusoid of the position angle, a
     radius error as an offset; the half-level of a limb-darkened or -brightened edge sits off the limb by a
     fraction of its blur, the same all along it.
 
@@ -122,11 +127,12 @@ def edge_residuals(image: np.ndarray, measurement: LimbMeasurement, selected_pix
     p, pts = p[inside], pts[inside]
     prof = map_coordinates(img, [pts[..., 0].ravel(), pts[..., 1].ravel()], order=3).reshape(pts.shape[:2])
     side = max(3, int(round(1.5 / (s[1] - s[0]))))
-    mid = 0.5 * (prof[:, :side].mean(axis=1) + prof[:, -side:].mean(axis=1))
+    inner, outer = prof[:, :side].mean(axis=1), prof[:, -side:].mean(axis=1)
+    mid = 0.5 * (inner + outer)
     above = prof >= mid[:, None]
     cross = above[:, 1:] != above[:, :-1]
     j = np.argmin(np.where(cross, np.abs(s[:-1] + 0.5 * (s[1] - s[0]))[None, :], np.inf), axis=1)
-    ok = cross[np.arange(j.size), j]
+    ok = cross[np.arange(j.size), j] & (np.abs(inner - outer) >= EDGE_CONTRAST_SIGMAS * estimate_noise(img))
     y0, y1 = prof[np.arange(j.size), j] - mid, prof[np.arange(j.size), j + 1] - mid
     res = s[j] + (s[1] - s[0]) * y0 / np.where(y0 == y1, 1.0, y0 - y1)
     p, res = p[ok], res[ok]
