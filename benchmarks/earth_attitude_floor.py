@@ -40,9 +40,9 @@ TARGET_PX = 0.15
 
 
 def _row(family: str, idx: int, seed: int, cache: Path | None) -> dict[str, Any]:
-    from families import _case, measure, pole_unknown_floor_px
+    from families import family_case, measure, pole_unknown_floor_px
 
-    case = _case("earth", family, idx, seed, cache)
+    case = family_case("earth", family, idx, seed, cache)
     no_r = {k: v for k, v in case.hints.items() if k != "R_body_to_camera"}
     return {"family": family, "index": idx, "range_km": float(case.meta["range_km"]),
             "latitude_deg": float(case.meta["latitude_deg"]), "floor_px": pole_unknown_floor_px(case),

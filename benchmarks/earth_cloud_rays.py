@@ -139,12 +139,12 @@ def main(argv=None) -> int:
 
     jax.config.update("jax_enable_x64", True)
     from _common import environment, save
-    from families import _case
+    from families import family_case
 
     res = {}
     for fr in a.frames.split(","):
         fam, i = fr.split(":")
-        r = res[fr] = measure(_case("earth", fam, int(i), 2026, a.cache))
+        r = res[fr] = measure(family_case("earth", fam, int(i), 2026, a.cache))
         print(f"{fr:11s} R {r['R_px']:5.0f} rays {r['n_rays']:4d} kept {r['n_kept']:4d}  current {r['current']['center_err_px']:.3f}  "
               + "  ".join(f"{k} {r[k]['center_err_kept_px']:.3f}/{r[k]['center_err_all_px']:.3f}" for k in ("step_w1", "step_w3", "sqrt_w4")),
               flush=True)

@@ -32,7 +32,7 @@ RENDER_VERSION = 1  # of the real-Sun frames' cache files
 
 def _case(family: str, idx: int, seed: int, cache: Path | None, free_sun: bool):
     from _common import cached
-    from families import _case as families_case
+    from families import family_case as families_case
 
     from jaxlimb.render.independent import EARTH_FAMILIES, earth_case
 

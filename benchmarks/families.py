@@ -55,7 +55,7 @@ def _setup() -> None:
     jax.config.update("jax_enable_x64", True)
 
 
-def _case(body: str, family: str, idx: int, seed: int, cache: Path | None):
+def family_case(body: str, family: str, idx: int, seed: int, cache: Path | None):
     """Render (or load from ``cache``) frame ``idx`` of ``family``."""
     from _common import cached
 
@@ -218,7 +218,7 @@ def run(bodies, families, n: int, seed: int, cache: Path | None, progress=print,
         fams = [f for f in (MOON_FAMILIES if body == "moon" else EARTH_FAMILIES) if families is None or f in families]
         for fam in fams:
             for i in range(n):
-                case = _case(body, fam, i, seed, cache)
+                case = family_case(body, fam, i, seed, cache)
                 rows = [(body, case.hints)]
                 if body == "earth":
                     rows.append(("earth_noR", {k: v for k, v in case.hints.items() if k != "R_body_to_camera"}))

@@ -87,7 +87,7 @@ def own_rows(args, cam) -> list[dict]:
 
 
 def independent_rows(args, cam) -> list[dict]:
-    from irregular_independent import _frames, _views, bodies
+    from irregular_independent import render_frames, view_plan, bodies
 
     from jaxlimb.irregular.database import DatabaseOptions, cached_database
     from jaxlimb.render.independent.geometry import Pinhole
@@ -99,9 +99,9 @@ def independent_rows(args, cam) -> list[dict]:
             continue
         rng = np.random.default_rng([args.seed, ib])
         db = cached_database(model, DatabaseOptions(step_deg=3.0, pole_axis=pole), progress=False)
-        for iv, (mode, ph, dist, off) in enumerate(_views(argparse.Namespace(views=args.views))):
+        for iv, (mode, ph, dist, off) in enumerate(view_plan(argparse.Namespace(views=args.views))):
             key = f"{name.replace(':', '_')}_{iv}_s{args.seed}"
-            img, own, _truth, R, t, sun, _meta = _frames(name, model, VF, cam, pin, ph, dist, off, rng, args.independent, key)
+            img, own, _truth, R, t, sun, _meta = render_frames(name, model, VF, cam, pin, ph, dist, off, rng, args.independent, key)
             row = {"key": f"independent/{name}/{mode}/{ph}/{iv}", **_los_answer(db, cam, img, R, t, sun, mode)}
             rows.append(row)
             print(row["key"], row.get("center_rc", row.get("failure")), flush=True)

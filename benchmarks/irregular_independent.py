@@ -59,7 +59,7 @@ def bodies(quick: bool) -> dict:
     return out
 
 
-def _scene(V, F, max_radius: float, cam, phase_deg: float, dist: float, off: bool, rng):
+def draw_scene(V, F, max_radius: float, cam, phase_deg: float, dist: float, off: bool, rng):
     from irregular_los import view_geometry
 
     from jaxlimb.render.independent.mesh_rays import MeshScene
@@ -84,7 +84,7 @@ def _scene(V, F, max_radius: float, cam, phase_deg: float, dist: float, off: boo
     return scene, meta
 
 
-def _frames(name, model, VF, cam, pin, phase, dist, off, rng, cache: Path | None, key: str):
+def render_frames(name, model, VF, cam, pin, phase, dist, off, rng, cache: Path | None, key: str):
     """(independent image, own image, truth, R, t, sun, meta), from ``cache`` when there."""
     f = None if cache is None else cache / f"{key}_v{RENDER_VERSION}.pkl"
     if f is not None and f.exists():
@@ -92,7 +92,7 @@ def _frames(name, model, VF, cam, pin, phase, dist, off, rng, cache: Path | None
     from jaxlimb.render.independent.mesh_rays import render_mesh_frame
     from jaxlimb.render.mesh import MeshRenderOptions, render_mesh
 
-    scene, meta = _scene(VF[0], VF[1], model.max_radius, cam, phase, dist, off, rng)
+    scene, meta = draw_scene(VF[0], VF[1], model.max_radius, cam, phase, dist, off, rng)
     img, truth = render_mesh_frame(scene, pin, rng)
     own = render_mesh(model.vertices, model.faces, cam, scene.R_body_to_camera, scene.t_camera_km,
                       sun_dir_camera=scene.sun_dir_camera,
@@ -104,7 +104,7 @@ def _frames(name, model, VF, cam, pin, phase, dist, off, rng, cache: Path | None
     return out
 
 
-def _views(args):
+def view_plan(args):
     """(mode, phase, distance factor, off-centre) for each view of one body."""
     for mode, phases in (("unknown", (0, 30, 60)), ("known", (0, 30, 60, 90))):
         for ph in phases:
@@ -122,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default=str(RESULTS))
     args = ap.parse_args(argv)
     os.environ.setdefault("JAXLIMB_CACHE", str(Path(__file__).resolve().parent / "results" / ".db-cache"))
-    from irregular_los import _groups, camera, run_case, table
+    from irregular_los import rows_by, camera, run_case, table
 
     from jaxlimb.irregular.database import DatabaseOptions, cached_database
     from jaxlimb.render.independent.geometry import Pinhole
@@ -136,9 +136,9 @@ def main(argv: list[str] | None = None) -> int:
             continue
         rng = np.random.default_rng([args.seed, ib])
         db = cached_database(model, DatabaseOptions(step_deg=3.0, pole_axis=pole), progress=False)
-        for iv, (mode, ph, dist, off) in enumerate(_views(args)):
+        for iv, (mode, ph, dist, off) in enumerate(view_plan(args)):
             key = f"{name.replace(':', '_')}_{iv}_s{args.seed}"
-            img, own, truth, R, t, sun, meta = _frames(name, model, VF, cam, pin, ph, dist, off, rng, args.cache, key)
+            img, own, truth, R, t, sun, meta = render_frames(name, model, VF, cam, pin, ph, dist, off, rng, args.cache, key)
             base = {"body": name, "mode": mode, "phase": ph, "distance_x_long_axis": dist, "off_center": off, **meta}
             for fam, im in (("independent", img), ("own", own)):
                 row = {**base, "family": fam, **run_case(db, cam, im, truth, R, t, sun, mode)}
@@ -149,11 +149,11 @@ def main(argv: list[str] | None = None) -> int:
         for mode in ("unknown", "known"):
             sel = [r for r in rows if r["mode"] == mode and r["family"] == fam]
             title = f"{fam} renders, " + ("attitude unknown, Sun known" if mode == "unknown" else "attitude known")
-            report.append(table(f"{title}: by phase", _groups(sel, "phase")))
+            report.append(table(f"{title}: by phase", rows_by(sel, "phase")))
             if fam == "independent":
-                report.append(table(f"{title}: by body", _groups(sel, "body")))
-                report.append(table(f"{title}: by law", _groups(sel, "law")))
-                report.append(table(f"{title}: by PSF", _groups(sel, "psf")))
+                report.append(table(f"{title}: by body", rows_by(sel, "body")))
+                report.append(table(f"{title}: by law", rows_by(sel, "law")))
+                report.append(table(f"{title}: by PSF", rows_by(sel, "psf")))
     text = "\n".join(report)
     print(text)
     from _common import environment

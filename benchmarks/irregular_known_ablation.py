@@ -47,7 +47,7 @@ def variants() -> dict:
 
 def known_scenes(cam, pin, seed: int, cache: Path | None, only) -> dict:
     """``(body, phase) -> (model, MeshScene)`` of the attitude-known views (module docstring)."""
-    from irregular_independent import _scene, _views, bodies
+    from irregular_independent import draw_scene, view_plan, bodies
 
     from jaxlimb.render.independent.mesh_rays import render_mesh_frame
 
@@ -56,8 +56,8 @@ def known_scenes(cam, pin, seed: int, cache: Path | None, only) -> dict:
         if only and name not in only:
             continue
         rng = np.random.default_rng([seed, ib])
-        for iv, (mode, ph, dist, off) in enumerate(_views(argparse.Namespace(views=1))):
-            scene, _meta = _scene(VF[0], VF[1], model.max_radius, cam, ph, dist, off, rng)
+        for iv, (mode, ph, dist, off) in enumerate(view_plan(argparse.Namespace(views=1))):
+            scene, _meta = draw_scene(VF[0], VF[1], model.max_radius, cam, ph, dist, off, rng)
             img, _truth = render_mesh_frame(scene, pin, rng)
             rng.integers(1 << 30)  # the own render's seed
             f = None if cache is None else cache / f"{name.replace(':', '_')}_{iv}_s{seed}_v3.pkl"

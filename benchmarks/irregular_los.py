@@ -155,7 +155,7 @@ def table(title: str, groups: dict[str, list[dict]]) -> str:
     return "\n".join(lines)
 
 
-def _groups(rows: list[dict], key: str) -> dict[str, list[dict]]:
+def rows_by(rows: list[dict], key: str) -> dict[str, list[dict]]:
     g: dict[str, list[dict]] = {}
     for r in rows:
         g.setdefault(f"{key} {r[key]}", []).append(r)
@@ -209,13 +209,13 @@ def main(argv: list[str] | None = None) -> int:
     for mode in ("unknown", "known"):
         sel = [r for r in rows if r["mode"] == mode]
         title = "Attitude unknown, Sun known" if mode == "unknown" else "Attitude known (render-and-register)"
-        report.append(table(f"{title}: by phase", _groups(sel, "phase")))
-        report.append(table(f"{title}: by body", _groups(sel, "body")))
+        report.append(table(f"{title}: by phase", rows_by(sel, "phase")))
+        report.append(table(f"{title}: by body", rows_by(sel, "body")))
     before = [{**r["before"], "phase": r["phase"], "body": r["body"]} for r in rows if "before" in r]
     if before:
         after = [r for r in rows if "before" in r]
-        report.append(table("After, on the same frames as the baseline: by phase", _groups(after, "phase")))
-        report.append(table("Before (template match + soft-silhouette refinement, unchecked): by phase", _groups(before, "phase")))
+        report.append(table("After, on the same frames as the baseline: by phase", rows_by(after, "phase")))
+        report.append(table("Before (template match + soft-silhouette refinement, unchecked): by phase", rows_by(before, "phase")))
     text = "\n".join(report)
     print(text)
     from _common import environment

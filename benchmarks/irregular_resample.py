@@ -35,21 +35,21 @@ def scene_of(name: str, ib: int, model, VF, view: int, seed: int, cache: Path | 
     cam = camera()
     rng = np.random.default_rng([seed, ib])
     got: dict = {}
-    scene = ii._scene
+    scene = ii.draw_scene
 
     def record(*a, **k):  # type: ignore[no-untyped-def]
         out = scene(*a, **k)
         got["scene"] = out[0]
         return out
 
-    ii._scene = record
+    ii.draw_scene = record
     try:
-        for iv, (_, ph, dist, off) in enumerate(ii._views(argparse.Namespace(views=1))):
-            frame = ii._frames(name, model, VF, cam, Pinhole.from_camera(cam), ph, dist, off, rng, None, "")
+        for iv, (_, ph, dist, off) in enumerate(ii.view_plan(argparse.Namespace(views=1))):
+            frame = ii.render_frames(name, model, VF, cam, Pinhole.from_camera(cam), ph, dist, off, rng, None, "")
             if iv == view:
                 break
     finally:
-        ii._scene = scene
+        ii.draw_scene = scene
     f = None if cache is None else cache / f"{name.replace(':', '_')}_{view}_s{seed}_v{ii.RENDER_VERSION}.pkl"
     if f is not None and f.exists() and not np.array_equal(pickle.loads(f.read_bytes())[0], frame[0]):
         raise RuntimeError(f"{name}: the replayed frame differs from the cached one")

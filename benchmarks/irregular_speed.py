@@ -11,7 +11,8 @@ and a generated contact binary at phase 30 deg and 3x / 10x the long axis, plus 
 * **CLI**: wall time of ``jaxlimb los locate FRAME --db DB.npz --camera C --hints H
   --json`` (Sun direction and range prior in the hints, attitude unknown), first
   process and the median of the later ones, beside ``python -c "import jax;
-  jax.numpy.zeros(1)"`` measured in the same run;
+  jax.numpy.zeros(1)"`` measured in the same run, every process with Python's bytecode cached as an installed
+  package has it (``_common.process_environment``; ``--no-bytecode-cache``: as the environment is);
 * the centre error of the answer (px).
 
 Run::
@@ -40,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import environment, save  # noqa: E402
+from _common import environment, process_environment, save  # noqa: E402
 
 JAXLIMB = [sys.executable, "-m", "jaxlimb.cli"]
 CASES = (("thebe", 30, 3.0), ("thebe", 30, 10.0), ("gen:contact-binary", 30, 3.0), ("phobos", 30, 3.0))
@@ -128,6 +129,8 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--repeats", type=int, default=3, help="in-process calls and later CLI processes per frame")
     ap.add_argument("--cli-pythonpath", metavar="DIR", help="run the CLI from this checkout (e.g. `git archive` of an"
                     " earlier commit: the 'before' column); results saved as irregular_speed_before.json")
+    ap.add_argument("--no-bytecode-cache", action="store_true",
+                    help="time the processes without the bytecode cache (the environment as it is)")
     args = ap.parse_args(argv)
     REPEATS, IN_PROCESS = args.repeats, not args.cli_pythonpath
     os.environ.setdefault("JAXLIMB_CACHE", str(Path(__file__).resolve().parent / "results" / ".db-cache"))
@@ -140,7 +143,7 @@ def main(argv: list[str] | None = None) -> dict:
     cases = [c for c in CASES if not (args.quick and (c[0] == "phobos" or c[2] == 10.0))]
     allb = bodies(quick=False)
     rows = [_frame(n, ph, df, allb, cam, d, np.random.default_rng([2026, i])) for i, (n, ph, df) in enumerate(cases)]
-    env = {**os.environ, "JAXLIMB_CACHE_DIR": str(d / "jaxcache")}
+    env = process_environment(None if args.no_bytecode_cache else d / "pycache", JAXLIMB_CACHE_DIR=str(d / "jaxcache"))
     if args.cli_pythonpath:
         env["PYTHONPATH"] = str(Path(args.cli_pythonpath).resolve())
         env["JAXLIMB_SHARED_DATA"] = str(shared_data_dir())
@@ -165,7 +168,7 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"| {r['case']} | {r.get('in_process_s', nan):.2f} | {r.get('template_search_s', nan):.2f} / {r.get('register_s', nan):.2f} |"
               f" {r['cli_first_s']:.2f} / {r['cli_s']:.2f} | {r['cli_cpu_s']:.2f} | {r['cli_vs_jax_start']:.2f} | {r.get('cli_error_px', nan):.3f} | {r['cli_status']} |")
     out = {"environment": environment(), "jax_start_s": jax_s, "jax_start_cpu_s": jax_cpu, "load_after": os.getloadavg()[0], "rows": rows,
-           "cli_pythonpath": args.cli_pythonpath}  # fmt: skip
+           "cli_pythonpath": args.cli_pythonpath, "bytecode_cache": not args.no_bytecode_cache}  # fmt: skip
     print("wrote", save("irregular_speed_before" if args.cli_pythonpath else "irregular_speed", out))
     return out
 

@@ -71,7 +71,7 @@ def unseen_frames(d: Path, cam) -> list[dict]:
     its ``new:cratered-a``); phases 0/30/60 at 3x the long axis, off-centre."""
     import cv2
     import trimesh
-    from irregular_independent import _scene
+    from irregular_independent import draw_scene
 
     from jaxlimb.irregular.mesh import validate_mesh
     from jaxlimb.render.independent.geometry import Pinhole
@@ -83,7 +83,7 @@ def unseen_frames(d: Path, cam) -> list[dict]:
     model, out = validate_mesh(V, F, source="cratered-a"), []
     for ph in (0, 30, 60):
         rng = np.random.default_rng([7, 9, ph])
-        scene, _ = _scene(V, F, model.max_radius, cam, ph, 3.0, True, rng)
+        scene, _ = draw_scene(V, F, model.max_radius, cam, ph, 3.0, True, rng)
         img, truth = render_mesh_frame(scene, Pinhole.from_camera(cam), rng)
         tag = f"cratered-a_{ph}"
         cv2.imwrite(str(d / f"{tag}.png"), np.clip(np.round(img), 0, 65535).astype(np.uint16))

@@ -72,7 +72,7 @@ def main(argv=None) -> int:
 
     jax.config.update("jax_enable_x64", True)
     from _common import environment, save
-    from families import _case
+    from families import family_case
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--families", default="lambert,own,clouds")
@@ -86,7 +86,7 @@ def main(argv=None) -> int:
     rows = []
     for fam in a.families.split(","):
         for i in range(a.n):
-            r = {"family": fam, "frame": i, **measure(_case("earth", fam, i, a.seed, a.cache), a.L, a.L_grid)}
+            r = {"family": fam, "frame": i, **measure(family_case("earth", fam, i, a.seed, a.cache), a.L, a.L_grid)}
             rows.append(r)
             print(f"{fam:8s} {i}: rays {r['rays']:4d}  plain along/across {r['plain'][0]:+.3f} / {r['plain'][1]:+.3f}  "
                   f"corrected {r['corrected'][0]:+.3f} / {r['corrected'][1]:+.3f}  sigma {r['sigma_px']:.1f}"

@@ -16,6 +16,7 @@ import numpy as np
 from ..fitting import LimbFit
 from ..geometry.sphere_image import SphereImage
 from ..imaging.predicted import LimbShape
+from ..models import CircleParams
 
 
 @dataclass(frozen=True)
@@ -173,8 +174,9 @@ class RefineResult:
 
     def with_move_witness(self, other: "RefineResult", frac: float) -> "RefineResult":
         """A copy with ``(frac |d|)^2`` added to the variances of ``r0`` and ``c0`` and ``(frac d_a)^2`` to that of
-        ``a``, ``d`` the move of ``(r0, c0, a)`` from ``other`` (a second model of the same limb whose correction is
-        itself uncertain, in every direction); unchanged unless all three are free.
+        the size, ``d`` the move of ``(r0, c0, size)`` from ``other`` (a second model of the same limb whose correction
+        is itself uncertain, in every direction); the size is ``a`` (profile, ellipse) or ``radius`` (circle) of each
+        fit; unchanged unless all three are free.
 
         Parameters
         ----------
@@ -188,11 +190,13 @@ class RefineResult:
         RefineResult
         """
         free = list(self.fit.free)
-        if not all(n in free for n in ("r0", "c0", "a")):
+        mine, theirs = (("r0", "c0", "radius" if isinstance(p, CircleParams) else "a") for p in (self.fit.params,
+                                                                                                 other.fit.params))
+        if not all(n in free for n in mine):
             return self
-        d = np.array([float(getattr(self.fit.params, n)) - float(getattr(other.fit.params, n)) for n in ("r0", "c0", "a")])
+        d = np.array([float(getattr(self.fit.params, a)) - float(getattr(other.fit.params, b)) for a, b in zip(mine, theirs)])
         C = np.array(self.fit.covariance)
-        for i, v in zip((free.index("r0"), free.index("c0"), free.index("a")),
+        for i, v in zip([free.index(n) for n in mine],
                         (float(np.hypot(d[0], d[1])),) * 2 + (abs(d[2]),)):
             C[i, i] += (frac * v) ** 2
         return self.with_covariance(C)

@@ -189,3 +189,29 @@ def test_front_end_fallback():
     img = render_disk((400, 400), (201.3, 198.6), 120.0, phase_deg=40.0, blur_sigma=1.0, noise_sigma=1.0, ss=2)
     with pytest.raises(TooManyOutliersError, match="min_points_box = 5000"):
         locate(img, options=LocateOptions(gradient=strict))
+
+
+def test_move_witness_carries_the_move_of_a_circle_fit_too():
+    """``RefineResult.with_move_witness``: the move of ``(r0, c0, size)`` from another model of the same limb is added
+    to the variances, the size being a circle's ``radius`` (the sigmoid without a camera) or a profile's ``a``."""
+    import jax.numpy as jnp
+
+    from jaxlimb.fitting import fit
+    from jaxlimb.models import CIRCLE, CircleParams
+    from jaxlimb.pipeline.stages import FitData, RefineResult
+
+    truth = CircleParams(r0=60.0, c0=70.0, radius=30.0, k=2.0, ymax=200.0, ymin=10.0)
+    rr, cc = np.mgrid[20:100, 30:110]
+    coords = np.stack([rr.ravel(), cc.ravel()], axis=1).astype(float)
+    z = np.asarray(CIRCLE.intensity(truth, jnp.asarray(coords))) + np.random.default_rng(0).normal(0, 1.0, len(coords))
+    f = fit(CIRCLE, coords, z, truth.replace(r0=60.3, c0=69.8, radius=30.2))
+    circ = RefineResult(f, FitData(coords, z, None, 0.0, 1.0), 0, ())
+    other = SimpleNamespace(fit=SimpleNamespace(params=SimpleNamespace(r0=float(f.params.r0) + 0.3,
+                                                                       c0=float(f.params.c0) - 0.4,
+                                                                       a=float(f.params.radius) + 0.2)))
+    out = circ.with_move_witness(other, 1.0)
+    free = list(f.free)
+    added = np.diag(np.asarray(out.fit.covariance) - np.asarray(f.covariance))
+    assert added[free.index("r0")] == pytest.approx(0.25) and added[free.index("c0")] == pytest.approx(0.25)
+    assert added[free.index("radius")] == pytest.approx(0.04)
+    assert np.allclose(np.delete(added, [free.index(n) for n in ("r0", "c0", "radius")]), 0.0)
