@@ -118,3 +118,26 @@ def test_switch_radius():
         case = _case(radius, 30.0, 3, range_error_frac=0.0)
         frame = prepare(case.image, case.camera, case.hints, LocateOptions())
         assert isinstance(body_strategy(frame), SmallBody) is small
+
+
+def test_a_disc_fit_that_leaves_its_window_falls_back_to_the_centre_of_brightness():
+    """A faint 1 px crescent (phase 82 deg, 8 bits) on which the disc fit's steps carried the centre thousands of pixels
+    off while its tolerance was met: :func:`~jaxlimb.pipeline.small.fit.check_in_window` refuses that answer, so the
+    phase-corrected centre of brightness answers (it used to end in a singular-matrix traceback)."""
+    from types import SimpleNamespace
+
+    from jaxlimb.errors import ConvergenceError
+    from jaxlimb.pipeline.small.fit import check_in_window
+
+    pix = SimpleNamespace(coords=np.array([[10.0, 50.0], [20.0, 60.0]]))
+    with pytest.raises(ConvergenceError, match="left its window"):
+        check_in_window(SimpleNamespace(params=SimpleNamespace(r0=3660.6, c0=38546.5), covariance=np.eye(2)), pix)
+    with pytest.raises(ConvergenceError, match="do not fix"):
+        check_in_window(SimpleNamespace(params=SimpleNamespace(r0=15.0, c0=55.0), covariance=np.diag([1.0, 0.0])), pix)
+    check_in_window(SimpleNamespace(params=SimpleNamespace(r0=15.0, c0=55.0), covariance=np.eye(2)), pix)
+    case = sb.small_body_case(1.0, 81.86694393323747, np.random.default_rng(1293477733), snr=84.66328598973689, bits=8,
+                              psf_sigma=(0.5, 1.5))
+    m = locate(case.image, case.camera, case.hints)
+    assert m.extras["small_body"]["method"] == "moments"
+    err = np.subtract(m.center_rc, case.truth.body_center_rc)
+    assert np.hypot(*err) < 0.2 and float(err @ np.linalg.solve(_center_cov(m), err)) < 13.8

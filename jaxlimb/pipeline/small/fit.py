@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...errors import ConvergenceError
 from ...fitting import fit
 from ...models import lunar_lambert_weight
 from ...models.small_disc import (N_SUB, SMALL_DISC, SMALL_DISC_FIXED, WINDOW, SmallDiscParams, grid_half_extent,
@@ -269,6 +270,33 @@ def consider_terms(res, pix: SmallPixels, weights: np.ndarray, sigmas: dict[str,
     return out
 
 
+def check_in_window(res, pix: SmallPixels) -> None:
+    """A disc fit that measured its blob: the centre inside the window of pixels it fitted and the normal matrix of its
+    free parameters of full rank; else :class:`~jaxlimb.errors.ConvergenceError` (the solver's steps can carry the
+    centre far off a faint blob while its tolerance is met: nothing there for the fit to see).
+
+    Parameters
+    ----------
+    res : LimbFit
+        The weighted fit.
+    pix : SmallPixels
+        The window.
+
+    Raises
+    ------
+    ConvergenceError
+        The centre outside the window, or free parameters the data do not fix.
+    """
+    lo, hi = pix.coords.min(axis=0), pix.coords.max(axis=0)
+    r0, c0 = float(res.params.r0), float(res.params.c0)
+    if not (lo[0] <= r0 <= hi[0] and lo[1] <= c0 <= hi[1]):
+        raise ConvergenceError(f"the few-pixel disc fit left its window: centre ({r0:.4g}, {c0:.4g}) outside rows "
+                               f"{lo[0]:g}-{hi[0]:g}, cols {lo[1]:g}-{hi[1]:g}")
+    C = np.asarray(res.covariance, float)
+    if not np.all(np.isfinite(C)) or np.linalg.matrix_rank(C) < C.shape[0]:
+        raise ConvergenceError("the few-pixel disc fit has free parameters the window's pixels do not fix")
+
+
 def fit_small_disc(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> tuple[RefineResult, dict]:
     """The passes of the module docstring: the :class:`~jaxlimb.pipeline.stages.RefineResult` (its covariance with the
     consider terms; the noise-only one kept) and what to report.
@@ -292,7 +320,7 @@ def fit_small_disc(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> tupl
     Raises
     ------
     ConvergenceError
-        A weighted pass does not converge.
+        A weighted pass does not converge, or its answer is not a measurement (:func:`check_in_window`).
     """
     a_free = cand.expected_radius_px is None or cand.expected_radius_px >= FREE_RADIUS_MIN_PX
     held = () if a_free else ("a",)  # a run-time mask: one compiled fit whether the radius is held or not
@@ -308,6 +336,7 @@ def fit_small_disc(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> tupl
         p = regrid(res.params)
         if moved < 0.05 * float(p.grid_h) * N_SUB / 2:
             break
+    check_in_window(res, pix)
     a = float(res.params.a)
     u = cand.radius_uncertainty
     C_fit = np.asarray(res.covariance)
@@ -317,5 +346,5 @@ def fit_small_disc(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> tupl
     return rr, {"noise_model": noise, "radius_free": a_free, "radius_uncertainty_frac": u, "law_sigma_L": LAW_SIGMA}
 
 
-__all__ = ["DEFAULT_RADIUS_UNCERTAINTY", "FREE_RADIUS_MIN_PX", "SmallPixels", "disc_at", "fit_small_disc",
+__all__ = ["DEFAULT_RADIUS_UNCERTAINTY", "FREE_RADIUS_MIN_PX", "SmallPixels", "check_in_window", "disc_at", "fit_small_disc",
            "offset_and_gradients", "regrid", "start", "sun_geometry", "window_pixels"]
