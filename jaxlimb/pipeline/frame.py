@@ -19,6 +19,7 @@ from ..imaging.gradient_front_end import GradientOptions
 from ..imaging.io import validate_image
 from ..imaging.prior import check_prior, prior_from_hints
 from ..imaging.scanline_front_end import ScanlineOptions
+from ..models.small_disc import WINDOW as SMALL_WINDOW, grid_half_extent
 from .options import LocateOptions
 from .stages import Frame
 
@@ -231,6 +232,24 @@ def small_expected(frame: Frame) -> bool:
     return pr is not None and pr < SMALL_RADIUS_MAX_PX and frame.sun_known
 
 
+def small_possible(frame: Frame) -> bool:
+    """The few-pixel model can hold the body the hints expect: the Sun direction known and the disc's radiance grid
+    (:func:`~jaxlimb.models.small_disc.grid_half_extent`) inside the model's window of pixels.
+
+    Parameters
+    ----------
+    frame : Frame
+        Its hints (and camera) give the expected radius and the Sun direction.
+
+    Returns
+    -------
+    bool
+        ``True`` when :mod:`jaxlimb.pipeline.small` can measure the body as a whole.
+    """
+    pr = expected_radius_px(frame)
+    return pr is not None and frame.sun_known and grid_half_extent(pr) <= 0.5 * SMALL_WINDOW
+
+
 def frame_mask(frame: Frame) -> np.ndarray | None:
     """The validity mask of ``frame.img`` (``None`` when all valid or when a strategy resampled the frame:
     the observed mask no longer fits its grid).
@@ -376,6 +395,6 @@ def arc_angles(coords: np.ndarray, center_rc) -> np.ndarray:
     return np.arctan2(coords[:, 0] - float(center_rc[0]), coords[:, 1] - float(center_rc[1]))
 
 
-__all__ = ["SMALL_RADIUS_MAX_PX", "arc_angles", "as_camera", "as_hints", "candidates", "expected_radius_px",
+__all__ = ["SMALL_RADIUS_MAX_PX", "small_possible", "arc_angles", "as_camera", "as_hints", "candidates", "expected_radius_px",
            "frame_mask", "limb_predicted", "min_diameter_px", "other_candidates", "other_front_end", "prepare",
            "small_expected"]

@@ -76,6 +76,23 @@ def locate(
     """
     frame = prepare(image, camera, hints, options, mask)
     body = body_strategy(frame)
+    try:
+        return _measure_body(frame, body)
+    except CheckFailed as e:
+        other = body.instead(frame, e)
+        if other is None:
+            raise
+        try:
+            m = _measure_body(frame, other)
+        except CheckFailed:
+            raise e from None
+        m.extras["strategy_refused"] = {"check": e.check, "message": str(e)}  # the first strategy's refusal
+        return m
+
+
+def _measure_body(frame: Frame, body: Body) -> LimbMeasurement:
+    """The body strategy's stages on the prepared frame: prepare, candidates, then :func:`_measure_or_other_front_end`
+    (a refusal on a frame whose sky outshines the shadowed limb says so)."""
     frame = body.prepare(frame)
     cand = body.candidates(frame)
     try:

@@ -41,6 +41,7 @@ from ..imaging.gradient_front_end import GradientOptions
 from ..imaging.scanline_front_end import ScanlineOptions
 from .edge_stages import (AnnulusSelection, EdgeFit, EllipsePixels, EllipsoidEdge, FitData, LimbPixels,
                           PredictedCandidates, PredictedEdge, PredictedPixels, RefineResult)
+from ..errors import CheckFailed
 from .options import LocateOptions
 from .result import EllipseResult, LimbMeasurement
 
@@ -408,6 +409,22 @@ class Body(ABC, Generic[PixelsT, EdgeT]):
         Returns
         -------
         int
+        """
+
+    @abstractmethod
+    def instead(self, frame: Frame, refusal: CheckFailed) -> "Body | None":
+        """The strategy that measures the frame when this one refused it; ``None``: the refusal stands.
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs (before :meth:`prepare`).
+        refusal : CheckFailed
+            This strategy's refusal.
+
+        Returns
+        -------
+        Body or None
         """
 
     @abstractmethod

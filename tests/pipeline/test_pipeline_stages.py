@@ -48,12 +48,13 @@ def test_strategies_are_final_and_chosen_by_the_hints():
     from jaxlimb.pipeline.bodies import body_strategy
     from jaxlimb.pipeline.ellipsoid import Ellipsoid
     from jaxlimb.pipeline.frame import prepare
+    from jaxlimb.pipeline.small.body import SmallBody
     from jaxlimb.pipeline.sphere import Disc, PredictedLimbSphere, Sphere
     from jaxlimb.pipeline.stages import Body
 
     # one abstract body; every strategy a final class that implements every stage
     assert inspect.isabstract(Body)
-    for cls in (Sphere, Disc, PredictedLimbSphere, Ellipsoid):
+    for cls in (Sphere, Disc, PredictedLimbSphere, Ellipsoid, SmallBody):
         assert cls.__bases__ == (Body,) and not inspect.isabstract(cls) and getattr(cls, "__final__", False)
     assert ".name" not in inspect.getsource(locate_module)  # locate never tests a body's name
     img = np.zeros((64, 80), np.uint8)

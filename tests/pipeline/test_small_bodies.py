@@ -141,3 +141,20 @@ def test_a_disc_fit_that_leaves_its_window_falls_back_to_the_centre_of_brightnes
     assert m.extras["small_body"]["method"] == "moments"
     err = np.subtract(m.center_rc, case.truth.body_center_rc)
     assert np.hypot(*err) < 0.2 and float(err @ np.linalg.solve(_center_cov(m), err)) < 13.8
+
+
+def test_the_whole_disc_answers_where_the_limb_front_end_finds_no_consensus():
+    """A 7 px Moon (above the switch radius: the limb strategy is chosen) whose limb of a few dozen pixels gives the
+    front end's RANSAC no consensus (Check 3): the few-pixel strategy measures it instead, says why, and is right; with
+    the strategy stated (``shape="sphere"``) the refusal stands."""
+    from jaxlimb.errors import TooManyOutliersError
+
+    case = sb.small_body_case(7.0, 43.642371330641964, np.random.default_rng(1173390806), snr=51.246180121755266,
+                              bits=8, psf_sigma=(0.5, 1.5))
+    with pytest.raises(TooManyOutliersError):
+        locate(case.image, case.camera, case.hints, LocateOptions(shape="sphere"))
+    m = locate(case.image, case.camera, case.hints)
+    refused = m.extras["strategy_refused"]
+    assert refused["check"] == "too_many_outliers" and "small_body" in m.extras
+    err = np.subtract(m.center_rc, case.truth.body_center_rc)
+    assert np.hypot(*err) < 0.1 and float(err @ np.linalg.solve(_center_cov(m), err)) < 13.8

@@ -7,9 +7,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar, final
 
-from ..frame import candidates
+from ...errors import CheckFailed, NoBodyError
+from ..frame import candidates, small_possible
+from ..options import BodyShape
 from ..report import check_physical
 from ..result import LimbMeasurement
+from ..small.body import SmallBody
 from ..stages import Body, BodyCenter, Covariance, EdgeFit, Frame, Levels, LimbPixels, RefineResult
 from .dark_limb import check_measurement
 from .edge import check_edge, edge_fit, edge_report, limb_pixels
@@ -184,6 +187,27 @@ class Sphere(Body[LimbPixels, EdgeFit]):
         int
         """
         return round_iterations(edge, final)
+
+    def instead(self, frame: Frame, refusal: CheckFailed) -> Body | None:
+        """The few-pixel strategy (:class:`~jaxlimb.pipeline.small.body.SmallBody`) when this one was chosen
+        automatically, refused the frame for another reason than no body, and the few-pixel model can hold the disc the
+        hints expect (:func:`~jaxlimb.pipeline.frame.small_possible`): a disc a few pixels above the switch radius has a
+        limb of a few dozen pixels, at times too few for the front end's consensus; the whole-disc model needs none.
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        refusal : CheckFailed
+            This strategy's refusal.
+
+        Returns
+        -------
+        SmallBody or None
+        """
+        if frame.opt.shape == BodyShape.AUTO and not isinstance(refusal, NoBodyError) and small_possible(frame):
+            return SmallBody()
+        return None
 
     def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
         """The dark-limb check on the measured circle (:func:`~jaxlimb.pipeline.sphere.dark_limb.check_measurement`).
@@ -367,6 +391,17 @@ class Disc(Body[LimbPixels, EdgeFit]):
         int
         """
         return round_iterations(edge, final)
+
+    def instead(self, frame: Frame, refusal: CheckFailed) -> None:
+        """No other strategy: the refusal stands.
+
+        Parameters
+        ----------
+        frame : Frame
+            The prepared inputs.
+        refusal : CheckFailed
+            This strategy's refusal.
+        """
 
     def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
         """The measurement unchanged (a self-luminous disc has no dark limb).
