@@ -194,7 +194,8 @@ class RefineResult:
                                                                                                  other.fit.params))
         if not all(n in free for n in mine):
             return self
-        d = np.array([float(getattr(self.fit.params, a)) - float(getattr(other.fit.params, b)) for a, b in zip(mine, theirs)])
+        d = np.array([float(getattr(self.fit.params, a)) - float(getattr(other.fit.params, b))
+                      for a, b in zip(mine, theirs)])
         C = np.array(self.fit.covariance)
         for i, v in zip([free.index(n) for n in mine],
                         (float(np.hypot(d[0], d[1])),) * 2 + (abs(d[2]),)):

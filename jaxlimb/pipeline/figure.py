@@ -87,9 +87,9 @@ def edge_residuals(image: np.ndarray, measurement: LimbMeasurement, selected_pix
     normal at ``n`` points, the position (px, positive outward) where the profile (cubic-spline samples every
     0.1 px within ``half_px``) crosses the level halfway between its inner and outer 1.5 px, the crossing nearest
     the limb, linearly interpolated.  Only points within 2 px of a fitted pixel (all when there are none) whose
-    whole profile lies in the frame and whose two levels differ by :data:`EDGE_CONTRAST_SIGMAS` noise sigmas.  A centre error shows as a sinusoid of the position angle, a
-    radius error as an offset; the half-level of a limb-darkened or -brightened edge sits off the limb by a
-    fraction of its blur, the same all along it.
+    whole profile lies in the frame and whose two levels differ by :data:`EDGE_CONTRAST_SIGMAS` noise sigmas.  A
+    centre error shows as a sinusoid of the position angle, a radius error as an offset; the half-level of a
+    limb-darkened or -brightened edge sits off the limb by a fraction of its blur, the same all along it.
 
     Parameters
     ----------

@@ -395,6 +395,6 @@ def arc_angles(coords: np.ndarray, center_rc) -> np.ndarray:
     return np.arctan2(coords[:, 0] - float(center_rc[0]), coords[:, 1] - float(center_rc[1]))
 
 
-__all__ = ["SMALL_RADIUS_MAX_PX", "small_possible", "arc_angles", "as_camera", "as_hints", "candidates", "expected_radius_px",
+__all__ = ["SMALL_RADIUS_MAX_PX", "arc_angles", "as_camera", "as_hints", "candidates", "expected_radius_px",
            "frame_mask", "limb_predicted", "min_diameter_px", "other_candidates", "other_front_end", "prepare",
-           "small_expected"]
+           "small_expected", "small_possible"]
