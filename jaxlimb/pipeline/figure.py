@@ -62,11 +62,18 @@ def _crop(limb: np.ndarray, shape: tuple[int, int]) -> tuple[int, int, int, int]
     return (r0, r1, c0, c1) if (r1 > r0 and c1 > c0) else (0, R, 0, C)
 
 
-def _zoom_box(measurement: LimbMeasurement, limb: np.ndarray) -> tuple[float, float, float, float]:
-    """30 x 30 px about the limb point farthest in the lit direction (the top of the limb without one)."""
+def _zoom_box(img: np.ndarray, measurement: LimbMeasurement, limb: np.ndarray) -> tuple[float, float, float, float]:
+    """30 x 30 px about the limb point farthest in the lit direction; without one, about the limb point of the
+    strongest edge (inside minus outside, 3 px along the normal: the lit limb)."""
     d = measurement.extras.get("lit_direction_rc")
     cen = np.asarray(measurement.center_rc)
-    k = int(np.argmax((limb - cen) @ np.asarray(d, float))) if d is not None else int(np.argmin(limb[:, 0]))
+    if d is not None:
+        k = int(np.argmax((limb - cen) @ np.asarray(d, float)))
+    else:
+        nrm = _limb_normals(limb, cen)
+        inner, outer = (np.clip(np.rint(limb[:-1] + s * nrm), 0, np.asarray(img.shape) - 1).astype(int)
+                        for s in (-3.0, 3.0))
+        k = int(np.argmax(img[inner[:, 0], inner[:, 1]] - img[outer[:, 0], outer[:, 1]]))
     pr, pc = limb[k]
     return pr - 15, pr + 15, pc - 15, pc + 15
 
@@ -242,7 +249,7 @@ def save_locate_figure(
     vmin, vmax = np.percentile(img[r0:r1, c0:c1], [0.5, 99.8])
     for ax, zoom in zip(axes[:2], (False, True)):
         _panel(ax, img, (vmin, vmax), measurement, limb, pix, tpts, tcen,
-               _zoom_box(measurement, limb) if zoom else (r0 - 0.5, r1 - 0.5, c0 - 0.5, c1 - 0.5), zoom)
+               _zoom_box(img, measurement, limb) if zoom else (r0 - 0.5, r1 - 0.5, c0 - 0.5, c1 - 0.5), zoom)
     axes[0].legend(loc="upper right", fontsize=8, framealpha=0.6)
     axes[1].set_title("zoom on the lit limb", fontsize=9)
     _residual_panel(axes[2], *edge_residuals(img, measurement, pix))
