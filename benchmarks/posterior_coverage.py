@@ -3,7 +3,12 @@
 Usage::
 
     .venv/bin/python benchmarks/posterior_coverage.py [--families hapke] [--n 100] [--seed 7] [--out-dir DIR]
-                                                      [--walkers 16] [--plot FILE.png]
+                                                      [--walkers 16] [--plot FILE.png] [--shard P/N]
+
+    # on N cores: N processes, each a shard of the chunks, into one --out-dir; then once more without --shard to
+    # gather them (every chunk is on disk: nothing is recomputed) and write the summary
+    for p in 0 1; do .venv/bin/python benchmarks/posterior_coverage.py --out-dir DIR --shard $p/2 & done; wait
+    .venv/bin/python benchmarks/posterior_coverage.py --out-dir DIR
 
 Each trial renders a Moon of the family with the independent renderer (:mod:`jaxlimb.render.independent`, drawn
 from the trial's seed: range 60 000-384 400 km, phase 0-150 deg, 8 or 12 bits), runs ``locate`` with the hints a
@@ -110,12 +115,17 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--out-dir", type=Path, default=Path("/tmp/posterior_coverage"))
     ap.add_argument("--plot", type=Path, default=None)
     ap.add_argument("--name", default="posterior_coverage")
+    ap.add_argument("--shard", default="0/1", help="P/N: run only chunk c with c %% N == P (module docstring)")
     args = ap.parse_args(argv)
+    shard = tuple(int(v) for v in args.shard.split("/"))
     fams = tuple(f.strip() for f in args.families.split(","))
     t0 = time.perf_counter()
     opt = MonteCarloOptions(n_trials=args.n, chunk_size=5, seed=args.seed, out_dir=str(args.out_dir),
-                            name=f"coverage-{'-'.join(fams)}-w{args.walkers}")
+                            name=f"coverage-{'-'.join(fams)}-w{args.walkers}", shard=shard)
     res = run_monte_carlo(CoverageTrial(fams, args.walkers), opt)
+    if shard[1] > 1:
+        print(f"shard {args.shard}: {res.n} trials in {args.out_dir}; gather them with a run without --shard")
+        return {"shard": args.shard, "n": res.n}
     summary = coverage(res)
     fails = res.failure_counts()
     out = {"families": list(fams), "n": res.n, "n_ok": int(res.ok.sum()), "failures": fails, "coverage": summary,
