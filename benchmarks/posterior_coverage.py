@@ -102,6 +102,12 @@ def plot(res, summary: dict, path: Path) -> None:  # noqa: ANN001
     save_figure(fig, path)
 
 
+def _median_ok(res, key: str) -> float | None:  # noqa: ANN001
+    """The median of ``key`` over the trials that succeeded (``None`` when none did)."""
+    v = res.values.get(key)
+    return None if v is None or not res.ok.any() else float(np.nanmedian(v[res.ok]))
+
+
 def main(argv: list[str] | None = None) -> dict:
     from _common import environment, save
 
@@ -129,9 +135,10 @@ def main(argv: list[str] | None = None) -> dict:
     summary = coverage(res)
     fails = res.failure_counts()
     out = {"families": list(fams), "n": res.n, "n_ok": int(res.ok.sum()), "failures": fails, "coverage": summary,
-           "median_tau_max": float(np.nanmedian(res.values["tau_max"][res.ok])),
-           "median_post_over_locate_r": float(np.nanmedian(res.values["post_over_locate_r"][res.ok])),
-           "converged": int(np.nansum(res.values["converged"][res.ok])), "seed": args.seed, "walkers": args.walkers,
+           "median_tau_max": _median_ok(res, "tau_max"),
+           "median_post_over_locate_r": _median_ok(res, "post_over_locate_r"),
+           "converged": int(np.nansum(res.values.get("converged", np.zeros(res.n))[res.ok])), "seed": args.seed,
+           "walkers": args.walkers,
            "wall_s": time.perf_counter() - t0, "environment": environment(),
            "command": "python benchmarks/posterior_coverage.py " + " ".join(argv if argv is not None else sys.argv[1:])}
     save(args.name, out)
@@ -139,7 +146,7 @@ def main(argv: list[str] | None = None) -> dict:
         plot(res, summary, args.plot)
     for k, v in summary.items():
         print(f"{k:>16}: {v['n']} renders, inside 68 %: {100 * v['68']:.1f} %, inside 95 %: {100 * v['95']:.1f} %")
-    print(f"failures {fails}; median post/locate sd {out['median_post_over_locate_r']:.3f}")
+    print(f"failures {fails}; median post/locate sd {out['median_post_over_locate_r']}")
     return out
 
 
