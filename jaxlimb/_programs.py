@@ -170,7 +170,7 @@ class StoredJit:
             loaded = None
         if loaded is None:
             return lambda *dyn: self._jit(*_merge(treedef, leaves, mask, dyn))
-        return guarded_call(loaded[0], loaded[1], lambda *dyn: self._jit(*_merge(treedef, leaves, mask, dyn)))
+        return guarded_call(loaded[0], loaded[1], lambda *dyn: self._jit(*_merge(treedef, leaves, mask, dyn)), path)
 
     def _compile_and_store(self, path: Path, leaves: list[Any], mask: list[bool], treedef: Any) -> Any:
         box: dict[str, Any] = {}
@@ -183,25 +183,49 @@ class StoredJit:
         return compile_and_store(path, lowered, lambda: box["tree"]), box["tree"]
 
 
-def guarded_call(compiled: Any, out_tree: Any, fallback: Callable[..., Any]) -> Callable[..., Any]:
+def guarded_call(compiled: Any, out_tree: Any, fallback: Callable[..., Any],
+                 path: Path | None = None) -> Callable[..., Any]:
     """``f(*args)``: the stored executable ``compiled`` on ``args``, its flat results rebuilt as ``out_tree``;
     ``fallback(*args)`` (plain ``jit``) for arguments the executable was not made for (another device).
+
+    The first call waits for its results: a stored executable can load and yet lack one of its functions, failing
+    only when it runs (``NOT_FOUND: Function wrapped_broadcast not found``, seen on a cache that a test suite and
+    benchmarks had filled).  Such an entry is deleted (``path``), one warning says so, and ``fallback`` answers from
+    then on: a stored program is an optimisation, never a failure.
 
     Parameters
     ----------
     compiled : a loaded or compiled executable of flat array arguments returning a flat list.
     out_tree : the tree structure of the results.
     fallback : the function's ``jit``, called with the same arguments.
+    path : the executable's entry on disk, if any.
 
     Returns
     -------
     The function of the arguments.
     """
+    state = {"checked": False, "broken": False}
 
     def call(*args: Any) -> Any:
+        if state["broken"]:
+            return fallback(*args)
         try:
             out = compiled(*args)
+            if not state["checked"]:
+                jax.block_until_ready(out)
+                state["checked"] = True
         except (TypeError, ValueError):
+            return fallback(*args)
+        except jax.errors.JaxRuntimeError as e:
+            if "NOT_FOUND" not in str(e):
+                raise
+            from ._jaxcache import warn_once
+
+            state["broken"] = True
+            if path is not None:
+                path.unlink(missing_ok=True)
+            warn_once(_WHAT + " function", f"a stored executable{f' ({path.name})' if path is not None else ''} "
+                      f"cannot run ({str(e).splitlines()[0][:120]}): deleted, compiled again")
             return fallback(*args)
         return jax.tree_util.tree_unflatten(out_tree, out)
 

@@ -76,6 +76,34 @@ def test_a_damaged_entry_is_compiled_again_with_the_same_answer(folder, where):
     assert jc.unseal(path.read_bytes()) is not None  # stored again
 
 
+def test_an_executable_that_cannot_run_is_deleted_and_the_jit_answers(folder, tmp_path):
+    """A stored executable that loads but lacks one of its functions fails only when it runs (``NOT_FOUND:
+    Function ... not found``): the guarded call waits for its first results, deletes the entry, says so once and
+    answers with the function's jit from then on; other runtime errors are not swallowed."""
+    entry = tmp_path / "broken.bin"
+    entry.write_bytes(b"x")
+    calls = {"compiled": 0, "fallback": 0}
+
+    def broken(*args):  # noqa: ANN002, ANN202
+        calls["compiled"] += 1
+        raise jax.errors.JaxRuntimeError("NOT_FOUND: Function wrapped_broadcast not found (type id: 1)")
+
+    def fallback(x):  # noqa: ANN001, ANN202
+        calls["fallback"] += 1
+        return {"y": x + 1.0}
+
+    f = pg.guarded_call(broken, jax.tree_util.tree_structure({"y": 0}), fallback, entry)
+    with pytest.warns(CacheRepairWarning, match="cannot run .*wrapped_broadcast.*deleted"):
+        assert float(f(jnp.asarray(1.0))["y"]) == 2.0
+    assert not entry.exists() and float(f(jnp.asarray(2.0))["y"]) == 3.0 and calls == {"compiled": 1, "fallback": 2}
+
+    def other_error(*args):  # noqa: ANN002, ANN202
+        raise jax.errors.JaxRuntimeError("INTERNAL: something else")
+
+    with pytest.raises(jax.errors.JaxRuntimeError, match="INTERNAL"):
+        pg.guarded_call(other_error, jax.tree_util.tree_structure({"y": 0}), fallback)(jnp.asarray(1.0))
+
+
 def test_inside_another_transformation_and_without_a_cache_it_is_plain_jit(folder, monkeypatch):
     f = pg.StoredJit(_fn)
     p, x = _args()

@@ -81,7 +81,7 @@ class ExportedCore:
             program = program_path("exported-executable", key)
             loaded = load_program(program, len(args)) if program is not None and program.exists() else None
             if loaded is not None:  # the executable of an earlier process: no export to read, nothing to lower
-                return guarded_call(loaded[0], treedef, self._jit)
+                return guarded_call(loaded[0], treedef, self._jit, program)
             path = folder / f"{key}.bin"
             exp = self._load(path) if path.exists() else None
             if exp is None:
@@ -93,7 +93,7 @@ class ExportedCore:
         call = jax.jit(exp.call)
         with contextlib.suppress(Exception):
             flat = jax.tree_util.tree_structure(list(range(treedef.num_leaves)))
-            return guarded_call(compile_and_store(program, call.lower(*args), lambda: flat), treedef, self._jit)
+            return guarded_call(compile_and_store(program, call.lower(*args), lambda: flat), treedef, self._jit, program)
         return lambda *a: jax.tree_util.tree_unflatten(treedef, call(*a))
 
     @staticmethod
