@@ -189,8 +189,8 @@ def guarded_call(compiled: Any, out_tree: Any, fallback: Callable[..., Any],
     ``fallback(*args)`` (plain ``jit``) for arguments the executable was not made for (another device).
 
     The first call waits for its results: a stored executable can load and yet lack one of its functions, failing
-    only when it runs (``NOT_FOUND: Function wrapped_broadcast not found``, seen on a cache that a test suite and
-    benchmarks had filled).  Such an entry is deleted (``path``), one warning says so, and ``fallback`` answers from
+    only when it runs (``NOT_FOUND: Function wrapped_broadcast not found``, seen on a cache that benchmark runs
+    had filled).  Such an entry is deleted (``path``), one warning says so, and ``fallback`` answers from
     then on: a stored program is an optimisation, never a failure.
 
     Parameters
