@@ -43,11 +43,11 @@ def add_center_tolerance(p: argparse.ArgumentParser, default: str | None = None)
     (a frame whose centre 1-sigma exceeds it is refused, ``center_too_uncertain``); ``none``: no limit, the covariance
     says how good the centre is.  ``default`` ``None``: the flag is absent from the namespace unless given (the
     library's default applies, :func:`locate_options_given`); else ``"none"`` or a number, as typed."""
+    shown = "1, the library's" if default is None else default
     p.add_argument("--max-center-sigma-px", type=center_tolerance, metavar="PX|none",
                    default=argparse.SUPPRESS if default is None else center_tolerance(default),
                    help="refuse a frame whose centre 1-sigma (px, larger axis) exceeds PX (center_too_uncertain); "
-                   "none: no limit, the covariance says how good the centre is (default "
-                   f"{'1, the library' + chr(39) + 's' if default is None else default})")
+                   f"none: no limit, the covariance says how good the centre is (default {shown})")
 
 
 def locate_options_given(args: argparse.Namespace) -> dict:

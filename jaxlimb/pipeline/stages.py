@@ -35,13 +35,13 @@ from typing import Any, ClassVar, Generic, TypeVar
 
 import numpy as np
 
+from ..errors import CheckFailed
 from ..geometry.camera import Camera
 from ..geometry.hints import Hints
 from ..imaging.gradient_front_end import GradientOptions
 from ..imaging.scanline_front_end import ScanlineOptions
 from .edge_stages import (AnnulusSelection, EdgeFit, EllipsePixels, EllipsoidEdge, FitData, LimbPixels,
                           PredictedCandidates, PredictedEdge, PredictedPixels, RefineResult)
-from ..errors import CheckFailed
 from .options import LocateOptions
 from .result import EllipseResult, LimbMeasurement
 
@@ -255,7 +255,8 @@ class Body(ABC, Generic[PixelsT, EdgeT]):
     """A body strategy of :func:`~jaxlimb.pipeline.locate`: the stages that differ between bodies (module table).
 
     Abstract: every stage is implemented by a final strategy (sphere, disc, predicted-limb sphere, limb arc,
-    ellipsoid); the stages they share are functions the strategies call, not methods they inherit.  ``name`` is
+    ellipsoid, few-pixel); the stages they share are functions the strategies call, not methods they inherit.  One
+    method has a default: :meth:`instead`, no other strategy for a refused frame.  ``name`` is
     what the checks call the body in their messages.
     """
 
@@ -411,9 +412,9 @@ class Body(ABC, Generic[PixelsT, EdgeT]):
         int
         """
 
-    @abstractmethod
     def instead(self, frame: Frame, refusal: CheckFailed) -> "Body | None":
-        """The strategy that measures the frame when this one refused it; ``None``: the refusal stands.
+        """The strategy that measures the frame when this one refused it; ``None`` (every strategy but the sphere,
+        which overrides it): the refusal stands.
 
         Parameters
         ----------
@@ -426,6 +427,7 @@ class Body(ABC, Generic[PixelsT, EdgeT]):
         -------
         Body or None
         """
+        return None
 
     @abstractmethod
     def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:

@@ -39,8 +39,6 @@ every body (:func:`jaxlimb.pipeline.report.crlb`).
 
 from __future__ import annotations
 
-from ...errors import CheckFailed
-
 from dataclasses import dataclass, replace
 from typing import Any, ClassVar, final
 
@@ -337,17 +335,6 @@ class Ellipsoid(Body[EllipsePixels, EllipsoidEdge]):
         """
         # the edge fit with its model-error term is the same fit (same data), the profile a second one
         return edge.n_steps + (int(final.fit.n_steps) if type(final.fit.params) is not type(edge.final.fit.params) else 0)
-
-    def instead(self, frame: Frame, refusal: CheckFailed) -> None:
-        """No other strategy: the refusal stands.
-
-        Parameters
-        ----------
-        frame : Frame
-            The prepared inputs.
-        refusal : CheckFailed
-            This strategy's refusal.
-        """
 
     def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
         """Stage "finish" (:func:`distorted_back`).

@@ -23,7 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..._validate import check_center_sigma
-from ...errors import CheckFailed, ConfigError, ConvergenceError
+from ...errors import ConfigError, ConvergenceError
 from ...fitting import FitResult, LimbFit
 from ..checks import check_edge_width, check_levels
 from ..frame import expected_radius_px, frame_mask
@@ -347,17 +347,6 @@ class SmallBody(Body[SmallPixels, SmallEdge]):
         int
         """
         return int(final.fit.n_steps)
-
-    def instead(self, frame: Frame, refusal: CheckFailed) -> None:
-        """No other strategy: the refusal stands.
-
-        Parameters
-        ----------
-        frame : Frame
-            The prepared inputs.
-        refusal : CheckFailed
-            This strategy's refusal.
-        """
 
     def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
         """The measurement unchanged.

@@ -392,17 +392,6 @@ class Disc(Body[LimbPixels, EdgeFit]):
         """
         return round_iterations(edge, final)
 
-    def instead(self, frame: Frame, refusal: CheckFailed) -> None:
-        """No other strategy: the refusal stands.
-
-        Parameters
-        ----------
-        frame : Frame
-            The prepared inputs.
-        refusal : CheckFailed
-            This strategy's refusal.
-        """
-
     def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
         """The measurement unchanged (a self-luminous disc has no dark limb).
 

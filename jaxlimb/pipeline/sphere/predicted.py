@@ -30,7 +30,7 @@ from typing import Any, ClassVar, final
 
 import numpy as np
 
-from ...errors import CheckFailed, ConvergenceError, RadiusInconsistentError
+from ...errors import ConvergenceError, RadiusInconsistentError
 from ...geometry.bodies import BODY_TABLE
 from ...geometry.hints import Hints
 from ...imaging.crop import estimate_noise
@@ -464,17 +464,6 @@ class PredictedLimbSphere(Body[PredictedPixels, PredictedEdge]):
         int
         """
         return int(final.fit.n_steps)
-
-    def instead(self, frame: Frame, refusal: CheckFailed) -> None:
-        """No other strategy: the refusal stands.
-
-        Parameters
-        ----------
-        frame : Frame
-            The prepared inputs.
-        refusal : CheckFailed
-            This strategy's refusal.
-        """
 
     def finish(self, frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
         """For an arc, the start centre in ``extras["arc_start_center_rc"]``.
