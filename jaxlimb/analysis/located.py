@@ -18,8 +18,8 @@ import equinox as eqx
 import numpy as np
 
 from ..errors import ConfigError
-from ..models import (CIRCLE, ELLIPSE, ELLIPSE_RAMP, LIMB_DARKENED, CircleParams, EllipseParams, EllipseRampParams,
-                      LimbDarkenedParams, LimbModel, LimbParams, LimbProfileParams)
+from ..models import (CIRCLE, CORONA, ELLIPSE, ELLIPSE_RAMP, LIMB_DARKENED, CircleParams, CoronaParams, EllipseParams,
+                      EllipseRampParams, LimbDarkenedParams, LimbModel, LimbParams, LimbProfileParams)
 from ..models.lunar_lambert import profile_model
 from ..pipeline import LimbMeasurement, locate
 from ..pipeline.bodies import body_strategy
@@ -48,7 +48,7 @@ def model_of(params: LimbParams) -> LimbModel:
     if isinstance(params, LimbProfileParams):
         return profile_model(params)
     table = {CircleParams: CIRCLE, EllipseParams: ELLIPSE, EllipseRampParams: ELLIPSE_RAMP,
-             LimbDarkenedParams: LIMB_DARKENED}
+             LimbDarkenedParams: LIMB_DARKENED, CoronaParams: CORONA}
     return table[type(params)]
 
 

@@ -19,7 +19,7 @@ N_POINTS_RANGE = Range(1, 10_000)
 SEED_RANGE = Range(0, 2**32 - 1)
 #: The models' names (:data:`jaxlimb.models.gradcheck.GRADCHECK_MODELS`; written here: ``--help`` imports no JAX).
 MODEL_NAMES = ("linear", "circle", "ellipse", "ellipse_ramp", "lunar_limb", "limb_darkened", "lunar_limb_minnaert",
-               "lunar_limb_glow", "lunar_limb_aniso")
+               "lunar_limb_glow", "lunar_limb_aniso", "corona")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -28,7 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="check every limb model's analytic Jacobian against autodiff and central differences",
         description="Compare the analytic Jacobians of the limb models (linear, circular and elliptical "
         "sigmoids, Eq. 14, 17, Sec. V-C; the elliptical ramp; the lunar-Lambert limb profile and its widened "
-        "variants; the limb-darkened disc) with jax.jacfwd of the intensity as computed (the same quadrature "
+        "variants; the limb-darkened disc; the EUV corona's limb) with jax.jacfwd of the intensity as computed (the same quadrature "
         "nodes) and with central differences, at random parameter points.  Exit 0 when every check passes, 3 "
         "otherwise, 2 for bad arguments.",
     )

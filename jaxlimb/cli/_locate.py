@@ -53,12 +53,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--solver", choices=sorted(SOLVER_NAMES), default="lm", help="least-squares solver (default lm)")
     p.add_argument("--fixed-k", action="store_true",
                    help="hold k = 3 and ymax/ymin at the annulus edge means (illuminated-ellipsoid paper, Table 1)")
-    p.add_argument("--profile", choices=("auto", "sigmoid", "lunar-lambert", "albedo-field", "limb-darkened"),
+    p.add_argument("--profile", choices=("auto", "sigmoid", "lunar-lambert", "albedo-field", "limb-darkened", "corona"),
                    default="auto",
                    help="limb profile.  auto (default): the physical lunar-Lambert limb when the hints give "
-                   "sun_dir_camera (it removes the sigmoid's 0.1-0.6 px limb bias), the limb-darkened disc for "
-                   "--body sun, else the sigmoid; sigmoid: the papers' model; lunar-lambert; albedo-field: "
-                   "lunar-lambert with the surface albedo an unknown field, marginalised; limb-darkened")
+                   "sun_dir_camera (it removes the sigmoid's 0.1-0.6 px limb bias), for --body sun the limb-darkened disc "
+                   "or, when the disc is brightest at its limb (the EUV), the corona over an opaque disc, else the "
+                   "sigmoid; sigmoid: the papers' model; lunar-lambert; albedo-field: lunar-lambert with the surface "
+                   "albedo an unknown field, marginalised; limb-darkened; corona")
     p.add_argument("--sun-declination-max", type=arg_number(Range(0.0, 90.0)), metavar="DEG", default=None,
                    help="Earth (or spheroid) without R_body_to_camera, Sun known: the largest angle (0-90 deg) of the "
                    "Sun from the body's equator (the Earth: 23.44); the centre is marginalised over the poles it "

@@ -6,13 +6,15 @@
   Minnaert-like limb-brightening exponent (:mod:`.lunar_lambert`; its blur integral's quadrature:
   :mod:`.blur_quadrature`), and its columns toward a glow and toward an albedo that varies over the surface
   (:mod:`.profile_columns`);
-* the limb-darkened disc of a self-luminous star (:mod:`.limb_darkened`).
+* the limb-darkened disc of a self-luminous star (:mod:`.limb_darkened`) and the Sun's limb in the extreme
+  ultraviolet, an optically thin corona over an opaque disc (:mod:`.corona`).
 
 Every model carries its Jacobian beside its intensity and is checked by ``jaxlimb gradcheck``
 (:mod:`.gradcheck`) against ``jax.jacfwd`` and central differences.
 """
 
 from ._base import LimbModel as LimbModel, LimbParams as LimbParams
+from .corona import CORONA as CORONA, CoronaParams as CoronaParams, corona_intensity as corona_intensity
 from .ellipse_ramp import (
     ELLIPSE_RAMP as ELLIPSE_RAMP,
     EllipseRampParams as EllipseRampParams,
@@ -59,4 +61,4 @@ from .sigmoid import (
 #: Every limb model, by name (the sigmoids, the ramp, the physical profiles).
 ALL_MODELS: dict[str, LimbModel] = {m.name: m for m in (LINEAR, CIRCLE, ELLIPSE, ELLIPSE_RAMP, LIMB_PROFILE,
                                                         LIMB_PROFILE_MINNAERT, LIMB_PROFILE_GLOW, LIMB_DARKENED,
-                                                        LIMB_PROFILE_ANISO)}
+                                                        LIMB_PROFILE_ANISO, CORONA)}

@@ -37,6 +37,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._base import LimbModel
+from .corona import CORONA, CoronaParams
 from .ellipse_ramp import ELLIPSE_RAMP, EllipseRampParams
 from .limb_darkened import LIMB_DARKENED, LimbDarkenedParams, limb_darkened_intensity_direct
 from .lunar_lambert import (LIMB_PROFILE, LIMB_PROFILE_ANISO, LIMB_PROFILE_GLOW, LIMB_PROFILE_MINNAERT,
@@ -169,6 +170,19 @@ def _limb_darkened_case(rng: np.random.Generator, n_pix: int):  # noqa: ANN202
     return p, jnp.asarray(rc)
 
 
+def _corona_case(rng: np.random.Generator, n_pix: int):  # noqa: ANN202
+    """The EUV limb: any size, PSF 0-2 px, scale height 0.3-8 px, disc level up to 0.4 of the corona's."""
+    a, sigma = rng.uniform(30, 400), rng.uniform(0.0, 2.0)
+    r0, c0 = rng.uniform(-100, 1000, 2)
+    h = rng.uniform(0.3, 8.0)
+    offs = _edge_offsets(rng, n_pix, 2.0 * math.sqrt(sigma * sigma + 1.0 / 12.0) + h)
+    phi = rng.uniform(0, 2 * np.pi, n_pix)
+    d = a + offs
+    rc = np.stack([r0 + d * np.sin(phi), c0 + d * np.cos(phi)], -1)
+    amp = rng.uniform(50, 1000)
+    return CoronaParams(r0, c0, a, sigma, math.log(h), amp, amp * rng.uniform(0, 0.4), rng.uniform(0, 40)), jnp.asarray(rc)
+
+
 def _minnaert_profile_case(rng: np.random.Generator, n_pix: int):  # noqa: ANN202
     """The profile widened by the limb-brightening exponent ``kappa`` (0-0.45: Minnaert ``k`` 0.55-1)."""
     p, rc = _profile_case(rng, n_pix)
@@ -195,7 +209,7 @@ def _aniso_profile_case(rng: np.random.Generator, n_pix: int):  # noqa: ANN202
 
 _PHYSICAL_CASES = {"lunar_limb": _profile_case, "lunar_limb_minnaert": _minnaert_profile_case,
                    "lunar_limb_glow": _glow_profile_case, "limb_darkened": _limb_darkened_case,
-                   "lunar_limb_aniso": _aniso_profile_case}
+                   "lunar_limb_aniso": _aniso_profile_case, "corona": _corona_case}
 
 
 def _intensity_range(p: Any) -> float:
@@ -266,7 +280,7 @@ def _smooth_across(spec: _Spec, ptype: Any, v: Any, e: Any, x: Any) -> np.ndarra
 
 #: The models :func:`run_gradcheck` checks, in order (each with its own seed offset).
 GRADCHECK_MODELS = (LINEAR, CIRCLE, ELLIPSE, ELLIPSE_RAMP, LIMB_PROFILE, LIMB_DARKENED, LIMB_PROFILE_MINNAERT,
-                    LIMB_PROFILE_GLOW, LIMB_PROFILE_ANISO)
+                    LIMB_PROFILE_GLOW, LIMB_PROFILE_ANISO, CORONA)
 
 
 def run_gradcheck(n_points: int = 100, seed: int = 0, models: tuple[str, ...] | None = None) -> list[GradCheck]:

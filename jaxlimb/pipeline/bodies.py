@@ -94,7 +94,7 @@ def _shape(frame: Frame) -> BodyShape:
     opt, h = frame.opt, frame.hints
     if opt.shape != BodyShape.AUTO:
         return opt.shape
-    if opt.profile == "limb-darkened" or (opt.profile == "auto" and opt.model == "circle" and opt.estimate_k
+    if opt.profile in ("limb-darkened", "corona") or (opt.profile == "auto" and opt.model == "circle" and opt.estimate_k
                                           and h is not None and h.body == "sun"):
         return BodyShape.DISC
     if h is not None and h.body == "earth":
@@ -130,16 +130,16 @@ def body_strategy(frame: Frame) -> Body:
     """
     shape = _shape(frame)
     if shape == BodyShape.DISC:
-        if frame.opt.profile not in ("auto", "limb-darkened"):
-            raise ConfigError(f"the disc strategy fits the limb-darkened disc; profile = {frame.opt.profile!s} is "
-                              "not available for it")
+        if frame.opt.profile not in ("auto", "limb-darkened", "corona"):
+            raise ConfigError(f"the disc strategy fits the limb-darkened disc or the EUV corona; profile = "
+                              f"{frame.opt.profile!s} is not available for it")
         return Disc()
     if shape == BodyShape.ELLIPSOID:
         return Ellipsoid.for_frame(frame)
     if shape == BodyShape.SMALL:
         return SmallBody()
-    if frame.opt.profile == "limb-darkened":
-        raise ConfigError("profile = 'limb-darkened' is the disc strategy's (shape = 'disc' or hints body 'sun')")
+    if frame.opt.profile in ("limb-darkened", "corona"):
+        raise ConfigError(f"profile = {frame.opt.profile!r} is the disc strategy's (shape = 'disc' or hints body 'sun')")
     if limb_predicted(frame) or arc_only(frame):
         return PredictedLimbSphere(arc=not limb_predicted(frame))
     return Sphere(physical=_lunar_profile_wanted(frame))

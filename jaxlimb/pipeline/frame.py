@@ -286,9 +286,11 @@ def _front_end_options(frame: Frame, name: str) -> Any:
 
 def _variegated(frame: Frame, name: str, mask) -> bool:  # type: ignore[no-untyped-def]
     """Whether the detected region is a variegated body's (:attr:`~jaxlimb.imaging.crop.BodyRegion.dark_surface`):
-    only then is the other front end tried.  On other frames a second front end's circle is no better founded
-    than the first's refusal: the EUV Sun of ``aia_171_level1.fits`` (corona, no photospheric limb), refused by
-    the gradient front end, was answered ``ok`` 1.9 px off with a 0.25 px sigma by the scan lines."""
+    only then is the other front end tried for a body whose limb the front end's circle decides.  On other frames a
+    second front end's circle is no better founded than the first's refusal: the EUV Sun of ``aia_171_level1.fits``,
+    refused by the gradient front end, was answered ``ok`` 1.9 px off with a 0.25 px sigma by the scan lines and a
+    limb-darkened disc (a model of another limb).  A disc's profile fit on the full annulus decides its limb (the
+    circle only starts it): :func:`candidates` with ``any_region``."""
 
     detect = _front_end_options(frame, name).detect
     try:
@@ -297,13 +299,16 @@ def _variegated(frame: Frame, name: str, mask) -> bool:  # type: ignore[no-untyp
         return False
 
 
-def candidates(frame: Frame) -> Any:
+def candidates(frame: Frame, any_region: bool = False) -> Any:
     """Stage 2: the front end's limb candidates, circle and lit direction (Checks 1-4); the other front end when the
-    chosen one finds no limb (:attr:`LocateOptions.front_end_fallback`).
+    chosen one finds no limb (:attr:`LocateOptions.front_end_fallback`) on a variegated body or, with
+    ``any_region``, on any.
 
     Parameters
     ----------
     frame : Frame
+    any_region : bool
+        Try the other front end whatever the region (a strategy whose profile fit decides the limb).
 
     Returns
     -------
@@ -317,7 +322,7 @@ def candidates(frame: Frame) -> Any:
         cand = front_end(name, frame.img, None, hints=frame.hints, camera=frame.cam,
                          options=_front_end_options(frame, name), mask=mask)
     except (TooManyOutliersError, RadiusInconsistentError) as first:
-        if not (frame.opt.front_end_fallback and _variegated(frame, name, mask)):
+        if not (frame.opt.front_end_fallback and (any_region or _variegated(frame, name, mask))):
             raise
         try:
             cand = other_candidates(frame)

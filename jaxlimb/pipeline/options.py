@@ -52,6 +52,7 @@ class Profile(_Choice):
     LUNAR_LAMBERT = "lunar-lambert"
     ALBEDO_FIELD = "albedo-field"
     LIMB_DARKENED = "limb-darkened"
+    CORONA = "corona"
 
 
 class BodyShape(_Choice):
@@ -223,7 +224,7 @@ class LocateOptions:
         if self.solver not in SOLVERS:
             raise ConfigError(f"LocateOptions.solver must be one of {sorted(SOLVERS)}, got {self.solver!r}")
         _pos("max_center_sigma_px", self.max_center_sigma_px, allow_none=True)
-        if self.profile in ("lunar-lambert", "albedo-field", "limb-darkened") and self.model != "circle":
+        if self.profile in ("lunar-lambert", "albedo-field", "limb-darkened", "corona") and self.model != "circle":
             raise ConfigError(f"LocateOptions.profile = {self.profile!r} supports model = 'circle' only")
         _pos("min_lit_arc_deg", self.min_lit_arc_deg, allow_zero=True, allow_none=True)
         if self.min_lit_arc_deg is not None and self.min_lit_arc_deg > 360:

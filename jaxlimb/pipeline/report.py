@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from .._validate import check_center_sigma
-from ..models import (AnisoProfileParams, CIRCLE, CircleParams, ELLIPSE, ELLIPSE_RAMP, ellipse_coords,
+from ..models import (AnisoProfileParams, CIRCLE, CircleParams, CoronaParams, ELLIPSE, ELLIPSE_RAMP, ellipse_coords,
                       EllipseRampParams, LimbDarkenedParams, LimbProfileParams, MinnaertProfileParams)
 from ..models.lunar_lambert import glow_fields, profile_model
 from ..models.small_disc import SmallDiscParams
@@ -117,7 +117,7 @@ def levels(final: RefineResult) -> Levels:
     fp = final.fit.params
     if isinstance(fp, SmallDiscParams):
         return small_disc_levels(fp)
-    if isinstance(fp, (LimbProfileParams, LimbDarkenedParams)):
+    if isinstance(fp, (LimbProfileParams, LimbDarkenedParams, CoronaParams)):
         sig = abs(float(fp.sigma))
         s_e = math.sqrt(sig * sig + 1.0 / 12.0)
         if isinstance(fp, LimbProfileParams):
@@ -125,6 +125,9 @@ def levels(final: RefineResult) -> Levels:
                     "phase_deg": math.degrees(float(fp.phase)), "L": float(fp.L),
                     "kappa": float(fp.kappa) if isinstance(fp, MinnaertProfileParams) else 0.0, **glow_fields(fp),
                     **({"blur_aniso": [float(fp.s2c), float(fp.s2s)]} if isinstance(fp, AnisoProfileParams) else {})}
+        elif isinstance(fp, CoronaParams):
+            prof = {"model": "corona", "psf_sigma_px": sig, "amp": float(fp.amp), "disc": float(fp.disc),
+                    "scale_height_px": math.exp(float(fp.log_h))}
         else:
             prof = {"model": "limb-darkened", "psf_sigma_px": sig, "amp": float(fp.amp), "u1": float(fp.u1),
                     "u2": float(fp.u2)}

@@ -38,7 +38,7 @@ def test_analytic_jacobian_matches_autodiff_and_fd(model, n_points):
 
 def test_every_model_is_in_the_registry_with_its_jacobian():
     assert set(ALL_MODELS) == {"linear", "circle", "ellipse", "ellipse_ramp", "lunar_limb", "lunar_limb_minnaert",
-                               "lunar_limb_glow", "limb_darkened", "lunar_limb_aniso"}
+                               "lunar_limb_glow", "limb_darkened", "lunar_limb_aniso", "corona"}
     for m in ALL_MODELS.values():
         assert m.value_and_columns is not None, m.name  # the fits' one-pass path, not autodiff
 

@@ -17,6 +17,7 @@ from ...fitting import bucket_size
 from ...model_error import cluster_robust_covariance, hausman_term, sector_groups, with_model_error as widen
 from ...geometry.conic import ellipse_signed_distance
 from ...models import CircleParams, EllipseRampParams, LimbDarkenedParams, LimbModel, LimbProfileParams
+from ...models.corona import CoronaParams
 from ...models.lunar_lambert import limb_geometry, profile_model
 from ..sigmoid import LOGISTIC_TO_GAUSS
 from ..stages import RefineResult
@@ -67,7 +68,7 @@ def _signed_profile(p, rc):
 def signed_distance(params: Any, coords: np.ndarray, padded: np.ndarray) -> np.ndarray:
     """Signed distance (px, positive outside) of the pixels to the fitted limb: the profile's own radius in each
     pixel's direction; the ellipse (first order) of an elliptical sigmoid/ramp; the circle's (the limb-darkened
-    disc's) radius.
+    disc's and the EUV corona's) radius.
 
     Parameters
     ----------
@@ -86,7 +87,7 @@ def signed_distance(params: Any, coords: np.ndarray, padded: np.ndarray) -> np.n
     if isinstance(params, LimbProfileParams):
         return np.asarray(_signed_profile(params, padded))[: coords.shape[0]]
     c = np.asarray(coords, float)
-    if isinstance(params, LimbDarkenedParams):
+    if isinstance(params, (LimbDarkenedParams, CoronaParams)):
         return np.hypot(c[:, 0] - float(params.r0), c[:, 1] - float(params.c0)) - float(params.a)
     if not isinstance(params, CircleParams):  # an elliptical sigmoid or ramp
         a = float(params.a)
@@ -109,7 +110,7 @@ def edge_sigma(params: Any) -> float:
     float
         The sigma (px).
     """
-    if isinstance(params, (LimbProfileParams, LimbDarkenedParams)):
+    if isinstance(params, (LimbProfileParams, LimbDarkenedParams, CoronaParams)):
         return math.sqrt(float(params.sigma) ** 2 + 1.0 / 12.0)
     k = abs(float(params.k))
     return (1.0 if isinstance(params, EllipseRampParams) else LOGISTIC_TO_GAUSS) / max(k, 1e-6)

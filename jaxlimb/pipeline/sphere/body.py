@@ -249,7 +249,8 @@ class Disc(Body[LimbPixels, EdgeFit]):
         return frame
 
     def candidates(self, frame: Frame) -> Any:
-        """Stage 2: the chosen front end, the other as fallback (:func:`jaxlimb.pipeline.frame.candidates`).
+        """Stage 2: the chosen front end, the other as fallback whatever the region: the disc's profile fit on the
+        full annulus decides the limb (:func:`jaxlimb.pipeline.frame.candidates`).
 
         Parameters
         ----------
@@ -261,7 +262,7 @@ class Disc(Body[LimbPixels, EdgeFit]):
         LimbCandidates
             Limb points, initial circle, lit direction (Checks 1-4 passed).
         """
-        return candidates(frame)
+        return candidates(frame, any_region=True)
 
     def limb_pixels(self, frame: Frame, cand: Any) -> LimbPixels:
         """Stage 3: the annulus on the lit side (:func:`~jaxlimb.pipeline.sphere.edge.limb_pixels`, sigmoid arc limit).

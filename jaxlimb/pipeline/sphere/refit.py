@@ -7,7 +7,8 @@ r"""The profile-refit and body-centre stages of the two round bodies of :func:`j
   ``model="ellipse"``: the free elliptical sigmoid.  Then the exact sphere map of
   :mod:`jaxlimb.pipeline.sphere.center`.
 * **Disc** (the Sun): the blurred limb-darkened disc (:data:`jaxlimb.models.LIMB_DARKENED`) on a full
-  annulus, its covariance widened by the model-error terms of :mod:`jaxlimb.model_error` (the cluster-robust
+  annulus, or, where the disc is brightest at its limb (the EUV), the optically thin corona over an opaque disc
+  (:data:`jaxlimb.models.corona.CORONA`); its covariance widened by the model-error terms of :mod:`jaxlimb.model_error` (the cluster-robust
   sandwich over sectors of the limb and the split witness); the disc's centre is the body's (orthographic:
   ``(R/f)^2 ~ 1e-5``).
 """
@@ -22,7 +23,8 @@ import numpy as np
 
 from ...errors import ConvergenceError, SaturationWarning
 from ...fitting import solver_from_name
-from ...models import LIMB_DARKENED, CircleParams, EllipseParams, LimbDarkenedParams, LimbProfileParams
+from ...models import LIMB_DARKENED, CircleParams, EllipseParams, LimbProfileParams
+from ...models.corona import CORONA
 from ..checks import MIN_LIT_ARC_DEG, check_lit_arc
 from ..frame import arc_angles, frame_mask
 from ..profile.fit import fit_lunar_profile
@@ -31,7 +33,8 @@ from ..profile.passes import l_band, saturation_level
 from ..stages import BodyCenter, EdgeFit, FitData, Frame, RefineResult
 from .center import circle_center, free_ellipse_center, sphere_center
 from .fits import fit_ellipse_annulus, fit_sphere_annulus
-from .sun import fit_limb_darkened, select_sun_annulus
+from .corona import fit_corona, limb_brightened
+from .sun import fit_limb_darkened
 
 
 def _saturation(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> float | None:
@@ -195,7 +198,9 @@ def sphere_center_of(frame: Frame, final: RefineResult) -> BodyCenter:
 
 
 def disc_refit(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> RefineResult:
-    """Stage "profile refit" of a self-luminous disc: the limb-darkened disc on a full annulus.
+    """Stage "profile refit" of a self-luminous disc: the limb-darkened disc on a full annulus, or the EUV corona's
+    limb where the disc is brightest at its limb (:func:`~jaxlimb.pipeline.sphere.corona.limb_brightened`) or
+    ``profile="corona"``.
 
     Parameters
     ----------
@@ -208,8 +213,8 @@ def disc_refit(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> RefineRes
     Returns
     -------
     RefineResult
-        The :data:`~jaxlimb.models.LIMB_DARKENED` fit and its annulus pixels (unit weights, DN); its covariance
-        widened by :func:`~jaxlimb.pipeline.profile.model_error.with_model_error`, the noise-only one kept as
+        The disc model's fit and its annulus pixels (unit weights, DN); its covariance widened by
+        :func:`~jaxlimb.pipeline.profile.model_error.with_model_error`, the noise-only one kept as
         ``noise_covariance``.
 
     Notes
@@ -217,20 +222,21 @@ def disc_refit(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> RefineRes
     The noise-only covariance of thousands of limb pixels is ~0.001 px on a 200 px
     white-light disc: far below what the pixels' errors allow when they are not the model's white noise --
     lossy compression (JPEG 2000 wavelet blocks), a resampling's interpolation kernel, granulation and spots, a
-    limb-darkening law other than the quadratic one near the limb.  All of these are correlated along a
-    stretch of limb (the sector sandwich sees them) or are the same all along it and move the edge with depth
-    (the split witness refits the sky side and the disc side and sees them).
+    limb-darkening law other than the quadratic one near the limb, the corona's loops and active regions.  All of
+    these are correlated along a stretch of limb (the sector sandwich sees them) or are the same all along it and
+    move the edge with depth (the split witness refits the sky side and the disc side and sees them).
     """
     opt = frame.opt
     _saturation(frame, edge, extras)
     mask = frame_mask(frame)
     # invalid pixels (mask) become NaN: the disc fit ignores non-finite pixels (neither limb nor sky)
     img = frame.img if mask is None else np.where(mask, np.asarray(frame.img, float), np.nan)
-    sun = fit_limb_darkened(img, edge.center_rc, edge.radius,
-                            solver=None if opt.solver == "lm" else solver_from_name(opt.solver))
-    coords, z = select_sun_annulus(img, edge.center_rc, edge.radius, sun.annulus_px)
-    held = tuple(n for n in LimbDarkenedParams.field_names() if n not in sun.fit.free)
-    return with_model_error(RefineResult(sun.fit, FitData(coords, z, None, 0.0, 1.0), 0, held), model=LIMB_DARKENED)
+    corona = opt.profile == "corona" or (opt.profile == "auto" and limb_brightened(img, edge.center_rc, edge.radius))
+    model, fitter = (CORONA, fit_corona) if corona else (LIMB_DARKENED, fit_limb_darkened)
+    sun = fitter(img, edge.center_rc, edge.radius, solver=None if opt.solver == "lm" else solver_from_name(opt.solver))
+    coords, z = sun.pixels
+    held = tuple(n for n in model.param_names if n not in sun.fit.free)
+    return with_model_error(RefineResult(sun.fit, FitData(coords, z, None, 0.0, 1.0), 0, held), model=model)
 
 
 def disc_center_of(frame: Frame, final: RefineResult) -> BodyCenter:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -17,7 +18,7 @@ from ...models.limb_darkened import SUN_FIXED, U1_DEFAULT, U2_DEFAULT
 #: Below this PSF sigma (px) :func:`fit_limb_darkened` refits with ``sigma`` held at 0.
 SIGMA_FLOOR = 0.03
 _FIRST_STEPS = 16
-"""Steps per chunk of the sigma-free fit (:func:`_fit_free_sigma`): on data sharper than the pixel box
+"""Steps per chunk of the sigma-free fit (:func:`fit_free_sigma`): on data sharper than the pixel box
 sigma is below :data:`SIGMA_FLOOR` within 12-16 steps (SDO/HMI), and every chunk is the same program."""
 
 
@@ -31,19 +32,22 @@ class SunLimbFit:
     radius_px : limb radius ``a`` (px): the edge of the photosphere's disc.
     covariance : ``(3, 3)`` covariance of ``(r0, c0, a)`` (px^2), from the fit's
         :math:`\\hat\\sigma^2 (J^\\top J)^{-1}` (pixel noise taken as white).
-    params : the estimated :class:`LimbDarkenedParams` (``sigma`` reported as ``|sigma|``).
+    params : the estimated :class:`LimbDarkenedParams` or :class:`~jaxlimb.models.corona.CoronaParams`
+        (``sigma`` reported as ``|sigma|``).
     fit : the underlying :class:`~jaxlimb.fitting.LimbFit` (full covariance over its ``free``).
     n_pixels : pixels used (finite, inside the annulus).
     annulus_px : the annulus half-width used.
+    pixels : the annulus's pixels ``(coords (n, 2), values (n,))`` the fit used.
     """
 
     center_rc: tuple[float, float]
     radius_px: float
     covariance: np.ndarray
-    params: LimbDarkenedParams
+    params: Any
     fit: LimbFit
     n_pixels: int
     annulus_px: float
+    pixels: tuple[np.ndarray, np.ndarray]
 
 
 def select_sun_annulus(img: np.ndarray, center_rc, radius_px: float, annulus_px: float):
@@ -142,28 +146,50 @@ def fit_limb_darkened(img, center_rc, radius_px: float, *, annulus_px: float | N
     if "sigma" in fixed:
         res = fit(LIMB_DARKENED, coords, z, init, solver, fixed=fixed, max_steps=max_steps, throw=False)
     else:
-        res = _fit_free_sigma(coords, z, init, solver, fixed, max_steps)
-    p = _checked(res)
-    idx = [res.free.index(n) for n in ("r0", "c0", "a") if n in res.free]
-    cov = np.asarray(res.covariance)[np.ix_(idx, idx)]
-    return SunLimbFit(center_rc=(float(p.r0), float(p.c0)), radius_px=float(p.a), covariance=cov, params=p, fit=res,
-                      n_pixels=int(res.n_pixels), annulus_px=h)
+        res = fit_free_sigma(LIMB_DARKENED, coords, z, init, solver, fixed, max_steps)
+    return disc_fit_result(res, h, (coords, z), "limb-darkened disc")
 
 
-def _checked(res: LimbFit) -> LimbDarkenedParams:
-    """The fit's parameters (``sigma`` as ``|sigma|``: the model depends on its square); no convergence or non-finite
-    parameters are a :class:`~jaxlimb.errors.ConvergenceError`."""
+def disc_fit_result(res: LimbFit, annulus_px: float, pixels: tuple[np.ndarray, np.ndarray], what: str) -> SunLimbFit:
+    """A disc fit as a :class:`SunLimbFit`: its parameters with ``sigma`` as ``|sigma|`` (the models depend on its
+    square) and the covariance of ``(r0, c0, a)``.
+
+    Parameters
+    ----------
+    res : LimbFit
+        The fit (parameters with ``r0, c0, a, sigma``).
+    annulus_px : float
+        The annulus half-width it used.
+    pixels : tuple
+        Its pixels ``(coords, values)``.
+    what : str
+        The model's name, for the messages.
+
+    Returns
+    -------
+    SunLimbFit
+
+    Raises
+    ------
+    ConvergenceError
+        The fit did not converge or returned non-finite parameters.
+    """
     if not bool(res.converged):
-        raise ConvergenceError(f"limb-darkened disc fit ({res.solver}) did not converge: {res.message}")
+        raise ConvergenceError(f"{what} fit ({res.solver}) did not converge: {res.message}")
     p = res.params
     vals = np.asarray(p.to_vector())
     if not np.all(np.isfinite(vals)):
-        raise ConvergenceError(f"limb-darkened disc fit returned non-finite parameters {vals.tolist()}")
-    return p.replace(sigma=abs(float(p.sigma)))
+        raise ConvergenceError(f"{what} fit returned non-finite parameters {vals.tolist()}")
+    p = p.replace(sigma=abs(float(p.sigma)))
+    idx = [res.free.index(n) for n in ("r0", "c0", "a") if n in res.free]
+    cov = np.asarray(res.covariance)[np.ix_(idx, idx)]
+    return SunLimbFit(center_rc=(float(p.r0), float(p.c0)), radius_px=float(p.a), covariance=cov, params=p, fit=res,
+                      n_pixels=int(res.n_pixels), annulus_px=float(annulus_px), pixels=pixels)
 
 
-def _fit_free_sigma(coords, z, init, solver, fixed: tuple[str, ...], max_steps: int):  # noqa: ANN202
-    """The fit with the PSF sigma free, run in chunks of :data:`_FIRST_STEPS` steps.
+def fit_free_sigma(model, coords, z, init, solver, fixed: tuple[str, ...], max_steps: int):  # noqa: ANN001, ANN201
+    """The fit of a disc ``model`` (parameters with ``sigma``) with the PSF sigma free, run in chunks of
+    :data:`_FIRST_STEPS` steps.
 
     When the data are as sharp as (or sharper than) the pixel box, sigma -> 0, where its Jacobian column
     vanishes (sigma enters as sigma^2) and the iteration crawls: below :data:`SIGMA_FLOOR` (or below 0.1
@@ -172,18 +198,18 @@ def _fit_free_sigma(coords, z, init, solver, fixed: tuple[str, ...], max_steps: 
     program: a process loads one limb-darkened fit core from the compilation cache, not two.
     """
     chunk = min(max_steps, _FIRST_STEPS)
-    res = fit(LIMB_DARKENED, coords, z, init, solver, fixed=fixed, max_steps=chunk, throw=False, held=())
+    res = fit(model, coords, z, init, solver, fixed=fixed, max_steps=chunk, throw=False, held=())
     done = int(res.n_steps)
     while True:
         sigma = abs(float(res.params.sigma))
         if sigma < SIGMA_FLOOR or (not bool(res.converged) and sigma < 0.1):
-            return fit(LIMB_DARKENED, coords, z, init.replace(sigma=0.0), solver, fixed=fixed, held=("sigma",),
+            return fit(model, coords, z, init.replace(sigma=0.0), solver, fixed=fixed, held=("sigma",),
                        max_steps=max_steps, throw=False)
         if bool(res.converged) or done >= max_steps:
             return res
-        res = fit(LIMB_DARKENED, coords, z, res.params, solver, fixed=fixed, max_steps=chunk, throw=False, held=())
+        res = fit(model, coords, z, res.params, solver, fixed=fixed, max_steps=chunk, throw=False, held=())
         done += int(res.n_steps)
 
 
 __all__ = ["LIMB_DARKENED", "SUN_FIXED", "U1_DEFAULT", "U2_DEFAULT", "LimbDarkenedParams", "SunLimbFit",
-           "fit_limb_darkened", "limb_darkened_intensity", "limb_darkening", "select_sun_annulus"]
+           "disc_fit_result", "fit_free_sigma", "fit_limb_darkened", "limb_darkened_intensity", "limb_darkening", "select_sun_annulus"]

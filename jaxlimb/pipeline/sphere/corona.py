@@ -1,0 +1,125 @@
+"""Fit of the Sun's limb in the extreme ultraviolet (an optically thin corona over an opaque disc,
+:data:`~jaxlimb.models.corona.CORONA`) on an annulus about a circle, and the test that chooses it: a disc whose
+azimuthal brightness peaks at its limb, not at its centre."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...errors import LimbInputError
+from ...fitting import AbstractLimbSolver, NormalLM
+from ...models.corona import CORONA, CoronaParams
+from .sun import SunLimbFit, disc_fit_result, fit_free_sigma, select_sun_annulus
+
+_WHAT = "EUV corona limb"
+
+
+def limb_brightened(img: np.ndarray, center_rc, radius_px: float) -> bool:
+    """Whether the disc's azimuthal mean brightness (1 px rings about ``center_rc``, out to ``radius_px``) peaks
+    nearer its limb than its centre.
+
+    An opaque photosphere is brightest at its centre and darkens toward the limb; an optically thin corona seen
+    over an opaque disc (the Sun in the EUV) is brightest at the limb, where the line of sight is longest
+    (:mod:`jaxlimb.models.corona`).
+
+    Parameters
+    ----------
+    img : np.ndarray (rows, cols)
+        The image; non-finite pixels are left out.
+    center_rc : (float, float)
+        Disc centre ``(row, col)`` (px).
+    radius_px : float
+        Limb radius (px).
+
+    Returns
+    -------
+    bool
+        ``True`` when the brightest ring lies beyond half the radius.
+    """
+    img = np.asarray(img, dtype=float)
+    r0, c0 = (float(v) for v in center_rc)
+    R = float(radius_px)
+    rr, cc = np.indices(img.shape)
+    d = np.hypot(rr - r0, cc - c0)
+    keep = (d < R) & np.isfinite(img)
+    if not keep.any():
+        return False
+    ring = d[keep].astype(int)
+    counts = np.bincount(ring)
+    sums = np.bincount(ring, weights=img[keep])
+    mean = np.where(counts > 0, sums / np.maximum(counts, 1), -np.inf)
+    return bool(int(np.argmax(mean)) > 0.5 * R)
+
+
+def _peak_radius(img, center_rc, R: float, h: float) -> float:
+    """The middle of the brightest 1 px ring of the annulus ``R -+ h``: the corona peaks just above the limb."""
+    coords, z = select_sun_annulus(img, center_rc, R, h)
+    d = np.hypot(coords[:, 0] - center_rc[0], coords[:, 1] - center_rc[1])
+    ring = np.floor(d - (R - h)).astype(int)
+    counts = np.bincount(ring)
+    mean = np.bincount(ring, weights=z) / np.maximum(counts, 1)
+    return R - h + float(np.argmax(np.where(counts > 0, mean, -np.inf))) + 0.5
+
+
+def _initial(coords, z, center_rc, R: float, h: float, sigma0: float) -> CoronaParams:
+    """The start: the corona's level the annulus's 95th percentile above its 2nd (the sky), the disc level the
+    median inside the limb above the sky."""
+    d = np.hypot(coords[:, 0] - center_rc[0], coords[:, 1] - center_rc[1])
+    inner = z[d < R - 0.5 * h]
+    if inner.size == 0:
+        raise LimbInputError("the annulus holds no pixels inside the limb: widen `annulus_px`")
+    sky = float(np.percentile(z, 2))
+    return CoronaParams(float(center_rc[0]), float(center_rc[1]), R, float(sigma0), math.log(h / 3.0),
+                        float(np.percentile(z, 95)) - sky, max(float(np.median(inner)) - sky, 0.0), sky)
+
+
+def fit_corona(img, center_rc, radius_px: float, *, annulus_px: float | None = None,
+               solver: AbstractLimbSolver | None = None, sigma0: float = 0.7, max_steps: int = 256) -> SunLimbFit:
+    """Fit the EUV limb (:data:`~jaxlimb.models.corona.CORONA`) on an annulus around a circle, then once more on the
+    annulus around the fitted circle.  The start's radius is the brightest ring within the annulus about the circle
+    given (a sigmoid's circle sits on the corona's fall-off, pixels outside the limb).
+
+    Parameters
+    ----------
+    img : 2-D image ``[row, col]``; non-finite pixels are ignored.
+    center_rc, radius_px : the starting circle (within a few pixels of the limb).
+    annulus_px : half-width of the annulus (px); default ``max(6, 0.04 radius_px)``, at most ``radius_px / 2``.
+    solver : default :class:`~jaxlimb.fitting.NormalLM`.
+    sigma0 : starting PSF sigma (px); a sigma below the pixel box's is held at 0
+        (:func:`~jaxlimb.pipeline.sphere.sun.fit_free_sigma`).
+    max_steps : iteration limit.
+
+    Returns
+    -------
+    SunLimbFit
+        ``params`` are :class:`~jaxlimb.models.corona.CoronaParams`; ``radius_px`` is the occulting radius.
+
+    Raises
+    ------
+    LimbInputError
+        No pixels inside the limb.
+    ConvergenceError
+        A fit did not converge or returned non-finite parameters.
+
+    References
+    ----------
+    Chapman 1931, Proc. Phys. Soc. 43, 483 (the grazing column); Aschwanden 2005, Physics of the Solar Corona,
+    sec. 3.1.
+    """
+    R = float(radius_px)
+    if not (math.isfinite(R) and R > 0):
+        raise LimbInputError(f"`radius_px` must be finite and > 0, got {radius_px!r}")
+    h = min(float(annulus_px) if annulus_px is not None else max(6.0, 0.04 * R), 0.5 * R)
+    solver = solver if solver is not None else NormalLM(coarse_stride=1)
+    R = _peak_radius(img, center_rc, R, h)
+    coords, z = select_sun_annulus(img, center_rc, R, h)
+    init = _initial(coords, z, center_rc, R, h, sigma0)
+    first = disc_fit_result(fit_free_sigma(CORONA, coords, z, init, solver, (), max_steps), h, (coords, z), _WHAT)
+    coords, z = select_sun_annulus(img, first.center_rc, first.radius_px, h)
+    res = fit_free_sigma(CORONA, coords, z, first.params, solver, (), max_steps)
+    return disc_fit_result(res, h, (coords, z), _WHAT)
+
+
+__all__ = ["fit_corona", "limb_brightened"]
