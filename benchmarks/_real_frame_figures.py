@@ -10,6 +10,7 @@ from pathlib import Path
 
 #: One frame of each kind (a refused EPIC frame answered without the centre tolerance among them).
 GALLERY = ("enceladus_1", "jupiter", "voyager_C1636902", "sun__HMI_continuum_png", "sun_resampled_hmi_fits",
+           "sun_aia_171_level1_fits",
            "epic_20220310_png_any_sigma", "epic_20221110_png")
 #: Width (px) of the pictures kept.
 WIDTH_PX = 1400

@@ -1,7 +1,8 @@
 """The tables of the real-frames page (``docs/validation/real-frames.md``), read from
 ``benchmarks/results/real_frames.json``.
 
-Registered with :mod:`results_tables` (loaded first by the docs hook): ``<!-- results: real_frames_epic -->``.
+Registered with :mod:`results_tables` (loaded first by the docs hook): ``<!-- results: real_frames_epic -->``,
+``<!-- results: euv_sun -->``.
 """
 
 from __future__ import annotations
@@ -51,3 +52,21 @@ def real_frames_epic() -> str:
             f"\n*Semi-major axis × range over the frames answered with `--max-center-sigma-px none`: standard deviation "
             f"/ mean = {100 * scatter:.3f} %.*\n")
     return rt.table(head, rows) + note + rt.source("real_frames.json", d)
+
+
+@rt.renderer
+def euv_sun(rel: str = "euv_sun.json") -> str:
+    """The real AIA 171 frame and the independent EUV renders, per radius (``benchmarks/euv_sun.py``)."""
+    d = rt.load(rel)
+    a = d["aia_171"]
+    rows = [[f"`{a['frame']}` (real)", "1", "1" if a["status"] == "ok" else f"`{a.get('check')}`",
+             a.get("profile", "–"), rt.f(a.get("center_err_px")), rt.f(a.get("nees"), 2),
+             rt.f(a.get("radius_err_px"), 3, True)]]
+    for R, v in d["radii"].items():
+        s = v["summary"]
+        rows.append([f"render, R = {R} px", s["n"], s["answered"], f"corona {s['corona']}/{s['answered']}",
+                     f"{rt.f(s['median_px'])} / {rt.f(s['p90_px'])} / {rt.f(s['max_px'])}", rt.f(s["mean_nees"], 2),
+                     rt.f(s["radius_err_median_px"], 3, True)])
+    head = ["frames", "n", "answered", "profile", "centre error (px): median / p90 / max", "mean NEES",
+            "radius − photosphere (px), median"]
+    return rt.table(head, rows) + rt.source(rel, d)

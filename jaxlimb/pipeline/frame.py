@@ -17,6 +17,7 @@ from ..imaging import front_end
 from ..imaging.crop import detect_body, nearest_fill
 from ..imaging.gradient_front_end import GradientOptions
 from ..imaging.io import validate_image
+from ..imaging.outline import outline_front_end
 from ..imaging.prior import check_prior, prior_from_hints
 from ..imaging.scanline_front_end import ScanlineOptions
 from ..models.small_disc import WINDOW as SMALL_WINDOW, grid_half_extent
@@ -328,6 +329,28 @@ def candidates(frame: Frame, any_region: bool = False) -> Any:
             cand = other_candidates(frame)
         except CheckFailed as second:
             raise type(first)(f"{first}; the {other_front_end(frame)} front end too: {second}") from second
+    frame.mark("front_end")
+    return cand
+
+
+def outline_candidates(frame: Frame) -> Any:
+    """Stage 2 of a self-luminous disc: the outline of its bright region (:func:`~jaxlimb.imaging.outline.
+    outline_front_end`: a star has no lit side, and its limb all round is that outline); :func:`candidates` with
+    ``any_region`` when the outline holds too few points of the disc's edge.
+
+    Parameters
+    ----------
+    frame : Frame
+
+    Returns
+    -------
+    LimbCandidates
+        The outline's circle and points (``front_end="outline"``), or the chosen front end's answer.
+    """
+    try:
+        cand = outline_front_end(frame.img, frame_mask(frame))
+    except TooManyOutliersError:
+        return candidates(frame, any_region=True)
     frame.mark("front_end")
     return cand
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import Any, ClassVar, final
 
 from ...errors import CheckFailed, NoBodyError
-from ..frame import candidates, small_possible
+from ..frame import candidates, outline_candidates, small_possible
 from ..options import BodyShape
 from ..report import check_physical
 from ..result import LimbMeasurement
@@ -249,8 +249,9 @@ class Disc(Body[LimbPixels, EdgeFit]):
         return frame
 
     def candidates(self, frame: Frame) -> Any:
-        """Stage 2: the chosen front end, the other as fallback whatever the region: the disc's profile fit on the
-        full annulus decides the limb (:func:`jaxlimb.pipeline.frame.candidates`).
+        """Stage 2: the outline of the disc's bright region, or the chosen front end and the other as fallback
+        whatever the region when the outline does not define the disc (:func:`jaxlimb.pipeline.frame.
+        outline_candidates`).
 
         Parameters
         ----------
@@ -262,7 +263,7 @@ class Disc(Body[LimbPixels, EdgeFit]):
         LimbCandidates
             Limb points, initial circle, lit direction (Checks 1-4 passed).
         """
-        return candidates(frame, any_region=True)
+        return outline_candidates(frame)
 
     def limb_pixels(self, frame: Frame, cand: Any) -> LimbPixels:
         """Stage 3: the annulus on the lit side (:func:`~jaxlimb.pipeline.sphere.edge.limb_pixels`, sigmoid arc limit).

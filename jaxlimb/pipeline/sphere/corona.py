@@ -53,8 +53,27 @@ def limb_brightened(img: np.ndarray, center_rc, radius_px: float) -> bool:
     return bool(int(np.argmax(mean)) > 0.5 * R)
 
 
-def _peak_radius(img, center_rc, R: float, h: float) -> float:
-    """The middle of the brightest 1 px ring of the annulus ``R -+ h``: the corona peaks just above the limb."""
+def ring_radius(img: np.ndarray, center_rc, radius_px: float) -> float:
+    """The middle of the brightest 1 px ring within ``radius_px -+ max(6, radius_px / 10)`` of ``center_rc``: the
+    corona peaks just above the occulting limb, and a circle found on its fall-off (a threshold's outline, a
+    sigmoid) lies a few scale heights (each 4-9 % of the radius) outside.
+
+    Parameters
+    ----------
+    img : np.ndarray (rows, cols)
+        The image; non-finite pixels are left out.
+    center_rc : (float, float)
+        Disc centre ``(row, col)`` (px).
+    radius_px : float
+        The circle's radius (px).
+
+    Returns
+    -------
+    float
+        The ring's radius (px).
+    """
+    R = float(radius_px)
+    h = min(max(6.0, 0.1 * R), 0.5 * R)
     coords, z = select_sun_annulus(img, center_rc, R, h)
     d = np.hypot(coords[:, 0] - center_rc[0], coords[:, 1] - center_rc[1])
     ring = np.floor(d - (R - h)).astype(int)
@@ -78,8 +97,8 @@ def _initial(coords, z, center_rc, R: float, h: float, sigma0: float) -> CoronaP
 def fit_corona(img, center_rc, radius_px: float, *, annulus_px: float | None = None,
                solver: AbstractLimbSolver | None = None, sigma0: float = 0.7, max_steps: int = 256) -> SunLimbFit:
     """Fit the EUV limb (:data:`~jaxlimb.models.corona.CORONA`) on an annulus around a circle, then once more on the
-    annulus around the fitted circle.  The start's radius is the brightest ring within the annulus about the circle
-    given (a sigmoid's circle sits on the corona's fall-off, pixels outside the limb).
+    annulus around the fitted circle.  The start's radius is the brightest ring near the circle given
+    (:func:`ring_radius`).
 
     Parameters
     ----------
@@ -113,7 +132,7 @@ def fit_corona(img, center_rc, radius_px: float, *, annulus_px: float | None = N
         raise LimbInputError(f"`radius_px` must be finite and > 0, got {radius_px!r}")
     h = min(float(annulus_px) if annulus_px is not None else max(6.0, 0.04 * R), 0.5 * R)
     solver = solver if solver is not None else NormalLM(coarse_stride=1)
-    R = _peak_radius(img, center_rc, R, h)
+    R = ring_radius(img, center_rc, R)
     coords, z = select_sun_annulus(img, center_rc, R, h)
     init = _initial(coords, z, center_rc, R, h, sigma0)
     first = disc_fit_result(fit_free_sigma(CORONA, coords, z, init, solver, (), max_steps), h, (coords, z), _WHAT)
@@ -122,4 +141,4 @@ def fit_corona(img, center_rc, radius_px: float, *, annulus_px: float | None = N
     return disc_fit_result(res, h, (coords, z), _WHAT)
 
 
-__all__ = ["fit_corona", "limb_brightened"]
+__all__ = ["fit_corona", "limb_brightened", "ring_radius"]

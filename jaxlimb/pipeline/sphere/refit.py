@@ -228,15 +228,28 @@ def disc_refit(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> RefineRes
     """
     opt = frame.opt
     _saturation(frame, edge, extras)
-    mask = frame_mask(frame)
-    # invalid pixels (mask) become NaN: the disc fit ignores non-finite pixels (neither limb nor sky)
-    img = frame.img if mask is None else np.where(mask, np.asarray(frame.img, float), np.nan)
+    img = disc_image(frame)
     corona = opt.profile == "corona" or (opt.profile == "auto" and limb_brightened(img, edge.center_rc, edge.radius))
     model, fitter = (CORONA, fit_corona) if corona else (LIMB_DARKENED, fit_limb_darkened)
     sun = fitter(img, edge.center_rc, edge.radius, solver=None if opt.solver == "lm" else solver_from_name(opt.solver))
     coords, z = sun.pixels
     held = tuple(n for n in model.param_names if n not in sun.fit.free)
     return with_model_error(RefineResult(sun.fit, FitData(coords, z, None, 0.0, 1.0), 0, held), model=model)
+
+
+def disc_image(frame: Frame) -> np.ndarray:
+    """The image a disc's profile fits see: invalid pixels (the frame's mask) are NaN, neither limb nor sky.
+
+    Parameters
+    ----------
+    frame : Frame
+
+    Returns
+    -------
+    np.ndarray
+    """
+    mask = frame_mask(frame)
+    return frame.img if mask is None else np.where(mask, np.asarray(frame.img, float), np.nan)
 
 
 def disc_center_of(frame: Frame, final: RefineResult) -> BodyCenter:
@@ -256,4 +269,4 @@ def disc_center_of(frame: Frame, final: RefineResult) -> BodyCenter:
     return circle_center(frame, (fp.r0, fp.c0), float(fp.a), range_from_radius=True)
 
 
-__all__ = ["disc_center_of", "disc_refit", "lunar_profile_refit", "sphere_center_of", "sphere_refit"]
+__all__ = ["disc_center_of", "disc_image", "disc_refit", "lunar_profile_refit", "sphere_center_of", "sphere_refit"]
