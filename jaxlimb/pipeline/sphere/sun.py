@@ -195,7 +195,26 @@ def fit_free_sigma(model, coords, z, init, solver, fixed: tuple[str, ...], max_s
     vanishes (sigma enters as sigma^2) and the iteration crawls: below :data:`SIGMA_FLOOR` (or below 0.1
     px while not converged) the fit is redone with sigma held at 0.  Sigma is held by
     :func:`~jaxlimb.fitting.fit`'s run-time mask (``held``), so the chunks and the refit are one compiled
-    program: a process loads one limb-darkened fit core from the compilation cache, not two.
+    program: a process loads one fit core per model from the compilation cache, not two.
+
+    Parameters
+    ----------
+    model : LimbModel
+        :data:`LIMB_DARKENED` or :data:`~jaxlimb.models.corona.CORONA`.
+    coords, z : np.ndarray
+        The annulus's pixels ``(n, 2)`` and values ``(n,)``.
+    init : LimbParams
+        The start.
+    solver : AbstractLimbSolver
+    fixed : tuple of str
+        Parameters held at their start.
+    max_steps : int
+        Iteration limit.
+
+    Returns
+    -------
+    LimbFit
+        The fit (not checked: :func:`disc_fit_result` checks it).
     """
     chunk = min(max_steps, _FIRST_STEPS)
     res = fit(model, coords, z, init, solver, fixed=fixed, max_steps=chunk, throw=False, held=())
