@@ -226,7 +226,8 @@ class LimbPixels:
 
 @dataclass(frozen=True)
 class EdgeFit:
-    """The edge fit of a round limb: the circular sigmoid on the final annulus, and how it was reached."""
+    """The edge fit of a round limb: the circular sigmoid on the final annulus (on an EUV disc, the corona's limb,
+    :func:`~jaxlimb.pipeline.sphere.corona.corona_edge`), and how it was reached."""
 
     circ: RefineResult
     pixels: LimbPixels
@@ -243,7 +244,8 @@ class EdgeFit:
 
     @property
     def radius(self) -> float:
-        return float(self.circ.fit.params.radius)
+        p = self.circ.fit.params
+        return float(p.radius if isinstance(p, CircleParams) else p.a)
 
 
 @dataclass(frozen=True)

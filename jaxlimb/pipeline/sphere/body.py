@@ -16,7 +16,8 @@ from ..small.body import SmallBody
 from ..stages import Body, BodyCenter, Covariance, EdgeFit, Frame, Levels, LimbPixels, RefineResult
 from .dark_limb import check_measurement
 from .edge import check_edge, edge_fit, edge_report, limb_pixels
-from .refit import disc_center_of, disc_refit, sphere_center_of, sphere_refit
+from .corona import corona_edge, limb_brightened
+from .refit import disc_center_of, disc_image, disc_refit, sphere_center_of, sphere_refit
 
 
 @final
@@ -285,7 +286,9 @@ class Disc(Body[LimbPixels, EdgeFit]):
     def edge_fit(self, frame: Frame, cand: Any, pixels: LimbPixels) -> EdgeFit:
         """Stage 4: the circular sigmoid (Eq. 16 of the illuminated-ellipsoid paper) on the annulus
         (:func:`~jaxlimb.pipeline.sphere.edge.edge_fit`), then Checks 5, 1, 3/4 and 4
-        (:func:`~jaxlimb.pipeline.sphere.edge.check_edge`).
+        (:func:`~jaxlimb.pipeline.sphere.edge.check_edge`); on a disc brightest at its limb (the EUV:
+        :func:`~jaxlimb.pipeline.sphere.corona.limb_brightened`) or with ``profile="corona"``, the corona's limb
+        (:func:`~jaxlimb.pipeline.sphere.corona.corona_edge`).
 
         Parameters
         ----------
@@ -301,6 +304,10 @@ class Disc(Body[LimbPixels, EdgeFit]):
         EdgeFit
             The fit, its annulus, the arc and the jump with its limit.
         """
+        img = disc_image(frame)
+        if frame.opt.profile == "corona" or (frame.opt.profile == "auto"
+                                             and limb_brightened(img, cand.center_rc, cand.radius)):
+            return corona_edge(frame, img, cand, pixels)
         return check_edge(frame, cand, edge_fit(frame, pixels))
 
     def report(self, frame: Frame, cand: Any, edge: EdgeFit) -> dict[str, Any]:
@@ -411,7 +418,7 @@ class Disc(Body[LimbPixels, EdgeFit]):
 
 
 def round_iterations(edge: EdgeFit, final: RefineResult) -> int:
-    """The circle fit's steps, and the refit's when one answered.
+    """The circle fit's steps, and the refit's when one answered (not the edge fit's own, widened: the corona's).
 
     Parameters
     ----------
@@ -425,7 +432,7 @@ def round_iterations(edge: EdgeFit, final: RefineResult) -> int:
     int
         Total solver steps.
     """
-    return int(edge.circ.fit.n_steps) + (int(final.fit.n_steps) if final is not edge.circ else 0)
+    return int(edge.circ.fit.n_steps) + (int(final.fit.n_steps) if final.data is not edge.circ.data else 0)
 
 
 __all__ = ["Disc", "Sphere", "round_iterations"]

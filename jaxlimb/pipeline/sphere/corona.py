@@ -9,8 +9,11 @@ import math
 import numpy as np
 
 from ...errors import LimbInputError
-from ...fitting import AbstractLimbSolver, NormalLM
+from ...fitting import AbstractLimbSolver, NormalLM, solver_from_name
 from ...models.corona import CORONA, CoronaParams
+from ..checks import check_center_in_field, check_size
+from ..frame import min_diameter_px
+from ..stages import EdgeFit, FitData, Frame, LimbPixels, RefineResult
 from .sun import SunLimbFit, disc_fit_result, fit_free_sigma, select_sun_annulus
 
 _WHAT = "EUV corona limb"
@@ -141,4 +144,39 @@ def fit_corona(img, center_rc, radius_px: float, *, annulus_px: float | None = N
     return disc_fit_result(res, h, (coords, z), _WHAT)
 
 
-__all__ = ["fit_corona", "limb_brightened", "ring_radius"]
+def corona_edge(frame: Frame, img: np.ndarray, cand, pixels: LimbPixels) -> EdgeFit:  # noqa: ANN001
+    """The edge stage of a disc brightest at its limb: the corona's limb itself (:func:`fit_corona` from the front
+    end's circle), where a sigmoid would fit a ring over a darker disc (and, on the corona's fall-off alone, an edge
+    whose outer level the frame may not reach).  Checks 1 (size) and 4 (centre in the field); Check 5's jump is
+    reported but not limited: the fit starts at the brightest ring, not at the front end's circle (the outline of
+    the corona at a threshold, a few scale heights out).
+
+    Parameters
+    ----------
+    frame : Frame
+    img : np.ndarray
+        The image the fit sees (invalid pixels NaN).
+    cand : LimbCandidates
+        The front end's circle.
+    pixels : LimbPixels
+        The annulus about it (reported).
+
+    Returns
+    -------
+    EdgeFit
+        ``circ`` the corona's fit on its annulus (noise-only covariance), the full circle as its arc.
+    """
+    opt = frame.opt
+    sun = fit_corona(img, cand.center_rc, cand.radius, solver=None if opt.solver == "lm" else solver_from_name(opt.solver))
+    coords, z = sun.pixels
+    held = tuple(n for n in CORONA.param_names if n not in sun.fit.free)
+    rr = RefineResult(sun.fit, FitData(coords, z, None, 0.0, 1.0), 0, held)
+    jump = math.hypot(sun.center_rc[0] - cand.center_rc[0], sun.center_rc[1] - cand.center_rc[1]) + abs(
+        sun.radius_px - cand.radius)
+    frame.mark("refine")
+    check_size(sun.radius_px, frame.img.shape, min_diameter_px(frame), 360.0)
+    check_center_in_field(sun.center_rc, sun.radius_px, frame.img.shape)
+    return EdgeFit(rr, pixels, False, True, 360.0, jump, math.inf)
+
+
+__all__ = ["corona_edge", "fit_corona", "limb_brightened", "ring_radius"]

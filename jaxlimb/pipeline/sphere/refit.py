@@ -24,7 +24,7 @@ import numpy as np
 from ...errors import ConvergenceError, SaturationWarning
 from ...fitting import solver_from_name
 from ...models import LIMB_DARKENED, CircleParams, EllipseParams, LimbProfileParams
-from ...models.corona import CORONA
+from ...models.corona import CORONA, CoronaParams
 from ..checks import MIN_LIT_ARC_DEG, check_lit_arc
 from ..frame import arc_angles, frame_mask
 from ..profile.fit import fit_lunar_profile
@@ -33,7 +33,6 @@ from ..profile.passes import l_band, saturation_level
 from ..stages import BodyCenter, EdgeFit, FitData, Frame, RefineResult
 from .center import circle_center, free_ellipse_center, sphere_center
 from .fits import fit_ellipse_annulus, fit_sphere_annulus
-from .corona import fit_corona, limb_brightened
 from .sun import fit_limb_darkened
 
 
@@ -199,14 +198,14 @@ def sphere_center_of(frame: Frame, final: RefineResult) -> BodyCenter:
 
 def disc_refit(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> RefineResult:
     """Stage "profile refit" of a self-luminous disc: the limb-darkened disc on a full annulus, or the EUV corona's
-    limb where the disc is brightest at its limb (:func:`~jaxlimb.pipeline.sphere.corona.limb_brightened`) or
-    ``profile="corona"``.
+    limb that the edge stage fitted (:func:`~jaxlimb.pipeline.sphere.corona.corona_edge`) with its model-error
+    terms.
 
     Parameters
     ----------
     frame : Frame
     edge : EdgeFit
-        The circular sigmoid fit (start centre and radius).
+        The circular sigmoid fit (start centre and radius), or the corona's.
     extras : dict
         Updated with the saturation numbers.
 
@@ -229,12 +228,13 @@ def disc_refit(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> RefineRes
     opt = frame.opt
     _saturation(frame, edge, extras)
     img = disc_image(frame)
-    corona = opt.profile == "corona" or (opt.profile == "auto" and limb_brightened(img, edge.center_rc, edge.radius))
-    model, fitter = (CORONA, fit_corona) if corona else (LIMB_DARKENED, fit_limb_darkened)
-    sun = fitter(img, edge.center_rc, edge.radius, solver=None if opt.solver == "lm" else solver_from_name(opt.solver))
+    if isinstance(edge.circ.fit.params, CoronaParams):  # the edge stage fitted the EUV corona's limb
+        return with_model_error(edge.circ, model=CORONA)
+    sun = fit_limb_darkened(img, edge.center_rc, edge.radius,
+                            solver=None if opt.solver == "lm" else solver_from_name(opt.solver))
     coords, z = sun.pixels
-    held = tuple(n for n in model.param_names if n not in sun.fit.free)
-    return with_model_error(RefineResult(sun.fit, FitData(coords, z, None, 0.0, 1.0), 0, held), model=model)
+    held = tuple(n for n in LIMB_DARKENED.param_names if n not in sun.fit.free)
+    return with_model_error(RefineResult(sun.fit, FitData(coords, z, None, 0.0, 1.0), 0, held), model=LIMB_DARKENED)
 
 
 def disc_image(frame: Frame) -> np.ndarray:
