@@ -96,3 +96,15 @@ def test_corona_profile_is_the_discs():
         locate(img, None, Hints(body="moon"), LocateOptions(profile="corona", shape="sphere"))
     with pytest.raises(ConfigError, match="circle"):
         LocateOptions(profile="corona", model="ellipse")
+
+
+def test_aia_171_from_the_command_line(capsys):
+    """``jaxlimb locate aia_171_level1.fits --body sun --json``: exit 0, the corona's profile in the answer."""
+    import json
+
+    from jaxlimb.cli import main
+
+    code = main(["locate", str(shared_data_dir() / "sun" / AIA_171_FITS), "--body", "sun", "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert code == 0 and out["status"] == "ok", out
+    assert out["extras"]["profile"]["model"] == "corona" and "jump_limit_px" not in out["extras"]  # no limit: None

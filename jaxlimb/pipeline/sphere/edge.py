@@ -346,7 +346,8 @@ def edge_report(frame: Frame, cand: Any, edge: EdgeFit) -> dict[str, Any]:
         "lit_halfangle_deg": math.degrees(pix.half), "sun_direction_known": frame.sun_known,
         "phase_deg": math.degrees(pix.phase) if pix.phase is not None else None,
         "n_angular_bins": [pix.sel.n_bins_kept, pix.sel.n_bins],
-        "n_outliers": int(circ.n_outliers), "jump_px": edge.jump_px, "jump_limit_px": edge.jump_limit_px,
+        "n_outliers": int(circ.n_outliers), "jump_px": edge.jump_px,
+        "jump_limit_px": edge.jump_limit_px if math.isfinite(edge.jump_limit_px) else None,
         "levels_normalized": circ.data.weights is not None, "k_estimated": bool(frame.opt.estimate_k),
         "prior_source": prior.source if prior is not None else None,
     }
