@@ -205,8 +205,13 @@ def start(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> SmallDiscPara
     return disc_at(cand, pix, (cand.centroid_rc[0] - off[0], cand.centroid_rc[1] - off[1]), a0, sigma0, sun)
 
 
-def noise_weights(p: SmallDiscParams, pix: SmallPixels) -> tuple[np.ndarray, dict[str, float]]:
-    """``1 / sqrt(s0^2 + g m)`` (module docstring) and ``{s0, g}``.
+def noise_weights(p: SmallDiscParams, pix: SmallPixels, free: tuple[str, ...]) -> tuple[np.ndarray, dict[str, float]]:
+    """``1 / sqrt(s0^2 + g m)`` (module docstring) and ``{s0, g, n_body}``.
+
+    The squared residuals are divided by ``1 - h_ii``, ``h_ii`` the leverage of pixel ``i`` in pass 1's unweighted fit
+    of the ``free`` parameters (MacKinnon & White 1985, HC2): the fit absorbs part of the noise of the few body
+    pixels that fix it (at a radius of 1 px, some 10-40 pixels for 5 parameters), and their raw residuals
+    underestimate its photon noise (``g = 0`` on most frames).
 
     Parameters
     ----------
@@ -214,6 +219,8 @@ def noise_weights(p: SmallDiscParams, pix: SmallPixels) -> tuple[np.ndarray, dic
         Pass 1's disc.
     pix : SmallPixels
         The window.
+    free : tuple of str
+        Pass 1's free parameters.
 
     Returns
     -------
@@ -223,7 +230,9 @@ def noise_weights(p: SmallDiscParams, pix: SmallPixels) -> tuple[np.ndarray, dic
         ``s0`` (DN) and ``g`` (DN per DN of signal) of the noise model.
     """
     m = np.asarray(small_disc_predict(p, pix.coords)) - float(p.ymin)
-    r = pix.z - (m + float(p.ymin))
+    J = np.asarray(SMALL_DISC.jacobian(p, pix.coords))[:, [SmallDiscParams.field_names().index(n) for n in free]]
+    lev = np.einsum("ij,ij->i", J, np.linalg.lstsq(J.T @ J, J.T, rcond=None)[0].T)
+    r = (pix.z - (m + float(p.ymin))) / np.sqrt(np.clip(1.0 - lev, 1e-3, None))
     top = float(np.max(m)) if m.size else 0.0
     sky = m < 0.01 * top
     rs = r[sky] if np.count_nonzero(sky) >= 20 else r
@@ -233,7 +242,7 @@ def noise_weights(p: SmallDiscParams, pix: SmallPixels) -> tuple[np.ndarray, dic
     if np.count_nonzero(body) >= 3:
         mb = m[body]
         g = max(float(np.sum((r[body] ** 2 - s0 * s0) * mb) / np.sum(mb * mb)), 0.0)
-    return 1.0 / np.sqrt(s0 * s0 + g * np.maximum(m, 0.0)), {"s0": s0, "g": g}
+    return 1.0 / np.sqrt(s0 * s0 + g * np.maximum(m, 0.0)), {"s0": s0, "g": g, "n_body": int(np.count_nonzero(body))}
 
 
 def consider_terms(res, pix: SmallPixels, weights: np.ndarray, sigmas: dict[str, float]) -> np.ndarray:
@@ -328,7 +337,7 @@ def fit_small_disc(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> tupl
     p = start(frame, cand, pix)
     res = fit(SMALL_DISC, pix.coords, pix.z, p, fixed=SMALL_DISC_FIXED, held=held, max_steps=MAX_STEPS, throw=False)
     p = regrid(res.params)
-    w, noise = noise_weights(p, pix)
+    w, noise = noise_weights(p, pix, tuple(n for n in SmallDiscParams.field_names() if n not in fixed))
     for _ in range(2):  # the grid follows the estimate
         res = fit(SMALL_DISC, pix.coords, pix.z, p, fixed=SMALL_DISC_FIXED, held=held, weights=w, max_steps=MAX_STEPS,
                   throw=True)
