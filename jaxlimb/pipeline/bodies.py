@@ -17,7 +17,9 @@ strategy                 bodies                               limb, profile, bod
                          at its apparent size (Jupiter,       darkening); Earth offset and range iteration
                          Saturn, Mars)                        (Mortari et al. §IV, Fig. 2); started from the predicted
                                                               limb when the hints predict it (not the Earth)
-``Disc``                 the Sun                              full annulus; CSF; limb-darkened disc; its centre
+``Disc``                 the Sun                              its region's outline; full annulus; CSF and the
+                                                              limb-darkened disc, or (brightest at its limb: the
+                                                              EUV) the corona over an opaque disc; its centre
 ``SmallBody``            a body of a few pixels (expected     the whole blob: the blurred lit disc at the phase; its
                          radius below 6 px, Sun direction     centre of brightness corrected for the phase when that
                          known)                               fit fails

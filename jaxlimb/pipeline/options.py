@@ -166,8 +166,10 @@ class LocateOptions:
         ``"auto"`` (default): with the model ``"circle"`` and ``estimate_k`` on, the physical limb profile of a
         sunlit body when the hints give the Sun direction (:mod:`jaxlimb.pipeline.profile`; it removes the sigmoid's
         limb bias, 0.1-0.6 px on realistic Moons, ``benchmarks/locate_accuracy.py``), the limb-darkened disc when
-        they say ``body = "sun"`` (:mod:`jaxlimb.pipeline.sphere.sun`); else the sigmoid.  ``"sigmoid"``: the
-        papers' sigmoid limb.  ``"lunar-lambert"``, ``"limb-darkened"``: that profile (circle model only).
+        they say ``body = "sun"`` (:mod:`jaxlimb.pipeline.sphere.sun`), or the corona over an opaque disc when that
+        disc is brightest at its limb (the EUV: :mod:`jaxlimb.pipeline.sphere.corona`); else the sigmoid.
+        ``"sigmoid"``: the papers' sigmoid limb.  ``"lunar-lambert"``, ``"limb-darkened"``, ``"corona"``: that
+        profile (circle model only).
         ``"albedo-field"``: the lunar-Lambert profile with the surface albedo an unknown Gaussian field, marginalised
         (:mod:`jaxlimb.pipeline.profile.albedo_field`; its covariance replaces the model-error terms; no widening to
         limb brightening, smear or glow; the sphere strategy: the Earth's ellipsoid keeps its own profile).  With

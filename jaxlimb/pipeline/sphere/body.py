@@ -418,7 +418,7 @@ class Disc(Body[LimbPixels, EdgeFit]):
 
 
 def round_iterations(edge: EdgeFit, final: RefineResult) -> int:
-    """The circle fit's steps, and the refit's when one answered (not the edge fit's own, widened: the corona's).
+    """The edge fit's steps, and the refit's when the answer is a refit (not the edge fit with a widened covariance).
 
     Parameters
     ----------

@@ -1,6 +1,6 @@
-"""Fit of the Sun's limb in the extreme ultraviolet (an optically thin corona over an opaque disc,
-:data:`~jaxlimb.models.corona.CORONA`) on an annulus about a circle, and the test that chooses it: a disc whose
-azimuthal brightness peaks at its limb, not at its centre."""
+"""The Sun's limb in the extreme ultraviolet (an optically thin corona over an opaque disc,
+:data:`~jaxlimb.models.corona.CORONA`): the test that chooses it (a disc whose azimuthal brightness peaks at its limb,
+not at its centre), its fit on an annulus about a circle, and the disc strategy's edge stage built on that fit."""
 
 from __future__ import annotations
 
@@ -59,7 +59,7 @@ def limb_brightened(img: np.ndarray, center_rc, radius_px: float) -> bool:
 def ring_radius(img: np.ndarray, center_rc, radius_px: float) -> float:
     """The middle of the brightest 1 px ring within ``radius_px -+ max(6, radius_px / 10)`` of ``center_rc``: the
     corona peaks just above the occulting limb, and a circle found on its fall-off (a threshold's outline, a
-    sigmoid) lies a few scale heights (each 4-9 % of the radius) outside.
+    sigmoid) lies a few of the corona's scale heights (each some tens of Mm, several per cent of the radius) outside.
 
     Parameters
     ----------
@@ -166,8 +166,8 @@ def corona_edge(frame: Frame, img: np.ndarray, cand, pixels: LimbPixels) -> Edge
     EdgeFit
         ``circ`` the corona's fit on its annulus (noise-only covariance), the full circle as its arc.
     """
-    opt = frame.opt
-    sun = fit_corona(img, cand.center_rc, cand.radius, solver=None if opt.solver == "lm" else solver_from_name(opt.solver))
+    solver = None if frame.opt.solver == "lm" else solver_from_name(frame.opt.solver)
+    sun = fit_corona(img, cand.center_rc, cand.radius, solver=solver)
     coords, z = sun.pixels
     held = tuple(n for n in CORONA.param_names if n not in sun.fit.free)
     rr = RefineResult(sun.fit, FitData(coords, z, None, 0.0, 1.0), 0, held)

@@ -8,9 +8,9 @@ r"""The profile-refit and body-centre stages of the two round bodies of :func:`j
   :mod:`jaxlimb.pipeline.sphere.center`.
 * **Disc** (the Sun): the blurred limb-darkened disc (:data:`jaxlimb.models.LIMB_DARKENED`) on a full
   annulus, or, where the disc is brightest at its limb (the EUV), the optically thin corona over an opaque disc
-  (:data:`jaxlimb.models.corona.CORONA`); its covariance widened by the model-error terms of :mod:`jaxlimb.model_error` (the cluster-robust
-  sandwich over sectors of the limb and the split witness); the disc's centre is the body's (orthographic:
-  ``(R/f)^2 ~ 1e-5``).
+  (:data:`jaxlimb.models.corona.CORONA`); its covariance widened by the model-error terms of
+  :mod:`jaxlimb.model_error` (the cluster-robust sandwich over sectors of the limb and the split witness); the
+  disc's centre is the body's (orthographic: ``(R/f)^2 ~ 1e-5``).
 """
 
 from __future__ import annotations
