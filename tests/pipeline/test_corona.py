@@ -108,3 +108,13 @@ def test_aia_171_from_the_command_line(capsys):
     out = json.loads(capsys.readouterr().out)
     assert code == 0 and out["status"] == "ok", out
     assert out["extras"]["profile"]["model"] == "corona" and "jump_limit_px" not in out["extras"]  # no limit: None
+
+
+def test_euv_disc_cut_by_the_frame_border():
+    """A disc cut by the frame's border (radius 40 px in 86 px): its annulus is taken all round (a ring has no lit
+    step for the sigmoid's bins to find, and a star no lit side: this frame was refused as a crescent 'too thin')."""
+    f = euv_sun(np.random.default_rng(1), 40.0, 86)
+    assert min(f.center_rc) < 40.0  # the disc leaves the frame
+    m = locate(f.image, None, Hints(body="sun"))
+    e, nees = _center_nees(m, f.center_rc)
+    assert m.extras["profile"]["model"] == "corona" and math.hypot(*e) < 0.2 and nees < 3.0**2, (e, nees)

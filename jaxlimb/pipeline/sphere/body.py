@@ -16,7 +16,7 @@ from ..small.body import SmallBody
 from ..stages import Body, BodyCenter, Covariance, EdgeFit, Frame, Levels, LimbPixels, RefineResult
 from .dark_limb import check_measurement
 from .edge import check_edge, edge_fit, edge_report, limb_pixels
-from .corona import corona_edge, limb_brightened
+from .corona import corona_edge, limb_brightened, ring_pixels
 from .refit import disc_center_of, disc_image, disc_refit, sphere_center_of, sphere_refit
 
 
@@ -267,7 +267,8 @@ class Disc(Body[LimbPixels, EdgeFit]):
         return outline_candidates(frame)
 
     def limb_pixels(self, frame: Frame, cand: Any) -> LimbPixels:
-        """Stage 3: the annulus on the lit side (:func:`~jaxlimb.pipeline.sphere.edge.limb_pixels`, sigmoid arc limit).
+        """Stage 3: the annulus on the lit side (:func:`~jaxlimb.pipeline.sphere.edge.limb_pixels`, sigmoid arc limit);
+        the whole annulus for the EUV corona's limb (:func:`~jaxlimb.pipeline.sphere.corona.ring_pixels`).
 
         Parameters
         ----------
@@ -279,8 +280,10 @@ class Disc(Body[LimbPixels, EdgeFit]):
         Returns
         -------
         LimbPixels
-            The annulus on the lit side and its window.
+            The annulus on the lit side and its window (all round for the corona).
         """
+        if _is_corona(frame, cand):
+            return ring_pixels(disc_image(frame), cand)
         return limb_pixels(frame, cand, False)
 
     def edge_fit(self, frame: Frame, cand: Any, pixels: LimbPixels) -> EdgeFit:
@@ -304,10 +307,8 @@ class Disc(Body[LimbPixels, EdgeFit]):
         EdgeFit
             The fit, its annulus, the arc and the jump with its limit.
         """
-        img = disc_image(frame)
-        if frame.opt.profile == "corona" or (frame.opt.profile == "auto"
-                                             and limb_brightened(img, cand.center_rc, cand.radius)):
-            return corona_edge(frame, img, cand, pixels)
+        if _is_corona(frame, cand):
+            return corona_edge(frame, disc_image(frame), cand, pixels)
         return check_edge(frame, cand, edge_fit(frame, pixels))
 
     def report(self, frame: Frame, cand: Any, edge: EdgeFit) -> dict[str, Any]:
@@ -415,6 +416,14 @@ class Disc(Body[LimbPixels, EdgeFit]):
         LimbMeasurement
         """
         return meas
+
+
+def _is_corona(frame: Frame, cand: Any) -> bool:
+    """Whether the disc is measured by the EUV corona's limb: ``profile="corona"``, or ``"auto"`` and the disc
+    brightest at its limb about the front end's circle (:func:`~jaxlimb.pipeline.sphere.corona.limb_brightened`)."""
+    opt = frame.opt
+    return opt.profile == "corona" or (opt.profile == "auto"
+                                       and limb_brightened(disc_image(frame), cand.center_rc, cand.radius))
 
 
 def round_iterations(edge: EdgeFit, final: RefineResult) -> int:

@@ -13,7 +13,8 @@ from ...fitting import AbstractLimbSolver, NormalLM, solver_from_name
 from ...models.corona import CORONA, CoronaParams
 from ..checks import check_center_in_field, check_size
 from ..frame import min_diameter_px
-from ..stages import EdgeFit, FitData, Frame, LimbPixels, RefineResult
+from ..stages import AnnulusSelection, EdgeFit, FitData, Frame, LimbPixels, RefineResult
+from .annulus import annulus_halfwidth
 from .sun import SunLimbFit, disc_fit_result, fit_free_sigma, select_sun_annulus
 
 _WHAT = "EUV corona limb"
@@ -144,6 +145,37 @@ def fit_corona(img, center_rc, radius_px: float, *, annulus_px: float | None = N
     return disc_fit_result(res, h, (coords, z), _WHAT)
 
 
+def ring_pixels(img: np.ndarray, cand) -> LimbPixels:  # noqa: ANN001
+    """The limb pixels of a disc brightest at its limb: the whole annulus about the front end's circle, every pixel
+    kept.  The sigmoid's selection keeps the angular bins with a lit step across the annulus, and a ring over a darker
+    disc has none (a disc cut by the frame's border leaves its annulus no bin).  The corona's fit
+    (:func:`corona_edge`) selects its own annulus; these pixels are what the report and the saturation check see.
+
+    Parameters
+    ----------
+    img : np.ndarray
+        The image the fit sees (invalid pixels NaN).
+    cand : LimbCandidates
+        The front end's circle.
+
+    Returns
+    -------
+    LimbPixels
+        All round (``direction=None``, ``half=pi``); the annulus's halves as its levels.
+    """
+    dr = annulus_halfwidth(cand.radius, cand.residual_rms)
+    coords, z = select_sun_annulus(img, cand.center_rc, cand.radius, dr)
+    d = np.hypot(coords[:, 0] - cand.center_rc[0], coords[:, 1] - cand.center_rc[1]) - cand.radius
+    inner = float(np.median(z[d < 0])) if np.any(d < 0) else float(np.median(z))
+    outer = float(np.median(z[d >= 0])) if np.any(d >= 0) else float(np.median(z))
+    n = len(z)
+    sel = AnnulusSelection(coords=coords, z=z, center_rc=tuple(cand.center_rc), radius=float(cand.radius), dr=dr,
+                           direction=None, halfangle=math.pi, inner_level=inner, outer_level=outer,
+                           inner_edge_mean=inner, outer_edge_mean=outer, n_bins_kept=0, n_bins=0,
+                           pixel_inner=np.full(n, inner), pixel_outer=np.full(n, outer))
+    return LimbPixels(sel, dr, None, math.pi, None, 0.0)
+
+
 def corona_edge(frame: Frame, img: np.ndarray, cand, pixels: LimbPixels) -> EdgeFit:  # noqa: ANN001
     """The edge stage of a disc brightest at its limb: the corona's limb itself (:func:`fit_corona` from the front
     end's circle), where a sigmoid would fit a ring over a darker disc (and, on the corona's fall-off alone, an edge
@@ -179,4 +211,4 @@ def corona_edge(frame: Frame, img: np.ndarray, cand, pixels: LimbPixels) -> Edge
     return EdgeFit(rr, pixels, False, True, 360.0, jump, math.inf)
 
 
-__all__ = ["corona_edge", "fit_corona", "limb_brightened", "ring_radius"]
+__all__ = ["corona_edge", "fit_corona", "limb_brightened", "ring_pixels", "ring_radius"]
