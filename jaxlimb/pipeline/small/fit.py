@@ -210,8 +210,8 @@ def noise_weights(p: SmallDiscParams, pix: SmallPixels, free: tuple[str, ...]) -
 
     The squared residuals are divided by ``1 - h_ii``, ``h_ii`` the leverage of pixel ``i`` in pass 1's unweighted fit
     of the ``free`` parameters (MacKinnon & White 1985, HC2): the fit absorbs part of the noise of the few body
-    pixels that fix it (at a radius of 1 px, some 10-40 pixels for 5 parameters), and their raw residuals
-    underestimate its photon noise (``g = 0`` on most frames).
+    pixels that fix it (at a radius of 1 px, a few tens of pixels for 5 parameters), and their raw residuals
+    underestimate its photon noise.
 
     Parameters
     ----------
