@@ -1,12 +1,13 @@
 """The outline front end of a self-luminous disc (a star): its limb all round is the outline of its bright region.
 
 A star has no lit side and no terminator, so the boundary of its region above Otsu's threshold (:func:`otsu_region`:
-the largest component, holes filled) is a circle about its centre wherever it is the disc's edge: a sunspot, an active region or a filament inside the disc
-does not move it, and the corona of an EUV image widens it evenly.  The outline points (``cv2.findContours``) on the
-frame's border or next to invalid pixels are not the disc's edge and are dropped; the circle is RANSAC's
-(:func:`~jaxlimb.conics.ransac.ransac_circle`, Taubin on its inliers), which at least half the points must agree
-with: a region that is not the disc (part of an EUV limb ring above the threshold) is refused.  The front ends made for sunlit bodies look for a lit step and a lit side, and on an EUV
-disc -- a bright ring on a darker disc -- find parts of the ring.
+the largest component, holes filled) is a circle about its centre wherever it is the disc's edge: a sunspot, an
+active region or a filament inside the disc does not move it, and the corona of an EUV image widens it evenly.  The
+outline points (``cv2.findContours``) on the frame's border or next to invalid pixels are not the disc's edge and are
+dropped; the circle is RANSAC's (:func:`~jaxlimb.conics.ransac.ransac_circle`, Taubin on its inliers), which at least
+half the points must agree with: a region that is not the disc (part of an EUV limb ring above the threshold) is
+refused.  The front ends made for sunlit bodies look for a lit step and a lit side, and on an EUV disc -- a bright
+ring on a darker disc -- find parts of the ring.
 """
 
 from __future__ import annotations
@@ -34,6 +35,21 @@ def otsu_region(image: np.ndarray) -> np.ndarray:
     Otsu's threshold splits the histogram in two classes of least variance within them (Otsu 1979, IEEE Trans.
     SMC 9, 62), whatever the brightest few pixels are (Eq. 10's threshold, a fraction of the peak, lies above an EUV
     disc's limb when an active region outshines it).
+
+    Parameters
+    ----------
+    image : np.ndarray (rows, cols)
+        The grey image (finite).
+
+    Returns
+    -------
+    np.ndarray of uint8
+        1 on the region, 0 elsewhere.
+
+    Raises
+    ------
+    NoBodyError
+        A flat frame, or nothing above the threshold.
     """
     sm = cv2.GaussianBlur(image, (0, 0), 1.0)
     lo, hi = np.percentile(sm, [0.1, 99.9])
@@ -98,8 +114,8 @@ def outline_front_end(image: np.ndarray, mask: np.ndarray | None = None) -> Limb
         raise TooManyOutliersError(f"the disc's outline is not a circle: {res.reason}")
     pts, fit = pts[res.inliers], res.circle
     return LimbCandidates(points_rc=pts, center_rc=(float(fit.center_rc[0]), float(fit.center_rc[1])),
-                          radius=float(fit.radius), residual_rms=float(fit.rms), lit_direction=None, lit_halfangle=math.pi,
-                          front_end="outline", info={"n_outline": int(len(pts))})
+                          radius=float(fit.radius), residual_rms=float(fit.rms), lit_direction=None,
+                          lit_halfangle=math.pi, front_end="outline", info={"n_outline": int(len(pts))})
 
 
 __all__ = ["MIN_ON_CIRCLE", "MIN_OUTLINE_POINTS", "otsu_region", "outline_front_end"]

@@ -231,4 +231,5 @@ def fit_free_sigma(model, coords, z, init, solver, fixed: tuple[str, ...], max_s
 
 
 __all__ = ["LIMB_DARKENED", "SUN_FIXED", "U1_DEFAULT", "U2_DEFAULT", "LimbDarkenedParams", "SunLimbFit",
-           "disc_fit_result", "fit_free_sigma", "fit_limb_darkened", "limb_darkened_intensity", "limb_darkening", "select_sun_annulus"]
+           "disc_fit_result", "fit_free_sigma", "fit_limb_darkened", "limb_darkened_intensity", "limb_darkening",
+           "select_sun_annulus"]
