@@ -16,7 +16,7 @@ from ..small.body import SmallBody
 from ..stages import Body, BodyCenter, Covariance, EdgeFit, Frame, Levels, LimbPixels, RefineResult
 from .dark_limb import check_measurement
 from .edge import check_edge, edge_fit, edge_report, limb_pixels
-from .corona import corona_edge, limb_brightened, ring_pixels
+from .corona import RingPixels, corona_edge, limb_brightened, ring_pixels
 from .refit import disc_center_of, disc_image, disc_refit, sphere_center_of, sphere_refit
 
 
@@ -282,15 +282,16 @@ class Disc(Body[LimbPixels, EdgeFit]):
         LimbPixels
             The annulus on the lit side and its window (all round for the corona).
         """
-        if _is_corona(frame, cand):
-            return ring_pixels(disc_image(frame), cand)
+        opt, img = frame.opt, disc_image(frame)
+        if opt.profile == "corona" or (opt.profile == "auto" and limb_brightened(img, cand.center_rc, cand.radius)):
+            return ring_pixels(img, cand)
         return limb_pixels(frame, cand, False)
 
     def edge_fit(self, frame: Frame, cand: Any, pixels: LimbPixels) -> EdgeFit:
         """Stage 4: the circular sigmoid (Eq. 16 of the illuminated-ellipsoid paper) on the annulus
         (:func:`~jaxlimb.pipeline.sphere.edge.edge_fit`), then Checks 5, 1, 3/4 and 4
-        (:func:`~jaxlimb.pipeline.sphere.edge.check_edge`); on a disc brightest at its limb (the EUV:
-        :func:`~jaxlimb.pipeline.sphere.corona.limb_brightened`) or with ``profile="corona"``, the corona's limb
+        (:func:`~jaxlimb.pipeline.sphere.edge.check_edge`); on the pixels of a disc brightest at its limb (the EUV,
+        or ``profile="corona"``: :class:`~jaxlimb.pipeline.sphere.corona.RingPixels`), the corona's limb
         (:func:`~jaxlimb.pipeline.sphere.corona.corona_edge`).
 
         Parameters
@@ -307,7 +308,7 @@ class Disc(Body[LimbPixels, EdgeFit]):
         EdgeFit
             The fit, its annulus, the arc and the jump with its limit.
         """
-        if _is_corona(frame, cand):
+        if isinstance(pixels, RingPixels):  # the limb-pixel stage found the disc brightest at its limb
             return corona_edge(frame, disc_image(frame), cand, pixels)
         return check_edge(frame, cand, edge_fit(frame, pixels))
 
@@ -416,14 +417,6 @@ class Disc(Body[LimbPixels, EdgeFit]):
         LimbMeasurement
         """
         return meas
-
-
-def _is_corona(frame: Frame, cand: Any) -> bool:
-    """Whether the disc is measured by the EUV corona's limb: ``profile="corona"``, or ``"auto"`` and the disc
-    brightest at its limb about the front end's circle (:func:`~jaxlimb.pipeline.sphere.corona.limb_brightened`)."""
-    opt = frame.opt
-    return opt.profile == "corona" or (opt.profile == "auto"
-                                       and limb_brightened(disc_image(frame), cand.center_rc, cand.radius))
 
 
 def round_iterations(edge: EdgeFit, final: RefineResult) -> int:

@@ -5,6 +5,7 @@ not at its centre), its fit on an annulus about a circle, and the disc strategy'
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -13,7 +14,7 @@ from ...fitting import AbstractLimbSolver, NormalLM, solver_from_name
 from ...models.corona import CORONA, CoronaParams
 from ..checks import check_center_in_field, check_size
 from ..frame import min_diameter_px
-from ..stages import AnnulusSelection, EdgeFit, FitData, Frame, LimbPixels, RefineResult
+from ..stages import AnnulusSelection, EdgeFit, Frame, LimbPixels
 from .annulus import annulus_halfwidth
 from .sun import SunLimbFit, disc_fit_result, fit_free_sigma, select_sun_annulus
 
@@ -42,19 +43,20 @@ def limb_brightened(img: np.ndarray, center_rc, radius_px: float) -> bool:
     bool
         ``True`` when the brightest ring lies beyond half the radius.
     """
-    img = np.asarray(img, dtype=float)
-    r0, c0 = (float(v) for v in center_rc)
     R = float(radius_px)
-    rr, cc = np.indices(img.shape)
-    d = np.hypot(rr - r0, cc - c0)
-    keep = (d < R) & np.isfinite(img)
+    coords, z = select_sun_annulus(img, center_rc, 0.5 * R, 0.5 * R)  # the disc's pixels, its bounding box only
+    d = np.hypot(coords[:, 0] - center_rc[0], coords[:, 1] - center_rc[1])
+    keep = d < R
     if not keep.any():
         return False
-    ring = d[keep].astype(int)
+    return bool(int(np.argmax(_ring_means(d[keep], z[keep]))) > 0.5 * R)
+
+
+def _ring_means(d: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """The mean of ``z`` in each 1 px ring ``floor(d)`` (``d >= 0``); ``-inf`` for a ring without pixels."""
+    ring = np.floor(d).astype(int)
     counts = np.bincount(ring)
-    sums = np.bincount(ring, weights=img[keep])
-    mean = np.where(counts > 0, sums / np.maximum(counts, 1), -np.inf)
-    return bool(int(np.argmax(mean)) > 0.5 * R)
+    return np.where(counts > 0, np.bincount(ring, weights=z) / np.maximum(counts, 1), -np.inf)
 
 
 def ring_radius(img: np.ndarray, center_rc, radius_px: float) -> float:
@@ -80,10 +82,7 @@ def ring_radius(img: np.ndarray, center_rc, radius_px: float) -> float:
     h = min(max(6.0, 0.1 * R), 0.5 * R)
     coords, z = select_sun_annulus(img, center_rc, R, h)
     d = np.hypot(coords[:, 0] - center_rc[0], coords[:, 1] - center_rc[1])
-    ring = np.floor(d - (R - h)).astype(int)
-    counts = np.bincount(ring)
-    mean = np.bincount(ring, weights=z) / np.maximum(counts, 1)
-    return R - h + float(np.argmax(np.where(counts > 0, mean, -np.inf))) + 0.5
+    return R - h + float(np.argmax(_ring_means(d - (R - h), z))) + 0.5
 
 
 def _initial(coords, z, center_rc, R: float, h: float, sigma0: float) -> CoronaParams:
@@ -145,7 +144,13 @@ def fit_corona(img, center_rc, radius_px: float, *, annulus_px: float | None = N
     return disc_fit_result(res, h, (coords, z), _WHAT)
 
 
-def ring_pixels(img: np.ndarray, cand) -> LimbPixels:  # noqa: ANN001
+@dataclass(frozen=True)
+class RingPixels(LimbPixels):
+    """The limb pixels of a disc brightest at its limb (:func:`ring_pixels`): its edge stage is the corona's limb
+    (:func:`corona_edge`)."""
+
+
+def ring_pixels(img: np.ndarray, cand) -> RingPixels:  # noqa: ANN001
     """The limb pixels of a disc brightest at its limb: the whole annulus about the front end's circle, every pixel
     kept.  The sigmoid's selection keeps the angular bins with a lit step across the annulus, and a ring over a darker
     disc has none (a disc cut by the frame's border leaves its annulus no bin).  The corona's fit
@@ -160,7 +165,7 @@ def ring_pixels(img: np.ndarray, cand) -> LimbPixels:  # noqa: ANN001
 
     Returns
     -------
-    LimbPixels
+    RingPixels
         All round (``direction=None``, ``half=pi``); the annulus's halves as its levels.
     """
     dr = annulus_halfwidth(cand.radius, cand.residual_rms)
@@ -173,7 +178,7 @@ def ring_pixels(img: np.ndarray, cand) -> LimbPixels:  # noqa: ANN001
                            direction=None, halfangle=math.pi, inner_level=inner, outer_level=outer,
                            inner_edge_mean=inner, outer_edge_mean=outer, n_bins_kept=0, n_bins=0,
                            pixel_inner=np.full(n, inner), pixel_outer=np.full(n, outer))
-    return LimbPixels(sel, dr, None, math.pi, None, 0.0)
+    return RingPixels(sel, dr, None, math.pi, None, 0.0)
 
 
 def corona_edge(frame: Frame, img: np.ndarray, cand, pixels: LimbPixels) -> EdgeFit:  # noqa: ANN001
@@ -200,15 +205,12 @@ def corona_edge(frame: Frame, img: np.ndarray, cand, pixels: LimbPixels) -> Edge
     """
     solver = None if frame.opt.solver == "lm" else solver_from_name(frame.opt.solver)
     sun = fit_corona(img, cand.center_rc, cand.radius, solver=solver)
-    coords, z = sun.pixels
-    held = tuple(n for n in CORONA.param_names if n not in sun.fit.free)
-    rr = RefineResult(sun.fit, FitData(coords, z, None, 0.0, 1.0), 0, held)
     jump = math.hypot(sun.center_rc[0] - cand.center_rc[0], sun.center_rc[1] - cand.center_rc[1]) + abs(
         sun.radius_px - cand.radius)
     frame.mark("refine")
     check_size(sun.radius_px, frame.img.shape, min_diameter_px(frame), 360.0)
     check_center_in_field(sun.center_rc, sun.radius_px, frame.img.shape)
-    return EdgeFit(rr, pixels, False, True, 360.0, jump, math.inf)
+    return EdgeFit(sun.refine_result(), pixels, False, True, 360.0, jump, math.inf)
 
 
-__all__ = ["corona_edge", "fit_corona", "limb_brightened", "ring_pixels", "ring_radius"]
+__all__ = ["RingPixels", "corona_edge", "fit_corona", "limb_brightened", "ring_pixels", "ring_radius"]

@@ -30,7 +30,7 @@ from ..frame import arc_angles, frame_mask
 from ..profile.fit import fit_lunar_profile
 from ..profile.model_error import with_model_error
 from ..profile.passes import l_band, saturation_level
-from ..stages import BodyCenter, EdgeFit, FitData, Frame, RefineResult
+from ..stages import BodyCenter, EdgeFit, Frame, RefineResult
 from .center import circle_center, free_ellipse_center, sphere_center
 from .fits import fit_ellipse_annulus, fit_sphere_annulus
 from .sun import fit_limb_darkened
@@ -227,14 +227,11 @@ def disc_refit(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> RefineRes
     """
     opt = frame.opt
     _saturation(frame, edge, extras)
-    img = disc_image(frame)
     if isinstance(edge.circ.fit.params, CoronaParams):  # the edge stage fitted the EUV corona's limb
         return with_model_error(edge.circ, model=CORONA)
-    sun = fit_limb_darkened(img, edge.center_rc, edge.radius,
+    sun = fit_limb_darkened(disc_image(frame), edge.center_rc, edge.radius,
                             solver=None if opt.solver == "lm" else solver_from_name(opt.solver))
-    coords, z = sun.pixels
-    held = tuple(n for n in LIMB_DARKENED.param_names if n not in sun.fit.free)
-    return with_model_error(RefineResult(sun.fit, FitData(coords, z, None, 0.0, 1.0), 0, held), model=LIMB_DARKENED)
+    return with_model_error(sun.refine_result(), model=LIMB_DARKENED)
 
 
 def disc_image(frame: Frame) -> np.ndarray:

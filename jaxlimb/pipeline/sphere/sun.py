@@ -14,6 +14,7 @@ from ...errors import ConvergenceError, LimbInputError
 from ...fitting import AbstractLimbSolver, fit, LimbFit, NormalLM
 from ...models import LIMB_DARKENED, LimbDarkenedParams, limb_darkened_intensity, limb_darkening
 from ...models.limb_darkened import SUN_FIXED, U1_DEFAULT, U2_DEFAULT
+from ..stages import FitData, RefineResult
 
 #: Below this PSF sigma (px) :func:`fit_limb_darkened` refits with ``sigma`` held at 0.
 SIGMA_FLOOR = 0.03
@@ -48,6 +49,19 @@ class SunLimbFit:
     n_pixels: int
     annulus_px: float
     pixels: tuple[np.ndarray, np.ndarray]
+
+    def refine_result(self) -> RefineResult:
+        """The fit as the pipeline's profile-refit value: its annulus's pixels (unit weights, DN), the parameters it
+        did not fit held.
+
+        Returns
+        -------
+        RefineResult
+            Its covariance the fit's own (noise only).
+        """
+        coords, z = self.pixels
+        held = tuple(n for n in type(self.params).field_names() if n not in self.fit.free)
+        return RefineResult(self.fit, FitData(coords, z, None, 0.0, 1.0), 0, held)
 
 
 def select_sun_annulus(img: np.ndarray, center_rc, radius_px: float, annulus_px: float):
