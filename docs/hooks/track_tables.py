@@ -96,13 +96,18 @@ def track_epic(rel: str = "track_epic.json") -> str:
     for fr in d["frames"]:
         date = fr["frame"].rsplit("_", 1)[-1]
         day = f"{date[:4]}-{date[4:6]}-{date[6:]}"
+        angle = rt.f(fr["boresight_vs_metadata_rad"] * 1e6, 0)
+        att = rt.f(fr["attitude_sigma_rad"] * 1e6, 0)
         if fr["status"] != "ok":
-            rows.append([day, f"refused: `{fr['check']}`", "", "", "", "", rt.f(fr["boresight_vs_metadata_rad"] * 1e6, 0)])
+            rows.append([day, f"refused: `{fr['check']}`", "", "", "", angle, att, "", ""])
             continue
         rows.append([day, f"{fr['error_range_km']:+,.0f}", f"{fr['sigma_range_km']:,.0f}", f"{fr['error_lateral_km']:,.0f}",
-                     f"{fr['sigma_lateral_km']:,.0f}", "yes" if fr["within_3_sigma"] else "**no**",
-                     rt.f(fr["boresight_vs_metadata_rad"] * 1e6, 0)])
+                     f"{fr['sigma_lateral_km']:,.0f}", angle, att, rt.f(fr["mahalanobis_sq"], 2),
+                     "yes" if fr["within_3_sigma"] else "**no**"])
     head = ["frame", "range error (km)", "range sigma (km)", "lateral error (km)", "lateral sigma per axis (km)",
-            "within 3 sigma", "boresight vs metadata (µrad)"]
+            "boresight vs metadata (µrad)", "attitude sigma (µrad)", "Mahalanobis²", "within 3 sigma"]
+    att = d["attitude_sigma_rad"]
+    how = f"from the other {len(d['frames']) - 1} frames (leave one out)" if att == "leave-one-out" else f"{att:g} rad"
     return (rt.table(head, rows) + f"\n*{d['measured']} of {len(d['frames'])} frames measured, {d['within_3_sigma']} "
-            f"within 3 sigma; attitude sigma {d['attitude_sigma_rad']:g} rad.*\n" + rt.source(rel, d))
+            f"within 3 sigma (Mahalanobis² of range and both lateral axes below 14.16, chi-square's 99.73 % with 3 "
+            f"degrees of freedom); attitude sigma {how}.*\n" + rt.source(rel, d))
