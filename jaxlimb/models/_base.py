@@ -105,3 +105,34 @@ class LimbModel(eqx.Module):
     def free_indices(self, fixed: Sequence[str] = ()) -> tuple[int, ...]:
         names = self.param_names
         return tuple(i for i, n in enumerate(names) if n not in set(fixed))
+
+
+def fused_model(name: str, params_type: type[LimbParams], intensity: Callable[..., Array],
+                value_and_columns: Callable[..., tuple[Array, tuple[Array, ...]]]) -> LimbModel:
+    """A :class:`LimbModel` whose Jacobian columns (and their ``(n, p)`` stack) are those of its one fused pass
+    ``value_and_columns(params, coords) -> (intensity, columns)``: the derivative of the function as computed.
+
+    Parameters
+    ----------
+    name : str
+        The model's short name.
+    params_type : type
+        Its :class:`LimbParams` subclass.
+    intensity : callable
+        ``intensity(params, coords) -> (n,)`` (the documented public function; ``value_and_columns(...)[0]``).
+    value_and_columns : callable
+        The fused pass.
+
+    Returns
+    -------
+    LimbModel
+        The model.
+    """
+
+    def columns(p: LimbParams, rc: Array) -> tuple[Array, ...]:
+        return value_and_columns(p, rc)[1]
+
+    def jacobian(p: LimbParams, rc: Array) -> Array:
+        return jnp.stack(value_and_columns(p, rc)[1], axis=-1)
+
+    return LimbModel(name, params_type, intensity, jacobian, columns, value_and_columns)

@@ -45,7 +45,7 @@ import numpy as np
 from jax.scipy.special import erfcx, log_ndtr, ndtr
 from jaxtyping import ArrayLike
 
-from ._base import LimbModel, LimbParams
+from ._base import LimbParams, fused_model
 
 #: Gauss-Legendre nodes of the on-disc column's blur integral (module docstring).
 N_NODES = 24
@@ -172,15 +172,7 @@ def corona_intensity(p: CoronaParams, rc):
     return _value_and_columns(p, rc)[0]
 
 
-def _columns(p: CoronaParams, rc):
-    return _value_and_columns(p, rc)[1]
-
-
-def _jacobian(p: CoronaParams, rc):
-    return jnp.stack(_columns(p, rc), axis=-1)
-
-
-CORONA = LimbModel("corona", CoronaParams, corona_intensity, _jacobian, _columns, _value_and_columns)
+CORONA = fused_model("corona", CoronaParams, corona_intensity, _value_and_columns)
 """The EUV limb model (module docstring), with its analytic Jacobian."""
 
 

@@ -52,7 +52,7 @@ import jax.numpy as jnp
 import numpy as np
 from jaxtyping import ArrayLike
 
-from ._base import LimbModel, LimbParams
+from ._base import LimbParams, fused_model
 
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(24)
 #: Distances at which the profile is tabulated by :func:`limb_darkened_intensity`.
@@ -226,17 +226,8 @@ def limb_darkened_intensity(p: LimbDarkenedParams, rc):
     return _value_and_columns(p, rc)[0]
 
 
-def _columns(p: LimbDarkenedParams, rc):
-    return _value_and_columns(p, rc)[1]
-
-
-def _jacobian(p: LimbDarkenedParams, rc):
-    return jnp.stack(_columns(p, rc), axis=-1)
-
-
-LIMB_DARKENED = LimbModel("limb_darkened", LimbDarkenedParams, limb_darkened_intensity, _jacobian, _columns,
-                          _value_and_columns)
-"""The limb-darkened disc model (module docstring); Jacobian by forward-mode autodiff."""
+LIMB_DARKENED = fused_model("limb_darkened", LimbDarkenedParams, limb_darkened_intensity, _value_and_columns)
+"""The limb-darkened disc model (module docstring); its Jacobian the analytic columns of the fused pass."""
 
 
 __all__ = ["LIMB_DARKENED", "SUN_FIXED", "U1_DEFAULT", "U2_DEFAULT", "LimbDarkenedParams", "limb_darkened_intensity",

@@ -82,7 +82,7 @@ import jax
 import jax.numpy as jnp
 
 from .._programs import stored_jit
-from ._base import LimbModel
+from ._base import LimbModel, fused_model
 from .blur_quadrature import blur_moments, blur_nodes, blur_window, curvature_blur, quadrature_nodes, window_terms
 from .profile_params import (PHYSICAL_L, PROFILE_FIXED, AnisoProfileParams, GlowProfileParams, LimbProfileParams,
                              MinnaertProfileParams, glow_fields, lunar_lambert_weight)
@@ -327,25 +327,16 @@ def _profile_value_and_columns(p: LimbProfileParams, rc):
     return p.ymin + A * F, tuple(cols[n] for n in type(p).field_names())
 
 
-def _profile_cols(p: LimbProfileParams, rc):
-    return _profile_value_and_columns(p, rc)[1]
-
-
-def _profile_jac(p: LimbProfileParams, rc):
-    return jnp.stack(_profile_cols(p, rc), axis=-1)
-
-
-LIMB_PROFILE = LimbModel("lunar_limb", LimbProfileParams, limb_profile_intensity, _profile_jac, _profile_cols,
-                         _profile_value_and_columns)
+LIMB_PROFILE = fused_model("lunar_limb", LimbProfileParams, limb_profile_intensity, _profile_value_and_columns)
 """The physical lunar-Lambert limb profile model (circle geometry)."""
-LIMB_PROFILE_MINNAERT = LimbModel("lunar_limb_minnaert", MinnaertProfileParams, limb_profile_intensity, _profile_jac,
-                                  _profile_cols, _profile_value_and_columns)
+LIMB_PROFILE_MINNAERT = fused_model("lunar_limb_minnaert", MinnaertProfileParams, limb_profile_intensity,
+                                    _profile_value_and_columns)
 """The profile widened by a limb-brightening exponent ``kappa`` (:class:`MinnaertProfileParams`)."""
-LIMB_PROFILE_GLOW = LimbModel("lunar_limb_glow", GlowProfileParams, limb_profile_intensity, _profile_jac,
-                              _profile_cols, _profile_value_and_columns)
+LIMB_PROFILE_GLOW = fused_model("lunar_limb_glow", GlowProfileParams, limb_profile_intensity,
+                                _profile_value_and_columns)
 """The profile widened by an exponential glow above the limb (:class:`GlowProfileParams`)."""
-LIMB_PROFILE_ANISO = LimbModel("lunar_limb_aniso", AnisoProfileParams, limb_profile_intensity, _profile_jac,
-                               _profile_cols, _profile_value_and_columns)
+LIMB_PROFILE_ANISO = fused_model("lunar_limb_aniso", AnisoProfileParams, limb_profile_intensity,
+                                 _profile_value_and_columns)
 """The profile with an anisotropic blur (:class:`AnisoProfileParams`: a motion smear)."""
 
 
