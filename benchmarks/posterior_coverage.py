@@ -20,7 +20,8 @@ records where the truth falls: the credible level of the true body centre (2-D) 
 posterior, in the model-error-adjusted posterior (Shaby's open-faced sandwich to ``locate``'s covariance) and in
 ``locate``'s Gaussian.  Coverage of the 68.27 % / 95.45 % regions = the fraction of levels below them (calibrated:
 68 +- 7 % / 95 +- 4 % over >= 100 renders, the issue's target).  Trials run through the Monte-Carlo engine into
-``--out-dir`` (resumable); the summary goes to ``benchmarks/results/posterior_coverage.json``.
+``--out-dir`` (resumable); the summary goes to ``benchmarks/results/posterior_coverage.json`` (``wall_s`` is that
+process's own: a gathering run's ``chunks_resumed`` counts what the shards computed).
 """
 
 from __future__ import annotations
@@ -139,7 +140,8 @@ def main(argv: list[str] | None = None) -> dict:
            "median_post_over_locate_r": _median_ok(res, "post_over_locate_r"),
            "converged": int(np.nansum(res.values.get("converged", np.zeros(res.n))[res.ok])), "seed": args.seed,
            "walkers": args.walkers,
-           "wall_s": time.perf_counter() - t0, "environment": environment(),
+           "wall_s": time.perf_counter() - t0, "chunks_run": res.chunks_run, "chunks_resumed": res.chunks_skipped,
+           "environment": environment(),
            "command": "python benchmarks/posterior_coverage.py " + " ".join(argv if argv is not None else sys.argv[1:])}
     save(args.name, out)
     if args.plot is not None:
