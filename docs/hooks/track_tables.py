@@ -1,7 +1,7 @@
 """The tables of the track page (``docs/track.md``), read from ``benchmarks/results/track_transfer*.json``.
 
 Registered with :mod:`results_tables` (loaded first by the docs hook): ``<!-- results: track_transfer -->``,
-``track_selfcal`` and ``track_cli``.
+``track_selfcal``, ``track_cli``, ``track_epic`` and ``track_noise``.
 """
 
 from __future__ import annotations
@@ -111,3 +111,23 @@ def track_epic(rel: str = "track_epic.json") -> str:
     return (rt.table(head, rows) + f"\n*{d['measured']} of {len(d['frames'])} frames measured, {d['within_3_sigma']} "
             f"within 3 sigma (Mahalanobis² of range and both lateral axes below 14.16, chi-square's 99.73 % with 3 "
             f"degrees of freedom); attitude sigma {how}.*\n" + rt.source(rel, d))
+
+
+@rt.renderer
+def track_noise(rel: str = "track_noise.json") -> str:
+    """``locate``'s covariance of the transfer's frames against their errors, per body (``benchmarks/track_noise.py``)."""
+    d = rt.load(rel)
+    nis = d.get("mean_nis_rendered") or {}
+    rows = []
+    for body, s in d["bodies"].items():
+        for comp, v in s.items():
+            if comp == "frames":
+                continue
+            rows.append([body, comp, rt.f(v["e2_over_N_mean"], 2), rt.f(v["e2_over_N_median"], 2),
+                         f"{100 * v['beyond_chi2_99']:.1f} %", rt.f(v["e2_over_R_mean"], 2),
+                         rt.f(v["M_over_N_median"], 1), rt.f(v["corr_log_e2_log_M"], 2),
+                         rt.f(nis[body], 2) if body in nis and comp == "row" else ""])
+    head = ["body", "component", "mean e²/N (1)", "median e²/N (0.45)", "e²/N > 6.63 (1 %)", "mean e²/R (1)",
+            "median M/N", "corr(log e²/N, log M/N)", "mean NIS (3)"]
+    return (rt.table(head, rows) + f"\n*{d['draws']} noise draws of every frame; N: `locate`'s noise-only bound, "
+            "M: its model-error term, R = N + M; expected values in brackets.*\n" + rt.source(rel, d))

@@ -1,0 +1,104 @@
+"""How ``locate``'s covariance of the rendered transfer's frames compares with their errors, per body and part.
+
+``locate`` reports a frame's covariance ``R = N + M``: ``N`` its noise-only bound (the ``crlb`` sigmas, their
+squares on the diagonal) and ``M`` its model-error term.  The filter of ``jaxlimb track`` keeps ``N`` and a
+share ``alpha`` of ``M`` per body (:mod:`jaxlimb.track.variance`).  Here, over every noise draw of the cache
+(``benchmarks/track_render.py``), for each body and measured component (row, column of the centre; the Earth's
+range or the Moon's radius), with ``e`` the error against the truth:
+
+* ``e^2 / N``: mean and median (chi-square with 1 degree of freedom: 1 and 0.455) and the fraction above 6.63
+  (its 99 % quantile: 1 % expected), i.e. is ``N`` the size of the errors, and are they Gaussian;
+* ``e^2 / R``: mean (1 if ``R`` is the size of the errors);
+* ``M / N``: median, and the correlation over frames of ``log(e^2 / N)`` with ``log(M / N)``: does a frame's
+  model-error term say which frames have the larger errors;
+* the mean NIS of each body's frames in ``benchmarks/results/track_transfer.json`` (the rendered Monte Carlo's
+  per-epoch NIS; 3 expected).
+
+    python benchmarks/track_noise.py --cache /tmp/track-cache      # -> results/track_noise.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _common import RESULTS, environment, save  # noqa: E402
+
+CHI2_1_99 = 6.635
+COMPONENTS = {"earth": ("row", "col", "range"), "moon": ("row", "col", "radius")}
+
+
+def ratios(arc, tr, draws: dict[str, dict[int, dict]]) -> dict[str, np.ndarray]:  # noqa: ANN001
+    """Per body, rows ``(e^2/N, e^2/R, M/N)`` by component, over every ``ok`` frame of every draw: ``(n, 3, 3)``."""
+    from track_transfer import THETA_TRUE, as_frames
+
+    from jaxlimb.track.scenario import true_measurements
+
+    z_true = true_measurements(tr)
+    out: dict[str, list] = {"earth": [], "moon": []}
+    for draw in draws.values():
+        ks = [k for k in sorted(draw) if draw[k].get("status") == "ok"]
+        fr = as_frames(arc, tr, [draw[k] for k in ks], tr.C_true[ks], THETA_TRUE, 0.0)
+        e2 = (fr.z - z_true[ks]) ** 2
+        N = np.einsum("kii->ki", fr.R_noise)
+        R = np.einsum("kii->ki", fr.R)
+        for i, k in enumerate(ks):
+            out[tr.bodies[k]].append(np.stack([e2[i] / N[i], e2[i] / R[i], (R[i] - N[i]) / N[i]]))
+    return {b: np.array(v) for b, v in out.items()}
+
+
+def summary(r: np.ndarray, names: tuple[str, ...]) -> dict:
+    """The numbers of the module docstring for one body's ``(n, 3, 3)`` ratios."""
+    out = {"frames": int(r.shape[0])}
+    for j, name in enumerate(names):
+        eN, eR, MN = r[:, 0, j], r[:, 1, j], r[:, 2, j]
+        ok = (eN > 0) & (MN > 0)
+        out[name] = {"e2_over_N_mean": float(eN.mean()), "e2_over_N_median": float(np.median(eN)),
+                     "beyond_chi2_99": float(np.mean(eN > CHI2_1_99)), "e2_over_R_mean": float(eR.mean()),
+                     "M_over_N_median": float(np.median(MN)),
+                     "corr_log_e2_log_M": float(np.corrcoef(np.log(eN[ok]), np.log(MN[ok]))[0, 1])}
+    return out
+
+
+def nis_by_body(tr, draws: dict[str, dict[int, dict]], rel: str = "track_transfer.json") -> dict[str, float] | None:  # noqa: ANN001
+    """Mean NIS of each body's epochs in the rendered Monte Carlo of ``results/track_transfer.json`` (its epochs: the
+    frames ``ok`` in some draw, as ``track_transfer.py`` keeps them)."""
+    path = RESULTS / rel
+    d = json.loads(path.read_text()) if path.exists() else {}
+    mc = d.get("monte_carlo_rendered")
+    keep = [k for k in range(len(tr.bodies)) if any(v.get(k, {}).get("status") == "ok" for v in draws.values())]
+    if not mc or len(mc["epoch_nis"]) != len(keep):
+        return None
+    nis, bodies = np.array(mc["epoch_nis"], float), np.array([tr.bodies[k] for k in keep])
+    return {b: float(np.nanmean(nis[bodies == b])) for b in ("earth", "moon")}
+
+
+def main(argv: list[str] | None = None) -> int:
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    from track_transfer import load_records, scenario
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cache", type=Path, required=True)
+    ap.add_argument("--n-frames", type=int, default=200)
+    ap.add_argument("--seed", type=int, default=38)
+    a = ap.parse_args(argv)
+    arc, _, tr = scenario(a.n_frames, a.seed)
+    draws = {k: v for k, v in load_records(a.cache).items() if k != "nominal"}
+    r = ratios(arc, tr, draws)
+    out = {"environment": environment(), "draws": len(draws),
+           "bodies": {b: summary(r[b], COMPONENTS[b]) for b in ("earth", "moon")},
+           "mean_nis_rendered": nis_by_body(tr, draws)}
+    print(json.dumps(out["bodies"], indent=1))
+    print(save("track_noise", out))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
