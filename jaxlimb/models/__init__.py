@@ -13,7 +13,7 @@ Every model carries its Jacobian beside its intensity and is checked by ``jaxlim
 (:mod:`.gradcheck`) against ``jax.jacfwd`` and central differences.
 """
 
-from ._base import LimbModel as LimbModel, LimbParams as LimbParams
+from ._base import LimbModel as LimbModel, LimbParams as LimbParams, fused_model as fused_model
 from .corona import CORONA as CORONA, CoronaParams as CoronaParams, corona_intensity as corona_intensity
 from .ellipse_ramp import (
     ELLIPSE_RAMP as ELLIPSE_RAMP,
