@@ -12,9 +12,10 @@ mean square of their angles between the quaternion's boresight and the metadata'
 ``sqrt(2)`` (two axes), so no frame's own error sizes its sigma; ``--attitude-sigma-rad`` sets it instead (the
 earlier default, 2e-5 rad, was the quaternion's five decimals: a rounding step, not an accuracy).  A frame
 ``locate`` refuses is reported with its check.  "Within 3 sigma": the squared Mahalanobis distance of the
-position error (range and the two lateral axes) below chi-square's 99.73 % quantile with 3 degrees of freedom.  ``locate`` runs with no tolerance on the centre's sigma (``--max-center-sigma-px``; ``locate``'s default
-refuses a centre whose sigma exceeds 1 px): a position with a wide sigma is still a measurement a filter can
-weigh, and the test is whether the metadata lies inside it.
+position error (range and the two lateral axes) below chi-square's 99.73 % quantile with 3 degrees of freedom.
+``locate`` runs with no tolerance on the centre's sigma (``--max-center-sigma-px``; ``locate``'s default refuses a
+centre whose sigma exceeds 1 px): a position with a wide sigma is still a measurement a filter can weigh, and the
+test is whether the metadata lies inside it.
 
 ``python benchmarks/track_epic.py`` -> ``benchmarks/results/track_epic.json``.
 """
