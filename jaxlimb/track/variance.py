@@ -112,7 +112,8 @@ def variance_split(frames: Frames, prop: Propagator, x_ref: np.ndarray, t0: floa
                    used: np.ndarray | None = None) -> VarianceSplit | None:
     """The split of each body's model error (module docstring), linearised about the state ``x_ref`` at ``t0``
     (a smoothed or batch estimate) over the frames ``used`` (default all); ``None`` without ``locate``'s
-    noise/model split."""
+    noise/model split.  A body none of whose frames is used (the gate refused them all) keeps ``locate``'s whole
+    covariance (``alpha`` 1) and no common part."""
     if frames.R_noise is None:
         return None
     used = np.ones(len(frames), bool) if used is None else np.asarray(used, bool)
@@ -120,7 +121,9 @@ def variance_split(frames: Frames, prop: Propagator, x_ref: np.ndarray, t0: floa
     lin = linearise(f, prop, x_ref, t0, replace(bias, select=bias.select[used]))
     span = float(f.t[-1] - f.t[0])
     names = body_names(f)
-    bodies = tuple(dict.fromkeys(names))
+    # a body whose every frame the gate refused has nothing to split: locate's whole covariance, no common part
+    bodies = tuple(dict.fromkeys(names + body_names(frames) + [n.split(".")[0] for n in bias.names]))
+    seen = np.isin(np.array(bodies), np.array(names))
     owner = np.array([bodies.index(n.split(".")[0]) for n in bias.names], int)
     Ew, walk_owner = walk_columns(lin.E, f.t)
     args = (lin.r, lin.G * _STATE_SCALE, lin.E * bias.sigma, Ew * (bias.sigma[walk_owner] / np.sqrt(span)),
@@ -132,9 +135,10 @@ def variance_split(frames: Frames, prop: Propagator, x_ref: np.ndarray, t0: floa
         v, g = _value_and_grad(jnp.asarray(p), *args)
         return float(v), np.asarray(g, float)
 
-    common = [(0.0, 1.0) if b else (0.0, 0.0) for b in np.isin(np.arange(m), owner)]
-    start = np.array([0.5] * m + [0.5 if hi else 0.0 for _, hi in common] * 2)
-    sol = minimize(fg, start, jac=True, method="L-BFGS-B", bounds=[(0.0, 1.0)] * m + common * 2)
+    common = [(0.0, 1.0) if b and s else (0.0, 0.0) for b, s in zip(np.isin(np.arange(m), owner), seen)]
+    independent = [(0.0, 1.0) if s else (1.0, 1.0) for s in seen]
+    start = np.array([0.5 if s else 1.0 for s in seen] + [0.5 if hi else 0.0 for _, hi in common] * 2)
+    sol = minimize(fg, start, jac=True, method="L-BFGS-B", bounds=independent + common * 2)
     if not np.isfinite(sol.fun):
         raise ConvergenceError(f"the split of the bodies' model error did not converge ({sol.message})")
     p = np.asarray(sol.x)

@@ -88,3 +88,17 @@ def test_batch_with_a_walk_agrees_with_the_smoother(setup):
     assert np.all(np.abs(fit.x0 - res.x_smooth[0]) < 0.03 * sig), (fit.x0 - res.x_smooth[0]) / sig
     np.testing.assert_allclose(sig, np.sqrt(np.diag(res.P_smooth[0])), rtol=0.01)
     assert np.all(np.diag(fit.P0)[:3] > np.diag(still.P0)[:3])  # the walk widens the arc's covariance
+
+
+def test_a_body_whose_every_frame_was_gated_keeps_locates_covariance(setup):
+    arc, prop, tr = setup
+    fr = locate_like_frames(arc, tr, np.random.default_rng(3), 0.0, independent=1.0)
+    bm = bias_model(fr)
+    moon = fr.radius_km < 3000.0  # the Moon's frames (1737 km); the Earth's are 6378 km
+    assert moon.any() and (~moon).any()
+    split = variance_split(fr, prop, tr.x0, 0.0, bm, used=~moon)  # the gate refused every Moon frame
+    i = split.bodies.index("moon")
+    assert split.alpha[i] == 1.0 and split.beta[i] == 0.0 and split.gamma[i] == 0.0
+    applied, kept = split.apply(fr, bm)  # every frame, the Moon's too: its covariance is locate's own
+    np.testing.assert_allclose(applied.R[moon], fr.R[moon])
+    assert not any(n.startswith("moon.") for n in kept.names)
