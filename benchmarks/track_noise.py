@@ -67,11 +67,13 @@ def summary(r: np.ndarray, names: tuple[str, ...]) -> dict:
 
 def nis_by_body(tr, draws: dict[str, dict[int, dict]], rel: str = "track_transfer.json") -> dict[str, float] | None:  # noqa: ANN001
     """Mean NIS of each body's epochs in the rendered Monte Carlo of ``results/track_transfer.json`` (its epochs: the
-    frames ``ok`` in some draw, as ``track_transfer.py`` keeps them)."""
+    frames ``track_transfer.py`` keeps)."""
+    from track_transfer import kept_frames
+
     path = RESULTS / rel
     d = json.loads(path.read_text()) if path.exists() else {}
     mc = d.get("monte_carlo_rendered")
-    keep = [k for k in range(len(tr.bodies)) if any(v.get(k, {}).get("status") == "ok" for v in draws.values())]
+    keep = kept_frames(draws.values(), len(tr.bodies))
     if not mc or len(mc["epoch_nis"]) != len(keep):
         return None
     nis, bodies = np.array(mc["epoch_nis"], float), np.array([tr.bodies[k] for k in keep])

@@ -71,6 +71,11 @@ def load_records(cache: Path) -> dict[str, dict[int, dict]]:
     return out
 
 
+def kept_frames(draws, n_frames: int) -> list[int]:  # noqa: ANN001
+    """The frames the study keeps (its epochs): those ``locate`` answered ``ok`` in at least one of ``draws``."""
+    return [k for k in range(n_frames) if any(d.get(k, {}).get("status") == "ok" for d in draws)]
+
+
 def as_frames(arc, tr, recs: list[dict], C: np.ndarray, theta: np.ndarray, att_sigma: float):  # noqa: ANN001, ANN201
     from jaxlimb.track import frames_from_records
 
@@ -289,7 +294,7 @@ def main(argv: list[str] | None = None) -> int:
     arc, prop, tr = scenario(a.n_frames, a.seed)
     recs = load_records(a.cache)
     draws = [v for k, v in recs.items() if k != "nominal"]
-    keep = [k for k in range(a.n_frames) if any(d.get(k, {}).get("status") == "ok" for d in draws)]
+    keep = kept_frames(draws, a.n_frames)
     skip = set(a.skip.split(","))
     out_errors = measurement_errors(arc, tr, draws[0], keep)
     print("errors", out_errors, flush=True)
