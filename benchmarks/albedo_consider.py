@@ -1,0 +1,92 @@
+"""Would an unknown albedo field's consider covariance make ``locate``'s Moon covariance honest, and at what cost?
+
+Usage::
+
+    .venv/bin/python benchmarks/albedo_consider.py [--n 6] [--seed 2026] [--families own,spots,...] [--cache DIR]
+
+The Moon frames of ``benchmarks/families.py`` (same seeds, same cache), each through
+:func:`jaxlimb.analysis.located.located_fit` and :func:`jaxlimb.analysis.albedo_consider.albedo_consider_of`.  Per
+family: the mean NEES of the body centre (chi-square 2 dof expects 2) with ``locate``'s covariance and with it widened
+by what its model-error terms did not carry of the albedo field's consider term; the field's median amplitude; and the
+median ratio of the widened centre sigma to ``locate``'s.  Results: ``benchmarks/results/albedo_consider.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+
+def frame_record(case) -> dict:  # noqa: ANN001
+    """One frame: ``locate``'s centre error and NEES with and without the albedo term, or its typed failure."""
+    from jaxlimb.analysis.albedo_consider import albedo_consider_of
+    from jaxlimb.analysis.located import located_fit
+    from jaxlimb.errors import JaxlimbError
+
+    try:
+        lf = located_fit(case.image, case.camera, case.hints)
+    except JaxlimbError as e:
+        return {"status": type(e).__name__}
+    ac = albedo_consider_of(lf)
+    if ac is None:
+        return {"status": "not_profile"}
+    e = np.asarray(lf.measurement.center_rc, float) - np.asarray(case.truth.body_center_rc, float)
+    return {"status": "ok", "center_err_px": float(np.hypot(*e)), "tau": ac.tau, "ell_deg": ac.ell_deg,
+            "nees_locate": float(e @ np.linalg.solve(ac.locate, e)), "nees_widened": float(e @ np.linalg.solve(ac.widened, e)),
+            "sigma_ratio": math.sqrt(np.trace(ac.widened) / np.trace(ac.locate))}
+
+
+def summarise(recs: list[dict]) -> dict:
+    """Per-family means and medians over the answered frames."""
+    ok = [r for r in recs if r["status"] == "ok"]
+    if not ok:
+        return {"n": len(recs), "n_ok": 0}
+    col = lambda k: np.array([r[k] for r in ok])  # noqa: E731
+    return {"n": len(recs), "n_ok": len(ok), "nees_locate": float(col("nees_locate").mean()),
+            "nees_widened": float(col("nees_widened").mean()), "tau_median": float(np.median(col("tau"))),
+            "sigma_ratio_median": float(np.median(col("sigma_ratio"))),
+            "center_median_px": float(np.median(col("center_err_px")))}
+
+
+def main(argv: list[str] | None = None) -> dict:
+    import jax
+    from tqdm import tqdm
+
+    jax.config.update("jax_enable_x64", True)
+    from _common import environment, save
+    from families import family_case
+
+    from jaxlimb.render.independent import MOON_FAMILIES
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--n", type=int, default=6, help="frames per family (default 6)")
+    ap.add_argument("--seed", type=int, default=2026)
+    ap.add_argument("--families", default=None, help="comma-separated subset (default all Moon families)")
+    ap.add_argument("--cache", type=Path, default=None, help="directory keeping the renders (shared with families.py)")
+    a = ap.parse_args(argv)
+    fams = a.families.split(",") if a.families else list(MOON_FAMILIES)
+    t0 = time.perf_counter()
+    records: dict[str, list[dict]] = {}
+    for fam, i in tqdm([(f, i) for f in fams for i in range(a.n)], desc="albedo consider"):
+        records.setdefault(fam, []).append(frame_record(family_case("moon", fam, i, a.seed, a.cache)))
+    summary = {f: summarise(r) for f, r in records.items()}
+    summary["all"] = summarise([x for r in records.values() for x in r])
+    for f, s in summary.items():
+        if s["n_ok"]:
+            print(f"{f:9s} {s['n_ok']}/{s['n']}  NEES {s['nees_locate']:5.2f} -> {s['nees_widened']:5.2f}  "
+                  f"tau {s['tau_median']:.3f}  sigma x {s['sigma_ratio_median']:.2f}")
+    out = {"args": {"n": a.n, "seed": a.seed, "families": fams}, "environment": environment(),
+           "wall_s": time.perf_counter() - t0, "records": records, "summary": summary}
+    save("albedo_consider", out)
+    return out
+
+
+if __name__ == "__main__":
+    main()
