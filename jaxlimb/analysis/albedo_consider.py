@@ -125,7 +125,7 @@ class AlbedoConsider:
         return self.locate + self.added
 
 
-def _center_map(lf: LocatedFit) -> np.ndarray:
+def center_map(lf: LocatedFit) -> np.ndarray:
     """The body centre's derivative ``(2, q)`` by the fit's free parameters (central differences of the mapping)."""
     p = lf.params
     cols = []
@@ -157,11 +157,11 @@ def albedo_consider_of(lf: LocatedFit) -> AlbedoConsider | None:
     coords = np.asarray(rr.data.coords, float)
     Ca, tau, ell = albedo_consider(p, coords, J, r, w, signed_distance(p, coords, padded))
     C, C0 = np.asarray(rr.fit.covariance), rr.covariance_noise
-    G = _center_map(lf)
+    G = center_map(lf)
     cov = lf.measurement.covariance
     P = np.array([[cov["center_r"]["center_r"], cov["center_r"]["center_c"]],
                   [cov["center_c"]["center_r"], cov["center_c"]["center_c"]]])
     return AlbedoConsider(tau, ell, G @ Ca @ G.T, G @ positive_part(Ca - (C - C0)) @ G.T, P)
 
 
-__all__ = ["MAP_STEP_PX", "AlbedoConsider", "albedo_consider", "albedo_consider_of", "along_limb"]
+__all__ = ["MAP_STEP_PX", "AlbedoConsider", "albedo_consider", "albedo_consider_of", "along_limb", "center_map"]
