@@ -42,8 +42,23 @@ MAP_STEP_PX = 1e-4
 
 
 def along_limb(A: np.ndarray, s: np.ndarray, psi: np.ndarray) -> np.ndarray:
-    """``A`` (``(n,)`` or ``(n, k)``) less its least-squares quadratic in the position angle ``psi`` (rad), about the
-    middle of the pixels' arc, over the pixels at the same distance ``s`` (px) from the limb, in 1 px bins."""
+    """``A`` less its least-squares quadratic in the position angle, about the middle of the pixels' arc, over the
+    pixels at the same distance from the limb (1 px bins): what varies along the limb.
+
+    Parameters
+    ----------
+    A : np.ndarray (n,) or (n, k)
+        Values (residuals) or columns at the pixels.
+    s : np.ndarray (n,)
+        Signed distance (px) of the pixels to the limb.
+    psi : np.ndarray (n,)
+        Their position angle (rad) about the limb's centre.
+
+    Returns
+    -------
+    np.ndarray
+        Shaped as ``A``.
+    """
     b = np.floor(np.asarray(s, float)).astype(np.int64)
     b -= b.min()
     ps = np.sort(psi)
@@ -126,7 +141,19 @@ class AlbedoConsider:
 
 
 def center_map(lf: LocatedFit) -> np.ndarray:
-    """The body centre's derivative ``(2, q)`` by the fit's free parameters (central differences of the mapping)."""
+    """The body centre's derivative by the fit's free parameters: central differences of ``locate``'s mapping, step
+    :data:`MAP_STEP_PX`.
+
+    Parameters
+    ----------
+    lf : LocatedFit
+        :func:`~jaxlimb.analysis.located.located_fit`'s answer.
+
+    Returns
+    -------
+    np.ndarray (2, q)
+        ``d (row, col) / d x`` over ``lf.free``.
+    """
     p = lf.params
     cols = []
     for k in lf.free:
