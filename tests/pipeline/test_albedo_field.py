@@ -58,3 +58,28 @@ def test_albedo_field_takes_the_profile_that_explains_the_limb_with_the_field(fa
     P = np.array([[c["center_r"]["center_r"], c["center_r"]["center_c"]], [c["center_c"]["center_r"], c["center_c"]["center_c"]]])
     assert float(np.hypot(*e)) < 0.05 and float(e @ np.linalg.solve(P, e)) < 13.8
     assert (m.extras["profile"]["kappa"] > 0.1) == widened
+
+
+def test_restricted_likelihood_takes_the_fits_share_of_the_field_out():
+    """Residuals of a least-squares fit (centre, radius, amplitude, sky) to pixels under a field of amplitude 0.1 and
+    noise: the field's basis as the residuals see it gives the amplitude back (median of 5 draws within 30 %); the
+    field's own basis reads what the fit absorbed as more field (median at least twice the truth)."""
+    from jaxlimb.models.lunar_lambert import profile_model
+    from jaxlimb.pipeline.profile.albedo_field import restricted
+
+    p = LimbProfileParams(r0=300.0, c0=310.0, a=60.0, theta=0.0, rho=1.0, sigma=0.9, amp=1000.0, ymin=5.0, sun_r=0.0,
+                          sun_c=1.0, phase=0.3, inv_f=1e-4, L=0.5)
+    rng = np.random.default_rng(5)
+    ang, d = rng.uniform(-0.5 * math.pi, 0.5 * math.pi, 3000), 60.0 + rng.uniform(-6.0, 6.0, 3000)
+    rc = np.column_stack([300.0 + d * np.sin(ang), 310.0 + d * np.cos(ang)])
+    _, cols = profile_model(p).intensity_and_jacobian_columns(p, jax.numpy.asarray(rc))
+    names = profile_model(p).param_names
+    J = np.stack([np.asarray(cols[names.index(k)]) for k in ("r0", "c0", "a", "amp", "ymin")], axis=1)
+    Q, S = field_basis(p, rc, math.radians(16.0))
+    fit_out = np.eye(len(rc)) - J @ np.linalg.pinv(J)
+    taus = []
+    for _ in range(5):
+        r = fit_out @ (Q @ (0.1 * S * rng.normal(size=S.size)) + 5.0 * rng.normal(size=len(rc)))
+        taus.append([math.sqrt(field_likelihood(r, *b)[1]) for b in (restricted((Q, S), J), (Q, S))])
+    own, raw = np.median(taus, axis=0)
+    assert 0.07 < own < 0.13 and raw > 0.2, taus

@@ -9,7 +9,8 @@ Bayesian Cramér--Rao bound with the albedo unknown (Van Trees 1968, Sec. 2.4).
 
 Nothing about the albedo is assumed beyond a smooth field: its amplitude ``tau``, the noise ``s`` and the correlation
 length ``ell`` (of :data:`ELL_DEG`) are those of largest marginal likelihood of the one-albedo fit's residuals
-(type-II maximum likelihood, Rasmussen & Williams 2006, Sec. 5.4).  With ``U = K C_ell^{1/2} = Q S V^T`` (thin
+(type-II maximum likelihood, Rasmussen & Williams 2006, Sec. 5.4), under the field's columns as those residuals see
+them (:func:`restricted`).  With ``U = K C_ell^{1/2} = Q S V^T`` (thin
 SVD), ``Sigma`` has eigenvalues ``s^2 + tau^2 S_j^2`` on ``Q`` and ``s^2`` elsewhere, so the likelihood costs ``O(m)``
 per evaluation and the whitened residual is ``(r - Q (d * Q^T r)) / s``, ``d = 1 - s / sqrt(s^2 + tau^2 S^2)``.  A
 uniform albedo gives ``tau`` near 0 and the one-albedo answer back.
@@ -205,6 +206,30 @@ def model_spread(best: RefineResult, others: list[tuple[float, RefineResult]]) -
     return T
 
 
+def restricted(basis: tuple[np.ndarray, np.ndarray], J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The field's basis as a least-squares fit's residuals see it: ``Q, S`` of ``(I - J J^+) Q S``.  The residuals
+    lack what the fit absorbed of the field; with the field's own basis that lack reads as more field (restricted
+    maximum likelihood, Patterson & Thompson 1971, takes it out).
+
+    Parameters
+    ----------
+    basis : tuple of np.ndarray
+        :func:`field_basis`'s ``Q`` ``(n, m)`` and ``S`` ``(m,)``.
+    J : np.ndarray (n, q)
+        The fit's Jacobian by its free parameters.
+
+    Returns
+    -------
+    tuple of np.ndarray
+        ``Q, S`` of the projected columns.
+    """
+    U = basis[0] * basis[1]
+    U = U - J @ np.linalg.lstsq(J, U, rcond=None)[0]
+    w, V = np.linalg.eigh(U.T @ U)
+    keep = w > 1e-12 * w.max()
+    return (U @ V[:, keep]) / np.sqrt(w[keep]), np.sqrt(w[keep])
+
+
 def physical(rr: RefineResult) -> bool:
     """Whether a fit's lunar-Lambert weight ``L`` is in the band of lunar-Lambert-like limbs
     (:func:`~jaxlimb.pipeline.profile.passes.l_band`, the default profile's own test), its width from the one-albedo
@@ -264,7 +289,9 @@ def albedo_field_refit(frame: Frame, rr: RefineResult, base: RefineResult | None
         r = system[1]
         if type(c.fit.params) not in (LimbProfileParams, MinnaertProfileParams):  # a glow or a smear, without field
             return 0.5 * r.size * (1.0 + math.log(r @ r / r.size)) + len(c.fit.free), c, None, None, None, True, 0.0
-        (Q, S), (s2, t2, nll) = min(((b, field_likelihood(r, *b)) for b in bases), key=lambda f: f[1][2])
+        # (s, tau, ell) from the residuals under the field's columns as they see them: the fit's part taken out
+        (Q, S), (s2, t2, nll) = min(((b, field_likelihood(r, *restricted(b, system[0]))) for b in bases),
+                                    key=lambda f: f[1][2])
         out, Jw, rw, ok, r_out = gls_refit(frame, c, model, Q, S, s2, t2, system=system)
         if not ok or not physical(out.with_covariance(c.fit.covariance)):  # (the band of the one-albedo fit)
             return math.inf, c, out, Jw, rw, False, s2
@@ -287,4 +314,4 @@ def albedo_field_refit(frame: Frame, rr: RefineResult, base: RefineResult | None
 
 
 __all__ = ["ELL_DEG", "TAU_MAX", "albedo_field_refit", "field_basis", "field_likelihood", "gls_refit", "model_spread",
-           "physical"]
+           "physical", "restricted"]
