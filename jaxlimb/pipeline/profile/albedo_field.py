@@ -285,13 +285,11 @@ def albedo_field_refit(frame: Frame, rr: RefineResult, base: RefineResult | None
 
     def evidence(c: RefineResult):
         model = profile_model(c.fit.params)
-        system = weighted_system(c, model)
-        r = system[1]
+        r = (system := weighted_system(c, model))[1]
         if type(c.fit.params) not in (LimbProfileParams, MinnaertProfileParams):  # a glow or a smear, without field
             return 0.5 * r.size * (1.0 + math.log(r @ r / r.size)) + len(c.fit.free), c, None, None, None, True, 0.0
-        # (s, tau, ell) from the residuals under the field's columns as they see them: the fit's part taken out
         (Q, S), (s2, t2, nll) = min(((b, field_likelihood(r, *restricted(b, system[0]))) for b in bases),
-                                    key=lambda f: f[1][2])
+                                    key=lambda f: f[1][2])  # (s, tau, ell): the fit's part of the field taken out
         out, Jw, rw, ok, r_out = gls_refit(frame, c, model, Q, S, s2, t2, system=system)
         if not ok or not physical(out.with_covariance(c.fit.covariance)):  # (the band of the one-albedo fit)
             return math.inf, c, out, Jw, rw, False, s2
