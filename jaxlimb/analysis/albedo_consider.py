@@ -33,7 +33,7 @@ from ..model_error import positive_part
 from ..models import LimbProfileParams
 from ..models.lunar_lambert import profile_model
 from ..models.profile_columns import albedo_field_factor
-from ..pipeline.profile.albedo_field import ELL_DEG, field_likelihood
+from ..pipeline.profile.albedo_field import ELL_DEG, field_likelihood, thin_svd
 from ..pipeline.profile.model_error import signed_distance, weighted_system
 from .located import LocatedFit
 
@@ -73,13 +73,6 @@ def along_limb(A: np.ndarray, s: np.ndarray, psi: np.ndarray) -> np.ndarray:
     return A - Qb @ (Qb.T @ A)
 
 
-def _thin_svd(U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    w, V = np.linalg.eigh(U.T @ U)
-    keep = w > 1e-12 * w.max()
-    S = np.sqrt(w[keep])
-    return (U @ V[:, keep]) / S, S
-
-
 def albedo_consider(p: LimbProfileParams, coords: np.ndarray, J: np.ndarray, r: np.ndarray, w: np.ndarray,
                     s: np.ndarray) -> tuple[np.ndarray, float, float]:
     """The consider covariance ``tau^2 G U U^T G^T`` of a least-squares profile fit (module docstring).
@@ -109,7 +102,7 @@ def albedo_consider(p: LimbProfileParams, coords: np.ndarray, J: np.ndarray, r: 
     for ell in ELL_DEG:
         U = albedo_field_factor(q, padded, 1.0, math.radians(ell))[:n] * w[:, None]
         GU = np.linalg.lstsq(J, U, rcond=None)[0]
-        _, t2, nll = field_likelihood(rv, *_thin_svd(along_limb(U - J @ GU, s, psi)))
+        _, t2, nll = field_likelihood(rv, *thin_svd(along_limb(U - J @ GU, s, psi)))
         if nll < best[0]:
             best = (nll, t2, GU, ell)
     _, t2, GU, ell = best

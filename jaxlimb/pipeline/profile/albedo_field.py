@@ -70,9 +70,25 @@ def field_basis(p: LimbProfileParams, coords: np.ndarray, ell_rad: float) -> tup
     """
     n = coords.shape[0]
     padded = np.concatenate([coords, np.repeat(coords[:1], bucket_size(n) - n, axis=0)])  # one program per bucket
-    U = albedo_field_factor(p, padded, 1.0, ell_rad)[:n]
-    w, V = np.linalg.eigh(U.T @ U)  # U = Q S V^T through its Gram matrix: n r^2, not an SVD's n r^2 with QR
-    keep = w > 1e-12 * w.max()  # (directions with S below 1e-6 of the largest are noise only: d ~ 0 there)
+    return thin_svd(albedo_field_factor(p, padded, 1.0, ell_rad)[:n])
+
+
+def thin_svd(U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``Q, S`` of ``U = Q S V^T`` through the Gram matrix (``n m^2``, not an SVD's ``n m^2`` with a QR); directions with
+    ``S`` below 1e-6 of the largest are dropped (noise only there: ``d ~ 0``).
+
+    Parameters
+    ----------
+    U : np.ndarray (n, m)
+        Columns.
+
+    Returns
+    -------
+    Q : np.ndarray (n, k)
+    S : np.ndarray (k,)
+    """
+    w, V = np.linalg.eigh(U.T @ U)
+    keep = w > 1e-12 * w.max()
     S = np.sqrt(w[keep])
     return (U @ V[:, keep]) / S, S
 
@@ -224,10 +240,7 @@ def restricted(basis: tuple[np.ndarray, np.ndarray], J: np.ndarray) -> tuple[np.
         ``Q, S`` of the projected columns.
     """
     U = basis[0] * basis[1]
-    U = U - J @ np.linalg.lstsq(J, U, rcond=None)[0]
-    w, V = np.linalg.eigh(U.T @ U)
-    keep = w > 1e-12 * w.max()
-    return (U @ V[:, keep]) / np.sqrt(w[keep]), np.sqrt(w[keep])
+    return thin_svd(U - J @ np.linalg.lstsq(J, U, rcond=None)[0])
 
 
 def physical(rr: RefineResult) -> bool:
@@ -312,4 +325,4 @@ def albedo_field_refit(frame: Frame, rr: RefineResult, base: RefineResult | None
 
 
 __all__ = ["ELL_DEG", "TAU_MAX", "albedo_field_refit", "field_basis", "field_likelihood", "gls_refit", "model_spread",
-           "physical", "restricted"]
+           "physical", "restricted", "thin_svd"]
