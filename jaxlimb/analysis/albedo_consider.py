@@ -9,8 +9,8 @@ the profile's columns ``K``, prior ``tau^2 C_ell``, ``U = K C_ell^{1/2}``).  The
 
 The amplitude ``tau`` and correlation length ``ell`` (of :data:`~jaxlimb.pipeline.profile.albedo_field.ELL_DEG`) are
 those of largest marginal likelihood (:func:`~jaxlimb.pipeline.profile.albedo_field.field_likelihood`) of what of the
-residuals varies *along* the limb: the residuals and the field's columns less, at each distance from the limb (1 px
-bins), a quadratic in the position angle (:func:`along_limb`), where a reflectance law's or a PSF's misfit lives.  The
+residuals varies *along* the limb: the residuals and the field's columns less, at each distance from the limb (bins of
+:data:`RADIAL_BIN_PX`), a quadratic in the position angle (:func:`along_limb`), where a reflectance law's or a PSF's misfit lives.  The
 field's columns are taken as the residuals see them, ``U - J G U`` (the part the fit absorbs taken out, as restricted
 maximum likelihood does; Patterson & Thompson 1971): with ``U`` itself the fit's absorption of a strong field reads as
 more field.
@@ -40,10 +40,14 @@ from .located import LocatedFit
 #: Step (px) of the central differences of the body-centre mapping.
 MAP_STEP_PX = 1e-4
 
+#: Width (px) of the bins of distance to the limb in :func:`along_limb`: fine against the edge's blur (a PSF sigma of
+#: about a pixel), over which a reflectance law's misfit changes.
+RADIAL_BIN_PX = 0.25
+
 
 def along_limb(A: np.ndarray, s: np.ndarray, psi: np.ndarray) -> np.ndarray:
     """``A`` less its least-squares quadratic in the position angle, about the middle of the pixels' arc, over the
-    pixels at the same distance from the limb (1 px bins): what varies along the limb.
+    pixels at the same distance from the limb (bins of :data:`RADIAL_BIN_PX`): what varies along the limb.
 
     Parameters
     ----------
@@ -59,7 +63,7 @@ def along_limb(A: np.ndarray, s: np.ndarray, psi: np.ndarray) -> np.ndarray:
     np.ndarray
         Shaped as ``A``.
     """
-    b = np.floor(np.asarray(s, float)).astype(np.int64)
+    b = np.floor(np.asarray(s, float) / RADIAL_BIN_PX).astype(np.int64)
     b -= b.min()
     ps = np.sort(psi)
     gaps = np.diff(np.concatenate([ps, ps[:1] + 2.0 * np.pi]))
@@ -184,4 +188,4 @@ def albedo_consider_of(lf: LocatedFit) -> AlbedoConsider | None:
     return AlbedoConsider(tau, ell, G @ Ca @ G.T, G @ positive_part(Ca - (C - C0)) @ G.T, P)
 
 
-__all__ = ["MAP_STEP_PX", "AlbedoConsider", "albedo_consider", "albedo_consider_of", "along_limb", "center_map"]
+__all__ = ["MAP_STEP_PX", "RADIAL_BIN_PX", "AlbedoConsider", "albedo_consider", "albedo_consider_of", "along_limb", "center_map"]
