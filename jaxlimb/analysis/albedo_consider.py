@@ -28,17 +28,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..fitting import bucket_size
 from ..model_error import positive_part
 from ..models import LimbProfileParams
 from ..models.lunar_lambert import profile_model
-from ..models.profile_columns import albedo_field_factor
-from ..pipeline.profile.albedo_field import ELL_DEG, field_likelihood, thin_svd
+from ..pipeline.profile.albedo_field import ELL_DEG, field_factor, field_likelihood, thin_svd
 from ..pipeline.profile.model_error import signed_distance, weighted_system
+from ..pipeline.report import covariance
 from .located import LocatedFit
-
-#: Step (px) of the central differences of the body-centre mapping.
-MAP_STEP_PX = 1e-4
 
 #: Width (px) of the bins of distance to the limb in :func:`along_limb`: fine against the edge's blur (a PSF sigma of
 #: about a pixel), over which a reflectance law's misfit changes.
@@ -98,13 +94,11 @@ def albedo_consider(p: LimbProfileParams, coords: np.ndarray, J: np.ndarray, r: 
         ``(C_a, tau, ell_deg)``: the term ``(q, q)`` over the free parameters, the field's amplitude and length.
     """
     q = LimbProfileParams(*[getattr(p, k) for k in LimbProfileParams.field_names()])
-    n = coords.shape[0]
-    padded = np.concatenate([coords, np.repeat(coords[:1], bucket_size(n) - n, axis=0)])  # one program per bucket
     psi = np.arctan2(coords[:, 0] - float(p.r0), coords[:, 1] - float(p.c0))
     rv = along_limb(r, s, psi)
     best = (math.inf, 0.0, np.zeros((J.shape[1], 1)), 0.0)
     for ell in ELL_DEG:
-        U = albedo_field_factor(q, padded, 1.0, math.radians(ell))[:n] * w[:, None]
+        U = field_factor(q, coords, math.radians(ell)) * w[:, None]
         GU = np.linalg.lstsq(J, U, rcond=None)[0]
         _, t2, nll = field_likelihood(rv, *thin_svd(along_limb(U - J @ GU, s, psi)))
         if nll < best[0]:
@@ -138,8 +132,8 @@ class AlbedoConsider:
 
 
 def center_map(lf: LocatedFit) -> np.ndarray:
-    """The body centre's derivative by the fit's free parameters: central differences of ``locate``'s mapping, step
-    :data:`MAP_STEP_PX`.
+    """The body centre's derivative by the fit's free parameters: the rows ``center_r, center_c`` of the Jacobian
+    ``locate``'s covariance stage maps the fit's covariance with (:func:`jaxlimb.pipeline.report.covariance`).
 
     Parameters
     ----------
@@ -151,13 +145,8 @@ def center_map(lf: LocatedFit) -> np.ndarray:
     np.ndarray (2, q)
         ``d (row, col) / d x`` over ``lf.free``.
     """
-    p = lf.params
-    cols = []
-    for k in lf.free:
-        v = float(getattr(p, k))
-        plus, minus = (lf.mapped(p.replace(**{k: v + d * MAP_STEP_PX}))["center_rc"] for d in (1.0, -1.0))
-        cols.append((np.asarray(plus, float) - np.asarray(minus, float)) / (2.0 * MAP_STEP_PX))
-    return np.stack(cols, axis=1)
+    cov = covariance(lf.final, lf.geo)
+    return cov.jacobian[[cov.names.index("center_r"), cov.names.index("center_c")]]
 
 
 def albedo_consider_of(lf: LocatedFit) -> AlbedoConsider | None:
@@ -188,4 +177,4 @@ def albedo_consider_of(lf: LocatedFit) -> AlbedoConsider | None:
     return AlbedoConsider(tau, ell, G @ Ca @ G.T, G @ positive_part(Ca - (C - C0)) @ G.T, P)
 
 
-__all__ = ["MAP_STEP_PX", "RADIAL_BIN_PX", "AlbedoConsider", "albedo_consider", "albedo_consider_of", "along_limb", "center_map"]
+__all__ = ["RADIAL_BIN_PX", "AlbedoConsider", "albedo_consider", "albedo_consider_of", "along_limb", "center_map"]

@@ -68,9 +68,29 @@ def field_basis(p: LimbProfileParams, coords: np.ndarray, ell_rad: float) -> tup
     Q : np.ndarray (n, m)
     S : np.ndarray (m,)
     """
+    return thin_svd(field_factor(p, coords, ell_rad))
+
+
+def field_factor(p: LimbProfileParams, coords: np.ndarray, ell_rad: float) -> np.ndarray:
+    """``U = K C_ell^{1/2}`` (module docstring, unit amplitude) at the profile ``p``, evaluated on the pixels padded to
+    their bucket (one program per bucket).
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        The profile.
+    coords : np.ndarray (n, 2)
+        Its pixels.
+    ell_rad : float
+        Correlation length (rad).
+
+    Returns
+    -------
+    np.ndarray (n, m)
+    """
     n = coords.shape[0]
-    padded = np.concatenate([coords, np.repeat(coords[:1], bucket_size(n) - n, axis=0)])  # one program per bucket
-    return thin_svd(albedo_field_factor(p, padded, 1.0, ell_rad)[:n])
+    padded = np.concatenate([coords, np.repeat(coords[:1], bucket_size(n) - n, axis=0)])
+    return albedo_field_factor(p, padded, 1.0, ell_rad)[:n]
 
 
 def thin_svd(U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -324,5 +344,5 @@ def albedo_field_refit(frame: Frame, rr: RefineResult, base: RefineResult | None
     return replace(out, fit=fit, noise_covariance=np.asarray(rr.covariance_noise))
 
 
-__all__ = ["ELL_DEG", "TAU_MAX", "albedo_field_refit", "field_basis", "field_likelihood", "gls_refit", "model_spread",
-           "physical", "restricted", "thin_svd"]
+__all__ = ["ELL_DEG", "TAU_MAX", "albedo_field_refit", "field_basis", "field_factor", "field_likelihood", "gls_refit",
+           "model_spread", "physical", "restricted", "thin_svd"]
