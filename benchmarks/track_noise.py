@@ -1,7 +1,7 @@
 """How ``locate``'s covariance of the rendered transfer's frames compares with their errors, per body and part.
 
-``locate`` reports a frame's covariance ``R = N + M``: ``N`` its noise-only bound (the ``crlb`` sigmas, their
-squares on the diagonal) and ``M`` its model-error term.  The filter of ``jaxlimb track`` keeps ``N`` and a
+``locate`` reports a frame's covariance ``R = N + M``: ``N`` its noise-only bound (``covariance_noise``: the Cramér--Rao
+bound with its correlations) and ``M`` its model-error term.  The filter of ``jaxlimb track`` keeps ``N`` and a
 share ``alpha`` of ``M`` per body (:mod:`jaxlimb.track.variance`).  Here, over every noise draw of the cache
 (``benchmarks/track_render.py``), for each body and measured component (row, column of the centre; the Earth's
 range or the Moon's radius), with ``e`` the error against the truth:
@@ -9,6 +9,9 @@ range or the Moon's radius), with ``e`` the error against the truth:
 * ``e^2 / N``: mean and median (chi-square with 1 degree of freedom: 1 and 0.455) and the fraction above 6.63
   (its 99 % quantile: 1 % expected), i.e. is ``N`` the size of the errors, and are they Gaussian;
 * ``e^2 / R``: mean (1 if ``R`` is the size of the errors);
+* the whole error's ``e^T N^-1 e`` with the bound's correlations (``covariance_noise``), with its variances
+  alone, and ``e^T R^-1 e``: mean (chi-square with 3 degrees of freedom: 3) and the fraction above 11.34 (its 99 %
+  quantile);
 * ``M / N``: median, and the correlation over frames of ``log(e^2 / N)`` with ``log(M / N)``: does a frame's
   model-error term say which frames have the larger errors;
 * the mean NIS of each body's frames in ``benchmarks/results/track_transfer.json`` (the rendered Monte Carlo's
@@ -30,26 +33,38 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import RESULTS, environment, save  # noqa: E402
 
 CHI2_1_99 = 6.635
+CHI2_3_99 = 11.345
 COMPONENTS = {"earth": ("row", "col", "range"), "moon": ("row", "col", "radius")}
 
 
-def ratios(arc, tr, draws: dict[str, dict[int, dict]]) -> dict[str, np.ndarray]:  # noqa: ANN001
-    """Per body, rows ``(e^2/N, e^2/R, M/N)`` by component, over every ``ok`` frame of every draw: ``(n, 3, 3)``."""
+def ratios(arc, tr, draws: dict[str, dict[int, dict]]) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:  # noqa: ANN001
+    """Per body, over every ``ok`` frame of every draw: rows ``(e^2/N, e^2/R, M/N)`` by component ``(n, 3, 3)``, and
+    the whole error's ``(e^T N^-1 e, e^T diag(N)^-1 e, e^T R^-1 e)`` ``(n, 3)``."""
     from track_transfer import THETA_TRUE, as_frames
 
     from jaxlimb.track.scenario import true_measurements
 
     z_true = true_measurements(tr)
     out: dict[str, list] = {"earth": [], "moon": []}
+    whole: dict[str, list] = {"earth": [], "moon": []}
     for draw in draws.values():
         ks = [k for k in sorted(draw) if draw[k].get("status") == "ok"]
         fr = as_frames(arc, tr, [draw[k] for k in ks], tr.C_true[ks], THETA_TRUE, 0.0)
-        e2 = (fr.z - z_true[ks]) ** 2
+        e = fr.z - z_true[ks]
+        e2 = e**2
         N = np.einsum("kii->ki", fr.R_noise)
         R = np.einsum("kii->ki", fr.R)
         for i, k in enumerate(ks):
             out[tr.bodies[k]].append(np.stack([e2[i] / N[i], e2[i] / R[i], (R[i] - N[i]) / N[i]]))
-    return {b: np.array(v) for b, v in out.items()}
+            whole[tr.bodies[k]].append([e[i] @ np.linalg.solve(fr.R_noise[i], e[i]), e2[i] @ (1.0 / N[i]),
+                                        e[i] @ np.linalg.solve(fr.R[i], e[i])])
+    return {b: np.array(v) for b, v in out.items()}, {b: np.array(v) for b, v in whole.items()}
+
+
+def vector_summary(q: np.ndarray) -> dict:
+    """Mean and fraction above chi-square(3)'s 99 % quantile of each of :func:`ratios`' whole-error forms."""
+    return {name: {"mean": float(q[:, j].mean()), "beyond_chi2_99": float(np.mean(q[:, j] > CHI2_3_99))}
+            for j, name in enumerate(("N", "N_variances_only", "R"))}
 
 
 def summary(r: np.ndarray, names: tuple[str, ...]) -> dict:
@@ -93,9 +108,10 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     arc, _, tr = scenario(a.n_frames, a.seed)
     draws = {k: v for k, v in load_records(a.cache).items() if k != "nominal"}
-    r = ratios(arc, tr, draws)
+    r, q = ratios(arc, tr, draws)
     out = {"environment": environment(), "draws": len(draws),
            "bodies": {b: summary(r[b], COMPONENTS[b]) for b in ("earth", "moon")},
+           "whole_error": {b: vector_summary(q[b]) for b in ("earth", "moon")},
            "mean_nis_rendered": nis_by_body(tr, draws)}
     print(json.dumps(out["bodies"], indent=1))
     print(save("track_noise", out))

@@ -58,7 +58,7 @@ def covariance(final: RefineResult, geo: BodyCenter) -> Covariance:
     return Covariance(list(geo.outputs) + [free[i] for i in other], 0.5 * (P + P.T), J)
 
 
-def crlb(frame: Frame, final: RefineResult, cov: Covariance) -> dict[str, float] | None:
+def crlb(frame: Frame, final: RefineResult, cov: Covariance) -> Covariance | None:
     r"""The Cramér--Rao bound at the estimate with :math:`\hat\sigma` as the noise level, propagated as the
     covariance.  Noise only: the model-error terms of the covariance (the profile's cluster-robust term,
     :func:`~jaxlimb.pipeline.profile.model_error.with_model_error`; the free ellipse's offset) are not in it.  With
@@ -77,9 +77,9 @@ def crlb(frame: Frame, final: RefineResult, cov: Covariance) -> dict[str, float]
 
     Returns
     -------
-    dict or None
-        ``{name: 1-sigma bound}`` in the units of the covariance's rows; ``None`` when off or the Fisher
-        matrix is singular.
+    Covariance or None
+        The bound over the covariance's rows, with its correlations (its diagonal's square roots are the result's
+        ``crlb``); ``None`` when off or the Fisher matrix is singular.
     """
     if not frame.opt.compute_crlb:
         return None
@@ -95,7 +95,7 @@ def crlb(frame: Frame, final: RefineResult, cov: Covariance) -> dict[str, float]
             C = cov.jacobian @ np.linalg.inv(fisher_information(model, fp, final.data, final.fixed, sigma)) @ cov.jacobian.T
         except np.linalg.LinAlgError:  # pragma: no cover - singular Fisher matrix
             return None
-    return {n: float(math.sqrt(max(C[i, i], 0.0))) for i, n in enumerate(cov.names)}
+    return Covariance(list(cov.names), 0.5 * (C + C.T), cov.jacobian)
 
 
 def levels(final: RefineResult) -> Levels:
@@ -274,13 +274,16 @@ def measurement(frame: Frame, cand: Any, final: RefineResult, geo: BodyCenter, c
         extras = {"profile": lev.profile, **extras}
     extras = {**geo.extras, **extras, "sigma_hat": math.sqrt(max(float(final.fit.sigma2), 0.0)) * final.data.scale,
               "timings_s": timings(frame)}
+    bound = crlb(frame, final, cov)
     return LimbMeasurement(
         center_rc=(float(geo.center_rc[0]), float(geo.center_rc[1])),
         radius_px=None if geo.radius_px is None else float(geo.radius_px),
         ellipse=geo.ellipse, k=lev.k, ymax=lev.ymax, ymin=lev.ymin, covariance=cov.as_dict(),
         iterations=int(iterations), solver=final.fit.solver, front_end=cand.front_end,
         n_pixels=int(final.fit.n_pixels), los_camera=geo.los, range_km=geo.range_km,
-        crlb=crlb(frame, final, cov), extras={k: v for k, v in extras.items() if v is not None},
+        crlb=None if bound is None else {n: math.sqrt(max(float(bound.matrix[i, i]), 0.0)) for i, n in enumerate(bound.names)},
+        covariance_noise=None if bound is None else bound.as_dict(),
+        extras={k: v for k, v in extras.items() if v is not None},
         selected_pixels_rc=pix)
 
 

@@ -49,6 +49,8 @@ class LimbMeasurement:
     los_camera : unit line of sight to the body centre in the camera frame (camera known).
     range_km : range to the body centre (camera and body size known).
     crlb : Cramér--Rao bound ``{name: sigma}`` where computed.
+    covariance_noise : the same bound with its correlations, ``{name: {name: value}}`` over ``covariance``'s names:
+        the noise-only part of ``covariance`` (what is left is the model-error terms).
     extras : anything else worth reporting (initial estimate, checks passed, timings).
     selected_pixels_rc : ``(n, 2)`` pixels ``(row, col)`` used by the final fit (for figures;
         ``None`` if not kept).  Not part of :meth:`to_json`.
@@ -68,6 +70,7 @@ class LimbMeasurement:
     los_camera: tuple[float, float, float] | None = None
     range_km: float | None = None
     crlb: dict[str, float] | None = None
+    covariance_noise: dict[str, dict[str, float]] | None = None
     extras: dict[str, Any] = field(default_factory=dict)
     selected_pixels_rc: Any = field(default=None, repr=False, compare=False)
 
@@ -78,7 +81,7 @@ class LimbMeasurement:
         -------
         dict
             ``status`` ``"ok"``, ``center_rc`` and the other fields; the optional ones (``radius_px``, ``ellipse``,
-            ``los_camera``, ``range_km``, ``crlb``, ``extras``) only when set; never ``selected_pixels_rc``.
+            ``los_camera``, ``range_km``, ``crlb``, ``covariance_noise``, ``extras``) only when set; never ``selected_pixels_rc``.
 
         Raises
         ------
@@ -101,6 +104,8 @@ class LimbMeasurement:
             out["range_km"] = float(self.range_km)
         if self.crlb is not None:
             out["crlb"] = self.crlb
+        if self.covariance_noise is not None:
+            out["covariance_noise"] = self.covariance_noise
         if self.extras:
             out["extras"] = self.extras
         _check_finite(out)

@@ -70,7 +70,8 @@ class Frames:
     labels : frame names (image paths).
     sun_pos : (n, 3) geocentric position of the Sun (km), or ``None``: the direction of the bodies' phase offset
         (:mod:`jaxlimb.track.bias`).
-    R_noise : (n, 3, 3) the noise-only part of ``R`` (``locate``'s Cramér--Rao bound), or ``None``: ``R - R_noise``
+    R_noise : (n, 3, 3) the noise-only part of ``R`` (``locate``'s Cramér--Rao bound with its correlations,
+        :func:`noise_covariance`), or ``None``: ``R - R_noise``
         is the model-error part that sizes the bias states (:mod:`jaxlimb.track.bias`).
     """
 
@@ -151,6 +152,29 @@ def total_covariance(r: jax.Array, theta: jax.Array, R: jax.Array, att_sigma: ja
     return R + att_sigma**2 * J @ J.T
 
 
+def noise_covariance(measurement: dict, names: tuple[str, ...]) -> np.ndarray | None:
+    """The noise-only part of a ``locate`` answer's covariance over ``names``: its ``covariance_noise`` (the
+    Cramér--Rao bound with its correlations), or from an answer without it the bound's variances alone; ``None``
+    without either.
+
+    Parameters
+    ----------
+    measurement : dict
+        The ``locate --json`` object.
+    names : tuple of str
+        Its rows, e.g. ``("center_r", "center_c", "range_km")``.
+
+    Returns
+    -------
+    np.ndarray (len(names), len(names)) or None
+    """
+    full = measurement.get("covariance_noise") or {}
+    if all(a in full and all(b in full[a] for b in names) for a in names):
+        return np.array([[full[a][b] for b in names] for a in names], float)
+    crlb = measurement.get("crlb") or {}
+    return np.diag([crlb[a] ** 2 for a in names]) if all(a in crlb for a in names) else None
+
+
 def frames_from_records(records: list[dict], arc, camera, *, attitude_sigma_rad: float = 0.0) -> Frames:
     """Frames from per-frame records ``{"image", "t_s", "C_ci", "body", "measurement"}`` (``measurement``: the
     ``locate --json`` object).  Records whose measurement is not ``ok`` are left out by the caller."""
@@ -166,8 +190,7 @@ def frames_from_records(records: list[dict], arc, camera, *, attitude_sigma_rad:
         if not all(a in cov and all(b in cov[a] for b in names) for a in names):
             raise ConfigError(f"frame {rec['image']!r}: the measurement has no covariance of {list(names)}")
         X = m["range_km"] if body == "earth" else m["radius_px"]
-        crlb = m.get("crlb") or {}
-        noise = [crlb[a] ** 2 for a in names] if all(a in crlb for a in names) else None
+        noise = noise_covariance(m, names)
         rows.append((rec["t_s"], [m["center_rc"][0], m["center_rc"][1], X], [[cov[a][b] for b in names] for a in names],
                      rec["C_ci"], body, rec["image"], noise))
     rows.sort(key=lambda row: row[0])
@@ -175,7 +198,7 @@ def frames_from_records(records: list[dict], arc, camera, *, attitude_sigma_rad:
     bodies = [row[4] for row in rows]
     body_pos = np.stack([arc.body_position(b, np.array([ti]))[0] for b, ti in zip(bodies, t)]) if rows else np.zeros((0, 3))
     n = len(rows)
-    noise = None if any(row[6] is None for row in rows) or not rows else np.array([np.diag(row[6]) for row in rows])
+    noise = None if any(row[6] is None for row in rows) or not rows else np.array([row[6] for row in rows], float)
     sun = arc.body_position("sun", t) if rows else None
     return Frames(t=t, z=np.array([row[1] for row in rows], float).reshape(n, 3),
                   R=np.array([row[2] for row in rows], float).reshape(n, 3, 3),
@@ -199,5 +222,5 @@ def single_frame_position(frames: Frames, k: int) -> np.ndarray:
 
 
 __all__ = ["BODY_RADIUS_KM", "CAMERA_PARAMS", "EARTH_RADIUS_KM", "MOON_RADIUS_KM", "Frames", "attitude_jacobian",
-           "camera_theta", "frames_from_records", "predict", "single_frame_position", "sun_direction_px",
+           "camera_theta", "frames_from_records", "noise_covariance", "predict", "single_frame_position", "sun_direction_px",
            "total_covariance"]

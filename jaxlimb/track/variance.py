@@ -10,8 +10,9 @@ constant nor independent.  Here the split is estimated from the arc, per body ``
 
 * ``alpha_b``: the independent part: the frame's covariance becomes ``N_k + alpha_b M_k``, that is
   ``(1 - alpha_b) N_k + alpha_b R_k`` (plus the attitude term): positive definite for every ``alpha_b`` in
-  ``[0, 1]``, although ``N_k``, the noise variances without their correlations, can exceed ``R_k`` along some
-  direction;
+  ``[0, 1]``.  ``N_k`` must carry the bound's correlations (``covariance_noise``): the centre and the size of
+  a partly lit body are strongly correlated, and variances alone leave the likelihood to take that correlation
+  from ``M_k``, which then looks larger than the errors are;
 * ``beta_b``: the constant common part, the bias states' prior variance ``beta_b sigma_j^2`` (``sigma_j`` the
   :func:`~jaxlimb.track.bias.bias_model` prior, sized by the whole of ``M_k``);
 * ``gamma_b``: the slowly varying common part, a random walk of the bias states that adds ``gamma_b sigma_j^2``

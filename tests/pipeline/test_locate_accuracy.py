@@ -157,6 +157,13 @@ def test_measurement_contents_and_covariance():
     s = np.sqrt(m.covariance["center_r"]["center_r"])
     # the formal sigma and the CRLB at the estimate agree (same Jacobian, sigma-hat)
     assert 0.0 < s < 0.05 and m.crlb["center_r"] == pytest.approx(s, rel=0.2)
+    names = list(j["covariance"])
+    N = np.array([[j["covariance_noise"][a][b] for b in names] for a in names])  # the bound with its correlations
+    np.testing.assert_allclose(np.sqrt(np.diag(N)), [j["crlb"][a] for a in names], rtol=1e-12)
+    np.testing.assert_allclose(N, N.T, rtol=1e-12)
+    assert np.linalg.eigvalsh(N).min() > 0.0
+    rho = N[:2, 2] / np.sqrt(np.diag(N)[:2] * N[2, 2])
+    assert np.abs(rho).max() > 0.5, rho  # a partly lit disc: its centre and its radius are strongly correlated
     assert m.selected_pixels_rc.shape == (m.n_pixels, 2)
     assert m.ymax > m.ymin
 

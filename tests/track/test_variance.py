@@ -5,11 +5,15 @@ smoother."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from jaxlimb.track import filter_with_split, fit_arc, nees, posterior_crlb, run_filter, variance_split
 from jaxlimb.track.bias import BiasModel, bias_model, random_effects, walk_columns
+from jaxlimb.track.measurement import noise_covariance
+from jaxlimb.track.scenario import true_measurements
 
 from .conftest import locate_like_frames
 
@@ -102,3 +106,35 @@ def test_a_body_whose_every_frame_was_gated_keeps_locates_covariance(setup):
     applied, kept = split.apply(fr, bm)  # every frame, the Moon's too: its covariance is locate's own
     np.testing.assert_allclose(applied.R[moon], fr.R[moon])
     assert not any(n.startswith("moon.") for n in kept.names)
+
+
+def test_the_split_with_correlated_noise_finds_no_model_error(setup):
+    # a partly lit body's centre and size are correlated, in the noise and in the model error alike (near rank
+    # one, along the Sun's image): errors drawn from the noise alone leave no independent model error
+    arc, prop, tr = setup
+    rng = np.random.default_rng(11)
+
+    def correlations() -> np.ndarray:
+        u = rng.choice([-1.0, 1.0], (len(tr.t), 3)) * rng.uniform(0.5, 1.0, (len(tr.t), 3))
+        C = 0.03 * np.eye(3) + u[:, :, None] * u[:, None, :]
+        return C / np.sqrt(np.einsum("kii->ki", C)[:, :, None] * np.einsum("kii->ki", C)[:, None, :])
+
+    alpha = []
+    for _ in range(3):
+        fr = locate_like_frames(arc, tr, rng, 0.0)
+        s, m = (np.sqrt(np.einsum("kii->ki", c)) for c in (fr.R_noise, fr.R - fr.R_noise))
+        noise, model = (correlations() * v[:, :, None] * v[:, None, :] for v in (s, m))
+        z = true_measurements(tr) + np.einsum("kij,kj->ki", np.linalg.cholesky(noise), rng.standard_normal(fr.z.shape))
+        fr = replace(fr, z=z, R=noise + model, R_noise=noise)
+        alpha.append(variance_split(fr, prop, tr.x0, 0.0, bias_model(fr)).alpha.max())
+    assert np.mean(alpha) < 0.05, alpha
+
+
+def test_frames_take_the_noise_covariance_with_its_correlations():
+    names = ("center_r", "center_c", "radius")
+    N = np.array([[4.0, 1.0, 3.0], [1.0, 2.0, -1.0], [3.0, -1.0, 9.0]])
+    m = {"crlb": {a: float(np.sqrt(N[i, i])) for i, a in enumerate(names)},
+         "covariance_noise": {a: {b: float(N[i, j]) for j, b in enumerate(names)} for i, a in enumerate(names)}}
+    np.testing.assert_allclose(noise_covariance(m, names), N)
+    np.testing.assert_allclose(noise_covariance({"crlb": m["crlb"]}, names), np.diag(np.diag(N)))  # older answers
+    assert noise_covariance({}, names) is None
