@@ -131,9 +131,10 @@ def track_noise(rel: str = "track_noise.json") -> str:
             "median M/N", "corr(log e²/N, log M/N)", "mean NIS (3)"]
     whole = [[b, rt.f(v["N"]["mean"], 2), f"{100 * v['N']['beyond_chi2_99']:.1f} %",
               rt.f(v["N_variances_only"]["mean"], 2), f"{100 * v['N_variances_only']['beyond_chi2_99']:.1f} %",
-              rt.f(v["R"]["mean"], 2)] for b, v in d.get("whole_error", {}).items()]
+              rt.f(v["R"]["mean"], 2), " / ".join(rt.f(x, 2) for x in v["N_abs_correlation_median"].values())]
+             for b, v in d.get("whole_error", {}).items()]
     whole_head = ["body", "mean eᵀN⁻¹e (3)", "above 11.34 (1 %)", "the same with N's variances only", "above 11.34",
-                  "mean eᵀR⁻¹e (3)"]
+                  "mean eᵀR⁻¹e (3)", "N's median |correlation|: row-col / row-size / col-size"]
     return (rt.table(head, rows) + f"\n*{d['draws']} noise draws of every frame; N: `locate`'s noise-only bound, "
             "M: its model-error term, R = N + M; expected values in brackets.*\n\n"
             + (rt.table(whole_head, whole) + "\n" if whole else "") + rt.source(rel, d))
