@@ -22,7 +22,8 @@ the posterior CRB is that of the same model (each sequence's split).
 ``measurement_errors_draw0``: ``locate``'s errors on draw 0 against the truth, per body (:func:`measurement_errors`).
 
 Statistics: per epoch, the average over sequences of the filtered 6-state NEES and of the NIS, against the
-two-sided 95 % band of the ``N``-run average (:func:`jaxlimb.track.average_band`); the grand means; the
+two-sided 95 % band of the ``N``-run average (:func:`jaxlimb.track.average_band`); the grand means, with their
+standard errors over the sequences (:func:`standard_errors`); the
 smoother's and the batch fit's RMS position error against the posterior CRB (:func:`jaxlimb.track.posterior_crlb`),
 and the NEES of their positions.
 Self-calibration: the draw measured with the nominal camera (focal length +1 %, principal point off by
@@ -128,6 +129,7 @@ def monte_carlo(arc, prop, tr, draws, keep, n_seq: int, seed: int, drawn: bool, 
         a_nis = np.nanmean(N_nis, 0)
     err2 = np.sum(E_s**2, -1)
     ratio_k = np.sqrt(err2.mean(0) / crb_tr.mean(0))
+    se = standard_errors(N_f, N_nis, err2, crb_tr, np.array(S_n), np.random.default_rng([seed, 2]))
     return {
         "sequences": n_seq, "frames": len(keep), "nees_band_95": [lo6, hi6], "nis_band_95": [lo3, hi3],
         "mean_nees_filtered": float(a_nees.mean()), "median_epoch_nees": float(np.median(a_nees)),
@@ -148,8 +150,26 @@ def monte_carlo(arc, prop, tr, draws, keep, n_seq: int, seed: int, drawn: bool, 
                                   for k, v in ((k, [x[b][k] for x in splits]) for k in splits[0][b])}
                               for b in (splits[0] if splits else {})},
         "smoother_nees_position_mean": float(np.mean(S_n)),
+        "standard_errors": se,
         "epoch_nees": a_nees.tolist(), "epoch_nis": a_nis.tolist(),
     }
+
+
+def standard_errors(N_f: np.ndarray, N_nis: np.ndarray, err2: np.ndarray, crb: np.ndarray, S_n: np.ndarray,
+                    rng: np.random.Generator, n_boot: int = 2000) -> dict[str, float]:
+    """Standard errors of the Monte Carlo's means over its sequences: the spread of the per-sequence means over
+    ``sqrt(n)`` for the filtered NEES, the NIS and the smoothed position's NEES; a bootstrap over the sequences for
+    the smoother's RMS error over the posterior CRB.  Sequences that share measurements (the rendered ones: a few
+    noise draws per frame) are not independent, and these are then lower bounds."""
+    n = N_f.shape[0]
+    with warnings.catch_warnings():  # a sequence with every frame gated has no NIS
+        warnings.simplefilter("ignore", RuntimeWarning)
+        per_seq = {"mean_nees_filtered": N_f.mean(1), "mean_nis": np.nanmean(N_nis, 1),
+                   "smoother_nees_position_mean": S_n}
+    out = {k: float(np.nanstd(v, ddof=1) / np.sqrt(n)) for k, v in per_seq.items()}
+    idx = rng.integers(0, n, (n_boot, n))
+    boot = np.sqrt(err2.mean(1)[idx].mean(1) / crb.mean(1)[idx].mean(1))
+    return out | {"smoother_over_pcrb": float(boot.std(ddof=1))}
 
 
 def measurement_errors(arc, tr, draw: dict[int, dict], keep) -> dict:  # noqa: ANN001
