@@ -176,7 +176,8 @@ def measurement_errors(arc, tr, draw: dict[int, dict], keep) -> dict:  # noqa: A
     """``locate``'s errors against the truth on one draw, per body: each component normalised by its sigma (mean =
     a bias; RMS), the centre's error along the Sun's image direction as a fraction of the apparent radius (the
     ``sun_offset`` of :mod:`jaxlimb.track.bias`) and the relative size error (``scale``), with the standard error
-    of their means, and the autocorrelation of the normalised errors against the lag in frames of that body."""
+    of their means, the autocorrelation of the normalised errors against the lag in frames of that body, and the two
+    errors by the model ``locate`` fitted (:func:`by_model`)."""
     from jaxlimb.track.bias import apparent_radius_px
     from jaxlimb.track.measurement import sun_direction_px
     from jaxlimb.track.scenario import true_measurements
@@ -215,7 +216,21 @@ def measurement_errors(arc, tr, draw: dict[int, dict], keep) -> dict:  # noqa: A
                   "sun_offset_mean_se": [float(so.mean()), float(so.std(ddof=1) / np.sqrt(m.sum()))],
                   "scale_mean_se": [float(sc.mean()), float(sc.std(ddof=1) / np.sqrt(m.sum()))],
                   "autocorrelation_lags": [1, 2, 3, 5, 10, 20], "autocorrelation_along_sun": ac(na),
-                  "autocorrelation_X": ac(n[:, 2])}
+                  "autocorrelation_X": ac(n[:, 2]),
+                  "by_model": by_model([draw[k] for k in np.array(ks)[m]], so, sc)}
+    return out
+
+
+def by_model(recs: list[dict], sun_offset: np.ndarray, scale: np.ndarray) -> dict:
+    """The ``sun_offset`` and ``scale`` errors of :func:`measurement_errors` grouped by the model ``locate`` fitted
+    (``extras.profile.model``): per model the frames and the mean and standard error of each."""
+    names = np.array([str((r.get("extras", {}).get("profile") or {}).get("model", "-")) for r in recs])
+    out = {}
+    for name in dict.fromkeys(names):
+        m = names == name
+        se = (lambda x: float(x.std(ddof=1) / np.sqrt(x.size)) if x.size > 1 else None)
+        out[str(name)] = {"frames": int(m.sum()), "sun_offset_mean_se": [float(sun_offset[m].mean()), se(sun_offset[m])],
+                     "scale_mean_se": [float(scale[m].mean()), se(scale[m])]}
     return out
 
 
