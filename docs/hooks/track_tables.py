@@ -61,9 +61,10 @@ def track_transfer() -> str:
     split = files["track_transfer.json"]["monte_carlo_rendered"].get("model_error_split", {})
     parts = "; ".join(f"{b}: " + ", ".join(f"{k} {v[0]:.2f} [{v[1]:.2f}, {v[2]:.2f}]" for k, v in s.items())
                       for b, s in split.items())
-    return (rt.table(head, _rows(runs)) + "\n*± a standard error over the sequences (where recorded); the rendered "
-            "sequences share measurements, so theirs are lower bounds.*\n" + f"\n*The split on the rendered sequences (mean [min, max] over the 50): "
-            f"{parts}.*\n" + "".join(rt.source(rel, d) for rel, d in files.items()))
+    note = ("\n*± a standard error over the sequences (where recorded); the rendered sequences share measurements, "
+            "so theirs are lower bounds.*\n")
+    return (rt.table(head, _rows(runs)) + note + f"\n*The split on the rendered sequences (mean [min, max] over the "
+            f"50): {parts}.*\n" + "".join(rt.source(rel, d) for rel, d in files.items()))
 
 
 @rt.renderer

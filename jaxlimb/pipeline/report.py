@@ -275,14 +275,14 @@ def measurement(frame: Frame, cand: Any, final: RefineResult, geo: BodyCenter, c
     extras = {**geo.extras, **extras, "sigma_hat": math.sqrt(max(float(final.fit.sigma2), 0.0)) * final.data.scale,
               "timings_s": timings(frame)}
     bound = crlb(frame, final, cov)
+    sigmas = None if bound is None else {n: math.sqrt(max(float(bound.matrix[i, i]), 0.0)) for i, n in enumerate(bound.names)}
     return LimbMeasurement(
         center_rc=(float(geo.center_rc[0]), float(geo.center_rc[1])),
         radius_px=None if geo.radius_px is None else float(geo.radius_px),
         ellipse=geo.ellipse, k=lev.k, ymax=lev.ymax, ymin=lev.ymin, covariance=cov.as_dict(),
         iterations=int(iterations), solver=final.fit.solver, front_end=cand.front_end,
         n_pixels=int(final.fit.n_pixels), los_camera=geo.los, range_km=geo.range_km,
-        crlb=None if bound is None else {n: math.sqrt(max(float(bound.matrix[i, i]), 0.0)) for i, n in enumerate(bound.names)},
-        covariance_noise=None if bound is None else bound.as_dict(),
+        crlb=sigmas, covariance_noise=None if bound is None else bound.as_dict(),
         extras={k: v for k, v in extras.items() if v is not None},
         selected_pixels_rc=pix)
 
