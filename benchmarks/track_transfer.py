@@ -225,13 +225,12 @@ def by_model(recs: list[dict], sun_offset: np.ndarray, scale: np.ndarray) -> dic
     """The ``sun_offset`` and ``scale`` errors of :func:`measurement_errors` grouped by the model ``locate`` fitted
     (``extras.profile.model``): per model the frames and the mean and standard error of each."""
     names = np.array([str((r.get("extras", {}).get("profile") or {}).get("model", "-")) for r in recs])
-    out = {}
-    for name in dict.fromkeys(names):
-        m = names == name
-        se = (lambda x: float(x.std(ddof=1) / np.sqrt(x.size)) if x.size > 1 else None)
-        out[str(name)] = {"frames": int(m.sum()), "sun_offset_mean_se": [float(sun_offset[m].mean()), se(sun_offset[m])],
-                     "scale_mean_se": [float(scale[m].mean()), se(scale[m])]}
-    return out
+
+    def mean_se(x: np.ndarray) -> list:
+        return [float(x.mean()), float(x.std(ddof=1) / np.sqrt(x.size)) if x.size > 1 else None]
+
+    return {str(name): {"frames": int((names == name).sum()), "sun_offset_mean_se": mean_se(sun_offset[names == name]),
+                        "scale_mean_se": mean_se(scale[names == name])} for name in dict.fromkeys(names)}
 
 
 def _pick(draws: list[dict[int, dict]], k: int, rng: np.random.Generator) -> dict:

@@ -152,6 +152,13 @@ def total_covariance(r: jax.Array, theta: jax.Array, R: jax.Array, att_sigma: ja
     return R + att_sigma**2 * J @ J.T
 
 
+def _block(cov: dict, names: tuple[str, ...]) -> np.ndarray | None:
+    """The rows and columns ``names`` of a ``{name: {name: value}}`` covariance, or ``None`` if one is missing."""
+    if not all(a in cov and all(b in cov[a] for b in names) for a in names):
+        return None
+    return np.array([[cov[a][b] for b in names] for a in names], float)
+
+
 def noise_covariance(measurement: dict, names: tuple[str, ...]) -> np.ndarray | None:
     """The noise-only part of a ``locate`` answer's covariance over ``names``: its ``covariance_noise`` (the
     Cramér--Rao bound with its correlations), or from an answer without it the bound's variances alone; ``None``
@@ -168,9 +175,9 @@ def noise_covariance(measurement: dict, names: tuple[str, ...]) -> np.ndarray | 
     -------
     np.ndarray (len(names), len(names)) or None
     """
-    full = measurement.get("covariance_noise") or {}
-    if all(a in full and all(b in full[a] for b in names) for a in names):
-        return np.array([[full[a][b] for b in names] for a in names], float)
+    full = _block(measurement.get("covariance_noise") or {}, names)
+    if full is not None:
+        return full
     crlb = measurement.get("crlb") or {}
     return np.diag([crlb[a] ** 2 for a in names]) if all(a in crlb for a in names) else None
 
@@ -186,13 +193,12 @@ def frames_from_records(records: list[dict], arc, camera, *, attitude_sigma_rad:
             raise ConfigError(f"track measures the Moon and the Earth, got body {body!r}")
         third = "range_km" if body == "earth" else "radius"
         names = ("center_r", "center_c", third)
-        cov = m["covariance"]
-        if not all(a in cov and all(b in cov[a] for b in names) for a in names):
+        cov = _block(m["covariance"], names)
+        if cov is None:
             raise ConfigError(f"frame {rec['image']!r}: the measurement has no covariance of {list(names)}")
         X = m["range_km"] if body == "earth" else m["radius_px"]
-        noise = noise_covariance(m, names)
-        rows.append((rec["t_s"], [m["center_rc"][0], m["center_rc"][1], X], [[cov[a][b] for b in names] for a in names],
-                     rec["C_ci"], body, rec["image"], noise))
+        rows.append((rec["t_s"], [m["center_rc"][0], m["center_rc"][1], X], cov, rec["C_ci"], body, rec["image"],
+                     noise_covariance(m, names)))
     rows.sort(key=lambda row: row[0])
     t = np.array([row[0] for row in rows], float)
     bodies = [row[4] for row in rows]
