@@ -23,9 +23,11 @@ the pixel's box are applied exactly per cell: the pixel-integrated Gaussian
 separates in rows and columns, so the window of ``WINDOW x WINDOW`` pixels at ``(win_r, win_c)`` is
 :math:`y_{\min} + A\,G_r S G_c^\top`.  Cost: two small matrix products, whatever the radius.
 
-Parameters ``(r0, c0, a, sigma, amp, ymin)`` are estimated (``a`` held when the range is known and the disc is not
-resolved); ``sun_r, sun_c, phase, L`` (geometry), ``win_r, win_c`` (window) and ``grid_r, grid_c, grid_h`` (sample
-grid) are held (:data:`SMALL_DISC_FIXED`).  The Jacobian is ``jax.jacfwd`` of the intensity (autodiff through the
+Parameters ``(r0, c0, a, sigma, amp, ymin, L)`` are estimated (``a`` and ``L`` held when the range is known and the
+disc is not resolved): the law's weight ``L`` is the surface's own limb darkening, which another law (Hapke, Minnaert)
+gives a different value than the phase's lunar-Lambert fit, and held at that value it moves ``a`` and the centre;
+``sun_r, sun_c, phase`` (geometry), ``win_r, win_c`` (window) and ``grid_r, grid_c, grid_h`` (sample grid) are held
+(:data:`SMALL_DISC_FIXED`).  The Jacobian is ``jax.jacfwd`` of the intensity (autodiff through the
 grid: the derivative of the discretised image, which is the image the fit compares with the data).
 """
 
@@ -48,7 +50,7 @@ WINDOW = 40
 #: Floor (px) added in quadrature to ``sigma``: keeps the pixel box's edges differentiable at ``sigma = 0``.
 SIGMA_FLOOR = 0.05
 #: Parameters held by default (geometry, window, grid).
-SMALL_DISC_FIXED = ("sun_r", "sun_c", "phase", "L", "win_r", "win_c", "grid_r", "grid_c", "grid_h")
+SMALL_DISC_FIXED = ("sun_r", "sun_c", "phase", "win_r", "win_c", "grid_r", "grid_c", "grid_h")
 
 
 class SmallDiscParams(LimbParams):

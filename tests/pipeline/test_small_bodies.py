@@ -49,6 +49,23 @@ def test_located_within_tolerance(radius, phase, seed):
     assert np.hypot(*mom) < 0.15 and float(mom @ np.linalg.solve(np.asarray(sbx["moments_cov"]), mom)) < 13.8
 
 
+def test_the_law_weight_is_fitted_on_a_surface_the_model_does_not_assume():
+    """A Hapke Moon of 6 px at 40 deg of phase (the renderer's law, not the model's lunar-Lambert): with the law's
+    weight ``L`` held at the phase's lunar-Lambert value the radius came out ~3 % large and the centre ~0.1 px off; the
+    resolved disc fits ``L`` as a nuisance parameter and answers the body's radius and centre."""
+    from jaxlimb.render.independent.surface import Reflectance
+
+    errs, rads = [], []
+    for seed in (21, 22, 23):
+        case = _case(6.0, 40.0, seed, snr=90.0, law=Reflectance.HAPKE, psf_sigma=(0.8, 0.8))
+        m = locate(case.image, case.camera, case.hints, LocateOptions(shape="small"))
+        assert m.extras["small_body"]["method"] == "disc"
+        assert m.extras["profile"]["L"] != pytest.approx(lunar_lambert_weight(np.radians(40.0)), abs=0.05)
+        errs.append(np.hypot(*np.subtract(m.center_rc, case.truth.body_center_rc)))
+        rads.append(m.radius_px / 6.0 - 1.0)
+    assert max(errs) < 0.04 and abs(float(np.mean(rads))) < 0.01, (errs, rads)
+
+
 def test_model_phase_offset_matches_the_renderer():
     """The lunar-Lambert disc's centre of light less its centre against the exact render's (ray casting,
     supersampled, perspective) at 2 px, noise-free."""

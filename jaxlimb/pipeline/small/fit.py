@@ -9,12 +9,15 @@ the least-squares slope of the squared residuals of the body's pixels on ``m`` (
 pixels, which outnumber the body's, set :math:`\hat\sigma` and a photon-noise-limited blob's centre sigma comes out
 too small.
 
-Radius.  Free when the disc is resolved (expected radius at least :data:`FREE_RADIUS_MIN_PX`) or when the hints give
-no size; else held at the expected radius (camera, range, body radius), its uncertainty (the hints' fraction, default
-5 %) carried into the covariance as a consider parameter: :math:`\Delta C = s s^\top \sigma_a^2` with
-:math:`s = -(J_f^\top W J_f)^{-1} J_f^\top W j_a` the free parameters' response to a change of ``a``.  The
-photometric law's weight ``L`` is a consider parameter the same way (:data:`~jaxlimb.pipeline.small.blob.LAW_SIGMA`):
-the phase offset of a crescent depends on the law, which a few pixels do not measure.
+Radius and law.  The radius ``a`` and the law's weight ``L`` are free when the disc is resolved (expected radius at
+least :data:`FREE_RADIUS_MIN_PX`) or when the hints give no size: ``L`` is then the surface's limb darkening as the
+pixels show it, a nuisance parameter (held at the phase's lunar-Lambert value on a Hapke Moon of 6 px it moves the
+radius by a few per cent and the centre by a tenth of a pixel).  Else both are held, ``a`` at the expected radius
+(camera, range, body radius) and ``L`` at the phase's value, and their uncertainties (the hints' fraction, default
+5 %; :data:`~jaxlimb.pipeline.small.blob.LAW_SIGMA`) are carried into the covariance as consider parameters:
+:math:`\Delta C = s s^\top \sigma_a^2` with :math:`s = -(J_f^\top W J_f)^{-1} J_f^\top W j_a` the free
+parameters' response to a change of ``a`` (and the same for ``L``): the phase offset of a crescent depends on the
+law, which a few pixels do not measure.
 """
 
 from __future__ import annotations
@@ -324,7 +327,8 @@ def fit_small_disc(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> tupl
     result : RefineResult
         The weighted disc fit with the consider covariance.
     info : dict
-        The noise model, whether the radius was free, the radius's fractional and ``L``'s 1-sigma.
+        The noise model, whether the radius (and ``L``) was free, the radius's fractional 1-sigma and ``L``'s
+        (``None`` when fitted).
 
     Raises
     ------
@@ -332,7 +336,7 @@ def fit_small_disc(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> tupl
         A weighted pass does not converge, or its answer is not a measurement (:func:`check_in_window`).
     """
     a_free = cand.expected_radius_px is None or cand.expected_radius_px >= FREE_RADIUS_MIN_PX
-    held = () if a_free else ("a",)  # a run-time mask: one compiled fit whether the radius is held or not
+    held = () if a_free else ("a", "L")  # a run-time mask: one compiled fit whether they are held or not
     fixed = SMALL_DISC_FIXED + held
     p = start(frame, cand, pix)
     res = fit(SMALL_DISC, pix.coords, pix.z, p, fixed=SMALL_DISC_FIXED, held=held, max_steps=MAX_STEPS, throw=False)
@@ -352,7 +356,8 @@ def fit_small_disc(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> tupl
     C = C_fit + consider_terms(res, pix, w, {"a": u * a, "L": LAW_SIGMA})
     data = FitData(pix.coords, pix.z, None, 0.0, 1.0)  # (the weights are the noise model's: in ``res``, not here)
     rr = RefineResult(res, data, 0, tuple(fixed)).with_covariance(C, noise_covariance=C_fit)
-    return rr, {"noise_model": noise, "radius_free": a_free, "radius_uncertainty_frac": u, "law_sigma_L": LAW_SIGMA}
+    return rr, {"noise_model": noise, "radius_free": a_free, "radius_uncertainty_frac": u,
+                "law_sigma_L": None if a_free else LAW_SIGMA}
 
 
 __all__ = ["DEFAULT_RADIUS_UNCERTAINTY", "FREE_RADIUS_MIN_PX", "SmallPixels", "check_in_window", "disc_at", "fit_small_disc",
