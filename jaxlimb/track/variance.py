@@ -113,11 +113,14 @@ def variance_split(frames: Frames, prop: Propagator, x_ref: np.ndarray, t0: floa
                    used: np.ndarray | None = None) -> VarianceSplit | None:
     """The split of each body's model error (module docstring), linearised about the state ``x_ref`` at ``t0``
     (a smoothed or batch estimate) over the frames ``used`` (default all); ``None`` without ``locate``'s
-    noise/model split.  A body none of whose frames is used (the gate refused them all) keeps ``locate``'s whole
-    covariance (``alpha`` 1) and no common part."""
-    if frames.R_noise is None:
-        return None
+    noise/model split, or when the used frames' measurements do not outnumber the state's six components (the
+    restricted likelihood, which integrates the state out, has no residual to split: a filter whose gate refused
+    nearly every frame, as with a camera far from the one the frames were measured with).  A body none of whose
+    frames is used (the gate refused them all) keeps ``locate``'s whole covariance (``alpha`` 1) and no common
+    part."""
     used = np.ones(len(frames), bool) if used is None else np.asarray(used, bool)
+    if frames.R_noise is None or frames.z[used].size <= 6:
+        return None
     f = frames.subset(used)
     lin = linearise(f, prop, x_ref, t0, replace(bias, select=bias.select[used]))
     span = float(f.t[-1] - f.t[0])

@@ -108,6 +108,18 @@ def test_a_body_whose_every_frame_was_gated_keeps_locates_covariance(setup):
     assert not any(n.startswith("moon.") for n in kept.names)
 
 
+def test_a_filter_that_used_almost_no_frame_has_no_split(setup):
+    # a camera far from the one the frames were measured with: the gate refuses all but one frame, whose three
+    # measurements do not outnumber the state; the restricted likelihood has nothing to split (it was NaN)
+    arc, prop, tr = setup
+    fr = locate_like_frames(arc, tr, np.random.default_rng(3), 0.0, independent=1.0)
+    used = np.zeros(len(fr), bool)
+    used[1] = True
+    assert variance_split(fr, prop, tr.x0, 0.0, bias_model(fr), used=used) is None
+    used[[2, 3]] = True  # nine measurements: a split
+    assert variance_split(fr, prop, tr.x0, 0.0, bias_model(fr), used=used) is not None
+
+
 def test_the_split_with_correlated_noise_finds_no_model_error(setup):
     # a partly lit body's centre and size are correlated, in the noise and in the model error alike (near rank
     # one, along the Sun's image): errors drawn from the noise alone leave no independent model error
