@@ -119,7 +119,7 @@ def variance_split(frames: Frames, prop: Propagator, x_ref: np.ndarray, t0: floa
     frames is used (the gate refused them all) keeps ``locate``'s whole covariance (``alpha`` 1) and no common
     part."""
     used = np.ones(len(frames), bool) if used is None else np.asarray(used, bool)
-    if frames.R_noise is None or frames.z[used].size <= 6:
+    if frames.R_noise is None or frames.z[used].size <= _STATE_SCALE.size:
         return None
     f = frames.subset(used)
     lin = linearise(f, prop, x_ref, t0, replace(bias, select=bias.select[used]))
