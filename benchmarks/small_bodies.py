@@ -1,12 +1,14 @@
 """Few-pixel bodies: ``locate`` on independent renders of Moon-like spheres of radius 1-10 px, per radius bin.
 
     nice python benchmarks/small_bodies.py [--radii 1,2,3,5,7,10] [--n 20] [--seed 2026] [--compare 7,10]
-                                           [--empty 10] [--law lunar-lambert] [--out small_bodies]
+                                           [--empty 10] [--law lunar-lambert] [--size 128 --focal 2000]
+                                           [--out small_bodies]
 
 Frames: :func:`jaxlimb.render.independent.small_bodies.small_body_case` (128x128, focal 2000 px, the body centre
 anywhere -- sub-pixel -- 12 px inside the frame, lunar-Lambert, phase uniform in 0-90 deg, the Sun in any image
 direction, Gaussian PSF sigma uniform in 0.5-1.5 px (``--law``: another reflectance law of the renderer, which the
-few-pixel model does not assume), 8, 12 or 16 bits, SNR of the brightest pixel uniform in 50-100);
+few-pixel model does not assume; ``--size`` / ``--focal``: another frame, e.g. a wide field where the body lies far
+off the boresight), 8, 12 or 16 bits, SNR of the brightest pixel uniform in 50-100);
 hints: the body, the Sun direction, a range prior 5 % (1 sigma) off.  ``locate`` picks its strategy; at the radii of
 ``--compare`` the same frames are also measured with ``shape="sphere"`` (the limb strategy) and ``shape="small"``
 (the few-pixel strategy), for the choice of the switch radius.  ``--empty``: frames of sky and noise only with the
@@ -110,10 +112,10 @@ def _report(rows: list[dict], title: str) -> str:
     return "\n".join(out)
 
 
-def _cases(R: float, n: int, rng: np.random.Generator, law: Reflectance, empty: bool = False) -> list:
+def _cases(R: float, n: int, rng: np.random.Generator, law: Reflectance, frame: dict, empty: bool = False) -> list:
     return [small_body_case(R, float(rng.uniform(0.0, 90.0)), np.random.default_rng(int(rng.integers(2**31))),
                             snr=float(rng.uniform(50.0, 100.0)), bits=int(rng.choice([8, 12, 16])),
-                            psf_sigma=(0.5, 1.5), law=law, empty=empty) for _ in range(n)]
+                            psf_sigma=(0.5, 1.5), law=law, empty=empty, **frame) for _ in range(n)]
 
 
 def _row(label: str, R: float, shape: str, cases: list) -> dict:
@@ -136,19 +138,22 @@ def main() -> None:
     ap.add_argument("--empty", type=int, default=10, help="frames of sky and noise only")
     ap.add_argument("--law", default=Reflectance.LUNAR_LAMBERT.value, choices=[r.value for r in Reflectance],
                     help="the renderer's reflectance law (the few-pixel model's is lunar-Lambert)")
+    ap.add_argument("--size", type=int, default=128, help="frame side (px)")
+    ap.add_argument("--focal", type=float, default=2000.0, help="focal length (px)")
     ap.add_argument("--out", default="small_bodies")
     args = ap.parse_args()
     law = Reflectance(args.law)
+    frame = {"size": args.size, "focal_px": args.focal}
     compare = {float(v) for v in args.compare.split(",") if v}
     rng = np.random.default_rng(args.seed)
     rows = []
     for R in (float(v) for v in args.radii.split(",")):
-        cases = _cases(R, args.n, rng, law)
+        cases = _cases(R, args.n, rng, law, frame)
         for shape in ("auto",) + (("sphere", "small") if R in compare else ()):
             rows.append(_row(f"{R:g}", R, shape, cases))
     if args.empty:
-        rows.append(_row("none", 0.0, "auto", _cases(3.0, args.empty, rng, law, empty=True)))
-    title = (f"Moon-like spheres ({args.law}), 128x128, phase 0-90 deg, Gaussian PSF sigma 0.5-1.5 px, 8/12/16 bits, "
+        rows.append(_row("none", 0.0, "auto", _cases(3.0, args.empty, rng, law, frame, empty=True)))
+    title = (f"Moon-like spheres ({args.law}), {args.size}x{args.size}, focal length {args.focal:g} px, phase 0-90 deg, Gaussian PSF sigma 0.5-1.5 px, 8/12/16 bits, "
              f"SNR 50-100, {args.n} frames per radius, seed {args.seed}; 'none': {args.empty} frames of sky and noise "
              "with the same hints (a body of 3 px expected)")
     path = save(args.out, {"environment": environment(), "seed": args.seed, "args": vars(args), "rows": rows,
