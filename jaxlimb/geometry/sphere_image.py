@@ -172,6 +172,40 @@ def sphere_jacobian(focal_px: float, principal_point_rc, ellipse_center_rc, a_px
     return numerical_jacobian(out, x0, 1e-4)
 
 
+def _mean_ab(k: float, alpha: float) -> float:
+    """``(a + b) / (2 f)`` of the sphere whose ellipse centre is at ``k f`` for angular radius ``alpha``."""
+    s = math.sin(alpha)
+    th = math.atan(_tan_theta(k, s))
+    den = math.cos(th) ** 2 - s * s
+    return 0.5 * (s * math.cos(alpha) / den + s / math.sqrt(den))
+
+
+def image_mean_radius(focal_px: float, principal_point_rc, center_rc, radius_equivalent_px: float) -> float:
+    """The mean radius ``(a + b) / 2`` (px) of the image ellipse centred at ``center_rc`` of the sphere whose
+    on-axis-equivalent radius ``f tan(alpha)`` is ``radius_equivalent_px``: the inverse of
+    :func:`sphere_from_circle_fit`'s radius map.
+
+    Parameters
+    ----------
+    focal_px : float
+        Focal length (px).
+    principal_point_rc : tuple of float
+        Principal point ``(row, col)`` (px).
+    center_rc : tuple of float
+        Ellipse centre ``(row, col)`` (ideal px).
+    radius_equivalent_px : float
+        ``f tan(alpha)`` (px).
+
+    Returns
+    -------
+    float
+        The ellipse's mean radius (px).
+    """
+    f = float(focal_px)
+    k = math.hypot(float(center_rc[0]) - float(principal_point_rc[0]), float(center_rc[1]) - float(principal_point_rc[1])) / f
+    return f * _mean_ab(k, math.atan(float(radius_equivalent_px) / f))
+
+
 def sphere_from_circle_fit(focal_px: float, principal_point_rc, center_rc, mean_radius: float,
                            tol: float = 1e-14, max_iter: int = 60) -> SphereImage:
     """The sphere whose image ellipse has centre ``center_rc`` and mean radius ``(a + b)/2 = mean_radius``.
@@ -183,20 +217,14 @@ def sphere_from_circle_fit(focal_px: float, principal_point_rc, center_rc, mean_
     r0, c0 = (float(v) for v in principal_point_rc)
     k = math.hypot(float(center_rc[0]) - r0, float(center_rc[1]) - c0) / f
 
-    def mean_ab(alpha: float) -> float:
-        s = math.sin(alpha)
-        th = math.atan(_tan_theta(k, s))
-        den = math.cos(th) ** 2 - s * s
-        return 0.5 * (s * math.cos(alpha) / den + s / math.sqrt(den))
-
     target = float(mean_radius) / f
     alpha = math.atan(target)
     for _ in range(max_iter):
         h = 1e-6 * alpha
-        dm = (mean_ab(alpha + h) - mean_ab(alpha - h)) / (2 * h)
+        dm = (_mean_ab(k, alpha + h) - _mean_ab(k, alpha - h)) / (2 * h)
         if not (math.isfinite(dm) and dm > 0):
             raise GeometryError(f"no sphere has an image of mean radius {mean_radius!r} px there")
-        step = (mean_ab(alpha) - target) / dm
+        step = (_mean_ab(k, alpha) - target) / dm
         alpha -= step
         if abs(step) <= tol * alpha:
             break
@@ -204,4 +232,4 @@ def sphere_from_circle_fit(focal_px: float, principal_point_rc, center_rc, mean_
     return sphere_from_ellipse_center(f, principal_point_rc, center_rc, a)
 
 
-__all__ = ["SphereImage", "sphere_from_circle_fit", "sphere_from_ellipse_center", "sphere_jacobian"]
+__all__ = ["SphereImage", "image_mean_radius", "sphere_from_circle_fit", "sphere_from_ellipse_center", "sphere_jacobian"]

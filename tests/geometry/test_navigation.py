@@ -133,6 +133,21 @@ def test_sphere_from_ellipse_and_circle_exact(D, rc):
         assert 1 - cam.range_from_radius(0.5 * (a + b), 1737.4) / D > 0.03
 
 
+@pytest.mark.parametrize("rc", [(971.5, 1295.5), (150.0, 2450.0), (10.0, 10.0)])
+def test_image_mean_radius_is_the_ellipses(rc):
+    from jaxlimb.geometry.sphere_image import image_mean_radius, sphere_from_circle_fit
+
+    cam = Camera()
+    D = 3.844e5
+    el = sphere_image_ellipse(cam, D * cam.los(np.array(rc)), 1737.4)
+    a, b = el["semi_axes_px"]
+    f_tan = cam.focal_px * np.tan(np.arcsin(1737.4 / D))
+    mean = image_mean_radius(cam.focal_px, cam.principal_point_rc, el["center_rc"], f_tan)
+    assert mean == pytest.approx(0.5 * (a + b), rel=1e-10)
+    back = sphere_from_circle_fit(cam.focal_px, cam.principal_point_rc, el["center_rc"], mean)
+    assert back.radius_equivalent_px == pytest.approx(f_tan, rel=1e-10)
+
+
 def test_navigate_from_circle_covariance_vs_monte_carlo(rng):
     cam = Camera()
     C = _attitude(rng)

@@ -66,6 +66,21 @@ def test_the_law_weight_is_fitted_on_a_surface_the_model_does_not_assume():
     assert max(errs) < 0.04 and abs(float(np.mean(rads))) < 0.01, (errs, rads)
 
 
+def test_off_the_boresight_the_radius_and_range_are_the_spheres():
+    """A 5 px Moon 250-330 px off the boresight of a 1000 px focal length (0.25-0.32 rad): its image is an ellipse
+    whose mean radius exceeds ``f tan(alpha)`` by ~3/4 theta^2; the disc's radius read as ``f tan(alpha)`` made the
+    range 5-8 % short.  Mapped through the sphere's image, the radius and the range are within noise."""
+    rad, rng = [], []
+    for seed in (41, 43, 46, 51):
+        case = _case(5.0, 30.0, seed, size=600, focal_px=1000.0, snr=90.0)
+        assert np.hypot(*(np.asarray(case.truth.body_center_rc) - 299.5)) > 250.0
+        m = locate(case.image, case.camera, case.hints)
+        rad.append(m.radius_px / 5.0 - 1.0)
+        rng.append(m.range_km / case.meta["range_km"] - 1.0)
+    assert max(map(abs, rad)) < 0.02 and abs(float(np.mean(rad))) < 0.01, rad
+    np.testing.assert_allclose(rng, -np.asarray(rad), atol=2e-3)
+
+
 def test_model_phase_offset_matches_the_renderer():
     """The lunar-Lambert disc's centre of light less its centre against the exact render's (ray casting,
     supersampled, perspective) at 2 px, noise-free."""

@@ -6,9 +6,9 @@ it (:mod:`jaxlimb.pipeline.small.fit`); when that fit fails, the centre of brigh
 
 The stages: **prepare** the frame in float64; **candidates** the blob (Check "no body"); **limb pixels** the window;
 **edge fit** the disc fit, or the centre of brightness; **profile refit** none (the disc fit is the physical model);
-**body-centre mapping** the disc's centre is the image of the body centre (orthographic: the perspective offset of a
-sphere's image is ``~a^2 x / f^2``, below 1e-3 px here), the line of sight through it, the radius and the range from
-it when the radius was fitted; **checks** levels, PSF width, the centre's sigma.
+**body-centre mapping** the disc (orthographic) is the sphere's image ellipse, its centre and mean radius mapped
+exactly to the image of the body centre, the on-axis-equivalent radius and the range (:func:`small_center`), the line
+of sight through the centre; **checks** levels, PSF width, the centre's sigma.
 
 Accuracy: ``benchmarks/small_bodies.py`` (independent renders of Moon-like spheres of radius 1-10 px).
 """
@@ -23,6 +23,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..._validate import check_center_sigma
+from ...geometry.sphere_image import image_mean_radius, sphere_from_circle_fit
+from ...numerics import numerical_jacobian
 from ...errors import ConfigError, ConvergenceError
 from ...fitting import FitResult, LimbFit
 from ..checks import check_edge_width, check_levels
@@ -44,7 +46,8 @@ class SmallEdge:
 
 
 def small_candidates(frame: Frame) -> BlobCandidates:
-    """Stage "candidates": the blob (:func:`~jaxlimb.pipeline.small.blob.find_blob`) with the hints' size.
+    """Stage "candidates": the blob (:func:`~jaxlimb.pipeline.small.blob.find_blob`) with the hints' size, as the mean
+    radius of the sphere's image where the blob is (:func:`~jaxlimb.geometry.sphere_image.image_mean_radius`).
 
     Parameters
     ----------
@@ -67,6 +70,10 @@ def small_candidates(frame: Frame) -> BlobCandidates:
     u = (h.expected_radius_uncertainty_frac if h is not None else None) or DEFAULT_RADIUS_UNCERTAINTY
     near = h.expected_center_rc if h is not None else None
     cand = find_blob(frame.img, frame_mask(frame), expected_radius_px(frame), u, near)
+    if cand.expected_radius_px is not None and frame.cam is not None:  # the image's mean radius there, off-axis
+        ideal = np.asarray(frame.cam.undistort(np.asarray(cand.centroid_rc, float)), float).reshape(2)
+        cand = replace(cand, expected_radius_px=image_mean_radius(frame.cam.focal_px, frame.cam.principal_point_rc,
+                                                                   ideal, cand.expected_radius_px))
     frame.mark("front_end")
     return cand
 
@@ -161,30 +168,45 @@ def small_report(cand: BlobCandidates, edge: SmallEdge) -> dict[str, Any]:
 
 
 def small_center(frame: Frame, final: RefineResult) -> BodyCenter:
-    """Stage "body-centre mapping" (module docstring).
+    """Stage "body-centre mapping" (module docstring): off the boresight a sphere's image is an ellipse elongated
+    radially, whose mean radius exceeds the on-axis-equivalent radius ``f tan(alpha)`` by about ``3/4 theta^2``
+    (``theta`` the centre's angle from the boresight); the disc's centre and radius are that ellipse's centre and
+    mean radius, mapped exactly to the image of the body centre, ``f tan(alpha)`` and the range ``R / sin(alpha)``
+    (:func:`~jaxlimb.geometry.sphere_image.sphere_from_circle_fit`, in ideal pixels).
 
     Parameters
     ----------
     frame : Frame
-        The prepared inputs; its camera gives the LOS and, with the body radius, the range.
+        The prepared inputs; its camera gives the map and the LOS and, with the body radius, the range.
     final : RefineResult
         The fit that answers.
 
     Returns
     -------
     BodyCenter
-        Centre ``(row, col)`` (px), radius (px), LOS, range (km, when the radius was fitted) and the identity map.
+        Centre ``(row, col)`` (px), radius (px), LOS, range (km, when the radius was fitted) and the map's Jacobian.
     """
     p = final.fit.params
-    c = (float(p.r0), float(p.c0))
-    los = None if frame.cam is None else tuple(float(v) for v in frame.cam.los(np.asarray(c)))
     a_free = "a" in final.fit.free
-    rng = None
-    if a_free and frame.cam is not None and frame.body_radius_km is not None:
-        rng = float(frame.body_radius_km / math.sin(math.atan(float(p.a) / frame.cam.focal_px)))
     outputs = ("center_r", "center_c", "radius") if a_free else ("center_r", "center_c")
     params = ("r0", "c0", "a") if a_free else ("r0", "c0")
-    return BodyCenter(c, float(p.a), None, los, rng, outputs, params, np.eye(len(params)))
+    x0 = np.array([float(p.r0), float(p.c0), float(p.a)])
+    if frame.cam is None:
+        return BodyCenter((x0[0], x0[1]), x0[2], None, None, None, outputs, params, np.eye(len(params)))
+    cam = frame.cam
+
+    def mapped(x: np.ndarray) -> np.ndarray:
+        ideal = np.asarray(cam.undistort(np.asarray(x[:2])), float).reshape(2)
+        sph = sphere_from_circle_fit(cam.focal_px, cam.principal_point_rc, ideal, x[2])
+        return np.array([x[0] + sph.body_center_rc[0] - ideal[0], x[1] + sph.body_center_rc[1] - ideal[1],
+                         sph.radius_equivalent_px, sph.alpha_rad])
+
+    out = mapped(x0)
+    c = (float(out[0]), float(out[1]))
+    los = tuple(float(v) for v in cam.los(np.asarray(c)))
+    rng = float(frame.body_radius_km / math.sin(out[3])) if a_free and frame.body_radius_km is not None else None
+    jac = numerical_jacobian(lambda x: mapped(x)[: len(outputs)], x0, 1e-4)[:, : len(params)]
+    return BodyCenter(c, float(out[2]), None, los, rng, outputs, params, jac)
 
 
 @final
