@@ -11,7 +11,9 @@ range or the Moon's radius), with ``e`` the error against the truth:
 * ``e^2 / R``: mean (1 if ``R`` is the size of the errors);
 * the whole error's ``e^T N^-1 e`` with the bound's correlations (``covariance_noise``), with its variances
   alone, and ``e^T R^-1 e``: mean (chi-square with 3 degrees of freedom: 3) and the fraction above 11.34 (its 99 %
-  quantile), and the median |correlation| of ``N``'s components;
+  quantile), and the median |correlation| of ``N``'s components; and by fifths of the arc (the body's frames in
+  time order, every draw) the medians of ``e^T N^-1 e``, ``e^T R^-1 e`` and ``tr(N^-1 M) / 3`` (how many times the
+  noise the model-error term is);
 * ``M / N``: median, and the correlation over frames of ``log(e^2 / N)`` with ``log(M / N)``: does a frame's
   model-error term say which frames have the larger errors;
 * the mean NIS of each body's frames in ``benchmarks/results/track_transfer.json`` (the rendered Monte Carlo's
@@ -40,7 +42,7 @@ COMPONENTS = {"earth": ("row", "col", "range"), "moon": ("row", "col", "radius")
 def ratios(arc, tr, draws: dict[str, dict[int, dict]]) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:  # noqa: ANN001
     """Per body, over every ``ok`` frame of every draw: rows ``(e^2/N, e^2/R, M/N)`` by component ``(n, 3, 3)``, and
     the whole error's ``(e^T N^-1 e, e^T diag(N)^-1 e, e^T R^-1 e)`` and ``N``'s |correlations| (row-col, row-X,
-    col-X) ``(n, 6)``."""
+    col-X), ``tr(N^-1 M) / 3`` and the frame ``(n, 8)``."""
     from track_transfer import THETA_TRUE, as_frames
 
     from jaxlimb.track.scenario import true_measurements
@@ -59,7 +61,8 @@ def ratios(arc, tr, draws: dict[str, dict[int, dict]]) -> tuple[dict[str, np.nda
             out[tr.bodies[k]].append(np.stack([e2[i] / N[i], e2[i] / R[i], (R[i] - N[i]) / N[i]]))
             rho = fr.R_noise[i] / np.sqrt(np.outer(N[i], N[i]))
             whole[tr.bodies[k]].append([e[i] @ np.linalg.solve(fr.R_noise[i], e[i]), e2[i] @ (1.0 / N[i]),
-                                        e[i] @ np.linalg.solve(fr.R[i], e[i]), *np.abs(rho[[0, 0, 1], [1, 2, 2]])])
+                                        e[i] @ np.linalg.solve(fr.R[i], e[i]), *np.abs(rho[[0, 0, 1], [1, 2, 2]]),
+                                        np.trace(np.linalg.solve(fr.R_noise[i], fr.R[i] - fr.R_noise[i])) / 3.0, k])
     return {b: np.array(v) for b, v in out.items()}, {b: np.array(v) for b, v in whole.items()}
 
 
@@ -68,7 +71,12 @@ def vector_summary(q: np.ndarray) -> dict:
     median |correlation| of ``N``'s components."""
     out = {name: {"mean": float(q[:, j].mean()), "beyond_chi2_99": float(np.mean(q[:, j] > CHI2_3_99))}
            for j, name in enumerate(("N", "N_variances_only", "R"))}
-    return out | {"N_abs_correlation_median": dict(zip(("row_col", "row_X", "col_X"), np.median(q[:, 3:], 0).tolist()))}
+    fifths = np.array_split(np.argsort(q[:, 7], kind="stable"), 5)
+    return out | {"N_abs_correlation_median": dict(zip(("row_col", "row_X", "col_X"), np.median(q[:, 3:6], 0).tolist())),
+                  "by_fifth_of_the_arc": [{"frames": [int(q[f, 7].min()), int(q[f, 7].max())],
+                                           "eNe_median": float(np.median(q[f, 0])),
+                                           "eRe_median": float(np.median(q[f, 2])),
+                                           "M_over_N_median": float(np.median(q[f, 6]))} for f in fifths]}
 
 
 def summary(r: np.ndarray, names: tuple[str, ...]) -> dict:

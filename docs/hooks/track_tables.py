@@ -144,6 +144,12 @@ def track_noise(rel: str = "track_noise.json") -> str:
              for b, v in d.get("whole_error", {}).items()]
     whole_head = ["body", "mean eᵀN⁻¹e (3)", "above 11.34 (1 %)", "the same with N's variances only", "above 11.34",
                   "mean eᵀR⁻¹e (3)", "N's median |correlation|: row-col / row-size / col-size"]
+    fifths = [[b, f"{x['frames'][0]}–{x['frames'][1]}", rt.f(x["eNe_median"], 1), rt.f(x["eRe_median"], 2),
+               rt.f(x["M_over_N_median"], 0)]
+              for b, v in d.get("whole_error", {}).items() for x in v.get("by_fifth_of_the_arc", [])]
+    fifth_head = ["body", "frames (a fifth of the arc)", "median eᵀN⁻¹e (2.37)", "median eᵀR⁻¹e (2.37)",
+                  "median tr(N⁻¹M)/3"]
     return (rt.table(head, rows) + f"\n*{d['draws']} noise draws of every frame; N: `locate`'s noise-only bound, "
             "M: its model-error term, R = N + M; expected values in brackets.*\n\n"
-            + (rt.table(whole_head, whole) + "\n" if whole else "") + rt.source(rel, d))
+            + (rt.table(whole_head, whole) + "\n" if whole else "")
+            + (rt.table(fifth_head, fifths) + "\n" if fifths else "") + rt.source(rel, d))
