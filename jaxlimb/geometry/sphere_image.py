@@ -202,7 +202,8 @@ def image_mean_radius(focal_px: float, principal_point_rc, center_rc, radius_equ
         The ellipse's mean radius (px).
     """
     f = float(focal_px)
-    k = math.hypot(float(center_rc[0]) - float(principal_point_rc[0]), float(center_rc[1]) - float(principal_point_rc[1])) / f
+    r0, c0 = (float(v) for v in principal_point_rc)
+    k = math.hypot(float(center_rc[0]) - r0, float(center_rc[1]) - c0) / f
     return f * _mean_ab(k, math.atan(float(radius_equivalent_px) / f))
 
 
@@ -232,4 +233,5 @@ def sphere_from_circle_fit(focal_px: float, principal_point_rc, center_rc, mean_
     return sphere_from_ellipse_center(f, principal_point_rc, center_rc, a)
 
 
-__all__ = ["SphereImage", "image_mean_radius", "sphere_from_circle_fit", "sphere_from_ellipse_center", "sphere_jacobian"]
+__all__ = ["SphereImage", "image_mean_radius", "sphere_from_circle_fit", "sphere_from_ellipse_center",
+           "sphere_jacobian"]

@@ -6,9 +6,9 @@ it (:mod:`jaxlimb.pipeline.small.fit`); when that fit fails, the centre of brigh
 
 The stages: **prepare** the frame in float64; **candidates** the blob (Check "no body"); **limb pixels** the window;
 **edge fit** the disc fit, or the centre of brightness; **profile refit** none (the disc fit is the physical model);
-**body-centre mapping** the disc (orthographic) is the sphere's image ellipse, its centre and mean radius mapped
-exactly to the image of the body centre, the on-axis-equivalent radius and the range (:func:`small_center`), the line
-of sight through the centre; **checks** levels, PSF width, the centre's sigma.
+**body-centre mapping** the disc (a circle, orthographic) stands for the sphere's image ellipse: its centre and mean
+radius mapped exactly to the image of the body centre, the on-axis-equivalent radius and the range
+(:func:`small_center`), the line of sight through the centre; **checks** levels, PSF width, the centre's sigma.
 
 Accuracy: ``benchmarks/small_bodies.py`` (independent renders of Moon-like spheres of radius 1-10 px).
 """
@@ -23,10 +23,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..._validate import check_center_sigma
-from ...geometry.sphere_image import image_mean_radius, sphere_from_circle_fit
-from ...numerics import numerical_jacobian
 from ...errors import ConfigError, ConvergenceError
 from ...fitting import FitResult, LimbFit
+from ...geometry.sphere_image import image_mean_radius, sphere_from_circle_fit
+from ...numerics import numerical_jacobian
 from ..checks import check_edge_width, check_levels
 from ..frame import expected_radius_px, frame_mask
 from ..result import LimbMeasurement

@@ -12,9 +12,9 @@ too small.
 Radius and law.  The radius ``a`` and the law's weight ``L`` are free when the disc is resolved (expected radius at
 least :data:`FREE_RADIUS_MIN_PX`) or when the hints give no size: ``L`` is then the surface's limb darkening as the
 pixels show it, a nuisance parameter (held at the phase's lunar-Lambert value on a surface of another law it biases
-the radius and the centre: ``benchmarks/small_bodies.py --law hapke``).  Else both are held, ``a`` at the expected radius
-(camera, range, body radius) and ``L`` at the phase's value, and their uncertainties (the hints' fraction, default
-5 %; :data:`~jaxlimb.pipeline.small.blob.LAW_SIGMA`) are carried into the covariance as consider parameters:
+the radius and the centre: ``benchmarks/small_bodies.py --law hapke``).  Else both are held, ``a`` at the expected
+radius (camera, range, body radius) and ``L`` at the phase's value, and their uncertainties (the hints' fraction,
+default 5 %; :data:`~jaxlimb.pipeline.small.blob.LAW_SIGMA`) are carried into the covariance as consider parameters:
 :math:`\Delta C = s s^\top \sigma_a^2` with :math:`s = -(J_f^\top W J_f)^{-1} J_f^\top W j_a` the free
 parameters' response to a change of ``a`` (and the same for ``L``): the phase offset of a crescent depends on the
 law, which a few pixels do not measure.
