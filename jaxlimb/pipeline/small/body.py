@@ -71,9 +71,9 @@ def small_candidates(frame: Frame) -> BlobCandidates:
     near = h.expected_center_rc if h is not None else None
     cand = find_blob(frame.img, frame_mask(frame), expected_radius_px(frame), u, near)
     if cand.expected_radius_px is not None and frame.cam is not None:  # the image's mean radius there, off-axis
-        ideal = np.asarray(frame.cam.undistort(np.asarray(cand.centroid_rc, float)), float).reshape(2)
         cand = replace(cand, expected_radius_px=image_mean_radius(frame.cam.focal_px, frame.cam.principal_point_rc,
-                                                                   ideal, cand.expected_radius_px))
+                                                                   frame.to_ideal(cand.centroid_rc),
+                                                                   cand.expected_radius_px))
     frame.mark("front_end")
     return cand
 
@@ -196,10 +196,8 @@ def small_center(frame: Frame, final: RefineResult) -> BodyCenter:
     cam = frame.cam
 
     def mapped(x: np.ndarray) -> np.ndarray:
-        ideal = np.asarray(cam.undistort(np.asarray(x[:2])), float).reshape(2)
-        sph = sphere_from_circle_fit(cam.focal_px, cam.principal_point_rc, ideal, x[2])
-        return np.array([x[0] + sph.body_center_rc[0] - ideal[0], x[1] + sph.body_center_rc[1] - ideal[1],
-                         sph.radius_equivalent_px, sph.alpha_rad])
+        sph = sphere_from_circle_fit(cam.focal_px, cam.principal_point_rc, frame.to_ideal(x[:2]), x[2])
+        return np.array([*frame.to_observed(sph.body_center_rc), sph.radius_equivalent_px, sph.alpha_rad])
 
     out = mapped(x0)
     c = (float(out[0]), float(out[1]))
