@@ -15,7 +15,8 @@ hints: the body, the Sun direction, a range prior 5 % (1 sigma) off.  ``locate``
 same hints (a typed refusal expected).
 
 Per radius and strategy: frames answered, the centre error against the image of the body centre (px) median / p90 /
-max, the mean relative error of the radius (against the true apparent radius), the mean NEES of the centre ``e^T P^-1 e`` (chi-square with 2 degrees of freedom: 2), the share answered by the
+max, the mean relative error of the radius (against the true apparent radius), the mean NEES of the centre
+``e^T P^-1 e`` (chi-square with 2 degrees of freedom: 2), the share answered by the
 fallback (the phase-corrected centre of brightness), and that estimate's own error and NEES on every frame (it is
 reported beside the disc fit's answer).  Written to ``benchmarks/results/<out>.json`` with the seed and the git SHA,
 and a markdown ``report``.
@@ -124,7 +125,8 @@ def _row(label: str, R: float, shape: str, cases: list) -> dict:
     row = {"label": label, "radius_px": R, "shape": shape, "records": recs, "summary": _summary(recs)}
     s = row["summary"]
     print(f"{label:>6s} {shape:6s} ok {s['n_ok']}/{s['n']} median {_fmt(s['center_err_px']['median'])} "
-          f"p90 {_fmt(s['center_err_px']['p90'])} radius {_fmt(s['radius_rel_err_mean'], '{:+.2%}')} NEES {_fmt(s['nees_mean'], '{:.2f}')} "
+          f"p90 {_fmt(s['center_err_px']['p90'])} radius {_fmt(s['radius_rel_err_mean'], '{:+.2%}')} "
+          f"NEES {_fmt(s['nees_mean'], '{:.2f}')} "
           f"fallback {_fmt(s['fallback_share'], '{:.2f}')} {s['failures']}", flush=True)
     return row
 
@@ -153,7 +155,8 @@ def main() -> None:
             rows.append(_row(f"{R:g}", R, shape, cases))
     if args.empty:
         rows.append(_row("none", 0.0, "auto", _cases(3.0, args.empty, rng, law, frame, empty=True)))
-    title = (f"Moon-like spheres ({args.law}), {args.size}x{args.size}, focal length {args.focal:g} px, phase 0-90 deg, Gaussian PSF sigma 0.5-1.5 px, 8/12/16 bits, "
+    title = (f"Moon-like spheres ({args.law}), {args.size}x{args.size}, focal length {args.focal:g} px, phase 0-90 deg, "
+             "Gaussian PSF sigma 0.5-1.5 px, 8/12/16 bits, "
              f"SNR 50-100, {args.n} frames per radius, seed {args.seed}; 'none': {args.empty} frames of sky and noise "
              "with the same hints (a body of 3 px expected)")
     path = save(args.out, {"environment": environment(), "seed": args.seed, "args": vars(args), "rows": rows,

@@ -502,10 +502,12 @@ def small_bodies(rel: str = "small_bodies.json") -> str:
         e, m = s["center_err_px"], s["moments_err_px"]
         rad = s.get("radius_rel_err_mean")
         rows.append([r["label"], r["shape"], f"{s['n_ok']}/{s['n']}", f"{f(e['median'])} / {f(e['p90'])} / {f(e['max'])}",
-                     "–" if rad is None else f"{100 * rad:+.2f} %", f(s["nees_mean"], 2), f(s["fallback_share"], 2), f"{f(m['median'])} / {f(m['p90'])}",
+                     "–" if rad is None else f"{100 * rad:+.2f} %", f(s["nees_mean"], 2), f(s["fallback_share"], 2),
+                     f"{f(m['median'])} / {f(m['p90'])}",
                      f(s["moments_nees_mean"], 2), failures(s["failures"])])
     head = ["radius (px)", "strategy", "answered", "centre error median / p90 / max (px)", "radius error (mean)",
-            "NEES mean", "fallback share", "centre of brightness, phase-corrected: median / p90 (px)", "its NEES mean", "typed refusals"]
+            "NEES mean", "fallback share", "centre of brightness, phase-corrected: median / p90 (px)", "its NEES mean",
+            "typed refusals"]
     return table(head, rows) + source(rel, d)
 
 
