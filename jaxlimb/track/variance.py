@@ -5,8 +5,8 @@ r"""How much of ``locate``'s model error the frames of a body share: variance co
 ``M_k`` is the same for every frame of a body (a bias: the bias states of :mod:`jaxlimb.track.bias`) and which
 part changes from frame to frame (the limb falling on other pixels); counting all of ``M_k`` as both
 double-counts it, and a bias that follows the slowly changing geometry (phase, apparent size) is neither
-constant nor independent.  Here the split is estimated from the arc, per body ``b``, with three components in
-``[0, 1]``:
+constant nor independent.  Here the split is estimated from the arc, per body ``b``, with three shares of
+``M_k`` that add up to the whole of it, ``alpha_b + beta_b + gamma_b = 1``:
 
 * ``alpha_b``: the independent part: the frame's covariance becomes ``N_k + alpha_b M_k``, that is
   ``(1 - alpha_b) N_k + alpha_b R_k`` (plus the attitude term): positive definite for every ``alpha_b`` in
@@ -18,7 +18,13 @@ constant nor independent.  Here the split is estimated from the arc, per body ``
 * ``gamma_b``: the slowly varying common part, a random walk of the bias states that adds ``gamma_b sigma_j^2``
   over the arc (power spectral density ``gamma_b sigma_j^2 / T``, ``T`` the arc's duration).
 
-No part is taken above the whole model-error term ``locate`` reported.  The components maximise the
+Why the shares add up to one: a common part that moves a body's image the way a change of trajectory would
+leaves no residual, since the likelihood integrates the state out, so the arc cannot size it, only say how much
+of ``M_k`` is *not* independent.  The size of the model error is ``locate``'s statement, and the arc divides it.
+Sized freely, the common part of the rendered transfer came out far below the Moon's shared offset, and the
+filter was overconfident (``docs/track.md``).  A body without bias states keeps ``M_k`` independent (``alpha_b`` 1).
+
+The shares maximise the
 restricted (residual) likelihood of the arc linearised about a trajectory (Patterson & Thompson 1971,
 *Biometrika* 58(3); Koch, *Parameter Estimation and Hypothesis Testing in Linear Models*, Springer 1999, §3.6,
 variance components): with the residuals ``r``, the state's columns ``G = dh/dx0`` (flat prior: it is
@@ -59,8 +65,9 @@ class VarianceSplit:
     ----------
     bodies : the imaged bodies.
     alpha : (n_bodies,) independent part of the model-error term, in ``[0, 1]``.
-    beta : (n_bodies,) constant common part (the bias prior's variance scale), in ``[0, 1]``.
-    gamma : (n_bodies,) the common part's random walk: the variance it adds over the arc, in ``[0, 1]``.
+    beta : (n_bodies,) constant common part (the bias prior's variance scale).
+    gamma : (n_bodies,) the common part's random walk: the variance it adds over the arc.  ``alpha + beta + gamma``
+        is 1 for a body with bias states; without them ``alpha`` is 1.
     span : the arc's duration (s) that ``gamma`` is spread over.
     """
 
@@ -106,7 +113,19 @@ def _objective(p, r, G, Ec, Ew, N, M, A, body_of_frame, body_of_const, body_of_w
     return logdet + jnp.sum(Wr * Wr) - q @ q
 
 
-_value_and_grad = jax.jit(jax.value_and_grad(_objective))
+def _shares(q):  # noqa: ANN001, ANN202
+    """``(alpha, sqrt(beta), sqrt(gamma))`` of each body from ``q = (s, theta)``: ``alpha = 1 - s^2``, the common
+    part ``s^2 = beta + gamma`` split by the angle ``theta`` (smooth at every bound)."""
+    m = q.shape[0] // 2
+    s, th = q[:m], q[m:]
+    return jnp.concatenate([1.0 - s * s, s * jnp.cos(th), s * jnp.sin(th)])
+
+
+def _constrained(q, *args):  # noqa: ANN001, ANN202
+    return _objective(_shares(q), *args)
+
+
+_value_and_grad = jax.jit(jax.value_and_grad(_constrained))
 
 
 def variance_split(frames: Frames, prop: Propagator, x_ref: np.ndarray, t0: float, bias: BiasModel,
@@ -140,12 +159,11 @@ def variance_split(frames: Frames, prop: Propagator, x_ref: np.ndarray, t0: floa
         return float(v), np.asarray(g, float)
 
     common = [(0.0, 1.0) if b and s else (0.0, 0.0) for b, s in zip(np.isin(np.arange(m), owner), seen)]
-    independent = [(0.0, 1.0) if s else (1.0, 1.0) for s in seen]
-    start = np.array([0.5 if s else 1.0 for s in seen] + [0.5 if hi else 0.0 for _, hi in common] * 2)
-    sol = minimize(fg, start, jac=True, method="L-BFGS-B", bounds=independent + common * 2)
+    start = np.array([0.7 if hi else 0.0 for _, hi in common] + [0.7] * m)
+    sol = minimize(fg, start, jac=True, method="L-BFGS-B", bounds=common + [(0.0, 0.5 * np.pi)] * m)
     if not np.isfinite(sol.fun):
         raise ConvergenceError(f"the split of the bodies' model error did not converge ({sol.message})")
-    p = np.asarray(sol.x)
+    p = np.asarray(_shares(jnp.asarray(sol.x)))
     return VarianceSplit(bodies, p[:m], p[m : 2 * m] ** 2, p[2 * m :] ** 2, span)
 
 

@@ -75,6 +75,20 @@ def test_split_finds_independent_and_common_error(setup):
     assert np.mean(err_split) < np.mean(err_default), (err_split, err_default)
 
 
+def test_the_shares_divide_locates_whole_model_error(setup):
+    # the arc cannot size a common part that moves the image as the trajectory would: it only divides locate's
+    # model error, all of it, between the independent, constant and walking parts
+    arc, prop, tr = setup
+    rng = np.random.default_rng(5)
+    for offset, independent in ((0.0, 1.0), (5e-3, 0.0)):
+        fr = locate_like_frames(arc, tr, rng, offset, independent=independent)
+        bm = bias_model(fr)
+        split = variance_split(fr, prop, tr.x0, 0.0, bm)
+        with_states = [split.bodies.index(n.split(".")[0]) for n in bm.names]
+        np.testing.assert_allclose((split.alpha + split.beta + split.gamma)[with_states], 1.0, atol=1e-12)
+        assert np.all((split.alpha >= 0) & (split.beta >= 0) & (split.gamma >= 0))
+
+
 def test_batch_with_a_walk_agrees_with_the_smoother(setup):
     # the batch marginalises the walk as the filter models it: with the same prior and deterministic dynamics,
     # the estimate and its sigma are the smoother's (a linear-Gaussian arc: batch = smoother)
