@@ -89,6 +89,7 @@ def main(argv: list[str] | None = None) -> dict:
     args = ap.parse_args(argv)
     draw = earth_case if args.body == "earth" else moon_case
     variants = VARIANTS if args.body == "earth" else VARIANTS[:4]
+    env = environment()  # the tree as the run starts
     frames = []
     for seed in (int(s) for s in args.seeds.split(",")):
         case = draw(args.family, np.random.default_rng(seed))
@@ -98,7 +99,7 @@ def main(argv: list[str] | None = None) -> dict:
         print(f"seed {seed}: size error {row['all']['error'][2]:+.4g}, noise-only sigma {row['all']['sigma_noise'][2]:.4g},"
               f" sigma: {', '.join(size)}", flush=True)
     out = {"body": args.body, "family": args.family, "variants": list(variants), "frames": frames,
-           "environment": environment(),
+           "environment": env,
            "command": "python benchmarks/model_error_terms.py " + " ".join(argv if argv is not None else sys.argv[1:])}
     print(f"wrote {save(args.out or f'model_error_terms_{args.body}_{args.family}', out)}")
     return out
