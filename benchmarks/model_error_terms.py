@@ -64,15 +64,14 @@ def measure(case, variant: str) -> dict:  # noqa: ANN001
     opt = LocateOptions(ellipsoid=EllipsoidOptions(unresolved_glow=None)) if variant == "no_glow_consider" else None
     with terms(variant):
         j = locate(case.image, case.camera, Hints.from_dict(case.hints), opt).to_json()
-    C, N = j["covariance"], j["covariance_noise"]
-    size = "range_km" if "range_km" in C else "radius"
-    t = case.truth
-    truth_size = t.range_km if size == "range_km" else t.apparent_radius_px
+    C, N, t = j["covariance"], j["covariance_noise"], case.truth
+    # the size: the range (an ellipsoid's answer) or the apparent radius, its covariance key and the truth's
+    size, value, truth = (("range_km", j["range_km"], t.range_km) if "range_km" in C
+                          else ("radius", j["radius_px"], t.apparent_radius_px))
     err_rc = np.asarray(j["center_rc"], float) - np.asarray(t.body_center_rc, float)
     keys = ("center_r", "center_c", size)
     return {"sigma": [C[k][k] ** 0.5 for k in keys], "sigma_noise": [N[k][k] ** 0.5 for k in keys],
-            "error": [*err_rc.tolist(), float(j[size if size == "range_km" else "radius_px"]) - float(truth_size)],
-            "keys": list(keys)}
+            "error": [*err_rc.tolist(), float(value) - float(truth)], "keys": list(keys)}
 
 
 def main(argv: list[str] | None = None) -> dict:
