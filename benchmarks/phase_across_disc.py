@@ -42,7 +42,7 @@ from _common import environment, save  # noqa: E402
 
 LAWS = ("lambert", "lunar-lambert", "hapke")
 VARIANTS = ("per point", "held")
-#: Every eighth frame of the transfer's second half (odd frames are the Moon's): 13 frames, 20 to 43 px in radius.
+#: Every eighth frame of the transfer's second half (odd frames are the Moon's), up to its closest.
 DEFAULT_FRAMES = tuple(range(103, 200, 8))
 
 
@@ -136,6 +136,7 @@ def main(argv: list[str] | None = None) -> int:
     from jaxlimb.track.scenario import true_measurements
     from track_render import scenario
 
+    env = environment()  # the tree as the run starts
     arc, _, tr = scenario(200, a.seed)
     frames = [int(k) for k in a.frames.split(",")]
     if any(tr.bodies[k] != "moon" for k in frames):
@@ -155,7 +156,7 @@ def main(argv: list[str] | None = None) -> int:
                     row[law][var] = errors(arc, tr, k, rad * (peak / rad.max()), a.draws, a.seed)
                     bar.update()
             rows.append(row)
-    out = {"environment": environment(), "seed": a.seed, "draws": a.draws, "summary": summary(rows), "frames": rows}
+    out = {"environment": env, "seed": a.seed, "draws": a.draws, "summary": summary(rows), "frames": rows}
     print(out["summary"])
     print(save("phase_across_disc", out))
     return 0

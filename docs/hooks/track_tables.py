@@ -153,3 +153,28 @@ def track_noise(rel: str = "track_noise.json") -> str:
             "M: its model-error term, R = N + M; expected values in brackets.*\n\n"
             + (rt.table(whole_head, whole) + "\n" if whole else "")
             + (rt.table(fifth_head, fifths) + "\n" if fifths else "") + rt.source(rel, d))
+
+
+@rt.renderer
+def phase_across_disc(rel: str = "phase_across_disc.json") -> str:
+    """``benchmarks/phase_across_disc.py``: ``locate``'s error on the transfer's close Moon frames under three laws,
+    each point at its own phase angle and with the phase held at the body's across the disc."""
+    d = rt.load(rel)
+    fr = d["frames"]
+    head = ["law", "phase angle", "frames", "along the Sun (px)", "along / radius", "mean abs across (px)",
+            "size (px)"]
+    rows = [[*key.split(", "), str(v["frames"]), rt.f(v["along_px"], 4, True), rt.f(v["along_over_radius"], 5, True),
+             rt.f(v["abs_across_px"], 4), rt.f(v["size_px"], 4, True)] for key, v in d["summary"].items()]
+    span = (f"\n*Frames {fr[0]['frame']}–{fr[-1]['frame']} of the transfer: radius "
+            f"{min(x['radius_px'] for x in fr):.0f}–{max(x['radius_px'] for x in fr):.0f} px, phase "
+            f"{min(x['phase_deg'] for x in fr):.1f}–{max(x['phase_deg'] for x in fr):.1f}°, angular radius "
+            f"{min(x['alpha0_deg'] for x in fr):.2f}–{max(x['alpha0_deg'] for x in fr):.2f}°; each error the mean of "
+            f"{d['draws']} noise draws, then over the frames.*\n")
+    laws = ("lambert", "lunar-lambert", "hapke")
+    per = [[str(x["frame"]), f"{x['phase_deg']:.1f}", f"{x['alpha0_deg']:.2f}", f"{x['radius_px']:.1f}"]
+           + [rt.f(x[law][var].get("along_px"), 4, True) for law in laws for var in ("per point", "held")
+              if law != "lambert" or var == "per point"] for x in fr]
+    per_head = ["frame", "phase (°)", "angular radius (°)", "radius (px)", "Lambert", "lunar-Lambert",
+                "lunar-Lambert, held", "Hapke", "Hapke, held"]
+    return (rt.table(head, rows) + span + "\n*Along the Sun (px), frame by frame:*\n\n" + rt.table(per_head, per)
+            + "\n" + rt.source(rel, d))
