@@ -74,27 +74,27 @@ def frame_truth(arc, tr, k: int) -> dict:  # noqa: ANN001
             "alpha0_deg": math.degrees(math.asin(BODY_RADIUS_KM["moon"] / np.linalg.norm(u)))}
 
 
-def render(arc, tr, k: int, law: str, held: bool) -> np.ndarray:  # noqa: ANN001
-    """Frame ``k``'s Moon under ``law`` (``held``: the phase held across the disc), blurred radiance."""
+def render(arc, tr, k: int, law: str, cos_phase: float | None) -> np.ndarray:  # noqa: ANN001
+    """Frame ``k``'s Moon under ``law``, blurred radiance; with ``cos_phase``, the phase held at ``acos(cos_phase)``
+    across the disc."""
     from jaxlimb.render.independent import Body, Photometry, Pinhole, Psf, PsfKind, Reflectance, Surface, render_radiance
     from jaxlimb.track.measurement import BODY_RADIUS_KM
     from track_render import THETA_TRUE, camera, frame_geometry
 
     g = frame_geometry(arc, tr, k)
-    phot = held_photometry(law, frame_truth(arc, tr, k)["cos_phase"]) if held else Photometry(law=Reflectance(law))
-    rad = render_radiance(Body((BODY_RADIUS_KM["moon"],) * 3, g["center_cam"], g["R"], g["sun"]), Surface(phot),
-                          Pinhole.from_camera(camera(THETA_TRUE)), Psf(PsfKind.GAUSSIAN, 0.8))
-    return rad
+    phot = Photometry(law=Reflectance(law)) if cos_phase is None else held_photometry(law, cos_phase)
+    return render_radiance(Body((BODY_RADIUS_KM["moon"],) * 3, g["center_cam"], g["R"], g["sun"]), Surface(phot),
+                           Pinhole.from_camera(camera(THETA_TRUE)), Psf(PsfKind.GAUSSIAN, 0.8))
 
 
-def errors(arc, tr, k: int, rad: np.ndarray, draws: int, seed: int) -> dict:  # noqa: ANN001
-    """``locate``'s mean errors (along and across the Sun, size; px) over ``draws`` noise draws of ``rad``."""
-    from jaxlimb.track.scenario import true_measurements
+def errors(arc, tr, k: int, rad: np.ndarray, truth: tuple[np.ndarray, np.ndarray], draws: int,  # noqa: ANN001
+           seed: int) -> dict:
+    """``locate``'s mean errors (along and across the Sun, size; px) over ``draws`` noise draws of ``rad``; ``truth``:
+    the Sun's image direction and the true measurement of frame ``k``."""
     from track_render import THETA_TRUE, measure
     from track_transfer import as_frames
 
-    d = frame_truth(arc, tr, k)["d"]
-    z_true = true_measurements(tr)[k]
+    d, z_true = truth
     out = []
     for draw in range(draws):
         m = measure(arc, tr, k, rad, draw, THETA_TRUE, seed)
@@ -146,14 +146,15 @@ def main(argv: list[str] | None = None) -> int:
     with tqdm(total=len(frames) * len(LAWS) * len(VARIANTS), desc="phase across the disc") as bar:
         for k in frames:
             t = frame_truth(arc, tr, k)
-            rads = {(law, var): render(arc, tr, k, law, var == "held") for law in LAWS for var in VARIANTS}
+            rads = {(law, var): render(arc, tr, k, law, t["cos_phase"] if var == "held" else None)
+                    for law in LAWS for var in VARIANTS}
             peak = float(rads["hapke", "per point"].max())  # the transfer's own radiance of this frame
             row = {"frame": k, "phase_deg": t["phase_deg"], "alpha0_deg": t["alpha0_deg"], "radius_px": float(z[k, 2])}
             for law in LAWS:
                 row[law] = {}
                 for var in VARIANTS:
                     rad = rads[law, var]
-                    row[law][var] = errors(arc, tr, k, rad * (peak / rad.max()), a.draws, a.seed)
+                    row[law][var] = errors(arc, tr, k, rad * (peak / rad.max()), (t["d"], z[k]), a.draws, a.seed)
                     bar.update()
             rows.append(row)
     out = {"environment": env, "seed": a.seed, "draws": a.draws, "summary": summary(rows), "frames": rows}
