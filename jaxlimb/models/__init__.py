@@ -38,6 +38,7 @@ from .lunar_lambert import (
     PROFILE_FIXED as PROFILE_FIXED,
     LimbProfileParams as LimbProfileParams,
     limb_profile_intensity as limb_profile_intensity,
+    lunar_lambert_slope as lunar_lambert_slope,
     lunar_lambert_weight as lunar_lambert_weight,
 )
 from .sigmoid import (

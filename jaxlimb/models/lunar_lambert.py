@@ -23,7 +23,16 @@ and the Sun direction is :math:`s = (\sin\vartheta\cos\psi', \cdot, \cos\varthet
           \qquad \mu = \cos e = \sqrt{1 - q^2}.
 
 Radiance (lunar-Lambert, McEwen): :math:`I = L\,2\mu_0/(\mu_0+\mu) + (1-L)\,\mu_0` for
-:math:`\mu_0 > 0`, 0 otherwise (``L`` fixed from the phase).
+:math:`\mu_0 > 0`, 0 otherwise, with the weight ``L`` at the point's own phase angle.
+
+The phase angle across the disc.  Each point is seen at its own phase angle: from the point at :math:`\beta` from
+the centre direction the observer is :math:`\beta\cos\psi'` farther from the Sun, so to first order the phase
+there is :math:`\vartheta + q\,\alpha_0\cos\psi'`.  Incidence and emission are computed at each point; the law's
+own phase dependence is its weight, :math:`L + L'\,q\,\alpha_0\cos\psi'` with ``L`` at the centre's phase and
+:math:`L' = dL/d\vartheta` (``L_slope``, McEwen's: :func:`~jaxlimb.models.profile_params.lunar_lambert_slope`).  Held
+at the centre's, the weight makes the rim toward the Sun brighter than a lunar-Lambert surface's, the fit reads the
+difference as an edge moved, and the centre comes out displaced away from the Sun by an amount first order in
+:math:`\alpha_0` (``benchmarks/phase_across_disc.py``).
 
 Blur.  The observed intensity is ``ymin + amp * (I H) * N_sigma`` along the radial
 direction (1-D: ``R >> sigma``): with the depth :math:`u' = R - d' = v^2`,
@@ -39,7 +48,7 @@ curvature term of the 2-D blur, :math:`\sigma_e^2/(2d)\,\partial f/\partial d` (
 short: ``benchmarks/locate_accuracy.py``'s bias study).  Parameters
 ``(r0, c0, a, sigma, amp, ymin)`` are estimated; ``theta, rho`` (limb ellipse shape),
 ``sun_r, sun_c`` (unit image direction of the Sun), ``phase`` (rad), ``inv_f`` (1/focal px;
-0 = orthographic) and ``L`` are held fixed (``fixed=PROFILE_FIXED``).
+0 = orthographic), ``L`` and ``L_slope`` are held fixed (``fixed=PROFILE_FIXED``; the pipeline fits ``L``).
 
 Jacobian.  The columns are computed in the same pass as the intensity (13 columns for about three times the
 cost of the intensity; ``jax.jacfwd`` took 13 times) and are the derivative of the quadrature *as computed*
@@ -85,7 +94,7 @@ from .._programs import stored_jit
 from ._base import LimbModel, fused_model
 from .blur_quadrature import blur_moments, blur_nodes, blur_window, curvature_blur, quadrature_nodes, window_terms
 from .profile_params import (PHYSICAL_L, PROFILE_FIXED, AnisoProfileParams, GlowProfileParams, LimbProfileParams,
-                             MinnaertProfileParams, glow_fields, lunar_lambert_weight)
+                             MinnaertProfileParams, glow_fields, lunar_lambert_slope, lunar_lambert_weight)
 from .profile_radiance import (WINDOW_KEYS, aniso_terms_of, aniso_var, glow_inside, glow_outside, limb_geometry,
                                radiance_parts, window_regime)
 
@@ -122,7 +131,7 @@ def _glow_integrals(p: GlowProfileParams, d, R, se, cpsi, s2d, derivatives: bool
 def _radiance_partials(rad, nodes, se, s2d, d, F1_d, F1_dd, F1_dse) -> dict:
     """The partials of ``F = F1 + s2d dF1/dd`` at fixed nodes (the integrands differentiated; module docstring of
     :func:`profile_integrals`)."""
-    _, I_R, I_cpsi, I_a0, I_ph, I_L, I_k, _ = rad
+    _, I_R, I_cpsi, I_a0, I_ph, I_L, I_k, _, I_s = rad
     t, g = nodes[1], nodes[3]
     tg = t * g / jnp.asarray(se)[..., None]  # -dg/dd
 
@@ -135,6 +144,7 @@ def _radiance_partials(rad, nodes, se, s2d, d, F1_d, F1_dd, F1_dse) -> dict:
     F1_ph, F1_dph = pair(I_ph)
     F1_L, F1_dL = pair(I_L)
     F1_k, F1_dk = pair(I_k)
+    F1_s, F1_ds = pair(I_s)
     return {
         "F_d": F1_d + s2d * (F1_dd - F1_d / d),
         "F_R": (-F1_d + F1_R) + s2d * (-F1_dd + F1_dR),
@@ -144,6 +154,7 @@ def _radiance_partials(rad, nodes, se, s2d, d, F1_d, F1_dd, F1_dse) -> dict:
         "F_ph": F1_ph + s2d * F1_dph,
         "F_L": F1_L + s2d * F1_dL,
         "F_k": F1_k + s2d * F1_dk,
+        "F_s": F1_s + s2d * F1_ds,
     }
 
 
@@ -155,7 +166,7 @@ def profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brigh
     curvature term of the 2-D blur of a round edge (the ``(1/r) d/dr`` part of the Laplacian:
     the blurred disc's edge moves inward by ``sigma_e^2 / 2R``, 0.02 px for ``R = 33 px``,
     ``sigma = 1.2 px``).  Partials ``F_d, F_R`` (at fixed ``d``/``R``), ``F_cpsi, F_se, F_a0,
-    F_ph, F_L, F_k``: the integrands differentiated at fixed nodes plus the move of the nodes with the window's
+    F_ph, F_L, F_k, F_s``: the integrands differentiated at fixed nodes plus the move of the nodes with the window's
     ends (:func:`~jaxlimb.models.blur_quadrature.window_terms`).  ``brightened``: as :func:`~jaxlimb.models.profile_radiance.radiance_parts`.
     ``glowing`` (:class:`GlowProfileParams`): plus ``p.glow`` times the glow on the disc side (in the integrand) and
     above the limb (closed form); partials ``F_glow``, ``F_tilt``, ``F_lh``.  ``s2``: the per-pixel anisotropic
@@ -315,6 +326,7 @@ def _profile_value_and_columns(p: LimbProfileParams, rc):
         "phase": A * P["F_ph"],
         "inv_f": A * F_a0 * a0_common * p.rho * p.a,
         "L": A * P["F_L"],
+        "L_slope": A * P["F_s"],
         "kappa": A * P["F_k"],
     }
     if glowing:
@@ -364,4 +376,4 @@ def profile_model(p: LimbProfileParams) -> LimbModel:
 __all__ = ["LIMB_PROFILE", "LIMB_PROFILE_ANISO", "AnisoProfileParams", "LIMB_PROFILE_GLOW", "LIMB_PROFILE_MINNAERT",
            "GlowProfileParams", "LimbProfileParams", "MinnaertProfileParams", "blur_nodes", "blur_window",
            "brightening_column", "glow_fields", "limb_geometry", "PHYSICAL_L", "PROFILE_FIXED", "limb_profile_intensity",
-           "lunar_lambert_weight", "profile_integrals", "profile_model", "quadrature_nodes", "window_regime"]
+           "lunar_lambert_slope", "lunar_lambert_weight", "profile_integrals", "profile_model", "quadrature_nodes", "window_regime"]

@@ -10,7 +10,7 @@ from jaxtyping import ArrayLike
 
 from ._base import LimbParams
 
-PROFILE_FIXED = ("theta", "rho", "sun_r", "sun_c", "phase", "inv_f", "L")
+PROFILE_FIXED = ("theta", "rho", "sun_r", "sun_c", "phase", "inv_f", "L", "L_slope")
 
 
 class LimbProfileParams(LimbParams):
@@ -18,7 +18,9 @@ class LimbProfileParams(LimbParams):
 
     ``r0, c0, a, theta, rho`` are the limb ellipse as in :class:`jaxlimb.models.EllipseParams`
     (``rho = 1``: a circle of radius ``a``); ``sigma`` the Gaussian PSF (px); ``amp``, ``ymin``
-    the radiance scale and the sky level; ``sun_r, sun_c, phase, inv_f, L`` fixed geometry.
+    the radiance scale and the sky level; ``sun_r, sun_c, phase, inv_f`` fixed geometry; ``L`` the lunar-Lambert
+    weight at the body centre's phase angle and ``L_slope`` its derivative in the phase angle (1/rad), which sets the
+    weight at each point of the disc (:mod:`jaxlimb.models.lunar_lambert`, "The phase angle across the disc").
     """
 
     r0: ArrayLike
@@ -34,6 +36,7 @@ class LimbProfileParams(LimbParams):
     phase: ArrayLike
     inv_f: ArrayLike
     L: ArrayLike
+    L_slope: ArrayLike
 
 
 class MinnaertProfileParams(LimbProfileParams):
@@ -93,6 +96,29 @@ def lunar_lambert_weight(phase_rad: float, coeffs=(-0.019, 2.42e-4, -1.46e-6)) -
     return float(min(1.0, max(0.0, 1.0 + A * a + B * a * a + C * a**3)))
 
 
+def lunar_lambert_slope(phase_rad: float, coeffs=(-0.019, 2.42e-4, -1.46e-6)) -> float:
+    """``dL/dalpha`` (1/rad) of :func:`lunar_lambert_weight`: ``(A + 2 B alpha + 3 C alpha^2) 180/pi``, 0 where the
+    weight is clipped to 0 or 1.
+
+    Parameters
+    ----------
+    phase_rad : float
+        Phase angle (rad).
+    coeffs : tuple of float
+        ``(A, B, C)`` as in :func:`lunar_lambert_weight`.
+
+    Returns
+    -------
+    float
+        The weight's derivative in the phase angle (1/rad).
+    """
+    a = math.degrees(phase_rad)
+    A, B, C = coeffs
+    if not 0.0 < 1.0 + A * a + B * a * a + C * a**3 < 1.0:
+        return 0.0
+    return float((A + 2.0 * B * a + 3.0 * C * a * a) * 180.0 / math.pi)
+
+
 def glow_fields(p: LimbProfileParams) -> dict[str, float]:
     """The glow of a :class:`GlowProfileParams` fit for a report: ``glow`` (units of ``amp``) and
     ``glow_scale_px`` (its scale height); ``glow = 0`` for the other profiles.
@@ -113,4 +139,4 @@ def glow_fields(p: LimbProfileParams) -> dict[str, float]:
 
 
 __all__ = ["PHYSICAL_L", "PROFILE_FIXED", "AnisoProfileParams", "GlowProfileParams", "LimbProfileParams",
-           "MinnaertProfileParams", "glow_fields", "lunar_lambert_weight"]
+           "MinnaertProfileParams", "glow_fields", "lunar_lambert_slope", "lunar_lambert_weight"]

@@ -54,9 +54,10 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
     :mod:`jaxlimb.models.lunar_lambert`).
 
     With ``q = 1 - v^2/R`` the emission cosine is computed as ``mu = v sqrt((1 + q)/R)``
-    (no cancellation in ``1 - q^2`` at the limb).  Returns ``I`` and, at fixed ``v``,
-    ``dI/dR``, ``dI/dcpsi``, ``dI/dalpha0``, ``dI/dphase``, ``dI/dL``, ``dI/dkappa``, and ``dI/dv`` at fixed ``R``
-    (the move of a quadrature node).  ``brightened``: with the limb brightening ``(mu0 mu)^-p.kappa``
+    (no cancellation in ``1 - q^2`` at the limb).  The weight is ``L + L_slope dg`` at the point: ``dg = q alpha0
+    cpsi``, the phase angle's change across the disc to first order.  Returns ``I`` and, at fixed ``v``,
+    ``dI/dR``, ``dI/dcpsi``, ``dI/dalpha0``, ``dI/dphase``, ``dI/dL``, ``dI/dkappa``, ``dI/dv`` at fixed ``R``
+    (the move of a quadrature node) and ``dI/dL_slope``.  ``brightened``: with the limb brightening ``(mu0 mu)^-p.kappa``
     (:class:`MinnaertProfileParams`); ``dI/dkappa`` is returned in either case (at ``kappa = 0`` without it).  A
     separate model and not a parameter held at 0: on CPU the brightening's terms cost the one-pass Jacobian 2.5-3x
     (XLA repeats them in every column's reduction; a ``lax.cond`` on ``kappa = 0`` did not help).
@@ -64,7 +65,7 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
     Parameters
     ----------
     p : LimbProfileParams
-        Supplies ``phase`` (rad), ``L`` and, with ``brightened``, ``kappa``.
+        Supplies ``phase`` (rad), ``L``, ``L_slope`` and, with ``brightened``, ``kappa``.
     v : jax.Array
         Square root of the depth below the limb (px^1/2): the quadrature nodes, ``(n, nodes)``.
     R : jax.Array
@@ -78,10 +79,10 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
 
     Returns
     -------
-    tuple of 8 jax.Array
-        ``(I, I_R, I_cpsi, I_a0, I_ph, I_L, I_k, I_v)``, each of the broadcast shape of ``v``: the radiance (units
-        of ``amp``) and its partials in ``R``, ``cpsi``, ``alpha0``, ``phase``, ``L``, ``kappa`` (all at fixed
-        ``v``) and in ``v`` (at fixed ``R``).
+    tuple of 9 jax.Array
+        ``(I, I_R, I_cpsi, I_a0, I_ph, I_L, I_k, I_v, I_s)``, each of the broadcast shape of ``v``: the radiance
+        (units of ``amp``) and its partials in ``R``, ``cpsi``, ``alpha0``, ``phase``, ``L``, ``kappa`` (all at
+        fixed ``v``), in ``v`` (at fixed ``R``) and in ``L_slope``.
     """
     v2 = v * v
     inv_R = 1.0 / R
@@ -97,15 +98,17 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
     lit = mu0 > 0
     m0 = jnp.where(lit, mu0, 0.0)
     inv_den = 1.0 / jnp.where(lit, m0 + mu, 1.0)
-    two_L = 2.0 * p.L
+    dg = q * alpha0 * cpsi  # the phase angle's change across the disc
+    Lp = p.L + p.L_slope * dg  # the weight at the point
+    two_L = 2.0 * Lp
     ratio = m0 * inv_den  # mu0 / (mu0 + mu)
     # (mu0 mu)^-kappa: Minnaert's limb brightening (L = 0: mu0^k mu^(k-1) with k = 1 - kappa); 1 at kappa = 0
     log_mm = jnp.log(jnp.where(lit & (mu > 0), m0 * mu, 1.0))
     kappa = p.kappa if brightened else 0.0
     brighten = jnp.exp(-kappa * log_mm) if brightened else 1.0
-    I = (two_L * ratio + (1.0 - p.L) * m0) * brighten
+    I = (two_L * ratio + (1.0 - Lp) * m0) * brighten
     # d/dmu0 of the brightened law: its lunar-Lambert part minus kappa I / mu0 (ratio / mu0 = inv_den)
-    I_mu0 = jnp.where(lit, (two_L * (mu * inv_den - kappa) * inv_den + (1.0 - p.L) * (1.0 - kappa)) * brighten, 0.0)
+    I_mu0 = jnp.where(lit, (two_L * (mu * inv_den - kappa) * inv_den + (1.0 - Lp) * (1.0 - kappa)) * brighten, 0.0)
     I_mu = -two_L * ratio * inv_den * brighten
     mu0_beta = -c_em * a_s + s_em * cph  # d mu0 / d beta
     q_R = v2 * inv_R * inv_R
@@ -128,8 +131,10 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
     I_a0 = I_mu0 * mu0_beta * q
     I_ph = I_mu0 * (s_em * cph * cpsi - c_em * sph)
     I_L = (2.0 * ratio - m0) * brighten
-    I_k = -log_mm * I
-    return I, I_R, I_cpsi, I_a0, I_ph, I_L, I_k, I_v
+    # the weight's own change with the point (dg: q_R = v^2 / R^2 at fixed v, q_v = -2 v / R at fixed R)
+    k = p.L_slope * alpha0 * cpsi * I_L
+    return (I, I_R + k * q_R, I_cpsi + p.L_slope * q * alpha0 * I_L, I_a0 + p.L_slope * q * cpsi * I_L, I_ph, I_L,
+            -log_mm * I, I_v + k * q_v, dg * I_L)
 
 
 def terminator_depth(p: LimbProfileParams, R, cpsi, alpha0, tangents: bool = False):

@@ -12,8 +12,8 @@ import numpy as np
 from ...errors import ConfigError
 from ...fitting import NormalLM
 from ...imaging.prior import sun_direction_image
-from ...models import (AnisoProfileParams, CircleParams, LIMB_PROFILE, LimbProfileParams, lunar_lambert_weight,
-                       PROFILE_FIXED)
+from ...models import (AnisoProfileParams, CircleParams, LIMB_PROFILE, LimbProfileParams, lunar_lambert_slope,
+                       lunar_lambert_weight, PROFILE_FIXED)
 from ..sigmoid import LOGISTIC_TO_GAUSS, predict
 from ..stages import FitData, Frame, RefineResult
 from .albedo_field import albedo_field_refit
@@ -94,7 +94,7 @@ def profile_start(frame: Frame, circle: CircleParams, data: FitData, center) -> 
     return LimbProfileParams(r0=center[0], c0=center[1], a=float(p.radius), theta=0.0, rho=1.0,
                              sigma=gaussian_sigma_of_k(float(p.k)), amp=max(scale, 1e-6), ymin=offset, sun_r=sun_rc[0],
                              sun_c=sun_rc[1], phase=phase, inv_f=_inv_focal(frame, float(p.radius)),
-                             L=lunar_lambert_weight(phase))
+                             L=lunar_lambert_weight(phase), L_slope=lunar_lambert_slope(phase))
 
 
 def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: float | None = None

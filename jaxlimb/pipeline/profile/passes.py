@@ -18,7 +18,7 @@ from ..stages import FitData, Frame
 
 #: The profile's parameters held in its fit: the Sun's image direction, the phase and ``1/f`` (from the hints and the
 #: camera); the lunar-Lambert weight ``L`` is estimated, from McEwen's ``L(phase)``: it adapts the profile to Lambert
-#: (0) ... Lommel-Seeliger (1) limbs.
+#: (0) ... Lommel-Seeliger (1) limbs; its change across the disc with the phase angle, ``L_slope``, is McEwen's.
 PROFILE_HELD = tuple(n for n in PROFILE_FIXED if n != "L")
 
 
