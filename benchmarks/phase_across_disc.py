@@ -4,16 +4,18 @@ Each point of a body is seen at its own phase angle.  Seen from a finite range, 
 body's angular radius) farther from the Sun as seen from the limb on the Sun's side than as seen from the centre,
 and ``alpha0`` nearer as seen from the opposite limb.  Under a law whose brightness depends on the phase angle
 (lunar-Lambert's weight ``L(g)``, Hapke's opposition surge and phase function) the rim on the Sun's side is then
-dimmer than the opposite rim.  ``locate``'s limb profile (:mod:`jaxlimb.models.lunar_lambert`) computes the
-incidence and emission at each point but holds the phase (and ``L``) at the body's value across the disc.  A dimmer
-rim on one side reads as an edge moved inward there, so the fitted centre moves away from the Sun.
+dimmer than the opposite rim.  A profile that holds the phase (and ``L``) at the body's value across the disc reads
+the dimmer rim as an edge moved inward there, so the fitted centre moves away from the Sun.  ``locate``'s limb profile
+(:mod:`jaxlimb.models.lunar_lambert`) computes the incidence and emission at each point and gives each point the
+lunar-Lambert weight of its own phase angle (McEwen's ``dL/dg``); a law whose brightness falls faster with the phase
+(Hapke's) keeps part of the displacement.
 
 What is rendered: Moon frames of the rendered cislunar transfer (``benchmarks/track_render.py``: the same
 geometry, camera, Gaussian PSF, 12-bit sensor and noise seeds).  The independent renderer renders them under three
 laws, each twice:
 
 * ``per point``: each point at its own phase angle, as in the world and in both renderers;
-* ``held``: the phase angle held at the body centre's across the disc, the assumption of ``locate``'s profile.
+* ``held``: the phase angle held at the body centre's across the disc: the same frame without the effect.
 
 Lambert's law does not depend on the phase angle and is the control.  Each render is scaled to the peak of the
 transfer's own (Hapke) radiance of that frame, so the signal is the transfer's.

@@ -28,11 +28,12 @@ Radiance (lunar-Lambert, McEwen): :math:`I = L\,2\mu_0/(\mu_0+\mu) + (1-L)\,\mu_
 The phase angle across the disc.  Each point is seen at its own phase angle: from the point at :math:`\beta` from
 the centre direction the observer is :math:`\beta\cos\psi'` farther from the Sun, so to first order the phase
 there is :math:`\vartheta + q\,\alpha_0\cos\psi'`.  Incidence and emission are computed at each point; the law's
-own phase dependence is its weight, :math:`L + L'\,q\,\alpha_0\cos\psi'` with ``L`` at the centre's phase and
-:math:`L' = dL/d\vartheta` (``L_slope``, McEwen's: :func:`~jaxlimb.models.profile_params.lunar_lambert_slope`).  Held
-at the centre's, the weight makes the rim toward the Sun brighter than a lunar-Lambert surface's, the fit reads the
-difference as an edge moved, and the centre comes out displaced away from the Sun by an amount first order in
-:math:`\alpha_0` (``benchmarks/phase_across_disc.py``).
+own phase dependence is its weight, :math:`L\,(1 + \lambda\,q\,\alpha_0\cos\psi')` with ``L`` at the centre's phase
+(fitted) and :math:`\lambda = d\ln L/d\vartheta` (``L_slope``, McEwen's:
+:func:`~jaxlimb.models.profile_params.lunar_lambert_slope`): the fitted weight changes across the disc as the Moon's
+does, and a Lambert surface's (``L = 0``) does not change.  Held at the centre's, the weight makes the rim toward the
+Sun brighter than a lunar-Lambert surface's, the fit reads the difference as an edge moved, and the centre comes out
+displaced away from the Sun by an amount first order in :math:`\alpha_0` (``benchmarks/phase_across_disc.py``).
 
 Blur.  The observed intensity is ``ymin + amp * (I H) * N_sigma`` along the radial
 direction (1-D: ``R >> sigma``): with the depth :math:`u' = R - d' = v^2`,

@@ -19,8 +19,9 @@ class LimbProfileParams(LimbParams):
     ``r0, c0, a, theta, rho`` are the limb ellipse as in :class:`jaxlimb.models.EllipseParams`
     (``rho = 1``: a circle of radius ``a``); ``sigma`` the Gaussian PSF (px); ``amp``, ``ymin``
     the radiance scale and the sky level; ``sun_r, sun_c, phase, inv_f`` fixed geometry; ``L`` the lunar-Lambert
-    weight at the body centre's phase angle and ``L_slope`` its derivative in the phase angle (1/rad), which sets the
-    weight at each point of the disc (:mod:`jaxlimb.models.lunar_lambert`, "The phase angle across the disc").
+    weight at the body centre's phase angle and ``L_slope`` its relative derivative in the phase angle,
+    ``d ln L / d phase`` (1/rad), which sets the weight at each point of the disc (:mod:`jaxlimb.models.lunar_lambert`,
+    "The phase angle across the disc").
     """
 
     r0: ArrayLike
@@ -97,8 +98,8 @@ def lunar_lambert_weight(phase_rad: float, coeffs=(-0.019, 2.42e-4, -1.46e-6)) -
 
 
 def lunar_lambert_slope(phase_rad: float, coeffs=(-0.019, 2.42e-4, -1.46e-6)) -> float:
-    """``dL/dalpha`` (1/rad) of :func:`lunar_lambert_weight`: ``(A + 2 B alpha + 3 C alpha^2) 180/pi``, 0 where the
-    weight is clipped to 0 or 1.
+    """``d ln L / d alpha`` (1/rad) of :func:`lunar_lambert_weight`: ``(A + 2 B alpha + 3 C alpha^2) 180/pi / L``, 0
+    where the weight is clipped to 0 or 1.
 
     Parameters
     ----------
@@ -110,13 +111,14 @@ def lunar_lambert_slope(phase_rad: float, coeffs=(-0.019, 2.42e-4, -1.46e-6)) ->
     Returns
     -------
     float
-        The weight's derivative in the phase angle (1/rad).
+        The weight's relative derivative in the phase angle (1/rad).
     """
     a = math.degrees(phase_rad)
     A, B, C = coeffs
-    if not 0.0 < 1.0 + A * a + B * a * a + C * a**3 < 1.0:
+    L = 1.0 + A * a + B * a * a + C * a**3
+    if not 0.0 < L < 1.0:
         return 0.0
-    return float((A + 2.0 * B * a + 3.0 * C * a * a) * 180.0 / math.pi)
+    return float((A + 2.0 * B * a + 3.0 * C * a * a) * 180.0 / math.pi / L)
 
 
 def glow_fields(p: LimbProfileParams) -> dict[str, float]:

@@ -54,7 +54,7 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
     :mod:`jaxlimb.models.lunar_lambert`).
 
     With ``q = 1 - v^2/R`` the emission cosine is computed as ``mu = v sqrt((1 + q)/R)``
-    (no cancellation in ``1 - q^2`` at the limb).  The weight is ``L + L_slope dg`` at the point: ``dg = q alpha0
+    (no cancellation in ``1 - q^2`` at the limb).  The weight is ``L (1 + L_slope dg)`` at the point: ``dg = q alpha0
     cpsi``, the phase angle's change across the disc to first order.  Returns ``I`` and, at fixed ``v``,
     ``dI/dR``, ``dI/dcpsi``, ``dI/dalpha0``, ``dI/dphase``, ``dI/dL``, ``dI/dkappa``, ``dI/dv`` at fixed ``R``
     (the move of a quadrature node) and ``dI/dL_slope``.  ``brightened``: with the limb brightening ``(mu0 mu)^-p.kappa``
@@ -99,7 +99,8 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
     m0 = jnp.where(lit, mu0, 0.0)
     inv_den = 1.0 / jnp.where(lit, m0 + mu, 1.0)
     dg = q * alpha0 * cpsi  # the phase angle's change across the disc
-    Lp = p.L + p.L_slope * dg  # the weight at the point
+    grow = 1.0 + p.L_slope * dg
+    Lp = p.L * grow  # the weight at the point
     two_L = 2.0 * Lp
     ratio = m0 * inv_den  # mu0 / (mu0 + mu)
     # (mu0 mu)^-kappa: Minnaert's limb brightening (L = 0: mu0^k mu^(k-1) with k = 1 - kappa); 1 at kappa = 0
@@ -132,9 +133,10 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
     I_ph = I_mu0 * (s_em * cph * cpsi - c_em * sph)
     I_L = (2.0 * ratio - m0) * brighten
     # the weight's own change with the point (dg: q_R = v^2 / R^2 at fixed v, q_v = -2 v / R at fixed R)
-    k = p.L_slope * alpha0 * cpsi * I_L
-    return (I, I_R + k * q_R, I_cpsi + p.L_slope * q * alpha0 * I_L, I_a0 + p.L_slope * q * cpsi * I_L, I_ph, I_L,
-            -log_mm * I, I_v + k * q_v, dg * I_L)
+    Ls = p.L * p.L_slope * I_L
+    k = Ls * alpha0 * cpsi
+    return (I, I_R + k * q_R, I_cpsi + Ls * q * alpha0, I_a0 + Ls * q * cpsi, I_ph, I_L * grow, -log_mm * I,
+            I_v + k * q_v, p.L * dg * I_L)
 
 
 def terminator_depth(p: LimbProfileParams, R, cpsi, alpha0, tangents: bool = False):
