@@ -25,10 +25,11 @@ and the Sun direction is :math:`s = (\sin\vartheta\cos\psi', \cdot, \cos\varthet
 Radiance (lunar-Lambert, McEwen): :math:`I = L\,2\mu_0/(\mu_0+\mu) + (1-L)\,\mu_0` for
 :math:`\mu_0 > 0`, 0 otherwise, with the weight ``L`` at the point's own phase angle.
 
-The phase angle across the disc.  Each point is seen at its own phase angle: from the point at :math:`\beta` from
-the centre direction the observer is :math:`\beta\cos\psi'` farther from the Sun, so to first order the phase
-there is :math:`\vartheta + q\,\alpha_0\cos\psi'`.  Incidence and emission are computed at each point; the law's
-own phase dependence is its weight, :math:`L\,(1 + \lambda\,q\,\alpha_0\cos\psi')` with ``L`` at the centre's phase
+The phase angle across the disc.  Each point is seen at its own phase angle: the ray at :math:`\beta` from the
+centre direction, toward the Sun by :math:`\cos\psi'`, meets the surface at the phase angle :math:`\vartheta + \Delta g`
+with :math:`\cos(\vartheta + \Delta g) = \cos\beta\cos\vartheta - \sin\beta\sin\vartheta\cos\psi'` (to first order
+:math:`\Delta g = \beta\cos\psi'`; at zero phase :math:`\Delta g = \beta`).  Incidence and emission are computed at
+each point; the law's own phase dependence is its weight, :math:`L\,(1 + \lambda\,\Delta g)` with ``L`` at the centre's phase
 (fitted) and :math:`\lambda = d\ln L/d\vartheta` (``L_slope``, McEwen's:
 :func:`~jaxlimb.models.profile_params.lunar_lambert_slope`): the fitted weight changes across the disc as the Moon's
 does, and a Lambert surface's (``L = 0``) does not change.  Held at the centre's, the weight makes the rim toward the

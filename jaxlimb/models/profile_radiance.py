@@ -54,8 +54,8 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
     :mod:`jaxlimb.models.lunar_lambert`).
 
     With ``q = 1 - v^2/R`` the emission cosine is computed as ``mu = v sqrt((1 + q)/R)``
-    (no cancellation in ``1 - q^2`` at the limb).  The weight is ``L (1 + L_slope dg)`` at the point: ``dg = q alpha0
-    cpsi``, the phase angle's change across the disc to first order.  Returns ``I`` and, at fixed ``v``,
+    (no cancellation in ``1 - q^2`` at the limb).  The weight is ``L (1 + L_slope dg)`` at the point, ``dg`` the
+    phase angle's change across the disc: ``cos(phase + dg) = cos beta cos(phase) - sin beta sin(phase) cpsi``.  Returns ``I`` and, at fixed ``v``,
     ``dI/dR``, ``dI/dcpsi``, ``dI/dalpha0``, ``dI/dphase``, ``dI/dL``, ``dI/dkappa``, ``dI/dv`` at fixed ``R``
     (the move of a quadrature node) and ``dI/dL_slope``.  ``brightened``: with the limb brightening ``(mu0 mu)^-p.kappa``
     (:class:`MinnaertProfileParams`); ``dI/dkappa`` is returned in either case (at ``kappa = 0`` without it).  A
@@ -98,7 +98,10 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
     lit = mu0 > 0
     m0 = jnp.where(lit, mu0, 0.0)
     inv_den = 1.0 / jnp.where(lit, m0 + mu, 1.0)
-    dg = q * alpha0 * cpsi  # the phase angle's change across the disc
+    # the phase angle at the point: the ray is turned by beta from the centre's, toward the Sun by cpsi
+    cg = jnp.clip(cb * cph - sb * sph * cpsi, -1.0, 1.0 - 1e-15)
+    G = -1.0 / jnp.sqrt(1.0 - cg * cg)  # d acos(cg) / d cg
+    dg = jnp.arccos(cg) - p.phase
     grow = 1.0 + p.L_slope * dg
     Lp = p.L * grow  # the weight at the point
     two_L = 2.0 * Lp
@@ -132,11 +135,13 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
     I_a0 = I_mu0 * mu0_beta * q
     I_ph = I_mu0 * (s_em * cph * cpsi - c_em * sph)
     I_L = (2.0 * ratio - m0) * brighten
-    # the weight's own change with the point (dg: q_R = v^2 / R^2 at fixed v, q_v = -2 v / R at fixed R)
+    # the weight's own change with the point, through dg (beta = q alpha0; q_R = v^2 / R^2 at fixed v, q_v = -2 v / R
+    # at fixed R)
     Ls = p.L * p.L_slope * I_L
-    k = Ls * alpha0 * cpsi
-    return (I, I_R + k * q_R, I_cpsi + Ls * q * alpha0, I_a0 + Ls * q * cpsi, I_ph, I_L * grow, -log_mm * I,
-            I_v + k * q_v, p.L * dg * I_L)
+    k = Ls * G * (-sb * cph - cb * a_s)  # d dg / d beta
+    return (I, I_R + k * alpha0 * q_R, I_cpsi - Ls * G * sb * sph, I_a0 + k * q,
+            I_ph + Ls * (G * (-cb * sph - sb * cph * cpsi) - 1.0), I_L * grow, -log_mm * I, I_v + k * alpha0 * q_v,
+            p.L * dg * I_L)
 
 
 def terminator_depth(p: LimbProfileParams, R, cpsi, alpha0, tangents: bool = False):
