@@ -29,8 +29,8 @@ The phase angle across the disc.  Each point is seen at its own phase angle: the
 centre direction, toward the Sun by :math:`\cos\psi'`, meets the surface at the phase angle :math:`\vartheta + \Delta g`
 with :math:`\cos(\vartheta + \Delta g) = \cos\beta\cos\vartheta - \sin\beta\sin\vartheta\cos\psi'` (to first order
 :math:`\Delta g = \beta\cos\psi'`; at zero phase :math:`\Delta g = \beta`).  Incidence and emission are computed at
-each point; the law's own phase dependence is its weight, :math:`L\,(1 + \lambda\,\Delta g)` with ``L`` at the centre's phase
-(fitted) and :math:`\lambda = d\ln L/d\vartheta` (``L_slope``, McEwen's:
+each point; the law's own phase dependence is its weight, :math:`L\,(1 + \lambda\,\Delta g)` with ``L`` at the
+centre's phase (fitted) and :math:`\lambda = d\ln L/d\vartheta` (``L_slope``, McEwen's:
 :func:`~jaxlimb.models.profile_params.lunar_lambert_slope`): the fitted weight changes across the disc as the Moon's
 does, and a Lambert surface's (``L = 0``) does not change.  Held at the centre's, the weight makes the rim toward the
 Sun brighter than a lunar-Lambert surface's, the fit reads the difference as an edge moved, and the centre comes out
@@ -378,4 +378,5 @@ def profile_model(p: LimbProfileParams) -> LimbModel:
 __all__ = ["LIMB_PROFILE", "LIMB_PROFILE_ANISO", "AnisoProfileParams", "LIMB_PROFILE_GLOW", "LIMB_PROFILE_MINNAERT",
            "GlowProfileParams", "LimbProfileParams", "MinnaertProfileParams", "blur_nodes", "blur_window",
            "brightening_column", "glow_fields", "limb_geometry", "PHYSICAL_L", "PROFILE_FIXED", "limb_profile_intensity",
-           "lunar_lambert_slope", "lunar_lambert_weight", "profile_integrals", "profile_model", "quadrature_nodes", "window_regime"]
+           "lunar_lambert_slope", "lunar_lambert_weight", "profile_integrals", "profile_model", "quadrature_nodes",
+           "window_regime"]

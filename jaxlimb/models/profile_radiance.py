@@ -55,12 +55,13 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
 
     With ``q = 1 - v^2/R`` the emission cosine is computed as ``mu = v sqrt((1 + q)/R)``
     (no cancellation in ``1 - q^2`` at the limb).  The weight is ``L (1 + L_slope dg)`` at the point, ``dg`` the
-    phase angle's change across the disc: ``cos(phase + dg) = cos beta cos(phase) - sin beta sin(phase) cpsi``.  Returns ``I`` and, at fixed ``v``,
-    ``dI/dR``, ``dI/dcpsi``, ``dI/dalpha0``, ``dI/dphase``, ``dI/dL``, ``dI/dkappa``, ``dI/dv`` at fixed ``R``
-    (the move of a quadrature node) and ``dI/dL_slope``.  ``brightened``: with the limb brightening ``(mu0 mu)^-p.kappa``
-    (:class:`MinnaertProfileParams`); ``dI/dkappa`` is returned in either case (at ``kappa = 0`` without it).  A
-    separate model and not a parameter held at 0: on CPU the brightening's terms cost the one-pass Jacobian 2.5-3x
-    (XLA repeats them in every column's reduction; a ``lax.cond`` on ``kappa = 0`` did not help).
+    phase angle's change across the disc: ``cos(phase + dg) = cos beta cos(phase) - sin beta sin(phase) cpsi``.
+    Returns ``I`` and, at fixed ``v``, ``dI/dR``, ``dI/dcpsi``, ``dI/dalpha0``, ``dI/dphase``, ``dI/dL``,
+    ``dI/dkappa``, ``dI/dv`` at fixed ``R`` (the move of a quadrature node) and ``dI/dL_slope``.  ``brightened``:
+    with the limb brightening ``(mu0 mu)^-p.kappa`` (:class:`MinnaertProfileParams`); ``dI/dkappa`` is returned in
+    either case (at ``kappa = 0`` without it).  A separate model and not a parameter held at 0: on CPU the
+    brightening's terms cost the one-pass Jacobian 2.5-3x (XLA repeats them in every column's reduction; a
+    ``lax.cond`` on ``kappa = 0`` did not help).
 
     Parameters
     ----------
