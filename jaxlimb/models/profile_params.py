@@ -77,7 +77,18 @@ margin, widened by 3 of the fit's own sigma of ``L`` (a 33 px Moon with 10 DN of
 Lommel-Seeliger limb, ``L = 1``, at 1.13 now and then)."""
 
 
-def lunar_lambert_weight(phase_rad: float, coeffs=(-0.019, 2.42e-4, -1.46e-6)) -> float:
+MCEWEN_LUNAR_LAMBERT = (-0.019, 2.42e-4, -1.46e-6)
+"""McEwen's cubic ``(A, B, C)`` of the Moon's lunar-Lambert weight in the phase angle (degrees)."""
+
+
+def _mcewen_cubic(phase_rad: float, coeffs) -> tuple[float, float]:
+    """``1 + A a + B a^2 + C a^3`` (``a`` the phase angle in degrees, unclipped) and its derivative (1/rad)."""
+    a = math.degrees(phase_rad)
+    A, B, C = coeffs
+    return 1.0 + A * a + B * a * a + C * a**3, (A + 2.0 * B * a + 3.0 * C * a * a) * 180.0 / math.pi
+
+
+def lunar_lambert_weight(phase_rad: float, coeffs=MCEWEN_LUNAR_LAMBERT) -> float:
     """McEwen's lunar-Lambert weight ``L(alpha) = 1 + A alpha + B alpha^2 + C alpha^3`` (alpha in degrees).
 
     Parameters
@@ -92,12 +103,10 @@ def lunar_lambert_weight(phase_rad: float, coeffs=(-0.019, 2.42e-4, -1.46e-6)) -
     float
         ``L``, clipped to ``[0, 1]``.
     """
-    a = math.degrees(phase_rad)
-    A, B, C = coeffs
-    return float(min(1.0, max(0.0, 1.0 + A * a + B * a * a + C * a**3)))
+    return float(min(1.0, max(0.0, _mcewen_cubic(phase_rad, coeffs)[0])))
 
 
-def lunar_lambert_slope(phase_rad: float, coeffs=(-0.019, 2.42e-4, -1.46e-6)) -> float:
+def lunar_lambert_slope(phase_rad: float, coeffs=MCEWEN_LUNAR_LAMBERT) -> float:
     """``d ln L / d alpha`` (1/rad) of :func:`lunar_lambert_weight`: ``(A + 2 B alpha + 3 C alpha^2) 180/pi / L``, 0
     where the weight is clipped to 0 or 1.
 
@@ -113,12 +122,8 @@ def lunar_lambert_slope(phase_rad: float, coeffs=(-0.019, 2.42e-4, -1.46e-6)) ->
     float
         The weight's relative derivative in the phase angle (1/rad).
     """
-    a = math.degrees(phase_rad)
-    A, B, C = coeffs
-    L = 1.0 + A * a + B * a * a + C * a**3
-    if not 0.0 < L < 1.0:
-        return 0.0
-    return float((A + 2.0 * B * a + 3.0 * C * a * a) * 180.0 / math.pi / L)
+    L, dL = _mcewen_cubic(phase_rad, coeffs)
+    return float(dL / L) if 0.0 < L < 1.0 else 0.0
 
 
 def glow_fields(p: LimbProfileParams) -> dict[str, float]:
@@ -141,4 +146,4 @@ def glow_fields(p: LimbProfileParams) -> dict[str, float]:
 
 
 __all__ = ["PHYSICAL_L", "PROFILE_FIXED", "AnisoProfileParams", "GlowProfileParams", "LimbProfileParams",
-           "MinnaertProfileParams", "glow_fields", "lunar_lambert_slope", "lunar_lambert_weight"]
+           "MCEWEN_LUNAR_LAMBERT", "MinnaertProfileParams", "glow_fields", "lunar_lambert_slope", "lunar_lambert_weight"]

@@ -2,9 +2,9 @@
 
 Every format jaxlimb reads declares its size in a header (PNG, TIFF and BigTIFF, JPEG, JPEG 2000, BMP, PNM,
 FITS, VICAR, PDS3); a file declaring 10^10 pixels, a valid 882 kB PNG that inflates to 30 000 x 30 000 px,
-and an image larger than the memory the process may use are refused within a second and without the
-memory a decoder would take (the targets: < 1 s, < 300 MB).  A PDS3 label whose ``RECORD_BYTES`` does not
-fit its data file is a file error, not garbage pixels.
+and an image larger than the memory the process may use are refused without the memory a decoder would take
+(< 300 MB; their times are measured by ``benchmarks/faults.py``, not asserted here).  A PDS3 label whose
+``RECORD_BYTES`` does not fit its data file is a file error, not garbage pixels.
 """
 
 from __future__ import annotations
@@ -14,7 +14,6 @@ import os
 import resource
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -35,23 +34,22 @@ def test_header_bomb_is_refused_before_decoding(kind, tmp_path):
     import vicar  # noqa: F401
 
     bomb = write_bomb(tmp_path, kind)
-    before, t0 = _maxrss_mb(), time.perf_counter()
+    before = _maxrss_mb()
     res = run_cli(["locate", bomb, "--json"])
-    dt = time.perf_counter() - t0
     obj = assert_refused(res, 2, bomb.name, check="bad_label" if kind == "vicar" else "bad_image")
     assert "100000 x 100000" in obj["message"] or "65535 x 65535" in obj["message"]
-    assert dt < 1.0 and _maxrss_mb() - before < 300
+    assert _maxrss_mb() - before < 300
 
 
 def test_valid_inflating_png_is_refused_before_decoding(tmp_path):
     bomb = tmp_path / "inflates.png"
     bomb.write_bytes(inflating_png(30_000, 30_000))  # 882 kB on disk, 900 Mpx (6.7 GiB as float64) decoded
     assert bomb.stat().st_size < 1_000_000
-    before, t0 = _maxrss_mb(), time.perf_counter()
+    before = _maxrss_mb()
     for argv in (["locate", bomb, "--json"], ["los", "locate", bomb, "--db", bomb, "--camera", bomb, "--json"]):
         res = run_cli(argv)
         assert_refused(res, 2, "inflates.png", check=None)
-    assert time.perf_counter() - t0 < 2.0 and _maxrss_mb() - before < 300
+    assert _maxrss_mb() - before < 300
 
 
 def test_small_inflating_png_is_what_it_claims():

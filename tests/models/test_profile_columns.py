@@ -60,3 +60,15 @@ def test_albedo_prior_factor_is_the_dense_prior_projected_on_the_psd_cone():
         F = albedo_prior_factor(theta, n_psi, 0.2, math.radians(ell_deg))
         np.testing.assert_allclose(F @ F.T, dense, rtol=0, atol=1e-9 * w.max())
         assert F.shape[1] <= th.size
+
+
+def test_lunar_lambert_slope_is_the_weights_relative_derivative():
+    """McEwen's ``d ln L / d alpha`` against central differences of ``ln L``; 0 where the weight is clipped."""
+    from jaxlimb.models import lunar_lambert_slope, lunar_lambert_weight
+
+    for deg in (0.5, 5.0, 30.0, 60.0, 90.0):
+        a, h = math.radians(deg), 1e-6
+        fd = (math.log(lunar_lambert_weight(a + h)) - math.log(lunar_lambert_weight(a - h))) / (2 * h)
+        assert abs(lunar_lambert_slope(a) - fd) < 1e-6 * max(1.0, abs(fd))
+    assert lunar_lambert_weight(math.radians(-5.0)) == 1.0 and lunar_lambert_slope(math.radians(-5.0)) == 0.0
+    assert lunar_lambert_weight(math.radians(150.0)) == 0.0 and lunar_lambert_slope(math.radians(150.0)) == 0.0
