@@ -31,7 +31,7 @@ from _common import RESULTS, environment, save  # noqa: E402
 from jaxlimb._data import shared_data_dir  # noqa: E402
 from jaxlimb.geometry.spice import observer_from_measurement, pointing_residual, spice_geometry  # noqa: E402
 from jaxlimb.imaging.formats import read_frame  # noqa: E402
-from jaxlimb.pipeline import locate  # noqa: E402
+from jaxlimb.pipeline import covariance_block, locate  # noqa: E402
 
 CASSINI = shared_data_dir() / "cassini"
 KERNELS = sorted(str(p) for p in (CASSINI / "kernels").iterdir())
@@ -43,7 +43,7 @@ def _one(name: str):
     g = spice_geometry(KERNELS, fr.meta.image_time, fr.meta.instrument_id, fr.meta.target_name)
     m = locate(fr.data, g.camera, g.hints(), mask=fr.mask_or_none)
     c = m.covariance
-    cov = [[c["center_r"]["center_r"], c["center_r"]["center_c"]], [c["center_c"]["center_r"], c["center_c"]["center_c"]]]
+    cov = covariance_block(c).tolist()
     res = {
         "image_time": fr.meta.image_time, "n_masked": fr.n_invalid,
         "measured_center_rc": list(m.center_rc), "center_covariance_px2": cov,
@@ -128,7 +128,7 @@ def _kernel_shape(fr, g) -> dict:
         radii = spice_body_radii(g.target)
     m = locate(fr.data, g.camera, replace(g.hints(), body_radii_km=radii), mask=fr.mask_or_none)
     c = m.covariance
-    cov = [[c["center_r"]["center_r"], c["center_r"]["center_c"]], [c["center_c"]["center_r"], c["center_c"]["center_c"]]]
+    cov = covariance_block(c).tolist()
     s = m.extras.get("polarity_split") or {}
     return {"radii_km": list(radii), "measured_center_rc": list(m.center_rc), "center_covariance_px2": cov,
             "radius_px": m.radius_px, "range_km": m.range_km, "measured_minus_predicted": pointing_residual(g, m.center_rc, cov),

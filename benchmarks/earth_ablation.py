@@ -89,8 +89,8 @@ def measure(case) -> dict[str, Any]:
         return rec
     e = np.array(m.center_rc) - np.array(case.truth.body_center_rc)
     c = m.covariance
-    P = np.array([[c["center_r"]["center_r"], c["center_r"]["center_c"]],
-                  [c["center_c"]["center_r"], c["center_c"]["center_c"]]])
+    from jaxlimb.pipeline import covariance_block
+    P = covariance_block(c)
     rec.update(status="ok", center_err_px=float(np.hypot(*e)), err_rc=e.tolist(), nees=float(e @ np.linalg.solve(P, e)))
     return rec
 

@@ -45,8 +45,8 @@ def measure(phase_deg: float, patch_seed: int = 4) -> dict:
         return {"phase_deg": phase_deg, "patch_seed": patch_seed, "status": "error", "check": e.check, "message": str(e)[:200]}
     err = np.subtract(m.center_rc, truth.center_rc)
     c = m.covariance
-    P = np.array([[c["center_r"]["center_r"], c["center_r"]["center_c"]],
-                  [c["center_c"]["center_r"], c["center_c"]["center_c"]]], float)
+    from jaxlimb.pipeline import covariance_block
+    P = covariance_block(c)
     return {"phase_deg": phase_deg, "patch_seed": patch_seed, "status": "ok", "center_err_px": float(np.hypot(*err)),
             "sigma_rc_px": np.sqrt(np.diag(P)).tolist(), "nees": float(err @ np.linalg.solve(P, err)),
             "patchy": (m.extras or {}).get("profile_rejected") is not None}

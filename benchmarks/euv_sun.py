@@ -29,7 +29,7 @@ from jaxlimb.errors import JaxlimbError  # noqa: E402
 from jaxlimb.geometry.hints import Hints  # noqa: E402
 from jaxlimb.imaging.io import load_image  # noqa: E402
 from jaxlimb.imaging.sdo import AIA_171_FITS, sun_truth_from_header  # noqa: E402
-from jaxlimb.pipeline import locate  # noqa: E402
+from jaxlimb.pipeline import covariance_block, locate  # noqa: E402
 from jaxlimb.render.independent.corona import euv_sun  # noqa: E402
 
 
@@ -41,8 +41,7 @@ def _row(image, center_rc, radius_px) -> dict:
         return {"status": "error", "check": e.check, "message": str(e)[:200], "seconds": time.perf_counter() - t0}
     err = np.subtract(m.center_rc, center_rc)
     cv = m.covariance
-    P = np.array([[cv["center_r"]["center_r"], cv["center_r"]["center_c"]],
-                  [cv["center_c"]["center_r"], cv["center_c"]["center_c"]]])
+    P = covariance_block(cv)
     return {"status": "ok", "profile": m.extras["profile"]["model"], "front_end": m.front_end,
             "err_rc": err.tolist(), "center_err_px": float(np.hypot(*err)), "sigma_rc": np.sqrt(np.diag(P)).tolist(),
             "nees": float(err @ np.linalg.solve(P, err)), "radius_err_px": m.radius_px - float(radius_px),

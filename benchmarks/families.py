@@ -118,8 +118,8 @@ def nonphysical(m) -> list[str]:
 def _nees(m, err: np.ndarray) -> float | None:
     c = m.covariance
     try:
-        P = np.array([[c["center_r"]["center_r"], c["center_r"]["center_c"]],
-                      [c["center_c"]["center_r"], c["center_c"]["center_c"]]], float)
+        from jaxlimb.pipeline import covariance_block
+        P = covariance_block(c)
         return float(err @ np.linalg.solve(P, err))
     except (KeyError, np.linalg.LinAlgError):
         return None

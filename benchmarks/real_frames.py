@@ -99,8 +99,8 @@ def _sigma_rc(out: dict) -> np.ndarray | None:
     c = out.get("covariance") or {}
     if "center_r" not in c:
         return None
-    return np.array([[c["center_r"]["center_r"], c["center_r"]["center_c"]],
-                     [c["center_c"]["center_r"], c["center_c"]["center_c"]]])
+    from jaxlimb.pipeline import covariance_block
+    return covariance_block(c)
 
 
 def _center_verdict(out: dict, truth_rc, truth_sigma_px: float = 0.0) -> dict:

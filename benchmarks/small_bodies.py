@@ -35,7 +35,7 @@ jax.config.update("jax_enable_x64", True)
 from _common import environment, save  # noqa: E402
 
 from jaxlimb.errors import JaxlimbError  # noqa: E402
-from jaxlimb.pipeline import LocateOptions, locate  # noqa: E402
+from jaxlimb.pipeline import LocateOptions, covariance_block, locate  # noqa: E402
 from jaxlimb.render.independent.small_bodies import small_body_case  # noqa: E402
 from jaxlimb.render.independent.surface import Reflectance  # noqa: E402
 
@@ -53,8 +53,7 @@ def _measure(case, shape: str, R: float) -> dict:
     truth = np.asarray(case.truth.body_center_rc)
     err = np.subtract(m.center_rc, truth)
     cv = m.covariance
-    P = np.array([[cv["center_r"]["center_r"], cv["center_r"]["center_c"]],
-                  [cv["center_c"]["center_r"], cv["center_c"]["center_c"]]])
+    P = covariance_block(cv)
     sb = m.extras.get("small_body") or {}
     out = {"status": "ok", "err_rc": err.tolist(), "center_err_px": float(np.hypot(*err)), "nees": _nees(err, P),
            "sigma_rc": np.sqrt(np.diag(P)).tolist(), "radius_px": m.radius_px, "method": sb.get("method", "limb"),
@@ -65,6 +64,10 @@ def _measure(case, shape: str, R: float) -> dict:
         out.update(moments_err_px=float(np.hypot(*e2)), moments_nees=_nees(e2, np.asarray(sb["moments_cov"])))
     elif sb.get("method") == "moments":
         out.update(moments_err_px=out["center_err_px"], moments_nees=out["nees"])
+    if "disc_vs_moments_chi2" in sb:  # the two centres' agreement; the disc fit's own error when it was refused for it
+        out["disc_vs_moments_chi2"] = sb["disc_vs_moments_chi2"]
+    if "disc_rc" in sb:
+        out["disc_err_px"] = float(np.hypot(*np.subtract(sb["disc_rc"], truth)))
     return out
 
 

@@ -23,8 +23,8 @@ from _common import environment, save
 
 def _center_cov(ans: dict) -> np.ndarray:
     c = ans["covariance"]
-    return np.array([[c["center_r"]["center_r"], c["center_r"]["center_c"]],
-                     [c["center_c"]["center_r"], c["center_c"]["center_c"]]])
+    from jaxlimb.pipeline import covariance_block
+    return covariance_block(c)
 
 
 def _scores(ans: dict, truth_rc, range_km: float) -> dict:

@@ -34,6 +34,7 @@ from ..models.lunar_lambert import profile_model
 from ..pipeline.profile.albedo_field import ELL_DEG, field_factor, field_likelihood, thin_svd
 from ..pipeline.profile.model_error import signed_distance, weighted_system
 from ..pipeline.report import covariance
+from ..pipeline.result import covariance_block
 from .located import LocatedFit
 
 #: Width (px) of the bins of distance to the limb in :func:`along_limb`: fine against the edge's blur (a PSF sigma of
@@ -172,8 +173,7 @@ def albedo_consider_of(lf: LocatedFit) -> AlbedoConsider | None:
     C, C0 = np.asarray(rr.fit.covariance), rr.covariance_noise
     G = center_map(lf)
     cov = lf.measurement.covariance
-    P = np.array([[cov["center_r"]["center_r"], cov["center_r"]["center_c"]],
-                  [cov["center_c"]["center_r"], cov["center_c"]["center_c"]]])
+    P = covariance_block(cov)
     return AlbedoConsider(tau, ell, G @ Ca @ G.T, G @ positive_part(Ca - (C - C0)) @ G.T, P)
 
 

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import LimbInputError
+from ..pipeline.result import covariance_block
 from .figures import save_figure
 from .montecarlo import MonteCarloResult
 
@@ -64,8 +65,7 @@ def measurement_errors(m: Any, truth: Any) -> dict[str, float]:
     c = m.covariance
     out = {"row": float(e[0]), "col": float(e[1]), "iterations": float(m.iterations)}
     try:
-        P = np.array([[c["center_r"]["center_r"], c["center_r"]["center_c"]],
-                      [c["center_c"]["center_r"], c["center_c"]["center_c"]]], float)
+        P = covariance_block(c)
         out.update(sigma_row=math.sqrt(P[0, 0]), sigma_col=math.sqrt(P[1, 1]), nees=float(e @ np.linalg.solve(P, e)))
     except (KeyError, np.linalg.LinAlgError, ValueError):
         pass

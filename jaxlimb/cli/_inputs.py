@@ -13,6 +13,7 @@ from .._validate import Range, arg_number
 from ..errors import ConfigError
 from ..geometry.bodies import body_from_table
 from ..geometry.hints import Hints
+from ..pipeline.result import covariance_block
 
 
 def read_hints(path: str | None, body: str | None, base: Hints | None = None) -> Hints:
@@ -92,8 +93,7 @@ def spice_report(geom, meas) -> dict:  # noqa: ANN001
     cov = meas.covariance
     cov_rc = None
     if "center_r" in cov and "center_c" in cov:
-        cov_rc = [[cov["center_r"]["center_r"], cov["center_r"]["center_c"]],
-                  [cov["center_c"]["center_r"], cov["center_c"]["center_c"]]]
+        cov_rc = covariance_block(cov).tolist()
     out = {"predicted": geom.to_json(), "measured_minus_predicted": pointing_residual(geom, meas.center_rc, cov_rc)}
     if meas.los_camera is not None and meas.range_km is not None:
         out["observer_from_measurement"] = observer_from_measurement(geom, meas.los_camera, meas.range_km)

@@ -38,7 +38,8 @@ from .options import (
     LocateOptions as LocateOptions,
     Profile as Profile,
 )
-from .result import EllipseResult as EllipseResult, LimbMeasurement as LimbMeasurement
+from .result import (CENTER_NAMES as CENTER_NAMES, EllipseResult as EllipseResult, LimbMeasurement as LimbMeasurement,
+                     covariance_block as covariance_block)
 from .sphere.annulus import annulus_halfwidth as annulus_halfwidth, lit_halfangle as lit_halfangle, select_annulus as select_annulus
 from .sphere.fits import (
     fit_circle_annulus as fit_circle_annulus,
@@ -51,6 +52,7 @@ from .stages import AnnulusSelection as AnnulusSelection, RefineResult as Refine
 __all__ = [
     "AnnulusSelection",
     "BodyShape",
+    "CENTER_NAMES",
     "CenterOutOfFieldError",
     "EllipseResult",
     "EllipsoidOptions",
@@ -66,6 +68,7 @@ __all__ = [
     "check_jump",
     "check_radius_prior",
     "check_size",
+    "covariance_block",
     "edge_residuals",
     "fit_circle_annulus",
     "fit_ellipse_annulus",

@@ -3,8 +3,33 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
+
+import numpy as np
+
+#: The names of the body centre's image in every covariance ``locate`` reports.
+CENTER_NAMES = ("center_r", "center_c")
+
+
+def covariance_block(cov: Mapping[str, Mapping[str, float]], names: Sequence[str] = CENTER_NAMES) -> np.ndarray:
+    """The covariance of ``names`` as an array, from the nested ``{name: {name: value}}`` form of
+    :attr:`LimbMeasurement.covariance` (and of the result JSON).
+
+    Parameters
+    ----------
+    cov : mapping
+        ``{name: {name: value}}``.
+    names : sequence of str
+        The parameters, in the array's order; default the body centre's image ``(center_r, center_c)`` (px^2).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(len(names), len(names))``.
+    """
+    return np.array([[float(cov[a][b]) for b in names] for a in names])
 
 
 @dataclass(frozen=True)
@@ -73,6 +98,11 @@ class LimbMeasurement:
     covariance_noise: dict[str, dict[str, float]] | None = None
     extras: dict[str, Any] = field(default_factory=dict)
     selected_pixels_rc: Any = field(default=None, repr=False, compare=False)
+
+    @property
+    def center_covariance(self) -> np.ndarray:
+        """The ``2 x 2`` covariance (px^2) of ``center_rc`` (:func:`covariance_block`)."""
+        return covariance_block(self.covariance)
 
     def to_json(self) -> dict[str, Any]:
         """The ``--json`` success object of ``jaxlimb locate`` (docs/design.md).

@@ -19,6 +19,7 @@ import pytest
 
 from jaxlimb._schema import validate
 from jaxlimb.cli import main
+from jaxlimb.pipeline import covariance_block
 
 from ._scenes import SMALL_CAMERA, scene, sun_hints
 
@@ -136,8 +137,7 @@ def test_center_tolerance_is_the_users(files, capsys):
     code, out, _ = _run(capsys, *base)
     assert code == 0
     j = json.loads(out)
-    s = np.sqrt(max(np.linalg.eigvalsh([[j["covariance"]["center_r"]["center_r"], j["covariance"]["center_r"]["center_c"]],
-                                        [j["covariance"]["center_c"]["center_r"], j["covariance"]["center_c"]["center_c"]]])))
+    s = np.sqrt(max(np.linalg.eigvalsh(covariance_block(j["covariance"])))
     code, out, _ = _run(capsys, *base, "--max-center-sigma-px", f"{0.5 * s:.6g}")
     r = json.loads(out)
     assert code == 3 and r["check"] == "center_too_uncertain" and "--max-center-sigma-px" in r["message"]

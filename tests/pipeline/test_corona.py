@@ -22,14 +22,14 @@ from jaxlimb.models.corona import CoronaParams, corona_intensity
 from jaxlimb.pipeline import LocateOptions, locate
 from jaxlimb.pipeline.sphere.corona import limb_brightened
 from jaxlimb.render.independent.corona import euv_sun
+from jaxlimb.pipeline import covariance_block
 
 jax.config.update("jax_enable_x64", True)
 
 
 def _center_nees(m, truth_rc) -> tuple[np.ndarray, float]:
     cv = m.covariance
-    P = np.array([[cv["center_r"]["center_r"], cv["center_r"]["center_c"]],
-                  [cv["center_c"]["center_r"], cv["center_c"]["center_c"]]])
+    P = covariance_block(cv)
     e = np.subtract(m.center_rc, truth_rc)
     return e, float(e @ np.linalg.solve(P, e))
 

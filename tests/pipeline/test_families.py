@@ -20,6 +20,7 @@ from jaxlimb.pipeline.profile import fit as profile_fit, glow, patchy, widen
 from jaxlimb.pipeline.sphere import fits
 from jaxlimb.pipeline.sphere.fits import _robust_sigma, local_misfit
 from jaxlimb.render.independent.families import EARTH_FAMILIES, MOON_FAMILIES, earth_case, moon_case
+from jaxlimb.pipeline import covariance_block
 
 jax.config.update("jax_enable_x64", True)
 SEED = 2026  # the benchmark's default seed: the same frames as its rows
@@ -32,7 +33,7 @@ def _moon(family: str, idx: int, seed: int = SEED):
 def _errors(case, m):
     e = np.array(m.center_rc) - np.array(case.truth.body_center_rc)
     c = m.covariance
-    P = np.array([[c["center_r"]["center_r"], c["center_r"]["center_c"]], [c["center_c"]["center_r"], c["center_c"]["center_c"]]])
+    P = covariance_block(c)
     return float(np.hypot(*e)), float(e @ np.linalg.solve(P, e))
 
 

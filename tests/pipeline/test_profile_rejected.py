@@ -11,12 +11,13 @@ from jaxlimb.geometry.hints import Hints
 from jaxlimb.pipeline import locate
 from jaxlimb.pipeline.sphere import refit
 from jaxlimb.render.independent.families import MOON_FAMILIES
+from jaxlimb.pipeline import covariance_block
 
 
 def _nees(case, m) -> float:
     e = np.array(m.center_rc) - np.array(case.truth.body_center_rc)
     c = m.covariance
-    P = np.array([[c["center_r"]["center_r"], c["center_r"]["center_c"]], [c["center_c"]["center_r"], c["center_c"]["center_c"]]])
+    P = covariance_block(c)
     return float(e @ np.linalg.solve(P, e))
 
 

@@ -18,6 +18,7 @@ from jaxlimb.pipeline.ellipsoid.center import unsigned_offset_cov
 from jaxlimb.pipeline.options import LocateOptions
 from jaxlimb.pipeline.stages import FitData, RefineResult
 from jaxlimb.render import RenderOptions, earth_scene, render_body
+from jaxlimb.pipeline import covariance_block
 
 RADII = (EARTH_EQUATORIAL_KM, EARTH_EQUATORIAL_KM, EARTH_POLAR_KM)
 
@@ -131,8 +132,7 @@ def test_locate_earth_free_ellipse(earth_far):
     m = locate(img, cam, _hints(sc, truth, known_R=False))
     assert m.extras["free_ellipse"]
     err = np.subtract(m.center_rc, truth.center_rc)
-    P = np.array([[m.covariance["center_r"]["center_r"], m.covariance["center_r"]["center_c"]],
-                  [m.covariance["center_c"]["center_r"], m.covariance["center_c"]["center_c"]]])
+    P = m.center_covariance
     assert np.hypot(*err) < 0.5
     assert abs(m.range_km / truth.range_km - 1) < 4e-3
     assert np.all(np.linalg.eigvalsh(P) > 0)
@@ -307,8 +307,7 @@ def test_earth_center_sigma_has_the_specification_floor(earth_far):
     for f in (0.0075, 0.0):
         m = locate(img, cam, _hints(sc, truth), LocateOptions(ellipsoid=EllipsoidOptions(center_floor_px=f)))
         c = m.covariance
-        P = np.array([[c["center_r"]["center_r"], c["center_r"]["center_c"]],
-                      [c["center_c"]["center_r"], c["center_c"]["center_c"]]])
+        P = covariance_block(c)
         sig[f] = float(np.sqrt(np.linalg.eigvalsh(P)[0]))
     assert sig[0.0] < 0.0075 and 0.0075 * 0.9 <= sig[0.0075] < 0.02
     with pytest.raises(Exception, match="center_floor_px"):

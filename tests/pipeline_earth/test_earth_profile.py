@@ -13,6 +13,7 @@ from jaxlimb.pipeline import locate
 from jaxlimb.pipeline import EllipsoidOptions
 from jaxlimb.pipeline.options import LocateOptions
 from jaxlimb.render import Atmosphere, RenderOptions, earth_scene, render_body
+from jaxlimb.pipeline import covariance_block
 
 
 def _hints(sc, truth, **kw):
@@ -24,8 +25,7 @@ def _hints(sc, truth, **kw):
 
 def _center_cov(m):
     c = m.covariance
-    return np.array([[c["center_r"]["center_r"], c["center_r"]["center_c"]],
-                     [c["center_c"]["center_r"], c["center_c"]["center_c"]]])
+    return covariance_block(c)
 
 
 @pytest.fixture(scope="module")
