@@ -19,7 +19,7 @@ apart: ``tau`` ~ 3 steps is estimated to a few % only, and 1 % ran chains of 850
 records where the truth falls: the credible level of the true body centre (2-D) and apparent radius in the
 posterior, in the model-error-adjusted posterior (Shaby's open-faced sandwich to ``locate``'s covariance) and in
 ``locate``'s Gaussian.  Coverage of the 68.27 % / 95.45 % regions = the fraction of levels below them (calibrated:
-68 +- 7 % / 95 +- 4 % over >= 100 renders, the issue's target).  Trials run through the Monte-Carlo engine into
+68 +- 7 % / 95 +- 4 % over >= 100 renders: two binomial standard errors).  Trials run through the Monte-Carlo engine into
 ``--out-dir`` (resumable); the summary goes to ``benchmarks/results/posterior_coverage.json`` (``wall_s`` is that
 process's own: a gathering run's ``chunks_resumed`` counts what the shards computed).
 """

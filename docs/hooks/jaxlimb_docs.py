@@ -6,7 +6,8 @@
 * ``<!-- api: jaxlimb.PACKAGE -->`` becomes the mkdocstrings directive for the package's public names: its
   ``__all__``, else the names it re-exports (``from .mod import X as X``) and defines.
 * ``<!-- results: NAME ARG... -->`` becomes a table read from ``benchmarks/results/`` (``results_tables.py``;
-  the track page's in ``track_tables.py``).
+  the track page's in ``track_tables.py``, the real frames' in ``real_frames_tables.py``, the posteriors' in
+  ``uncertainty_tables.py``).
 * ``<!-- schema: NAME -->`` becomes the key table and the text of ``jaxlimb/schemas/NAME.schema.json``
   (``schema_tables.py``).
 * The notebooks of ``notebooks/`` are pages under ``notebooks/``.  They are committed without outputs; set
@@ -50,6 +51,7 @@ def _load_sibling(module: str, file: str):  # noqa: ANN202
 results_tables = _load_sibling("jaxlimb_results_tables", "results_tables.py")
 track_tables = _load_sibling("jaxlimb_track_tables", "track_tables.py")  # registers the track page's tables
 real_frames_tables = _load_sibling("jaxlimb_real_frames_tables", "real_frames_tables.py")  # the real-frames page's
+uncertainty_tables = _load_sibling("jaxlimb_uncertainty_tables", "uncertainty_tables.py")  # the posteriors'
 schema_tables = _load_sibling("jaxlimb_schema_tables", "schema_tables.py")
 
 

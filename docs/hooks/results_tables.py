@@ -336,21 +336,6 @@ def montecarlo_detail(rel: str) -> str:
 
 
 @renderer
-def posterior_study(rel: str = "posterior_study.json") -> str:
-    d = load(rel)
-    rows = []
-    for c in d["cases"]:
-        cmp_ = c["comparison"]
-        r0 = cmp_["r0"]
-        rows.append([f"`{c['case']}`", f(c["arc_deg"], 0), ",".join(c["fixed"]) or "none", f(c["sigma"], 0),
-                     f(r0["post_std"], 4), f(r0["laplace_std"], 4), f(r0["crlb"], 4), f(r0.get("mc_rms"), 4),
-                     f(c["posterior"]["converged"]), f(c["posterior"]["wall_s"], 1)])
-    head = ["case", "arc (deg)", "held", "σ (DN)", "posterior σ(r0)", "Laplace σ(r0)", "CRLB(r0)", "MC RMS(r0)",
-            "chain converged", "wall (s)"]
-    return table(head, rows) + source(rel, d)
-
-
-@renderer
 def gradcheck(rel: str = "gradcheck.json") -> str:
     d = load(rel)
     by_model: dict[str, list[dict]] = {}
