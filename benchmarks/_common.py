@@ -13,7 +13,8 @@ RESULTS = Path(__file__).resolve().parent / "results"
 
 
 def environment() -> dict[str, Any]:
-    """Git SHA, versions and machine, recorded beside every benchmark result."""
+    """Git SHA, versions and machine, recorded beside every benchmark result.  The SHA is marked ``-dirty`` when a file
+    outside ``benchmarks/results`` differs from it (another benchmark's output is not the code that ran)."""
     import jax
     import numpy
     import optimistix
@@ -24,8 +25,8 @@ def environment() -> dict[str, Any]:
             ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True,
             cwd=Path(__file__).resolve().parent,
         ).stdout.strip()
-        dirty = bool(subprocess.run(["git", "status", "--porcelain"], capture_output=True, text=True,
-                                    cwd=Path(__file__).resolve().parent).stdout.strip())
+        dirty = bool(subprocess.run(["git", "status", "--porcelain", "--", ":/", ":(top,exclude)benchmarks/results"], capture_output=True,
+                                    text=True, cwd=Path(__file__).resolve().parent).stdout.strip())
     except (OSError, subprocess.CalledProcessError):
         sha, dirty = "unknown", False
     return {

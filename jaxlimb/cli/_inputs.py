@@ -13,7 +13,6 @@ from .._validate import Range, arg_number
 from ..errors import ConfigError
 from ..geometry.bodies import body_from_table
 from ..geometry.hints import Hints
-from ..pipeline.result import covariance_block
 
 
 def read_hints(path: str | None, body: str | None, base: Hints | None = None) -> Hints:
@@ -91,9 +90,7 @@ def spice_report(geom, meas) -> dict:  # noqa: ANN001
     from ..geometry.spice import observer_from_measurement, pointing_residual
 
     cov = meas.covariance
-    cov_rc = None
-    if "center_r" in cov and "center_c" in cov:
-        cov_rc = covariance_block(cov).tolist()
+    cov_rc = meas.center_covariance.tolist() if "center_r" in cov and "center_c" in cov else None
     out = {"predicted": geom.to_json(), "measured_minus_predicted": pointing_residual(geom, meas.center_rc, cov_rc)}
     if meas.los_camera is not None and meas.range_km is not None:
         out["observer_from_measurement"] = observer_from_measurement(geom, meas.los_camera, meas.range_km)
