@@ -137,7 +137,7 @@ def test_center_tolerance_is_the_users(files, capsys):
     code, out, _ = _run(capsys, *base)
     assert code == 0
     j = json.loads(out)
-    s = np.sqrt(max(np.linalg.eigvalsh(covariance_block(j["covariance"])))
+    s = np.sqrt(max(np.linalg.eigvalsh(covariance_block(j["covariance"]))))
     code, out, _ = _run(capsys, *base, "--max-center-sigma-px", f"{0.5 * s:.6g}")
     r = json.loads(out)
     assert code == 3 and r["check"] == "center_too_uncertain" and "--max-center-sigma-px" in r["message"]

@@ -22,7 +22,6 @@ from typing import Any, ClassVar, final
 
 import jax.numpy as jnp
 import numpy as np
-from scipy.stats import chi2
 
 from ..._validate import check_center_sigma
 from ...errors import ConfigError, ConvergenceError
@@ -151,7 +150,7 @@ def small_edge(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> SmallEdg
     t = disagreement_chi2(rr, mom.result)
     info = {**info, "moments_rc": [float(p.r0), float(p.c0)], "moments_cov": C.tolist(),
             "phase_offset_rc": mom.info["phase_offset_rc"], "disc_vs_moments_chi2": t}
-    if t > chi2.ppf(AGREEMENT_PROBABILITY, 2):
+    if t > -2.0 * math.log(1.0 - AGREEMENT_PROBABILITY):  # chi-square's quantile for 2 dof, in closed form
         d = rr.fit.params
         reason = (f"the disc fit's centre ({float(d.r0):.4g}, {float(d.c0):.4g}) disagrees with the phase-corrected "
                   f"centre of brightness beyond both covariances (chi-square {t:.3g}, 2 dof)")
