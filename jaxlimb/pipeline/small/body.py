@@ -38,7 +38,7 @@ from .fit import (DEFAULT_RADIUS_UNCERTAINTY, SmallPixels, disc_at, fit_small_di
 
 
 #: Probability under which the disc fit and the centre of brightness are taken to agree (:func:`disagreement_chi2`):
-#: a right disc fit falls back once in a thousand frames.
+#: a right disc fit falls back at most once in a thousand frames (the statistic is bounded from below).
 AGREEMENT_PROBABILITY = 0.999
 
 
