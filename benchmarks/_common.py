@@ -25,8 +25,9 @@ def environment() -> dict[str, Any]:
             ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True,
             cwd=Path(__file__).resolve().parent,
         ).stdout.strip()
-        dirty = bool(subprocess.run(["git", "status", "--porcelain", "--", ":/", ":(top,exclude)benchmarks/results"], capture_output=True,
-                                    text=True, cwd=Path(__file__).resolve().parent).stdout.strip())
+        outside_results = ["--", ":/", ":(top,exclude)benchmarks/results"]
+        dirty = bool(subprocess.run(["git", "status", "--porcelain", *outside_results], capture_output=True, text=True,
+                                    cwd=Path(__file__).resolve().parent).stdout.strip())
     except (OSError, subprocess.CalledProcessError):
         sha, dirty = "unknown", False
     return {

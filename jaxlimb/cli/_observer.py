@@ -108,12 +108,14 @@ def observer_position(body: str, meas, camera, C_ci: np.ndarray, r_body: np.ndar
     CheckFailed
         The measurement has no line of sight or range (camera or body size unknown).
     """
+    from ..pipeline.result import covariance_block  # here: the pipeline stays out of the CLI's start-up
+
     if meas.los_camera is None or meas.range_km is None:
         raise CheckFailed("the limb measurement has no line of sight / range (camera or body size unknown)")
     names, fn = measurement_map(body, camera, meas)
     rng = ranged(body, meas)
     x0 = np.array([meas.center_rc[0], meas.center_rc[1], meas.range_km if rng else meas.radius_px], float)
-    P = np.array([[meas.covariance[a][b] for b in names] for a in names])
+    P = covariance_block(meas.covariance, names)
     G = numerical_jacobian(fn, x0, np.array([1e-3, 1e-3, 1e-3 * max(1.0, x0[2] * 1e-6) if rng else 1e-3]))
     r_om = fn(x0)
     D = float(np.linalg.norm(r_om))

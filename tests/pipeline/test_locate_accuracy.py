@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from jaxlimb.pipeline import locate
+from jaxlimb.pipeline import covariance_block, locate
 from jaxlimb.pipeline.options import LocateOptions
 
 from ._scenes import SMALL_CAMERA, errors, scene, sun_hints
@@ -158,7 +158,7 @@ def test_measurement_contents_and_covariance():
     # the formal sigma and the CRLB at the estimate agree (same Jacobian, sigma-hat)
     assert 0.0 < s < 0.05 and m.crlb["center_r"] == pytest.approx(s, rel=0.2)
     names = list(j["covariance"])
-    N = np.array([[j["covariance_noise"][a][b] for b in names] for a in names])  # the bound with its correlations
+    N = covariance_block(j["covariance_noise"], names)  # the bound with its correlations
     np.testing.assert_allclose(np.sqrt(np.diag(N)), [j["crlb"][a] for a in names], rtol=1e-12)
     np.testing.assert_allclose(N, N.T, rtol=1e-12)
     assert np.linalg.eigvalsh(N).min() > 0.0

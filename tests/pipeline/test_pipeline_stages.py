@@ -19,7 +19,7 @@ from jaxlimb.errors import ArcTooShortError, CenterTooUncertainError, CheckFaile
 from jaxlimb.geometry.camera import Camera
 from jaxlimb.geometry.earth_cone import earth_position_from_ellipse
 import jaxlimb.pipeline as pipeline_pkg
-from jaxlimb.pipeline import locate
+from jaxlimb.pipeline import covariance_block, locate
 from jaxlimb.pipeline.checks import NonPhysicalFitError, check_edge_width, check_levels
 from jaxlimb.pipeline.options import BodyShape, FrontEnd, LocateOptions, Profile
 
@@ -110,7 +110,7 @@ def test_covariance_is_one_square_matrix_and_a_stated_tolerance_fails_the_frame(
     names = list(m.covariance)
     assert names[:3] == ["center_r", "center_c", "radius"]
     assert all(list(row) == names for row in m.covariance.values())
-    P = np.array([[m.covariance[a][b] for b in names] for a in names])
+    P = covariance_block(m.covariance, names)
     assert np.allclose(P, P.T) and np.all(np.linalg.eigvalsh(P) > -1e-12 * np.abs(P).max())
     s = math.sqrt(max(np.linalg.eigvalsh(P[:2, :2])))
     assert m.extras["timings_s"]["total"] > 0 and {"front_end", "refine", "profile", "body_center"} <= set(

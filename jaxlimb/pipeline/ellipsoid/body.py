@@ -47,7 +47,7 @@ import numpy as np
 from ...imaging.undistort import pinhole_of, undistort_image
 from ...numerics import numerical_jacobian
 from ..report import check_physical
-from ..result import LimbMeasurement
+from ..result import LimbMeasurement, covariance_block
 from ..stages import Body, BodyCenter, Covariance, EllipsePixels, EllipsoidEdge, Frame, Levels, RefineResult
 from .center import ellipsoid_center
 from .edge import ellipsoid_edge
@@ -136,7 +136,7 @@ def distorted_back(frame: Frame, meas: LimbMeasurement) -> LimbMeasurement:
     c_id = np.asarray(meas.center_rc, float)
     Jd = numerical_jacobian(lambda x: cam.distort(x), c_id, 1e-3)
     names = list(meas.covariance)
-    P = np.array([[meas.covariance[a][b] for b in names] for a in names])
+    P = covariance_block(meas.covariance, names)
     T = np.eye(len(names))
     idx = [names.index("center_r"), names.index("center_c")]
     T[np.ix_(idx, idx)] = Jd

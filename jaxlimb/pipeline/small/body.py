@@ -154,9 +154,8 @@ def small_edge(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> SmallEdg
         d = rr.fit.params
         reason = (f"the disc fit's centre ({float(d.r0):.4g}, {float(d.c0):.4g}) disagrees with the phase-corrected "
                   f"centre of brightness beyond both covariances (chi-square {t:.3g}, 2 dof)")
-        mom = moments_result(frame, cand, pix, reason)
-        return SmallEdge(mom.result, "moments", {**mom.info, "disc_rc": [float(d.r0), float(d.c0)],
-                                                 "disc_vs_moments_chi2": t})
+        return SmallEdge(mom.result, "moments", {**mom.info, "fallback_reason": reason,
+                                                 "disc_rc": [float(d.r0), float(d.c0)], "disc_vs_moments_chi2": t})
     return SmallEdge(rr, "disc", info)
 
 
