@@ -63,7 +63,7 @@ def scene_bound(case, tau: float, ell: float) -> dict:  # type: ignore[no-untype
                           rho=float(sph.rho), sigma=float(prof["psf_sigma_px"]), amp=float(prof["amp"]),
                           ymin=float(m.ymin), sun_r=sun[0], sun_c=sun[1], phase=math.radians(prof["phase_deg"]),
                           inv_f=1.0 / cam.focal_px, L=float(prof["L"]),
-                          L_slope=float(prof["L_slope"]))
+                          L_slope=float(prof["L_slope"]), L_ref=float(prof["L_ref"]))
     unit = albedo_field_crlb(rc, p, np.ones(len(rc)), 0.0, ell)
     var = (float(m.crlb["center_r"]) / unit.std["r0"]) ** 2  # the noise locate's own bound assumes
     white, field = albedo_field_crlb(rc, p, np.full(len(rc), var), 0.0, ell), albedo_field_crlb(rc, p, np.full(len(rc), var), tau, ell)

@@ -200,7 +200,7 @@ def _profile_problem(opt: ModelStudyOptions) -> tuple[LimbParams, LimbParams, np
     phase = math.radians(_PHASE_DEG)
     inv_f = math.tan(math.asin(_MOON_RADIUS_KM / _MOON_RANGE_KM)) / opt.radius
     truth = LimbProfileParams(r0, c0, opt.radius, 0.0, 1.0, _PSF_PX, opt.ymax - opt.ymin, opt.ymin, 0.0, 1.0, phase,
-                              inv_f, lunar_lambert_weight(phase), lunar_lambert_slope(phase))
+                              inv_f, lunar_lambert_weight(phase), lunar_lambert_slope(phase), lunar_lambert_weight(phase))
     init = truth.replace(r0=r0 + d, c0=c0 - d, a=opt.radius + opt.start_offset_px)
     coords = _band(opt, CircleParams(r0 + d, c0 - d, opt.radius + opt.start_offset_px, 1.0, 1.0, 0.0), CIRCLE)
     ang = np.arctan2(coords[:, 0] - (r0 + d), coords[:, 1] - (c0 - d))

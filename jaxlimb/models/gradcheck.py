@@ -153,7 +153,8 @@ def _profile_case(rng: np.random.Generator, n_pix: int):  # noqa: ANN202
     d /= np.linalg.norm(d)
     inv_f = math.tan(rng.uniform(1e-3, 0.3)) / (rho * a)
     p = LimbProfileParams(r0, c0, a, theta, rho, sigma, rng.uniform(50, 250), rng.uniform(0, 40), d[0], d[1],
-                          rng.uniform(0.0, np.radians(125)), inv_f, rng.uniform(0, 1), rng.uniform(-1.5, 0.5))
+                          rng.uniform(0.0, np.radians(125)), inv_f, rng.uniform(0, 1), rng.uniform(-1.5, 0.5),
+                          rng.uniform(0, 1))
     return p, jnp.asarray(rc)
 
 

@@ -29,10 +29,12 @@ The phase angle across the disc.  Each point is seen at its own phase angle: the
 centre direction, toward the Sun by :math:`\cos\psi'`, meets the surface at the phase angle :math:`\vartheta + \Delta g`
 with :math:`\cos(\vartheta + \Delta g) = \cos\beta\cos\vartheta - \sin\beta\sin\vartheta\cos\psi'` (to first order
 :math:`\Delta g = \beta\cos\psi'`; at zero phase :math:`\Delta g = \beta`).  Incidence and emission are computed at
-each point; the law's own phase dependence is its weight, :math:`L\,(1 + \lambda\,\Delta g)` with ``L`` at the
-centre's phase (fitted) and :math:`\lambda = d\ln L/d\vartheta` (``L_slope``, McEwen's:
-:func:`~jaxlimb.models.profile_params.lunar_lambert_slope`): the fitted weight changes across the disc as the Moon's
-does, and a Lambert surface's (``L = 0``) does not change.  Held at the centre's, the weight makes the rim toward the
+each point; the law's own phase dependence is its weight, :math:`L + \lambda\,\min(L, L_M)\,\Delta g` with ``L`` at the
+centre's phase (fitted), :math:`L_M` McEwen's weight there (``L_ref``) and :math:`\lambda = d\ln L_M/d\vartheta`
+(``L_slope``: :func:`~jaxlimb.models.profile_params.lunar_lambert_slope`): the fitted weight changes across the disc
+as the Moon's does, relatively (a Lambert surface's, ``L = 0``, does not change), but never by more than McEwen's own
+weight does, :math:`L_M' \Delta g`: near McEwen's zero (about 104 deg) :math:`\lambda` diverges, and a surface that
+does not follow his law there keeps a weight far above :math:`L_M`.  Held at the centre's, the weight makes the rim toward the
 Sun brighter than a lunar-Lambert surface's, the fit reads the difference as an edge moved, and the centre comes out
 displaced away from the Sun by an amount first order in :math:`\alpha_0` (``benchmarks/phase_across_disc.py``).
 
@@ -50,7 +52,7 @@ curvature term of the 2-D blur, :math:`\sigma_e^2/(2d)\,\partial f/\partial d` (
 short: ``benchmarks/locate_accuracy.py``'s bias study).  Parameters
 ``(r0, c0, a, sigma, amp, ymin)`` are estimated; ``theta, rho`` (limb ellipse shape),
 ``sun_r, sun_c`` (unit image direction of the Sun), ``phase`` (rad), ``inv_f`` (1/focal px;
-0 = orthographic), ``L`` and ``L_slope`` are held fixed (``fixed=PROFILE_FIXED``; the pipeline fits ``L``).
+0 = orthographic), ``L``, ``L_slope`` and ``L_ref`` are held fixed (``fixed=PROFILE_FIXED``; the pipeline fits ``L``).
 
 Jacobian.  The columns are computed in the same pass as the intensity (13 columns for about three times the
 cost of the intensity; ``jax.jacfwd`` took 13 times) and are the derivative of the quadrature *as computed*
@@ -133,7 +135,7 @@ def _glow_integrals(p: GlowProfileParams, d, R, se, cpsi, s2d, derivatives: bool
 def _radiance_partials(rad, nodes, se, s2d, d, F1_d, F1_dd, F1_dse) -> dict:
     """The partials of ``F = F1 + s2d dF1/dd`` at fixed nodes (the integrands differentiated; module docstring of
     :func:`profile_integrals`)."""
-    _, I_R, I_cpsi, I_a0, I_ph, I_L, I_k, _, I_s = rad
+    _, I_R, I_cpsi, I_a0, I_ph, I_L, I_k, _, I_s, I_ref = rad
     t, g = nodes[1], nodes[3]
     tg = t * g / jnp.asarray(se)[..., None]  # -dg/dd
 
@@ -147,6 +149,7 @@ def _radiance_partials(rad, nodes, se, s2d, d, F1_d, F1_dd, F1_dse) -> dict:
     F1_L, F1_dL = pair(I_L)
     F1_k, F1_dk = pair(I_k)
     F1_s, F1_ds = pair(I_s)
+    F1_ref, F1_dref = pair(I_ref)
     return {
         "F_d": F1_d + s2d * (F1_dd - F1_d / d),
         "F_R": (-F1_d + F1_R) + s2d * (-F1_dd + F1_dR),
@@ -157,6 +160,7 @@ def _radiance_partials(rad, nodes, se, s2d, d, F1_d, F1_dd, F1_dse) -> dict:
         "F_L": F1_L + s2d * F1_dL,
         "F_k": F1_k + s2d * F1_dk,
         "F_s": F1_s + s2d * F1_ds,
+        "F_ref": F1_ref + s2d * F1_dref,
     }
 
 
@@ -168,7 +172,7 @@ def profile_integrals(p: LimbProfileParams, d, R, cpsi, derivatives: bool, brigh
     curvature term of the 2-D blur of a round edge (the ``(1/r) d/dr`` part of the Laplacian:
     the blurred disc's edge moves inward by ``sigma_e^2 / 2R``, 0.02 px for ``R = 33 px``,
     ``sigma = 1.2 px``).  Partials ``F_d, F_R`` (at fixed ``d``/``R``), ``F_cpsi, F_se, F_a0,
-    F_ph, F_L, F_k, F_s``: the integrands differentiated at fixed nodes plus the move of the nodes with the window's
+    F_ph, F_L, F_k, F_s, F_ref``: the integrands differentiated at fixed nodes plus the move of the nodes with the window's
     ends (:func:`~jaxlimb.models.blur_quadrature.window_terms`).  ``brightened``: as :func:`~jaxlimb.models.profile_radiance.radiance_parts`.
     ``glowing`` (:class:`GlowProfileParams`): plus ``p.glow`` times the glow on the disc side (in the integrand) and
     above the limb (closed form); partials ``F_glow``, ``F_tilt``, ``F_lh``.  ``s2``: the per-pixel anisotropic
@@ -329,6 +333,7 @@ def _profile_value_and_columns(p: LimbProfileParams, rc):
         "inv_f": A * F_a0 * a0_common * p.rho * p.a,
         "L": A * P["F_L"],
         "L_slope": A * P["F_s"],
+        "L_ref": A * P["F_ref"],
         "kappa": A * P["F_k"],
     }
     if glowing:

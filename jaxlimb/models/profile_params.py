@@ -10,7 +10,7 @@ from jaxtyping import ArrayLike
 
 from ._base import LimbParams
 
-PROFILE_FIXED = ("theta", "rho", "sun_r", "sun_c", "phase", "inv_f", "L", "L_slope")
+PROFILE_FIXED = ("theta", "rho", "sun_r", "sun_c", "phase", "inv_f", "L", "L_slope", "L_ref")
 
 
 class LimbProfileParams(LimbParams):
@@ -19,9 +19,9 @@ class LimbProfileParams(LimbParams):
     ``r0, c0, a, theta, rho`` are the limb ellipse as in :class:`jaxlimb.models.EllipseParams`
     (``rho = 1``: a circle of radius ``a``); ``sigma`` the Gaussian PSF (px); ``amp``, ``ymin``
     the radiance scale and the sky level; ``sun_r, sun_c, phase, inv_f`` fixed geometry; ``L`` the lunar-Lambert
-    weight at the body centre's phase angle and ``L_slope`` its relative derivative in the phase angle,
-    ``d ln L / d phase`` (1/rad), which sets the weight at each point of the disc (:mod:`jaxlimb.models.lunar_lambert`,
-    "The phase angle across the disc").
+    weight at the body centre's phase angle; ``L_ref`` and ``L_slope`` McEwen's weight there and its relative
+    derivative in the phase angle, ``d ln L / d phase`` (1/rad), which set the weight at each point of the disc
+    (:mod:`jaxlimb.models.lunar_lambert`, "The phase angle across the disc").
     """
 
     r0: ArrayLike
@@ -38,6 +38,7 @@ class LimbProfileParams(LimbParams):
     inv_f: ArrayLike
     L: ArrayLike
     L_slope: ArrayLike
+    L_ref: ArrayLike
 
 
 class MinnaertProfileParams(LimbProfileParams):

@@ -54,10 +54,11 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
     :mod:`jaxlimb.models.lunar_lambert`).
 
     With ``q = 1 - v^2/R`` the emission cosine is computed as ``mu = v sqrt((1 + q)/R)``
-    (no cancellation in ``1 - q^2`` at the limb).  The weight is ``L (1 + L_slope dg)`` at the point, ``dg`` the
-    phase angle's change across the disc: ``cos(phase + dg) = cos beta cos(phase) - sin beta sin(phase) cpsi``.
-    Returns ``I`` and, at fixed ``v``, ``dI/dR``, ``dI/dcpsi``, ``dI/dalpha0``, ``dI/dphase``, ``dI/dL``,
-    ``dI/dkappa``, ``dI/dv`` at fixed ``R`` (the move of a quadrature node) and ``dI/dL_slope``.  ``brightened``:
+    (no cancellation in ``1 - q^2`` at the limb).  The weight is ``L + L_slope min(L, L_ref) dg`` at the point,
+    ``dg`` the phase angle's change across the disc: ``cos(phase + dg) = cos beta cos(phase) - sin beta sin(phase)
+    cpsi``.  Returns ``I`` and, at fixed ``v``, ``dI/dR``, ``dI/dcpsi``, ``dI/dalpha0``, ``dI/dphase``, ``dI/dL``,
+    ``dI/dkappa``, ``dI/dv`` at fixed ``R`` (the move of a quadrature node), ``dI/dL_slope`` and ``dI/dL_ref``.
+    ``brightened``:
     with the limb brightening ``(mu0 mu)^-p.kappa`` (:class:`MinnaertProfileParams`); ``dI/dkappa`` is returned in
     either case (at ``kappa = 0`` without it).  A separate model and not a parameter held at 0: on CPU the
     brightening's terms cost the one-pass Jacobian 2.5-3x (XLA repeats them in every column's reduction; a
@@ -66,7 +67,7 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
     Parameters
     ----------
     p : LimbProfileParams
-        Supplies ``phase`` (rad), ``L``, ``L_slope`` and, with ``brightened``, ``kappa``.
+        Supplies ``phase`` (rad), ``L``, ``L_slope``, ``L_ref`` and, with ``brightened``, ``kappa``.
     v : jax.Array
         Square root of the depth below the limb (px^1/2): the quadrature nodes, ``(n, nodes)``.
     R : jax.Array
@@ -80,10 +81,10 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
 
     Returns
     -------
-    tuple of 9 jax.Array
-        ``(I, I_R, I_cpsi, I_a0, I_ph, I_L, I_k, I_v, I_s)``, each of the broadcast shape of ``v``: the radiance
-        (units of ``amp``) and its partials in ``R``, ``cpsi``, ``alpha0``, ``phase``, ``L``, ``kappa`` (all at
-        fixed ``v``), in ``v`` (at fixed ``R``) and in ``L_slope``.
+    tuple of 10 jax.Array
+        ``(I, I_R, I_cpsi, I_a0, I_ph, I_L, I_k, I_v, I_s, I_ref)``, each of the broadcast shape of ``v``: the
+        radiance (units of ``amp``) and its partials in ``R``, ``cpsi``, ``alpha0``, ``phase``, ``L``, ``kappa`` (all
+        at fixed ``v``), in ``v`` (at fixed ``R``), in ``L_slope`` and in ``L_ref``.
     """
     v2 = v * v
     inv_R = 1.0 / R
@@ -103,8 +104,9 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
     cg = jnp.clip(cb * cph - sb * sph * cpsi, -1.0, 1.0 - 1e-15)
     G = -1.0 / jnp.sqrt(1.0 - cg * cg)  # d acos(cg) / d cg
     dg = jnp.arccos(cg) - p.phase
-    grow = 1.0 + p.L_slope * dg
-    Lp = p.L * grow  # the weight at the point
+    below = p.L < p.L_ref
+    scale = jnp.where(below, p.L, p.L_ref)  # min(L, L_ref): relative below McEwen's weight, absolute above
+    Lp = p.L + p.L_slope * scale * dg  # the weight at the point
     two_L = 2.0 * Lp
     ratio = m0 * inv_den  # mu0 / (mu0 + mu)
     # (mu0 mu)^-kappa: Minnaert's limb brightening (L = 0: mu0^k mu^(k-1) with k = 1 - kappa); 1 at kappa = 0
@@ -138,11 +140,12 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
     I_L = (2.0 * ratio - m0) * brighten
     # the weight's own change with the point, through dg (beta = q alpha0; q_R = v^2 / R^2 at fixed v, q_v = -2 v / R
     # at fixed R)
-    Ls = p.L * p.L_slope * I_L
+    Ls = scale * p.L_slope * I_L
     k = Ls * G * (-sb * cph - cb * a_s)  # d dg / d beta
+    turn = p.L_slope * dg * I_L
     return (I, I_R + k * alpha0 * q_R, I_cpsi - Ls * G * sb * sph, I_a0 + k * q,
-            I_ph + Ls * (G * (-cb * sph - sb * cph * cpsi) - 1.0), I_L * grow, -log_mm * I, I_v + k * alpha0 * q_v,
-            p.L * dg * I_L)
+            I_ph + Ls * (G * (-cb * sph - sb * cph * cpsi) - 1.0), I_L + jnp.where(below, turn, 0.0), -log_mm * I,
+            I_v + k * alpha0 * q_v, scale * dg * I_L, jnp.where(below, 0.0, turn))
 
 
 def terminator_depth(p: LimbProfileParams, R, cpsi, alpha0, tangents: bool = False):
@@ -289,7 +292,8 @@ def window_regime(p: LimbProfileParams, rc):
     the limb (``v = 0``), whether the terminator is clipped to the window and which side is lit.  The quadrature is
     smooth in the parameters while these stay the same; where one switches, the rule (not the integral) has a kink of
     the size of its error -- a window end reaching the limb moves its nodes as a square root -- and central
-    differences straddling it measure the kink, not the derivative (:mod:`jaxlimb.models.gradcheck`).
+    differences straddling it measure the kink, not the derivative (:mod:`jaxlimb.models.gradcheck`).  The sixth
+    flag is the weight's branch, ``L < L_ref`` (a kink of the model itself).
 
     Parameters
     ----------
@@ -301,7 +305,7 @@ def window_regime(p: LimbProfileParams, rc):
     Returns
     -------
     jax.Array (n,) of int32
-        Five bit flags per pixel; two pixels share a branch when their codes are equal.
+        Six bit flags per pixel; two pixels share a branch when their codes are equal.
     """
     dr, dc, _, _, d, _, R, cpsi = limb_geometry(p, rc)
     se = jnp.sqrt(p.sigma * p.sigma + 1.0 / 12.0 + (0.0 if not isinstance(p, AnisoProfileParams)
@@ -309,7 +313,8 @@ def window_regime(p: LimbProfileParams, rc):
     u0, u1 = R - d - 6.0 * se, R - d + 6.0 * se
     v0, v1 = jnp.sqrt(jnp.maximum(u0, 1e-12)), jnp.sqrt(jnp.maximum(u1, 1e-12))
     vt, shallow = terminator_depth(p, R, cpsi, jnp.arctan(p.rho * p.a * p.inv_f))
-    flags = (u0 > 1e-12, u1 > 1e-12, vt < v0, vt > v1, shallow)
+    below = jnp.broadcast_to(p.L < p.L_ref, jnp.shape(d))  # the weight's branch (:func:`radiance_parts`)
+    flags = (u0 > 1e-12, u1 > 1e-12, vt < v0, vt > v1, shallow, below)
     return sum(f.astype(jnp.int32) << i for i, f in enumerate(flags))
 
 

@@ -123,7 +123,7 @@ def levels(final: RefineResult) -> Levels:
         if isinstance(fp, LimbProfileParams):
             prof = {"model": "lunar-lambert", "psf_sigma_px": sig, "amp": float(fp.amp),
                     "phase_deg": math.degrees(float(fp.phase)), "L": float(fp.L),
-                    "L_slope": float(fp.L_slope),
+                    "L_slope": float(fp.L_slope), "L_ref": float(fp.L_ref),
                     "kappa": float(fp.kappa) if isinstance(fp, MinnaertProfileParams) else 0.0, **glow_fields(fp),
                     **({"blur_aniso": [float(fp.s2c), float(fp.s2s)]} if isinstance(fp, AnisoProfileParams) else {})}
         elif isinstance(fp, CoronaParams):

@@ -16,7 +16,7 @@ from jaxlimb.render.independent import MOON_FAMILIES, moon_case
 jax.config.update("jax_enable_x64", True)
 
 P = LimbProfileParams(r0=300.0, c0=310.0, a=60.0, theta=0.0, rho=1.0, sigma=0.9, amp=1000.0, ymin=5.0, sun_r=0.0,
-                      sun_c=1.0, phase=0.3, inv_f=1e-4, L=0.5, L_slope=-1.0)
+                      sun_c=1.0, phase=0.3, inv_f=1e-4, L=0.5, L_slope=-1.0, L_ref=0.6)
 
 
 def _ring(rng, n=3000):

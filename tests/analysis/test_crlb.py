@@ -90,7 +90,7 @@ def test_albedo_field_bound_is_the_white_bound_without_albedo_and_the_dense_one_
     from jaxlimb.models.profile_columns import albedo_field_columns, albedo_nodes, albedo_prior
 
     p = LimbProfileParams(r0=100.0, c0=110.0, a=30.0, theta=0.0, rho=1.0, sigma=0.9, amp=1000.0, ymin=5.0, sun_r=0.6,
-                          sun_c=0.8, phase=0.8, inv_f=1e-4, L=0.5, L_slope=-1.0)
+                          sun_c=0.8, phase=0.8, inv_f=1e-4, L=0.5, L_slope=-1.0, L_ref=0.6)
     ang = np.linspace(0.0, 2.0 * math.pi, 90, endpoint=False)
     g = np.stack(np.meshgrid(ang, np.linspace(25.0, 35.0, 5)), -1).reshape(-1, 2)
     rc = np.column_stack([100.0 + g[:, 1] * np.sin(g[:, 0]), 110.0 + g[:, 1] * np.cos(g[:, 0])])

@@ -89,7 +89,7 @@ def _horn_case():
     p = LimbProfileParams(986.7117841365805, -48.44758935793053, 51.37286329287892, -1.756239652202241,
                           0.9658746783347828, 1.8415169935795987, 216.985133647483, 12.917940108061243,
                           -0.06789053476112748, 0.9976927760036395, 2.044383538438516, 0.004325641481886696,
-                          0.19551697442706573, 0.0)
+                          0.19551697442706573, 0.0, 1.0)
     return p, jnp.asarray([[954.29136402, -25.71476801], [960.0, -20.0], [975.0, -5.0]])
 
 
@@ -116,7 +116,7 @@ def test_anisotropic_blur_is_the_isotropic_profile_at_zero_and_widens_across_the
     from jaxlimb.models import AnisoProfileParams, LimbProfileParams
 
     p = LimbProfileParams(r0=0.0, c0=0.0, a=200.0, theta=0.0, rho=1.0, sigma=0.8, amp=100.0, ymin=0.0, sun_r=0.0,
-                          sun_c=1.0, phase=0.3, inv_f=1e-4, L=0.5, L_slope=-1.0)
+                          sun_c=1.0, phase=0.3, inv_f=1e-4, L=0.5, L_slope=-1.0, L_ref=0.6)
     d = np.linspace(195.0, 205.0, 41)
     along_c = jnp.asarray(np.column_stack([np.zeros_like(d), d]))
     along_r = jnp.asarray(np.column_stack([-d, np.zeros_like(d)]))

@@ -14,7 +14,7 @@ jax.config.update("jax_enable_x64", True)
 
 def _limb(a=60.0, phase=0.8):
     p = LimbProfileParams(r0=300.0, c0=310.0, a=a, theta=0.0, rho=1.0, sigma=0.9, amp=1000.0, ymin=5.0, sun_r=0.6,
-                          sun_c=0.8, phase=phase, inv_f=1e-4, L=0.5, L_slope=-1.0)
+                          sun_c=0.8, phase=phase, inv_f=1e-4, L=0.5, L_slope=-1.0, L_ref=0.6)
     ang = np.linspace(0.0, 2.0 * math.pi, 360, endpoint=False)
     rr = np.linspace(a - 6.0, a + 6.0, 13)
     g = np.stack(np.meshgrid(ang, rr), -1).reshape(-1, 2)

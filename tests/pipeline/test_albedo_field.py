@@ -22,7 +22,7 @@ def test_marginal_likelihood_recovers_the_noise_and_the_fields_amplitude():
     """Residuals drawn as ``U a + e`` (``a`` from the field's prior of amplitude 0.15, ``e`` noise of 30 DN) give back
     both; residuals of noise alone give an amplitude that leaves no albedo variance to speak of."""
     p = LimbProfileParams(r0=300.0, c0=310.0, a=60.0, theta=0.0, rho=1.0, sigma=0.9, amp=1000.0, ymin=5.0, sun_r=0.6,
-                          sun_c=0.8, phase=0.8, inv_f=1e-4, L=0.5, L_slope=-1.0)
+                          sun_c=0.8, phase=0.8, inv_f=1e-4, L=0.5, L_slope=-1.0, L_ref=0.6)
     rng = np.random.default_rng(3)
     ang, d = rng.uniform(0.0, 2 * math.pi, 2500), 60.0 + rng.uniform(-6.0, 6.0, 2500)
     rc = np.column_stack([300.0 + d * np.sin(ang), 310.0 + d * np.cos(ang)])
@@ -69,7 +69,7 @@ def test_restricted_likelihood_takes_the_fits_share_of_the_field_out():
     from jaxlimb.pipeline.profile.albedo_field import restricted
 
     p = LimbProfileParams(r0=300.0, c0=310.0, a=60.0, theta=0.0, rho=1.0, sigma=0.9, amp=1000.0, ymin=5.0, sun_r=0.0,
-                          sun_c=1.0, phase=0.3, inv_f=1e-4, L=0.5, L_slope=-1.0)
+                          sun_c=1.0, phase=0.3, inv_f=1e-4, L=0.5, L_slope=-1.0, L_ref=0.6)
     rng = np.random.default_rng(5)
     ang, d = rng.uniform(-0.5 * math.pi, 0.5 * math.pi, 3000), 60.0 + rng.uniform(-6.0, 6.0, 3000)
     rc = np.column_stack([300.0 + d * np.sin(ang), 310.0 + d * np.cos(ang)])

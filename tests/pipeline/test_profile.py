@@ -25,7 +25,7 @@ jax.config.update("jax_enable_x64", True)
 def _params(phase: float, rho: float = 0.995, sigma: float = 0.9, kappa: float | None = None) -> LimbProfileParams:
     """The lunar-Lambert profile; with ``kappa``, the Minnaert-widened one (MinnaertProfileParams)."""
     p = LimbProfileParams(r0=500.0, c0=600.0, a=200.0, theta=0.3, rho=rho, sigma=sigma, amp=150.0, ymin=3.0,
-                          sun_r=0.6, sun_c=0.8, phase=phase, inv_f=1 / 7272.7, L=0.5, L_slope=-0.9)
+                          sun_r=0.6, sun_c=0.8, phase=phase, inv_f=1 / 7272.7, L=0.5, L_slope=-0.9, L_ref=0.6)
     fields = [getattr(p, n) for n in LimbProfileParams.field_names()]
     return p if kappa is None else MinnaertProfileParams(*fields, kappa)
 

@@ -86,7 +86,7 @@ def _start(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdge, pts: np.ndar
               else gaussian_sigma_of_k(k))  # the ramp's kernel is a Gaussian of sigma 1/k; the ESF's a logistic
     q = LimbProfileParams(r0=r0, c0=c0, a=float(a), theta=th0, rho=rho0, sigma=sigma0, amp=1.0, ymin=0.0,
                           sun_r=sun_rc[0], sun_c=sun_rc[1], phase=phase, inv_f=1.0 / cam.focal_px,
-                          L=lunar_lambert_weight(phase), L_slope=0.0)  # the Earth's weight is no lunar law
+                          L=lunar_lambert_weight(phase), L_slope=0.0, L_ref=1.0)  # the Earth's weight is no lunar law
     F0 = np.asarray(limb_profile_intensity(q, jnp.asarray(np.asarray(pts, float))))
     (amp0, ymin0), *_ = np.linalg.lstsq(np.column_stack([F0, np.ones_like(F0)]), z, rcond=None)
     if not (math.isfinite(amp0) and amp0 > 0):

@@ -94,7 +94,8 @@ def profile_start(frame: Frame, circle: CircleParams, data: FitData, center) -> 
     return LimbProfileParams(r0=center[0], c0=center[1], a=float(p.radius), theta=0.0, rho=1.0,
                              sigma=gaussian_sigma_of_k(float(p.k)), amp=max(scale, 1e-6), ymin=offset, sun_r=sun_rc[0],
                              sun_c=sun_rc[1], phase=phase, inv_f=_inv_focal(frame, float(p.radius)),
-                             L=lunar_lambert_weight(phase), L_slope=lunar_lambert_slope(phase))
+                             L=lunar_lambert_weight(phase), L_slope=lunar_lambert_slope(phase),
+                             L_ref=lunar_lambert_weight(phase))
 
 
 def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: float | None = None
