@@ -1,4 +1,5 @@
-"""Would an unknown albedo field's consider covariance make ``locate``'s Moon covariance honest, and at what cost?
+"""How much of ``locate``'s Moon covariance is the unknown albedo field's consider term, and does it make the
+covariance honest?
 
 Usage::
 
@@ -6,10 +7,11 @@ Usage::
 
 The Moon frames of ``benchmarks/families.py`` (same seeds, same cache), each through
 :func:`jaxlimb.analysis.located.located_fit` and :func:`jaxlimb.analysis.albedo_consider.albedo_consider_of`.  Per
-family: the mean NEES of the body centre (chi-square 2 dof expects 2) with ``locate``'s covariance and with it widened
-by what its model-error terms did not carry of the albedo field's consider term, and with the limb sectors' sandwich
-made bias-reduced or correlated between neighbouring sectors (:func:`sandwich_variants`); the field's median
-amplitude; and the median ratio of the widened centre sigma to ``locate``'s.  Results: ``benchmarks/results/albedo_consider.json``.
+family: the mean NEES of the body centre (chi-square 2 dof expects 2) with ``locate``'s covariance, which carries the
+albedo field's consider term where its other model-error terms do not; without that term; and without it with the
+limb sectors' sandwich made bias-reduced or correlated between neighbouring sectors (:func:`sandwich_variants`); the
+field's median amplitude; and the median ratio of ``locate``'s centre sigma to the one without the term.  Results:
+``benchmarks/results/albedo_consider.json``.
 """
 
 from __future__ import annotations
@@ -26,20 +28,28 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
 def sandwich_variants(lf) -> dict[str, np.ndarray]:  # noqa: ANN001
-    """``locate``'s centre covariance with its limb sectors' sandwich (CR1) replaced by the bias-reduced one (CR2, Bell
-    & McCaffrey 2002) and by one whose sectors are correlated with their ``L`` neighbours (Newey & West 1987, Bartlett
-    weights ``1 - k / (L + 1)``), ``L`` = 2 and 4; each mapped to the body centre."""
+    """Changes to ``locate``'s centre covariance: ``albedo``, the albedo field's consider term it added
+    (:func:`jaxlimb.pipeline.profile.albedo_prior.with_albedo_term` over the sectors' sandwich and the split witness);
+    and, that term taken out, the limb sectors' sandwich (CR1) replaced by the bias-reduced one (CR2, Bell & McCaffrey
+    2002) and by one whose sectors are correlated with their ``L`` neighbours (Newey & West 1987, Bartlett weights
+    ``1 - k / (L + 1)``), ``L`` = 2 and 4; each mapped to the body centre."""
     from jaxlimb.analysis.albedo_consider import center_map
     from jaxlimb.model_error import (cluster_robust_bias_reduced, cluster_robust_covariance, sector_groups,
                                      with_model_error as widen)
     from jaxlimb.models.lunar_lambert import profile_model
-    from jaxlimb.pipeline.profile.model_error import MODEL_ERROR_SECTORS, weighted_system
+    from jaxlimb.pipeline.profile.albedo_prior import albedo_consider, with_albedo_term
+    from jaxlimb.pipeline.profile.model_error import MODEL_ERROR_SECTORS, signed_distance, split_witness, weighted_system
 
     rr, G = lf.final, MODEL_ERROR_SECTORS
-    J, r, _, _ = weighted_system(rr, profile_model(rr.fit.params))
-    g = sector_groups(np.asarray(rr.data.coords, float), (float(rr.fit.params.r0), float(rr.fit.params.c0)), G)
+    J, r, padded, w = weighted_system(rr, profile_model(rr.fit.params))
+    coords = np.asarray(rr.data.coords, float)
+    g = sector_groups(coords, (float(rr.fit.params.r0), float(rr.fit.params.c0)), G)
     C0 = rr.covariance_noise
     base = widen(C0, cluster_robust_covariance(J, r, g))
+    s = signed_distance(rr.fit.params, coords, padded)
+    idx, W = split_witness(rr, J, r, s)
+    base[np.ix_(idx, idx)] += W
+    added = with_albedo_term(base, C0, albedo_consider(rr.fit.params, coords, J, r, w, s)[0]) - base
     scores = np.stack([np.bincount(g, weights=col * r, minlength=G) for col in J.T], axis=1)
     Ni = np.linalg.inv(J.T @ J)
     out = {"cr2": widen(C0, cluster_robust_bias_reduced(J, r, g))}
@@ -50,7 +60,8 @@ def sandwich_variants(lf) -> dict[str, np.ndarray]:  # noqa: ANN001
             meat += (1.0 - k / (L + 1)) * (X + X.T)
         out[f"hac{L}"] = widen(C0, G / (G - 1) * Ni @ meat @ Ni)
     M = center_map(lf)
-    return {k: M @ (v - base) @ M.T for k, v in out.items()}
+    sandwich = widen(C0, cluster_robust_covariance(J, r, g))
+    return {"albedo": M @ added @ M.T} | {k: M @ (v - sandwich - added) @ M.T for k, v in out.items()}
 
 
 def frame_record(case) -> dict:  # noqa: ANN001
@@ -67,10 +78,12 @@ def frame_record(case) -> dict:  # noqa: ANN001
     if ac is None:
         return {"status": "not_profile"}
     e = np.asarray(lf.measurement.center_rc, float) - np.asarray(case.truth.body_center_rc, float)
-    variants = {f"nees_{k}": float(e @ np.linalg.solve(ac.locate + d, e)) for k, d in sandwich_variants(lf).items()}
+    d = sandwich_variants(lf)
+    without = ac.locate - d.pop("albedo")
+    variants = {f"nees_{k}": float(e @ np.linalg.solve(ac.locate + v, e)) for k, v in d.items()}
     return {**variants, "status": "ok", "center_err_px": float(np.hypot(*e)), "tau": ac.tau, "ell_deg": ac.ell_deg,
-            "nees_locate": float(e @ np.linalg.solve(ac.locate, e)), "nees_widened": float(e @ np.linalg.solve(ac.widened, e)),
-            "sigma_ratio": math.sqrt(np.trace(ac.widened) / np.trace(ac.locate))}
+            "nees_locate": float(e @ np.linalg.solve(ac.locate, e)), "nees_without": float(e @ np.linalg.solve(without, e)),
+            "sigma_ratio": math.sqrt(np.trace(ac.locate) / np.trace(without))}
 
 
 def summarise(recs: list[dict]) -> dict:
@@ -81,7 +94,7 @@ def summarise(recs: list[dict]) -> dict:
     col = lambda k: np.array([r[k] for r in ok])  # noqa: E731
     return {"n": len(recs), "n_ok": len(ok), "nees_locate": float(col("nees_locate").mean()),
             **{f"nees_{k}": float(col(f"nees_{k}").mean()) for k in ("cr2", "hac2", "hac4")},
-            "nees_widened": float(col("nees_widened").mean()), "tau_median": float(np.median(col("tau"))),
+            "nees_without": float(col("nees_without").mean()), "tau_median": float(np.median(col("tau"))),
             "sigma_ratio_median": float(np.median(col("sigma_ratio"))),
             "center_median_px": float(np.median(col("center_err_px")))}
 
@@ -111,7 +124,7 @@ def main(argv: list[str] | None = None) -> dict:
     summary["all"] = summarise([x for r in records.values() for x in r])
     for f, s in summary.items():
         if s["n_ok"]:
-            print(f"{f:9s} {s['n_ok']}/{s['n']}  NEES {s['nees_locate']:5.2f} -> {s['nees_widened']:5.2f}  "
+            print(f"{f:9s} {s['n_ok']}/{s['n']}  NEES {s['nees_without']:5.2f} -> {s['nees_locate']:5.2f}  "
                   f"(CR2 {s['nees_cr2']:.2f}, HAC2 {s['nees_hac2']:.2f}, HAC4 {s['nees_hac4']:.2f})  "
                   f"tau {s['tau_median']:.3f}  sigma x {s['sigma_ratio_median']:.2f}")
     out = {"args": {"n": a.n, "seed": a.seed, "families": fams}, "environment": environment(),

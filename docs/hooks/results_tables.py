@@ -498,11 +498,13 @@ def small_bodies(rel: str = "small_bodies.json") -> str:
 
 @renderer
 def albedo_consider(rel: str = "albedo_consider.json") -> str:
-    """The Moon families' centre NEES with ``locate``'s covariance and with the albedo field's consider term."""
+    """The Moon families' centre NEES with ``locate``'s covariance, without its albedo term, and with the sandwich's
+    variants in place of that term."""
     d = load(rel)
-    rows = [[fam, f"{s['n_ok']}/{s['n']}", f(s["nees_locate"], 2),
-             " / ".join(f(s[f"nees_{k}"], 2) for k in ("cr2", "hac2", "hac4")), f(s["nees_widened"], 2),
+    rows = [[fam, f"{s['n_ok']}/{s['n']}", f(s["nees_locate"], 2), f(s["nees_without"], 2),
+             " / ".join(f(s[f"nees_{k}"], 2) for k in ("cr2", "hac2", "hac4")),
              f(s["tau_median"], 3), f(s["sigma_ratio_median"], 2)] for fam, s in d["summary"].items() if s.get("n_ok")]
-    head = ["family", "answered", "mean NEES, locate", "sandwich CR2 / neighbours 2 / 4", "with the albedo term",
-            "field amplitude τ (median)", "centre σ with / without the term (median)"]
+    head = ["family", "answered", "mean NEES, locate", "without the albedo term",
+            "without it, sandwich CR2 / neighbours 2 / 4", "field amplitude τ (median)",
+            "centre σ with / without the term (median)"]
     return table(head, rows) + source(rel, d) + "*Mean NEES: χ²₂ expects 2.*\n"

@@ -8,8 +8,8 @@ parameters are the generalised least-squares fit under ``Sigma``, with the covar
 Bayesian Cramér--Rao bound with the albedo unknown (Van Trees 1968, Sec. 2.4).
 
 Nothing about the albedo is assumed beyond a smooth field: its amplitude ``tau``, the noise ``s`` and the correlation
-length ``ell`` (of :data:`ELL_DEG`) are those of largest marginal likelihood of the one-albedo fit's residuals
-(type-II maximum likelihood, Rasmussen & Williams 2006, Sec. 5.4), under the field's columns as those residuals see
+length ``ell`` are those of largest marginal likelihood of the one-albedo fit's residuals
+(:func:`~jaxlimb.pipeline.profile.albedo_prior.field_likelihood`), under the field's columns as those residuals see
 them (:func:`restricted`).  With ``U = K C_ell^{1/2} = Q S V^T`` (thin
 SVD), ``Sigma`` has eigenvalues ``s^2 + tau^2 S_j^2`` on ``Q`` and ``s^2`` elsewhere, so the likelihood costs ``O(m)``
 per evaluation and the whitened residual is ``(r - Q (d * Q^T r)) / s``, ``d = 1 - s / sqrt(s^2 + tau^2 S^2)``.  A
@@ -30,121 +30,21 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 
-from ...fitting import bucket_size
 from ...geometry.sphere_image import sphere_from_ellipse_center
 from ...model_error import cluster_robust_covariance, sector_groups, with_model_error as widen
 from ...models import LimbModel, LimbProfileParams, MinnaertProfileParams
 from ...models.lunar_lambert import profile_model
-from ...models.profile_columns import albedo_field_factor
 from ..stages import Frame, RefineResult
+from .albedo_prior import ELL_DEG, field_factor, field_likelihood, thin_svd
 from .model_error import MODEL_ERROR_SECTORS, weighted_system
 from .passes import l_band
 
-TAU_MAX = 0.5
-"""The largest relative albedo spread the field may take (the support of its prior): an albedo ``A (1 + a)`` stays
-positive at two of the field's sigmas.  Residuals that would ask for more are not all albedo (another reflectance
-law, compression artefacts): the rest is left to the noise and to the covariance's cluster-robust term."""
-
-ELL_DEG = (8.0, 16.0, 32.0)
-"""Correlation lengths (deg on the surface) among which the marginal likelihood chooses: a factor of two apart,
-from features about the PSF's width in surface angle at a 30-80 px limb (``sqrt(2 sigma / R)``, 8-14 deg) to
-hemispheric gradients."""
-
 
 def field_basis(p: LimbProfileParams, coords: np.ndarray, ell_rad: float) -> tuple[np.ndarray, np.ndarray]:
-    """``Q, S`` of the thin SVD of ``K C_ell^{1/2}`` (module docstring) at the profile ``p``.
-
-    Parameters
-    ----------
-    p : LimbProfileParams
-        The profile.
-    coords : np.ndarray (n, 2)
-        Its pixels.
-    ell_rad : float
-        Correlation length (rad).
-
-    Returns
-    -------
-    Q : np.ndarray (n, m)
-    S : np.ndarray (m,)
-    """
+    """``Q, S`` of the thin SVD (:func:`~jaxlimb.pipeline.profile.albedo_prior.thin_svd`) of the field's columns
+    ``K C_ell^{1/2}`` at the profile ``p``, its pixels ``coords`` and the correlation length ``ell_rad`` (rad)
+    (:func:`~jaxlimb.pipeline.profile.albedo_prior.field_factor`)."""
     return thin_svd(field_factor(p, coords, ell_rad))
-
-
-def field_factor(p: LimbProfileParams, coords: np.ndarray, ell_rad: float) -> np.ndarray:
-    """``U = K C_ell^{1/2}`` (module docstring, unit amplitude) at the profile ``p``, evaluated on the pixels padded to
-    their bucket (one program per bucket).
-
-    Parameters
-    ----------
-    p : LimbProfileParams
-        The profile.
-    coords : np.ndarray (n, 2)
-        Its pixels.
-    ell_rad : float
-        Correlation length (rad).
-
-    Returns
-    -------
-    np.ndarray (n, m)
-    """
-    n = coords.shape[0]
-    padded = np.concatenate([coords, np.repeat(coords[:1], bucket_size(n) - n, axis=0)])
-    return albedo_field_factor(p, padded, 1.0, ell_rad)[:n]
-
-
-def thin_svd(U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``Q, S`` of ``U = Q S V^T`` through the Gram matrix (``n m^2``, not an SVD's ``n m^2`` with a QR); directions with
-    ``S`` below 1e-6 of the largest are dropped (noise only there: ``d ~ 0``).
-
-    Parameters
-    ----------
-    U : np.ndarray (n, m)
-        Columns.
-
-    Returns
-    -------
-    Q : np.ndarray (n, k)
-    S : np.ndarray (k,)
-    """
-    w, V = np.linalg.eigh(U.T @ U)
-    keep = w > 1e-12 * w.max()
-    S = np.sqrt(w[keep])
-    return (U @ V[:, keep]) / S, S
-
-
-def field_likelihood(r: np.ndarray, Q: np.ndarray, S: np.ndarray) -> tuple[float, float, float]:
-    """Type-II maximum likelihood of the noise variance and the albedo field's amplitude for residuals ``r``, the
-    amplitude at most :data:`TAU_MAX`.
-
-    Parameters
-    ----------
-    r : np.ndarray (n,)
-        Residuals of the one-albedo fit (DN).
-    Q, S : np.ndarray
-        :func:`field_basis`.
-
-    Returns
-    -------
-    tuple of float
-        ``(s2, tau2, nll)``: the noise variance (DN^2), the field's variance and the negative log marginal
-        likelihood (up to a constant).
-    """
-    from scipy.optimize import minimize  # imported on first use: not on locate's default path
-
-    y2, rr, n = (Q.T @ r) ** 2, float(r @ r), r.size
-    S2 = S * S
-
-    def nll(x):
-        s2, t2 = math.exp(min(x[0], 700.0)), math.exp(min(x[1], 2.0 * math.log(TAU_MAX)))
-        lam = s2 + t2 * S2
-        return 0.5 * ((rr - y2.sum()) / s2 + np.sum(y2 / lam) + (n - S.size) * x[0] + np.sum(np.log(lam)))
-
-    s0 = rr / n
-    best = min((minimize(nll, [math.log(s0 * f), math.log(t)], method="Nelder-Mead",
-                         options={"xatol": 1e-4, "fatol": 1e-6}) for f in (0.1, 1.0) for t in (1e-4, 1e-2)),
-               key=lambda o: o.fun)
-    return math.exp(best.x[0]), math.exp(min(best.x[1], 2.0 * math.log(TAU_MAX))), float(best.fun)
 
 
 def _whiten(A: np.ndarray, Q: np.ndarray, d: np.ndarray, s: float) -> np.ndarray:
@@ -181,7 +81,7 @@ def gls_refit(frame: Frame, rr: RefineResult, model: LimbModel, Q, S, s2: float,
     Q, S : np.ndarray
         :func:`field_basis`.
     s2, t2 : float
-        The noise variance and the field's variance (:func:`field_likelihood`).
+        The noise variance and the field's variance (:func:`~jaxlimb.pipeline.profile.albedo_prior.field_likelihood`).
     max_iter : int
         Gauss--Newton steps at most.
     system : tuple or None
@@ -344,5 +244,4 @@ def albedo_field_refit(frame: Frame, rr: RefineResult, base: RefineResult | None
     return replace(out, fit=fit, noise_covariance=np.asarray(rr.covariance_noise))
 
 
-__all__ = ["ELL_DEG", "TAU_MAX", "albedo_field_refit", "field_basis", "field_factor", "field_likelihood", "gls_refit",
-           "model_spread", "physical", "restricted", "thin_svd"]
+__all__ = ["albedo_field_refit", "field_basis", "gls_refit", "model_spread", "physical", "restricted"]

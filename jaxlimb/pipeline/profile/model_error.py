@@ -21,6 +21,7 @@ from ...models.corona import CoronaParams
 from ...models.lunar_lambert import limb_geometry, profile_model
 from ..sigmoid import LOGISTIC_TO_GAUSS
 from ..stages import RefineResult
+from .albedo_prior import albedo_consider, with_albedo_term
 
 
 MODEL_ERROR_SECTORS = 24
@@ -120,14 +121,18 @@ def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS, mod
                      system=None) -> RefineResult:
     """``rr`` (a fit of ``model``, default the profile) with its covariance widened by the model-error terms
     of :mod:`jaxlimb.model_error`: the cluster-robust term over ``n_sectors`` sectors of the limb
-    about the fitted centre, plus the split witness (:func:`split_witness`) on the limb's geometry.  The
-    noise-only covariance is kept as ``noise_covariance`` (the Cramér--Rao bound's).  Level-normalised data
-    (weights): the weighted residuals and Jacobian, as the fit minimises them.
+    about the fitted centre, plus the split witness (:func:`split_witness`) on the limb's geometry, and for the
+    physical profile an unknown albedo field's consider term where those two do not already carry it
+    (:mod:`~jaxlimb.pipeline.profile.albedo_prior`).  The noise-only covariance is kept as ``noise_covariance`` (the
+    Cramér--Rao bound's).  Level-normalised data (weights): the weighted residuals and Jacobian, as the fit minimises
+    them.
 
     Why: an albedo that varies along and across the limb (maria, clouds), another reflectance law, a glow or a
     PSF of another shape bias the centre by more than the noise-only sigma, in a pattern that varies along the limb
     (the sector term sees it).  A misfit the same all along the limb (Minnaert's limb brightening) leaves no sector
-    structure; the split witness sees it.
+    structure; the split witness sees it.  An albedo that darkens toward the limb in one part of it leaves no
+    residual at all (to the pixels there it is the edge moved); the consider term takes its amplitude from what of
+    the residuals varies along the limb.
 
     Parameters
     ----------
@@ -149,12 +154,15 @@ def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS, mod
     model = profile_model(rr.fit.params) if model is None else model
     fit = rr.fit
     coords = np.asarray(rr.data.coords, float)
-    J, r, padded, _ = weighted_system(rr, model) if system is None else system
+    J, r, padded, w = weighted_system(rr, model) if system is None else system
     groups = sector_groups(coords, (float(fit.params.r0), float(fit.params.c0)), n_sectors)
     C0 = np.asarray(fit.covariance)
     C = widen(C0, cluster_robust_covariance(J, r, groups))
-    idx, W = split_witness(rr, J, r, signed_distance(fit.params, coords, padded))
+    s = signed_distance(fit.params, coords, padded)
+    idx, W = split_witness(rr, J, r, s)
     C[np.ix_(idx, idx)] += W
+    if isinstance(fit.params, LimbProfileParams):
+        C = with_albedo_term(C, C0, albedo_consider(fit.params, coords, J, r, w, s)[0])
     return rr.with_covariance(C, noise_covariance=C0)
 
 

@@ -1,0 +1,218 @@
+r"""The surface albedo as an unknown Gaussian field: its columns, its amplitude from the residuals, and what it does
+to a profile fit's covariance (the consider term ``locate``'s covariance carries).
+
+The relative albedo is a zero-mean Gaussian field on the sphere (:mod:`jaxlimb.models.profile_columns`: the
+profile's columns ``K``, prior ``tau^2 C_ell``, ``U = K C_ell^{1/2}``).  An albedo that darkens toward the limb in one
+part of it is, to the pixels there, the same as the edge moved: the fit's residuals do not show it, so no model-error
+term built from them (the limb sectors' sandwich, the split witness) carries it.  The profile fit is least squares,
+``x = G z`` with ``G = (J^T J)^{-1} J^T``, so under the field its error has the consider covariance
+``C_a = tau^2 G U U^T G^T`` beside the noise's (Schmidt 1966; Tapley, Schutz & Born 2004, Sec. 6.3).
+
+The amplitude ``tau`` and correlation length ``ell`` (of :data:`ELL_DEG`) are those of largest marginal likelihood
+(:func:`field_likelihood`; type-II maximum likelihood, Rasmussen & Williams 2006, Sec. 5.4) of what of the residuals
+varies *along* the limb: the residuals and the field's columns less, at each distance from the limb (bins of
+:data:`RADIAL_BIN_PX`), a quadratic in the position angle (:func:`along_limb`), where a reflectance law's or a PSF's
+misfit lives.  The field's columns are taken as the residuals see them, ``U - J G U`` (the part the fit absorbs taken
+out, as restricted maximum likelihood does; Patterson & Thompson 1971): with ``U`` itself the fit's absorption of a
+strong field reads as more field.  A uniform albedo gives ``tau`` near 0 and no term.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ...fitting import bucket_size
+from ...model_error import positive_part
+from ...models import LimbProfileParams
+from ...models.profile_columns import albedo_field_factor
+
+TAU_MAX = 0.5
+"""The largest relative albedo spread the field may take (the support of its prior): an albedo ``A (1 + a)`` stays
+positive at two of the field's sigmas.  Residuals that would ask for more are not all albedo (another reflectance
+law, compression artefacts): the rest is left to the noise and to the covariance's cluster-robust term."""
+
+ELL_DEG = (8.0, 16.0, 32.0)
+"""Correlation lengths (deg on the surface) among which the marginal likelihood chooses: a factor of two apart,
+from features about the PSF's width in surface angle at a 30-80 px limb (``sqrt(2 sigma / R)``, 8-14 deg) to
+hemispheric gradients."""
+
+RADIAL_BIN_PX = 0.25
+"""Width (px) of the bins of distance to the limb in :func:`along_limb`: fine against the edge's blur (a PSF sigma
+of about a pixel), over which a reflectance law's misfit changes."""
+
+
+def field_factor(p: LimbProfileParams, coords: np.ndarray, ell_rad: float) -> np.ndarray:
+    """``U = K C_ell^{1/2}`` (module docstring, unit amplitude) at the profile ``p``, evaluated on the pixels padded to
+    their bucket (one program per bucket).
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        The profile.
+    coords : np.ndarray (n, 2)
+        Its pixels.
+    ell_rad : float
+        Correlation length (rad).
+
+    Returns
+    -------
+    np.ndarray (n, m)
+    """
+    n = coords.shape[0]
+    padded = np.concatenate([coords, np.repeat(coords[:1], bucket_size(n) - n, axis=0)])
+    return albedo_field_factor(p, padded, 1.0, ell_rad)[:n]
+
+
+def thin_svd(U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``Q, S`` of ``U = Q S V^T`` through the Gram matrix (``n m^2``, not an SVD's ``n m^2`` with a QR); directions with
+    ``S`` below 1e-6 of the largest are dropped (noise only there: ``d ~ 0``).
+
+    Parameters
+    ----------
+    U : np.ndarray (n, m)
+        Columns.
+
+    Returns
+    -------
+    Q : np.ndarray (n, k)
+    S : np.ndarray (k,)
+    """
+    w, V = np.linalg.eigh(U.T @ U)
+    keep = w > 1e-12 * w.max()
+    S = np.sqrt(w[keep])
+    return (U @ V[:, keep]) / S, S
+
+
+def _grid_argmin(f, lo: float, hi: float, n: int = 121, zooms: int = 3) -> float:  # noqa: ANN001
+    """The minimiser of a scalar function ``f`` (vectorised over a grid) on ``[lo, hi]``: a grid, then ``zooms``
+    finer grids over the best point's neighbours."""
+    for _ in range(zooms + 1):
+        x = np.linspace(lo, hi, n)
+        k = int(np.argmin(f(x)))
+        lo, hi = x[max(k - 1, 0)], x[min(k + 1, n - 1)]
+    return float(x[k])
+
+
+def field_likelihood(r: np.ndarray, Q: np.ndarray, S: np.ndarray) -> tuple[float, float, float]:
+    """Type-II maximum likelihood of the noise variance and the albedo field's amplitude for residuals ``r``, the
+    amplitude at most :data:`TAU_MAX`.
+
+    With ``y = Q^T r`` the pixels' covariance ``s2 I + t2 Q S^2 Q^T`` has eigenvalues ``s2 (1 + phi S^2)`` on ``Q``
+    (``phi = t2 / s2``) and ``s2`` elsewhere; at fixed ``phi`` the best ``s2`` is ``(|r|^2 - |y|^2 + sum y^2 / (1 + phi
+    S^2)) / n``, so the likelihood is searched over ``log phi`` alone, and over ``log s2`` at ``t2 = TAU_MAX^2`` when
+    the amplitude reaches its bound.
+
+    Parameters
+    ----------
+    r : np.ndarray (n,)
+        Residuals of the one-albedo fit (DN).
+    Q, S : np.ndarray
+        :func:`thin_svd` of the field's columns.
+
+    Returns
+    -------
+    tuple of float
+        ``(s2, tau2, nll)``: the noise variance (DN^2), the field's variance and the negative log marginal
+        likelihood (up to a constant).
+    """
+    y2, n = (Q.T @ r) ** 2, r.size
+    rest, S2, t2_max = max(float(r @ r) - float(y2.sum()), 1e-300), S * S, TAU_MAX**2
+
+    def nll(s2, t2):  # noqa: ANN001, ANN202
+        lam = s2[:, None] + t2[:, None] * S2
+        return 0.5 * (rest / s2 + np.sum(y2 / lam, 1) + (n - S.size) * np.log(s2) + np.sum(np.log(lam), 1))
+
+    def s2_of(phi):  # noqa: ANN001, ANN202
+        return (rest + np.sum(y2 / (1.0 + phi[:, None] * S2), 1)) / n
+
+    def profiled(u):  # noqa: ANN001, ANN202
+        phi = np.exp(u)
+        return nll(s2_of(phi), phi * s2_of(phi))
+
+    top = math.log(1e8 / float(S2.max()))
+    u = _grid_argmin(profiled, top - 40.0, top)
+    s2 = float(s2_of(np.array([math.exp(u)]))[0])
+    t2 = math.exp(u) * s2
+    if t2 > t2_max:  # the bound is active: the noise variance at t2 = TAU_MAX^2
+        t2 = t2_max
+        v = _grid_argmin(lambda v: nll(np.exp(v), np.full(v.shape, t2_max)), math.log(s2) - 20.0, math.log(s2) + 20.0)
+        s2 = math.exp(v)
+    return s2, t2, float(nll(np.array([s2]), np.array([t2]))[0])
+
+
+def along_limb(A: np.ndarray, s: np.ndarray, psi: np.ndarray) -> np.ndarray:
+    """``A`` less its least-squares quadratic in the position angle, about the middle of the pixels' arc, over the
+    pixels at the same distance from the limb (bins of :data:`RADIAL_BIN_PX`): what varies along the limb.
+
+    Parameters
+    ----------
+    A : np.ndarray (n,) or (n, k)
+        Values (residuals) or columns at the pixels.
+    s : np.ndarray (n,)
+        Signed distance (px) of the pixels to the limb.
+    psi : np.ndarray (n,)
+        Their position angle (rad) about the limb's centre.
+
+    Returns
+    -------
+    np.ndarray
+        Shaped as ``A``.
+    """
+    b = np.floor(np.asarray(s, float) / RADIAL_BIN_PX).astype(np.int64)
+    b -= b.min()
+    ps = np.sort(psi)
+    gaps = np.diff(np.concatenate([ps, ps[:1] + 2.0 * np.pi]))
+    k = int(np.argmax(gaps))
+    x = np.angle(np.exp(1j * (psi - ps[k] - 0.5 * gaps[k] - np.pi)))
+    x = x / max(float(np.max(np.abs(x))), 1e-12)
+    onehot = np.zeros((b.size, b.max() + 1))
+    onehot[np.arange(b.size), b] = 1.0
+    B = np.concatenate([onehot, onehot * x[:, None], onehot * (x * x)[:, None]], axis=1)
+    Qb = np.linalg.qr(B[:, B.any(axis=0)])[0]
+    return A - Qb @ (Qb.T @ A)
+
+
+def albedo_consider(p: LimbProfileParams, coords: np.ndarray, J: np.ndarray, r: np.ndarray, w: np.ndarray,
+                    s: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """The consider covariance ``tau^2 G U U^T G^T`` of a least-squares profile fit (module docstring).
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        The fitted profile (any law; the field is taken under its lunar-Lambert base).
+    coords : np.ndarray (n, 2)
+        Its pixels.
+    J, r, w : np.ndarray
+        Its weighted Jacobian ``(n, q)`` by the free parameters, weighted residuals ``(n,)`` and weights ``(n,)``.
+    s : np.ndarray (n,)
+        Signed distance (px) of the pixels to the fitted limb.
+
+    Returns
+    -------
+    tuple
+        ``(C_a, tau, ell_deg)``: the term ``(q, q)`` over the free parameters, the field's amplitude and length.
+    """
+    q = LimbProfileParams(*[getattr(p, k) for k in LimbProfileParams.field_names()])
+    psi = np.arctan2(coords[:, 0] - float(p.r0), coords[:, 1] - float(p.c0))
+    rv = along_limb(r, s, psi)
+    best = (math.inf, 0.0, np.zeros((J.shape[1], 1)), 0.0)
+    for ell in ELL_DEG:
+        U = field_factor(q, coords, math.radians(ell)) * w[:, None]
+        GU = np.linalg.lstsq(J, U, rcond=None)[0]
+        _, t2, nll = field_likelihood(rv, *thin_svd(along_limb(U - J @ GU, s, psi)))
+        if nll < best[0]:
+            best = (nll, t2, GU, ell)
+    _, t2, GU, ell = best
+    return t2 * (GU @ GU.T), math.sqrt(t2), ell
+
+
+def with_albedo_term(C: np.ndarray, C0: np.ndarray, Ca: np.ndarray) -> np.ndarray:
+    """A fit's covariance ``C`` (its noise-only part ``C0``) widened by what its model-error terms ``C - C0`` did not
+    already carry of the albedo's consider term ``Ca``: ``C + [Ca - (C - C0)]_+``, above both."""
+    return C + positive_part(Ca - (C - C0))
+
+
+__all__ = ["ELL_DEG", "RADIAL_BIN_PX", "TAU_MAX", "albedo_consider", "along_limb", "field_factor", "field_likelihood",
+           "thin_svd", "with_albedo_term"]
