@@ -159,10 +159,11 @@ def albedo_prior_factor(theta: np.ndarray, n_psi: int, tau: float, ell_rad: floa
              + np.sin(th)[:, None, None] * np.sin(th)[None, :, None])
     c = tau * tau * np.exp(-0.5 * (np.arccos(np.clip(cos_g, -1.0, 1.0)) / ell_rad) ** 2)  # (m, m, lag)
     a = np.arange(k)
+    freqs = np.arange(k // 2 + 1)
+    ws, Ws = np.linalg.eigh(np.einsum("abl,lf->fab", c, np.cos(2.0 * math.pi * np.outer(a, freqs) / k)))
     vecs, vals = [], []
-    for f in range(k // 2 + 1):
+    for f, w, W in zip(freqs, ws, Ws):  # the blocks' eigenproblems in one batched call
         cf = np.cos(2.0 * math.pi * f * a / k)
-        w, W = np.linalg.eigh(c @ cf)
         for u in [cf] + ([np.sin(2.0 * math.pi * f * a / k)] if 0 < 2 * f < k else []):
             u = u / np.linalg.norm(u)
             vecs.append(np.einsum("mr,k->mkr", W, u).reshape(th.size * k, -1))

@@ -97,12 +97,7 @@ def _grid_argmin(f, lo: float, hi: float, n: int = 121, zooms: int = 3) -> float
 
 def field_likelihood(r: np.ndarray, Q: np.ndarray, S: np.ndarray) -> tuple[float, float, float]:
     """Type-II maximum likelihood of the noise variance and the albedo field's amplitude for residuals ``r``, the
-    amplitude at most :data:`TAU_MAX`.
-
-    With ``y = Q^T r`` the pixels' covariance ``s2 I + t2 Q S^2 Q^T`` has eigenvalues ``s2 (1 + phi S^2)`` on ``Q``
-    (``phi = t2 / s2``) and ``s2`` elsewhere; at fixed ``phi`` the best ``s2`` is ``(|r|^2 - |y|^2 + sum y^2 / (1 + phi
-    S^2)) / n``, so the likelihood is searched over ``log phi`` alone, and over ``log s2`` at ``t2 = TAU_MAX^2`` when
-    the amplitude reaches its bound.
+    amplitude at most :data:`TAU_MAX` (:func:`projected_likelihood` of ``|r|^2`` and ``Q^T r``).
 
     Parameters
     ----------
@@ -117,8 +112,20 @@ def field_likelihood(r: np.ndarray, Q: np.ndarray, S: np.ndarray) -> tuple[float
         ``(s2, tau2, nll)``: the noise variance (DN^2), the field's variance and the negative log marginal
         likelihood (up to a constant).
     """
-    y2, n = (Q.T @ r) ** 2, r.size
-    rest, S2, t2_max = max(float(r @ r) - float(y2.sum()), 1e-300), S * S, TAU_MAX**2
+    return projected_likelihood(float(r @ r), Q.T @ r, S, r.size)
+
+
+def projected_likelihood(rr: float, y: np.ndarray, S: np.ndarray, n: int) -> tuple[float, float, float]:
+    """:func:`field_likelihood` from the residuals' squared norm ``rr``, their projections ``y = Q^T r`` on the
+    field's directions of singular values ``S``, and their number ``n``.
+
+    With ``y = Q^T r`` the pixels' covariance ``s2 I + t2 Q S^2 Q^T`` has eigenvalues ``s2 (1 + phi S^2)`` on ``Q``
+    (``phi = t2 / s2``) and ``s2`` elsewhere; at fixed ``phi`` the best ``s2`` is ``(|r|^2 - |y|^2 + sum y^2 / (1 + phi
+    S^2)) / n``, so the likelihood is searched over ``log phi`` alone, and over ``log s2`` at ``t2 = TAU_MAX^2`` when
+    the amplitude reaches its bound.
+    """
+    y2 = np.asarray(y, float) ** 2
+    rest, S2, t2_max = max(rr - float(y2.sum()), 1e-300), S * S, TAU_MAX**2
 
     def nll(s2, t2):  # noqa: ANN001, ANN202
         lam = s2[:, None] + t2[:, None] * S2
@@ -142,14 +149,12 @@ def field_likelihood(r: np.ndarray, Q: np.ndarray, S: np.ndarray) -> tuple[float
     return s2, t2, float(nll(np.array([s2]), np.array([t2]))[0])
 
 
-def along_limb(A: np.ndarray, s: np.ndarray, psi: np.ndarray) -> np.ndarray:
-    """``A`` less its least-squares quadratic in the position angle, about the middle of the pixels' arc, over the
-    pixels at the same distance from the limb (bins of :data:`RADIAL_BIN_PX`): what varies along the limb.
+def along_basis(s: np.ndarray, psi: np.ndarray) -> np.ndarray:
+    """Orthonormal columns ``(n, k)`` spanning a quadratic in the position angle, about the middle of the pixels' arc,
+    per bin of distance to the limb (:data:`RADIAL_BIN_PX`): what :func:`along_limb` takes out.
 
     Parameters
     ----------
-    A : np.ndarray (n,) or (n, k)
-        Values (residuals) or columns at the pixels.
     s : np.ndarray (n,)
         Signed distance (px) of the pixels to the limb.
     psi : np.ndarray (n,)
@@ -157,8 +162,7 @@ def along_limb(A: np.ndarray, s: np.ndarray, psi: np.ndarray) -> np.ndarray:
 
     Returns
     -------
-    np.ndarray
-        Shaped as ``A``.
+    np.ndarray (n, k)
     """
     b = np.floor(np.asarray(s, float) / RADIAL_BIN_PX).astype(np.int64)
     b -= b.min()
@@ -170,7 +174,26 @@ def along_limb(A: np.ndarray, s: np.ndarray, psi: np.ndarray) -> np.ndarray:
     onehot = np.zeros((b.size, b.max() + 1))
     onehot[np.arange(b.size), b] = 1.0
     B = np.concatenate([onehot, onehot * x[:, None], onehot * (x * x)[:, None]], axis=1)
-    Qb = np.linalg.qr(B[:, B.any(axis=0)])[0]
+    return np.linalg.qr(B[:, B.any(axis=0)])[0]
+
+
+def along_limb(A: np.ndarray, s: np.ndarray, psi: np.ndarray) -> np.ndarray:
+    """``A`` less its least-squares quadratic in the position angle over the pixels at the same distance from the
+    limb (:func:`along_basis`): what varies along the limb.
+
+    Parameters
+    ----------
+    A : np.ndarray (n,) or (n, k)
+        Values (residuals) or columns at the pixels.
+    s, psi : np.ndarray (n,)
+        As :func:`along_basis`.
+
+    Returns
+    -------
+    np.ndarray
+        Shaped as ``A``.
+    """
+    Qb = along_basis(s, psi)
     return A - Qb @ (Qb.T @ A)
 
 
@@ -196,14 +219,21 @@ def albedo_consider(p: LimbProfileParams, coords: np.ndarray, J: np.ndarray, r: 
     """
     q = LimbProfileParams(*[getattr(p, k) for k in LimbProfileParams.field_names()])
     psi = np.arctan2(coords[:, 0] - float(p.r0), coords[:, 1] - float(p.c0))
-    rv = along_limb(r, s, psi)
+    Qb = along_basis(s, psi)
+    rv = r - Qb @ (Qb.T @ r)
+    QJ, RJ = np.linalg.qr(J)
+    QbJ, QJr = Qb.T @ QJ, QJ.T @ rv
     best = (math.inf, 0.0, np.zeros((J.shape[1], 1)), 0.0)
     for ell in ELL_DEG:
         U = field_factor(q, coords, math.radians(ell)) * w[:, None]
-        GU = np.linalg.lstsq(J, U, rcond=None)[0]
-        _, t2, nll = field_likelihood(rv, *thin_svd(along_limb(U - J @ GU, s, psi)))
+        Uj = QJ.T @ U  # U's part in the fit's span (the fit absorbs it), then what is left of it along the limb:
+        X = Qb.T @ U - QbJ @ Uj  # the Gram of (I - P_B)(I - P_J) U without forming it (n m^2 once, for U^T U)
+        lam, V = np.linalg.eigh(U.T @ U - Uj.T @ Uj - X.T @ X)
+        keep = lam > 1e-12 * lam.max()
+        S = np.sqrt(lam[keep])
+        _, t2, nll = projected_likelihood(float(rv @ rv), V[:, keep].T @ (U.T @ rv - Uj.T @ QJr) / S, S, rv.size)
         if nll < best[0]:
-            best = (nll, t2, GU, ell)
+            best = (nll, t2, np.linalg.solve(RJ, Uj), ell)
     _, t2, GU, ell = best
     return t2 * (GU @ GU.T), math.sqrt(t2), ell
 
@@ -214,5 +244,5 @@ def with_albedo_term(C: np.ndarray, C0: np.ndarray, Ca: np.ndarray) -> np.ndarra
     return C + positive_part(Ca - (C - C0))
 
 
-__all__ = ["ELL_DEG", "RADIAL_BIN_PX", "TAU_MAX", "albedo_consider", "along_limb", "field_factor", "field_likelihood",
-           "thin_svd", "with_albedo_term"]
+__all__ = ["ELL_DEG", "RADIAL_BIN_PX", "TAU_MAX", "albedo_consider", "along_basis", "along_limb", "field_factor",
+           "field_likelihood", "projected_likelihood", "thin_svd", "with_albedo_term"]
