@@ -16,7 +16,8 @@ Enceladus frame once more with ``jaxlimb navigate``.  Truth, independent of jaxl
   scatter of the apparent radius times the range is over the second.
 * Jupiter (``cassini/jupiter/``): the centre of the lit limb one sees, traced independently
   (``benchmarks/_limb_trace.py``; its spread added in quadrature); the range from SPICE (the ephemerides are
-  good to far better than the pointing, which is tens of px off).
+  good to far better than the pointing, which is tens of px off).  As typed and with ``--max-center-sigma-px none``
+  (``jupiter_any_sigma``).
 * Cassini Enceladus: SPICE's range (``navigate``: the observer's distance); SPICE's centre only to its pointing
   (a few px), so the centre is not judged.
 * Mimas, Voyager: no truth (answered or refused, and why).
@@ -61,6 +62,8 @@ def _frames() -> list[dict]:
         {"name": "mimas", "path": d / "cassini" / "N1644787857_1.LBL", "args": ["--body", "mimas"], "truth": None},
         {"name": "jupiter", "path": d / "cassini" / "jupiter" / "n1352037683.2", "args": ["--kernels", *jup],
          "truth": "limb_trace"},
+        {"name": "jupiter_any_sigma", "path": d / "cassini" / "jupiter" / "n1352037683.2",
+         "args": ["--kernels", *jup, "--max-center-sigma-px", "none"], "truth": "limb_trace"},
     ]
     for p in sorted((d / "voyager").glob("*.IMG")):
         out.append({"name": f"voyager_{p.stem.split('_')[0]}", "path": p, "args": ["--body", "europa"], "truth": None})
