@@ -8,15 +8,17 @@ Usage::
 The Moon frames of ``benchmarks/families.py`` (same seeds, same cache), each through
 :func:`jaxlimb.analysis.located.located_fit` and :func:`jaxlimb.analysis.albedo_consider.albedo_consider_of`.  Per
 family: the mean NEES of the body centre (chi-square 2 dof expects 2) with ``locate``'s covariance, which carries the
-albedo field's consider term where its other model-error terms do not; without that term; and without it with the
-limb sectors' sandwich made bias-reduced or correlated between neighbouring sectors (:func:`sandwich_variants`); the
-field's median amplitude; and the median ratio of ``locate``'s centre sigma to the one without the term.  Results:
+albedo field's consider term where its other model-error terms do not; with the frame measured again without that
+term (:func:`without_albedo_term`), and then with the limb sectors' sandwich made bias-reduced or correlated between
+neighbouring sectors (:func:`sandwich_variants`); the field's median amplitude; and the median ratio of ``locate``'s
+centre sigma to the one without the term.  Results:
 ``benchmarks/results/albedo_consider.json``.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import sys
 import time
@@ -28,28 +30,20 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
 def sandwich_variants(lf) -> dict[str, np.ndarray]:  # noqa: ANN001
-    """Changes to ``locate``'s centre covariance: ``albedo``, the albedo field's consider term it added
-    (:func:`jaxlimb.pipeline.profile.albedo_prior.with_albedo_term` over the sectors' sandwich and the split witness);
-    and, that term taken out, the limb sectors' sandwich (CR1) replaced by the bias-reduced one (CR2, Bell & McCaffrey
-    2002) and by one whose sectors are correlated with their ``L`` neighbours (Newey & West 1987, Bartlett weights
-    ``1 - k / (L + 1)``), ``L`` = 2 and 4; each mapped to the body centre."""
+    """``locate``'s centre covariance with its limb sectors' sandwich (CR1) replaced by the bias-reduced one (CR2, Bell
+    & McCaffrey 2002) and by one whose sectors are correlated with their ``L`` neighbours (Newey & West 1987, Bartlett
+    weights ``1 - k / (L + 1)``), ``L`` = 2 and 4; each mapped to the body centre."""
     from jaxlimb.analysis.albedo_consider import center_map
     from jaxlimb.model_error import (cluster_robust_bias_reduced, cluster_robust_covariance, sector_groups,
                                      with_model_error as widen)
     from jaxlimb.models.lunar_lambert import profile_model
-    from jaxlimb.pipeline.profile.albedo_prior import albedo_consider, with_albedo_term
-    from jaxlimb.pipeline.profile.model_error import MODEL_ERROR_SECTORS, signed_distance, split_witness, weighted_system
+    from jaxlimb.pipeline.profile.model_error import MODEL_ERROR_SECTORS, weighted_system
 
     rr, G = lf.final, MODEL_ERROR_SECTORS
-    J, r, padded, w = weighted_system(rr, profile_model(rr.fit.params))
-    coords = np.asarray(rr.data.coords, float)
-    g = sector_groups(coords, (float(rr.fit.params.r0), float(rr.fit.params.c0)), G)
+    J, r, _, _ = weighted_system(rr, profile_model(rr.fit.params))
+    g = sector_groups(np.asarray(rr.data.coords, float), (float(rr.fit.params.r0), float(rr.fit.params.c0)), G)
     C0 = rr.covariance_noise
     base = widen(C0, cluster_robust_covariance(J, r, g))
-    s = signed_distance(rr.fit.params, coords, padded)
-    idx, W = split_witness(rr, J, r, s)
-    base[np.ix_(idx, idx)] += W
-    added = with_albedo_term(base, C0, albedo_consider(rr.fit.params, coords, J, r, w, s)[0]) - base
     scores = np.stack([np.bincount(g, weights=col * r, minlength=G) for col in J.T], axis=1)
     Ni = np.linalg.inv(J.T @ J)
     out = {"cr2": widen(C0, cluster_robust_bias_reduced(J, r, g))}
@@ -60,30 +54,46 @@ def sandwich_variants(lf) -> dict[str, np.ndarray]:  # noqa: ANN001
             meat += (1.0 - k / (L + 1)) * (X + X.T)
         out[f"hac{L}"] = widen(C0, G / (G - 1) * Ni @ meat @ Ni)
     M = center_map(lf)
-    sandwich = widen(C0, cluster_robust_covariance(J, r, g))
-    return {"albedo": M @ added @ M.T} | {k: M @ (v - sandwich - added) @ M.T for k, v in out.items()}
+    return {k: M @ (v - base) @ M.T for k, v in out.items()}
+
+
+@contextlib.contextmanager
+def without_albedo_term():
+    """``locate`` as it was without the albedo field's term: the model-error stage's widening by it left out."""
+    import jaxlimb.pipeline.profile.model_error as me
+
+    keep = me.with_albedo_term
+    me.with_albedo_term = lambda C, C0, Ca: C
+    try:
+        yield
+    finally:
+        me.with_albedo_term = keep
 
 
 def frame_record(case) -> dict:  # noqa: ANN001
-    """One frame: ``locate``'s centre error and NEES with and without the albedo term, or its typed failure."""
+    """One frame: ``locate``'s centre error and NEES with the albedo term and without it (the same frame measured
+    again with the term left out, and with the sandwich's variants there), or its typed failure."""
     from jaxlimb.analysis.albedo_consider import albedo_consider_of
     from jaxlimb.analysis.located import located_fit
     from jaxlimb.errors import JaxlimbError
+    from jaxlimb.pipeline import covariance_block
 
     try:
         lf = located_fit(case.image, case.camera, case.hints)
+        with without_albedo_term():
+            lf0 = located_fit(case.image, case.camera, case.hints)
     except JaxlimbError as e:
         return {"status": type(e).__name__}
     ac = albedo_consider_of(lf)
     if ac is None:
         return {"status": "not_profile"}
-    e = np.asarray(lf.measurement.center_rc, float) - np.asarray(case.truth.body_center_rc, float)
-    d = sandwich_variants(lf)
-    without = ac.locate - d.pop("albedo")
-    variants = {f"nees_{k}": float(e @ np.linalg.solve(ac.locate + v, e)) for k, v in d.items()}
+    truth = np.asarray(case.truth.body_center_rc, float)
+    e, e0 = (np.asarray(x.measurement.center_rc, float) - truth for x in (lf, lf0))
+    P0 = covariance_block(lf0.measurement.covariance)
+    variants = {f"nees_{k}": float(e0 @ np.linalg.solve(P0 + d, e0)) for k, d in sandwich_variants(lf0).items()}
     return {**variants, "status": "ok", "center_err_px": float(np.hypot(*e)), "tau": ac.tau, "ell_deg": ac.ell_deg,
-            "nees_locate": float(e @ np.linalg.solve(ac.locate, e)), "nees_without": float(e @ np.linalg.solve(without, e)),
-            "sigma_ratio": math.sqrt(np.trace(ac.locate) / np.trace(without))}
+            "nees_locate": float(e @ np.linalg.solve(ac.locate, e)), "nees_without": float(e0 @ np.linalg.solve(P0, e0)),
+            "sigma_ratio": math.sqrt(np.trace(ac.locate) / np.trace(P0))}
 
 
 def summarise(recs: list[dict]) -> dict:
