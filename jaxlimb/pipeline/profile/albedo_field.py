@@ -41,9 +41,19 @@ from .passes import l_band
 
 
 def field_basis(p: LimbProfileParams, coords: np.ndarray, ell_rad: float) -> tuple[np.ndarray, np.ndarray]:
-    """``Q, S`` of the thin SVD (:func:`~jaxlimb.pipeline.profile.albedo_prior.thin_svd`) of the field's columns
-    ``K C_ell^{1/2}`` at the profile ``p``, its pixels ``coords`` and the correlation length ``ell_rad`` (rad)
-    (:func:`~jaxlimb.pipeline.profile.albedo_prior.field_factor`)."""
+    """The field's basis: the thin SVD (:func:`~jaxlimb.pipeline.profile.albedo_prior.thin_svd`) of its columns
+    (:func:`~jaxlimb.pipeline.profile.albedo_prior.field_factor`).
+
+    Parameters
+    ----------
+    p, coords, ell_rad
+        The profile, its pixels ``(n, 2)`` and the field's correlation length (rad), as ``field_factor``'s.
+
+    Returns
+    -------
+    tuple of np.ndarray
+        ``Q`` ``(n, m)`` with orthonormal columns and the singular values ``S`` ``(m,)``.
+    """
     return thin_svd(field_factor(p, coords, ell_rad))
 
 

@@ -123,6 +123,22 @@ def projected_likelihood(rr: float, y: np.ndarray, S: np.ndarray, n: int) -> tup
     (``phi = t2 / s2``) and ``s2`` elsewhere; at fixed ``phi`` the best ``s2`` is ``(|r|^2 - |y|^2 + sum y^2 / (1 + phi
     S^2)) / n``, so the likelihood is searched over ``log phi`` alone, and over ``log s2`` at ``t2 = TAU_MAX^2`` when
     the amplitude reaches its bound.
+
+    Parameters
+    ----------
+    rr : float
+        ``|r|^2`` (DN^2).
+    y : np.ndarray (m,)
+        ``Q^T r``.
+    S : np.ndarray (m,)
+        The field's singular values.
+    n : int
+        The number of residuals.
+
+    Returns
+    -------
+    tuple of float
+        ``(s2, tau2, nll)`` as :func:`field_likelihood`'s.
     """
     y2 = np.asarray(y, float) ** 2
     rest, S2, t2_max = max(rr - float(y2.sum()), 1e-300), S * S, TAU_MAX**2
@@ -239,8 +255,20 @@ def albedo_consider(p: LimbProfileParams, coords: np.ndarray, J: np.ndarray, r: 
 
 
 def with_albedo_term(C: np.ndarray, C0: np.ndarray, Ca: np.ndarray) -> np.ndarray:
-    """A fit's covariance ``C`` (its noise-only part ``C0``) widened by what its model-error terms ``C - C0`` did not
-    already carry of the albedo's consider term ``Ca``: ``C + [Ca - (C - C0)]_+``, above both."""
+    """A fit's covariance widened by what its model-error terms did not already carry of the albedo's consider term:
+    ``C + [Ca - (C - C0)]_+``, above both.
+
+    Parameters
+    ----------
+    C, C0 : np.ndarray (q, q)
+        The fit's covariance with its model-error terms, and its noise-only part.
+    Ca : np.ndarray (q, q)
+        The consider term (:func:`albedo_consider`).
+
+    Returns
+    -------
+    np.ndarray (q, q)
+    """
     return C + positive_part(Ca - (C - C0))
 
 
