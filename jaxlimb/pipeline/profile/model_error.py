@@ -1,7 +1,7 @@
 """The physical profile's weighted system (Jacobian and residuals at an estimate, one compiled program per model) and
 the model-error terms it widens a fit's covariance with (:mod:`jaxlimb.model_error`): the cluster-robust
-sandwich over sectors of the limb and the split witness (Hausman 1978); the one-step score estimates of the
-widening gates."""
+sandwich over sectors of the limb, the split witness (Hausman 1978) and an unknown albedo field's consider term
+(:mod:`~jaxlimb.pipeline.profile.albedo_prior`); the one-step score estimates of the widening gates."""
 
 from __future__ import annotations
 
