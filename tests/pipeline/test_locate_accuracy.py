@@ -82,9 +82,6 @@ def test_physical_limb_profile_adapts_to_the_reflectance(reflectance):
     assert np.max(e[:, 0]) <= 0.05 and np.max(np.abs(e[:, 1])) <= 0.05, e
 
 
-@pytest.mark.xfail(strict=True, reason="the albedo term widens the sigma of L, and with it the L band the profile is "
-                   "held to: a flat disc's profile (L 2.26) now answers, its radius 0.42 px short; the band is to be "
-                   "taken without the albedo term")
 def test_auto_profile_falls_back_to_the_sigmoid_on_a_flat_disc():
     img, tr = scene(30000.0, 45.0, (200.0, 250.0), 30.0, "uniform")
     m = locate(img, SMALL_CAMERA, sun_hints(tr))

@@ -161,8 +161,9 @@ def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS, mod
     s = signed_distance(fit.params, coords, padded)
     idx, W = split_witness(rr, J, r, s)
     C[np.ix_(idx, idx)] += W
-    if isinstance(fit.params, LimbProfileParams):
-        C = with_albedo_term(C, C0, albedo_consider(fit.params, coords, J, r, w, s)[0])
+    if isinstance(fit.params, LimbProfileParams):  # on the geometry, as the witness: the law's band keeps its sigma
+        g = np.ix_(*[[i for i, k in enumerate(fit.free) if k in _GEOMETRIC]] * 2)
+        C[g] = with_albedo_term(C[g], C0[g], albedo_consider(fit.params, coords, J, r, w, s)[0][g])
     return rr.with_covariance(C, noise_covariance=C0)
 
 
