@@ -79,10 +79,26 @@ def thin_svd(U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     Q : np.ndarray (n, k)
     S : np.ndarray (k,)
     """
-    w, V = np.linalg.eigh(U.T @ U)
+    V, S = gram_basis(U.T @ U)
+    return (U @ V) / S, S
+
+
+def gram_basis(gram: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The right singular vectors and singular values of columns known by their Gram matrix (:func:`thin_svd`).
+
+    Parameters
+    ----------
+    gram : np.ndarray (m, m)
+        ``U^T U`` of the columns ``U``.
+
+    Returns
+    -------
+    tuple of np.ndarray
+        ``V`` ``(m, k)`` and ``S`` ``(k,)``, directions with ``S`` below 1e-6 of the largest dropped.
+    """
+    w, V = np.linalg.eigh(gram)
     keep = w > 1e-12 * w.max()
-    S = np.sqrt(w[keep])
-    return (U @ V[:, keep]) / S, S
+    return V[:, keep], np.sqrt(w[keep])
 
 
 def _grid_argmin(f, lo: float, hi: float, n: int = 121, zooms: int = 3) -> float:  # noqa: ANN001
@@ -244,10 +260,8 @@ def albedo_consider(p: LimbProfileParams, coords: np.ndarray, J: np.ndarray, r: 
         U = field_factor(q, coords, math.radians(ell)) * w[:, None]
         Uj = QJ.T @ U  # U's part in the fit's span (the fit absorbs it), then what is left of it along the limb:
         X = Qb.T @ U - QbJ @ Uj  # the Gram of (I - P_B)(I - P_J) U without forming it (n m^2 once, for U^T U)
-        lam, V = np.linalg.eigh(U.T @ U - Uj.T @ Uj - X.T @ X)
-        keep = lam > 1e-12 * lam.max()
-        S = np.sqrt(lam[keep])
-        _, t2, nll = projected_likelihood(float(rv @ rv), V[:, keep].T @ (U.T @ rv - Uj.T @ QJr) / S, S, rv.size)
+        V, S = gram_basis(U.T @ U - Uj.T @ Uj - X.T @ X)
+        _, t2, nll = projected_likelihood(float(rv @ rv), V.T @ (U.T @ rv - Uj.T @ QJr) / S, S, rv.size)
         if nll < best[0]:
             best = (nll, t2, np.linalg.solve(RJ, Uj), ell)
     _, t2, GU, ell = best
@@ -273,4 +287,4 @@ def with_albedo_term(C: np.ndarray, C0: np.ndarray, Ca: np.ndarray) -> np.ndarra
 
 
 __all__ = ["ELL_DEG", "RADIAL_BIN_PX", "TAU_MAX", "albedo_consider", "along_basis", "along_limb", "field_factor",
-           "field_likelihood", "projected_likelihood", "thin_svd", "with_albedo_term"]
+           "field_likelihood", "gram_basis", "projected_likelihood", "thin_svd", "with_albedo_term"]

@@ -162,7 +162,7 @@ def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS, mod
     idx, W = split_witness(rr, J, r, s)
     C[np.ix_(idx, idx)] += W
     if isinstance(fit.params, LimbProfileParams):  # on the geometry, as the witness: the law's band keeps its sigma
-        g = np.ix_(*[[i for i, k in enumerate(fit.free) if k in _GEOMETRIC]] * 2)
+        g = np.ix_(idx, idx)
         C[g] = with_albedo_term(C[g], C0[g], albedo_consider(fit.params, coords, J, r, w, s)[0][g])
     return rr.with_covariance(C, noise_covariance=C0)
 
