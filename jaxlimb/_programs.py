@@ -22,6 +22,13 @@ arguments (inside another transformation).
 Entries are sealed (:func:`jaxlimb._jaxcache.seal`) and checked before they are deserialised: a
 damaged or foreign entry is deleted and compiled again (one warning).  Any other failure (a program
 that cannot be serialised, an output that cannot be rebuilt) falls back to ``jax.jit``.
+
+Every compiled program stays mapped in the process (its code and data are memory mappings), so a long
+process that meets many array shapes -- ``locate`` over frames of many sizes, a test suite -- gathers
+mappings until the kernel's limit (``vm.max_map_count``, 65 530 by default on Linux), where the next
+compilation's ``mmap`` fails and XLA aborts the process.  :func:`bound_compiled_programs` (called by
+``locate`` before every frame) drops every compiled program, JAX's and the loaded ones held here, once the
+process holds more than half of that limit: the next call compiles again, or loads from the cache.
 """
 
 from __future__ import annotations
@@ -29,9 +36,11 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import functools
+import gc
 import hashlib
 import os
 import pickle
+import weakref
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -44,6 +53,41 @@ MAX_BYTES = 256 << 20
 """Size limit of the stored executables (least recently used entries are evicted beyond it)."""
 _DIGEST: dict[str, str] = {}
 _SETTINGS: dict[str, Callable[[], str]] = {}
+_HOLDERS: weakref.WeakSet[Any] = weakref.WeakSet()
+
+
+def hold_loaded(holder: Any) -> None:
+    """Register an object whose ``forget_loaded()`` drops the executables it holds (:func:`bound_compiled_programs`)."""
+    _HOLDERS.add(holder)
+
+
+def mapped_regions() -> tuple[int, int] | None:
+    """``(regions mapped by this process, the kernel's limit vm.max_map_count)``; ``None`` where ``/proc`` cannot tell."""
+    try:
+        limit = int(Path("/proc/sys/vm/max_map_count").read_text())
+        with open("/proc/self/maps", "rb") as fh:
+            used = fh.read().count(b"\n")
+    except (OSError, ValueError):
+        return None
+    return used, limit
+
+
+def bound_compiled_programs() -> bool:
+    """Drop every compiled program of the process once it maps more than half the kernel's limit of regions.
+
+    Each XLA CPU executable holds memory mappings; past ``vm.max_map_count`` the next compilation cannot map its code
+    and the process aborts (module docstring).  Below half the limit nothing happens (one read of ``/proc/self/maps``);
+    above it JAX's caches (``jax.clear_caches``) and the executables loaded from this cache are dropped, so the next
+    call of each function compiles again (or loads its stored program).  Returns whether they were dropped.
+    """
+    counts = mapped_regions()
+    if counts is None or 2 * counts[0] < counts[1]:
+        return False
+    for holder in list(_HOLDERS):
+        holder.forget_loaded()
+    jax.clear_caches()
+    gc.collect()
+    return True
 
 
 def register_trace_setting(name: str, current: Callable[[], str]) -> None:
@@ -143,6 +187,11 @@ class StoredJit:
             self._jit = jax.jit(fn)
         self._by_sig: dict[str, Callable[..., Any]] = {}
         functools.update_wrapper(self, fn)
+        hold_loaded(self)
+
+    def forget_loaded(self) -> None:
+        """Drop the executables loaded or compiled per signature (:func:`bound_compiled_programs`)."""
+        self._by_sig.clear()
 
     def __call__(self, *args: Any) -> Any:
         leaves, treedef = jax.tree_util.tree_flatten(args)
@@ -339,5 +388,6 @@ def stored_jit(fn: Callable[..., Any] | None = None, *, static_non_arrays: bool 
     return StoredJit(fn, static_non_arrays)
 
 
-__all__ = ["MAX_BYTES", "StoredJit", "array_signature", "compile_and_store", "evict_least_recent", "guarded_call", "load_program", "program_key", "program_path", "register_trace_setting", "source_digest",
-           "stored_jit"]
+__all__ = ["MAX_BYTES", "StoredJit", "array_signature", "bound_compiled_programs", "compile_and_store",
+           "evict_least_recent", "guarded_call", "hold_loaded", "load_program", "mapped_regions", "program_key",
+           "program_path", "register_trace_setting", "source_digest", "stored_jit"]

@@ -24,3 +24,13 @@ def rng() -> np.random.Generator:
 # The CLI switches JAX's persistent compilation cache on (jaxlimb._jaxcache); the suite runs
 # without it unless a test asks for it (tests/cli/test_speed_cli.py does, in subprocesses).
 os.environ.setdefault("JAXLIMB_CACHE_DIR", "off")
+
+
+@pytest.fixture(autouse=True)
+def _bounded_compiled_programs():
+    """After every test, the worker's compiled programs are dropped once they hold half the kernel's limit of memory
+    maps (jaxlimb._programs.bound_compiled_programs): a long-lived worker would otherwise abort in XLA's compiler."""
+    yield
+    from jaxlimb._programs import bound_compiled_programs
+
+    bound_compiled_programs()

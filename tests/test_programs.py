@@ -148,3 +148,32 @@ def test_the_functions_a_warm_locate_calls_are_stored():
     for f in (sigmoid._fisher_jit, sigmoid._predict_jit, model_error._columns, model_error._signed_profile,
               glow.glow_columns, lunar_lambert.brightening_column, profile_columns.glow_column):
         assert isinstance(f, pg.StoredJit), f
+
+
+def test_past_half_the_kernels_map_limit_every_compiled_program_is_dropped(folder, monkeypatch):
+    jitted = jax.jit(_fn)
+    stored = pg.StoredJit(_fn)
+    loads = {"n": 0}
+    real_load = pg.load_program
+    monkeypatch.setattr(pg, "load_program", lambda *a: (loads.__setitem__("n", loads["n"] + 1), real_load(*a))[1])
+    want = np.asarray(jitted(*_args())["y"])
+    stored(*_args())
+    TRACES["n"] = 0
+    monkeypatch.setattr(pg, "mapped_regions", lambda: (49, 100))
+    assert not pg.bound_compiled_programs()
+    jitted(*_args()), stored(*_args())
+    assert TRACES["n"] == 0 and loads["n"] == 0  # below half the limit: both still in memory
+    monkeypatch.setattr(pg, "mapped_regions", lambda: (50, 100))
+    assert pg.bound_compiled_programs()
+    np.testing.assert_array_equal(np.asarray(jitted(*_args())["y"]), want)
+    assert TRACES["n"] == 1  # JAX's cache dropped: traced again
+    np.testing.assert_array_equal(np.asarray(stored(*_args())["y"]), want)
+    assert loads["n"] == 1 and TRACES["n"] == 1  # the loaded executable dropped: loaded again from its entry
+
+
+def test_the_process_map_count_is_read_where_proc_tells_it():
+    counts = pg.mapped_regions()
+    if counts is None:
+        pytest.skip("no /proc on this system")
+    used, limit = counts
+    assert 0 < used < limit

@@ -36,6 +36,7 @@ from .._programs import (
     compile_and_store,
     evict_least_recent,
     guarded_call,
+    hold_loaded,
     load_program,
     program_key,
     program_path,
@@ -61,6 +62,11 @@ class ExportedCore:
         self._ident = ident
         self._template = template
         self._by_shape: dict[Any, Callable[..., Any]] = {}
+        hold_loaded(self)
+
+    def forget_loaded(self) -> None:
+        """Drop the executables loaded per argument shapes (:func:`jaxlimb._programs.bound_compiled_programs`)."""
+        self._by_shape.clear()
 
     def __call__(self, *args: Any) -> Any:
         if _cache_dir() is None or any(isinstance(a, jax.core.Tracer) for a in args):
