@@ -62,7 +62,8 @@ def hold_loaded(holder: Any) -> None:
 
 
 def mapped_regions() -> tuple[int, int] | None:
-    """``(regions mapped by this process, the kernel's limit vm.max_map_count)``; ``None`` where ``/proc`` cannot tell."""
+    """``(regions mapped by this process, the kernel's limit vm.max_map_count)``; ``None`` where ``/proc`` does not
+    tell."""
     try:
         limit = int(Path("/proc/sys/vm/max_map_count").read_text())
         with open("/proc/self/maps", "rb") as fh:

@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from .._programs import bound_compiled_programs
 from ..errors import CheckFailed, ConfigError, ImageContentError, RadiusInconsistentError, TooManyOutliersError
 from ..geometry.camera import Camera
 from ..geometry.hints import Hints
@@ -96,6 +97,7 @@ def prepare(image: Any, camera: Any, hints: Any, options: Any, mask: Any = None)
     Frame
         The validated inputs, the start time set.
     """
+    bound_compiled_programs()  # a long run over frames of many sizes must not exhaust the process's memory maps
     opt = options if options is not None else LocateOptions()
     if not isinstance(opt, LocateOptions):
         raise ConfigError(f"`options` must be a LocateOptions, got {type(opt).__name__}")

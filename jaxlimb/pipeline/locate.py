@@ -16,7 +16,6 @@ from typing import Any
 
 import numpy as np
 
-from .._programs import bound_compiled_programs
 from ..errors import CheckFailed
 from ..geometry.camera import Camera
 from ..geometry.hints import Hints
@@ -75,7 +74,6 @@ def locate(
     >>> m.to_json()["status"], [round(v, 1) for v in m.center_rc], round(m.radius_px, 1)
     ('ok', [95.3, 130.6], 60.0)
     """
-    bound_compiled_programs()  # a long run over frames of many sizes must not exhaust the process's memory maps
     frame = prepare(image, camera, hints, options, mask)
     body = body_strategy(frame)
     try:

@@ -44,6 +44,7 @@ def test_moon_center_on_independent_scenes(family, idx, bound):
     err, nees = _errors(case, m)
     assert err < bound
     assert nees < 13.8  # chi2_2 99.9 %
+    assert m.extras["profile"]["glow"] == 0.0  # no glow opened on a limb without one
     assert abs(m.range_km - case.truth.range_km) / case.truth.range_km < 5e-4
 
 
@@ -177,14 +178,26 @@ def test_lunar_lambert_profile_is_biased_on_minnaert_and_the_witness_carries_it(
     assert m.to_json()["crlb"]["center_r"] == pytest.approx(m.crlb["center_r"])
 
 
-@pytest.mark.parametrize("family, idx", [("own", 3), ("hapke", 1), ("ls_surge", 1), ("glow", 5), ("airy", 1)])
-def test_brightening_gate_stays_shut_on_lunar_lambert_like_limbs(family, idx):
-    """Lunar-Lambert, Hapke and surge limbs keep ``kappa = 0`` (always free, it cost them accuracy); so do a
-    glow above the limb and an Airy PSF's wings, which brighten the edge but not the disc side (widened, the
-    glow frame's centre moved from 0.82 to 1.02 px off, the Airy frame's from 0.06 to 0.13 px)."""
+GATES = {  # (family, frame): the widenings whose gate must stay shut on it
+    ("own", 3): ("kappa",), ("hapke", 1): ("kappa", "glow", "aniso"), ("ls_surge", 1): ("kappa",),
+    ("airy", 1): ("kappa",), ("maria", 4): ("glow",), ("airy", 4): ("glow",), ("own", 0): ("aniso",),
+    ("airy", 0): ("aniso",), ("glow", 0): ("aniso",),
+}
+
+
+@pytest.mark.parametrize("family, idx", list(GATES))
+def test_widening_gates_stay_shut_on_limbs_without_what_they_open_for(family, idx):
+    """Each frame located once, every gate it is known to keep shut checked.  ``kappa`` (limb brightening):
+    lunar-Lambert, Hapke and surge limbs keep it 0 (always free, it cost them accuracy), and so do an Airy PSF's
+    wings, which brighten the edge but not the disc side (widened, that frame's centre moved from 0.06 to 0.13 px
+    off).  ``glow``: none on lunar-Lambert and Hapke limbs, nor on a maria frame (forced, the glow fit moved its
+    centre from 0.05 to 0.25 px off) or an Airy frame whose edge loses light (from 0.007 to 0.043 px).  ``aniso``:
+    the anisotropy's score gate (``aniso_step``) on round PSFs, at most 0.024 of ``sigma_e^2`` where the smears give
+    0.32-0.81 (``ANISO_MIN_FRAC`` 0.12)."""
     case = _moon(family, idx)
-    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
-    assert m.extras["profile"]["kappa"] == 0.0
+    prof = locate(case.image, case.camera, Hints.from_dict(case.hints)).extras["profile"]
+    shut = {"kappa": prof["kappa"] == 0.0, "glow": prof["glow"] == 0.0, "aniso": "blur_aniso" not in prof}
+    assert all(shut[g] for g in GATES[family, idx]), shut
 
 
 def test_glow_limb_is_fitted_by_the_widened_profile(monkeypatch):
@@ -220,15 +233,6 @@ def test_glow_thinner_than_the_psf_is_carried_in_the_covariance(monkeypatch):
     m0 = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert m0.center_rc == pytest.approx(m.center_rc, abs=1e-9)
     assert _errors(case, m0)[1] > 13.8
-
-
-@pytest.mark.parametrize("family, idx", [("own", 2), ("hapke", 1), ("maria", 4), ("airy", 4)])
-def test_glow_gate_stays_shut_without_a_glow(family, idx):
-    """No glow on lunar-Lambert and Hapke limbs; nor on a maria frame (forced, the glow fit moved its centre from
-    0.05 to 0.25 px off) or an Airy frame whose edge loses light (from 0.007 to 0.043 px)."""
-    case = _moon(family, idx)
-    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
-    assert m.extras["profile"]["glow"] == 0.0
 
 
 def _earth(family: str, idx: int):
@@ -322,11 +326,16 @@ def test_earth_glow_limb_is_fitted_by_the_widened_profile():
     assert abs(m.range_km - case.truth.range_km) / case.truth.range_km < 5e-5
 
 
-@pytest.mark.parametrize("family, idx", [("own", 0), ("lambert", 0)])
-def test_earth_glow_gate_stays_shut_without_a_glow(family, idx):
+EARTH_GATES = {("own", 0): ("glow", "aniso"), ("lambert", 0): ("glow",), ("lambert", 1): ("aniso",),
+               ("airy", 3): ("aniso",)}
+
+
+@pytest.mark.parametrize("family, idx", list(EARTH_GATES))
+def test_earth_widening_gates_stay_shut_without_what_they_open_for(family, idx):
+    """No glow profile on an Earth without a glow, no anisotropic blur under a round PSF (each frame located once)."""
     case = _earth(family, idx)
-    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
-    assert m.extras["model"] != "lunar_limb_glow"
+    model = locate(case.image, case.camera, Hints.from_dict(case.hints)).extras["model"]
+    assert all(model != {"glow": "lunar_limb_glow", "aniso": "lunar_limb_aniso"}[g] for g in EARTH_GATES[family, idx])
 
 
 def test_uniform_earth_with_few_traced_rays_is_not_a_patchy_limb():
@@ -378,21 +387,16 @@ def test_motion_smear_is_fitted_by_the_anisotropic_profile(monkeypatch):
     assert _errors(case, m)[0] > 0.08
 
 
-@pytest.mark.parametrize("family, idx", [("own", 0), ("lambert", 1), ("airy", 3)])
-def test_anisotropic_blur_gate_stays_shut_on_round_psfs(family, idx):
-    case = _earth(family, idx)
-    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
-    assert m.extras["model"] != "lunar_limb_aniso"
-
-
 def test_glow_crescent_keeps_the_glow_over_the_anisotropic_blur():
     """Benchmark row ``glow`` 5 (a 135 deg crescent under a glow of 0.37): the anisotropy's gate opens too (0.13 of
     ``sigma_e^2``, chi^2 66); the anisotropic refit alone put the centre 0.826 px off.  Both refits are made and the
-    one with the smaller residual RMS kept (``widen_aniso_or_glow``): the glow, 0.004 px."""
+    one with the smaller residual RMS kept (``widen_aniso_or_glow``): the glow, 0.004 px.  The limb-brightening gate
+    stays shut: a glow brightens above the limb, not the disc side."""
     case = _moon("glow", 5)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     err, nees = _errors(case, m)
     assert "blur_aniso" not in m.extras["profile"] and m.extras["profile"]["glow"] > 0.1
+    assert m.extras["profile"]["kappa"] == 0.0
     assert err < 0.03 and nees < 13.8
 
 
@@ -429,15 +433,6 @@ def test_moon_motion_smear_is_fitted_by_the_anisotropic_profile(monkeypatch):
     monkeypatch.setattr(glow, "widen_aniso", lambda frame, rr, solver, system=None: rr)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert _errors(case, m)[0] > 0.08
-
-
-@pytest.mark.parametrize("family, idx", [("own", 0), ("airy", 0), ("glow", 0), ("hapke", 1)])
-def test_moon_anisotropic_blur_gate_stays_shut_on_round_psfs(family, idx):
-    """The anisotropy's score gate (``aniso_step``) on round PSFs: at most 0.024 of ``sigma_e^2`` where the
-    smears give 0.32-0.81 (``ANISO_MIN_FRAC`` 0.12); no refit."""
-    case = _moon(family, idx)
-    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
-    assert "blur_aniso" not in m.extras["profile"]
 
 
 def test_minnaert_crescent_rim_is_not_an_outlier(monkeypatch):
