@@ -10,7 +10,6 @@ The compiled calls are kept per model and free set: no tracing after the first f
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Callable
 from typing import Any, ClassVar
 
@@ -19,6 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..numerics import one_blas_thread
 from .problem import AbstractLimbSolver, FitResult, LimbProblem, residual_and_jacobian_t
 
 
@@ -62,7 +62,7 @@ class ScipyLeastSquares(AbstractLimbSolver):
 
         parts, ok_j = scipy_callables(problem)
         host = HostResidual(parts, problem.args)
-        with blas_controller().limit(limits=1, user_api="blas"):
+        with one_blas_thread():
             sol = least_squares(
                 host.residual,
                 np.asarray(y0, dtype=float),
@@ -142,23 +142,6 @@ class HostResidual:
         return self._at(y)[1]
 
 
-@functools.cache
-def blas_controller() -> Any:
-    """The process's BLAS thread pools (``threadpoolctl.ThreadpoolController``), found once.
-
-    SciPy's own arithmetic around MINPACK (the cost and gradient of the answer: dot products over the
-    pixels) runs under ``limit(limits=1, user_api="blas")``: on vectors of ~10^4 pixels a threaded BLAS
-    spends more in waking and spinning its threads than it saves.
-
-    Returns
-    -------
-    threadpoolctl.ThreadpoolController
-    """
-    from threadpoolctl import ThreadpoolController  # only the SciPy baseline needs it
-
-    return ThreadpoolController()
-
-
 _SCIPY_CACHE: dict[Any, tuple[Callable, Callable]] = {}
 
 
@@ -197,4 +180,4 @@ def scipy_callables(problem: LimbProblem) -> tuple[Callable, Callable]:
     return _SCIPY_CACHE[key]
 
 
-__all__ = ["HostResidual", "ScipyLeastSquares", "blas_controller", "scipy_callables"]
+__all__ = ["HostResidual", "ScipyLeastSquares", "scipy_callables"]

@@ -45,13 +45,15 @@ def test_moon_center_on_independent_scenes(family, idx, bound):
     assert err < bound
     assert nees < 13.8  # chi2_2 99.9 %
     assert m.extras["profile"]["glow"] == 0.0  # no glow opened on a limb without one
-    assert abs(m.range_km - case.truth.range_km) / case.truth.range_km < 5e-4
+    assert abs(m.range_km - case.truth.range_km) / case.truth.range_km < 1e-3
+    assert abs(m.radius_px - case.truth.apparent_radius_px) < 3.0 * math.sqrt(m.covariance["radius"]["radius"])
 
 
 def test_maria_sectors_are_down_weighted(monkeypatch):
     """A maria Moon whose albedo biased the centre by 0.115 px (benchmark row ``maria`` 0): the sectors the
     mare crosses misfit far above the others and are down-weighted (``downweight_patchy_sectors``),
-    which removes most of the bias; without it the model-error term still makes the covariance cover it."""
+    which removes most of the bias; without it the refit under the albedo field takes part of it (0.058 px off) and
+    the covariance covers it."""
 
     case = _moon("maria", 0)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
@@ -61,7 +63,7 @@ def test_maria_sectors_are_down_weighted(monkeypatch):
     monkeypatch.setattr(patchy, "PATCHY_RATIO", math.inf)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     err, nees = _errors(case, m)
-    assert 0.08 < err < 0.2
+    assert 0.05 < err < 0.2
     assert nees < 13.8
 
 
@@ -69,7 +71,8 @@ def test_wide_maria_down_weighted_to_convergence(monkeypatch):
     """Held-out frame ``combined`` 0 of seed 2027 (``benchmarks/families.py --seed 2027``; Hapke, Airy PSF, JPEG 82,
     a 58 px Moon at 67 deg phase): three maria darken 50 deg of the lit limb about the sub-solar point to ~0.7 of the
     highlands.  With the sector weight ``ratio^-1/2`` and two passes the reweighting stopped half way (0.249 px,
-    NEES 10.6); ``ratio^-1.5`` and four passes (``PATCHY_POWER``, ``PATCHY_PASSES``) 0.134 px."""
+    NEES 10.6); ``ratio^-1.5`` and four passes (``PATCHY_POWER``, ``PATCHY_PASSES``) 0.134 px.  The refit under the
+    albedo field takes the half-way reweighting to 0.10 px; the default stays below it."""
 
     case = _moon("combined", 0, seed=2027)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
@@ -79,7 +82,7 @@ def test_wide_maria_down_weighted_to_convergence(monkeypatch):
     monkeypatch.setattr(patchy, "PATCHY_PASSES", 2)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     err_before, _ = _errors(case, m)
-    assert err_before > 0.2
+    assert err_before > max(err, 0.08)
 
 
 def test_profile_keeps_the_sun_side_of_a_nearly_full_moon():
@@ -162,15 +165,16 @@ def test_minnaert_limb_is_fitted_by_the_widened_profile():
 
 def test_lunar_lambert_profile_is_biased_on_minnaert_and_the_witness_carries_it(monkeypatch):
     """The same frame with the profile held to lunar-Lambert (the gate of the widening shut): the centre is
-    ~0.3 px off, the same all along the limb; the sector term cannot see it, the split witness does (without
-    it NEES ~ 225).  The Cramér--Rao bound stays the noise-only one."""
+    ~0.18 px off (0.3 before the refit under the albedo field took part of the rim as albedo), the same all along
+    the limb; the sector term cannot see it, the split witness does (without it NEES ~ 225).  The Cramér--Rao bound
+    stays the noise-only one."""
 
     monkeypatch.setattr(widen, "KAPPA_GATE", math.inf)
     monkeypatch.setattr(glow, "GLOW_Z", math.inf)  # (the glow gate opens here: 0.60 px off)
     case = _moon("minnaert", 2)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     err, nees = _errors(case, m)
-    assert 0.2 < err < 0.5
+    assert 0.1 < err < 0.5
     assert nees < 13.8
     assert m.extras["profile"]["kappa"] == 0.0
     sig = math.sqrt(m.covariance["center_r"]["center_r"])
@@ -220,8 +224,9 @@ def test_glow_limb_is_fitted_by_the_widened_profile(monkeypatch):
 
 def test_glow_thinner_than_the_psf_is_carried_in_the_covariance(monkeypatch):
     """Trial 117 of ``jaxlimb montecarlo --pipeline --families all --n 156 --seed 1`` (a ``glow`` crescent whose glow
-    the 1 px score test does not open for): left out, the glow moves the centre 0.10 px at sigma 0.027 (NEES 19).  The
-    edge glow's move joins the covariance; the answer itself does not change."""
+    the 1 px score test does not open for): left out, the glow moves the centre 0.10 px at sigma 0.027 (NEES 19; 8.8
+    with the refit under the albedo field).  The edge glow's move joins the covariance; the answer itself does not
+    change."""
     from jaxlimb.analysis.montecarlo import trial_seed
     from jaxlimb.analysis.pipeline_study import FamilyTrial
 
@@ -232,7 +237,7 @@ def test_glow_thinner_than_the_psf_is_carried_in_the_covariance(monkeypatch):
     monkeypatch.setattr(profile_fit, "with_edge_glow_spread", lambda out, base, system=None: out)
     m0 = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert m0.center_rc == pytest.approx(m.center_rc, abs=1e-9)
-    assert _errors(case, m0)[1] > 13.8
+    assert _errors(case, m0)[1] > 5.99
 
 
 def _earth(family: str, idx: int):
@@ -496,14 +501,15 @@ def test_maria_reweighting_move_is_carried_in_the_covariance(monkeypatch):
     assert 0.05 < err < 0.15 and nees < 6.0
     monkeypatch.setattr(patchy, "PATCHY_WITNESS", 0.0)
     m0 = locate(case.image, case.camera, Hints.from_dict(case.hints))
-    assert _errors(case, m0)[1] > 13.8
+    assert _errors(case, m0)[1] > 5.99
     assert m0.crlb["center_r"] == pytest.approx(m.crlb["center_r"], rel=1e-6)
 
 
 def test_subtle_maria_sectors_are_down_weighted(monkeypatch):
     """``maria`` 4 of held-out seed 2028 (a crescent at phase 134 deg): the sectors its maria cross misfit 1.6-3 times
-    the median sector's.  Down-weighted from ``PATCHY_RATIO`` 1.5 the centre is 0.018 px off; from 2.0
-    (the weighting starting from fewer sectors) 0.055 px."""
+    the median sector's.  Down-weighted from ``PATCHY_RATIO`` 1.5 the centre is 0.018 px off; from 2.0 (the
+    weighting starting from fewer sectors) it was 0.055 px, and with the refit under the albedo field it is 0.005 px:
+    the ratio no longer matters here."""
 
     case = _moon("maria", 4, seed=2028)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
@@ -511,7 +517,7 @@ def test_subtle_maria_sectors_are_down_weighted(monkeypatch):
     assert err < 0.035 and nees < 13.8
     monkeypatch.setattr(patchy, "PATCHY_RATIO", 2.0)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
-    assert _errors(case, m)[0] > 0.045
+    assert _errors(case, m)[0] < 0.035
 
 
 def _range_z(case, m) -> float:

@@ -34,9 +34,11 @@ from ...geometry.sphere_image import sphere_from_ellipse_center
 from ...model_error import cluster_robust_covariance, sector_groups, with_model_error as widen
 from ...models import LimbModel, LimbProfileParams, MinnaertProfileParams
 from ...models.lunar_lambert import profile_model
+from ...numerics import one_blas_thread
 from ..stages import Frame, RefineResult
-from .albedo_prior import ELL_DEG, field_factor, field_likelihood, thin_svd
-from .model_error import MODEL_ERROR_SECTORS, weighted_system
+from .albedo_prior import ELL_DEG, field_factor, field_likelihood, residual_field, thin_svd
+from .model_error import (MODEL_ERROR_SECTORS, signed_distance, split_witness, weighted_system, with_consider_term,
+                          with_model_error)
 from .passes import l_band
 
 
@@ -254,4 +256,60 @@ def albedo_field_refit(frame: Frame, rr: RefineResult, base: RefineResult | None
     return replace(out, fit=fit, noise_covariance=np.asarray(rr.covariance_noise))
 
 
-__all__ = ["albedo_field_refit", "field_basis", "gls_refit", "model_spread", "physical", "restricted"]
+def with_albedo_field(frame: Frame, answer: RefineResult) -> RefineResult:
+    """A physical profile's answer (its model-error terms but the albedo's, and its witnesses, in its covariance)
+    refitted under the albedo field its residuals along the limb ask for: ``locate``'s answer on a
+    lunar-Lambert-like limb.
+
+    The field (amplitude, length and the noise) is :func:`~jaxlimb.pipeline.profile.albedo_prior.residual_field`'s;
+    the fit is the generalised least squares under ``Sigma = s^2 I + tau^2 U U^T`` (:func:`gls_refit`), whose
+    covariance ``(J^T Sigma^-1 J)^-1`` holds the field (Van Trees 1968, Sec. 2.4), widened by the model-error terms of
+    :func:`~jaxlimb.pipeline.profile.model_error.with_model_error` on the whitened system, and by what the answer's
+    covariance held beyond its own model-error terms (the witnesses of a reweighting, a widening, a glow).  A uniform
+    albedo gives ``tau`` near 0: the least-squares answer.  When the steps do not converge, ``answer`` (whose
+    covariance holds the field's consider term instead).
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame (its camera sets the sphere's image shape).
+    answer : RefineResult
+        A least-squares fit of a physical profile (weighted or not) with its model-error terms.
+
+    Returns
+    -------
+    RefineResult
+        The refit with the widened covariance; ``noise_covariance`` ``answer``'s.
+
+    Notes
+    -----
+    Runs under one BLAS thread (:func:`~jaxlimb.numerics.one_blas_thread`): the refit's products over the limb's
+    pixels then give the same digits whatever the machine's load, so a run killed and resumed matches one run.
+    """
+    with one_blas_thread():
+        return _refit_under_field(frame, answer)
+
+
+def _refit_under_field(frame: Frame, answer: RefineResult) -> RefineResult:
+    """:func:`with_albedo_field`'s refit, on whatever BLAS threads the caller allows."""
+    C0 = np.asarray(answer.noise_covariance)
+    rr = answer.with_covariance(C0)
+    model = profile_model(rr.fit.params)
+    J, r, padded, w = system = weighted_system(rr, model)
+    coords = np.asarray(rr.data.coords, float)
+    s = signed_distance(rr.fit.params, coords, padded)
+    s2, t2, _, U, GU = residual_field(rr.fit.params, coords, J, r, w, s)
+    witnesses = np.asarray(answer.fit.covariance) - np.asarray(with_model_error(rr, model=model, system=system,
+                                                                               consider=False).fit.covariance)
+    Q, S = thin_svd(U)
+    out, Jw, rw, ok, _ = gls_refit(frame, rr, model, Q, S, s2, t2, system=system)
+    C = np.linalg.inv(Jw.T @ Jw) if ok else None
+    if not ok or not np.all(np.isfinite(C)):  # the least-squares answer, with the field's consider term
+        idx = split_witness(rr, J, r, s)[0]
+        return answer.with_covariance(with_consider_term(answer.fit.covariance, C0, t2 * (GU @ GU.T), idx))
+    out = with_model_error(out.with_covariance(C), model=model, system=(Jw, rw, padded, w), consider=False)
+    return out.with_covariance(np.asarray(out.fit.covariance) + witnesses, noise_covariance=C0)
+
+
+__all__ = ["albedo_field_refit", "field_basis", "gls_refit", "model_spread", "physical", "restricted",
+           "with_albedo_field"]

@@ -229,9 +229,10 @@ def along_limb(A: np.ndarray, s: np.ndarray, psi: np.ndarray) -> np.ndarray:
     return A - Qb @ (Qb.T @ A)
 
 
-def albedo_consider(p: LimbProfileParams, coords: np.ndarray, J: np.ndarray, r: np.ndarray, w: np.ndarray,
-                    s: np.ndarray) -> tuple[np.ndarray, float, float]:
-    """The consider covariance ``tau^2 G U U^T G^T`` of a least-squares profile fit (module docstring).
+def residual_field(p: LimbProfileParams, coords: np.ndarray, J: np.ndarray, r: np.ndarray, w: np.ndarray,
+                   s: np.ndarray) -> tuple[float, float, float, np.ndarray, np.ndarray]:
+    """The albedo field of largest restricted marginal likelihood of a least-squares profile fit's residuals along the
+    limb (module docstring), with its consider factor.
 
     Parameters
     ----------
@@ -247,7 +248,8 @@ def albedo_consider(p: LimbProfileParams, coords: np.ndarray, J: np.ndarray, r: 
     Returns
     -------
     tuple
-        ``(C_a, tau, ell_deg)``: the term ``(q, q)`` over the free parameters, the field's amplitude and length.
+        ``(s2, tau2, ell_deg, U, GU)``: the noise's and the field's variances, its length, its weighted columns
+        ``(n, m)`` and ``G U`` ``(q, m)`` (the consider term is ``tau2 GU GU^T``).
     """
     q = LimbProfileParams(*[getattr(p, k) for k in LimbProfileParams.field_names()])
     psi = np.arctan2(coords[:, 0] - float(p.r0), coords[:, 1] - float(p.c0))
@@ -255,16 +257,36 @@ def albedo_consider(p: LimbProfileParams, coords: np.ndarray, J: np.ndarray, r: 
     rv = r - Qb @ (Qb.T @ r)
     QJ, RJ = np.linalg.qr(J)
     QbJ, QJr = Qb.T @ QJ, QJ.T @ rv
-    best = (math.inf, 0.0, np.zeros((J.shape[1], 1)), 0.0)
+    best = (math.inf, float(rv @ rv) / max(rv.size, 1), 0.0, ELL_DEG[0], np.zeros((J.shape[0], 1)),
+            np.zeros((J.shape[1], 1)))
     for ell in ELL_DEG:
         U = field_factor(q, coords, math.radians(ell)) * w[:, None]
         Uj = QJ.T @ U  # U's part in the fit's span (the fit absorbs it), then what is left of it along the limb:
         X = Qb.T @ U - QbJ @ Uj  # the Gram of (I - P_B)(I - P_J) U without forming it (n m^2 once, for U^T U)
         V, S = gram_basis(U.T @ U - Uj.T @ Uj - X.T @ X)
-        _, t2, nll = projected_likelihood(float(rv @ rv), V.T @ (U.T @ rv - Uj.T @ QJr) / S, S, rv.size)
+        s2, t2, nll = projected_likelihood(float(rv @ rv), V.T @ (U.T @ rv - Uj.T @ QJr) / S, S, rv.size)
         if nll < best[0]:
-            best = (nll, t2, np.linalg.solve(RJ, Uj), ell)
-    _, t2, GU, ell = best
+            best = (nll, s2, t2, ell, U, Uj)
+    _, s2, t2, ell, U, Uj = best
+    return s2, t2, ell, U, np.linalg.solve(RJ, Uj)
+
+
+def albedo_consider(p: LimbProfileParams, coords: np.ndarray, J: np.ndarray, r: np.ndarray, w: np.ndarray,
+                    s: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """The consider covariance ``tau^2 G U U^T G^T`` of a least-squares profile fit (module docstring) under the field
+    of :func:`residual_field`.
+
+    Parameters
+    ----------
+    p, coords, J, r, w, s
+        As :func:`residual_field`'s.
+
+    Returns
+    -------
+    tuple
+        ``(C_a, tau, ell_deg)``: the term ``(q, q)`` over the free parameters, the field's amplitude and length.
+    """
+    _, t2, ell, _, GU = residual_field(p, coords, J, r, w, s)
     return t2 * (GU @ GU.T), math.sqrt(t2), ell
 
 
@@ -287,4 +309,4 @@ def with_albedo_term(C: np.ndarray, C0: np.ndarray, Ca: np.ndarray) -> np.ndarra
 
 
 __all__ = ["ELL_DEG", "RADIAL_BIN_PX", "TAU_MAX", "albedo_consider", "along_basis", "along_limb", "field_factor",
-           "field_likelihood", "gram_basis", "projected_likelihood", "thin_svd", "with_albedo_term"]
+           "field_likelihood", "gram_basis", "projected_likelihood", "residual_field", "thin_svd", "with_albedo_term"]

@@ -102,7 +102,7 @@ def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: fl
                       ) -> tuple[RefineResult, int]:
     """Refit the pixels of the CSF (``circle`` fitted to ``data``) with the physical lunar-Lambert limb profile,
     widened (limb brightening, smear or glow, patchy sectors) when a score test asks for it, with its model-error
-    terms (unwidened: also the move of a glow thinner than the PSF,
+    terms but the albedo's (unwidened: also the move of a glow thinner than the PSF,
     :func:`~jaxlimb.pipeline.profile.glow.with_edge_glow_spread`); clipped pixels are left out when the image
     saturates.
 
@@ -154,7 +154,8 @@ def fit_lunar_profile(frame: Frame, circle: CircleParams, data: FitData, sat: fl
         s_e = LOGISTIC_TO_GAUSS / max(float(p.k), 1e-6)
         out, n_clipped = _fit_clipped(frame, data, init, center, float(p.radius), sat, s_e, solver)
         base = out
-    final = with_reweighting_witness(with_model_error(downweight_patchy_sectors(frame, out, solver)), out)
+    reweighted = downweight_patchy_sectors(frame, out, solver)
+    final = with_reweighting_witness(with_model_error(reweighted, consider=False), out)
     return (with_aniso_blur_witness(final, base) if isinstance(out.fit.params, AnisoProfileParams) else final), n_clipped
 
 
@@ -163,8 +164,8 @@ def _unwidened(frame: Frame, base: RefineResult, solver, system) -> RefineResult
     witness), its model-error terms, and the move of a glow thinner than the PSF
     (:func:`~jaxlimb.pipeline.profile.glow.with_edge_glow_spread`)."""
     reweighted = downweight_patchy_sectors(frame, base, solver, system)
-    answer = (with_model_error(base, system=system) if reweighted is base
-              else with_reweighting_witness(with_model_error(reweighted), base))
+    answer = (with_model_error(base, system=system, consider=False) if reweighted is base
+              else with_reweighting_witness(with_model_error(reweighted, consider=False), base))
     return with_edge_glow_spread(answer, base, system)
 
 

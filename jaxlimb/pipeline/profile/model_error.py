@@ -118,7 +118,7 @@ def edge_sigma(params: Any) -> float:
 
 
 def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS, model: LimbModel | None = None,
-                     system=None) -> RefineResult:
+                     system=None, consider: bool = True) -> RefineResult:
     """``rr`` (a fit of ``model``, default the profile) with its covariance widened by the model-error terms
     of :mod:`jaxlimb.model_error`: the cluster-robust term over ``n_sectors`` sectors of the limb
     about the fitted centre, plus the split witness (:func:`split_witness`) on the limb's geometry, and for the
@@ -144,6 +144,9 @@ def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS, mod
         ``rr``'s model (``None``: the profile of its parameters).
     system : tuple or None
         ``rr``'s :func:`weighted_system` under ``model``, if already formed.
+    consider : bool
+        Whether to add the albedo's consider term (not for a fit whose covariance already holds the field:
+        :func:`~jaxlimb.pipeline.profile.albedo_field.with_albedo_field`).
 
     Returns
     -------
@@ -161,10 +164,31 @@ def with_model_error(rr: RefineResult, n_sectors: int = MODEL_ERROR_SECTORS, mod
     s = signed_distance(fit.params, coords, padded)
     idx, W = split_witness(rr, J, r, s)
     C[np.ix_(idx, idx)] += W
-    if isinstance(fit.params, LimbProfileParams):  # on the geometry, as the witness: the law's band keeps its sigma
-        g = np.ix_(idx, idx)
-        C[g] = with_albedo_term(C[g], C0[g], albedo_consider(fit.params, coords, J, r, w, s)[0][g])
+    if consider and isinstance(fit.params, LimbProfileParams):
+        C = with_consider_term(C, C0, albedo_consider(fit.params, coords, J, r, w, s)[0], idx)
     return rr.with_covariance(C, noise_covariance=C0)
+
+
+def with_consider_term(C: np.ndarray, C0: np.ndarray, Ca: np.ndarray, idx: list[int]) -> np.ndarray:
+    """``C`` widened by the albedo's consider term ``Ca`` where its model-error terms do not already carry it
+    (:func:`~jaxlimb.pipeline.profile.albedo_prior.with_albedo_term`), on the limb's geometry only (as the split
+    witness): the reflectance law's parameters keep their sigma, and with it the band ``L`` is held to.
+
+    Parameters
+    ----------
+    C, C0, Ca : np.ndarray (q, q)
+        The covariance with its model-error terms, the noise-only one and the consider term, over the free parameters.
+    idx : list of int
+        The geometric parameters' indices among them (:func:`split_witness`).
+
+    Returns
+    -------
+    np.ndarray (q, q)
+    """
+    C = np.array(C)
+    g = np.ix_(idx, idx)
+    C[g] = with_albedo_term(C[g], C0[g], Ca[g])
+    return C
 
 
 def weighted_system(rr: RefineResult, model: LimbModel):
@@ -317,4 +341,5 @@ def last_column_step(X: np.ndarray, r: np.ndarray) -> tuple[float, float]:
     return float(step[0]), float(var[0, 0])
 
 
-__all__ = ["MODEL_ERROR_SECTORS", "WITNESS_CUT", "columns", "edge_sigma", "last_column_step", "last_step", "signed_distance", "split_witness", "trailing_step", "weighted_system", "with_model_error"]
+__all__ = ["MODEL_ERROR_SECTORS", "WITNESS_CUT", "columns", "edge_sigma", "last_column_step", "last_step", "signed_distance", "split_witness", "trailing_step", "weighted_system", "with_consider_term",
+           "with_model_error"]

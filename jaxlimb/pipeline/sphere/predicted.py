@@ -38,6 +38,7 @@ from ...imaging.predicted import arc_center, edge_bias_gain, fit_shape, limb_edg
 from ...models import CircleParams, LimbProfileParams
 from ...models.lunar_lambert import profile_model
 from ..checks import check_edge_width, check_levels
+from ..profile.albedo_field import with_albedo_field
 from ..profile.fit import fit_lunar_profile
 from ..result import EllipseResult, LimbMeasurement
 from ..sigmoid import LOGISTIC_TO_GAUSS
@@ -222,7 +223,7 @@ def lit_limb_profile(frame: Frame, edge: PredictedEdge) -> RefineResult:
                           ymax=to_dn(p.ymax), ymin=to_dn(p.ymin))
     z = frame.img[data.coords[:, 0].astype(np.int64), data.coords[:, 1].astype(np.int64)]
     fitted, _ = fit_lunar_profile(frame, circle, FitData(data.coords, z, None, 0.0, 1.0), None)
-    return fitted
+    return with_albedo_field(frame, fitted)
 
 
 def larger_covariance(rr: RefineResult, cov_cluster: np.ndarray, extras: dict[str, Any]) -> RefineResult:

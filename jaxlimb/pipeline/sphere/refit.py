@@ -27,6 +27,7 @@ from ...models import LIMB_DARKENED, CircleParams, EllipseParams, LimbProfilePar
 from ...models.corona import CORONA, CoronaParams
 from ..checks import MIN_LIT_ARC_DEG, check_lit_arc
 from ..frame import arc_angles, frame_mask
+from ..profile.albedo_field import with_albedo_field
 from ..profile.fit import fit_lunar_profile
 from ..profile.model_error import with_model_error
 from ..profile.passes import l_band, saturation_level
@@ -88,7 +89,7 @@ def lunar_profile_refit(frame: Frame, edge: EdgeFit, sat: float | None, extras: 
         # the limb is not lunar-Lambert-like (e.g. a flat disc): keep the sigmoid, say why
         extras["profile_rejected"] = {"model": "lunar-lambert", "L": L, "allowed_L": list(band)}
         return None, res
-    return res, None
+    return (res if opt.profile == "albedo-field" else with_albedo_field(frame, res)), None
 
 
 def sphere_refit(frame: Frame, cand: Any, edge: EdgeFit, physical: bool, extras: dict[str, Any]) -> RefineResult:
