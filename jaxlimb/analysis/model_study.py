@@ -29,7 +29,7 @@ from .._jaxcache import CompileTimer
 from ..fitting import AbstractLimbSolver, LimbFit, LimbProblem, NormalLM, bucket_size, fit, pad_pixels
 from ..fitting.fit import fit_core
 from .crlb import crlb
-from .montecarlo import MonteCarloOptions, run_monte_carlo
+from .montecarlo import MonteCarloOptions, MonteCarloResult, run_monte_carlo
 from .problems import (ModelStudyOptions, StudyProblem, estimated_nbytes, model_problem,
                        standard_problem)
 from .sharding import per_device
@@ -300,18 +300,26 @@ def run_model_study(opt: ModelStudyOptions, solver: AbstractLimbSolver | None = 
         t0, c0 = time.perf_counter(), time.process_time()
         res = run_monte_carlo(trial, mc_opt)
         loop_s, loop_cpu = time.perf_counter() - t0, time.process_time() - c0
+    accuracy = _accuracy(res, prob, bound)
+    return {
+        "status": "ok", "n": opt.n, "converged": int(res.ok.sum()), "wall_s": time.perf_counter() - t_start,
+        "fit_s": loop_s - ct.seconds, "fit_cpu_s": loop_cpu, "compile_s": build_s + ct.seconds,
+        "chunks_run": res.chunks_run, "chunks_resumed": res.chunks_skipped, **accuracy,
+        "n_pixels": int(prob.coords.shape[0]), "solver": solver.name, "options": asdict(opt), "fixed": list(prob.fixed),
+    }
+
+
+def _accuracy(res: MonteCarloResult, prob: StudyProblem, bound: dict[str, float]) -> dict[str, object]:
+    """``rms``, ``bias``, ``crlb``, ``rms_over_crlb`` and ``iterations`` of a finished study."""
+    names = prob.free
     tv = np.asarray(prob.truth.to_vector())
     st = {nm: error_stats(res.values[nm], res.ok, float(tv[prob.model.param_names.index(nm)]), bound[nm]) for nm in names}
     steps = res.values["n_steps"][res.ok]
     return {
-        "status": "ok", "n": opt.n, "converged": int(res.ok.sum()), "wall_s": time.perf_counter() - t_start,
-        "fit_s": loop_s - ct.seconds, "fit_cpu_s": loop_cpu, "compile_s": build_s + ct.seconds,
-        "chunks_run": res.chunks_run, "chunks_resumed": res.chunks_skipped,
         "rms": {nm: st[nm]["rms"] for nm in names}, "bias": {nm: st[nm]["bias"] for nm in names},
         "crlb": dict(bound), "rms_over_crlb": {nm: st[nm]["rms_over_crlb"] for nm in names},
         "iterations": {"mean": float(steps.mean()) if res.ok.any() else None,
                        "max": int(steps.max()) if res.ok.any() else None},
-        "n_pixels": int(prob.coords.shape[0]), "solver": solver.name, "options": asdict(opt), "fixed": list(prob.fixed),
     }
 
 

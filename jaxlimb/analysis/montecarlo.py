@@ -276,6 +276,17 @@ def run_monte_carlo(trial: Callable[..., Mapping[str, Any]], options: MonteCarlo
         out_dir.mkdir(parents=True, exist_ok=True)
         _check_manifest(out_dir, opt)
     t0 = time.perf_counter()
+    chunks, run, skipped = _run_or_resume_chunks(trial, opt, out_dir)
+    idx = np.concatenate([d["index"] for d in chunks])
+    if opt.shard[1] == 1 and not np.array_equal(idx, np.arange(opt.n_trials)):
+        raise ConfigError("chunk files do not cover the trials 0..n-1 in order: the output directory is corrupt")
+    return _assemble(chunks, opt, time.perf_counter() - t0, run, skipped)
+
+
+def _run_or_resume_chunks(trial: Callable[..., Mapping[str, Any]], opt: MonteCarloOptions,
+                          out_dir: Path | None) -> tuple[list[dict[str, np.ndarray]], int, int]:
+    """This process's chunks (read back from ``out_dir`` or run) and those other shards finished; with the
+    numbers run and skipped."""
     chunks: list[dict[str, np.ndarray]] = []
     run = skipped = 0
     bar = tqdm(total=opt.n_trials, desc=opt.name, unit="trial", disable=not opt.progress or opt.shard[1] > 1)
@@ -297,10 +308,7 @@ def run_monte_carlo(trial: Callable[..., Mapping[str, Any]], options: MonteCarlo
         chunks.append(data)
         bar.update(int(data["index"].size))
     bar.close()
-    idx = np.concatenate([d["index"] for d in chunks])
-    if opt.shard[1] == 1 and not np.array_equal(idx, np.arange(opt.n_trials)):
-        raise ConfigError("chunk files do not cover the trials 0..n-1 in order: the output directory is corrupt")
-    return _assemble(chunks, opt, time.perf_counter() - t0, run, skipped)
+    return chunks, run, skipped
 
 
 def _assemble(chunks: list[dict[str, np.ndarray]], opt: MonteCarloOptions, wall_s: float, run: int,

@@ -147,16 +147,8 @@ def local_mesh(devices: Sequence[jax.Device] | None = None) -> Mesh:
 
 
 def sharded_fit_batch(
-    model: LimbModel,
-    coords: Any,
-    z: Any,
-    init: LimbParams,
-    solver: AbstractLimbSolver | None = None,
-    *,
-    fixed: Sequence[str] = (),
-    weights: Any = None,
-    analytic: bool = True,
-    max_steps: int = 256,
+    model: LimbModel, coords: Any, z: Any, init: LimbParams, solver: AbstractLimbSolver | None = None, *,
+    fixed: Sequence[str] = (), weights: Any = None, analytic: bool = True, max_steps: int = 256,
     devices: Sequence[jax.Device] | None = None,
 ) -> LimbFit:
     """:func:`jaxlimb.fitting.fit_batch` with the batch sharded over devices (module docstring).
@@ -203,9 +195,18 @@ def sharded_fit_batch(
     if not solver.jittable:
         raise LimbInputError(f"`solver` {solver.name} cannot be batched (not jittable)")
     problem = batch_problem(model, coords, z, init, fixed=fixed, weights=weights, analytic=analytic)
-    free_idx = problem.free_idx
-    theta, coords_, z_, w_ = (np.asarray(a) for a in problem.args)
     mesh = local_mesh(devices)
+    args, b, pad = _sharded_args(problem, mesh)
+    res = _sharded_core(solver, model, problem.free_idx, analytic, max_steps, mesh, args)(*args)
+    if pad:
+        res = jax.tree_util.tree_map(lambda a: a[:b], res)
+    return res
+
+
+def _sharded_args(problem: LimbProblem, mesh: Mesh) -> tuple[list[jax.Array], int, int]:
+    """The problem's ``(theta, coords, z, w)`` sharded over ``mesh`` along the batch axis, the batch size ``b`` and
+    the members appended (copies of the first) to fill the last device."""
+    theta, coords_, z_, w_ = (np.asarray(a) for a in problem.args)
     n_dev = mesh.devices.size
     b = z_.shape[0]
     pad = (-b) % n_dev
@@ -213,11 +214,7 @@ def sharded_fit_batch(
         rep = lambda a: np.concatenate([a, np.repeat(a[:1], pad, axis=0)], axis=0)  # noqa: E731
         coords_, z_, w_, theta = rep(coords_), rep(z_), rep(w_), rep(theta)
     sharding = NamedSharding(mesh, PartitionSpec("batch"))
-    args = [jax.device_put(jnp.asarray(a), sharding) for a in (theta, coords_, z_, w_)]
-    res = _sharded_core(solver, model, free_idx, analytic, max_steps, mesh, args)(*args)
-    if pad:
-        res = jax.tree_util.tree_map(lambda a: a[:b], res)
-    return res
+    return [jax.device_put(jnp.asarray(a), sharding) for a in (theta, coords_, z_, w_)], b, pad
 
 
 def sharding_speedup(model: LimbModel, coords: Any, z: Any, init: LimbParams, solver: AbstractLimbSolver | None = None,

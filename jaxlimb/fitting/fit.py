@@ -324,20 +324,9 @@ def _without_held(res: LimbFit, held: Sequence[str]) -> LimbFit:
 
 
 # ============================================================================ API
-def fit(
-    model: LimbModel,
-    coords: Any,
-    z: Any,
-    init: LimbParams,
-    solver: AbstractLimbSolver | None = None,
-    *,
-    fixed: Sequence[str] = (),
-    weights: Any = None,
-    analytic: bool = True,
-    max_steps: int = 256,
-    throw: bool = True,
-    held: Sequence[str] | None = None,
-) -> LimbFit:
+def fit(model: LimbModel, coords: Any, z: Any, init: LimbParams, solver: AbstractLimbSolver | None = None, *,
+        fixed: Sequence[str] = (), weights: Any = None, analytic: bool = True, max_steps: int = 256,
+        throw: bool = True, held: Sequence[str] | None = None) -> LimbFit:
     """Fit a limb model to pixel intensities.
 
     Parameters
@@ -354,10 +343,9 @@ def fit(
     throw : raise :class:`~jaxlimb.errors.ConvergenceError` if the fit did not converge;
         with ``throw=False`` inspect ``result`` / ``converged`` instead.
     held : parameters (not in ``fixed``) held at their ``init`` values by a run-time mask
-        (:class:`~jaxlimb.fitting.solvers.LimbProblem`'s ``mask``): every call with the same
-        ``fixed`` -- whatever it holds and whatever ``max_steps`` -- runs one compiled program
-        (e.g. a fit with the PSF free, then with it held).  The answer is that of
-        ``fixed=(*fixed, *held)``.  ``None`` (default): no mask.  Solvers without
+        (:class:`~jaxlimb.fitting.solvers.LimbProblem`'s ``mask``): every call with the same ``fixed`` -- whatever
+        it holds and whatever ``max_steps`` -- runs one compiled program (e.g. a fit with the PSF free, then with it
+        held).  The answer is that of ``fixed=(*fixed, *held)``.  ``None`` (default): no mask.  Solvers without
         :attr:`~jaxlimb.fitting.solvers.AbstractLimbSolver.masks` get ``held`` added to ``fixed``.
 
     Returns
@@ -389,18 +377,26 @@ def fit(
     >>> print(round(float(res.std["r0"]), 4))  # 1-sigma of the centre's row (px)
     0.0023
     """
-    _check_precision()
     solver = NormalLM() if solver is None else solver
+    problem, held = _single_problem(model, coords, z, init, solver, fixed, weights, analytic, held)
+    res = _solve(solver, problem, max_steps, held)
+    if throw and not bool(res.converged):
+        raise ConvergenceError(f"{solver.name} did not converge after {int(res.n_steps)} steps: {res.message}")
+    return res
+
+
+def _single_problem(model: LimbModel, coords: Any, z: Any, init: LimbParams, solver: AbstractLimbSolver,
+                    fixed: Sequence[str], weights: Any, analytic: bool,
+                    held: Sequence[str] | None) -> tuple[LimbProblem, Sequence[str] | None]:
+    """The validated :class:`LimbProblem` of :func:`fit` (pixels padded to their bucket, on the device) and the
+    parameters its mask holds (``held`` joins ``fixed`` for a solver that cannot mask)."""
+    _check_precision()
     if held is not None and not (solver.masks and solver.jittable):
         fixed, held = (*fixed, *held), None
     coords_, z_, w_, theta, free_idx = validate_inputs(model, coords, z, init, fixed, weights, batched=False)
     mask = None if held is None else _to_device(_held_mask(model, free_idx, held))
     coords_, z_, w_ = pad_pixels(coords_, z_, w_, bucket_size(z_.shape[0]))
-    problem = LimbProblem(model, free_idx, analytic, *(_to_device(a) for a in (theta, coords_, z_, w_)), mask)
-    res = _solve(solver, problem, max_steps, held)
-    if throw and not bool(res.converged):
-        raise ConvergenceError(f"{solver.name} did not converge after {int(res.n_steps)} steps: {res.message}")
-    return res
+    return LimbProblem(model, free_idx, analytic, *(_to_device(a) for a in (theta, coords_, z_, w_)), mask), held
 
 
 def _solve(solver: AbstractLimbSolver, problem: LimbProblem, max_steps: int, held: Sequence[str] | None) -> LimbFit:
@@ -415,17 +411,8 @@ def _solve(solver: AbstractLimbSolver, problem: LimbProblem, max_steps: int, hel
 
 
 def fit_batch(
-    model: LimbModel,
-    coords: Any,
-    z: Any,
-    init: LimbParams,
-    solver: AbstractLimbSolver | None = None,
-    *,
-    fixed: Sequence[str] = (),
-    weights: Any = None,
-    analytic: bool = True,
-    max_steps: int = 256,
-    strategy: str = "map",
+    model: LimbModel, coords: Any, z: Any, init: LimbParams, solver: AbstractLimbSolver | None = None, *,
+    fixed: Sequence[str] = (), weights: Any = None, analytic: bool = True, max_steps: int = 256, strategy: str = "map",
 ) -> LimbFit:
     """Fit a batch of problems in one compiled call (Monte Carlo, many images).
 

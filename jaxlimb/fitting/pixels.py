@@ -138,6 +138,14 @@ def validate_inputs(
         Wrong parameter type or shapes, unknown ``fixed`` names, nothing free, no or too few pixels, non-finite
         values, negative weights, a scale parameter (``radius``, ``a``, ``k``, ``rho``) <= 0.
     """
+    free_idx = _free_indices(model, init, fixed)
+    coords, z, w = _pixel_arrays(model, coords, z, weights, batched, len(free_idx))
+    theta = _init_vector(model, init, z, batched)
+    return coords, z, w, theta, free_idx
+
+
+def _free_indices(model: LimbModel, init: LimbParams, fixed: Sequence[str]) -> tuple[int, ...]:
+    """Indices of the parameters not in ``fixed``, after checking ``init``'s type and the names in ``fixed``."""
     if not isinstance(init, model.params_type):
         raise LimbInputError(
             f"`init` must be a {model.params_type.__name__} for the {model.name!r} model, got {type(init).__name__}"
@@ -148,6 +156,13 @@ def validate_inputs(
     free_idx = model.free_indices(fixed)
     if not free_idx:
         raise LimbInputError("`fixed` holds every parameter: nothing to estimate")
+    return free_idx
+
+
+def _pixel_arrays(model: LimbModel, coords: Any, z: Any, weights: Any, batched: bool,
+                  q: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``coords``, ``z`` and the weights as checked float arrays (finite, shapes matching, weights >= 0, more
+    pixels of positive weight than the ``q`` free parameters)."""
     coords = np.asarray(coords, dtype=float)
     z = np.asarray(z, dtype=float)
     lead = 1 if batched else 0
@@ -170,9 +185,14 @@ def validate_inputs(
     if np.any(w < 0):
         raise LimbInputError(f"`weights` must be >= 0, got min {float(w.min())!r}")
     n_used = (w > 0).sum(axis=-1)
-    q = len(free_idx)
     if np.any(n_used <= q):
         raise LimbInputError(f"need more pixels than free parameters ({q}), got {int(np.min(n_used))}")
+    return coords, z, w
+
+
+def _init_vector(model: LimbModel, init: LimbParams, z: np.ndarray, batched: bool) -> np.ndarray:
+    """``init`` as a vector ``(p,)`` or ``(B, p)`` in the model's field order (checked: finite, matching the data's
+    batch, scale parameters > 0)."""
     theta = np.stack([np.asarray(getattr(init, n), dtype=float) for n in model.param_names], axis=-1)
     if theta.shape[-1:] != (len(model.param_names),) or (batched and theta.shape[0] != z.shape[0]):
         raise LimbInputError(f"`init` has shape {theta.shape[:-1]} but the data have batch shape {z.shape[:-1]}")
@@ -181,4 +201,4 @@ def validate_inputs(
     for i, name in enumerate(model.param_names):
         if name in ("radius", "a", "k", "rho") and np.any(theta[..., i] <= 0):
             raise LimbInputError(f"`init.{name}` must be > 0, got {float(np.min(theta[..., i]))!r}")
-    return coords, z, w, theta, free_idx
+    return theta

@@ -311,20 +311,32 @@ def _next_range(rng_k: float, dth_hat: float, dth_tilde: float, R_used: float, u
     return rng_k + delta_p(dth_hat, dth_tilde, R_used, dth_hat if dtheta == "hat" else dth_tilde, sign=sign)  # type: ignore[arg-type]
 
 
+def _realigned(p, v, dth_tilde: float, atmosphere_km: float, pole, radii: tuple[float, float],
+               body_km: tuple[float, float]) -> tuple[float, float, np.ndarray, np.ndarray, float]:
+    """The iterate ``p`` turned onto the centre direction at its range: ``(range, gamma_off, direction, p, residual
+    of the limb angle)`` (``radii``: with atmosphere; ``body_km``: equatorial and polar radii without it)."""
+    rng_k = float(np.linalg.norm(p))
+    g = gamma_off(p, atmosphere_km, pole, *body_km)
+    p_hat = -center_direction(v, g, pole)
+    p = rng_k * p_hat
+    rho_p, z_p = meridian_coordinates(p, pole)
+    diff = meridian_limb_angle(rho_p, z_p, *radii) - dth_tilde
+    return rng_k, g, p_hat, p, diff
+
+
+def _outside(p: np.ndarray, new_rng: float, pole, Re: float, Rp: float) -> np.ndarray:
+    """``p``, an iterate at range ``new_rng``, checked to lie outside the spheroid ``(Re, Rp)``."""
+    rho_n, z_n = meridian_coordinates(p, pole)
+    if (rho_n / Re) ** 2 + (z_n / Rp) ** 2 <= 1.0:
+        raise GeometryError(f"range iteration stepped inside the Earth (range {new_rng:.1f} km); bad prior or measurement")
+    return p
+
+
 def earth_range_iteration(
-    v_center,
-    b_prime: float,
-    p0_km,
-    *,
-    atmosphere_km: float = 0.0,
-    pole=(0.0, 0.0, 1.0),
-    eps: float = 1e-10,
-    max_iter: int = 20,
-    R: Literal["equatorial", "polar"] = "equatorial",
-    sign: Literal["corrected", "paper"] = "corrected",
-    dtheta: Literal["tilde", "hat"] = "tilde",
-    update: Literal["newton", "ratio"] = "newton",
-    equatorial_km: float = EARTH_EQUATORIAL_KM,
+    v_center, b_prime: float, p0_km, *, atmosphere_km: float = 0.0, pole=(0.0, 0.0, 1.0), eps: float = 1e-10,
+    max_iter: int = 20, R: Literal["equatorial", "polar"] = "equatorial",
+    sign: Literal["corrected", "paper"] = "corrected", dtheta: Literal["tilde", "hat"] = "tilde",
+    update: Literal["newton", "ratio"] = "newton", equatorial_km: float = EARTH_EQUATORIAL_KM,
     polar_km: float = EARTH_POLAR_KM,
 ) -> EarthFix:
     """Earth range and centre-offset iteration of Fig. 2 (module docstring).
@@ -368,12 +380,7 @@ def earth_range_iteration(
     updates = 0
     g = 0.0
     for _ in range(max_iter + 1):
-        rng_k = float(np.linalg.norm(p))
-        g = gamma_off(p, atmosphere_km, pole, equatorial_km, polar_km)
-        p_hat = -center_direction(v, g, pole)
-        p = rng_k * p_hat
-        rho_p, z_p = meridian_coordinates(p, pole)
-        diff = meridian_limb_angle(rho_p, z_p, Re, Rp) - dth_tilde
+        rng_k, g, p_hat, p, diff = _realigned(p, v, dth_tilde, atmosphere_km, pole, (Re, Rp), (equatorial_km, polar_km))
         history.append((rng_k, diff))
         if abs(diff) < eps:
             return EarthFix(position_km=p, range_km=rng_k, iterations=updates, converged=True, gamma_off_rad=g, history=history)
@@ -382,10 +389,7 @@ def earth_range_iteration(
         new_rng = _next_range(rng_k, dth_tilde + diff, dth_tilde, R_used, update, dtheta, sign)
         if not (math.isfinite(new_rng) and new_rng > 0):
             break
-        p = new_rng * p_hat
-        rho_n, z_n = meridian_coordinates(p, pole)
-        if (rho_n / Re) ** 2 + (z_n / Rp) ** 2 <= 1.0:
-            raise GeometryError(f"range iteration stepped inside the Earth (range {new_rng:.1f} km); bad prior or measurement")
+        p = _outside(new_rng * p_hat, new_rng, pole, Re, Rp)
         updates += 1
     return EarthFix(position_km=p, range_km=float(np.linalg.norm(p)), iterations=updates, converged=False, gamma_off_rad=g, history=history)
 

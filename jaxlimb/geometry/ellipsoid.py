@@ -384,6 +384,16 @@ class ImageConic:
         }
 
 
+def _checked_pose(radii: object, center_cam: object, R_body_to_camera: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`image_conic`'s radii, body centre (in front of the camera) and rotation, checked."""
+    r = check_radii(radii)
+    q = check_vec3(center_cam, "center_cam")
+    R = np.eye(3) if R_body_to_camera is None else check_rotation(R_body_to_camera)
+    if not q[2] > 0:
+        raise GeometryError(f"body centre must be in front of the camera (z > 0), got center_cam = {q.tolist()} km")
+    return r, q, R
+
+
 def image_conic(
     camera: Camera, radii: object, center_cam: object, R_body_to_camera: object = None
 ) -> ImageConic:
@@ -424,11 +434,7 @@ def image_conic(
         Camera inside the body, body centre behind the camera, or the limb cone
         not entirely in front of the camera (the image of the limb is then not an ellipse).
     """
-    r = check_radii(radii)
-    q = check_vec3(center_cam, "center_cam")
-    R = np.eye(3) if R_body_to_camera is None else check_rotation(R_body_to_camera)
-    if not q[2] > 0:
-        raise GeometryError(f"body centre must be in front of the camera (z > 0), got center_cam = {q.tolist()} km")
+    r, q, R = _checked_pose(radii, center_cam, R_body_to_camera)
     Mc = limb_cone_matrix_camera(r, q, R)
     Kinv = np.linalg.inv(camera.K)
     C = -(Kinv.T @ Mc @ Kinv)

@@ -192,18 +192,42 @@ def horizon_navigation(
     s = _unit_los(los_camera)
     m = s.shape[0]
     B = whitening(radii, R_body_to_camera)
-    sp = s @ B.T
-    nsp = np.linalg.norm(sp, axis=1)
-    H = sp / nsp[:, None]
-    sv = np.linalg.svd(H, compute_uv=False)
-    if sv[-1] < 1e-12 * sv[0]:
-        raise GeometryError("limb points are degenerate (fewer than 3 independent directions)")
+    H, nsp = _whitened_directions(s, B)
     n = _solve(H, np.ones(m), method)
     Rsb = None
     if los_cov is not None:
         Rsb = _whitened_los_cov(los_cov, H, B, nsp)
         n = _reweighted_solve(H, Rsb, n, method)
 
+    nn, k, Binv, c = _body_center(n, B, s)
+    cov = None if Rsb is None else _center_cov(n, Rsb, H, nn, k, Binv)
+    res = H @ n - 1.0
+    return HorizonSolution(
+        r_camera_km=-c,
+        body_center_camera_km=c,
+        covariance_km2=cov,
+        n=n,
+        n_points=m,
+        rms_residual=float(np.sqrt(np.mean(res**2))),
+        method=method,
+    )
+
+
+def _whitened_directions(s: np.ndarray, B: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The unit lines of sight ``s`` whitened by ``B`` and normalised (``H``, ``(m, 3)``) and their norms before;
+    :class:`GeometryError` when they span fewer than 3 directions."""
+    sp = s @ B.T
+    nsp = np.linalg.norm(sp, axis=1)
+    H = sp / nsp[:, None]
+    sv = np.linalg.svd(H, compute_uv=False)
+    if sv[-1] < 1e-12 * sv[0]:
+        raise GeometryError("limb points are degenerate (fewer than 3 independent directions)")
+    return H, nsp
+
+
+def _body_center(n: np.ndarray, B: np.ndarray, s: np.ndarray) -> tuple[float, float, np.ndarray, np.ndarray]:
+    """``n^T n``, ``k = (n^T n - 1)^-1/2``, ``B^-1`` and the body centre ``k B^-1 n`` in the camera frame, checked
+    (``n^T n > 1``, the body in front of the camera)."""
     nn = float(n @ n)
     if not nn > 1.0:
         raise GeometryError(
@@ -215,23 +239,16 @@ def horizon_navigation(
     c = k * (Binv @ n)
     if float(np.mean(s @ c)) <= 0:
         raise GeometryError("horizon solution puts the body behind the camera; limb points inconsistent")
-    cov = None
-    if Rsb is not None:
-        var = np.einsum("i,mij,j->m", n, Rsb, n)
-        Pn = np.linalg.inv(np.einsum("m,mi,mj->ij", 1.0 / var, H, H))
-        F = -k * Binv @ (np.eye(3) - np.outer(n, n) / (nn - 1.0))
-        cov = F @ Pn @ F.T
-        cov = 0.5 * (cov + cov.T)
-    res = H @ n - 1.0
-    return HorizonSolution(
-        r_camera_km=-c,
-        body_center_camera_km=c,
-        covariance_km2=cov,
-        n=n,
-        n_points=m,
-        rms_residual=float(np.sqrt(np.mean(res**2))),
-        method=method,
-    )
+    return nn, k, Binv, c
+
+
+def _center_cov(n: np.ndarray, Rsb: np.ndarray, H: np.ndarray, nn: float, k: float, Binv: np.ndarray) -> np.ndarray:
+    """Covariance (km^2) of the body centre from the whitened LOS covariance ``Rsb``, symmetrised."""
+    var = np.einsum("i,mij,j->m", n, Rsb, n)
+    Pn = np.linalg.inv(np.einsum("m,mi,mj->ij", 1.0 / var, H, H))
+    F = -k * Binv @ (np.eye(3) - np.outer(n, n) / (nn - 1.0))
+    cov = F @ Pn @ F.T
+    return 0.5 * (cov + cov.T)
 
 
 def _unit_los(los_camera: np.ndarray) -> np.ndarray:

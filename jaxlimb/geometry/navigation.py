@@ -162,18 +162,7 @@ def navigate(
     u = _unit(los_camera, "los_camera")
     if not (np.isfinite(sigma_range_km) and sigma_range_km >= 0):
         raise GeometryError(f"`sigma_range_km` must be finite and >= 0, got {sigma_range_km!r}")
-    if los_cov_rad2 is not None and los_cov_px2 is not None:
-        raise GeometryError("give either `los_cov_rad2` or `los_cov_px2`, not both")
-    if los_cov_px2 is not None:
-        if camera is None:
-            raise GeometryError("`los_cov_px2` needs `camera`")
-        rc = camera.project(u) if center_rc is None else np.asarray(center_rc, dtype=float)
-        G = camera.los_jacobian(rc)
-        P_u = G @ _cov(los_cov_px2, (2, 2), "los_cov_px2") @ G.T
-    else:
-        e1, e2 = tangent_basis(u)
-        E = np.stack([e1, e2], axis=1)
-        P_u = E @ _cov(los_cov_rad2, (2, 2), "los_cov_rad2") @ E.T
+    P_u = _unit_los_cov(u, los_cov_rad2, los_cov_px2, camera, center_rc)
     r_om = range_km * u
     Ct = C.T
     P_los = Ct @ (range_km**2 * P_u) @ C
@@ -184,6 +173,23 @@ def navigate(
     parts = {"los": P_los, "range": P_rng, "attitude": P_att, "body": P_body}
     P = P_los + P_rng + P_att + P_body
     return NavigationSolution(position_km=r_o, covariance_km2=0.5 * (P + P.T), contributions_km2=parts)
+
+
+def _unit_los_cov(u: np.ndarray, los_cov_rad2: np.ndarray | None, los_cov_px2: np.ndarray | None, camera,
+                  center_rc: np.ndarray | None) -> np.ndarray:
+    """3x3 covariance of the unit LOS ``u`` (camera frame) from :func:`navigate`'s ``los_cov_rad2`` or
+    ``los_cov_px2`` (validated)."""
+    if los_cov_rad2 is not None and los_cov_px2 is not None:
+        raise GeometryError("give either `los_cov_rad2` or `los_cov_px2`, not both")
+    if los_cov_px2 is not None:
+        if camera is None:
+            raise GeometryError("`los_cov_px2` needs `camera`")
+        rc = camera.project(u) if center_rc is None else np.asarray(center_rc, dtype=float)
+        G = camera.los_jacobian(rc)
+        return G @ _cov(los_cov_px2, (2, 2), "los_cov_px2") @ G.T
+    e1, e2 = tangent_basis(u)
+    E = np.stack([e1, e2], axis=1)
+    return E @ _cov(los_cov_rad2, (2, 2), "los_cov_rad2") @ E.T
 
 
 def monte_carlo_navigation(

@@ -89,6 +89,27 @@ def _a_of_alpha(k: float, alpha: float) -> float:
     return s * math.cos(alpha) / den
 
 
+def _alpha_of_a(k: float, target: float, tol: float, max_iter: int, what: str) -> float:
+    """The sphere's angular radius whose image ellipse has the radial semi-axis ``target`` (focal units) at
+    ``k = rho_c / f``: Newton with a central-difference derivative (the map is smooth and increasing); ``what``
+    describes the ellipse in the :class:`GeometryError` of no solution."""
+    alpha = math.atan(target)
+    for _ in range(max_iter):
+        val = _a_of_alpha(k, alpha)
+        h = 1e-6 * alpha
+        d = (_a_of_alpha(k, alpha + h) - _a_of_alpha(k, alpha - h)) / (2 * h)
+        if not (math.isfinite(val) and math.isfinite(d) and d > 0):
+            raise GeometryError(f"no sphere has an image ellipse {what}")
+        step = (val - target) / d
+        alpha_new = alpha - step
+        if alpha_new <= 0:
+            alpha_new = 0.5 * alpha
+        alpha = alpha_new
+        if abs(step) <= tol * max(alpha, 1e-300):
+            break
+    return alpha
+
+
 def sphere_from_ellipse_center(focal_px: float, principal_point_rc, ellipse_center_rc, a_px: float,
                                tol: float = 1e-15, max_iter: int = 60) -> SphereImage:
     """Invert the sphere-image map: ellipse centre and radial semi-axis -> the sphere's image.
@@ -118,21 +139,7 @@ def sphere_from_ellipse_center(focal_px: float, principal_point_rc, ellipse_cent
     phi = math.atan2(dr, dc) if rho_c > 0 else 0.0
     k = rho_c / f
     target = a / f
-    alpha = math.atan(target)
-    # Newton on alpha with a central-difference derivative (the map is smooth and increasing)
-    for _ in range(max_iter):
-        val = _a_of_alpha(k, alpha)
-        h = 1e-6 * alpha
-        d = (_a_of_alpha(k, alpha + h) - _a_of_alpha(k, alpha - h)) / (2 * h)
-        if not (math.isfinite(val) and math.isfinite(d) and d > 0):
-            raise GeometryError(f"no sphere has an image ellipse centred {rho_c:.6g} px off-axis with a = {a:.6g} px")
-        step = (val - target) / d
-        alpha_new = alpha - step
-        if alpha_new <= 0:
-            alpha_new = 0.5 * alpha
-        alpha = alpha_new
-        if abs(step) <= tol * max(alpha, 1e-300):
-            break
+    alpha = _alpha_of_a(k, target, tol, max_iter, f"centred {rho_c:.6g} px off-axis with a = {a:.6g} px")
     s = math.sin(alpha)
     t = _tan_theta(k, s)
     th = math.atan(t)

@@ -72,12 +72,7 @@ def _box_ends(samp, G0, I0, g0, h, t, nrm, background):  # type: ignore[no-untyp
 
 
 def box_filter(
-    gradient: np.ndarray,
-    image: np.ndarray,
-    points_rc: np.ndarray,
-    box_size: int,
-    *,
-    background: float = 0.0,
+    gradient: np.ndarray, image: np.ndarray, points_rc: np.ndarray, box_size: int, *, background: float = 0.0,
     valid: np.ndarray | None = None,
 ) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Apply the box-based outlier filter to integer candidate pixels (vectorised).
@@ -111,11 +106,7 @@ def box_filter(
         return np.zeros(0, bool), {}
     G0 = np.asarray(gradient)  # gathered values are converted to float64 below
     I0 = np.asarray(image)
-    V = None
-    if valid is not None:
-        V = np.asarray(valid, bool)
-        if V.shape != G0.shape:
-            raise ConfigError(f"valid mask shape {V.shape} does not match the gradient shape {G0.shape}")
+    V = None if valid is None else _valid_mask(valid, G0.shape)
     pr, pc = P[:, 0], P[:, 1]
     patch = _gather_boxes(G0, pr, pc, h, V)
     g0 = G0[pr, pc].astype(np.float64)
@@ -124,10 +115,7 @@ def box_filter(
     n_r, n_c = -t_c, t_r
     samp = _box_sampler(pr, pc, h, G0.shape)
     end_ratio, far_grad, grey_ratio, i1, i2 = _box_ends(samp, G0, I0, g0, h, (t_r, t_c), (n_r, n_c), background)
-    keep = (ratio < EIGEN_RATIO_MAX) & (end_ratio > END_RATIO_MIN) & (grey_ratio < FAR_GREY_RATIO_MAX)
-    if h >= 3:
-        keep &= far_grad < FAR_GRADIENT_MAX
-    keep &= g0 > 0
+    keep = _passes_thresholds(ratio, end_ratio, grey_ratio, far_grad, g0, h)
     if V is not None:
         for dr_, dc_ in ((t_r, t_c), (-t_r, -t_c), (n_r, n_c), (-n_r, -n_c)):
             keep &= samp(V, h * dr_, h * dc_, False) > 0.5
@@ -142,6 +130,25 @@ def box_filter(
         "normal_rc": np.stack([sign * n_r, sign * n_c], axis=1),
     }
     return keep, diag
+
+
+def _valid_mask(valid: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """``valid`` as a boolean mask, checked to have the gradient's ``shape``."""
+    V = np.asarray(valid, bool)
+    if V.shape != shape:
+        raise ConfigError(f"valid mask shape {V.shape} does not match the gradient shape {shape}")
+    return V
+
+
+def _passes_thresholds(ratio: np.ndarray, end_ratio: np.ndarray, grey_ratio: np.ndarray, far_grad: np.ndarray,
+                       g0: np.ndarray, h: int) -> np.ndarray:
+    """The points whose box tests pass their thresholds (the far-gradient test for boxes of half-side >= 3) and
+    whose gradient is positive."""
+    keep = (ratio < EIGEN_RATIO_MAX) & (end_ratio > END_RATIO_MIN) & (grey_ratio < FAR_GREY_RATIO_MAX)
+    if h >= 3:
+        keep &= far_grad < FAR_GRADIENT_MAX
+    keep &= g0 > 0
+    return keep
 
 
 def _gather_boxes(G0: np.ndarray, pr: np.ndarray, pc: np.ndarray, h: int, V: np.ndarray | None) -> np.ndarray:

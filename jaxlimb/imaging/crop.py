@@ -290,32 +290,9 @@ def detect_body(image: np.ndarray, options: DetectOptions | None = None, *, sky_
         )
     if sky_dn is not None:
         gmin = float(sky_dn)  # the background level of the region (grey tones of the box filter)
-    gt, dark, mask, (x, y, w, h) = _lit_region(sm, gmin, gmax, sig_s, opt, sky_dn is not None)
-    full_mask = np.zeros(sm.shape, np.uint8)
-    full_mask[y : y + h, x : x + w] = mask
-    shape = _region_shape(mask, x, y, f)
-    touches = bool(x == 0 or y == 0 or x + w >= sm.shape[1] or y + h >= sm.shape[0])
-    m = MARGIN_PX
-    r0 = max(0, y * f - m)
-    r1 = min(R, (y + h) * f + m + (R - (R // f) * f))
-    c0 = max(0, x * f - m)
-    c1 = min(C, (x + w) * f + m + (C - (C // f) * f))
-    crop = detect_cropping(sm, threshold=gmin + 0.1 * contrast) if touches else CropInfo(0, (), 0.0)
-    region = BodyRegion(
-        roi=(int(r0), int(r1), int(c0), int(c1)),
-        threshold=float(gt),
-        background=gmin,
-        peak=gmax,
-        noise_sigma=float(sigma),
-        **shape,
-        lit_fraction=float(shape["area_px"] / (R * C)),
-        touches_border=touches,
-        factor=f,
-        crop=crop,
-        mask_small=full_mask,
-        bright_sky=sky_dn is not None,
-        dark_surface=dark,
-    )
+    gt, dark, mask, box = _lit_region(sm, gmin, gmax, sig_s, opt, sky_dn is not None)
+    region = _body_region(sm, f, (R, C), mask, box, (float(gt), gmin, gmax, contrast), float(sigma), dark,
+                          sky_dn is not None)
     if opt.run_checks:
         if region.lit_fraction > MAX_FILL_FRACTION and sky_dn is None:
             b = border_sky(sm)
@@ -328,6 +305,40 @@ def detect_body(image: np.ndarray, options: DetectOptions | None = None, *, sky_
                     pass
         check_region(region, sky_dn)
     return region
+
+
+def _body_region(sm: np.ndarray, f: int, full_shape: tuple[int, int], mask: np.ndarray, box: tuple[int, int, int, int],
+                 levels: tuple[float, float, float, float], sigma: float, dark: bool, bright_sky: bool) -> BodyRegion:
+    """The :class:`BodyRegion` of the lit region ``mask`` at ``box = (x, y, w, h)`` of the working image ``sm``
+    (reduced ``f`` times from ``full_shape``): its ROI in the full image, shape, border contact and cropping;
+    ``levels``: threshold, background, peak and contrast (DN)."""
+    (x, y, w, h), (R, C) = box, full_shape
+    gt, gmin, gmax, contrast = levels
+    full_mask = np.zeros(sm.shape, np.uint8)
+    full_mask[y : y + h, x : x + w] = mask
+    shape = _region_shape(mask, x, y, f)
+    touches = bool(x == 0 or y == 0 or x + w >= sm.shape[1] or y + h >= sm.shape[0])
+    m = MARGIN_PX
+    r0 = max(0, y * f - m)
+    r1 = min(R, (y + h) * f + m + (R - (R // f) * f))
+    c0 = max(0, x * f - m)
+    c1 = min(C, (x + w) * f + m + (C - (C // f) * f))
+    crop = detect_cropping(sm, threshold=gmin + 0.1 * contrast) if touches else CropInfo(0, (), 0.0)
+    return BodyRegion(
+        roi=(int(r0), int(r1), int(c0), int(c1)),
+        threshold=gt,
+        background=gmin,
+        peak=gmax,
+        noise_sigma=sigma,
+        **shape,
+        lit_fraction=float(shape["area_px"] / (R * C)),
+        touches_border=touches,
+        factor=f,
+        crop=crop,
+        mask_small=full_mask,
+        bright_sky=bright_sky,
+        dark_surface=dark,
+    )
 
 
 def _lit_region(sm: np.ndarray, gmin: float, gmax: float, sig_s: float, opt: DetectOptions, sky_known: bool):  # type: ignore[no-untyped-def]

@@ -174,6 +174,12 @@ def _outward_bright_to_dark(cand: np.ndarray, diag: dict, region: BodyRegion, of
     return np.einsum("ij,ij->i", out, diag["normal_rc"]) > 0
 
 
+def _timings(t0: float, t_detect: float, t_grad: float, t_box: float, t_fit: float) -> dict[str, float]:
+    """Seconds per stage of the gradient front end, and in all (to now) since ``t0``."""
+    times = {"detect": t_detect - t0, "gradient": t_grad - t_detect, "box": t_box - t_grad, "ransac_taubin": t_fit - t_box}
+    return {**times, "total": time.perf_counter() - t0}
+
+
 def _stage_info(pri, st, win, region, n_box, res, inl, n_dark, fit, shape) -> dict:  # type: ignore[no-untyped-def]
     """The gradient front end's stage counts and settings (:attr:`LimbCandidates.info`)."""
     return {
@@ -199,13 +205,8 @@ def _stage_info(pri, st, win, region, n_box, res, inl, n_dark, fit, shape) -> di
 
 
 def gradient_front_end(
-    image: np.ndarray,
-    prior: Prior | None = None,
-    *,
-    hints: Hints | None = None,
-    camera: Camera | None = None,
-    options: GradientOptions | None = None,
-    mask: np.ndarray | None = None,
+    image: np.ndarray, prior: Prior | None = None, *, hints: Hints | None = None, camera: Camera | None = None,
+    options: GradientOptions | None = None, mask: np.ndarray | None = None,
 ) -> LimbCandidates:
     """Limb points and initial circle by gradient + box filter + RANSAC + Taubin (§3-5).
 
@@ -260,9 +261,8 @@ def gradient_front_end(
                                                                        (pri, band, hints, camera))
     t_fit = time.perf_counter()
     check_radius(fit.radius, pri, band)
-    times = {"detect": t_detect - t0, "gradient": t_grad - t_detect, "box": t_box - t_grad, "ransac_taubin": t_fit - t_box}
     info = _stage_info(pri, st, win, region, n_box, res, inl, n_dark, fit, img.shape)
-    info["timings_s"] = {**times, "total": time.perf_counter() - t0}
+    info["timings_s"] = _timings(t0, t_detect, t_grad, t_box, t_fit)
     return _limb_candidates(pts[inl], fit, win.offset_rc, region, pri, hints, camera, info)
 
 

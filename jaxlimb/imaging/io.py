@@ -160,20 +160,7 @@ def validate_image(
         Non-numeric data, wrong dimensionality, empty, smaller than ``min_size``,
         NaN/inf values, or (``reject_constant``) a constant image.
     """
-    try:
-        a = np.asarray(image)
-    except Exception as e:  # pragma: no cover - exotic array-likes
-        raise ImageContentError(f"{name} cannot be converted to an array: {e}") from None
-    if a.dtype == np.bool_:
-        a = a.astype(np.uint8)
-    if not (np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating)):
-        raise ImageContentError(f"{name} must be a numeric array (integer or float), got dtype {a.dtype}")
-    if a.ndim == 3 and a.shape[2] == 1:
-        a = a[..., 0]
-    if a.ndim == 3 and a.shape[2] in (3, 4) and a.shape[0] > 4:
-        if colour_order not in ("rgb", "bgr"):
-            raise ImageContentError(f"colour_order must be 'rgb' or 'bgr', got {colour_order!r}")
-        a = _to_grey(a, colour_order, name)
+    a = _grey_array(image, name, colour_order)
     if a.ndim != 2:
         raise ImageContentError(
             f"{name} must be 2-D [row, col] (or colour [row, col, 3|4]), got shape {a.shape}"
@@ -193,6 +180,26 @@ def validate_image(
     if reject_constant and float(out.max()) == float(out.min()):
         raise ImageContentError(f"{name} is constant (every pixel = {float(out.min())!r}); no limb to find")
     return out
+
+
+def _grey_array(image: Any, name: str, colour_order: str) -> np.ndarray:
+    """``image`` as a numeric array (booleans as ``uint8``), a single channel squeezed and colour converted to
+    grey; its dimensionality is not checked."""
+    try:
+        a = np.asarray(image)
+    except Exception as e:  # pragma: no cover - exotic array-likes
+        raise ImageContentError(f"{name} cannot be converted to an array: {e}") from None
+    if a.dtype == np.bool_:
+        a = a.astype(np.uint8)
+    if not (np.issubdtype(a.dtype, np.integer) or np.issubdtype(a.dtype, np.floating)):
+        raise ImageContentError(f"{name} must be a numeric array (integer or float), got dtype {a.dtype}")
+    if a.ndim == 3 and a.shape[2] == 1:
+        a = a[..., 0]
+    if a.ndim == 3 and a.shape[2] in (3, 4) and a.shape[0] > 4:
+        if colour_order not in ("rgb", "bgr"):
+            raise ImageContentError(f"colour_order must be 'rgb' or 'bgr', got {colour_order!r}")
+        a = _to_grey(a, colour_order, name)
+    return a
 
 
 # ----------------------------------------------------------------------------- readers
@@ -330,21 +337,7 @@ def load_image(
     """
     p = Path(path)
     _check_readable_file(p)
-    suf = _suffix(p)
-    header = None
-    hdu_index = None
-    n_filled = 0
-    if suf in _FITS_SUFFIXES:
-        fmt = "fits"
-        raw, header, hdu_index = read_fits(p)
-        raw, a, n_filled = _fits_as_float(raw, p)
-    else:
-        fmt = {".png": "png", ".tif": "tiff", ".tiff": "tiff"}.get(suf, "jp2" if suf in _JP2_SUFFIXES else "other")
-        raw = _read_cv2(p, fmt)
-        if fmt == "jp2":
-            header = read_jp2_header(p)
-        a = raw
-
+    fmt, raw, a, header, hdu_index, n_filled = _read_raw(p)
     was_colour = a.ndim == 3 and a.shape[2] in (3, 4)
     img = validate_image(
         a,
@@ -367,6 +360,26 @@ def load_image(
         n_nonfinite_filled=n_filled,
     )
     return img, info
+
+
+def _read_raw(p: Path) -> tuple[str, np.ndarray, np.ndarray, Any, int | None, int]:
+    """The file's format, stored array, the array to validate (FITS: float, non-finite pixels filled), header,
+    FITS HDU index and number of filled pixels."""
+    suf = _suffix(p)
+    header = None
+    hdu_index = None
+    n_filled = 0
+    if suf in _FITS_SUFFIXES:
+        fmt = "fits"
+        raw, header, hdu_index = read_fits(p)
+        raw, a, n_filled = _fits_as_float(raw, p)
+    else:
+        fmt = {".png": "png", ".tif": "tiff", ".tiff": "tiff"}.get(suf, "jp2" if suf in _JP2_SUFFIXES else "other")
+        raw = _read_cv2(p, fmt)
+        if fmt == "jp2":
+            header = read_jp2_header(p)
+        a = raw
+    return fmt, raw, a, header, hdu_index, n_filled
 
 
 def _check_readable_file(p: Path) -> None:

@@ -99,25 +99,9 @@ def sun_truth_from_header(header: Any, *, rows_flipped: bool = False, n_limb: in
         Missing ``RSUN_OBS``/WCS keywords or a WCS that cannot map the Sun centre.
     """
     from astropy import units as u
-    from astropy.io import fits
     from astropy.wcs import WCS
 
-    if not isinstance(header, fits.Header):
-        try:
-            header = fits.Header(dict(header))
-        except Exception as e:
-            raise ConfigError(f"header must be a FITS header or mapping, got {type(header).__name__}: {e}") from None
-    if ignore_rotation and "CROTA2" in header:
-        header = header.copy()
-        header["CROTA2"] = 0.0
-    if "RSUN_OBS" not in header:
-        raise ConfigError("header has no RSUN_OBS (observed solar radius, arcsec)")
-    rsun = float(header["RSUN_OBS"])
-    if not (math.isfinite(rsun) and rsun > 0):
-        raise ConfigError(f"header RSUN_OBS must be a finite angle > 0 arcsec, got {rsun!r}")
-    for k in ("CRPIX1", "CRPIX2", "CDELT1", "CDELT2", "CTYPE1", "CTYPE2"):
-        if k not in header and not (k.startswith("CDELT") and "CD1_1" in header):
-            raise ConfigError(f"header is missing the WCS keyword {k}")
+    header, rsun = _checked_header(header, ignore_rotation)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         w = WCS(header, naxis=2)
@@ -143,6 +127,30 @@ def sun_truth_from_header(header: Any, *, rows_flipped: bool = False, n_limb: in
             raise ConfigError("rows_flipped=True needs NAXIS2 in the header")
         row = (ny - 1) - y0
     return SunTruth(center_rc=(row, x0), radius_px=radius, rsun_obs_arcsec=rsun)
+
+
+def _checked_header(header: Any, ignore_rotation: bool) -> tuple[Any, float]:
+    """``header`` as a FITS header (``CROTA2`` set to 0 with ``ignore_rotation``) with its WCS keywords checked,
+    and its ``RSUN_OBS`` (arcsec, finite and > 0)."""
+    from astropy.io import fits
+
+    if not isinstance(header, fits.Header):
+        try:
+            header = fits.Header(dict(header))
+        except Exception as e:
+            raise ConfigError(f"header must be a FITS header or mapping, got {type(header).__name__}: {e}") from None
+    if ignore_rotation and "CROTA2" in header:
+        header = header.copy()
+        header["CROTA2"] = 0.0
+    if "RSUN_OBS" not in header:
+        raise ConfigError("header has no RSUN_OBS (observed solar radius, arcsec)")
+    rsun = float(header["RSUN_OBS"])
+    if not (math.isfinite(rsun) and rsun > 0):
+        raise ConfigError(f"header RSUN_OBS must be a finite angle > 0 arcsec, got {rsun!r}")
+    for k in ("CRPIX1", "CRPIX2", "CDELT1", "CDELT2", "CTYPE1", "CTYPE2"):
+        if k not in header and not (k.startswith("CDELT") and "CD1_1" in header):
+            raise ConfigError(f"header is missing the WCS keyword {k}")
+    return header, rsun
 
 
 def hmi_512_truth() -> SunTruth:

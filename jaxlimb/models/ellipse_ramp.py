@@ -105,6 +105,16 @@ def ellipse_ramp_intensity(p: EllipseRampParams, rc):
     jax.Array (n,)
         Model intensity at each pixel.
     """
+    u, top = _depth_and_limb_level(p, rc)
+    t = p.k * u
+    cdf = jax.scipy.special.ndtr(t)
+    pdf = jnp.exp(-0.5 * t * t) / math.sqrt(2.0 * math.pi)
+    return p.ymin + (top - p.ymin) * cdf + p.g * (u * cdf + pdf / p.k) + p.g2 * _blurred_sqrt(t) / jnp.sqrt(p.k)
+
+
+def _depth_and_limb_level(p: EllipseRampParams, rc):
+    """``u = rho a - beta`` (~ depth inside the limb, px) and the limb level ``T(phi)`` of
+    :func:`ellipse_ramp_intensity` at each pixel."""
     x, y = ellipse_coords(p, rc)
     sq = p.rho**2 * x * x + y * y
     beta = jnp.sqrt(jnp.where(sq > 0, sq, 1.0))
@@ -112,10 +122,7 @@ def ellipse_ramp_intensity(p: EllipseRampParams, rc):
     rr = jnp.sqrt(jnp.where(x * x + y * y > 0, x * x + y * y, 1.0))
     c, s = x / rr, y / rr
     top = p.ymax + p.h1 * c + p.h2 * s + p.h3 * (c * c - s * s) + p.h4 * (2.0 * c * s)
-    t = p.k * u
-    cdf = jax.scipy.special.ndtr(t)
-    pdf = jnp.exp(-0.5 * t * t) / math.sqrt(2.0 * math.pi)
-    return p.ymin + (top - p.ymin) * cdf + p.g * (u * cdf + pdf / p.k) + p.g2 * _blurred_sqrt(t) / jnp.sqrt(p.k)
+    return u, top
 
 
 _SQRT_X0, _SQRT_H, _SQRT_N = -10.0, 0.01, 2601  # table of B1 on [-10, 16]

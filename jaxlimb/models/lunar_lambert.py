@@ -72,7 +72,7 @@ Widened (:data:`LIMB_PROFILE_GLOW`, :class:`GlowProfileParams`): plus a glow abo
 shell whose emission falls as :math:`e^{-h/H}` with the altitude (a horizon glow of dust or an exosphere; the
 ``glow`` family of :mod:`jaxlimb.render.independent`): ``glow`` times :math:`e^{-s/H}` at a distance ``s`` above the
 limb, and times half the grazing column, :math:`\tfrac12\mathrm{erfcx}(\sqrt{u/H})`, at a depth ``u`` on the disc
-(:func:`~jaxlimb.models.profile_radiance.glow_inside`, :func:`~jaxlimb.models.profile_radiance.glow_outside`); ``H = exp(log_h)`` px.  The disc side is integrated with the
+(:func:`~jaxlimb.models.profile_glow.glow_inside`, :func:`~jaxlimb.models.profile_glow.glow_outside`); ``H = exp(log_h)`` px.  The disc side is integrated with the
 radiance; the sky side blurred in closed form.  The pipeline adds the glow only when a score test asks for it
 (:func:`jaxlimb.pipeline.profile.glow.widen_glow`).  The shell is lit by the Sun: at the limb point of image
 position angle :math:`\psi` from the Sun's image direction the solar elevation over the tangent point is
@@ -97,10 +97,10 @@ import jax.numpy as jnp
 from .._programs import stored_jit
 from ._base import LimbModel, fused_model
 from .blur_quadrature import blur_moments, blur_nodes, blur_window, curvature_blur, quadrature_nodes, window_terms
+from .profile_glow import glow_inside, glow_outside
 from .profile_params import (PHYSICAL_L, PROFILE_FIXED, AnisoProfileParams, GlowProfileParams, LimbProfileParams,
                              MinnaertProfileParams, glow_fields, lunar_lambert_slope, lunar_lambert_weight)
-from .profile_radiance import (WINDOW_KEYS, aniso_terms_of, aniso_var, glow_inside, glow_outside, limb_geometry,
-                               radiance_parts, window_regime)
+from .profile_radiance import WINDOW_KEYS, aniso_terms_of, aniso_var, limb_geometry, radiance_parts, window_regime
 
 
 def _add_window(parts: dict, terms, dv0, dv1, scale=1.0, keys: int = len(WINDOW_KEYS)) -> None:

@@ -31,8 +31,9 @@ import numpy as np
 
 from .._programs import stored_jit
 from .blur_quadrature import blur_moments, blur_nodes, blur_window
+from .profile_glow import glow_inside, glow_outside
 from .profile_params import GlowProfileParams, LimbProfileParams
-from .profile_radiance import glow_inside, glow_outside, limb_geometry, radiance_parts
+from .profile_radiance import limb_geometry, radiance_parts
 
 
 @stored_jit

@@ -1,7 +1,8 @@
 r"""The pieces of the physical limb profile (:mod:`jaxlimb.models.lunar_lambert`) evaluated at one depth: the
 lunar-Lambert radiance and its partial derivatives, the terminator's depth along a ray and the window of the blur
-integral cut to its lit side (both with their partial derivatives), the glow above the limb and the anisotropic
-blur's angular terms; and per pixel, its geometry relative to the limb ellipse and the branch its window takes.
+integral cut to its lit side (both with their partial derivatives) and the anisotropic blur's angular terms; and per
+pixel, its geometry relative to the limb ellipse and the branch its window takes (the glow above the limb:
+:mod:`jaxlimb.models.profile_glow`).
 
 The derivatives are those of the functions as written (the quadrature of :mod:`jaxlimb.models.blur_quadrature`
 moves its nodes with the window's ends, so its exact Jacobian needs the radiance's derivative in the depth and the
@@ -11,11 +12,12 @@ ends' derivatives in every per-pixel quantity: :func:`radiance_parts`' ``I_v``, 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 
-from .profile_params import AnisoProfileParams, GlowProfileParams, LimbProfileParams
+from .profile_params import AnisoProfileParams, LimbProfileParams
 from .sigmoid import ellipse_coords
 
 #: The per-pixel quantities the window's ends depend on: distance ``d``, limb radius ``R``, blur ``se``, the
@@ -86,6 +88,48 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
         radiance (units of ``amp``) and its partials in ``R``, ``cpsi``, ``alpha0``, ``phase``, ``L``, ``kappa`` (all
         at fixed ``v``), in ``v`` (at fixed ``R``), in ``L_slope`` and in ``L_ref``.
     """
+    r = _ray(p, v, R, cpsi, alpha0)
+    G, dg, below, scale, Lp = _point_weight(p, r, cpsi)
+    I, I_mu0, I_mu, I_L, log_mm, kappa = _lunar_lambert(p, r, Lp, brightened)
+    mu0_beta, q_R, q_v, I_R, I_v = _depth_partials(r, v, R, alpha0, I, I_mu0, I_mu, kappa, brightened)
+    I_cpsi = I_mu0 * r.s_em * r.sph
+    I_a0 = I_mu0 * mu0_beta * r.q
+    I_ph = I_mu0 * (r.s_em * r.cph * cpsi - r.c_em * r.sph)
+    # the weight's own change with the point, through dg (beta = q alpha0; q_R = v^2 / R^2 at fixed v, q_v = -2 v / R
+    # at fixed R)
+    Ls = scale * p.L_slope * I_L
+    k = Ls * G * (-r.sb * r.cph - r.cb * r.a_s)  # d dg / d beta
+    turn = p.L_slope * dg * I_L
+    return (I, I_R + k * alpha0 * q_R, I_cpsi - Ls * G * r.sb * r.sph, I_a0 + k * r.q,
+            I_ph + Ls * (G * (-r.cb * r.sph - r.sb * r.cph * cpsi) - 1.0), I_L + jnp.where(below, turn, 0.0),
+            -log_mm * I, I_v + k * alpha0 * q_v, scale * dg * I_L, jnp.where(below, 0.0, turn))
+
+
+class _Ray(NamedTuple):
+    """A ray at depth ``v**2`` below the limb (:func:`radiance_parts`): ``q = 1 - v^2/R``, ``rt = sqrt((1 + q)/R)``,
+    the emission cosine ``mu``, the turn ``beta = q alpha0`` as ``cb, sb``, ``s_em, c_em = sin, cos(e - beta)``, the
+    phase's ``sph, cph``, ``a_s = sph cpsi``, where the incidence cosine ``mu0`` is positive (``lit``), ``m0``
+    (``mu0`` there, 0 elsewhere) and ``inv_den = 1 / (m0 + mu)``."""
+
+    v2: jax.Array
+    inv_R: jax.Array
+    q: jax.Array
+    rt: jax.Array
+    mu: jax.Array
+    cb: jax.Array
+    sb: jax.Array
+    s_em: jax.Array
+    c_em: jax.Array
+    sph: jax.Array
+    cph: jax.Array
+    a_s: jax.Array
+    lit: jax.Array
+    m0: jax.Array
+    inv_den: jax.Array
+
+
+def _ray(p: LimbProfileParams, v, R, cpsi, alpha0) -> _Ray:
+    """The :class:`_Ray` at depth ``v**2`` (emission and incidence cosines, the ray's turn)."""
     v2 = v * v
     inv_R = 1.0 / R
     q = jnp.clip(1.0 - v2 * inv_R, 0.0, 1.0)
@@ -100,24 +144,45 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
     lit = mu0 > 0
     m0 = jnp.where(lit, mu0, 0.0)
     inv_den = 1.0 / jnp.where(lit, m0 + mu, 1.0)
+    return _Ray(v2, inv_R, q, rt, mu, cb, sb, s_em, c_em, sph, cph, a_s, lit, m0, inv_den)
+
+
+def _point_weight(p: LimbProfileParams, r: _Ray, cpsi):
+    """``G = d acos(cg) / d cg``, the phase angle's change ``dg`` across the disc, the weight's branch
+    (``L < L_ref``), its ``scale = min(L, L_ref)`` and the weight ``Lp`` at the point."""
     # the phase angle at the point: the ray is turned by beta from the centre's, toward the Sun by cpsi
-    cg = jnp.clip(cb * cph - sb * sph * cpsi, -1.0, 1.0 - 1e-15)
+    cg = jnp.clip(r.cb * r.cph - r.sb * r.sph * cpsi, -1.0, 1.0 - 1e-15)
     G = -1.0 / jnp.sqrt(1.0 - cg * cg)  # d acos(cg) / d cg
     dg = jnp.arccos(cg) - p.phase
     below = p.L < p.L_ref
     scale = jnp.where(below, p.L, p.L_ref)  # min(L, L_ref): relative below McEwen's weight, absolute above
     Lp = p.L + p.L_slope * scale * dg  # the weight at the point
+    return G, dg, below, scale, Lp
+
+
+def _lunar_lambert(p: LimbProfileParams, r: _Ray, Lp, brightened: bool):
+    """The radiance ``I``, its partials in ``mu0``, ``mu`` and the weight ``L``, ``log(mu0 mu)`` and the
+    brightening's exponent ``kappa`` (0 without it)."""
+    mu, m0, inv_den = r.mu, r.m0, r.inv_den
     two_L = 2.0 * Lp
     ratio = m0 * inv_den  # mu0 / (mu0 + mu)
     # (mu0 mu)^-kappa: Minnaert's limb brightening (L = 0: mu0^k mu^(k-1) with k = 1 - kappa); 1 at kappa = 0
-    log_mm = jnp.log(jnp.where(lit & (mu > 0), m0 * mu, 1.0))
+    log_mm = jnp.log(jnp.where(r.lit & (mu > 0), m0 * mu, 1.0))
     kappa = p.kappa if brightened else 0.0
     brighten = jnp.exp(-kappa * log_mm) if brightened else 1.0
     I = (two_L * ratio + (1.0 - Lp) * m0) * brighten
     # d/dmu0 of the brightened law: its lunar-Lambert part minus kappa I / mu0 (ratio / mu0 = inv_den)
-    I_mu0 = jnp.where(lit, (two_L * (mu * inv_den - kappa) * inv_den + (1.0 - Lp) * (1.0 - kappa)) * brighten, 0.0)
+    I_mu0 = jnp.where(r.lit, (two_L * (mu * inv_den - kappa) * inv_den + (1.0 - Lp) * (1.0 - kappa)) * brighten, 0.0)
     I_mu = -two_L * ratio * inv_den * brighten
-    mu0_beta = -c_em * a_s + s_em * cph  # d mu0 / d beta
+    I_L = (2.0 * ratio - m0) * brighten
+    return I, I_mu0, I_mu, I_L, log_mm, kappa
+
+
+def _depth_partials(r: _Ray, v, R, alpha0, I, I_mu0, I_mu, kappa, brightened: bool):
+    """``d mu0 / d beta``, ``q_R`` (fixed ``v``), ``q_v`` (fixed ``R``) and the radiance's partials ``I_R`` at
+    fixed ``v`` and ``I_v`` at fixed ``R``, without the weight's change with the point."""
+    v2, inv_R, q, rt, cb, sb, a_s, cph = r.v2, r.inv_R, r.q, r.rt, r.cb, r.sb, r.a_s, r.cph
+    mu0_beta = -r.c_em * a_s + r.s_em * cph  # d mu0 / d beta
     q_R = v2 * inv_R * inv_R
     mu_R = -v * q * inv_R / (R * rt)
     s_R = q_R * cb - mu_R * sb
@@ -134,18 +199,7 @@ def radiance_parts(p: LimbProfileParams, v, R, cpsi, alpha0, brightened: bool = 
     I_v = I_mu0 * mu0_v + I_mu * mu_v
     if brightened:  # the mu part of d(mu^-kappa)/dv: -kappa I mu_v / mu, mu_v / mu = 2 q / (v (1 + q))
         I_v = I_v - kappa * I * 2.0 * q / (v * (1.0 + q))
-    I_cpsi = I_mu0 * s_em * sph
-    I_a0 = I_mu0 * mu0_beta * q
-    I_ph = I_mu0 * (s_em * cph * cpsi - c_em * sph)
-    I_L = (2.0 * ratio - m0) * brighten
-    # the weight's own change with the point, through dg (beta = q alpha0; q_R = v^2 / R^2 at fixed v, q_v = -2 v / R
-    # at fixed R)
-    Ls = scale * p.L_slope * I_L
-    k = Ls * G * (-sb * cph - cb * a_s)  # d dg / d beta
-    turn = p.L_slope * dg * I_L
-    return (I, I_R + k * alpha0 * q_R, I_cpsi - Ls * G * sb * sph, I_a0 + k * q,
-            I_ph + Ls * (G * (-cb * sph - sb * cph * cpsi) - 1.0), I_L + jnp.where(below, turn, 0.0), -log_mm * I,
-            I_v + k * alpha0 * q_v, scale * dg * I_L, jnp.where(below, 0.0, turn))
+    return mu0_beta, q_R, q_v, I_R, I_v
 
 
 def terminator_depth(p: LimbProfileParams, R, cpsi, alpha0, tangents: bool = False):
@@ -193,13 +247,7 @@ def terminator_depth(p: LimbProfileParams, R, cpsi, alpha0, tangents: bool = Fal
     dg = jnp.stack([sph * cph / den, jnp.zeros_like(den), cpsi / den])
     da = jnp.array([0.0, 1.0, 0.0]).reshape((3,) + (1,) * jnp.ndim(e))
     de = dg * (1.0 + alpha0 * jnp.cos(g)) + da * jnp.sin(g)
-    for _ in range(2):  # error O(alpha0^8) rad: the cut must sit on the terminator
-        sin_e, cos_e = jnp.sin(e), jnp.cos(e)
-        f, fp = e - alpha0 * sin_e - g, 1.0 - alpha0 * cos_e
-        if tangents:
-            df = fp * de - da * sin_e - dg
-            de = de - (df * fp - f * (alpha0 * sin_e * de - da * cos_e)) / (fp * fp)
-        e = e - f / fp
+    e, de = _newton_steps(e, de, g, dg, da, alpha0, tangents)
     if tangents:  # materialised: the partials' rows below would each repeat the Newton steps (XLA's loop fusion)
         e, de = jax.lax.optimization_barrier((e, de))
     ec = jnp.clip(e, 0.0, 0.5 * math.pi)
@@ -211,6 +259,19 @@ def terminator_depth(p: LimbProfileParams, R, cpsi, alpha0, tangents: bool = Fal
     d_e = half_inv * (-R * jnp.cos(ec)) * jnp.where((e > 0.0) & (e < 0.5 * math.pi), de, 0.0)  # (cpsi, a0, ph)
     zero = jnp.zeros_like(vt)
     return vt, ~wrapped, jnp.stack([zero, half_inv * (1.0 - jnp.sin(ec)), zero, d_e[0], d_e[1], d_e[2]])
+
+
+def _newton_steps(e, de, g, dg, da, alpha0, tangents: bool):
+    """Two Newton steps on ``e - alpha0 sin e = g`` from ``e``; with ``tangents`` also those of the tangents ``de``
+    (``(3, n)`` along ``(cpsi, a0, ph)``, given ``dg`` and ``da``)."""
+    for _ in range(2):  # error O(alpha0^8) rad: the cut must sit on the terminator
+        sin_e, cos_e = jnp.sin(e), jnp.cos(e)
+        f, fp = e - alpha0 * sin_e - g, 1.0 - alpha0 * cos_e
+        if tangents:
+            df = fp * de - da * sin_e - dg
+            de = de - (df * fp - f * (alpha0 * sin_e * de - da * cos_e)) / (fp * fp)
+        e = e - f / fp
+    return e, de
 
 
 def lit_limits(p: LimbProfileParams, v0, v1, R, cpsi, alpha0, dv0=None, dv1=None):
@@ -316,115 +377,6 @@ def window_regime(p: LimbProfileParams, rc):
     below = jnp.broadcast_to(p.L < p.L_ref, jnp.shape(d))  # the weight's branch (:func:`radiance_parts`)
     flags = (u0 > 1e-12, u1 > 1e-12, vt < v0, vt > v1, shallow, below)
     return sum(f.astype(jnp.int32) << i for i, f in enumerate(flags))
-
-
-_INV_SQRT_PI = 1.0 / math.sqrt(math.pi)
-
-
-def _erfcx(x):
-    """``exp(x^2) erfc(x)`` (``jax.scipy.special.erfcx``), finite for any real ``x``."""
-    return jax.scipy.special.erfcx(x)
-
-
-def glow_inside(p: GlowProfileParams, v, node: bool = False):
-    r"""The glow's radiance (units of ``amp``) at depth ``u = v^2`` inside the limb and its ``log_h`` derivative.
-
-    An optically thin shell whose emission falls as :math:`e^{-h/H}` with the altitude ``h`` (the glow of
-    :mod:`jaxlimb.render.independent.optics`, a dust or exosphere horizon glow): seen on the disc at depth ``u``
-    below the limb the ray leaves the surface at the emission cosine :math:`\mu = \sqrt{2u/R}` and climbs
-    :math:`h \approx \mu t + t^2/2R` along its length ``t``; its column over the grazing column
-    :math:`\sqrt{2\pi R H}` (which sets ``glow``) is, with :math:`x = \sqrt{u/H}` (Chapman 1931's grazing
-    integral, the half of a ray in front of the surface),
-
-    .. math:: \frac{1}{\sqrt{2\pi RH}}\int_0^\infty e^{-(\mu t + t^2/2R)/H}\,dt = \tfrac12\,\mathrm{erfcx}(x),
-
-    1/2 at the limb, :math:`\sqrt{H/4\pi u}` deep inside.  ``d erfcx(x)/dx = 2x erfcx(x) - 2/sqrt(pi)``,
-    ``dx/dlog_h = -x/2``; with ``node``, also the derivative in ``v`` (``dx/dv = x / v``).
-
-    Parameters
-    ----------
-    p : GlowProfileParams
-        Supplies ``log_h``, the log of the glow's scale height (px).
-    v : jax.Array
-        Square root of the depth below the limb (px^1/2).
-    node : bool
-        Also return the derivative in ``v``.
-
-    Returns
-    -------
-    tuple of jax.Array
-        ``(G, G_lh)`` or, with ``node``, ``(G, G_lh, G_v)``: the radiance per unit ``glow`` and its partials in
-        ``log_h`` and ``v``, shape of ``v``.
-    """
-    x = v * jnp.exp(-0.5 * p.log_h)
-    ex = _erfcx(x)
-    G = 0.5 * ex
-    G_lh = -0.5 * x * (x * ex - _INV_SQRT_PI)
-    if not node:
-        return G, G_lh
-    return G, G_lh, (x * ex - _INV_SQRT_PI) * jnp.exp(-0.5 * p.log_h)
-
-
-def glow_outside(p: GlowProfileParams, s, se, d, derivatives: bool):
-    r"""The blurred glow above the limb (units of ``amp`` per unit ``glow``) at signed distance ``s = d - R``
-    (px, positive outside) and, if asked, its partials in ``d``, ``R``, ``se`` and ``log_h``.
-
-    The radiance :math:`e^{-s'/H}` for :math:`s' > 0` (the miss column of the shell,
-    :math:`2p K_1(p/H) e^{p/H} e^{-(p-R)/H}`, over the grazing one, to :math:`O(s/R)`) convolved with the
-    Gaussian :math:`N(\cdot;\sigma_e)`: completing the square,
-
-    .. math:: E(s) = \int_0^\infty e^{-t/H} N(s - t)\,dt = e^{\sigma_e^2/2H^2 - s/H}\,
-              \Phi\big(s/\sigma_e - \sigma_e/H\big),
-
-    evaluated as ``exp(a - s/H + log Phi(w))`` (no overflow for ``H << se``).  Derivatives in closed form:
-    :math:`E' = N - E/H`, :math:`E'' = N' - E'/H` (``N' = -s N / se^2``), :math:`\partial_{\sigma_e} E = \sigma_e E''`
-    (the heat equation), :math:`H\,\partial_H E = (s E + \sigma_e^2 E')/H`.  As the profile
-    (:func:`jaxlimb.models.lunar_lambert.profile_integrals`), the 2-D blur adds the curvature term :math:`\sigma_e^2/(2d)\,E'`.
-
-    Parameters
-    ----------
-    p : GlowProfileParams
-        Supplies ``log_h``, the log of the glow's scale height (px).
-    s : jax.Array (n,)
-        Signed distance above the limb, ``d - R`` (px).
-    se : jax.Array
-        Blur sigma :math:`\sigma_e` (px), one for all pixels or ``(n,)``.
-    d : jax.Array (n,)
-        Distance of each pixel from the centre (px), for the curvature term.
-    derivatives : bool
-        Also return the partials.
-
-    Returns
-    -------
-    G : jax.Array (n,)
-        The blurred glow with its curvature term.
-    parts : dict of str to jax.Array (n,), or None
-        With ``derivatives``: ``G_d``, ``G_R``, ``G_se``, ``G_lh``, the partials in ``d``, ``R``, ``se`` and
-        ``log_h``; ``None`` otherwise.
-    """
-    H = jnp.exp(p.log_h)
-    inv_H = 1.0 / H
-    w = s / se - se * inv_H
-    E = jnp.exp(0.5 * (se * inv_H) ** 2 - s * inv_H + jax.scipy.special.log_ndtr(w))
-    N = jnp.exp(-0.5 * (s / se) ** 2) / (se * math.sqrt(2.0 * math.pi))
-    E1 = N - E * inv_H
-    k = se * se / (2.0 * d)
-    G = E + k * E1
-    if not derivatives:
-        return G, None
-    N1 = -s / (se * se) * N
-    N2 = (s * s / se**4 - 1.0 / (se * se)) * N
-    E2 = N1 - E1 * inv_H
-    E3 = N2 - E2 * inv_H
-    E_lh = (s * E + se * se * E1) * inv_H
-    E1_lh = (E + s * E1 + se * se * E2) * inv_H  # d/ds of E_lh
-    parts = {
-        "G_d": E1 + k * (E2 - E1 / d),
-        "G_R": -(E1 + k * E2),
-        "G_se": se * E2 + k * se * E3 + se / d * E1,
-        "G_lh": E_lh + k * E1_lh,
-    }
-    return G, parts
 
 
 def aniso_terms(dr, dc, d):

@@ -385,15 +385,7 @@ def render_mesh(
     options
         Rendering options.
     """
-    R = _orientation(R_body_to_camera)
-    t = np.asarray(t_camera, dtype=float).reshape(3)
-    if not np.all(np.isfinite(t)) or t[2] <= 0:
-        raise GeometryError(f"`t_camera` must be finite with z > 0, got {t!r}")
-    headlight = isinstance(sun_dir_camera, str) and sun_dir_camera == "headlight"
-    s = -t / np.linalg.norm(t) if (sun_dir_camera is None or headlight) else np.asarray(sun_dir_camera, dtype=float).reshape(3)
-    if not (np.all(np.isfinite(s)) and abs(np.linalg.norm(s) - 1.0) < 1e-3):
-        raise GeometryError(f"`sun_dir_camera` must be a unit vector, got {s!r}")
-    s = s / np.linalg.norm(s)
+    R, t, s, headlight = _pose_and_sun(R_body_to_camera, t_camera, sun_dir_camera)
     V = np.asarray(vertices, dtype=float)
     F = np.asarray(faces, dtype=np.int64)
     Xc = V @ R.T + t
@@ -424,6 +416,22 @@ def render_mesh(
     if options.quantize_bits is not None:
         image = np.clip(np.round(image), 0, 2**options.quantize_bits - 1)
     return MeshRender(image=image, center_rc=center, coverage=coverage)
+
+
+def _pose_and_sun(R_body_to_camera: np.ndarray, t_camera: np.ndarray,
+                  sun_dir_camera: np.ndarray | str | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+    """:func:`render_mesh`'s pose and unit Sun direction, checked, and whether the light is the ``"headlight"``
+    (the Sun behind the camera also for ``None``)."""
+    R = _orientation(R_body_to_camera)
+    t = np.asarray(t_camera, dtype=float).reshape(3)
+    if not np.all(np.isfinite(t)) or t[2] <= 0:
+        raise GeometryError(f"`t_camera` must be finite with z > 0, got {t!r}")
+    headlight = isinstance(sun_dir_camera, str) and sun_dir_camera == "headlight"
+    s = -t / np.linalg.norm(t) if (sun_dir_camera is None or headlight) else np.asarray(sun_dir_camera, dtype=float).reshape(3)
+    if not (np.all(np.isfinite(s)) and abs(np.linalg.norm(s) - 1.0) < 1e-3):
+        raise GeometryError(f"`sun_dir_camera` must be a unit vector, got {s!r}")
+    s = s / np.linalg.norm(s)
+    return R, t, s, headlight
 
 
 def look_at_rotation(view_dir_body: np.ndarray, up_body: np.ndarray | None = None, roll_rad: float = 0.0) -> np.ndarray:

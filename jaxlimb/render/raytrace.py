@@ -322,12 +322,43 @@ def _supersampled(scene: Scene, pr_all: np.ndarray, pc_all: np.ndarray, offs: np
     return vals
 
 
+def _subsample_offsets(reflectance_model: str, n_subsamples: int, pad: int) -> np.ndarray:
+    """The sub-pixel offsets of :func:`render_radiance`'s supersampling, after checking its options."""
+    if reflectance_model not in REFLECTANCE_MODELS:
+        raise ConfigError(f"`reflectance` must be one of {list(REFLECTANCE_MODELS)}, got {reflectance_model!r}")
+    offs = lattice_offsets(n_subsamples)
+    if not (isinstance(pad, (int, np.integer)) and pad >= 0):
+        raise ConfigError(f"`pad` must be an integer >= 0, got {pad!r}")
+    return offs
+
+
+def _limb_and_extent(scene: Scene, camera: Camera) -> tuple[ImageConic, ImageConic]:
+    """The limb's image conic and that of the body's outer extent (the atmosphere's shell, else the limb)."""
+    R = scene.R_body_to_camera
+    limb = image_conic(camera, scene.radii, scene.center_cam, R)
+    ext = limb
+    if scene.atmosphere is not None:
+        ext = image_conic(
+            camera, np.asarray(scene.radii) + scene.atmosphere.height_km, scene.center_cam, R
+        )
+    return limb, ext
+
+
+def _edge_and_inside(limb: ImageConic, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The window's pixels to supersample (near the limb; all of a tiny or very flat body) and those wholly
+    inside the limb."""
+    dist = _conic_distance(limb.conic, rows, cols)
+    a_px, b_px = limb.semi_axes_px
+    if b_px * b_px / a_px < 4.0:  # tiny or very flat: supersample everything
+        edge = np.ones((len(rows), len(cols)), bool)
+    else:
+        edge = np.abs(dist) <= _EDGE_THRESHOLD_PX
+    inside = (dist < 0) & ~edge
+    return edge, inside
+
+
 def render_radiance(
-    scene: Scene,
-    camera: Camera,
-    reflectance_model: str = "lommel-seeliger",
-    n_subsamples: int = 89,
-    pad: int = 0,
+    scene: Scene, camera: Camera, reflectance_model: str = "lommel-seeliger", n_subsamples: int = 89, pad: int = 0,
     lunar_lambert_coeffs: tuple[float, float, float] = LUNAR_LAMBERT_MCEWEN,
 ) -> RadianceWindow:
     """Render the noiseless radiance of ``scene`` over the pixels that can be non-zero.
@@ -344,18 +375,8 @@ def render_radiance(
         Margin (px) kept around the body and beyond the frame edges, so that a PSF of
         half-width ``pad`` can be applied to the window before cropping.
     """
-    if reflectance_model not in REFLECTANCE_MODELS:
-        raise ConfigError(f"`reflectance` must be one of {list(REFLECTANCE_MODELS)}, got {reflectance_model!r}")
-    offs = lattice_offsets(n_subsamples)
-    if not (isinstance(pad, (int, np.integer)) and pad >= 0):
-        raise ConfigError(f"`pad` must be an integer >= 0, got {pad!r}")
-    R = scene.R_body_to_camera
-    limb = image_conic(camera, scene.radii, scene.center_cam, R)
-    ext = limb
-    if scene.atmosphere is not None:
-        ext = image_conic(
-            camera, np.asarray(scene.radii) + scene.atmosphere.height_km, scene.center_cam, R
-        )
+    offs = _subsample_offsets(reflectance_model, n_subsamples, pad)
+    limb, ext = _limb_and_extent(scene, camera)
     r0, r1, c0, c1 = _window(camera, ext, pad)
     if r0 > r1 or c0 > c1:
         empty = np.zeros((0, 0))
@@ -363,13 +384,7 @@ def render_radiance(
     rows = np.arange(r0, r1 + 1, dtype=float)
     cols = np.arange(c0, c1 + 1, dtype=float)
     nr, nc = len(rows), len(cols)
-    dist = _conic_distance(limb.conic, rows, cols)
-    a_px, b_px = limb.semi_axes_px
-    if b_px * b_px / a_px < 4.0:  # tiny or very flat: supersample everything
-        edge = np.ones((nr, nc), bool)
-    else:
-        edge = np.abs(dist) <= _EDGE_THRESHOLD_PX
-    inside = (dist < 0) & ~edge
+    edge, inside = _edge_and_inside(limb, rows, cols)
     img = np.zeros((nr, nc))
     f = camera.focal_px
     rpp, cpp = camera.principal_point_rc  # type: ignore[misc]

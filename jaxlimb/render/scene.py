@@ -378,13 +378,7 @@ def earth_scene(
     _, u = _range_center(cam, center_rc, D)
     rc_c = cam.project(u)
     _, n_c = image_direction_camera(cam, rc_c, north_angle_deg)
-    ph_hat = p / D
-    z = np.array([0.0, 0.0, 1.0])
-    n_b = z - (z @ ph_hat) * ph_hat
-    n_b /= np.linalg.norm(n_b)
-    Bc = np.column_stack([u, n_c, np.cross(u, n_c)])
-    Bb = np.column_stack([-ph_hat, n_b, np.cross(-ph_hat, n_b)])
-    R = Bc @ Bb.T
+    R = _earth_to_camera(u, n_c, p / D)
     _, e = image_direction_camera(cam, rc_c, sun_angle_deg)
     s = sun_direction_for_phase(u, e, math.radians(ph))
     return Scene(
@@ -397,3 +391,13 @@ def earth_scene(
         atmosphere=atmosphere,
         name="earth",
     )
+
+
+def _earth_to_camera(u: np.ndarray, n_c: np.ndarray, ph_hat: np.ndarray) -> np.ndarray:
+    r"""The rotation :math:`R = [u, n_c, u\times n_c]\,[-\hat p, n_b, -\hat p\times n_b]^T` of :func:`earth_scene`."""
+    z = np.array([0.0, 0.0, 1.0])
+    n_b = z - (z @ ph_hat) * ph_hat
+    n_b /= np.linalg.norm(n_b)
+    Bc = np.column_stack([u, n_c, np.cross(u, n_c)])
+    Bb = np.column_stack([-ph_hat, n_b, np.cross(-ph_hat, n_b)])
+    return Bc @ Bb.T

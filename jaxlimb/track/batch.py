@@ -273,11 +273,7 @@ def fit_arc(frames: Frames, prop: Propagator, t0: float, x_guess, *, prior=None,
     if calibrate and not np.all(frames.theta == theta[0]):
         raise ConfigError("self-calibration needs every frame to share one camera")
     gate = gate_threshold(gate_probability)
-    pri = None if prior is None else (jnp.asarray(prior[0], float), jnp.asarray(np.linalg.inv(np.linalg.cholesky(prior[1]))))
-    bm = bias if isinstance(bias, BiasModel) else bias_model(frames, bool(bias))
-    prob = _Problem(prop, frames, t0, np.ones(len(frames)) if use is None else np.asarray(use, float), pri,
-                    bm.constant_part())
-    prob.walk = bm if bm.walk is not None and np.any(bm.walk > 0) else None
+    prob, bm = _arc_problem(frames, prop, t0, prior, use, bias)
     # the camera moves along the columns of ``basis`` (4x4, zero columns: fixed directions); the problem
     # always has 10 unknowns, so that the state-only and the calibrated fits share one compiled program
     x_ref, basis, obs = np.asarray(x_guess, float), np.zeros((4, 4)), None
@@ -300,6 +296,17 @@ def fit_arc(frames: Frames, prop: Propagator, t0: float, x_guess, *, prior=None,
             break  # nothing to remove, or so much that the model (a camera, a prior), not the frames, is wrong
         prob.weights = np.where(bad, 0.0, prob.weights)
     return _finish(prob, x_ref, theta, basis, W, obs, n_steps, passes, chi)
+
+
+def _arc_problem(frames: Frames, prop: Propagator, t0: float, prior, use: np.ndarray | None,  # noqa: ANN001
+                 bias: bool | BiasModel) -> tuple[_Problem, BiasModel]:
+    """The :class:`_Problem` of :func:`fit_arc` (whitened prior, frame weights, constant bias) and its bias model."""
+    pri = None if prior is None else (jnp.asarray(prior[0], float), jnp.asarray(np.linalg.inv(np.linalg.cholesky(prior[1]))))
+    bm = bias if isinstance(bias, BiasModel) else bias_model(frames, bool(bias))
+    prob = _Problem(prop, frames, t0, np.ones(len(frames)) if use is None else np.asarray(use, float), pri,
+                    bm.constant_part())
+    prob.walk = bm if bm.walk is not None and np.any(bm.walk > 0) else None
+    return prob, bm
 
 
 def _walk_rows(prob, X, theta, W) -> np.ndarray:  # noqa: ANN001

@@ -17,7 +17,8 @@ from jaxlimb.models import (
     limb_profile_intensity,
 )
 from jaxlimb.models.blur_quadrature import quadrature_nodes
-from jaxlimb.models.profile_radiance import cos_sin_small, glow_inside, glow_outside
+from jaxlimb.models.profile_glow import glow_inside, glow_outside
+from jaxlimb.models.profile_radiance import cos_sin_small
 
 jax.config.update("jax_enable_x64", True)
 

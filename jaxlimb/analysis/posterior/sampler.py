@@ -220,17 +220,6 @@ def check_posterior(post: Posterior, fit_: LimbFit | None = None) -> None:
                 f"({est[n]:.4g} +- {ref:.3g}): improper posterior")
 
 
-def _laplace_start(lp: LogPosterior, start: np.ndarray, cov: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-    d = len(lp.names)
-    if cov is None:
-        scale = np.maximum(1e-3 * np.abs(start), 1e-3)
-        return start, np.diag(scale**2)
-    c = np.asarray(cov, dtype=float)
-    if c.shape != (d, d):
-        raise LimbInputError(f"`covariance` must be ({d}, {d}) over {list(lp.names)}, got shape {c.shape}")
-    return start, c
-
-
 def _initial_ball(lp: LogPosterior, start: np.ndarray, cov: np.ndarray, n_walkers: int, scale: float,
                   rng: np.random.Generator) -> np.ndarray:
     try:
@@ -364,15 +353,7 @@ def sample_posterior(lp: LogPosterior, start: np.ndarray | LimbFit, *, covarianc
     (30.0, 0.006)
     """
     opt = options or PosteriorOptions()
-    d = len(lp.names)
-    if isinstance(start, LimbFit):
-        start_vec, cov = _fit_start(lp, start)
-    else:
-        start_vec, cov = _laplace_start(lp, np.asarray(start, dtype=float), covariance)
-    if start_vec.shape != (d,):
-        raise LimbInputError(f"`start` must have shape ({d},) over {list(lp.names)}, got {start_vec.shape}")
-    if opt.n_walkers < 2 * d:
-        raise LimbInputError(f"`n_walkers` must be >= 2 x {d} parameters, got {opt.n_walkers}")
+    start_vec, cov = _start_and_covariance(lp, start, covariance, opt.n_walkers)
     rng = np.random.default_rng(opt.seed)
     p0 = _initial_ball(lp, start_vec, cov, opt.n_walkers, opt.init_scale, rng)
     t0 = time.perf_counter()
@@ -381,6 +362,28 @@ def sample_posterior(lp: LogPosterior, start: np.ndarray | LimbFit, *, covarianc
     post = _collect(sampler, lp, taus, converged, time.perf_counter() - t0, start_vec, opt.n_walkers)
     check_posterior(post, start if isinstance(start, LimbFit) else None)
     return post
+
+
+def _start_and_covariance(lp: LogPosterior, start: np.ndarray | LimbFit, covariance: np.ndarray | None,
+                          n_walkers: int) -> tuple[np.ndarray, np.ndarray]:
+    """The validated start vector of :func:`sample_posterior` and the covariance of its initial ball (for a vector
+    ``start`` without ``covariance`` a diagonal of ``(1e-3 max(|start|, 1))^2``)."""
+    d = len(lp.names)
+    if isinstance(start, LimbFit):
+        start_vec, cov = _fit_start(lp, start)
+    elif covariance is None:
+        start_vec = np.asarray(start, dtype=float)
+        scale = np.maximum(1e-3 * np.abs(start_vec), 1e-3)
+        cov = np.diag(scale**2)
+    else:
+        start_vec, cov = np.asarray(start, dtype=float), np.asarray(covariance, dtype=float)
+        if cov.shape != (d, d):
+            raise LimbInputError(f"`covariance` must be ({d}, {d}) over {list(lp.names)}, got shape {cov.shape}")
+    if start_vec.shape != (d,):
+        raise LimbInputError(f"`start` must have shape ({d},) over {list(lp.names)}, got {start_vec.shape}")
+    if n_walkers < 2 * d:
+        raise LimbInputError(f"`n_walkers` must be >= 2 x {d} parameters, got {n_walkers}")
+    return start_vec, cov
 
 
 def _collect(sampler: Any, lp: LogPosterior, taus: list[np.ndarray], converged: bool, wall: float, start: np.ndarray,
