@@ -313,6 +313,31 @@ def _install_checked_cache(target: Path) -> bool:
     return True
 
 
+@contextlib.contextmanager
+def persistent_cache_bypassed():
+    """Compilations in the block neither read nor write JAX's persistent cache.
+
+    ``jax.config``'s ``enable_compilation_cache`` is read once per process, at the first compilation, so setting it
+    later does nothing; this block sets the state that reading left (``compilation_cache._cache_used``) and restores
+    it.  Needed where an executable is serialised (:func:`jaxlimb._programs.compile_and_store`): one loaded from the
+    persistent cache serialises without its functions (``NOT_FOUND: Function ... not found`` when the copy runs).
+    Another thread compiling meanwhile compiles without the cache: slower, never wrong.
+    """
+    try:
+        from jax._src import compilation_cache as cc
+    except ImportError:  # pragma: no cover - another JAX layout
+        yield
+        return
+    with cc._cache_initialized_mutex:
+        saved = (cc._cache_checked, cc._cache_used)
+        cc._cache_checked, cc._cache_used = True, False
+    try:
+        yield
+    finally:
+        with cc._cache_initialized_mutex:
+            cc._cache_checked, cc._cache_used = saved
+
+
 def start_jax() -> None:
     """JAX as jaxlimb runs it (the command line, Dask workers, pipeline trials): SciPy's LAPACK kernels
     preloaded before JAX is imported (:func:`preload_lapack_kernels`), float64, and the persistent
@@ -374,5 +399,6 @@ class CompileTimer:
         return total
 
 
-__all__ = ["ENV_DIR", "MAX_BYTES", "CheckedCache", "CompileTimer", "cache_dir", "enable_compile_cache", "read_sealed",
+__all__ = ["ENV_DIR", "MAX_BYTES", "CheckedCache", "CompileTimer", "cache_dir", "enable_compile_cache", "persistent_cache_bypassed",
+           "read_sealed",
            "seal", "start_jax", "unseal", "warn_once", "write_sealed"]

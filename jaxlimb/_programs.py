@@ -307,14 +307,13 @@ def compile_and_store(path: Path | None, lowered: Any, out_tree: Callable[[], An
     list).  Compiled apart from JAX's persistent cache: an executable loaded from that cache serialises without
     its functions (``NOT_FOUND: Function ... not found`` when the copy runs), one compiled here does not.  Nothing
     is stored when the structure cannot be rebuilt from a file."""
-    from jax._src import config as jax_config
     from jax.experimental.serialize_executable import serialize
 
-    from ._jaxcache import write_sealed
+    from ._jaxcache import persistent_cache_bypassed, write_sealed
 
-    if path is None or not hasattr(jax_config, "enable_compilation_cache"):
+    if path is None:
         return lowered.compile()
-    with jax_config.enable_compilation_cache(False):
+    with persistent_cache_bypassed():
         compiled = lowered.compile()
     tree = out_tree()
     shape = pickle.dumps(jax.tree_util.tree_unflatten(tree, list(range(tree.num_leaves))))

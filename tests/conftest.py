@@ -8,9 +8,16 @@ import os
 # user's defaults.
 os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} --xla_backend_optimization_level=0".strip()
 
+import shutil  # noqa: E402
+import tempfile  # noqa: E402
+
 import jax  # noqa: E402 - after XLA_FLAGS
-import numpy as np
-import pytest
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from jaxlimb._jaxcache import enable_compile_cache  # noqa: E402
+
+_RUN_CACHE = "JAXLIMB_TEST_RUN_CACHE"
 
 jax.config.update("jax_enable_x64", True)
 
@@ -21,9 +28,19 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(20261121)
 
 
-# The CLI switches JAX's persistent compilation cache on (jaxlimb._jaxcache); the suite runs
-# without it unless a test asks for it (tests/cli/test_speed_cli.py does, in subprocesses).
-os.environ.setdefault("JAXLIMB_CACHE_DIR", "off")
+# One compilation cache for the run (jaxlimb._jaxcache), new and empty: the two workers and the commands the tests
+# start load what another compiled instead of compiling it again (most of the suite's time is compilation).  A test of
+# the cache itself gives its own directory (tests/cli/test_speed_cli.py, tests/test_programs.py); a
+# JAXLIMB_CACHE_DIR set by the caller is used as it is (``off`` runs the suite without a cache).
+if "JAXLIMB_CACHE_DIR" not in os.environ:  # the controller (or a run without workers): the workers inherit it
+    os.environ["JAXLIMB_CACHE_DIR"] = os.environ[_RUN_CACHE] = tempfile.mkdtemp(prefix="jaxlimb-test-cache-")
+enable_compile_cache()
+
+
+def pytest_unconfigure(config):
+    """The run's cache goes with the run (the controller's, after the workers have stopped)."""
+    if not hasattr(config, "workerinput") and _RUN_CACHE in os.environ:
+        shutil.rmtree(os.environ[_RUN_CACHE], ignore_errors=True)
 
 
 @pytest.fixture(autouse=True)

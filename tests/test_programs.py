@@ -145,8 +145,9 @@ def test_the_functions_a_warm_locate_calls_are_stored():
     from jaxlimb.pipeline import sigmoid
     from jaxlimb.pipeline.profile import glow, model_error
 
-    for f in (sigmoid._fisher_jit, sigmoid._predict_jit, model_error._columns, model_error._signed_profile,
-              glow.glow_columns, lunar_lambert.brightening_column, profile_columns.glow_column):
+    for f in (sigmoid._columns, sigmoid._predict_jit, model_error._signed_profile,
+              glow.glow_columns, lunar_lambert.brightening_column, profile_columns.glow_column,
+              profile_columns._padded_columns):
         assert isinstance(f, pg.StoredJit), f
 
 
@@ -177,3 +178,28 @@ def test_the_process_map_count_is_read_where_proc_tells_it():
         pytest.skip("no /proc on this system")
     used, limit = counts
     assert 0 < used < limit
+
+
+def _fn_apart(a, m, x):  # noqa: ANN001, ANN202 - a function no other test compiles
+    return {"y": a * jnp.cos(x) + jnp.trace(m)}
+
+
+def test_a_stored_program_is_compiled_apart_from_jaxs_persistent_cache(folder, monkeypatch):
+    """An executable loaded from JAX's persistent cache serialises without its functions (a later load fails with
+    ``NOT_FOUND: Function ... not found``), and ``enable_compilation_cache(False)`` is read once per process: the
+    stored program's compilation must not consult that cache however early the process used it."""
+    from jax._src import compilation_cache as cc
+
+    jax.jit(lambda x: x + 1.0)(jnp.ones(3))  # the process has decided whether it uses the cache
+    before = cc.is_cache_used(jax.devices()[0].client)
+    seen: list[bool] = []
+    real = cc.is_cache_used
+    monkeypatch.setattr(cc, "is_cache_used", lambda b: (seen.append(real(b)), seen[-1])[1])
+    stored = pg.StoredJit(_fn_apart)
+    want = np.asarray(jax.jit(_fn_apart)(1.5, np.eye(3), jnp.linspace(0.0, 1.0, 9))["y"])
+    seen.clear()
+    stored(1.5, np.eye(3), jnp.linspace(0.0, 1.0, 9))
+    assert seen and not any(seen)  # compiled, not looked up nor stored
+    assert real(jax.devices()[0].client) == before  # the process's setting is back
+    stored.forget_loaded()
+    np.testing.assert_array_equal(np.asarray(stored(1.5, np.eye(3), jnp.linspace(0.0, 1.0, 9))["y"]), want)

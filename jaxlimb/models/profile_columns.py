@@ -90,41 +90,72 @@ def albedo_nodes(p: LimbProfileParams, rc, ell_rad: float) -> tuple[np.ndarray, 
     return np.arange(int(math.ceil(th_max / step)) + 1) * step, max(int(math.ceil(2.0 * math.pi / step)), 3)
 
 
-@jax.jit
-def albedo_field_columns(p: LimbProfileParams, rc, theta, n_psi_onehot):
-    r""":math:`K` of the module docstring: the profile's response to the albedo at each node.
+def node_bucket(m: int) -> int:
+    """Padded number of surface-angle nodes for ``m``: the next of 2, 3, 4, 6, 8, 12, 16, ... (a limb's depth in
+    nodes changes with every frame's radius; a program per bucket, not per depth, wasting at most half).
 
     Parameters
     ----------
-    p : LimbProfileParams
-        The profile (lunar-Lambert radiance, no glow or brightening).
-    rc : jax.Array (n, 2)
-        Pixel coordinates as ``(row, col)``.
-    theta : jax.Array (m,)
-        Node surface angles (rad), evenly spaced from 0 (:func:`albedo_nodes`).
-    n_psi_onehot : jax.Array (k,)
-        Any array of length ``k``, the number of position-angle nodes (its shape carries ``k`` through the trace).
+    m : int
+        Nodes.
 
     Returns
     -------
-    jax.Array (n, m * k)
-        Column ``m * k_index + n_index`` is node ``(theta_m, psi_n)``, ``psi_n = 2 pi n / k``.
+    int
     """
+    b = 2
+    while b < m:
+        b = b * 3 // 2 if b & (b - 1) == 0 else b * 4 // 3
+    return b
+
+
+@stored_jit
+def _padded_columns(p: LimbProfileParams, rc, step, m, m_onehot, n_psi_onehot):
+    """:func:`albedo_field_columns` on ``len(m_onehot) >= m`` surface-angle nodes ``j * step``, those from ``m`` on
+    zero."""
     dr, dc, _, _, d, _, R, cpsi = limb_geometry(p, rc)
     alpha0 = jnp.arctan(p.rho * p.a * p.inv_f)
     se = jnp.sqrt(p.sigma * p.sigma + 1.0 / 12.0)
     v, t, _, g = blur_nodes(d, R, se, *blur_window(d, R, se, (p, cpsi, alpha0)))
     I = radiance_parts(p, v, R[..., None], cpsi[..., None], alpha0, False)[0]
     q = jnp.clip(1.0 - v * v / R[..., None], 0.0, 1.0)
-    th = jnp.arcsin(jnp.clip(v * jnp.sqrt((1.0 + q) / R[..., None]), 0.0, 1.0))
-    m, step = theta.shape[0], theta[1] - theta[0]
-    H = jnp.maximum(0.0, 1.0 - jnp.abs(th[..., None] / step - jnp.arange(m)))
-    H = H.at[..., -1].set(jnp.where(th >= theta[-1], 1.0, H[..., -1]))  # the last hat holds the deepest angles
+    th = jnp.arcsin(jnp.clip(v * jnp.sqrt((1.0 + q) / R[..., None]), 0.0, 1.0))[..., None]
+    j = jnp.arange(m_onehot.shape[0])
+    H = jnp.where(j < m, jnp.maximum(0.0, 1.0 - jnp.abs(th / step - j)), 0.0)
+    H = jnp.where((j == m - 1) & (th >= (m - 1) * step), 1.0, H)  # the last hat holds the deepest angles
     F = blur_moments(I, t, g, se, d, basis=H).F
     k = n_psi_onehot.shape[0]
     x = (jnp.arctan2(-dr, dc) % (2.0 * jnp.pi)) * (k / (2.0 * jnp.pi))
     B = jnp.maximum(0.0, 1.0 - jnp.abs((x[:, None] - jnp.arange(k) + k / 2.0) % k - k / 2.0))
     return p.amp * (F[:, :, None] * B[:, None, :]).reshape(rc.shape[0], -1)
+
+
+def albedo_field_columns(p: LimbProfileParams, rc, theta, n_psi_onehot) -> np.ndarray:
+    r""":math:`K` of the module docstring: the profile's response to the albedo at each node.  One program per
+    bucket of surface-angle nodes (:func:`node_bucket`) and of pixels.
+
+    Parameters
+    ----------
+    p : LimbProfileParams
+        The profile (lunar-Lambert radiance, no glow or brightening).
+    rc : array_like (n, 2)
+        Pixel coordinates as ``(row, col)``.
+    theta : array_like (m,)
+        Node surface angles (rad), evenly spaced from 0 (:func:`albedo_nodes`).
+    n_psi_onehot : array_like (k,)
+        Any array of length ``k``, the number of position-angle nodes.
+
+    Returns
+    -------
+    numpy.ndarray (n, m * k)
+        Column ``k * m_index + n_index`` is node ``(theta_m, psi_n)``, ``psi_n = 2 pi n / k``.
+    """
+    theta = np.asarray(theta, float)
+    m, k, n = theta.size, len(n_psi_onehot), len(rc)
+    step = float(theta[1] - theta[0]) if m > 1 else 1.0
+    K = _padded_columns(p, jax.device_put(np.asarray(rc, float)), jnp.asarray(step), jnp.asarray(m),
+                        jnp.zeros(node_bucket(m)), jnp.zeros(k))
+    return np.asarray(K).reshape(n, -1, k)[:, :m, :].reshape(n, m * k)
 
 
 def albedo_prior_factor(theta: np.ndarray, n_psi: int, tau: float, ell_rad: float) -> np.ndarray:
@@ -218,9 +249,9 @@ def albedo_field_factor(p: LimbProfileParams, rc, tau: float, ell_rad: float) ->
         One column per kept eigenvector of the prior.
     """
     theta, n_psi = albedo_nodes(p, rc, ell_rad)
-    K = np.asarray(albedo_field_columns(p, jnp.asarray(rc, float), jnp.asarray(theta), jnp.zeros(n_psi)))
+    K = albedo_field_columns(p, rc, theta, np.zeros(n_psi))
     return K @ albedo_prior_factor(theta, n_psi, tau, ell_rad)
 
 
 __all__ = ["albedo_field_columns", "albedo_field_factor", "albedo_nodes", "albedo_prior", "albedo_prior_factor",
-           "glow_column"]
+           "glow_column", "node_bucket"]

@@ -3,6 +3,8 @@ programs across images), Check 5 on its convergence, the model's intensities and
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import numpy as np
 
@@ -117,10 +119,26 @@ def _predict_jit(model, params, coords):
     return model.intensity(params, coords)
 
 
-@stored_jit(static_non_arrays=True)
-def _fisher_jit(model, params, coords, w2, free_idx):
-    jac = model.jacobian(params, coords)[:, free_idx]
-    return jac.T @ (jac * w2[:, None])
+@stored_jit
+def _columns(model, params, coords):
+    return model.intensity_and_jacobian_columns(params, coords)
+
+
+def columns(model):
+    """``model``'s jitted ``(intensity, columns)``: its analytic Jacobian columns, one compiled program per model and
+    bucket (stored: :func:`jaxlimb._programs.stored_jit`) that the fit's Fisher matrix and the model-error terms share.
+
+    Parameters
+    ----------
+    model : LimbModel
+        The limb model.
+
+    Returns
+    -------
+    callable
+        ``(params, coords) -> (intensity (n,), columns)``.
+    """
+    return functools.partial(_columns, model)
 
 
 def predict(model, params, coords: np.ndarray) -> np.ndarray:
@@ -145,7 +163,8 @@ def predict(model, params, coords: np.ndarray) -> np.ndarray:
 
 def fisher_information(model, params, data: FitData, fixed: tuple[str, ...], sigma: float) -> np.ndarray:
     """Fisher matrix ``J^T diag(w^2) J / sigma^2`` over the free parameters (the information of
-    :func:`jaxlimb.analysis.crlb.crlb` with per-pixel noise ``sigma / w_i``), jitted on padded shapes.
+    :func:`jaxlimb.analysis.crlb.crlb` with per-pixel noise ``sigma / w_i``), from the model's analytic columns on padded
+    shapes (:func:`columns`).
 
     Parameters
     ----------
@@ -165,9 +184,9 @@ def fisher_information(model, params, data: FitData, fixed: tuple[str, ...], sig
         ``p`` the number of free parameters, in the model's parameter order.
     """
     cp, _, w = pad_bucket(data)
-    idx = jax.device_put(np.asarray(model.free_indices(fixed), dtype=np.int64))  # host data: no program per shape
-    F = np.asarray(_fisher_jit(model, params, jax.device_put(np.asarray(cp)), jax.device_put(np.asarray(w * w)), idx))
-    return F / sigma**2
+    _, cols = columns(model)(params, jax.device_put(np.asarray(cp)))  # host data: no program per shape
+    J = np.stack([np.asarray(cols[i]) for i in model.free_indices(fixed)], axis=1)
+    return (J.T @ (J * (w * w)[:, None])) / sigma**2
 
 
 def replace_params(p, **kw):
@@ -188,4 +207,4 @@ def replace_params(p, **kw):
     return p.replace(**{k: float(v) for k, v in kw.items()})
 
 
-__all__ = ["K_INIT", "LOGISTIC_TO_GAUSS", "fisher_information", "levels_held", "pad_bucket", "predict", "replace_params", "run_fit"]
+__all__ = ["K_INIT", "LOGISTIC_TO_GAUSS", "columns", "fisher_information", "levels_held", "pad_bucket", "predict", "replace_params", "run_fit"]

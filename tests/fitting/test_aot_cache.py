@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from jaxlimb import _jaxcache as jc
+from jaxlimb import _programs as pg
 from jaxlimb.errors import CacheRepairWarning
 from jaxlimb.fitting import _aot
 
@@ -22,6 +23,7 @@ def _template(x):  # noqa: ANN001, ANN202
 @pytest.fixture
 def folder(tmp_path, monkeypatch):
     monkeypatch.setattr(_aot, "_cache_dir", lambda: tmp_path)
+    monkeypatch.setattr(pg, "_folder", lambda: None)  # the exports alone (no stored executable to load instead)
     monkeypatch.setattr(jc, "_WARNED", set())
     return tmp_path
 

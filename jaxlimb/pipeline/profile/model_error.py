@@ -5,7 +5,6 @@ sandwich over sectors of the limb, the split witness (Hausman 1978) and an unkno
 
 from __future__ import annotations
 
-import functools
 import math
 from typing import Any
 
@@ -19,7 +18,7 @@ from ...geometry.conic import ellipse_signed_distance
 from ...models import CircleParams, EllipseRampParams, LimbDarkenedParams, LimbModel, LimbProfileParams
 from ...models.corona import CoronaParams
 from ...models.lunar_lambert import limb_geometry, profile_model
-from ..sigmoid import LOGISTIC_TO_GAUSS
+from ..sigmoid import LOGISTIC_TO_GAUSS, columns
 from ..stages import RefineResult
 from .albedo_prior import albedo_consider, with_albedo_term
 
@@ -36,28 +35,6 @@ that lives at one depth of the profile (a glow, a rim) better than one; tuned on
 
 
 _GEOMETRIC = ("r0", "c0", "a", "theta", "rho")
-
-
-@stored_jit
-def _columns(model: LimbModel, params: Any, coords: Any):
-    return model.intensity_and_jacobian_columns(params, coords)
-
-
-def columns(model: LimbModel):
-    """``model``'s jitted ``(intensity, columns)`` (one compiled program per model and bucket, stored:
-    :func:`jaxlimb._programs.stored_jit`).
-
-    Parameters
-    ----------
-    model : LimbModel
-        The limb model.
-
-    Returns
-    -------
-    callable
-        ``(params, coords) -> (intensity (n,), columns)``.
-    """
-    return functools.partial(_columns, model)
 
 
 @stored_jit

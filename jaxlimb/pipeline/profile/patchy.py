@@ -15,9 +15,8 @@ from ...model_error import sector_groups
 from ...geometry.sphere_image import sphere_from_ellipse_center
 from ...models import LimbModel
 from ...models.lunar_lambert import profile_model
-from ..sigmoid import predict
+from ..sigmoid import columns, predict
 from ..stages import FitData, Frame, RefineResult
-from .model_error import columns
 from .passes import l_band, profile_passes, shape_change_px
 
 

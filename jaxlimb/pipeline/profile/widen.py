@@ -13,8 +13,9 @@ from ...errors import ConvergenceError
 from ...models import (AnisoProfileParams, LIMB_PROFILE, LIMB_PROFILE_ANISO, LIMB_PROFILE_MINNAERT, LimbProfileParams,
                        MinnaertProfileParams)
 from ...models.lunar_lambert import brightening_column
+from ..sigmoid import columns
 from ..stages import Frame, RefineResult
-from .model_error import columns, edge_sigma, last_step, signed_distance, trailing_step, weighted_system
+from .model_error import edge_sigma, last_step, signed_distance, trailing_step, weighted_system
 from .passes import profile_passes
 
 
