@@ -6,8 +6,10 @@ Two frame sets, each timed in its own fresh process after one warm-up pass, CPU 
 * ``maria``: the six ``maria`` frames of ``families.py`` (independent renderer; they take the patchy-sector
   refit, :func:`jaxlimb.pipeline.profile.patchy.downweight_patchy_sectors`).
 
-Baseline measured in the same run: the same frames with the patchy-sector refit switched off (``--variants``),
-processes alternated so that load falls on both alike; the JSON keeps every round and the minimum.
+Baselines measured in the same run: the same frames with the patchy-sector refit switched off
+(``no_patchy_refit``) and with the refit under the albedo field switched off (``no_albedo_field``,
+:func:`jaxlimb.pipeline.profile.albedo_field.with_albedo_field`), processes alternated so that load falls on all
+alike; the JSON keeps every round and the minimum.
 
     python benchmarks/warm_locate.py [--rounds 4] [--cache /tmp/fam_cache]
 """
@@ -32,6 +34,9 @@ sys.path.insert(0, bench)
 import jaxlimb.pipeline.profile.fit as pf
 if variant == "no_patchy_refit":
     pf.downweight_patchy_sectors = lambda frame, rr, solver, system=None: rr
+if variant == "no_albedo_field":
+    import jaxlimb.pipeline.sphere.predicted as sp, jaxlimb.pipeline.sphere.refit as sr
+    sr.with_albedo_field = sp.with_albedo_field = lambda frame, answer: answer
 from jaxlimb.imaging import Hints
 from jaxlimb.pipeline import locate
 frames = []
@@ -50,7 +55,7 @@ else:
     import families
     from pathlib import Path
     for i in range(6):
-        c = families._case("moon", "maria", i, 2026, Path(cache))
+        c = families.family_case("moon", "maria", i, 2026, Path(cache))
         frames.append((c.image, c.camera, Hints.from_dict(c.hints)))
 for img, cam, h in frames:
     locate(img, cam, h)
@@ -63,6 +68,9 @@ for _ in range(3):
     wall.append(1e3 * (time.perf_counter() - w0) / len(frames))
 print(json.dumps({"cpu_ms": sorted(cpu)[1], "wall_ms": sorted(wall)[1], "load": os.getloadavg()[0]}))
 """
+
+
+VARIANTS = ("head", "no_patchy_refit", "no_albedo_field")
 
 
 def _one(variant: str, frame_set: str, cache: str) -> dict:
@@ -84,16 +92,17 @@ def main() -> None:
     rounds: dict[str, list[dict]] = {}
     for _ in range(args.rounds):
         for frame_set in ("default", "maria"):
-            for variant in ("head", "no_patchy_refit"):
+            for variant in VARIANTS:
                 key = f"{frame_set}/{variant}"
                 rounds.setdefault(key, []).append(_one(variant, frame_set, args.cache))
                 print(key, rounds[key][-1], flush=True)
     best = {k: {"cpu_ms": min(r["cpu_ms"] for r in v), "wall_ms": min(r["wall_ms"] for r in v)} for k, v in rounds.items()}
     for fs in ("default", "maria"):
-        h, b = best[f"{fs}/head"], best[f"{fs}/no_patchy_refit"]
-        best[f"{fs}/ratio_wall"] = round(h["wall_ms"] / b["wall_ms"], 3)
+        h = best[f"{fs}/head"]
+        for v in VARIANTS[1:]:
+            best[f"{fs}/ratio_wall_{v}"] = round(h["wall_ms"] / best[f"{fs}/{v}"]["wall_ms"], 3)
         print(f"{fs}: {h['wall_ms']:.1f} ms wall, {h['cpu_ms']:.1f} ms CPU per frame; "
-              f"{best[f'{fs}/ratio_wall']}x the same frames without the patchy-sector refit")
+              + ", ".join(f"{best[f'{fs}/ratio_wall_{v}']}x {v}" for v in VARIANTS[1:]))
     path = save("warm_locate", {"environment": environment(), "args": vars(args), "best": best, "rounds": rounds,
                                 "budget_ms": 150.0, "load_end": os.getloadavg()[0]})
     print("saved", path)

@@ -147,7 +147,7 @@ def test_the_functions_a_warm_locate_calls_are_stored():
 
     for f in (sigmoid._columns, sigmoid._predict_jit, model_error._signed_profile,
               glow.glow_columns, lunar_lambert.brightening_column, profile_columns.glow_column,
-              profile_columns._padded_columns):
+              profile_columns._padded_parts):
         assert isinstance(f, pg.StoredJit), f
 
 

@@ -110,9 +110,10 @@ def node_bucket(m: int) -> int:
 
 
 @stored_jit
-def _padded_columns(p: LimbProfileParams, rc, step, m, m_onehot, n_psi_onehot):
-    """:func:`albedo_field_columns` on ``len(m_onehot) >= m`` surface-angle nodes ``j * step``, those from ``m`` on
-    zero."""
+def _padded_parts(p: LimbProfileParams, rc, step, m, m_onehot, n_psi_onehot):
+    """The two factors of :func:`albedo_field_columns`, ``K_{i,mn} = F_im B_in``: ``F`` ``(n, len(m_onehot))`` on the
+    surface-angle nodes ``j * step`` (those from ``m`` on zero; the amplitude in it) and the position-angle hats ``B``
+    ``(n, len(n_psi_onehot))``."""
     dr, dc, _, _, d, _, R, cpsi = limb_geometry(p, rc)
     alpha0 = jnp.arctan(p.rho * p.a * p.inv_f)
     se = jnp.sqrt(p.sigma * p.sigma + 1.0 / 12.0)
@@ -127,12 +128,23 @@ def _padded_columns(p: LimbProfileParams, rc, step, m, m_onehot, n_psi_onehot):
     k = n_psi_onehot.shape[0]
     x = (jnp.arctan2(-dr, dc) % (2.0 * jnp.pi)) * (k / (2.0 * jnp.pi))
     B = jnp.maximum(0.0, 1.0 - jnp.abs((x[:, None] - jnp.arange(k) + k / 2.0) % k - k / 2.0))
-    return p.amp * (F[:, :, None] * B[:, None, :]).reshape(rc.shape[0], -1)
+    return p.amp * F, B
+
+
+def _parts(p: LimbProfileParams, rc, theta: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """``F`` ``(n, m)`` and ``B`` ``(n, k)`` of :func:`_padded_parts` on the nodes ``theta``, one program per bucket
+    of surface-angle nodes (:func:`node_bucket`) and of pixels."""
+    m = theta.size
+    step = float(theta[1] - theta[0]) if m > 1 else 1.0
+    F, B = _padded_parts(p, jax.device_put(np.asarray(rc, float)), jnp.asarray(step), jnp.asarray(m),
+                         jnp.zeros(node_bucket(m)), jnp.zeros(k))
+    return np.asarray(F)[:, :m], np.asarray(B)
 
 
 def albedo_field_columns(p: LimbProfileParams, rc, theta, n_psi_onehot) -> np.ndarray:
-    r""":math:`K` of the module docstring: the profile's response to the albedo at each node.  One program per
-    bucket of surface-angle nodes (:func:`node_bucket`) and of pixels.
+    r""":math:`K` of the module docstring: the profile's response to the albedo at each node, ``K_{i,mn} = F_im
+    B_in`` (the surface-angle part and the position-angle hat).  One program per bucket of surface-angle nodes
+    (:func:`node_bucket`) and of pixels.
 
     Parameters
     ----------
@@ -151,22 +163,54 @@ def albedo_field_columns(p: LimbProfileParams, rc, theta, n_psi_onehot) -> np.nd
         Column ``k * m_index + n_index`` is node ``(theta_m, psi_n)``, ``psi_n = 2 pi n / k``.
     """
     theta = np.asarray(theta, float)
-    m, k, n = theta.size, len(n_psi_onehot), len(rc)
-    step = float(theta[1] - theta[0]) if m > 1 else 1.0
-    K = _padded_columns(p, jax.device_put(np.asarray(rc, float)), jnp.asarray(step), jnp.asarray(m),
-                        jnp.zeros(node_bucket(m)), jnp.zeros(k))
-    return np.asarray(K).reshape(n, -1, k)[:, :m, :].reshape(n, m * k)
+    F, B = _parts(p, rc, theta, len(n_psi_onehot))
+    return (F[:, :, None] * B[:, None, :]).reshape(F.shape[0], -1)
+
+
+def albedo_prior_blocks(theta: np.ndarray, n_psi: int, tau: float, ell_rad: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    r"""The factor of :func:`albedo_prior_factor` by blocks: its columns are ``kron(W[:, j], u)`` for each
+    ``(W, u)`` here, a real Fourier vector ``u`` ``(n_psi,)`` in the position angle and the eigenvectors ``W``
+    ``(m, r)`` of the prior's block at its frequency, scaled by the square roots of their eigenvalues.
+
+    The position-angle nodes are evenly spaced, so :math:`C` is block-circulant: the real Fourier vectors in
+    :math:`\psi` times the eigenvectors of one ``m x m`` block per frequency diagonalise it (``n_psi`` small
+    eigenproblems instead of one of size ``m n_psi``).  Eigenvectors below ``1e-9`` of the largest eigenvalue are left
+    out (they add nothing a fit can see), and negative ones with them: the squared exponential of the great-circle
+    angle is not positive definite on the sphere for every length (the projection on the positive semidefinite cone).
+
+    Parameters
+    ----------
+    theta, n_psi, tau, ell_rad
+        As :func:`albedo_prior_factor`'s.
+
+    Returns
+    -------
+    list of (numpy.ndarray (m, r_f), numpy.ndarray (n_psi,))
+        In the column order of :func:`albedo_prior_factor`; blocks with no column left out.
+    """
+    th = np.asarray(theta, float)
+    k = int(n_psi)
+    dpsi = 2.0 * math.pi * np.arange(k) / k
+    cos_g = (np.cos(th)[:, None, None] * np.cos(th)[None, :, None] * np.cos(dpsi)[None, None, :]
+             + np.sin(th)[:, None, None] * np.sin(th)[None, :, None])
+    c = tau * tau * np.exp(-0.5 * (np.arccos(np.clip(cos_g, -1.0, 1.0)) / ell_rad) ** 2)  # (m, m, lag)
+    a = np.arange(k)
+    freqs = np.arange(k // 2 + 1)
+    ws, Ws = np.linalg.eigh(np.einsum("abl,lf->fab", c, np.cos(2.0 * math.pi * np.outer(a, freqs) / k)))
+    floor = 1e-9 * ws.max()
+    blocks = []
+    for f, w, W in zip(freqs, ws, Ws):  # the blocks' eigenproblems in one batched call
+        keep = w > floor
+        cf = np.cos(2.0 * math.pi * f * a / k)
+        for u in [cf] + ([np.sin(2.0 * math.pi * f * a / k)] if 0 < 2 * f < k else []):
+            if keep.any():
+                blocks.append((W[:, keep] * np.sqrt(w[keep]), u / np.linalg.norm(u)))
+    return blocks
 
 
 def albedo_prior_factor(theta: np.ndarray, n_psi: int, tau: float, ell_rad: float) -> np.ndarray:
     r"""A factor :math:`F` of the nodes' prior covariance, :math:`C = F F^\top` (module docstring), projected on the
-    positive semidefinite cone (the squared exponential of the great-circle angle is not positive definite on the
-    sphere for every length); eigenvectors below ``1e-9`` of the largest eigenvalue are left out (they add nothing a
-    fit can see).
-
-    The position-angle nodes are evenly spaced, so :math:`C` is block-circulant: the real Fourier vectors in
-    :math:`\psi` times the eigenvectors of one ``m x m`` block per frequency diagonalise it (``n_psi`` small
-    eigenproblems instead of one of size ``m n_psi``).
+    positive semidefinite cone, from its blocks (:func:`albedo_prior_blocks`).
 
     Parameters
     ----------
@@ -184,25 +228,8 @@ def albedo_prior_factor(theta: np.ndarray, n_psi: int, tau: float, ell_rad: floa
     numpy.ndarray (m * n_psi, r)
         In the row order of :func:`albedo_field_columns`' columns.
     """
-    th = np.asarray(theta, float)
-    k = int(n_psi)
-    dpsi = 2.0 * math.pi * np.arange(k) / k
-    cos_g = (np.cos(th)[:, None, None] * np.cos(th)[None, :, None] * np.cos(dpsi)[None, None, :]
-             + np.sin(th)[:, None, None] * np.sin(th)[None, :, None])
-    c = tau * tau * np.exp(-0.5 * (np.arccos(np.clip(cos_g, -1.0, 1.0)) / ell_rad) ** 2)  # (m, m, lag)
-    a = np.arange(k)
-    freqs = np.arange(k // 2 + 1)
-    ws, Ws = np.linalg.eigh(np.einsum("abl,lf->fab", c, np.cos(2.0 * math.pi * np.outer(a, freqs) / k)))
-    vecs, vals = [], []
-    for f, w, W in zip(freqs, ws, Ws):  # the blocks' eigenproblems in one batched call
-        cf = np.cos(2.0 * math.pi * f * a / k)
-        for u in [cf] + ([np.sin(2.0 * math.pi * f * a / k)] if 0 < 2 * f < k else []):
-            u = u / np.linalg.norm(u)
-            vecs.append(np.einsum("mr,k->mkr", W, u).reshape(th.size * k, -1))
-            vals.append(w)
-    w, V = np.concatenate(vals), np.concatenate(vecs, axis=1)
-    keep = w > 1e-9 * w.max()
-    return V[:, keep] * np.sqrt(w[keep])
+    blocks = albedo_prior_blocks(theta, n_psi, tau, ell_rad)
+    return np.concatenate([np.einsum("mr,k->mkr", W, u).reshape(W.shape[0] * u.size, -1) for W, u in blocks], axis=1)
 
 
 def albedo_prior(theta: np.ndarray, n_psi: int, tau: float, ell_rad: float) -> np.ndarray:
@@ -210,14 +237,8 @@ def albedo_prior(theta: np.ndarray, n_psi: int, tau: float, ell_rad: float) -> n
 
     Parameters
     ----------
-    theta : numpy.ndarray (m,)
-        Node surface angles from the limb (rad).
-    n_psi : int
-        Position-angle nodes.
-    tau : float
-        The relative albedo's standard deviation.
-    ell_rad : float
-        Its correlation length (rad).
+    theta, n_psi, tau, ell_rad
+        As :func:`albedo_prior_factor`'s.
 
     Returns
     -------
@@ -230,7 +251,9 @@ def albedo_prior(theta: np.ndarray, n_psi: int, tau: float, ell_rad: float) -> n
 
 def albedo_field_factor(p: LimbProfileParams, rc, tau: float, ell_rad: float) -> np.ndarray:
     """``K C^{1/2}`` (module docstring) at the profile ``p``: ``K C K^T`` is its product with its transpose
-    (:func:`albedo_prior_factor`).
+    (:func:`albedo_prior_factor`).  Formed by blocks without ``K``: with ``K_{i,mn} = F_im B_in`` and the factor's
+    columns ``kron(W_j, u)`` (:func:`albedo_prior_blocks`), a column is ``(F W_j)_i (B u)_i``: ``n m r`` operations
+    instead of ``n m n_psi r``.
 
     Parameters
     ----------
@@ -249,9 +272,11 @@ def albedo_field_factor(p: LimbProfileParams, rc, tau: float, ell_rad: float) ->
         One column per kept eigenvector of the prior.
     """
     theta, n_psi = albedo_nodes(p, rc, ell_rad)
-    K = albedo_field_columns(p, rc, theta, np.zeros(n_psi))
-    return K @ albedo_prior_factor(theta, n_psi, tau, ell_rad)
+    F, B = _parts(p, rc, theta, n_psi)
+    blocks = albedo_prior_blocks(theta, n_psi, tau, ell_rad)
+    Bu = B @ np.stack([u for _, u in blocks], axis=1)  # each block's Fourier vector at the pixels
+    return np.concatenate([(F @ W) * Bu[:, i, None] for i, (W, _) in enumerate(blocks)], axis=1)
 
 
-__all__ = ["albedo_field_columns", "albedo_field_factor", "albedo_nodes", "albedo_prior", "albedo_prior_factor",
-           "glow_column", "node_bucket"]
+__all__ = ["albedo_field_columns", "albedo_field_factor", "albedo_nodes", "albedo_prior", "albedo_prior_blocks",
+           "albedo_prior_factor", "glow_column", "node_bucket"]

@@ -7,7 +7,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxlimb.models import LimbProfileParams, limb_profile_intensity
-from jaxlimb.models.profile_columns import albedo_field_columns, albedo_nodes, albedo_prior, albedo_prior_factor
+from jaxlimb.models.profile_columns import (albedo_field_columns, albedo_field_factor, albedo_nodes, albedo_prior,
+                                            albedo_prior_factor, node_bucket)
 
 jax.config.update("jax_enable_x64", True)
 
@@ -72,3 +73,31 @@ def test_lunar_lambert_slope_is_the_weights_relative_derivative():
         assert abs(lunar_lambert_slope(a) - fd) < 1e-6 * max(1.0, abs(fd))
     assert lunar_lambert_weight(math.radians(-5.0)) == 1.0 and lunar_lambert_slope(math.radians(-5.0)) == 0.0
     assert lunar_lambert_weight(math.radians(150.0)) == 0.0 and lunar_lambert_slope(math.radians(150.0)) == 0.0
+
+
+def test_the_field_factor_formed_by_blocks_is_the_columns_times_the_prior_factor():
+    """``albedo_field_factor`` never forms ``K``: by the prior's blocks (a Fourier vector in the position angle times an
+    eigenvector in the surface angle) it is ``K F`` to rounding, for every correlation length the pipeline uses."""
+    for a, ell_deg in ((60.0, 8.0), (60.0, 16.0), (23.0, 32.0), (200.0, 8.0)):
+        p, rc = _limb(a=a)
+        theta, n_psi = albedo_nodes(p, rc, math.radians(ell_deg))
+        dense = albedo_field_columns(p, rc, theta, np.zeros(n_psi)) @ albedo_prior_factor(theta, n_psi, 0.3,
+                                                                                          math.radians(ell_deg))
+        U = albedo_field_factor(p, rc, 0.3, math.radians(ell_deg))
+        np.testing.assert_allclose(U, dense, rtol=0, atol=1e-12 * np.abs(dense).max())
+
+
+def test_surface_angle_nodes_are_padded_to_buckets_without_changing_a_column():
+    """A limb's depth in nodes changes with every frame's radius; the program is compiled per bucket of nodes
+    (2, 3, 4, 6, 8, 12, ...) and the padding's nodes are zero: the columns on ``m`` nodes are those of a program made
+    for exactly ``m``, the last node holding the deepest angles."""
+    assert [node_bucket(m) for m in (1, 2, 3, 4, 5, 7, 9, 13, 17, 25)] == [2, 2, 3, 4, 6, 8, 12, 16, 24, 32]
+    p, rc = _limb(a=80.0)
+    theta, n_psi = albedo_nodes(p, rc, math.radians(8.0))
+    assert node_bucket(theta.size) > theta.size  # this limb is padded
+    K = albedo_field_columns(p, rc, theta, np.zeros(n_psi)).reshape(rc.shape[0], theta.size, n_psi)
+    f = np.asarray(limb_profile_intensity(p, jnp.asarray(rc))) - p.ymin
+    np.testing.assert_allclose(K.sum(axis=(1, 2)), f, rtol=0, atol=1e-10 * f.max())  # no weight lost to the padding
+    short = albedo_field_columns(p, rc, theta[:-1], np.zeros(n_psi)).reshape(rc.shape[0], theta.size - 1, n_psi)
+    assert node_bucket(theta.size - 1) != node_bucket(theta.size)  # two programs
+    np.testing.assert_allclose(short[:, :-1], K[:, :-2], rtol=0, atol=1e-12 * f.max())  # the same hats before the last
