@@ -34,12 +34,14 @@ def rng() -> np.random.Generator:
 # JAXLIMB_CACHE_DIR set by the caller is used as it is (``off`` runs the suite without a cache).
 if "JAXLIMB_CACHE_DIR" not in os.environ:  # the controller (or a run without workers): the workers inherit it
     os.environ["JAXLIMB_CACHE_DIR"] = os.environ[_RUN_CACHE] = tempfile.mkdtemp(prefix="jaxlimb-test-cache-")
+    os.environ[_RUN_CACHE + "_OWNER"] = str(os.getpid())
 enable_compile_cache()
 
 
 def pytest_unconfigure(config):
-    """The run's cache goes with the run (the controller's, after the workers have stopped)."""
-    if not hasattr(config, "workerinput") and _RUN_CACHE in os.environ:
+    """The run's cache goes with the run: removed by the process that made it (the controller, after its workers have
+    stopped; never a worker or a process a test started, which inherit the variables)."""
+    if os.environ.get(_RUN_CACHE + "_OWNER") == str(os.getpid()):
         shutil.rmtree(os.environ[_RUN_CACHE], ignore_errors=True)
 
 
