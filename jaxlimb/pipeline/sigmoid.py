@@ -39,6 +39,25 @@ def levels_held(options: LocateOptions) -> tuple[str, ...]:
     return () if options.estimate_k else ("k", "ymax", "ymin")
 
 
+def pad_coords(coords: np.ndarray) -> np.ndarray:
+    """``coords`` ``(n, 2)`` padded to :func:`~jaxlimb.fitting.bucket_size` of ``n`` with copies of the first pixel: the
+    shapes the model's column programs (:func:`columns`) are compiled for, one per bucket rather than per limb.
+
+    Parameters
+    ----------
+    coords : array_like (n, 2)
+        Pixels ``(row, col)``.
+
+    Returns
+    -------
+    np.ndarray (m, 2)
+        ``m = bucket_size(n)``; the first ``n`` rows are ``coords``.
+    """
+    coords = np.asarray(coords, float)
+    n = coords.shape[0]
+    return np.concatenate([coords, np.repeat(coords[:1], bucket_size(n) - n, axis=0)])
+
+
 def pad_bucket(data: FitData) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Pad to the next size ``2^k`` or ``1.5 * 2^k`` (>= 4096) with zero-weight copies of the first pixel.
 
@@ -163,8 +182,8 @@ def predict(model, params, coords: np.ndarray) -> np.ndarray:
 
 def fisher_information(model, params, data: FitData, fixed: tuple[str, ...], sigma: float) -> np.ndarray:
     """Fisher matrix ``J^T diag(w^2) J / sigma^2`` over the free parameters (the information of
-    :func:`jaxlimb.analysis.crlb.crlb` with per-pixel noise ``sigma / w_i``), from the model's analytic columns on padded
-    shapes (:func:`columns`).
+    :func:`jaxlimb.analysis.crlb.crlb` with per-pixel noise ``sigma / w_i``), from the model's analytic columns on the
+    padded shapes of :func:`pad_coords` (:func:`columns`).
 
     Parameters
     ----------
@@ -183,9 +202,10 @@ def fisher_information(model, params, data: FitData, fixed: tuple[str, ...], sig
     np.ndarray (p, p)
         ``p`` the number of free parameters, in the model's parameter order.
     """
-    cp, _, w = pad_bucket(data)
-    _, cols = columns(model)(params, jax.device_put(np.asarray(cp)))  # host data: no program per shape
-    J = np.stack([np.asarray(cols[i]) for i in model.free_indices(fixed)], axis=1)
+    n = data.z.shape[0]
+    w = np.ones(n) if data.weights is None else np.asarray(data.weights, dtype=float)
+    _, cols = columns(model)(params, jax.device_put(pad_coords(data.coords)))  # the model-error terms' program
+    J = np.stack([np.asarray(cols[i])[:n] for i in model.free_indices(fixed)], axis=1)
     return (J.T @ (J * (w * w)[:, None])) / sigma**2
 
 
@@ -207,4 +227,4 @@ def replace_params(p, **kw):
     return p.replace(**{k: float(v) for k, v in kw.items()})
 
 
-__all__ = ["K_INIT", "LOGISTIC_TO_GAUSS", "columns", "fisher_information", "levels_held", "pad_bucket", "predict", "replace_params", "run_fit"]
+__all__ = ["K_INIT", "LOGISTIC_TO_GAUSS", "columns", "fisher_information", "levels_held", "pad_bucket", "pad_coords", "predict", "replace_params", "run_fit"]

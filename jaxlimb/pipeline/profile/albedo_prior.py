@@ -23,10 +23,10 @@ import math
 
 import numpy as np
 
-from ...fitting import bucket_size
 from ...model_error import positive_part
 from ...models import LimbProfileParams
 from ...models.profile_columns import albedo_field_factor
+from ..sigmoid import pad_coords
 
 TAU_MAX = 0.5
 """The largest relative albedo spread the field may take (the support of its prior): an albedo ``A (1 + a)`` stays
@@ -60,9 +60,7 @@ def field_factor(p: LimbProfileParams, coords: np.ndarray, ell_rad: float) -> np
     -------
     np.ndarray (n, m)
     """
-    n = coords.shape[0]
-    padded = np.concatenate([coords, np.repeat(coords[:1], bucket_size(n) - n, axis=0)])
-    return albedo_field_factor(p, padded, 1.0, ell_rad)[:n]
+    return albedo_field_factor(p, pad_coords(coords), 1.0, ell_rad)[: coords.shape[0]]
 
 
 def thin_svd(U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -12,13 +12,12 @@ import jax
 import numpy as np
 
 from ..._programs import stored_jit
-from ...fitting import bucket_size
 from ...model_error import cluster_robust_covariance, hausman_term, sector_groups, with_model_error as widen
 from ...geometry.conic import ellipse_signed_distance
 from ...models import CircleParams, EllipseRampParams, LimbDarkenedParams, LimbModel, LimbProfileParams
 from ...models.corona import CoronaParams
 from ...models.lunar_lambert import limb_geometry, profile_model
-from ..sigmoid import LOGISTIC_TO_GAUSS, columns
+from ..sigmoid import LOGISTIC_TO_GAUSS, columns, pad_coords
 from ..stages import RefineResult
 from .albedo_prior import albedo_consider, with_albedo_term
 
@@ -194,8 +193,7 @@ def weighted_system(rr: RefineResult, model: LimbModel):
     fit = rr.fit
     coords = np.asarray(rr.data.coords, float)
     n = coords.shape[0]
-    padded = np.concatenate([coords, np.repeat(coords[:1], bucket_size(n) - n, axis=0)])  # no recompiles
-    padded = jax.device_put(padded)  # host data: no identity program per shape
+    padded = jax.device_put(pad_coords(coords))  # no recompiles; host data: no identity program per shape
     f, cols = columns(model)(fit.params, padded)
     names = model.param_names
     w = np.ones(n) if rr.data.weights is None else np.asarray(rr.data.weights, float)

@@ -10,12 +10,11 @@ import equinox as eqx
 import jax
 import numpy as np
 
-from ...fitting import bucket_size
 from ...model_error import sector_groups
 from ...geometry.sphere_image import sphere_from_ellipse_center
 from ...models import LimbModel
 from ...models.lunar_lambert import profile_model
-from ..sigmoid import columns, predict
+from ..sigmoid import columns, pad_coords, predict
 from ..stages import FitData, Frame, RefineResult
 from .passes import l_band, profile_passes, shape_change_px
 
@@ -201,7 +200,7 @@ def _unweighted_system(model: LimbModel, rr: RefineResult, padded=None):
     coords, z = np.asarray(rr.data.coords, float), np.asarray(rr.data.z, float)
     n, names, free = coords.shape[0], model.param_names, list(rr.fit.free)
     if padded is None:
-        padded = jax.device_put(np.concatenate([coords, np.repeat(coords[:1], bucket_size(n) - n, axis=0)]))
+        padded = jax.device_put(pad_coords(coords))
 
     def evaluate(p):
         f, cols = columns(model)(p, padded)
