@@ -399,6 +399,5 @@ class CompileTimer:
         return total
 
 
-__all__ = ["ENV_DIR", "MAX_BYTES", "CheckedCache", "CompileTimer", "cache_dir", "enable_compile_cache", "persistent_cache_bypassed",
-           "read_sealed",
-           "seal", "start_jax", "unseal", "warn_once", "write_sealed"]
+__all__ = ["ENV_DIR", "MAX_BYTES", "CheckedCache", "CompileTimer", "cache_dir", "enable_compile_cache",
+           "persistent_cache_bypassed", "read_sealed", "seal", "start_jax", "unseal", "warn_once", "write_sealed"]
