@@ -111,10 +111,10 @@ def body_names(frames: Frames) -> list[str]:
 
 
 def apparent_radius_px(frames: Frames) -> np.ndarray:
-    """The measured apparent radius (px) of each frame (a range turned back into it with ``f_nominal``)."""
+    """The measured apparent radius (px) of each frame (a range turned back into it with ``locate``'s focal length)."""
     X = frames.z[:, 2]
     ratio = np.clip(frames.radius_km / np.where(frames.is_range > 0, X, np.inf), 0.0, 1.0)
-    return np.where(frames.is_range > 0, frames.f_nominal * np.tan(np.arcsin(ratio)), X)
+    return np.where(frames.is_range > 0, frames.theta_locate[:, 0] * np.tan(np.arcsin(ratio)), X)
 
 
 def bias_model(frames: Frames, enabled: bool = True) -> BiasModel:

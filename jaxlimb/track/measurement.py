@@ -7,13 +7,22 @@ that triple is the whole chain from the state to the pixels, in JAX so that ever
 
 * camera frame: ``q = C_ci (s_b - r)`` (``r`` the spacecraft, ``s_b`` the body, geocentric ICRF; ``C_ci``
   inertial -> camera, DESIGN.md);
-* pixel of the body centre: normalised ``(x, y) = (q_x, q_y) / q_z``, Brown's first radial term
-  ``(x, y) (1 + k1 (x^2 + y^2))`` and ``(row, col) = (r_c + f y_d, c_c + f x_d)`` (:mod:`jaxlimb.geometry.camera`);
-* apparent size: ``alpha = asin(R / |q|)``, the radius ``f tan(alpha)`` (Eq. 36 of the Aerospace 2015 Moon
-  paper) scaled by ``1 + 2 k1 rho^2`` (the mean of the radial, ``1 + 3 k1 rho^2``, and tangential,
-  ``1 + k1 rho^2``, stretch of the lens at the centre, to first order in ``k1``); a range reported by
-  ``locate`` with the nominal focal length ``f_0`` is that radius turned back into a range with ``f_0``:
-  ``R / sin(atan(f tan(alpha) / f_0))`` (``= |q|`` when ``f = f_0``).
+* the limb of the sphere of radius ``R`` seen along ``q`` through the camera ``theta``: with ``(x, y) = (q_x, q_y)
+  / q_z``, ``t^2 = x^2 + y^2``, ``s = R / |q| = sin(alpha)`` and ``w = 1 - s^2 (1 + t^2)``, an ellipse of centre
+  ``(x, y) / w`` and radial semi-axis ``s cos(alpha) (1 + t^2) / w`` (focal units; :mod:`jaxlimb.geometry.
+  sphere_image`, written with ``tan(theta) = t``), with Brown's first radial term ``k1`` stretching its centre by
+  ``1 + k1 rho^2`` and its size by ``1 + 2 k1 rho^2`` (the mean of the radial, ``1 + 3 k1 rho^2``, and tangential,
+  ``1 + k1 rho^2``, stretch at the centre, to first order in ``k1``);
+* what ``locate`` reports from that ellipse with *its* camera ``theta_l`` (the one it was given, which
+  self-calibration says is wrong): the lens undone with ``theta_l``'s ``k1``, the sphere whose limb is the ellipse
+  under ``theta_l`` (:func:`jaxlimb.geometry.sphere_image.sphere_from_ellipse_center`, here in closed form and
+  JAX, :func:`_sphere_of_limb`), its body-centre pixel ``pp_l + f_l (x', y') (1 + k1_l rho'^2)`` and its
+  on-axis-equivalent radius ``f_l tan(alpha')`` (Eq. 36 of the Aerospace 2015 Moon paper) or range
+  ``R / sin(alpha')`` (the Earth).  With ``theta = theta_l`` this is the pixel ``pp + f (x, y) (1 + k1 rho^2)``,
+  ``f tan(alpha)`` and ``|q|``; with a wrong ``theta_l`` it is what ``locate`` measured: the off-axis correction
+  from the ellipse centre to the body centre (``f tan(theta) sin^2(alpha)``, up to 0.4 px on a Moon 45 px across
+  and 180 px off the boresight) made with the wrong camera leaks ``sin^2(alpha)`` of a principal-point error into
+  every centre, which a model that left it out would read as that much of the principal point.
 
 Camera parameters ``theta = (f, r_c, c_c, k1)`` (px, px, px, 1) enter only here; they are estimated by
 :func:`jaxlimb.track.batch.fit_arc` (self-calibration).
@@ -64,8 +73,8 @@ class Frames:
     body_pos : (n, 3) geocentric position of the imaged body (km).
     radius_km : (n,) its radius (Moon 1737.4; the Earth's equatorial 6378.137 km).
     is_range : (n,) 1.0 where ``X`` is a range (km), 0.0 where it is a radius (px).
-    f_nominal : (n,) focal length (px) ``locate`` used (turns a range back into an apparent size).
-    theta : (n, 4) the nominal camera of each frame (``CAMERA_PARAMS``).
+    theta_locate : (n, 4) the camera ``locate`` measured each frame with (``CAMERA_PARAMS``).
+    theta : (n, 4) the camera the estimator is told (``CAMERA_PARAMS``; its start when it calibrates).
     attitude_sigma : (n,) per-axis attitude error (rad, 1 sigma).
     labels : frame names (image paths).
     sun_pos : (n, 3) geocentric position of the Sun (km), or ``None``: the direction of the bodies' phase offset
@@ -82,7 +91,7 @@ class Frames:
     body_pos: np.ndarray
     radius_km: np.ndarray
     is_range: np.ndarray
-    f_nominal: np.ndarray
+    theta_locate: np.ndarray
     theta: np.ndarray
     attitude_sigma: np.ndarray
     labels: tuple[str, ...]
@@ -94,34 +103,66 @@ class Frames:
 
     def arrays(self) -> tuple[jax.Array, ...]:
         """The per-frame arrays in the order :func:`predict` takes them (after the state and ``theta``)."""
-        return tuple(jnp.asarray(a) for a in (self.C, self.body_pos, self.radius_km, self.is_range, self.f_nominal))
+        return tuple(jnp.asarray(a) for a in (self.C, self.body_pos, self.radius_km, self.is_range, self.theta_locate))
 
     def subset(self, idx) -> Frames:
         """The frames ``idx`` (an index array or a boolean mask)."""
         idx = np.asarray(idx)
         opt = {k: None if getattr(self, k) is None else getattr(self, k)[idx] for k in ("sun_pos", "R_noise")}
         return Frames(*(getattr(self, k)[idx] for k in ("t", "z", "R", "C", "body_pos", "radius_km", "is_range",
-                                                         "f_nominal", "theta", "attitude_sigma")),
+                                                         "theta_locate", "theta", "attitude_sigma")),
                       labels=tuple(np.asarray(self.labels, dtype=object)[idx]), **opt)
 
 
+def _limb_ellipse(xy: jax.Array, s: jax.Array, theta: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """Pixel centre ``(row, col)`` and radial semi-axis (px) of the limb of a sphere of ``sin(alpha) = s`` whose
+    centre has normalised image ``xy = (x, y)``, through ``theta`` with its lens (module docstring)."""
+    w1 = 1.0 + xy @ xy
+    den = 1.0 - s * s * w1
+    e = xy / den
+    lens = theta[3] * (e @ e)
+    a = s * jnp.sqrt(1.0 - s * s) * w1 / den * (1.0 + 2.0 * lens)
+    return theta[1:3] + theta[0] * e[::-1] * (1.0 + lens), theta[0] * a
+
+
+def _sphere_of_limb(centre: jax.Array, a_px: jax.Array, theta: jax.Array) -> tuple[jax.Array, jax.Array]:
+    """Normalised body-centre image ``(x, y)`` and ``tan(alpha)`` of the sphere whose limb is the ellipse
+    ``(centre, a_px)`` through ``theta`` (its lens undone first, to first order).
+
+    The radial ends of the limb are the images of the rays at ``theta_b +- alpha`` (:func:`jaxlimb.geometry.camera.
+    sphere_image_ellipse`): ``tan(theta_b +- alpha) = k +- A`` (``k`` the ellipse centre's distance from the
+    principal point, ``A`` the radial semi-axis, focal units), so ``2 theta_b`` and ``2 alpha`` are the angles whose
+    tangents are ``2k / (1 - k^2 + A^2)`` and ``2A / (1 + k^2 - A^2)``; the half-angle formula gives both tangents
+    in closed form, ``tan(theta_b) / k`` without dividing by ``k`` (the map of
+    :func:`jaxlimb.geometry.sphere_image.sphere_from_ellipse_center`, there by Newton)."""
+    e = (centre - theta[1:3])[::-1] / theta[0]
+    lens = theta[3] * (e @ e)
+    e = e * (1.0 - lens)
+    A = a_px / theta[0] * (1.0 - 2.0 * lens)
+    k2, A2 = e @ e, A * A
+    u, v = 1.0 - k2 + A2, 1.0 + k2 - A2
+    t_over_k = 2.0 / (u + jnp.sqrt(u * u + 4.0 * k2))
+    return e * t_over_k, 2.0 * A / (v + jnp.sqrt(v * v + 4.0 * A2))
+
+
 def predict(r: jax.Array, theta: jax.Array, C: jax.Array, body_pos: jax.Array, radius_km: jax.Array,
-            is_range: jax.Array, f_nominal: jax.Array, sun_pos: jax.Array | None = None,
+            is_range: jax.Array, theta_locate: jax.Array, sun_pos: jax.Array | None = None,
             bias: jax.Array | None = None) -> jax.Array:
-    """Predicted ``(center_r, center_c, X)`` of one frame (module docstring); with ``bias = (b_sun, b_scale)``
-    and ``sun_pos``, the body's biased image (:func:`jaxlimb.track.bias.sun_direction_px`)."""
-    f, rc, cc, k1 = theta[0], theta[1], theta[2], theta[3]
+    """Predicted ``(center_r, center_c, X)`` of one frame as ``locate`` with ``theta_locate`` reports it (module
+    docstring); with ``bias = (b_sun, b_scale)`` and ``sun_pos``, the body's biased image
+    (:func:`jaxlimb.track.bias.sun_direction_px`)."""
     q = C @ (body_pos - r)
-    x, y = q[0] / q[2], q[1] / q[2]
-    rho2 = x * x + y * y
-    d = 1.0 + k1 * rho2
     D = jnp.linalg.norm(q)
-    size = f * jnp.tan(jnp.arcsin(radius_km / D)) * (1.0 + 2.0 * k1 * rho2)
-    centre = jnp.stack([rc + f * y * d, cc + f * x * d])
+    s = radius_km / D
+    centre, a = _limb_ellipse(q[:2] / q[2], s, theta)
+    f = theta_locate[0]
+    xy, tan_alpha = _sphere_of_limb(centre, a, theta_locate)
+    centre = theta_locate[1:3] + f * xy[::-1] * (1.0 + theta_locate[3] * (xy @ xy))
+    size = f * tan_alpha
     if bias is not None:  # a centre offset along the Sun's image direction (a fraction of the radius), a size scale
         centre = centre + bias[0] * size * sun_direction_px(q, C @ (sun_pos - r))
         size = size * (1.0 + bias[1])
-    rng = radius_km / jnp.sin(jnp.arctan(size / f_nominal))
+    rng = radius_km / jnp.sin(jnp.arctan(size / f))
     return jnp.concatenate([centre, jnp.where(is_range > 0, rng, size)[None]])
 
 
@@ -182,6 +223,32 @@ def noise_covariance(measurement: dict, names: tuple[str, ...]) -> np.ndarray | 
     return np.diag([crlb[a] ** 2 for a in names]) if all(a in crlb for a in names) else None
 
 
+def frame_covariances(measurement: dict, names: tuple[str, ...], X: float | None,
+                      label: str) -> tuple[np.ndarray, np.ndarray | None]:
+    """A frame's covariance of ``(center_r, center_c, X)`` and its noise-only part (:func:`noise_covariance`).
+
+    A measurement of the centre alone (``locate``'s centre of brightness on a disc of a few pixels carries no size
+    covariance) keeps its centre: ``X`` gets the variance ``(10 X)^2``, a size known to a factor of ten, which
+    holds no information on the range (its weight in the state is 1e-4 of a 10 % size), in both parts, so its
+    model-error part is zero.
+
+    Raises
+    ------
+    ConfigError
+        Neither the 3x3 nor the centre's 2x2 covariance, or no size at all.
+    """
+    cov = _block(measurement["covariance"], names)
+    if cov is not None:
+        return cov, noise_covariance(measurement, names)
+    centre = _block(measurement["covariance"], names[:2])
+    if centre is None or X is None or not X > 0:
+        raise ConfigError(f"frame {label!r}: the measurement has no covariance of {list(names)}")
+    vague = (10.0 * X) ** 2
+    noise = noise_covariance(measurement, names[:2])
+    return (np.block([[centre, np.zeros((2, 1))], [np.zeros((1, 2)), np.array([[vague]])]]),
+            None if noise is None else np.block([[noise, np.zeros((2, 1))], [np.zeros((1, 2)), np.array([[vague]])]]))
+
+
 def frames_from_records(records: list[dict], arc, camera, *, attitude_sigma_rad: float = 0.0) -> Frames:
     """Frames from per-frame records ``{"image", "t_s", "C_ci", "body", "measurement"}`` (``measurement``: the
     ``locate --json`` object).  Records whose measurement is not ``ok`` are left out by the caller."""
@@ -191,14 +258,10 @@ def frames_from_records(records: list[dict], arc, camera, *, attitude_sigma_rad:
         m, body = rec["measurement"], rec["body"]
         if body not in BODY_RADIUS_KM:
             raise ConfigError(f"track measures the Moon and the Earth, got body {body!r}")
-        third = "range_km" if body == "earth" else "radius"
-        names = ("center_r", "center_c", third)
-        cov = _block(m["covariance"], names)
-        if cov is None:
-            raise ConfigError(f"frame {rec['image']!r}: the measurement has no covariance of {list(names)}")
-        X = m["range_km"] if body == "earth" else m["radius_px"]
-        rows.append((rec["t_s"], [m["center_rc"][0], m["center_rc"][1], X], cov, rec["C_ci"], body, rec["image"],
-                     noise_covariance(m, names)))
+        X = m.get("range_km") if body == "earth" else m.get("radius_px")
+        cov, noise = frame_covariances(m, ("center_r", "center_c", "range_km" if body == "earth" else "radius"), X,
+                                       rec["image"])
+        rows.append((rec["t_s"], [m["center_rc"][0], m["center_rc"][1], X], cov, rec["C_ci"], body, rec["image"], noise))
     rows.sort(key=lambda row: row[0])
     t = np.array([row[0] for row in rows], float)
     bodies = [row[4] for row in rows]
@@ -211,15 +274,15 @@ def frames_from_records(records: list[dict], arc, camera, *, attitude_sigma_rad:
                   C=np.array([row[3] for row in rows], float).reshape(n, 3, 3), body_pos=body_pos,
                   radius_km=np.array([BODY_RADIUS_KM[b] for b in bodies], float),
                   is_range=np.array([1.0 if b == "earth" else 0.0 for b in bodies]),
-                  f_nominal=np.full(n, theta0[0]), theta=np.tile(theta0, (n, 1)),
+                  theta_locate=np.tile(theta0, (n, 1)), theta=np.tile(theta0, (n, 1)),
                   attitude_sigma=np.full(n, float(attitude_sigma_rad)), labels=tuple(row[5] for row in rows),
                   sun_pos=sun, R_noise=noise)
 
 
 def single_frame_position(frames: Frames, k: int) -> np.ndarray:
     """The spacecraft position (km) from frame ``k`` alone: the body-centre line of sight of the pixel and the
-    range of the apparent size, inverted through the pinhole part of the model (initial orbit determination)."""
-    f, rc, cc, _ = frames.theta[k]
+    range of the apparent size, inverted through the pinhole part of ``locate``'s camera (initial orbit determination)."""
+    f, rc, cc, _ = frames.theta_locate[k]
     row, col, X = frames.z[k]
     u = np.array([(col - cc) / f, (row - rc) / f, 1.0])
     u /= np.linalg.norm(u)
@@ -228,5 +291,5 @@ def single_frame_position(frames: Frames, k: int) -> np.ndarray:
 
 
 __all__ = ["BODY_RADIUS_KM", "CAMERA_PARAMS", "EARTH_RADIUS_KM", "MOON_RADIUS_KM", "Frames", "attitude_jacobian",
-           "camera_theta", "frames_from_records", "noise_covariance", "predict", "single_frame_position", "sun_direction_px",
-           "total_covariance"]
+           "camera_theta", "frame_covariances", "frames_from_records", "noise_covariance", "predict",
+           "single_frame_position", "sun_direction_px", "total_covariance"]

@@ -136,12 +136,13 @@ def perturb_attitudes(C: np.ndarray, sigma_rad: float, rng: np.random.Generator)
     return np.array(out)
 
 
-def true_measurements(tr: Transfer, f_nominal: float | None = None) -> np.ndarray:
-    """``h`` of every frame at the truth (true camera and attitude)."""
+def true_measurements(tr: Transfer, theta_locate: np.ndarray | None = None) -> np.ndarray:
+    """``h`` of every frame at the truth (true camera and attitude), as ``locate`` given the camera ``theta_locate``
+    (default the true one) reports it."""
     bp = tr.body_positions()
-    f0 = tr.theta[0] if f_nominal is None else f_nominal
+    th0 = jnp.asarray(tr.theta if theta_locate is None else theta_locate)
     return np.array([np.asarray(predict(jnp.asarray(tr.states[k, :3]), jnp.asarray(tr.theta), jnp.asarray(tr.C_true[k]),
-                                        jnp.asarray(bp[k]), BODY_RADIUS_KM[b], 1.0 if b == "earth" else 0.0, f0))
+                                        jnp.asarray(bp[k]), BODY_RADIUS_KM[b], 1.0 if b == "earth" else 0.0, th0))
                      for k, b in enumerate(tr.bodies)])
 
 
@@ -151,12 +152,12 @@ def drawn_frames(tr: Transfer, R: np.ndarray, rng: np.random.Generator, *, attit
     perturbed by ``attitude_sigma_rad``; ``theta_nominal`` is the camera the estimator is told (default: the
     true one)."""
     th = tr.theta if theta_nominal is None else np.asarray(theta_nominal, float)
-    z = true_measurements(tr, th[0])
+    z = true_measurements(tr, th)
     z = z + np.einsum("kij,kj->ki", np.linalg.cholesky(R), rng.standard_normal(z.shape))
     n = len(tr.t)
     return Frames(t=tr.t.copy(), z=z, R=np.asarray(R, float), C=perturb_attitudes(tr.C_true, attitude_sigma_rad, rng),
                   body_pos=tr.body_positions(), radius_km=np.array([BODY_RADIUS_KM[b] for b in tr.bodies]),
-                  is_range=np.array([1.0 if b == "earth" else 0.0 for b in tr.bodies]), f_nominal=np.full(n, th[0]),
+                  is_range=np.array([1.0 if b == "earth" else 0.0 for b in tr.bodies]), theta_locate=np.tile(th, (n, 1)),
                   theta=np.tile(th, (n, 1)), attitude_sigma=np.full(n, attitude_sigma_rad),
                   labels=tuple(f"frame{k:04d}" for k in range(n)))
 

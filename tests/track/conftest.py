@@ -46,11 +46,11 @@ def locate_like_frames(arc, tr, rng: np.random.Generator, moon_offset: float, in
     is_range = np.array([1.0 if b == "earth" else 0.0 for b in tr.bodies])
     radius = np.array([6378.137 if b == "earth" else 1737.4 for b in tr.bodies])
     z = np.array([np.asarray(predict(jnp.asarray(tr.states[k, :3]), jnp.asarray(THETA), jnp.asarray(tr.C_true[k]),
-                                     jnp.asarray(bp[k]), radius[k], is_range[k], THETA[0], jnp.asarray(sun[k]),
+                                     jnp.asarray(bp[k]), radius[k], is_range[k], jnp.asarray(THETA), jnp.asarray(sun[k]),
                                      jnp.asarray([moon_offset * (b == "moon"), 0.0]))) for k, b in enumerate(tr.bodies)])
     noise, model = covariances(tr, NOISE_PX), covariances(tr, MODEL_PX)
     drawn = noise + independent * model
     z = z + np.einsum("kij,kj->ki", np.linalg.cholesky(drawn), rng.standard_normal(z.shape))
     return Frames(t=tr.t.copy(), z=z, R=noise + model, C=perturb_attitudes(tr.C_true, 1e-6, rng), body_pos=bp,
-                  radius_km=radius, is_range=is_range, f_nominal=np.full(N, THETA[0]), theta=np.tile(THETA, (N, 1)),
+                  radius_km=radius, is_range=is_range, theta_locate=np.tile(THETA, (N, 1)), theta=np.tile(THETA, (N, 1)),
                   attitude_sigma=np.full(N, 1e-6), labels=tuple(f"f{k}" for k in range(N)), sun_pos=sun, R_noise=noise)
