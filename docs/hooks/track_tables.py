@@ -1,7 +1,7 @@
 """The tables of the track page (``docs/track.md``), read from ``benchmarks/results/track_transfer*.json``.
 
 Registered with :mod:`results_tables` (loaded first by the docs hook): ``<!-- results: track_transfer -->``,
-``track_selfcal``, ``track_cli``, ``track_epic`` and ``track_noise``.
+``track_selfcal``, ``track_cli``, ``track_epic``, ``track_noise`` and ``track_efficiency``.
 """
 
 from __future__ import annotations
@@ -178,3 +178,19 @@ def phase_across_disc(rel: str = "phase_across_disc.json") -> str:
                 "lunar-Lambert, held", "Hapke", "Hapke, held"]
     return (rt.table(head, rows) + span + "\n*Along the Sun (px), frame by frame:*\n\n" + rt.table(per_head, per)
             + "\n" + rt.source(rel, d))
+
+
+@rt.renderer
+def track_efficiency(rel: str = "track_efficiency.json") -> str:
+    """The batch fit's error against the posterior CRB on drawn measurements (``benchmarks/track_efficiency.py``)."""
+    d = rt.load(rel)
+    rows = [["sequences × frames", f"{d['sequences']} × {d['frames']}"],
+            ["batch RMS position error / posterior CRB (km)",
+             f"{d['batch_rms_pos_km']:.2f} / {d['pcrb_rms_pos_km']:.2f} = **{d['batch_over_pcrb']:.3f}** ± "
+             f"{d['batch_over_pcrb_se']:.3f}"],
+            ["the batch's own position sigma / posterior CRB", f"{d['batch_cov_over_pcrb']:.4f}"],
+            ["NEES of the batch fit's position (3 expected)",
+             f"{d['batch_nees_position_mean']:.2f} ± {d['batch_nees_position_se']:.2f}"],
+            ["initial state, along the CRB's eigendirections: mean squared error / bound (1 expected)",
+             ", ".join(f"{e['mse_over_variance']:.2f}" for e in d["initial_state_eigendirections"])]]
+    return rt.table(["quantity", "value"], rows) + rt.source(rel, d)
