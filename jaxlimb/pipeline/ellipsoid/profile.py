@@ -7,7 +7,12 @@ re-predicted after the fit and the fit repeated (once is typical) while they mov
 than :data:`~jaxlimb.pipeline.ellipsoid.model.REFIT_TOL_PX`; free ellipse: ``theta, rho`` estimated.  ``profile="auto"`` keeps the edge fit
 (``extras["profile_rejected"]`` says why) when the fit fails, its ``L`` is outside the band of
 lunar-Lambert-like limbs, or it moves the limb by more than half the band from the edge fit.  An accepted fit is
-refitted once with a glow above the limb when a score test finds one (:func:`widen_glow_ellipsoid`).
+refitted once with a glow above the limb when a score test finds one (:func:`widen_glow_ellipsoid`), then, with the
+attitude known, under the albedo as an unknown Gaussian field, as the sphere's
+(:func:`~jaxlimb.pipeline.profile.albedo_field.with_albedo_field`, the shape held): an albedo that changes across the
+limb otherwise moves the edge.  An anisotropic blur (:func:`widen_aniso_ellipsoid`) is kept only where the field
+weighs it better than the round profile (:func:`~jaxlimb.pipeline.profile.albedo_field.field_preferred`): to a
+one-albedo score test such an albedo is a smear.
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ from ...models.lunar_lambert import (AnisoProfileParams, GlowProfileParams, LIMB
                                      LIMB_PROFILE_GLOW, limb_profile_intensity, LimbProfileParams,
                                      lunar_lambert_weight, MinnaertProfileParams, profile_model)
 from ...models.sigmoid import ELLIPSE
+from ..profile.albedo_field import field_preferred, held_shape, with_albedo_field
 from ..profile.fit import profile_sun_direction
 from ..profile.glow import GLOW_Z, fit_glow_tilt, glow_columns, glow_plausible, glow_start
 from ..profile.model_error import last_column_step, weighted_system, with_model_error
@@ -247,8 +253,8 @@ def _with_witness(out: RefineResult, edge: EllipsoidEdge) -> RefineResult:
 def fit_profile_ellipsoid(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdge, extras: dict[str, Any]) -> RefineResult:
     """The profile-refit stage (module docstring): the lunar-Lambert profile's :class:`RefineResult`, widened by a glow
     (:func:`widen_glow_ellipsoid`) or an anisotropic blur (:func:`widen_aniso_ellipsoid`) when they are significant,
-    with its model-error terms and the unresolved glow's consider covariance; else the edge fit's with its
-    model-error terms.  On an albedo-patchy limb the edge fit, with the traced rays' cluster-robust covariance, the
+    refitted under the albedo field, with its model-error terms and the unresolved glow's consider covariance; else the
+    edge fit's with its model-error terms.  On an albedo-patchy limb the edge fit, with the traced rays' cluster-robust covariance, the
     coherent-shift floor and the witnesses' differences as model error.
 
     Parameters
@@ -293,12 +299,22 @@ def fit_profile_ellipsoid(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdg
         extras["profile_rejected"] = {"model": "lunar-lambert", "L": L, "allowed_L": list(band_L)}
         return edge_with_model_error(edge, res.params)
     extras["profile_fits"] = hist
-    rr = widen_glow_ellipsoid(frame, RefineResult(res, fd, 0, fixed))
+    return with_unresolved_glow(body, _under_field(body, frame, RefineResult(res, fd, 0, fixed)))
+
+
+def _under_field(body: EllipsoidModel, frame: Frame, base: RefineResult) -> RefineResult:
+    """The profile fit ``base`` widened (a glow, an anisotropic blur the field prefers) and refitted under the albedo
+    field (module docstring), with its model-error terms.  A free ellipse (the attitude unknown: the field's smooth
+    orders along the limb trade with ``rho, theta``) and a band normalised by each ray's own brightness
+    (:func:`~jaxlimb.pipeline.ellipsoid.trace_fit.normalised_band`, a cloudy limb's) keep the one-albedo fit."""
+    rr = widen_glow_ellipsoid(frame, base)
     ra = rr if body.free else widen_aniso_ellipsoid(frame, rr)  # (a free ellipse's rho, theta are 2 psi terms too)
-    system = weighted_system(ra, profile_model(ra.fit.params))  # (shared by both covariance terms)
-    out = with_model_error(ra, system=system)
-    out = out if ra is rr else with_aniso_witness(out, rr)
-    return with_unresolved_glow(body, out, system)
+    if body.free or base.data.weights is not None:  # (the field's low orders trade with a free rho, theta as well)
+        out = with_model_error(ra)
+    else:
+        ra = field_preferred([rr, ra]) if ra is not rr else rr
+        out = with_albedo_field(frame, with_model_error(ra, consider=False), held_shape)
+    return out if ra is rr else with_aniso_witness(out, rr)
 
 
 def with_unresolved_glow(body: EllipsoidModel, rr: RefineResult, system=None) -> RefineResult:

@@ -24,6 +24,7 @@ with the model's analytic columns; its covariance is the field's, widened by wha
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import replace
 
 import equinox as eqx
@@ -40,6 +41,11 @@ from .albedo_prior import ELL_DEG, field_factor, field_likelihood, residual_fiel
 from .model_error import (MODEL_ERROR_SECTORS, signed_distance, split_witness, weighted_system, with_consider_term,
                           with_model_error)
 from .passes import l_band
+
+
+ShapeRule = Callable[[Frame, RefineResult, LimbProfileParams], RefineResult]
+"""How a body strategy's limb shape follows the profile's parameters in the refit (:func:`sphere_shape`,
+:func:`held_shape`)."""
 
 
 def field_basis(p: LimbProfileParams, coords: np.ndarray, ell_rad: float) -> tuple[np.ndarray, np.ndarray]:
@@ -64,10 +70,24 @@ def _whiten(A: np.ndarray, Q: np.ndarray, d: np.ndarray, s: float) -> np.ndarray
     return (A - Q @ (d[:, None] * (Q.T @ A) if A.ndim == 2 else d * (Q.T @ A))) / s
 
 
-def _moved(frame: Frame, rr: RefineResult, x: np.ndarray) -> RefineResult:
-    """``rr`` with its free parameters at ``x``; with a camera the sphere's ellipse shape follows the centre
-    (as :func:`~jaxlimb.pipeline.profile.passes.profile_passes` holds it)."""
-    q = rr.fit.params.replace(**{k: float(x[i]) for i, k in enumerate(rr.fit.free)})
+def sphere_shape(frame: Frame, rr: RefineResult, q: LimbProfileParams) -> RefineResult:
+    """``rr`` with the parameters ``q``; with a camera and a held shape, the sphere's ellipse shape follows the centre
+    (as :func:`~jaxlimb.pipeline.profile.passes.profile_passes` holds it): the sphere strategy's shape rule.
+
+    Parameters
+    ----------
+    frame : Frame
+        The frame (its camera).
+    rr : RefineResult
+        The fit being moved.
+    q : LimbProfileParams
+        Its new parameters.
+
+    Returns
+    -------
+    RefineResult
+        ``rr`` at ``q``, ``theta, rho`` and the sphere's image those of the centre.
+    """
     sph = rr.sphere
     if frame.use_camera and "theta" not in rr.fit.free:
         sph = sphere_from_ellipse_center(frame.cam.focal_px, frame.cam.principal_point_rc, (float(q.r0), float(q.c0)),
@@ -76,8 +96,35 @@ def _moved(frame: Frame, rr: RefineResult, x: np.ndarray) -> RefineResult:
     return replace(rr, fit=eqx.tree_at(lambda f: f.params, rr.fit, q), sphere=sph)
 
 
+def held_shape(frame: Frame, rr: RefineResult, q: LimbProfileParams) -> RefineResult:  # noqa: ARG001
+    """``rr`` with the parameters ``q``, the shape ``theta, rho`` as the fit holds it: the ellipsoid strategy's rule
+    (its shape is the spheroid's image, predicted again after the fit,
+    :mod:`jaxlimb.pipeline.ellipsoid.profile`).
+
+    Parameters
+    ----------
+    frame : Frame
+        Unused (the rule's signature).
+    rr : RefineResult
+        The fit being moved.
+    q : LimbProfileParams
+        Its new parameters.
+
+    Returns
+    -------
+    RefineResult
+        ``rr`` at ``q``.
+    """
+    return replace(rr, fit=eqx.tree_at(lambda f: f.params, rr.fit, q))
+
+
+def _moved(frame: Frame, rr: RefineResult, x: np.ndarray, shape: ShapeRule) -> RefineResult:
+    """``rr`` with its free parameters at ``x``, its shape by ``shape``."""
+    return shape(frame, rr, rr.fit.params.replace(**{k: float(x[i]) for i, k in enumerate(rr.fit.free)}))
+
+
 def gls_refit(frame: Frame, rr: RefineResult, model: LimbModel, Q, S, s2: float, t2: float, max_iter: int = 30,
-              system=None):
+              system=None, shape: ShapeRule = sphere_shape):
     """The generalised least-squares fit under ``Sigma`` (``Q, S, s2, t2``: module docstring) from ``rr``, by
     Gauss--Newton steps on the whitened system (each halved until the whitened cost does not rise) with the model's
     own analytic columns (:func:`~jaxlimb.pipeline.profile.model_error.weighted_system`: no program of its own).
@@ -98,6 +145,8 @@ def gls_refit(frame: Frame, rr: RefineResult, model: LimbModel, Q, S, s2: float,
         Gauss--Newton steps at most.
     system : tuple or None
         ``rr``'s :func:`~jaxlimb.pipeline.profile.model_error.weighted_system` under ``model``, if already formed.
+    shape : ShapeRule
+        The body strategy's shape rule (:func:`sphere_shape`, :func:`held_shape`).
 
     Returns
     -------
@@ -113,7 +162,7 @@ def gls_refit(frame: Frame, rr: RefineResult, model: LimbModel, Q, S, s2: float,
     for _ in range(max_iter):
         step, lam = np.linalg.lstsq(Jw, rw, rcond=None)[0], 1.0
         while lam > 1e-3:
-            cand = _moved(frame, rr, x + lam * step)
+            cand = _moved(frame, rr, x + lam * step, shape)
             Jc, rc, _, _ = weighted_system(cand, model)
             rwc = _whiten(rc, Q, d, s)
             if rwc @ rwc <= rw @ rw * (1.0 + 1e-12):
@@ -194,6 +243,51 @@ def physical(rr: RefineResult) -> bool:
     return bool(lo <= float(rr.fit.params.L) <= hi)
 
 
+def field_evidence(rr: RefineResult, bases: list[tuple[np.ndarray, np.ndarray]]) -> float:
+    """The restricted negative log marginal likelihood of a least-squares profile fit's residuals with the albedo field
+    (the best of ``bases``' correlation lengths, the fit's part of the field taken out: :func:`restricted`), plus one
+    per free parameter (Akaike 1974): the score that weighs two models of the same pixels under the field.
+
+    Parameters
+    ----------
+    rr : RefineResult
+        The fit (unweighted).
+    bases : list of tuple
+        :func:`field_basis` of the pixels at each correlation length.
+
+    Returns
+    -------
+    float
+        Lower is better.
+    """
+    J, r, _, _ = weighted_system(rr, profile_model(rr.fit.params))
+    return min(field_likelihood(r, *restricted(b, J))[2] for b in bases) + len(rr.fit.free)
+
+
+def field_preferred(fits: list[RefineResult]) -> RefineResult:
+    """Of profile fits to the same pixels (a fit and its widenings), the one the albedo field weighs best
+    (:func:`field_evidence`): an albedo that changes across the limb reads to a one-albedo score test as a smear, and
+    with the field beside both a smear is taken only where the field does not explain the pixels as well.
+
+    Parameters
+    ----------
+    fits : list of RefineResult
+        Unweighted fits of lunar-Lambert-like profiles on the same pixels, the simplest first (kept on a tie).
+
+    Returns
+    -------
+    RefineResult
+    """
+    if len(fits) == 1:
+        return fits[0]
+    p = fits[0].fit.params
+    coords = np.asarray(fits[0].data.coords, float)
+    proj = LimbProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()])
+    bases = [field_basis(proj, coords, math.radians(e)) for e in ELL_DEG]
+    scores = [field_evidence(f, bases) for f in fits]
+    return fits[int(np.argmin(scores))]
+
+
 def albedo_field_refit(frame: Frame, rr: RefineResult, base: RefineResult | None = None) -> RefineResult | None:
     """``rr`` (a profile fit, widened or not) refitted with the albedo as a marginalised Gaussian field (module
     docstring); ``None`` when its data are weighted, the refit fails or is not physical (:func:`physical`), or a
@@ -256,7 +350,7 @@ def albedo_field_refit(frame: Frame, rr: RefineResult, base: RefineResult | None
     return replace(out, fit=fit, noise_covariance=np.asarray(rr.covariance_noise))
 
 
-def with_albedo_field(frame: Frame, answer: RefineResult) -> RefineResult:
+def with_albedo_field(frame: Frame, answer: RefineResult, shape: ShapeRule = sphere_shape) -> RefineResult:
     """A physical profile's answer (its model-error terms but the albedo's, and its witnesses, in its covariance)
     refitted under the albedo field its residuals along the limb ask for: ``locate``'s answer on a
     lunar-Lambert-like limb.
@@ -275,6 +369,8 @@ def with_albedo_field(frame: Frame, answer: RefineResult) -> RefineResult:
         The frame (its camera sets the sphere's image shape).
     answer : RefineResult
         A least-squares fit of a physical profile (weighted or not) with its model-error terms.
+    shape : ShapeRule
+        How the limb's shape follows the centre: the sphere's (default) or held (:func:`held_shape`, the ellipsoid).
 
     Returns
     -------
@@ -287,10 +383,10 @@ def with_albedo_field(frame: Frame, answer: RefineResult) -> RefineResult:
     pixels then give the same digits whatever the machine's load, so a run killed and resumed matches one run.
     """
     with one_blas_thread():
-        return _refit_under_field(frame, answer)
+        return _refit_under_field(frame, answer, shape)
 
 
-def _refit_under_field(frame: Frame, answer: RefineResult) -> RefineResult:
+def _refit_under_field(frame: Frame, answer: RefineResult, shape: ShapeRule) -> RefineResult:
     """:func:`with_albedo_field`'s refit, on whatever BLAS threads the caller allows."""
     C0 = np.asarray(answer.noise_covariance)
     rr = answer.with_covariance(C0)
@@ -302,7 +398,7 @@ def _refit_under_field(frame: Frame, answer: RefineResult) -> RefineResult:
     witnesses = np.asarray(answer.fit.covariance) - np.asarray(with_model_error(rr, model=model, system=system,
                                                                                consider=False).fit.covariance)
     Q, S = thin_svd(U)
-    out, Jw, rw, ok, _ = gls_refit(frame, rr, model, Q, S, s2, t2, system=system)
+    out, Jw, rw, ok, _ = gls_refit(frame, rr, model, Q, S, s2, t2, system=system, shape=shape)
     C = np.linalg.inv(Jw.T @ Jw) if ok else None
     if not ok or not np.all(np.isfinite(C)):  # the least-squares answer, with the field's consider term
         idx = split_witness(rr, J, r, s)[0]
@@ -311,5 +407,5 @@ def _refit_under_field(frame: Frame, answer: RefineResult) -> RefineResult:
     return out.with_covariance(np.asarray(out.fit.covariance) + witnesses, noise_covariance=C0)
 
 
-__all__ = ["albedo_field_refit", "field_basis", "gls_refit", "model_spread", "physical", "restricted",
-           "with_albedo_field"]
+__all__ = ["ShapeRule", "albedo_field_refit", "field_basis", "field_evidence", "field_preferred", "gls_refit", "held_shape", "model_spread", "physical",
+           "restricted", "sphere_shape", "with_albedo_field"]
