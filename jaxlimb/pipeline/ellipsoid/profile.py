@@ -254,8 +254,8 @@ def fit_profile_ellipsoid(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdg
     """The profile-refit stage (module docstring): the lunar-Lambert profile's :class:`RefineResult`, widened by a glow
     (:func:`widen_glow_ellipsoid`) or an anisotropic blur (:func:`widen_aniso_ellipsoid`) when they are significant,
     refitted under the albedo field, with its model-error terms and the unresolved glow's consider covariance; else the
-    edge fit's with its model-error terms.  On an albedo-patchy limb the edge fit, with the traced rays' cluster-robust covariance, the
-    coherent-shift floor and the witnesses' differences as model error.
+    edge fit's with its model-error terms.  On an albedo-patchy limb the edge fit, with the traced rays' cluster-robust
+    covariance, the coherent-shift floor and the witnesses' differences as model error.
 
     Parameters
     ----------

@@ -407,5 +407,5 @@ def _refit_under_field(frame: Frame, answer: RefineResult, shape: ShapeRule) -> 
     return out.with_covariance(np.asarray(out.fit.covariance) + witnesses, noise_covariance=C0)
 
 
-__all__ = ["ShapeRule", "albedo_field_refit", "field_basis", "field_evidence", "field_preferred", "gls_refit", "held_shape", "model_spread", "physical",
-           "restricted", "sphere_shape", "with_albedo_field"]
+__all__ = ["ShapeRule", "albedo_field_refit", "field_basis", "field_evidence", "field_preferred", "gls_refit",
+           "held_shape", "model_spread", "physical", "restricted", "sphere_shape", "with_albedo_field"]
