@@ -299,22 +299,25 @@ def fit_profile_ellipsoid(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdg
         extras["profile_rejected"] = {"model": "lunar-lambert", "L": L, "allowed_L": list(band_L)}
         return edge_with_model_error(edge, res.params)
     extras["profile_fits"] = hist
-    return with_unresolved_glow(body, _under_field(body, frame, RefineResult(res, fd, 0, fixed)))
+    return _under_field(body, frame, RefineResult(res, fd, 0, fixed))
 
 
 def _under_field(body: EllipsoidModel, frame: Frame, base: RefineResult) -> RefineResult:
     """The profile fit ``base`` widened (a glow, an anisotropic blur the field prefers) and refitted under the albedo
-    field (module docstring), with its model-error terms.  A free ellipse (the attitude unknown: the field's smooth
-    orders along the limb trade with ``rho, theta``) and a band normalised by each ray's own brightness
-    (:func:`~jaxlimb.pipeline.ellipsoid.trace_fit.normalised_band`, a cloudy limb's) keep the one-albedo fit."""
+    field (module docstring), with its model-error terms and the unresolved glow's consider term.  A free ellipse (the
+    attitude unknown: the field's smooth orders along the limb trade with ``rho, theta``) and a band normalised by each
+    ray's own brightness (:func:`~jaxlimb.pipeline.ellipsoid.trace_fit.normalised_band`, a cloudy limb's) keep the
+    one-albedo fit."""
     rr = widen_glow_ellipsoid(frame, base)
     ra = rr if body.free else widen_aniso_ellipsoid(frame, rr)  # (a free ellipse's rho, theta are 2 psi terms too)
+    system = None
     if body.free or base.data.weights is not None:  # (the field's low orders trade with a free rho, theta as well)
-        out = with_model_error(ra)
+        system = weighted_system(ra, profile_model(ra.fit.params))  # (shared by both covariance terms)
+        out = with_model_error(ra, system=system)
     else:
         ra = field_preferred([rr, ra]) if ra is not rr else rr
         out = with_albedo_field(frame, with_model_error(ra, consider=False), held_shape)
-    return out if ra is rr else with_aniso_witness(out, rr)
+    return with_unresolved_glow(body, out if ra is rr else with_aniso_witness(out, rr), system)
 
 
 def with_unresolved_glow(body: EllipsoidModel, rr: RefineResult, system=None) -> RefineResult:

@@ -93,7 +93,7 @@ def sphere_shape(frame: Frame, rr: RefineResult, q: LimbProfileParams) -> Refine
         sph = sphere_from_ellipse_center(frame.cam.focal_px, frame.cam.principal_point_rc, (float(q.r0), float(q.c0)),
                                          float(q.a))
         q = q.replace(theta=float(sph.angle_rad), rho=float(sph.rho))
-    return replace(rr, fit=eqx.tree_at(lambda f: f.params, rr.fit, q), sphere=sph)
+    return replace(held_shape(frame, rr, q), sphere=sph)
 
 
 def held_shape(frame: Frame, rr: RefineResult, q: LimbProfileParams) -> RefineResult:  # noqa: ARG001
@@ -243,6 +243,15 @@ def physical(rr: RefineResult) -> bool:
     return bool(lo <= float(rr.fit.params.L) <= hi)
 
 
+def _field_bases(rr: RefineResult) -> list[tuple[np.ndarray, np.ndarray]]:
+    """:func:`field_basis` of ``rr``'s pixels at each correlation length of ``ELL_DEG``, under its lunar-Lambert base
+    (a widened profile's extra parameters left out)."""
+    p = rr.fit.params
+    proj = LimbProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()])
+    coords = np.asarray(rr.data.coords, float)
+    return [field_basis(proj, coords, math.radians(e)) for e in ELL_DEG]
+
+
 def field_evidence(rr: RefineResult, bases: list[tuple[np.ndarray, np.ndarray]]) -> float:
     """The restricted negative log marginal likelihood of a least-squares profile fit's residuals with the albedo field
     (the best of ``bases``' correlation lengths, the fit's part of the field taken out: :func:`restricted`), plus one
@@ -280,10 +289,7 @@ def field_preferred(fits: list[RefineResult]) -> RefineResult:
     """
     if len(fits) == 1:
         return fits[0]
-    p = fits[0].fit.params
-    coords = np.asarray(fits[0].data.coords, float)
-    proj = LimbProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()])
-    bases = [field_basis(proj, coords, math.radians(e)) for e in ELL_DEG]
+    bases = _field_bases(fits[0])
     scores = [field_evidence(f, bases) for f in fits]
     return fits[int(np.argmin(scores))]
 
@@ -317,10 +323,8 @@ def albedo_field_refit(frame: Frame, rr: RefineResult, base: RefineResult | None
     """
     if rr.data.weights is not None:
         return None
-    p = rr.fit.params
     coords = np.asarray(rr.data.coords, float)
-    proj = LimbProfileParams(*[getattr(p, n) for n in LimbProfileParams.field_names()])
-    bases = [field_basis(proj, coords, math.radians(e)) for e in ELL_DEG]
+    bases = _field_bases(rr)
 
     def evidence(c: RefineResult):
         model = profile_model(c.fit.params)
