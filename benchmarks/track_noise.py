@@ -16,6 +16,9 @@ range or the Moon's radius), with ``e`` the error against the truth:
   noise the model-error term is);
 * ``M / N``: median, and the correlation over frames of ``log(e^2 / N)`` with ``log(M / N)``: does a frame's
   model-error term say which frames have the larger errors;
+* the spread over the noise draws: per frame measured in at least two draws, the sample variance of its draws'
+  measurements over the mean of their ``N`` (1 if ``N`` is the noise-only spread of the estimate ``locate``
+  returns; the truth and any bias cancel), mean and median per component, and the mean by fifths of the arc;
 * the mean NIS of each body's frames in ``benchmarks/results/track_transfer.json`` (the rendered Monte Carlo's
   per-epoch NIS; 3 expected).
 
@@ -64,6 +67,25 @@ def ratios(arc, tr, draws: dict[str, dict[int, dict]]) -> tuple[dict[str, np.nda
                                         e[i] @ np.linalg.solve(fr.R[i], e[i]), *np.abs(rho[[0, 0, 1], [1, 2, 2]]),
                                         np.trace(np.linalg.solve(fr.R_noise[i], fr.R[i] - fr.R_noise[i])) / 3.0, k])
     return {b: np.array(v) for b, v in out.items()}, {b: np.array(v) for b, v in whole.items()}
+
+
+def draw_spread(arc, tr, draws: dict[str, dict[int, dict]]) -> dict:  # noqa: ANN001
+    """Per body, the spread of each frame's measurements over the noise draws against their ``N`` (module docstring)."""
+    from track_transfer import THETA_TRUE, as_frames
+
+    z: dict[int, list] = {}
+    for draw in draws.values():
+        ks = [k for k in sorted(draw) if draw[k].get("status") == "ok"]
+        fr = as_frames(arc, tr, [draw[k] for k in ks], tr.C_true[ks], THETA_TRUE, 0.0)
+        for i, k in enumerate(ks):
+            z.setdefault(k, []).append((fr.z[i], np.diag(fr.R_noise[i])))
+    out = {}
+    for b in ("earth", "moon"):
+        ks = [k for k in sorted(z) if tr.bodies[k] == b and len(z[k]) >= 2]
+        v = np.array([np.var([x[0] for x in z[k]], axis=0, ddof=1) / np.mean([x[1] for x in z[k]], axis=0) for k in ks])
+        out[b] = {"frames": len(ks), "mean": v.mean(0).tolist(), "median": np.median(v, 0).tolist(),
+                  "mean_by_fifth_of_the_arc": [v[f].mean(0).tolist() for f in np.array_split(np.arange(len(ks)), 5)]}
+    return out
 
 
 def vector_summary(q: np.ndarray) -> dict:
@@ -124,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
     out = {"environment": environment(), "draws": len(draws),
            "bodies": {b: summary(r[b], COMPONENTS[b]) for b in ("earth", "moon")},
            "whole_error": {b: vector_summary(q[b]) for b in ("earth", "moon")},
-           "mean_nis_rendered": nis_by_body(tr, draws)}
+           "spread_over_draws_over_N": draw_spread(arc, tr, draws), "mean_nis_rendered": nis_by_body(tr, draws)}
     print(json.dumps(out["bodies"], indent=1))
     print(save("track_noise", out))
     return 0
