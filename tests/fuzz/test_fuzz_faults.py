@@ -109,15 +109,16 @@ def test_second_writer_of_a_many_frame_output_is_refused_naming_the_holder(run):
     assert not out.exists() or out.stat().st_size == 0
 
 
-def _default_sigint() -> None:
-    """SIGINT back to its default in the child: a test run started in the background (``nohup``, ``&``) ignores it,
-    and a Python started with SIGINT ignored keeps ignoring it, as a command should."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
+#: ``_CMD`` exec'd with SIGINT at its default: a suite started in the background (``nohup``, ``&``) passes SIGINT
+#: ignored to its children, and a Python started so keeps ignoring it, as a command should (no ``preexec_fn``: a
+#: fork of the JAX-threaded worker).
+_CMD_SIGINT = [sys.executable, "-c", "import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "
+               "os.execv(sys.executable, [sys.executable, '-m', 'jaxlimb.cli', *sys.argv[1:]])"]
 
 
 def _start(run, out, *extra: str, **env: str) -> subprocess.Popen:  # noqa: ANN001
-    return subprocess.Popen([*_CMD, *run["argv"], "--out", str(out), *extra], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=_env(**env), preexec_fn=_default_sigint)
+    return subprocess.Popen([*_CMD_SIGINT, *run["argv"], "--out", str(out), *extra], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=_env(**env))
 
 
 def _wait_lines(path, n: int, proc: subprocess.Popen, timeout: float = 120.0) -> None:  # noqa: ANN001
