@@ -42,20 +42,27 @@ CHI2_3_99 = 11.345
 COMPONENTS = {"earth": ("row", "col", "range"), "moon": ("row", "col", "radius")}
 
 
-def ratios(arc, tr, draws: dict[str, dict[int, dict]]) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:  # noqa: ANN001
-    """Per body, over every ``ok`` frame of every draw: rows ``(e^2/N, e^2/R, M/N)`` by component ``(n, 3, 3)``, and
-    the whole error's ``(e^T N^-1 e, e^T diag(N)^-1 e, e^T R^-1 e)`` and ``N``'s |correlations| (row-col, row-X,
-    col-X), ``tr(N^-1 M) / 3`` and the frame ``(n, 8)``."""
+def measured(arc, tr, draws: dict[str, dict[int, dict]]) -> list:  # noqa: ANN001
+    """Per draw, its ``ok`` frames and their :func:`track_transfer.as_frames` (true camera and attitude)."""
     from track_transfer import THETA_TRUE, as_frames
 
+    out = []
+    for draw in draws.values():
+        ks = [k for k in sorted(draw) if draw[k].get("status") == "ok"]
+        out.append((ks, as_frames(arc, tr, [draw[k] for k in ks], tr.C_true[ks], THETA_TRUE, 0.0)))
+    return out
+
+
+def ratios(tr, frames: list) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:  # noqa: ANN001
+    """Per body, over every ``ok`` frame of every draw (:func:`measured`): rows ``(e^2/N, e^2/R, M/N)`` by component
+    ``(n, 3, 3)``, and the whole error's ``(e^T N^-1 e, e^T diag(N)^-1 e, e^T R^-1 e)`` and ``N``'s |correlations|
+    (row-col, row-X, col-X), ``tr(N^-1 M) / 3`` and the frame ``(n, 8)``."""
     from jaxlimb.track.scenario import true_measurements
 
     z_true = true_measurements(tr)
     out: dict[str, list] = {"earth": [], "moon": []}
     whole: dict[str, list] = {"earth": [], "moon": []}
-    for draw in draws.values():
-        ks = [k for k in sorted(draw) if draw[k].get("status") == "ok"]
-        fr = as_frames(arc, tr, [draw[k] for k in ks], tr.C_true[ks], THETA_TRUE, 0.0)
+    for ks, fr in frames:
         e = fr.z - z_true[ks]
         e2 = e**2
         N = np.einsum("kii->ki", fr.R_noise)
@@ -69,14 +76,11 @@ def ratios(arc, tr, draws: dict[str, dict[int, dict]]) -> tuple[dict[str, np.nda
     return {b: np.array(v) for b, v in out.items()}, {b: np.array(v) for b, v in whole.items()}
 
 
-def draw_spread(arc, tr, draws: dict[str, dict[int, dict]]) -> dict:  # noqa: ANN001
-    """Per body, the spread of each frame's measurements over the noise draws against their ``N`` (module docstring)."""
-    from track_transfer import THETA_TRUE, as_frames
-
+def draw_spread(tr, frames: list) -> dict:  # noqa: ANN001
+    """Per body, the spread of each frame's measurements over the noise draws (:func:`measured`) against their ``N``
+    (module docstring)."""
     z: dict[int, list] = {}
-    for draw in draws.values():
-        ks = [k for k in sorted(draw) if draw[k].get("status") == "ok"]
-        fr = as_frames(arc, tr, [draw[k] for k in ks], tr.C_true[ks], THETA_TRUE, 0.0)
+    for ks, fr in frames:
         for i, k in enumerate(ks):
             z.setdefault(k, []).append((fr.z[i], np.diag(fr.R_noise[i])))
     out = {}
@@ -142,11 +146,12 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     arc, _, tr = scenario(a.n_frames, a.seed)
     draws = {k: v for k, v in load_records(a.cache).items() if k != "nominal"}
-    r, q = ratios(arc, tr, draws)
+    frames = measured(arc, tr, draws)
+    r, q = ratios(tr, frames)
     out = {"environment": environment(), "draws": len(draws),
            "bodies": {b: summary(r[b], COMPONENTS[b]) for b in ("earth", "moon")},
            "whole_error": {b: vector_summary(q[b]) for b in ("earth", "moon")},
-           "spread_over_draws_over_N": draw_spread(arc, tr, draws), "mean_nis_rendered": nis_by_body(tr, draws)}
+           "spread_over_draws_over_N": draw_spread(tr, frames), "mean_nis_rendered": nis_by_body(tr, draws)}
     print(json.dumps(out["bodies"], indent=1))
     print(save("track_noise", out))
     return 0
