@@ -191,6 +191,11 @@ def arc_only(frame: Frame) -> bool:
 #: off, may; from 7 px up the limb fit is as accurate and its covariance more faithful (``benchmarks/small_bodies.py``).
 SMALL_RADIUS_MAX_PX = 6.0
 
+#: Fractional 1-sigma of the expected radius when the hints give none: the few-pixel fit's consider term
+#: (:mod:`jaxlimb.pipeline.small`) and the predicted limb's radius band (Check 4's band is 3 of it,
+#: :mod:`jaxlimb.pipeline.sphere.predicted`).
+DEFAULT_RADIUS_UNCERTAINTY = 0.05
+
 
 def expected_radius_px(frame: Frame) -> float | None:
     """The apparent radius (px) the hints give: ``expected_radius_px``, else from the camera, the range and the radius
@@ -425,6 +430,6 @@ def arc_angles(coords: np.ndarray, center_rc) -> np.ndarray:
     return np.arctan2(coords[:, 0] - float(center_rc[0]), coords[:, 1] - float(center_rc[1]))
 
 
-__all__ = ["SMALL_RADIUS_MAX_PX", "arc_angles", "as_camera", "as_hints", "candidates", "expected_radius_px",
-           "frame_mask", "limb_predicted", "min_diameter_px", "other_candidates", "other_front_end", "prepare",
-           "small_expected", "small_possible"]
+__all__ = ["DEFAULT_RADIUS_UNCERTAINTY", "SMALL_RADIUS_MAX_PX", "arc_angles", "as_camera", "as_hints", "candidates",
+           "expected_radius_px", "frame_mask", "limb_predicted", "min_diameter_px", "other_candidates", "other_front_end",
+           "prepare", "small_expected", "small_possible"]

@@ -29,12 +29,11 @@ from ...fitting import FitResult, LimbFit
 from ...geometry.sphere_image import image_mean_radius, sphere_from_circle_fit
 from ...numerics import numerical_jacobian
 from ..checks import check_edge_width, check_levels
-from ..frame import expected_radius_px, frame_mask
+from ..frame import DEFAULT_RADIUS_UNCERTAINTY, expected_radius_px, frame_mask
 from ..result import LimbMeasurement
 from ..stages import Body, BodyCenter, Covariance, FitData, Frame, Levels, RefineResult
 from .blob import BlobCandidates, find_blob, phase_corrected
-from .fit import (DEFAULT_RADIUS_UNCERTAINTY, SmallPixels, disc_at, fit_small_disc, offset_and_gradients, sun_geometry,
-                  window_pixels)
+from .fit import SmallPixels, disc_at, fit_small_disc, offset_and_gradients, sun_geometry, window_pixels
 
 
 #: Probability under which the disc fit and the centre of brightness are taken to agree (:func:`disagreement_chi2`):

@@ -14,7 +14,8 @@ least :data:`FREE_RADIUS_MIN_PX`) or when the hints give no size: ``L`` is then 
 pixels show it, a nuisance parameter (held at the phase's lunar-Lambert value on a surface of another law it biases
 the radius and the centre: ``benchmarks/small_bodies.py --law hapke``).  Else both are held, ``a`` at the expected
 radius (camera, range, body radius) and ``L`` at the phase's value, and their uncertainties (the hints' fraction,
-default 5 %; :data:`~jaxlimb.pipeline.small.blob.LAW_SIGMA`) are carried into the covariance as consider parameters:
+default :data:`~jaxlimb.pipeline.frame.DEFAULT_RADIUS_UNCERTAINTY`; :data:`~jaxlimb.pipeline.small.blob.LAW_SIGMA`)
+are carried into the covariance as consider parameters:
 :math:`\Delta C = s s^\top \sigma_a^2` with :math:`s = -(J_f^\top W J_f)^{-1} J_f^\top W j_a` the free
 parameters' response to a change of ``a`` (and the same for ``L``): the phase offset of a crescent depends on the
 law, which a few pixels do not measure.
@@ -38,8 +39,6 @@ from .blob import LAW_SIGMA, BlobCandidates
 
 #: Expected radius (px) from which the disc's radius is fitted (below it: held, a consider parameter).
 FREE_RADIUS_MIN_PX = 3.0
-#: Default fractional 1-sigma of the expected radius when the hints give none.
-DEFAULT_RADIUS_UNCERTAINTY = 0.05
 #: Solver steps per pass.
 MAX_STEPS = 200
 
@@ -360,5 +359,5 @@ def fit_small_disc(frame: Frame, cand: BlobCandidates, pix: SmallPixels) -> tupl
                 "law_sigma_L": None if a_free else LAW_SIGMA}
 
 
-__all__ = ["DEFAULT_RADIUS_UNCERTAINTY", "FREE_RADIUS_MIN_PX", "SmallPixels", "check_in_window", "disc_at", "fit_small_disc",
+__all__ = ["FREE_RADIUS_MIN_PX", "SmallPixels", "check_in_window", "disc_at", "fit_small_disc",
            "offset_and_gradients", "regrid", "start", "sun_geometry", "window_pixels"]

@@ -38,6 +38,7 @@ from ...imaging.predicted import arc_center, edge_bias_gain, fit_shape, limb_edg
 from ...models import CircleParams, LimbProfileParams
 from ...models.lunar_lambert import profile_model
 from ..checks import check_edge_width, check_levels
+from ..frame import DEFAULT_RADIUS_UNCERTAINTY
 from ..profile.albedo_field import with_albedo_field
 from ..profile.fit import fit_lunar_profile
 from ..result import EllipseResult, LimbMeasurement
@@ -65,8 +66,6 @@ SEARCH_PX = 40.0
 FIRST_ANNULUS_PX = 8.0
 #: Whole-limb fits, each about the last one's limb.
 N_PASSES = 3
-#: Radius uncertainty (fraction) when the hints give none: Check 4's band is 3 of it.
-DEFAULT_RADIUS_UNCERTAINTY = 0.05
 
 
 def predicted_frame(frame: Frame, arc: bool) -> Frame:
