@@ -22,7 +22,6 @@ from .pyramid import LevelModel
 
 _CHUNK = 4096  # columns per product: 8 x 8 x 4096 stays below OpenBLAS's threading threshold
 N_POSE = 5  # rows before the attitude: contrast, sky, centre (2), scale
-N_POSE_ATTITUDE = 8  # ... and the attitude (3)
 
 
 def blur(a: np.ndarray, sigma: float) -> np.ndarray:
@@ -190,7 +189,7 @@ class Columns:
     @property
     def n_pose(self) -> int:
         """Rows up to the radiance terms (contrast, sky, centre, scale and the attitude)."""
-        return N_POSE_ATTITUDE if self.attitude else N_POSE
+        return N_POSE + 3 if self.attitude else N_POSE  # the attitude: 3 rows
 
 
 def system(lm: LevelModel, image: np.ndarray, s: float, psf: float, ratio: float, cols: Columns) -> tuple[np.ndarray, np.ndarray]:
@@ -324,6 +323,6 @@ def solve(At: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]
 
 
 __all__ = [
-    "N_POSE", "N_POSE_ATTITUDE", "Columns", "Solve", "albedo_rows", "blur", "has_dark_side", "normal_equations",
+    "N_POSE", "Columns", "Solve", "albedo_rows", "blur", "has_dark_side", "normal_equations",
     "pose_rows", "solve", "surge_fields", "system",
 ]  # fmt: skip
