@@ -43,11 +43,6 @@ import numpy as np
 
 from ..errors import ConfigError
 
-#: MANIFEST numbers of the 512x512 HMI continuum image (PNG and JP2):
-#: CRPIX1 = CRPIX2 = 256.5 (1-based) -> 0-based centre 255.5; CRVAL = 0.
-HMI_512_CENTER_RC: tuple[float, float] = (255.5, 255.5)
-#: RSUN_OBS / CDELT = 973.96844 arcsec / 4.80000016 arcsec/px.
-HMI_512_RADIUS_PX: float = 973.96844 / 4.80000016
 #: File names in ``/work/shared/data/sun``.
 HMI_512_PNG = "2023_01_31__03_39_23_200__SDO_HMI_HMI_continuum.png"
 HMI_512_JP2 = "2023_01_31__03_39_23_200__SDO_HMI_HMI_continuum.jp2"
@@ -155,15 +150,15 @@ def _checked_header(header: Any, ignore_rotation: bool) -> tuple[Any, float]:
 
 def hmi_512_truth() -> SunTruth:
     """Truth of the HMI 512 PNG/JP2 from the MANIFEST: centre (255.5, 255.5), radius 202.91 px."""
-    return SunTruth(center_rc=HMI_512_CENTER_RC, radius_px=HMI_512_RADIUS_PX, rsun_obs_arcsec=973.96844)
+    # CRPIX1 = CRPIX2 = 256.5 (1-based): 0-based centre 255.5 (CRVAL = 0); radius RSUN_OBS / CDELT (arcsec, arcsec/px)
+    rsun_obs_arcsec = 973.96844
+    return SunTruth(center_rc=(255.5, 255.5), radius_px=rsun_obs_arcsec / 4.80000016, rsun_obs_arcsec=rsun_obs_arcsec)
 
 
 __all__ = [
     "AIA_171_FITS",
-    "HMI_512_CENTER_RC",
     "HMI_512_JP2",
     "HMI_512_PNG",
-    "HMI_512_RADIUS_PX",
     "RESAMPLED_HMI_FITS",
     "SunTruth",
     "hmi_512_truth",

@@ -19,7 +19,7 @@ from jaxlimb.imaging import (
     sun_truth_from_header,
     validate_image,
 )
-from jaxlimb.imaging.sdo import HMI_512_CENTER_RC, HMI_512_JP2, HMI_512_PNG, HMI_512_RADIUS_PX, hmi_512_truth
+from jaxlimb.imaging.sdo import HMI_512_JP2, HMI_512_PNG, hmi_512_truth
 
 SUN = shared_data_dir() / "sun"
 
@@ -168,9 +168,9 @@ def test_sun_truth_jp2_header_matches_manifest():
     hdr = read_jp2_header(SUN / HMI_512_JP2)
     assert hdr["CRPIX1"] == 256.5 and hdr["RSUN_OBS"] == pytest.approx(973.96844)
     t = sun_truth_from_header(hdr, rows_flipped=True)
-    assert t.center_rc == pytest.approx(HMI_512_CENTER_RC, abs=1e-6)
+    assert t.center_rc == pytest.approx(hmi_512_truth().center_rc, abs=1e-6)
     assert t.radius_px == pytest.approx(202.91, abs=0.005)
-    assert t.radius_px == pytest.approx(HMI_512_RADIUS_PX, rel=1e-5)
+    assert t.radius_px == pytest.approx(hmi_512_truth().radius_px, rel=1e-5)
     assert hmi_512_truth().center_rc == (255.5, 255.5)
 
 
