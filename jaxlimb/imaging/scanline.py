@@ -78,9 +78,6 @@ from ..conics.taubin import CircleFit, DegenerateFitError, circle_residuals, fit
 from ..errors import TooThinError
 from .gradient import bilinear
 
-#: The 8-pixel mask of §VI.
-SCAN_MASK = (0, 0, 0, 0, 1, 1, 1, 1)
-
 
 @dataclass(frozen=True)
 class InertiaAxes:
@@ -162,7 +159,7 @@ def _mask_correlation_peaks(prof: np.ndarray, valid: np.ndarray, min_correlation
     Returns ``(lines, t_window_centre)`` index arrays for entries and for exits; a line whose best
     correlation is below ``min_correlation`` has no transition of that kind.
     """
-    m = 2.0 * np.asarray(SCAN_MASK, float) - 1.0  # [-1]*4 + [1]*4
+    m = np.repeat([-1.0, 1.0], 4)  # the 8-pixel mask of §VI, (0, 0, 0, 0, 1, 1, 1, 1), as -1 / +1
     K = m.size
     nwin = prof.shape[1] - K + 1
     win = np.lib.stride_tricks.sliding_window_view(prof, K, axis=1)  # (L, nwin, K)
@@ -320,4 +317,4 @@ def trimmed_fit(p: np.ndarray, min_points: int) -> tuple[CircleFit | None, np.nd
     return f, keep
 
 
-__all__ = ["InertiaAxes", "SCAN_MASK", "Transitions", "inertia_axes", "scan_transitions", "threshold_eq10"]
+__all__ = ["InertiaAxes", "Transitions", "inertia_axes", "scan_transitions", "threshold_eq10"]
