@@ -56,7 +56,7 @@ import numpy as np
 from ..errors import ConfigError, TooBigError, TooSmallError, TooThinError
 from ..geometry.camera import Camera
 from ..geometry.hints import Hints
-from .crop import detect_body
+from .crop import MIN_DIAMETER_PX, detect_body
 
 @dataclass(frozen=True)
 class PriorOptions:
@@ -83,7 +83,7 @@ class PriorOptions:
         ``image_uncertainty_frac`` for a prior measured on the image (0.35).
     """
 
-    min_diameter_px: float = 10.0
+    min_diameter_px: float = MIN_DIAMETER_PX
     max_radius_frac_of_halfdiag: float = 1.0
     min_illumination_px: float = 3.0
     min_points: int = 50

@@ -73,6 +73,7 @@ import numpy as np
 from .._validate import check_center_sigma
 from ..errors import (ArcTooShortError, CenterTooUncertainError, CheckFailed, JumpError, RadiusInconsistentError,
                       TooBigError, TooSmallError)
+from ..imaging.crop import MIN_DIAMETER_PX
 
 #: Shortest lit limb arc (deg) measured with the sigmoid (module docstring, lit-arc check).
 MIN_LIT_ARC_DEG = 60.0
@@ -250,7 +251,8 @@ def check_radius_prior(radius: float, band: tuple[float, float], source: str = "
         )
 
 
-def check_size(radius: float, shape: tuple[int, int], min_diameter_px: float = 10.0, arc_deg: float | None = None) -> None:
+def check_size(radius: float, shape: tuple[int, int], min_diameter_px: float = MIN_DIAMETER_PX,
+               arc_deg: float | None = None) -> None:
     """Check 1 on the measurement: diameter below ``min_diameter_px`` or radius above the half-diagonal.
 
     Parameters

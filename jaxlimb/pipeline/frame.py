@@ -15,7 +15,7 @@ from ..errors import CheckFailed, ConfigError, ImageContentError, RadiusInconsis
 from ..geometry.camera import Camera
 from ..geometry.hints import Hints
 from ..imaging import front_end
-from ..imaging.crop import detect_body, nearest_fill
+from ..imaging.crop import MIN_DIAMETER_PX, detect_body, nearest_fill
 from ..imaging.gradient_front_end import GradientOptions
 from ..imaging.io import validate_image
 from ..imaging.outline import outline_front_end
@@ -396,7 +396,8 @@ def other_candidates(frame: Frame) -> Any:
 
 
 def min_diameter_px(frame: Frame) -> float:
-    """Check 1's smallest diameter: the gradient front end's prior setting, else 10 px.
+    """Check 1's smallest diameter: the gradient front end's prior setting, else
+    :data:`~jaxlimb.imaging.crop.MIN_DIAMETER_PX` (10 px).
 
     Parameters
     ----------
@@ -409,7 +410,7 @@ def min_diameter_px(frame: Frame) -> float:
     """
     if frame.opt.gradient is not None and frame.opt.front_end == "gradient":
         return float(frame.opt.gradient.prior.min_diameter_px)  # type: ignore[attr-defined]
-    return 10.0
+    return MIN_DIAMETER_PX
 
 
 def arc_angles(coords: np.ndarray, center_rc) -> np.ndarray:
