@@ -27,8 +27,10 @@ def test_rejected_profile_move_is_carried_by_the_sigmoid(monkeypatch):
     ``L`` band held to the physical range (the albedo term's sigma of ``L`` now widens the band enough for this
     profile to answer): the profile is rejected, and the sphere-shaped sigmoid that answers is about a pixel off,
     along the Sun, at a noise sigma of 0.04 px.  With the move to the rejected profile as its sigma the NEES is below
-    the chi-square 99.9 % point; the estimate is the same."""
+    the chi-square 99.9 % point; the estimate is the same.  (The albedo field is held off: under it this profile's
+    ``L`` comes back inside the band, and the profile answers.)"""
     monkeypatch.setattr(refit, "l_band", lambda fit: PHYSICAL_L)
+    monkeypatch.setattr(refit, "with_albedo_field", lambda frame, res: res)
     case = FamilyTrial(families=tuple(MOON_FAMILIES)).case(trial_seed(1, 335), 335)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert "L" in m.extras["profile_rejected"]

@@ -11,6 +11,7 @@ from jaxlimb.errors import ConfigError
 from jaxlimb.geometry.camera import Camera
 from jaxlimb.pipeline import locate
 from jaxlimb.pipeline import EllipsoidOptions
+from jaxlimb.pipeline.ellipsoid import profile as ellipsoid_profile
 from jaxlimb.pipeline.options import LocateOptions
 from jaxlimb.render import Atmosphere, RenderOptions, earth_scene, render_body
 from jaxlimb.pipeline import covariance_block
@@ -103,16 +104,22 @@ def test_profile_on_short_crescent_arc():
     assert abs(m.range_km / truth.range_km - 1) <= 1e-3
 
 
-def test_profile_falls_back_to_sigmoid():
-    """A flat (uniform) disc is not lunar-Lambert-like: auto keeps the edge fit and says why;
-    ``"lunar-lambert"`` forces the profile (refitted under the albedo field, which reads the flat disc's bright rim as
-    an albedo: its ``L`` comes back inside the band, the centre within 0.1 px); no Sun direction: the edge fit (or an
-    error when forced)."""
+def test_profile_falls_back_to_sigmoid(monkeypatch):
+    """A flat (uniform) disc: its one-albedo ``L`` is outside the band of lunar-Lambert-like limbs, but the band is
+    the answer's test, and under the albedo field (which reads the flat disc's bright rim as an albedo) ``L`` comes
+    back inside it: auto answers with the profile, the centre within 0.05 px.  With the field held off, auto keeps the
+    edge fit and says why; ``"lunar-lambert"`` forces the profile; no Sun direction: the edge fit (or an error when
+    forced)."""
     cam, sc, img, truth = _far("uniform")
     m = locate(img, cam, _hints(sc, truth))
+    assert m.extras["model"] == "lunar_limb" and -0.1 <= m.extras["profile"]["L"] <= 1.1
+    assert np.hypot(*np.subtract(m.center_rc, truth.center_rc)) <= 0.05
+    with monkeypatch.context() as mp:
+        mp.setattr(ellipsoid_profile, "with_albedo_field", lambda frame, answer, shape: answer)
+        m = locate(img, cam, _hints(sc, truth))
     assert m.extras["model"] == "ellipse_ramp"
     rej = m.extras["profile_rejected"]
-    assert rej["model"] == "lunar-lambert" and not -0.1 <= rej["L"] <= 1.1
+    assert rej["model"] == "lunar-lambert" and not -0.1 <= rej["L"] <= 1.1 and rej["L_under_field"] == rej["L"]
     assert np.hypot(*np.subtract(m.center_rc, truth.center_rc)) <= 0.1
     forced = locate(img, cam, _hints(sc, truth), LocateOptions(profile="lunar-lambert"))
     assert forced.extras["model"] == "lunar_limb" and -0.1 <= forced.extras["profile"]["L"] <= 1.1

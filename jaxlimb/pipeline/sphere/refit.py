@@ -55,8 +55,8 @@ def _saturation(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> float | 
 def lunar_profile_refit(frame: Frame, edge: EdgeFit, sat: float | None, extras: dict[str, Any]
                         ) -> tuple[RefineResult | None, RefineResult | None]:
     """The physical profile on the edge fit's pixels: ``(accepted, rejected)``.  ``accepted`` is ``None`` when
-    (``profile="auto"``) the fit failed or its ``L`` is outside the band of lunar-Lambert-like limbs
-    (``extras["profile_rejected"]`` says why); ``rejected`` is the fit in the second case, else ``None``.
+    (``profile="auto"``) the fit failed or its ``L``, as fitted and under the albedo field, is outside the band of
+    lunar-Lambert-like limbs (``extras["profile_rejected"]`` says why); ``rejected`` is the fit in the second case, else ``None``.
 
     Parameters
     ----------
@@ -83,13 +83,14 @@ def lunar_profile_refit(frame: Frame, edge: EdgeFit, sat: float | None, extras: 
         return None, None
     if n_clipped and "saturation" in extras:
         extras["saturation"]["n_left_out_of_profile_fit"] = n_clipped
-    band = l_band(res.fit)
-    L = float(res.fit.params.L)
-    if opt.profile == "auto" and not band[0] <= L <= band[1]:
-        # the limb is not lunar-Lambert-like (e.g. a flat disc): keep the sigmoid, say why
-        extras["profile_rejected"] = {"model": "lunar-lambert", "L": L, "allowed_L": list(band)}
+    out = res if opt.profile == "albedo-field" else with_albedo_field(frame, res)
+    band, L = l_band(res.fit), (float(res.fit.params.L), float(out.fit.params.L))  # (as fitted, under the field)
+    if opt.profile == "auto" and not any(band[0] <= x <= band[1] for x in L):
+        # the limb is not lunar-Lambert-like (e.g. Hapke's): keep the sigmoid, say why
+        extras["profile_rejected"] = {"model": "lunar-lambert", "L": L[0], "L_under_field": L[1],
+                                      "allowed_L": list(band)}
         return None, res
-    return (res if opt.profile == "albedo-field" else with_albedo_field(frame, res)), None
+    return out, None
 
 
 def sphere_refit(frame: Frame, cand: Any, edge: EdgeFit, physical: bool, extras: dict[str, Any]) -> RefineResult:
