@@ -40,3 +40,13 @@ def test_rejected_profile_move_is_carried_by_the_sigmoid(monkeypatch):
     m0 = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert np.allclose(m0.center_rc, m.center_rc, atol=1e-9)
     assert _nees(case, m0) > 100.0
+
+
+def test_band_asked_under_the_field(monkeypatch):
+    """The same frame with the field on: the one-albedo ``L`` is outside the held band, the refit's (-0.095) inside
+    it, so the refit under the field answers (0.175 px off, where the sigmoid is about a pixel off)."""
+    monkeypatch.setattr(refit, "l_band", lambda fit: PHYSICAL_L)
+    case = FamilyTrial(families=tuple(MOON_FAMILIES)).case(trial_seed(1, 335), 335)
+    m = locate(case.image, case.camera, Hints.from_dict(case.hints))
+    assert "profile_rejected" not in m.extras and PHYSICAL_L[0] <= m.extras["profile"]["L"] <= PHYSICAL_L[1]
+    assert np.hypot(*np.subtract(m.center_rc, case.truth.body_center_rc)) < 0.25
