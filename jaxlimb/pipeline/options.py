@@ -174,8 +174,8 @@ class LocateOptions:
         (:mod:`jaxlimb.pipeline.profile.albedo_field`; its covariance replaces the model-error terms; no widening to
         limb brightening, smear or glow; the sphere strategy: the Earth's ellipsoid keeps its own profile).  With
         ``"auto"`` a profile whose fitted lunar-Lambert weight ``L`` is outside the band of lunar-Lambert-like limbs,
-        both as fitted and under the albedo field, sends the measurement back to the sigmoid
-        (``extras["profile_rejected"]``).
+        and not physical under the albedo field either (:func:`~jaxlimb.pipeline.profile.passes.in_band`), sends
+        the measurement back to the sigmoid (``extras["profile_rejected"]``).
     min_lit_arc_deg
         Smallest arc (deg) of lit limb in the frame that is measured (the ``arc_too_short`` check of
         :mod:`jaxlimb.pipeline.checks`): a circle's centre error per unit of radial noise grows about as the

@@ -10,6 +10,7 @@ from jaxlimb.analysis.pipeline_study import FamilyTrial
 from jaxlimb.geometry.hints import Hints
 from jaxlimb.models.lunar_lambert import PHYSICAL_L
 from jaxlimb.pipeline import locate
+from jaxlimb.pipeline.profile.passes import in_band
 from jaxlimb.pipeline.sphere import refit
 from jaxlimb.render.independent.families import MOON_FAMILIES
 from jaxlimb.pipeline import covariance_block
@@ -50,3 +51,12 @@ def test_band_asked_under_the_field(monkeypatch):
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert "profile_rejected" not in m.extras and PHYSICAL_L[0] <= m.extras["profile"]["L"] <= PHYSICAL_L[1]
     assert np.hypot(*np.subtract(m.center_rc, case.truth.body_center_rc)) < 0.25
+
+
+def test_in_band_holds_the_refit_to_the_physical_range():
+    """The one-albedo ``L`` is tested against its band, the refit's against the physical range itself."""
+    band = (-0.8, 1.8)
+    assert in_band((1.5, 3.0), band)  # inside the band as fitted: the refit answers whatever its L
+    assert in_band((-0.9, 0.02), band)  # a spotted limb: below the band, physical under the field
+    assert not in_band((2.0, 1.5), band)  # a flat disc: inside the band under the field, but no surface's L
+    assert not in_band((2.0, 2.0), band)

@@ -105,9 +105,9 @@ def test_profile_on_short_crescent_arc():
 
 
 def test_profile_falls_back_to_sigmoid(monkeypatch):
-    """A flat (uniform) disc: its one-albedo ``L`` is outside the band of lunar-Lambert-like limbs, but the band is
-    the answer's test, and under the albedo field (which reads the flat disc's bright rim as an albedo) ``L`` comes
-    back inside it: auto answers with the profile, the centre within 0.05 px.  With the field held off, auto keeps the
+    """A flat (uniform) Earth: its one-albedo ``L`` is outside the band of lunar-Lambert-like limbs, but under the
+    albedo field (which reads the flat disc's bright rim as an albedo) ``L`` comes back inside the physical range
+    (``in_band``): auto answers with the profile, the centre within 0.05 px.  With the field held off, auto keeps the
     edge fit and says why; ``"lunar-lambert"`` forces the profile; no Sun direction: the edge fit (or an error when
     forced)."""
     cam, sc, img, truth = _far("uniform")

@@ -6,8 +6,8 @@ Known attitude: ``theta, rho`` held at the image of the limb spheroid at the cur
 re-predicted after the fit and the fit repeated (once is typical) while they move the ellipse by more
 than :data:`~jaxlimb.pipeline.ellipsoid.model.REFIT_TOL_PX`; free ellipse: ``theta, rho`` estimated.  ``profile="auto"`` keeps the edge fit
 (``extras["profile_rejected"]`` says why) when the fit fails, its ``L`` is outside the band of
-lunar-Lambert-like limbs both as fitted and under the albedo field (an albedo that darkens toward the limb, which the
-one-albedo fit reads as another law, is the field's), or it moves the limb by more than half the band from the edge
+lunar-Lambert-like limbs and its ``L`` under the albedo field is not physical either
+(:func:`~jaxlimb.pipeline.profile.passes.in_band`), or it moves the limb by more than half the band from the edge
 fit.  An accepted fit is
 refitted once with a glow above the limb when a score test finds one (:func:`widen_glow_ellipsoid`), then, with the
 attitude known, under the albedo as an unknown Gaussian field, as the sphere's
@@ -39,7 +39,7 @@ from ..profile.albedo_field import field_preferred, held_shape, with_albedo_fiel
 from ..profile.fit import profile_sun_direction
 from ..profile.glow import GLOW_Z, fit_glow_tilt, glow_columns, glow_plausible, glow_start
 from ..profile.model_error import last_column_step, weighted_system, with_model_error
-from ..profile.passes import gaussian_sigma_of_k, l_band, PROFILE_HELD
+from ..profile.passes import gaussian_sigma_of_k, in_band, l_band, PROFILE_HELD
 from ..profile.widen import aniso_plausible, aniso_significant, with_aniso_witness
 from ..sigmoid import pad_bucket
 from ..stages import EllipsoidEdge, FitData, Frame, RefineResult
@@ -295,15 +295,15 @@ def fit_profile_ellipsoid(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdg
             raise
         extras["profile_rejected"] = {"model": "lunar-lambert", "reason": f"{type(e).__name__}: {e}"}
         return edge_with_model_error(edge)
-    try:  # (an albedo the one-albedo fit reads as another law is the field's: the band asks of both fits)
+    try:  # (an albedo the one-albedo fit reads as another law is the field's: in_band asks of both fits)
         out = _under_field(body, frame, RefineResult(res, fd, 0, fixed))
     except (ConvergenceError, GeometryError, LimbInputError) as e:
         if frame.opt.profile != "auto":
             raise
         out, why = None, f"{type(e).__name__}: {e}"
     L, band_L = (float(res.params.L), float(res.params.L) if out is None else float(out.fit.params.L)), l_band(res)
-    if frame.opt.profile == "auto" and not any(band_L[0] <= x <= band_L[1] for x in L):
-        # the limb is not lunar-Lambert-like (e.g. Hapke's): keep the edge fit, say why
+    if frame.opt.profile == "auto" and not in_band(L, band_L):
+        # not lunar-Lambert-like (Hapke's): keep the edge fit, say why
         extras["profile_rejected"] = {"model": "lunar-lambert", "L": L[0], "L_under_field": L[1],
                                       "allowed_L": list(band_L)}
         return edge_with_model_error(edge, res.params)

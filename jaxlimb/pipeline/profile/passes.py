@@ -43,7 +43,29 @@ def l_band(fit) -> tuple[float, float]:
     return (PHYSICAL_L[0] - 3.0 * s, PHYSICAL_L[1] + 3.0 * s)
 
 
-__all__ = ["l_band"]
+def in_band(L: tuple[float, float], band: tuple[float, float]) -> bool:
+    """Whether a profile is lunar-Lambert-like: its one-albedo ``L`` inside :func:`l_band`, or its ``L`` under the
+    albedo field inside :data:`~jaxlimb.models.lunar_lambert.PHYSICAL_L` itself.  An albedo that darkens toward the
+    limb drives the one-albedo ``L`` out of the band (a spotted Lambert Earth: -0.12 to -0.23) and the field brings it
+    back; the refit is a second model tried after the first failed, so it is held to the physical range without the
+    band's allowance for noise (a flat disc's ``L``, 2.0-2.3 as fitted, is 1.4-1.6 under the field: inside a band
+    widened by a poorly determined ``L``, not a surface's).
+
+    Parameters
+    ----------
+    L : tuple of float
+        ``L`` as fitted (one albedo) and under the albedo field.
+    band : tuple of float
+        :func:`l_band` of the one-albedo fit.
+
+    Returns
+    -------
+    bool
+    """
+    return band[0] <= L[0] <= band[1] or PHYSICAL_L[0] <= L[1] <= PHYSICAL_L[1]
+
+
+__all__ = ["in_band", "l_band"]
 
 
 def saturation_level(img: np.ndarray) -> float | None:

@@ -30,7 +30,7 @@ from ..frame import arc_angles, frame_mask
 from ..profile.albedo_field import with_albedo_field
 from ..profile.fit import fit_lunar_profile
 from ..profile.model_error import with_model_error
-from ..profile.passes import l_band, saturation_level
+from ..profile.passes import in_band, l_band, saturation_level
 from ..stages import BodyCenter, EdgeFit, Frame, RefineResult
 from .center import circle_center, free_ellipse_center, sphere_center
 from .fits import fit_ellipse_annulus, fit_sphere_annulus
@@ -55,8 +55,9 @@ def _saturation(frame: Frame, edge: EdgeFit, extras: dict[str, Any]) -> float | 
 def lunar_profile_refit(frame: Frame, edge: EdgeFit, sat: float | None, extras: dict[str, Any]
                         ) -> tuple[RefineResult | None, RefineResult | None]:
     """The physical profile on the edge fit's pixels: ``(accepted, rejected)``.  ``accepted`` is ``None`` when
-    (``profile="auto"``) the fit failed or its ``L``, as fitted and under the albedo field, is outside the band of
-    lunar-Lambert-like limbs (``extras["profile_rejected"]`` says why); ``rejected`` is the fit in the second case, else ``None``.
+    (``profile="auto"``) the fit failed or it is not lunar-Lambert-like
+    (:func:`~jaxlimb.pipeline.profile.passes.in_band`; ``extras["profile_rejected"]`` says why); ``rejected`` is the
+    fit in the second case, else ``None``.
 
     Parameters
     ----------
@@ -85,8 +86,8 @@ def lunar_profile_refit(frame: Frame, edge: EdgeFit, sat: float | None, extras: 
         extras["saturation"]["n_left_out_of_profile_fit"] = n_clipped
     out = res if opt.profile == "albedo-field" else with_albedo_field(frame, res)
     band, L = l_band(res.fit), (float(res.fit.params.L), float(out.fit.params.L))  # (as fitted, under the field)
-    if opt.profile == "auto" and not any(band[0] <= x <= band[1] for x in L):
-        # the limb is not lunar-Lambert-like (e.g. Hapke's): keep the sigmoid, say why
+    if opt.profile == "auto" and not in_band(L, band):
+        # the limb is not lunar-Lambert-like (a flat disc): keep the sigmoid, say why
         extras["profile_rejected"] = {"model": "lunar-lambert", "L": L[0], "L_under_field": L[1],
                                       "allowed_L": list(band)}
         return None, res
