@@ -16,12 +16,14 @@ Run::
     python benchmarks/albedo_invariance.py --cache build/albedo_renders       # -> results/albedo_invariance.json
     python benchmarks/albedo_invariance.py --cache build/albedo_renders --scenes 0,1 --profile albedo-field
 
-(renders are the slow part, ~2-40 s each; ``--cache`` keeps them for the next run).
+(renders are the slow part, ~2-40 s each; ``--cache`` keeps them for the next run).  A run of some scenes keeps the
+results file's other scenes (same draws and profile), each scene with the environment it was measured in.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 from pathlib import Path
@@ -30,7 +32,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import cached, environment, save  # noqa: E402
+from _common import RESULTS, cached, environment, save  # noqa: E402
 
 SCENES = (("moon", 150_000.0, 45.0), ("moon", 380_000.0, 90.0), ("earth", 40_000.0, 35.0), ("earth", 380_000.0, 50.0))
 
@@ -89,6 +91,25 @@ def run_scene(body: str, range_km: float, phase_deg: float, n_noise: int, n_draw
             "spread_ratio": ratio, "noise_rows": noise, "albedo_rows": albedo}
 
 
+def with_other_scenes(name: str, out: dict) -> dict:
+    """``out`` with the scenes of ``results/<name>.json`` that it did not measure, when that file has the same draws
+    and profile: a run of some scenes does not drop the others' results."""
+    path = RESULTS / f"{name}.json"
+    if not path.exists():
+        return out
+    old = json.loads(path.read_text())
+    same = ("profile", "noise_draws", "albedo_draws")
+    if any(old.get(k) != out[k] for k in same):
+        return out
+
+    def key(s: dict) -> tuple:
+        return s["body"], s["range_km"], s["phase_deg"]
+
+    new, order = {key(s) for s in out["scenes"]}, {sc: i for i, sc in enumerate(SCENES)}
+    scenes = [s for s in old["scenes"] if key(s) not in new] + out["scenes"]
+    return {**out, "scenes": sorted(scenes, key=lambda s: order.get(key(s), len(SCENES)))}
+
+
 def main(argv: list[str] | None = None) -> dict:
     import jax
     from tqdm import tqdm
@@ -108,7 +129,8 @@ def main(argv: list[str] | None = None) -> dict:
            "scenes": []}
     with tqdm(total=len(idx) * (args.noise + args.draws), desc="albedo invariance") as bar:
         for i in idx:
-            out["scenes"].append(run_scene(*SCENES[i], args.noise, args.draws, args.cache, bar, args.profile))
+            out["scenes"].append({**run_scene(*SCENES[i], args.noise, args.draws, args.cache, bar, args.profile),
+                                  "environment": out["environment"]})
     for s in out["scenes"]:
         a, n = s["albedo"], s["noise"]
         print(f"{s['body']:5s} {s['range_km']:>9.0f} km {s['phase_deg']:>4.0f} deg: noise mean {n.get('mean_error_px', 0):.3f}"
@@ -116,7 +138,8 @@ def main(argv: list[str] | None = None) -> dict:
               f"{a.get('median_error_px', 0):.3f} p90 {a.get('p90_error_px', 0):.3f} mean {a.get('mean_error_px', 0):.3f} "
               f"spread {a.get('spread_px') or 0:.3f} NEES {a.get('mean_nees', 0):.2f} ratio {s['spread_ratio'] or float('nan'):.1f}"
               f" failures {a['failures']}")
-    save("albedo_invariance" if args.profile == "auto" else "albedo_invariance_field", out)
+    name = "albedo_invariance" if args.profile == "auto" else "albedo_invariance_field"
+    save(name, out := with_other_scenes(name, out))
     return out
 
 
