@@ -10,6 +10,7 @@ from jaxlimb.analysis.pipeline_study import FamilyTrial
 from jaxlimb.geometry.hints import Hints
 from jaxlimb.models.lunar_lambert import PHYSICAL_L
 from jaxlimb.pipeline import locate
+from jaxlimb.pipeline.profile import passes
 from jaxlimb.pipeline.profile.passes import in_band
 from jaxlimb.pipeline.sphere import refit
 from jaxlimb.render.independent.families import MOON_FAMILIES
@@ -30,7 +31,7 @@ def test_rejected_profile_move_is_carried_by_the_sigmoid(monkeypatch):
     along the Sun, at a noise sigma of 0.04 px.  With the move to the rejected profile as its sigma the NEES is below
     the chi-square 99.9 % point; the estimate is the same.  (The albedo field is held off: under it this profile's
     ``L`` comes back inside the band, and the profile answers.)"""
-    monkeypatch.setattr(refit, "l_band", lambda fit: PHYSICAL_L)
+    monkeypatch.setattr(passes, "l_band", lambda fit: PHYSICAL_L)
     monkeypatch.setattr(refit, "with_albedo_field", lambda frame, res: res)
     case = FamilyTrial(families=tuple(MOON_FAMILIES)).case(trial_seed(1, 335), 335)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
@@ -46,7 +47,7 @@ def test_rejected_profile_move_is_carried_by_the_sigmoid(monkeypatch):
 def test_band_asked_under_the_field(monkeypatch):
     """The same frame with the field on: the one-albedo ``L`` is outside the held band, the refit's (-0.095) inside
     it, so the refit under the field answers (0.175 px off, where the sigmoid is about a pixel off)."""
-    monkeypatch.setattr(refit, "l_band", lambda fit: PHYSICAL_L)
+    monkeypatch.setattr(passes, "l_band", lambda fit: PHYSICAL_L)
     case = FamilyTrial(families=tuple(MOON_FAMILIES)).case(trial_seed(1, 335), 335)
     m = locate(case.image, case.camera, Hints.from_dict(case.hints))
     assert "profile_rejected" not in m.extras and PHYSICAL_L[0] <= m.extras["profile"]["L"] <= PHYSICAL_L[1]

@@ -39,7 +39,7 @@ from ..profile.albedo_field import field_preferred, held_shape, with_albedo_fiel
 from ..profile.fit import profile_sun_direction
 from ..profile.glow import GLOW_Z, fit_glow_tilt, glow_columns, glow_plausible, glow_start
 from ..profile.model_error import last_column_step, weighted_system, with_model_error
-from ..profile.passes import gaussian_sigma_of_k, in_band, l_band, PROFILE_HELD
+from ..profile.passes import gaussian_sigma_of_k, l_rejection, PROFILE_HELD
 from ..profile.widen import aniso_plausible, aniso_significant, with_aniso_witness
 from ..sigmoid import pad_bucket
 from ..stages import EllipsoidEdge, FitData, Frame, RefineResult
@@ -301,11 +301,9 @@ def fit_profile_ellipsoid(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdg
         if frame.opt.profile != "auto":
             raise
         out, why = None, f"{type(e).__name__}: {e}"
-    L, band_L = (float(res.params.L), float(res.params.L) if out is None else float(out.fit.params.L)), l_band(res)
-    if frame.opt.profile == "auto" and not in_band(L, band_L):
-        # not lunar-Lambert-like (Hapke's): keep the edge fit, say why
-        extras["profile_rejected"] = {"model": "lunar-lambert", "L": L[0], "L_under_field": L[1],
-                                      "allowed_L": list(band_L)}
+    rejected = l_rejection(res, res if out is None else out.fit) if frame.opt.profile == "auto" else None
+    if rejected is not None:  # not lunar-Lambert-like (Hapke's): keep the edge fit, say why
+        extras["profile_rejected"] = rejected
         return edge_with_model_error(edge, res.params)
     if out is None:
         extras["profile_rejected"] = {"model": "lunar-lambert", "reason": why}

@@ -65,7 +65,29 @@ def in_band(L: tuple[float, float], band: tuple[float, float]) -> bool:
     return band[0] <= L[0] <= band[1] or PHYSICAL_L[0] <= L[1] <= PHYSICAL_L[1]
 
 
-__all__ = ["in_band", "l_band"]
+def l_rejection(fit, refit) -> dict | None:
+    """``extras["profile_rejected"]`` of a profile that is not lunar-Lambert-like (:func:`in_band`), else ``None``:
+    the test both body strategies ask of their profile.
+
+    Parameters
+    ----------
+    fit : LimbFit
+        The one-albedo profile fit (its :func:`l_band`).
+    refit : LimbFit
+        Its refit under the albedo field (``fit`` itself when there is none).
+
+    Returns
+    -------
+    dict or None
+        ``{"model", "L", "L_under_field", "allowed_L"}`` when rejected.
+    """
+    band, L = l_band(fit), (float(fit.params.L), float(refit.params.L))
+    if in_band(L, band):
+        return None
+    return {"model": "lunar-lambert", "L": L[0], "L_under_field": L[1], "allowed_L": list(band)}
+
+
+__all__ = ["in_band", "l_band", "l_rejection"]
 
 
 def saturation_level(img: np.ndarray) -> float | None:

@@ -30,7 +30,7 @@ from ..frame import arc_angles, frame_mask
 from ..profile.albedo_field import with_albedo_field
 from ..profile.fit import fit_lunar_profile
 from ..profile.model_error import with_model_error
-from ..profile.passes import in_band, l_band, saturation_level
+from ..profile.passes import l_rejection, saturation_level
 from ..stages import BodyCenter, EdgeFit, Frame, RefineResult
 from .center import circle_center, free_ellipse_center, sphere_center
 from .fits import fit_ellipse_annulus, fit_sphere_annulus
@@ -85,11 +85,9 @@ def lunar_profile_refit(frame: Frame, edge: EdgeFit, sat: float | None, extras: 
     if n_clipped and "saturation" in extras:
         extras["saturation"]["n_left_out_of_profile_fit"] = n_clipped
     out = res if opt.profile == "albedo-field" else with_albedo_field(frame, res)
-    band, L = l_band(res.fit), (float(res.fit.params.L), float(out.fit.params.L))  # (as fitted, under the field)
-    if opt.profile == "auto" and not in_band(L, band):
-        # the limb is not lunar-Lambert-like (a flat disc): keep the sigmoid, say why
-        extras["profile_rejected"] = {"model": "lunar-lambert", "L": L[0], "L_under_field": L[1],
-                                      "allowed_L": list(band)}
+    rejected = l_rejection(res.fit, out.fit) if opt.profile == "auto" else None
+    if rejected is not None:  # the limb is not lunar-Lambert-like (a flat disc): keep the sigmoid, say why
+        extras["profile_rejected"] = rejected
         return None, res
     return out, None
 
