@@ -136,8 +136,8 @@ def _parts(p: LimbProfileParams, rc, theta: np.ndarray, k: int) -> tuple[np.ndar
     of surface-angle nodes (:func:`node_bucket`) and of pixels."""
     m = theta.size
     step = float(theta[1] - theta[0]) if m > 1 else 1.0
-    F, B = _padded_parts(p, jax.device_put(np.asarray(rc, float)), jnp.asarray(step), jnp.asarray(m),
-                         jnp.zeros(node_bucket(m)), jnp.zeros(k))
+    F, B = _padded_parts(p, *jax.device_put((np.asarray(rc, float), np.asarray(step), np.asarray(m),
+                                             np.zeros(node_bucket(m)), np.zeros(k))))
     return np.asarray(F)[:, :m], np.asarray(B)
 
 

@@ -62,6 +62,8 @@ def _cmd(cam, out, *extra):
 
 
 def test_killed_pipeline_run_resumed_gives_the_same_result_file(tmp_path):
+    """A two-worker run killed mid-run (the client and its workers) and resumed in one process writes the result
+    file of one uninterrupted run, byte for byte (a resume on a cluster: the first test, in process)."""
     cam = tmp_path / "cam.json"
     cam.write_text(json.dumps(SMALL_CAMERA))
     env = {**os.environ, "JAXLIMB_CACHE_DIR": str(tmp_path / "jaxcache")}
@@ -77,8 +79,7 @@ def test_killed_pipeline_run_resumed_gives_the_same_result_file(tmp_path):
     p.wait()
     done = len(list(out.glob("chunk_*.npz")))
     assert not (out / "result.json").exists() and done >= 2
-    r = subprocess.run(_cmd(cam, out, "--workers", "2", "--resume"), check=True, capture_output=True, text=True,
-                       env=env, timeout=300)
+    r = subprocess.run(_cmd(cam, out, "--resume"), check=True, capture_output=True, text=True, env=env, timeout=300)
     summary = json.loads(r.stdout)
     assert summary["chunks_resumed"] >= 2 and summary["chunks_run"] + summary["chunks_resumed"] == 6
     assert (out / "result.json").read_bytes() == (ref / "result.json").read_bytes()

@@ -22,7 +22,6 @@ from __future__ import annotations
 import math
 from typing import Any
 
-import jax.numpy as jnp
 import numpy as np
 
 from ...errors import ConfigError, ConvergenceError, GeometryError, LimbInputError
@@ -32,8 +31,8 @@ from ...fitting.solvers import NormalLM, solver_from_name
 from ...geometry.conic import ellipse_change
 from ...models.ellipse_ramp import ELLIPSE_RAMP, EllipseRampParams
 from ...models.lunar_lambert import (AnisoProfileParams, GlowProfileParams, LIMB_PROFILE, LIMB_PROFILE_ANISO,
-                                     LIMB_PROFILE_GLOW, limb_profile_intensity, LimbProfileParams,
-                                     lunar_lambert_weight, MinnaertProfileParams, profile_model)
+                                     LIMB_PROFILE_GLOW, LimbProfileParams, lunar_lambert_weight,
+                                     MinnaertProfileParams, profile_model)
 from ...models.sigmoid import ELLIPSE
 from ..profile.albedo_field import field_preferred, held_shape, with_albedo_field
 from ..profile.fit import profile_sun_direction
@@ -41,7 +40,7 @@ from ..profile.glow import GLOW_Z, fit_glow_tilt, glow_columns, glow_plausible, 
 from ..profile.model_error import last_column_step, weighted_system, with_model_error
 from ..profile.passes import gaussian_sigma_of_k, l_rejection, PROFILE_HELD
 from ..profile.widen import aniso_plausible, aniso_significant, with_aniso_witness
-from ..sigmoid import pad_bucket
+from ..sigmoid import pad_bucket, predict
 from ..stages import EllipsoidEdge, FitData, Frame, RefineResult
 from .model import as_ellipse, EllipsoidModel, MAX_REFITS, position, REFIT_TOL_PX
 from .trace_fit import coherent_shift_var, trace_model_cov
@@ -95,7 +94,7 @@ def _start(body: EllipsoidModel, frame: Frame, edge: EllipsoidEdge, pts: np.ndar
     q = LimbProfileParams(r0=r0, c0=c0, a=float(a), theta=th0, rho=rho0, sigma=sigma0, amp=1.0, ymin=0.0,
                           sun_r=sun_rc[0], sun_c=sun_rc[1], phase=phase, inv_f=1.0 / cam.focal_px,
                           L=lunar_lambert_weight(phase), L_slope=0.0, L_ref=1.0)  # the Earth's weight is no lunar law
-    F0 = np.asarray(limb_profile_intensity(q, jnp.asarray(np.asarray(pts, float))))
+    F0 = predict(LIMB_PROFILE, q, np.asarray(pts, float))  # (compiled per bucket, not per limb)
     (amp0, ymin0), *_ = np.linalg.lstsq(np.column_stack([F0, np.ones_like(F0)]), z, rcond=None)
     if not (math.isfinite(amp0) and amp0 > 0):
         amp0, ymin0 = max(float(np.percentile(z, 95)) - float(e.ymin), 1e-6), float(e.ymin)
