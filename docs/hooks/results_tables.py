@@ -172,6 +172,27 @@ def albedo_invariance(rel: str = "albedo_invariance.json") -> str:
 
 
 @renderer
+def albedo_bias(rel: str = "albedo_bias.json") -> str:
+    """One albedo-invariance scene located with parts of the profile changed (``benchmarks/albedo_bias.py``)."""
+    d = load(rel)
+    rows = []
+    for name, v in d["variants"].items():
+        for kind, x in v.items():
+            s = x["summary"]
+            mean, ax = s.get("mean_error_rc") or [None, None], s.get("mean_axes_error_px") or [None, None]
+            rows.append([f"`{name}`", kind, f"{s['n_ok']}/{s['n']}",
+                         f"{f(s.get('mean_error_px'))} ({f(mean[0], signed=True)}, {f(mean[1], signed=True)})",
+                         f(s.get("spread_px")), f"{f(ax[0], signed=True)} / {f(ax[1], signed=True)}",
+                         f(s.get("mean_nees"), 2), f(s.get("median_sigma_px"))])
+    sc = d["scene"]
+    head = ["variant", "albedo", "ok", "mean error (px) (row, col)", "spread (px)", "mean semi-axes error (px)",
+            "mean NEES", "median sigma (px)"]
+    return (table(head, rows) + source(rel, d)
+            + f"*{sc['body']}, {sc['range_km']:,.0f} km, {sc['phase_deg']:.0f}°: {d['draws']} spots draws (one noise "
+              f"draw), {d['noise_draws']} noise draws of the uniform albedo.*\n")
+
+
+@renderer
 def albedo_bound(rel: str = "albedo_bound.json") -> str:
     """The centre's Cramér--Rao bound without and with the spots family's albedo field marginalised."""
     d = load(rel)
