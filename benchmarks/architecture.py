@@ -1,5 +1,7 @@
 """The package's architecture in numbers: import cycles, imports against the layers, private names taken
-across files, function-local imports, large files and functions, and the fields of the ``*Options`` classes.
+across files, function-local imports, large files and functions, the fields of the ``*Options`` classes, and the
+module constants of the deciding layers (upper-case names bound to a number or a tuple of numbers in ``pipeline``,
+``imaging`` and ``irregular``: the tuned values beside the options).
 
     python benchmarks/architecture.py [--root jaxlimb] [--json out.json] [--list]
 
@@ -149,6 +151,35 @@ def _options_fields(mods: dict[str, pathlib.Path]) -> dict[str, int]:
     return out
 
 
+#: The packages whose module constants are counted (where ``locate`` and the line of sight decide).
+DECIDING = ("pipeline", "imaging", "irregular")
+
+
+def _numeric(node: ast.AST) -> bool:
+    """A number, a signed or computed number, or a tuple of them."""
+    if isinstance(node, ast.Constant):
+        return isinstance(node.value, (int, float)) and not isinstance(node.value, bool)
+    if isinstance(node, ast.UnaryOp):
+        return _numeric(node.operand)
+    if isinstance(node, ast.BinOp):
+        return _numeric(node.left) and _numeric(node.right)
+    return isinstance(node, ast.Tuple) and bool(node.elts) and all(_numeric(e) for e in node.elts)
+
+
+def _module_constants(mods: dict[str, pathlib.Path]) -> list[str]:
+    out = []
+    for mod, path in mods.items():
+        parts = mod.split(".")
+        if len(parts) < 2 or parts[1] not in DECIDING:
+            continue
+        for node in ast.parse(path.read_text()).body:
+            targets = node.targets if isinstance(node, ast.Assign) else (
+                [node.target] if isinstance(node, ast.AnnAssign) and node.value is not None else [])
+            out += [f"{mod}.{t.id}" for t in targets
+                    if isinstance(t, ast.Name) and t.id.isupper() and _numeric(node.value)]
+    return sorted(out)
+
+
 def census(root: str = "jaxlimb") -> dict:
     mods = _modules(pathlib.Path(root))
     pkg = pathlib.Path(root).name
@@ -195,6 +226,7 @@ def census(root: str = "jaxlimb") -> dict:
         "files_over_500": sorted((n, f) for f, n in lines.items() if n > 500),
         "functions_over_60": sorted(f for f in funcs if f[0] > 60),
         "options_fields": opts,
+        "module_constants": _module_constants(mods),
     }
 
 
@@ -213,6 +245,7 @@ def main() -> None:
         for k in ("upward_imports", "private_cross_file_imports", "function_local_imports_internal",
                   "function_local_imports_other", "function_local_imports_heavy"):
             c[k] = [x for x in c[k] if keep(x)]
+        c["module_constants"] = [x for x in c["module_constants"] if keep(x.replace(".", "/"))]
         c["options_fields"] = {k: v for k, v in c["options_fields"].items() if keep(k.replace(".", "/"))}
     for k, v in c.items():
         if k == "options_fields":
