@@ -34,8 +34,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import cached, environment, save  # noqa: E402
-from albedo_invariance import SCENES  # noqa: E402
+from _common import environment, save  # noqa: E402
+from albedo_invariance import SCENES, measure, scene_case, summary  # noqa: E402
 
 VARIANTS = ("default", "no_field", "L_held", "free_field")
 
@@ -70,50 +70,9 @@ def variant(name: str) -> contextlib.ExitStack:
     return stack
 
 
-def measure(case) -> dict:  # type: ignore[no-untyped-def]
-    """One ``locate`` run against the truth: centre and semi-axes errors, sigma, NEES (or the typed failure)."""
-    from jaxlimb.errors import CheckFailed
-    from jaxlimb.geometry.hints import Hints
-    from jaxlimb.pipeline import covariance_block, locate
-
-    try:
-        m = locate(case.image, case.camera, Hints.from_dict(case.hints))
-    except CheckFailed as e:
-        return {"status": "failed", "check": e.check}
-    t = case.truth
-    e = np.array(m.center_rc) - np.array(t.body_center_rc)
-    P = covariance_block(m.covariance)
-    out = {"status": "ok", "error_rc": e.tolist(), "sigma_rc": np.sqrt(np.diag(P)).tolist(),
-           "nees": float(e @ np.linalg.solve(P, e))}
-    if m.ellipse is not None:
-        out["axes_error_px"] = (np.array(m.ellipse.semi_axes_px) - np.array(t.semi_axes_px)).tolist()
-    elif m.radius_px is not None:
-        out["axes_error_px"] = [float(m.radius_px - t.apparent_radius_px)] * 2
-    return out
-
-
-def summary(rows: list[dict]) -> dict:
-    """Mean error (row, col) and its norm, rms spread about it, mean semi-axes error, mean NEES, median sigma."""
-    ok = [r for r in rows if r["status"] == "ok"]
-    out: dict = {"n": len(rows), "n_ok": len(ok), "failures": sorted(r["check"] for r in rows if r["status"] != "ok")}
-    if not ok:
-        return out
-    e = np.array([r["error_rc"] for r in ok])
-    mean = e.mean(axis=0)
-    axes = [r["axes_error_px"] for r in ok if "axes_error_px" in r]
-    out.update(mean_error_rc=mean.tolist(), mean_error_px=float(np.hypot(*mean)),
-               spread_px=float(math.sqrt(np.mean(np.sum((e - mean) ** 2, axis=1)) / 2.0)),
-               mean_axes_error_px=np.mean(axes, axis=0).tolist() if axes else None,
-               mean_nees=float(np.mean([r["nees"] for r in ok])),
-               median_sigma_px=float(np.median([np.mean(r["sigma_rc"]) for r in ok])))
-    return out
-
-
 def main(argv: list[str] | None = None) -> dict:
     import jax
     from tqdm import tqdm
-
-    from jaxlimb.render.independent.families import albedo_case
 
     jax.config.update("jax_enable_x64", True)
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -126,12 +85,8 @@ def main(argv: list[str] | None = None) -> dict:
     args = ap.parse_args(argv)
     body, range_km, phase = SCENES[args.scene]
 
-    def case(kind: str, a: int, n: int):  # type: ignore[no-untyped-def]  # (albedo_invariance.py's cache keys)
-        key = f"{body}_{int(range_km)}_{int(phase)}_{kind}_a{a}_n{n}.pkl"
-        return cached(args.cache, key, lambda: albedo_case(body, range_km, phase, kind, a, n))
-
-    cases = {"spots": [case("spots", a, 0) for a in range(1, args.draws + 1)],
-             "uniform": [case("uniform", 0, n) for n in range(args.noise)]}
+    cases = {"spots": [scene_case(args.cache, body, range_km, phase, "spots", a, 0) for a in range(1, args.draws + 1)],
+             "uniform": [scene_case(args.cache, body, range_km, phase, "uniform", 0, n) for n in range(args.noise)]}
     names = args.variants.split(",")
     out = {"environment": environment(), "scene": {"body": body, "range_km": range_km, "phase_deg": phase},
            "draws": args.draws, "noise_draws": args.noise, "variants": {}}

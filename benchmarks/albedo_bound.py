@@ -25,8 +25,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _common import cached, environment, save  # noqa: E402
-from albedo_invariance import SCENES  # noqa: E402
+from _common import environment, save  # noqa: E402
+from albedo_invariance import SCENES, scene_case  # noqa: E402
 
 
 def family_prior(n_maps: int, seed: int = 1) -> tuple[float, float]:
@@ -82,15 +82,12 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--maps", type=int, default=400, help="SpotsMap draws for the family's prior (default 400)")
     ap.add_argument("--cache", type=Path, default=None, help="directory keeping the renders (albedo_invariance's)")
     args = ap.parse_args(argv)
-    from jaxlimb.render.independent.families import albedo_case
-
     tau, ell = family_prior(args.maps)
     out = {"environment": environment(), "tau": tau, "ell_deg": math.degrees(ell), "scenes": []}
     for body, range_km, phase_deg in SCENES:
         if body != "moon":
             continue
-        key = f"{body}_{int(range_km)}_{int(phase_deg)}_uniform_a0_n0.pkl"
-        case = cached(args.cache, key, lambda: albedo_case(body, range_km, phase_deg, "uniform", 0, 0))
+        case = scene_case(args.cache, body, range_km, phase_deg, "uniform", 0, 0)
         row = {"body": body, "range_km": range_km, "phase_deg": phase_deg, **scene_bound(case, tau, ell)}
         out["scenes"].append(row)
         print(f"moon {range_km:>9.0f} km {phase_deg:>4.0f} deg (radius {row['radius_px']:.1f} px): white {row['white_px']:.4f} px,"

@@ -37,7 +37,19 @@ from _common import RESULTS, cached, environment, save  # noqa: E402
 SCENES = (("moon", 150_000.0, 45.0), ("moon", 380_000.0, 90.0), ("earth", 40_000.0, 35.0), ("earth", 380_000.0, 50.0))
 
 
-def _measure(case, profile: str = "auto") -> dict:  # type: ignore[no-untyped-def]
+def scene_case(cache: Path | None, body: str, range_km: float, phase_deg: float, kind: str, albedo_seed: int,
+               noise_seed: int):  # type: ignore[no-untyped-def]
+    """One render of a scene (:func:`~jaxlimb.render.independent.families.albedo_case`), kept in ``cache`` under the
+    key the albedo benchmarks share."""
+    from jaxlimb.render.independent.families import albedo_case
+
+    key = f"{body}_{int(range_km)}_{int(phase_deg)}_{kind}_a{albedo_seed}_n{noise_seed}.pkl"
+    return cached(cache, key, lambda: albedo_case(body, range_km, phase_deg, kind, albedo_seed, noise_seed))
+
+
+def measure(case, profile: str = "auto") -> dict:  # type: ignore[no-untyped-def]
+    """One ``locate`` answer against the truth: the centre's error, sigma, NEES and CRLB, and the error of the limb's
+    semi-axes (the radius's for a circle); a typed failure as its check."""
     from jaxlimb.analysis.pipeline_study import measurement_errors
     from jaxlimb.errors import CheckFailed
     from jaxlimb.geometry.hints import Hints
@@ -49,11 +61,18 @@ def _measure(case, profile: str = "auto") -> dict:  # type: ignore[no-untyped-de
         return {"status": "failed", "check": e.check}
     r = measurement_errors(m, case.truth)  # the pipeline study's numbers of one answer
     crlb = [r["crlb_row"], r["crlb_col"]] if "crlb_row" in r else None
-    return {"status": "ok", "error_rc": [r["row"], r["col"]], "error_px": float(np.hypot(r["row"], r["col"])),
-            "sigma_rc": [r["sigma_row"], r["sigma_col"]], "nees": r["nees"], "crlb_rc": crlb}
+    out = {"status": "ok", "error_rc": [r["row"], r["col"]], "error_px": float(np.hypot(r["row"], r["col"])),
+           "sigma_rc": [r["sigma_row"], r["sigma_col"]], "nees": r["nees"], "crlb_rc": crlb}
+    if m.ellipse is not None:
+        out["axes_error_px"] = (np.array(m.ellipse.semi_axes_px) - np.array(case.truth.semi_axes_px)).tolist()
+    elif "radius" in r:
+        out["axes_error_px"] = [r["radius"]] * 2
+    return out
 
 
-def _summary(rows: list[dict]) -> dict:
+def summary(rows: list[dict]) -> dict:
+    """The answers' mean error (row, col) and its norm, median, p90, rms spread about the mean, mean NEES, median
+    sigma, and the mean semi-axes error when measured; the typed failures."""
     ok = [r for r in rows if r["status"] == "ok"]
     out: dict = {"n": len(rows), "n_ok": len(ok), "failures": sorted(r["check"] for r in rows if r["status"] != "ok")}
     if not ok:
@@ -66,25 +85,25 @@ def _summary(rows: list[dict]) -> dict:
                spread_px=float(math.sqrt(np.mean(np.sum((e - mean) ** 2, axis=1)) / 2.0)) if len(ok) > 1 else None,
                mean_nees=float(np.mean([r["nees"] for r in ok])),
                median_sigma_px=float(np.median([np.mean(r["sigma_rc"]) for r in ok])))
+    axes = [r["axes_error_px"] for r in ok if "axes_error_px" in r]
+    if axes:
+        out["mean_axes_error_px"] = np.mean(axes, axis=0).tolist()
     return out
 
 
 def run_scene(body: str, range_km: float, phase_deg: float, n_noise: int, n_draws: int, cache: Path | None,
               progress, profile: str = "auto") -> dict:  # type: ignore[no-untyped-def]
-    from jaxlimb.render.independent.families import albedo_case
-
     def case(kind: str, a: int, n: int):  # type: ignore[no-untyped-def]
-        key = f"{body}_{int(range_km)}_{int(phase_deg)}_{kind}_a{a}_n{n}.pkl"
-        return cached(cache, key, lambda: albedo_case(body, range_km, phase_deg, kind, a, n))
+        return scene_case(cache, body, range_km, phase_deg, kind, a, n)
 
     noise, albedo = [], []
     for n in range(n_noise):
-        noise.append({"noise_seed": n, **_measure(case("uniform", 0, n), profile)})
+        noise.append({"noise_seed": n, **measure(case("uniform", 0, n), profile)})
         progress.update()
     for a in range(1, n_draws + 1):
-        albedo.append({"albedo_seed": a, **_measure(case("spots", a, 0), profile)})
+        albedo.append({"albedo_seed": a, **measure(case("spots", a, 0), profile)})
         progress.update()
-    s_noise, s_albedo = _summary(noise), _summary(albedo)
+    s_noise, s_albedo = summary(noise), summary(albedo)
     ratio = (s_albedo["spread_px"] / s_noise["spread_px"]
              if s_noise.get("spread_px") and s_albedo.get("spread_px") else None)
     return {"body": body, "range_km": range_km, "phase_deg": phase_deg, "noise": s_noise, "albedo": s_albedo,
